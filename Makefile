@@ -1,0 +1,32 @@
+# Two entry points, each self-contained on a fresh machine:
+#   make demo  -> create .venv, install, fly a shipped policy end to end (embedded SITL)
+#   make test  -> create .venv, install with dev extras, run ruff and the test suite
+PYTHON ?= python3
+VENV := .venv
+BIN := $(VENV)/bin
+STAMP := $(VENV)/.installed
+
+.PHONY: demo test lint bench clean
+
+$(STAMP): pyproject.toml
+	$(PYTHON) -m venv $(VENV)
+	$(BIN)/pip install --quiet --upgrade pip
+	$(BIN)/pip install --quiet -e '.[dev]'
+	touch $(STAMP)
+
+demo: $(STAMP)
+	$(BIN)/uavlink evaluate --scenario all --policy static --episodes 20 --seed 0
+	$(BIN)/uavlink evaluate --scenario all --policy aoa --episodes 20 --seed 0
+
+test: $(STAMP)
+	$(BIN)/ruff check uavlink sitl_stub tests benchmarks
+	$(BIN)/python -m pytest -q
+
+lint: $(STAMP)
+	$(BIN)/ruff check uavlink sitl_stub tests benchmarks
+
+bench: $(STAMP)
+	$(BIN)/python benchmarks/env_throughput.py
+
+clean:
+	rm -rf $(VENV) build *.egg-info

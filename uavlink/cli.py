@@ -1,0 +1,181 @@
+"""The ``uavlink`` command line: train | evaluate | fly | export | sweep.
+
+User errors (bad arguments, unknown scenarios, unusable policy files) print one line on stderr and
+exit with status 2, without a traceback. Heavy modules are imported only by the command that needs them.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+from collections.abc import Sequence
+from pathlib import Path
+from typing import Any
+
+from uavlink.config import EnvConfig
+from uavlink.mobility import MIXED, SCENARIOS
+
+
+class UserError(Exception):
+    """An error to report in one line, exit status 2."""
+
+
+def parse_overrides(pairs: Sequence[str]) -> dict[str, Any]:
+    """``--set key=value`` pairs -> typed values (JSON literal when it parses, else a string)."""
+    overrides: dict[str, Any] = {}
+    for pair in pairs:
+        key, sep, raw = pair.partition("=")
+        if not sep or not key:
+            raise UserError(f"--set expects key=value, got {pair!r}")
+        try:
+            overrides[key.strip()] = json.loads(raw)
+        except json.JSONDecodeError:
+            overrides[key.strip()] = raw
+    return overrides
+
+
+def env_config(scenario: str, aoa_noise_deg: float | None = None, overrides: dict[str, Any] | None = None,
+               base: EnvConfig | None = None) -> EnvConfig:
+    changes = dict(overrides or {})
+    changes["scenario"] = scenario
+    if aoa_noise_deg is not None:
+        changes["aoa_noise_deg"] = aoa_noise_deg
+    try:
+        return (base or EnvConfig()).replace(**changes).validate()
+    except (TypeError, ValueError) as exc:
+        raise UserError(str(exc)) from None
+
+
+def scenario_list(name: str) -> list[str]:
+    if name == "all":
+        return list(SCENARIOS)
+    if name not in (*SCENARIOS, MIXED):
+        raise UserError(f"unknown scenario {name!r}; choose from {', '.join(SCENARIOS)}, {MIXED} or all")
+    return [name]
+
+
+def _add_env_options(p: argparse.ArgumentParser, scenario_default: str | None = "circular") -> None:
+    p.add_argument("--scenario", default=scenario_default,
+                   help=f"one of {', '.join(SCENARIOS)}, {MIXED}" + (" or all" if scenario_default is None else ""))
+    p.add_argument("--aoa-noise-deg", type=float, default=None, help="std of the AoA estimate noise (deg)")
+    p.add_argument("--set", dest="overrides", action="append", default=[], metavar="KEY=VALUE",
+                   help="override an env config field, e.g. --set r_max_m=10 --set radio.shadowing=false")
+
+
+def cmd_evaluate(args: argparse.Namespace) -> int:
+    from uavlink.evaluation import evaluate_policy
+    from uavlink.policies.loader import load_policy
+
+    results = []
+    for scenario in scenario_list(args.scenario):
+        cfg = env_config(scenario, args.aoa_noise_deg, parse_overrides(args.overrides))
+        policy = load_policy(args.policy, cfg)
+        results.append(evaluate_policy(policy, cfg, args.episodes, args.seed))
+    if args.json:
+        payload = [r.to_dict() for r in results]
+        print(json.dumps(payload[0] if len(payload) == 1 else payload, indent=2))
+    else:
+        print(format_table(results))
+    return 0
+
+
+def format_table(results) -> str:
+    lines = [f"{'scenario':<13} {'policy':<16} {'episodes':>8} {'Mbps':>7} {'±95%':>6} {'R_fair':>7}"]
+    for r in results:
+        lines.append(f"{r.scenario:<13} {r.policy:<16} {r.episodes:>8} {r.mean_rate_mbps:>7.3f} "
+                     f"{r.ci95_mbps:>6.3f} {r.mean_fair_rate:>7.3f}")
+    return "\n".join(lines)
+
+
+def cmd_train(args: argparse.Namespace) -> int:
+    from uavlink.training import TrainConfig, train
+
+    cfg = env_config(args.scenario, args.aoa_noise_deg, parse_overrides(args.overrides))
+    tc = TrainConfig(episodes=args.episodes, learning_rate=args.learning_rate, seed=args.seed,
+                     n_envs=args.n_envs, batch_size=args.batch_size, n_epochs=args.n_epochs,
+                     torch_threads=args.torch_threads)
+    if args.episodes < 1 or args.n_envs < 1 or args.batch_size < 1:
+        raise UserError("--episodes, --n-envs and --batch-size must be positive")
+    if args.resume is not None and not args.resume.is_file():
+        raise UserError(f"--resume {args.resume}: no such checkpoint")
+    run_dir = args.run_dir or Path("runs") / f"{args.out.stem}-seed{args.seed}"
+    print(f"training PPO on {cfg.scenario!r} for {tc.total_timesteps:,} env steps; "
+          f"TensorBoard logs and checkpoint in {run_dir}", file=sys.stderr)
+    training = train(cfg, tc, args.out, run_dir, resume=args.resume, progress=not args.no_progress)
+    if args.eval_episodes:
+        _attach_evaluation(args.out, cfg, args.eval_episodes)
+    print(f"saved {args.out} ({training['total_timesteps']:,} steps in {training['wall_time_s']:.0f} s)")
+    return 0
+
+
+def _attach_evaluation(path: Path, cfg: EnvConfig, episodes: int) -> None:
+    """Evaluate the saved policy (seed 0) and store the figures in its manifest."""
+    from uavlink.evaluation import evaluate_policy
+    from uavlink.policies.manifest import read_zip_manifest, write_zip_manifest
+    from uavlink.policies.sb3_policy import SB3Policy
+
+    policy = SB3Policy(path)
+    figures = {}
+    for scenario in (SCENARIOS if cfg.scenario == MIXED else [cfg.scenario]):
+        result = evaluate_policy(policy, cfg.replace(scenario=scenario), episodes, seed=0)
+        figures[scenario] = {k: v for k, v in result.to_dict().items() if k != "episode_rate_mbps"}
+    manifest = read_zip_manifest(path)
+    manifest["evaluation"] = figures
+    write_zip_manifest(path, manifest)
+
+
+def build_parser() -> argparse.ArgumentParser:
+    parser = argparse.ArgumentParser(prog="uavlink", description=__doc__.splitlines()[0])
+    from uavlink import __version__
+
+    parser.add_argument("--version", action="version", version=f"uavlink {__version__}")
+    sub = parser.add_subparsers(dest="command", required=True, metavar="COMMAND")
+
+    p = sub.add_parser("evaluate", help="evaluate a policy or baseline, print a table",
+                       description="Evaluate a policy file, a folder of them, or a baseline (static, aoa, oracle).")
+    _add_env_options(p, scenario_default="circular")
+    p.add_argument("--policy", default="static", help="static | aoa | oracle | FILE.zip | FILE.onnx | FOLDER")
+    p.add_argument("--episodes", type=int, default=100)
+    p.add_argument("--seed", type=int, default=0)
+    p.add_argument("--json", action="store_true", help="print JSON instead of a table")
+    p.set_defaults(func=cmd_evaluate)
+
+    p = sub.add_parser("train", help="train a PPO policy",
+                       description="Train PPO on the batched env. Defaults are the paper's; see TrainConfig.")
+    _add_env_options(p)
+    p.add_argument("--out", type=Path, required=True, help="policy zip to write")
+    p.add_argument("--episodes", type=int, default=12_000, help="training budget in 128-frame episodes (paper: 12000)")
+    p.add_argument("--learning-rate", type=float, default=3e-4, help="(paper: 3e-4)")
+    p.add_argument("--seed", type=int, default=0)
+    p.add_argument("--n-envs", type=int, default=32, help="parallel envs in the batched VecEnv (ours)")
+    p.add_argument("--batch-size", type=int, default=512, help="PPO minibatch (ours)")
+    p.add_argument("--n-epochs", type=int, default=10, help="PPO epochs per rollout (ours, SB3 default)")
+    p.add_argument("--torch-threads", type=int, default=1, help="torch CPU threads (1 is fastest for 3x128 MLPs)")
+    p.add_argument("--run-dir", type=Path, default=None, help="TensorBoard logs and checkpoint (default runs/OUT-seedN)")
+    p.add_argument("--resume", type=Path, default=None, help="continue from a checkpoint zip")
+    p.add_argument("--eval-episodes", type=int, default=100, help="evaluate after training into the manifest (0: skip)")
+    p.add_argument("--no-progress", action="store_true", help="no progress bar")
+    p.set_defaults(func=cmd_train)
+    return parser
+
+
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    parser = build_parser()
+    args = parser.parse_args(argv)
+    from uavlink.policies.manifest import PolicyFileError
+
+    try:
+        return args.func(args)
+    except (UserError, PolicyFileError, ValueError) as exc:
+        print(f"uavlink {args.command}: error: {exc}", file=sys.stderr)
+        return 2
+    except KeyboardInterrupt:
+        print(f"uavlink {args.command}: interrupted", file=sys.stderr)
+        return 130
+
+
+if __name__ == "__main__":
+    sys.exit(main())

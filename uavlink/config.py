@@ -1,0 +1,163 @@
+"""Typed configuration with the SPEC's defaults, in one place.
+
+Every constant of the geometry, the radio model and the learning problem lives here; modules take
+these dataclasses rather than loose numbers. ``validate()`` rejects configs that make no physical
+sense with a one-line ``ValueError`` naming the field.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+from dataclasses import dataclass, field
+from typing import Any
+
+
+@dataclass(frozen=True)
+class AreaConfig:
+    """The operating area (and geofence): x = east, y = north, metres, centred at the origin."""
+
+    half_width_m: float = 200.0
+    uav_altitude_m: float = 95.0
+
+    def validate(self) -> None:
+        _positive("area.half_width_m", self.half_width_m)
+        _positive("area.uav_altitude_m", self.uav_altitude_m)
+
+
+@dataclass(frozen=True)
+class RadioConfig:
+    """3GPP TR 25.814 urban-macro downlink, amended as the paper says (omni antennas, Rician)."""
+
+    carrier_ghz: float = 2.0
+    bandwidth_hz: float = 10e6
+    n_resource_blocks: int = 50
+    tx_power_dbm: float = 19.0
+    noise_figure_db: float = 9.0
+    thermal_noise_dbm_per_hz: float = -174.0
+    antenna_gain_db: float = 0.0
+    outdoor_to_indoor_loss_db: float = 0.0
+    # TR 25.814 Table A.2.1.1-3 urban macro: L = 128.1 + 37.6 log10(d / 1 km), d >= 35 m.
+    path_loss_intercept_db: float = 128.1
+    path_loss_slope_db: float = 37.6
+    min_distance_m: float = 35.0
+    shadowing: bool = True
+    shadowing_std_db: float = 8.0
+    shadowing_decorrelation_m: float = 50.0
+    fast_fading: bool = True
+    rician_k_db: float = 10.0
+    aoa_noise_deg: float = 0.0
+
+    def validate(self) -> None:
+        _positive("radio.carrier_ghz", self.carrier_ghz)
+        _positive("radio.bandwidth_hz", self.bandwidth_hz)
+        if int(self.n_resource_blocks) != self.n_resource_blocks or self.n_resource_blocks < 1:
+            raise ValueError(f"radio.n_resource_blocks must be a positive integer, got {self.n_resource_blocks}")
+        _positive("radio.min_distance_m", self.min_distance_m)
+        _non_negative("radio.shadowing_std_db", self.shadowing_std_db)
+        _positive("radio.shadowing_decorrelation_m", self.shadowing_decorrelation_m)
+        _non_negative("radio.aoa_noise_deg", self.aoa_noise_deg)
+        _non_negative("radio.outdoor_to_indoor_loss_db", self.outdoor_to_indoor_loss_db)
+        for name in ("tx_power_dbm", "noise_figure_db", "thermal_noise_dbm_per_hz", "antenna_gain_db",
+                     "path_loss_intercept_db", "path_loss_slope_db", "rician_k_db"):
+            _finite(f"radio.{name}", getattr(self, name))
+
+    @property
+    def rb_bandwidth_hz(self) -> float:
+        return self.bandwidth_hz / self.n_resource_blocks
+
+
+@dataclass(frozen=True)
+class EnvConfig:
+    """The learning problem: scenario, episode, action range, observation memory."""
+
+    scenario: str = "circular"
+    n_ues: int = 10
+    episode_frames: int = 128
+    frame_s: float = 1.0
+    r_max_m: float = 12.0  # PX4 MPC_XY_VEL_MAX default, 12 m/s x 1 s frame
+    memory: int = 4
+    ue_speed_mps: float = 8.0
+    cluster_size_m: float = 10.0
+    area: AreaConfig = field(default_factory=AreaConfig)
+    radio: RadioConfig = field(default_factory=RadioConfig)
+
+    def validate(self) -> EnvConfig:
+        from uavlink.mobility import MIXED, SCENARIOS  # local: mobility imports config
+
+        if self.scenario not in (*SCENARIOS, MIXED):
+            raise ValueError(
+                f"unknown scenario {self.scenario!r}; choose from {', '.join(SCENARIOS)} or {MIXED}")
+        for name in ("n_ues", "episode_frames", "memory"):
+            value = getattr(self, name)
+            if int(value) != value or value < 1:
+                raise ValueError(f"env.{name} must be a positive integer, got {value}")
+        if self.n_ues < 2 and self.scenario in ("straight_90", "straight_180", "hotspot", MIXED):
+            raise ValueError(f"scenario {self.scenario!r} needs at least 2 UEs, got n_ues={self.n_ues}")
+        _positive("env.frame_s", self.frame_s)
+        _positive("env.r_max_m", self.r_max_m)
+        _non_negative("env.ue_speed_mps", self.ue_speed_mps)
+        _non_negative("env.cluster_size_m", self.cluster_size_m)
+        if self.cluster_size_m >= 2 * self.area.half_width_m:
+            raise ValueError("env.cluster_size_m must be smaller than the area")
+        self.area.validate()
+        self.radio.validate()
+        return self
+
+    def replace(self, **changes: Any) -> EnvConfig:
+        """A copy with fields changed; ``radio.x`` / ``area.x`` keys reach the nested configs."""
+        top: dict[str, Any] = {}
+        nested: dict[str, dict[str, Any]] = {"radio": {}, "area": {}}
+        for key, value in changes.items():
+            head, _, tail = key.partition(".")
+            if tail:
+                if head not in nested:
+                    raise ValueError(f"unknown config key {key!r}")
+                nested[head][tail] = value
+            elif key in _field_names(EnvConfig):
+                top[key] = value
+            elif key in _field_names(RadioConfig):
+                nested["radio"][key] = value
+            elif key in _field_names(AreaConfig):
+                nested["area"][key] = value
+            else:
+                raise ValueError(f"unknown config key {key!r}")
+        for head, sub in nested.items():
+            if sub:
+                current = top.get(head, getattr(self, head))
+                unknown = set(sub) - _field_names(type(current))
+                if unknown:
+                    raise ValueError(f"unknown config key {head}.{sorted(unknown)[0]}")
+                top[head] = dataclasses.replace(current, **sub)
+        return dataclasses.replace(self, **top)
+
+    def to_dict(self) -> dict[str, Any]:
+        return dataclasses.asdict(self)
+
+    @classmethod
+    def from_dict(cls, data: dict[str, Any]) -> EnvConfig:
+        data = dict(data)
+        area = AreaConfig(**data.pop("area", {}))
+        radio = RadioConfig(**data.pop("radio", {}))
+        return cls(area=area, radio=radio, **data)
+
+
+def _field_names(cls: type) -> set[str]:
+    return {f.name for f in dataclasses.fields(cls)}
+
+
+def _finite(name: str, value: float) -> None:
+    if not isinstance(value, (int, float)) or not math.isfinite(value):
+        raise ValueError(f"{name} must be a finite number, got {value!r}")
+
+
+def _positive(name: str, value: float) -> None:
+    _finite(name, value)
+    if value <= 0:
+        raise ValueError(f"{name} must be positive, got {value}")
+
+
+def _non_negative(name: str, value: float) -> None:
+    _finite(name, value)
+    if value < 0:
+        raise ValueError(f"{name} must be >= 0, got {value}")

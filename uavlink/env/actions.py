@@ -1,0 +1,52 @@
+"""Mapping from the policy's Box(-1, 1, (2,)) output to an (angle, distance) move."""
+
+from __future__ import annotations
+
+import dataclasses
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+
+
+@dataclass(frozen=True)
+class ActionMapping:
+    """a = (a0, a1) in [-1, 1]^2 -> angle = 180 a0 degrees from east (wrapped to [-180, 180)),
+    distance = r_max (a1 + 1) / 2 metres. Saved in every policy manifest."""
+
+    r_max_m: float = 12.0
+    kind: str = "polar-v1"
+
+    def validate(self, action: np.ndarray, n_envs: int) -> np.ndarray:
+        """Check shape (n_envs, 2) and finiteness, then clip into the box."""
+        action = np.asarray(action, dtype=float)
+        if action.shape != (n_envs, 2):
+            raise ValueError(f"action must have shape ({n_envs}, 2), got {action.shape}")
+        if not np.isfinite(action).all():
+            raise ValueError("action contains NaN or infinity")
+        return np.clip(action, -1.0, 1.0)
+
+    def to_polar(self, action: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """(angle_deg, distance_m) for clipped actions (N, 2)."""
+        angle_deg = (180.0 * action[:, 0] + 180.0) % 360.0 - 180.0
+        distance_m = self.r_max_m * (action[:, 1] + 1.0) / 2.0
+        return angle_deg, distance_m
+
+    def to_displacement_m(self, action: np.ndarray) -> np.ndarray:
+        """(N, 2) east/north displacement in metres."""
+        angle_deg, distance_m = self.to_polar(action)
+        rad = np.radians(angle_deg)
+        return distance_m[:, None] * np.stack([np.cos(rad), np.sin(rad)], axis=1)
+
+    def from_polar(self, angle_deg: np.ndarray, distance_m: np.ndarray) -> np.ndarray:
+        """Inverse mapping, for rule-based policies that think in angles and metres."""
+        a0 = ((np.asarray(angle_deg) + 180.0) % 360.0 - 180.0) / 180.0
+        a1 = 2.0 * np.clip(np.asarray(distance_m) / self.r_max_m, 0.0, 1.0) - 1.0
+        return np.stack([a0, a1], axis=-1)
+
+    def to_dict(self) -> dict[str, Any]:
+        return dataclasses.asdict(self)
+
+    @classmethod
+    def from_dict(cls, data: dict[str, Any]) -> ActionMapping:
+        return cls(**data)

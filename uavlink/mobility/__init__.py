@@ -1,0 +1,14 @@
+"""UE mobility scenarios, batched numpy with the random generator passed in."""
+
+from uavlink.mobility.scenarios import (
+    MIXED,
+    SCENARIOS,
+    MobilityState,
+    draw_scenarios,
+    init_mobility,
+    scenario_index,
+    step_mobility,
+)
+
+__all__ = ["MIXED", "SCENARIOS", "MobilityState", "draw_scenarios", "init_mobility",
+           "scenario_index", "step_mobility"]

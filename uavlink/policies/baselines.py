@@ -1,0 +1,105 @@
+"""Rule-based policies every evaluation reports (SPEC "Baselines every evaluation reports")."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from uavlink.config import EnvConfig
+from uavlink.env.actions import ActionMapping
+from uavlink.env.core import GroundTruth
+from uavlink.env.observation import ObservationLayout
+from uavlink.radio.noise import noise_power_dbm
+from uavlink.radio.pathloss import mean_rx_power_dbm
+from uavlink.radio.rates import fair_rate, rate_bps
+
+
+class StaticPolicy:
+    """Hover where the episode starts (the area centre)."""
+
+    name = "static"
+    layout = None
+    needs_truth = False
+
+    def act(self, obs: np.ndarray, truth: GroundTruth | None = None) -> np.ndarray:
+        return np.tile([0.0, -1.0], (obs.shape[0], 1))
+
+
+class AoaPolicy:
+    """GPS-free rule: fly towards the circular-mean AoA, slower as the SINRs approach the hover level.
+
+    Speed = r_max * clip((hover SINR - mean SINR) / span, 0, 1) * R, where the hover SINR is the
+    link budget straight overhead (no shadowing/fading) and R = exp(-std^2 / 2) is the mean
+    resultant length of the AoAs: R is near 1 when the UEs lie in one direction and near 0 when
+    they surround the UAV (overhead, or split into opposite groups), where moving cannot help.
+    """
+
+    name = "aoa"
+    needs_truth = False
+
+    def __init__(self, cfg: EnvConfig, sinr_span_db: float = 10.0) -> None:
+        self.layout = ObservationLayout.for_config(cfg)
+        self.mapping = ActionMapping(cfg.r_max_m)
+        self.hover_sinr_db = float(mean_rx_power_dbm(cfg.area.uav_altitude_m, cfg.radio)
+                                   - noise_power_dbm(cfg.radio.bandwidth_hz, cfg.radio))
+        self.sinr_span_db = sinr_span_db
+
+    def act(self, obs: np.ndarray, truth: GroundTruth | None = None) -> np.ndarray:
+        frame = self.layout.newest_frame(obs)
+        gap = (self.hover_sinr_db - frame["sinr_db"].mean(axis=1)) / self.sinr_span_db
+        resultant = np.exp(-0.5 * np.radians(frame["aoa_std_deg"]) ** 2)
+        distance = self.mapping.r_max_m * np.clip(gap, 0.0, 1.0) * resultant
+        return self.mapping.from_polar(frame["aoa_mean_deg"], distance)
+
+
+class OraclePolicy:
+    """Knows the UEs' true positions and velocities (GPS) and each frame takes the reachable move
+    that maximises the expected R_fair at the UEs' next positions (mean channel: no shadowing or
+    fading). Moves searched: ``n_angles`` directions x ``n_radii`` distances up to r_max, plus hover.
+    An upper bound for a GPS-free agent, not a true optimum (it is greedy over one frame)."""
+
+    name = "oracle"
+    layout = None
+    needs_truth = True
+
+    def __init__(self, cfg: EnvConfig, n_angles: int = 32, n_radii: int = 6) -> None:
+        self.cfg = cfg
+        self.mapping = ActionMapping(cfg.r_max_m)
+        angles = np.linspace(-180.0, 180.0, n_angles, endpoint=False)
+        radii = np.linspace(cfg.r_max_m / n_radii, cfg.r_max_m, n_radii)
+        grid_a, grid_r = np.meshgrid(angles, radii)
+        self.cand_angle = np.concatenate([[0.0], grid_a.ravel()])
+        self.cand_dist = np.concatenate([[0.0], grid_r.ravel()])
+        rad = np.radians(self.cand_angle)
+        self.cand_move = self.cand_dist[:, None] * np.stack([np.cos(rad), np.sin(rad)], axis=1)
+        self.noise_dbm = noise_power_dbm(cfg.radio.bandwidth_hz, cfg.radio)
+
+    def act(self, obs: np.ndarray, truth: GroundTruth | None = None) -> np.ndarray:
+        if truth is None:
+            raise ValueError("the oracle baseline needs ground truth; it cannot fly from MAVLink data")
+        half = self.cfg.area.half_width_m
+        ue_next = np.clip(truth.ue_xy_m + truth.ue_velocity_mps * self.cfg.frame_s, -half, half)
+        uav_cand = np.clip(truth.uav_xy_m[:, None, :] + self.cand_move[None], -half, half)  # (N, C, 2)
+        delta = ue_next[:, None, :, :] - uav_cand[:, :, None, :]  # (N, C, U, 2)
+        dist = np.sqrt((delta**2).sum(-1) + self.cfg.area.uav_altitude_m**2)
+        snr = 10.0 ** ((mean_rx_power_dbm(dist, self.cfg.radio) - self.noise_dbm) / 10.0)
+        score = fair_rate(rate_bps(snr, self.cfg.radio.bandwidth_hz, self.cfg.n_ues))  # (N, C)
+        best = np.argmax(score, axis=1)
+        # Re-derive the actual move after the geofence clip so the action lands where scored.
+        move = uav_cand[np.arange(len(best)), best] - truth.uav_xy_m
+        angle = np.degrees(np.arctan2(move[:, 1], move[:, 0]))
+        return self.mapping.from_polar(angle, np.hypot(move[:, 0], move[:, 1]))
+
+
+BASELINES = ("static", "oracle", "aoa")
+
+
+def make_baseline(name: str, cfg: EnvConfig):
+    if name == "static":
+        return StaticPolicy()
+    if name == "aoa":
+        return AoaPolicy(cfg)
+    if name == "oracle":
+        return OraclePolicy(cfg)
+    raise ValueError(f"unknown baseline {name!r}; choose from {', '.join(BASELINES)}")
+
+

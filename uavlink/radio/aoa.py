@@ -1,0 +1,43 @@
+"""Angle of arrival of the UEs' reference signals at the UAV, and circular statistics.
+
+Angles are degrees counter-clockwise from east (the env frame), wrapped to [-180, 180).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+
+def wrap_deg(angle_deg: np.ndarray | float) -> np.ndarray:
+    """Wrap to [-180, 180)."""
+    return (np.asarray(angle_deg) + 180.0) % 360.0 - 180.0
+
+
+def true_aoa_deg(uav_xy_m: np.ndarray, ue_xy_m: np.ndarray) -> np.ndarray:
+    """Azimuth of each UE seen from its UAV: positions (..., U, 2), broadcasting -> (..., U)."""
+    delta = ue_xy_m - uav_xy_m
+    return np.degrees(np.arctan2(delta[..., 1], delta[..., 0]))
+
+
+def measured_aoa_deg(
+    rng: np.random.Generator, true_deg: np.ndarray, noise_std_deg: float
+) -> np.ndarray:
+    """AoA estimate: truth plus Gaussian noise of ``noise_std_deg``, wrapped to [-180, 180)."""
+    if noise_std_deg > 0.0:
+        true_deg = true_deg + noise_std_deg * rng.standard_normal(true_deg.shape)
+    return wrap_deg(true_deg)
+
+
+def circular_mean_std_deg(angle_deg: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Circular mean and std over the last axis (degrees).
+
+    Mean = atan2(mean sin, mean cos); std = sqrt(-2 ln R) with R the mean resultant length (as
+    scipy.stats.circstd). A naive mean of 179 and -179 gives 0; this gives -180.
+    """
+    rad = np.radians(angle_deg)
+    s = np.sin(rad).mean(axis=-1)
+    c = np.cos(rad).mean(axis=-1)
+    mean = wrap_deg(np.degrees(np.arctan2(s, c)))
+    resultant = np.clip(np.hypot(s, c), 1e-12, 1.0)
+    std = np.degrees(np.sqrt(-2.0 * np.log(resultant)))
+    return mean, std
