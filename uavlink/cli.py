@@ -67,6 +67,8 @@ def cmd_evaluate(args: argparse.Namespace) -> int:
     from uavlink.evaluation import evaluate_policy
     from uavlink.policies.loader import load_policy
 
+    if args.out is not None:
+        return _write_results_folder(args)
     results = []
     for scenario in scenario_list(args.scenario):
         cfg = env_config(scenario, args.aoa_noise_deg, parse_overrides(args.overrides))
@@ -77,6 +79,21 @@ def cmd_evaluate(args: argparse.Namespace) -> int:
         print(json.dumps(payload[0] if len(payload) == 1 else payload, indent=2))
     else:
         print(format_table(results))
+    return 0
+
+
+def _write_results_folder(args: argparse.Namespace) -> int:
+    from uavlink.report import write_results
+
+    folder = Path(args.policy)
+    if args.scenario != "all" or not folder.is_dir():
+        raise UserError("--out needs --scenario all and --policy FOLDER (one policy file per scenario)")
+    base = env_config("no_move", args.aoa_noise_deg, parse_overrides(args.overrides))
+    command = "uavlink " + " ".join(sys.argv[1:]) if sys.argv[1:2] == ["evaluate"] else "uavlink evaluate ..."
+    markdown = args.markdown or args.out / "results.md"
+    path = write_results(folder, args.out, markdown, args.episodes, args.seed, base, command,
+                         progress=lambda msg: print(f"evaluating {msg}", file=sys.stderr))
+    print(path.read_text())
     return 0
 
 
@@ -139,6 +156,10 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--episodes", type=int, default=100)
     p.add_argument("--seed", type=int, default=0)
     p.add_argument("--json", action="store_true", help="print JSON instead of a table")
+    p.add_argument("--out", type=Path, default=None,
+                   help="write a results folder (Table I/II as Markdown and CSV, figures); "
+                        "needs --scenario all and --policy FOLDER")
+    p.add_argument("--markdown", type=Path, default=None, help="where the report goes (default OUT/results.md)")
     p.set_defaults(func=cmd_evaluate)
 
     p = sub.add_parser("train", help="train a PPO policy",
@@ -172,6 +193,8 @@ def main(argv: Sequence[str] | None = None) -> int:
     except (UserError, PolicyFileError, ValueError) as exc:
         print(f"uavlink {args.command}: error: {exc}", file=sys.stderr)
         return 2
+    except BrokenPipeError:  # e.g. piped into head
+        return 0
     except KeyboardInterrupt:
         print(f"uavlink {args.command}: interrupted", file=sys.stderr)
         return 130

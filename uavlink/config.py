@@ -76,6 +76,7 @@ class EnvConfig:
     episode_frames: int = 128
     frame_s: float = 1.0
     r_max_m: float = 12.0  # PX4 MPC_XY_VEL_MAX default, 12 m/s x 1 s frame
+    action_mapping: str = "cartesian-v1"  # see uavlink.env.actions.ActionMapping
     memory: int = 4
     ue_speed_mps: float = 8.0
     cluster_size_m: float = 10.0

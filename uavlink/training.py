@@ -40,6 +40,11 @@ class TrainConfig:
     n_epochs: int = 10
     ent_coef: float = 0.0
     vf_coef: float = 0.5
+    # Scale rewards by a running estimate of the return's std (SB3 VecNormalize, rewards only):
+    # undiscounted returns reach ~100, and without it the critic's gradient dominates the shared
+    # max-grad-norm clip. Observations are already O(1) by construction and are not normalised,
+    # so the saved policy needs no statistics at inference.
+    normalize_reward: bool = True
     seed: int = 0
     torch_threads: int = 1
     checkpoint_every_steps: int = 100_000
@@ -63,6 +68,10 @@ def make_model(cfg: EnvConfig, tc: TrainConfig, run_dir: Path | None):
 
     torch.set_num_threads(tc.torch_threads)
     env = UavVecEnv(cfg, n_envs=tc.n_envs, seed=tc.seed)
+    if tc.normalize_reward:
+        from stable_baselines3.common.vec_env import VecNormalize
+
+        env = VecNormalize(env, norm_obs=False, norm_reward=True, gamma=tc.gamma)
     arch = list(tc.net_arch)
     return PPO(
         "MlpPolicy", env, learning_rate=tc.learning_rate, n_steps=tc.n_steps, batch_size=tc.batch_size,

@@ -8,14 +8,30 @@ from typing import Any
 
 import numpy as np
 
+POLAR = "polar-v1"
+CARTESIAN = "cartesian-v1"
+ACTION_MAPPINGS = (CARTESIAN, POLAR)
+
 
 @dataclass(frozen=True)
 class ActionMapping:
-    """a = (a0, a1) in [-1, 1]^2 -> angle = 180 a0 degrees from east (wrapped to [-180, 180)),
-    distance = r_max (a1 + 1) / 2 metres. Saved in every policy manifest."""
+    """How the policy's a = (a0, a1) in [-1, 1]^2 becomes an (angle, distance) move.
+
+    ``cartesian-v1`` (default): a is the move as a fraction of r_max, east and north:
+        angle = atan2(a1, a0), distance = r_max min(1, |a|).
+    ``polar-v1`` (the paper's literal reading): angle = 180 a0 degrees, distance = r_max (a1 + 1) / 2.
+    Both reach every move of the SPEC's action set. Cartesian is the default because it is
+    continuous: heading for an AoA of +179 or -179 degrees takes nearly the same output, whereas
+    the polar angle jumps from +1 to -1 there, which an MLP policy learns slowly (measured in
+    docs/design.md). Saved in every policy manifest.
+    """
 
     r_max_m: float = 12.0
-    kind: str = "polar-v1"
+    kind: str = CARTESIAN
+
+    def __post_init__(self) -> None:
+        if self.kind not in ACTION_MAPPINGS:
+            raise ValueError(f"unknown action mapping {self.kind!r}; choose from {', '.join(ACTION_MAPPINGS)}")
 
     def validate(self, action: np.ndarray, n_envs: int) -> np.ndarray:
         """Check shape (n_envs, 2) and finiteness, then clip into the box."""
@@ -28,8 +44,12 @@ class ActionMapping:
 
     def to_polar(self, action: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """(angle_deg, distance_m) for clipped actions (N, 2)."""
-        angle_deg = (180.0 * action[:, 0] + 180.0) % 360.0 - 180.0
-        distance_m = self.r_max_m * (action[:, 1] + 1.0) / 2.0
+        if self.kind == POLAR:
+            angle_deg = (180.0 * action[:, 0] + 180.0) % 360.0 - 180.0
+            distance_m = self.r_max_m * (action[:, 1] + 1.0) / 2.0
+        else:
+            angle_deg = (np.degrees(np.arctan2(action[:, 1], action[:, 0])) + 180.0) % 360.0 - 180.0
+            distance_m = self.r_max_m * np.minimum(1.0, np.hypot(action[:, 0], action[:, 1]))
         return angle_deg, distance_m
 
     def to_displacement_m(self, action: np.ndarray) -> np.ndarray:
@@ -40,9 +60,12 @@ class ActionMapping:
 
     def from_polar(self, angle_deg: np.ndarray, distance_m: np.ndarray) -> np.ndarray:
         """Inverse mapping, for rule-based policies that think in angles and metres."""
-        a0 = ((np.asarray(angle_deg) + 180.0) % 360.0 - 180.0) / 180.0
-        a1 = 2.0 * np.clip(np.asarray(distance_m) / self.r_max_m, 0.0, 1.0) - 1.0
-        return np.stack([a0, a1], axis=-1)
+        fraction = np.clip(np.asarray(distance_m) / self.r_max_m, 0.0, 1.0)
+        if self.kind == POLAR:
+            a0 = ((np.asarray(angle_deg) + 180.0) % 360.0 - 180.0) / 180.0
+            return np.stack([a0, 2.0 * fraction - 1.0], axis=-1)
+        rad = np.radians(angle_deg)
+        return np.stack([fraction * np.cos(rad), fraction * np.sin(rad)], axis=-1)
 
     def to_dict(self) -> dict[str, Any]:
         return dataclasses.asdict(self)

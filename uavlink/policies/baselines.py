@@ -20,8 +20,11 @@ class StaticPolicy:
     layout = None
     needs_truth = False
 
+    def __init__(self, cfg: EnvConfig) -> None:
+        self.hover = ActionMapping(cfg.r_max_m, cfg.action_mapping).from_polar(0.0, 0.0)
+
     def act(self, obs: np.ndarray, truth: GroundTruth | None = None) -> np.ndarray:
-        return np.tile([0.0, -1.0], (obs.shape[0], 1))
+        return np.tile(self.hover, (obs.shape[0], 1))
 
 
 class AoaPolicy:
@@ -38,7 +41,7 @@ class AoaPolicy:
 
     def __init__(self, cfg: EnvConfig, sinr_span_db: float = 10.0) -> None:
         self.layout = ObservationLayout.for_config(cfg)
-        self.mapping = ActionMapping(cfg.r_max_m)
+        self.mapping = ActionMapping(cfg.r_max_m, cfg.action_mapping)
         self.hover_sinr_db = float(mean_rx_power_dbm(cfg.area.uav_altitude_m, cfg.radio)
                                    - noise_power_dbm(cfg.radio.bandwidth_hz, cfg.radio))
         self.sinr_span_db = sinr_span_db
@@ -63,7 +66,7 @@ class OraclePolicy:
 
     def __init__(self, cfg: EnvConfig, n_angles: int = 32, n_radii: int = 6) -> None:
         self.cfg = cfg
-        self.mapping = ActionMapping(cfg.r_max_m)
+        self.mapping = ActionMapping(cfg.r_max_m, cfg.action_mapping)
         angles = np.linspace(-180.0, 180.0, n_angles, endpoint=False)
         radii = np.linspace(cfg.r_max_m / n_radii, cfg.r_max_m, n_radii)
         grid_a, grid_r = np.meshgrid(angles, radii)
@@ -95,7 +98,7 @@ BASELINES = ("static", "oracle", "aoa")
 
 def make_baseline(name: str, cfg: EnvConfig):
     if name == "static":
-        return StaticPolicy()
+        return StaticPolicy(cfg)
     if name == "aoa":
         return AoaPolicy(cfg)
     if name == "oracle":

@@ -5,6 +5,7 @@ Stored as ``uavlink_manifest.json`` inside an SB3 zip (and as ONNX metadata for 
 
 from __future__ import annotations
 
+import contextlib
 import hashlib
 import json
 import platform
@@ -28,10 +29,8 @@ class PolicyFileError(ValueError):
 def package_versions() -> dict[str, str]:
     versions = {"python": platform.python_version()}
     for name in ("uavlink", "numpy", "gymnasium", "stable-baselines3", "torch", "onnxruntime", "onnx"):
-        try:
+        with contextlib.suppress(metadata.PackageNotFoundError):
             versions[name] = metadata.version(name)
-        except metadata.PackageNotFoundError:
-            pass
     return versions
 
 
@@ -39,7 +38,7 @@ def build_manifest(cfg: EnvConfig, training: dict[str, Any]) -> dict[str, Any]:
     return {
         "format": MANIFEST_FORMAT,
         "observation_layout": ObservationLayout.for_config(cfg).to_dict(),
-        "action_mapping": ActionMapping(cfg.r_max_m).to_dict(),
+        "action_mapping": ActionMapping(cfg.r_max_m, cfg.action_mapping).to_dict(),
         "env_config": cfg.to_dict(),
         "training": training,
         "versions": package_versions(),
