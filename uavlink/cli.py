@@ -142,6 +142,21 @@ def _attach_evaluation(path: Path, cfg: EnvConfig, episodes: int) -> None:
     write_zip_manifest(path, manifest)
 
 
+def cmd_export(args: argparse.Namespace) -> int:
+    from uavlink.export import export_onnx, format_report
+
+    out = args.out if args.out is not None else args.policy.with_suffix(".onnx")
+    if out.suffix != ".onnx":
+        raise UserError(f"--out {out}: an exported policy must end in .onnx")
+    if args.n_verify < 1:
+        raise UserError("--n-verify must be a positive integer")
+    if args.policy.suffix != ".zip" and args.policy.is_file():
+        raise UserError(f"{args.policy}: expected an SB3 policy zip (FILE.zip)")
+    report = export_onnx(args.policy, out, verify=not args.no_verify, n_verify=args.n_verify, seed=args.seed)
+    print(json.dumps(report, indent=2) if args.json else format_report(report))
+    return 0
+
+
 def build_parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(prog="uavlink", description=__doc__.splitlines()[0])
     from uavlink import __version__
@@ -178,6 +193,22 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--eval-episodes", type=int, default=100, help="evaluate after training into the manifest (0: skip)")
     p.add_argument("--no-progress", action="store_true", help="no progress bar")
     p.set_defaults(func=cmd_train)
+
+    p = sub.add_parser("export", help="export a policy zip to ONNX (fly without torch)",
+                       description="Export an SB3 policy zip's deterministic actor to ONNX, with its "
+                                   "manifest in the model metadata, and check onnxruntime's actions "
+                                   "against SB3's on observations from seeded episodes.")
+    p.add_argument("policy", type=Path, help="SB3 policy zip, e.g. policies/circular.zip")
+    p.add_argument("--out", type=Path, default=None, help="ONNX file to write (default: POLICY with .onnx)")
+    p.add_argument("--no-verify", action="store_true", help="skip the onnxruntime-vs-SB3 check")
+    p.add_argument("--n-verify", type=int, default=1000, help="observations to check (default 1000)")
+    p.add_argument("--seed", type=int, default=0, help="seed of the verification episodes")
+    p.add_argument("--json", action="store_true", help="print the export report as JSON")
+    p.set_defaults(func=cmd_export)
+
+    from uavlink.flight.fly import add_fly_parser
+
+    add_fly_parser(sub)
     return parser
 
 
@@ -193,6 +224,11 @@ def main(argv: Sequence[str] | None = None) -> int:
     except (UserError, PolicyFileError, ValueError) as exc:
         print(f"uavlink {args.command}: error: {exc}", file=sys.stderr)
         return 2
+    except RuntimeError as exc:  # the vehicle link (LinkError) and other run-time failures
+        if type(exc).__name__ != "LinkError":
+            raise
+        print(f"uavlink {args.command}: error: {exc}", file=sys.stderr)
+        return 1
     except BrokenPipeError:  # e.g. piped into head
         return 0
     except KeyboardInterrupt:

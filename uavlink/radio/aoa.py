@@ -10,7 +10,9 @@ import numpy as np
 
 def wrap_deg(angle_deg: np.ndarray | float) -> np.ndarray:
     """Wrap to [-180, 180)."""
-    return (np.asarray(angle_deg) + 180.0) % 360.0 - 180.0
+    wrapped = (np.asarray(angle_deg) + 180.0) % 360.0 - 180.0
+    # x % 360 rounds to 360.0 for x a hair below 0 (e.g. -1e-13), which would give +180.
+    return wrapped - 360.0 * (wrapped >= 180.0)
 
 
 def true_aoa_deg(uav_xy_m: np.ndarray, ue_xy_m: np.ndarray) -> np.ndarray:

@@ -90,7 +90,8 @@ class RadioChannel:
         """Per-RB SINR with co-channel interference, averaged over each UE's round-robin RBs."""
         radio = self.radio
         n_rbs = radio.n_resource_blocks
-        rx_rb_mw = 10.0 ** (rx_dbm / 10.0)[..., None] / n_rbs  # (N, U, D, K), power split over RBs
+        rx_rb_mw = np.broadcast_to((10.0 ** (rx_dbm / 10.0) / n_rbs)[..., None],
+                                   (*rx_dbm.shape, n_rbs))  # (N, U, D, K), power split over RBs
         if radio.fast_fading:
             rx_rb_mw = rx_rb_mw * rician_power_gain(rng, rx_rb_mw.shape, radio.rician_k_db)
         ue_idx = np.arange(self.n_ues)

@@ -1,0 +1,62 @@
+"""The radio payload: the base station as its own MAVLink component on the vehicle's system.
+
+It runs the simulator's UE mobility and radio model (``uavlink.env.core.BatchedUavEnv`` with one
+env, stepped with ``step_to`` at the vehicle's actual position) and publishes each frame's readings
+as ``uavlink.flight.radio_codec`` describes. The scenario is seeded as ``uavlink evaluate`` seeds
+episode 0, so a flight with ``--seed S`` meets the UEs of ``uavlink evaluate --episodes 1 --seed S``.
+
+The episode starts at the first frame tick that finds the vehicle in OFFBOARD (the mission): that
+tick publishes frame 0, and each later tick moves the UEs one frame. Until then the UEs wait at
+their start and frame 0's readings are repeated, flagged as waiting, so arming and take-off take no
+frames from the episode and draw nothing from its random streams.
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+from sitl_stub.modes import FlightMode
+from sitl_stub.payload import MAV_AUTOPILOT_INVALID, PayloadOptions
+from sitl_stub.vehicle import VehicleState
+from uavlink.config import EnvConfig
+from uavlink.env.core import BatchedUavEnv
+from uavlink.evaluation import episode_seed
+from uavlink.flight.radio_codec import (
+    RADIO_COMPONENT_ID,
+    READINGS_NAME,
+    SCORE_NAME,
+    encode_readings,
+    encode_score,
+)
+
+MAV_TYPE_ONBOARD_CONTROLLER = 18
+MAV_STATE_ACTIVE = 4
+
+
+class RadioPayload:
+    component_id = RADIO_COMPONENT_ID
+
+    def __init__(self, options: PayloadOptions, cfg: EnvConfig | None = None) -> None:
+        base = cfg or EnvConfig()
+        self.cfg = base.replace(scenario=options.scenario, aoa_noise_deg=options.aoa_noise_deg).validate()
+        self.frame_s = self.cfg.frame_s
+        self.env = BatchedUavEnv(self.cfg, n_envs=1, seed=episode_seed(options.seed, 0))
+        self.env.reset()
+        self.started = False
+
+    def heartbeat(self) -> tuple[int, int, int, int, int]:
+        return (MAV_TYPE_ONBOARD_CONTROLLER, MAV_AUTOPILOT_INVALID, 0, 0, MAV_STATE_ACTIVE)
+
+    def on_frame(self, sim_time_s: float, state: VehicleState, mav: Any) -> None:
+        if self.started:
+            result = self.env.step_to([[state.x_east_m, state.y_north_m]])
+            self._send(mav, sim_time_s, SCORE_NAME, encode_score(self.env.readings.rate_bps[0],
+                                                                 float(result.fair_rate[0])))
+        elif state.mode is FlightMode.OFFBOARD:
+            self.started = True
+        readings = self.env.readings
+        self._send(mav, sim_time_s, READINGS_NAME,
+                   encode_readings(readings.sinr_db[0], readings.aoa_deg[0], self.started))
+
+    def _send(self, mav: Any, sim_time_s: float, name: str, data: list[float]) -> None:
+        mav.debug_float_array_send(int(sim_time_s * 1e6), name.encode(), self.env.frame, data)

@@ -1,0 +1,199 @@
+"""Export a trained SB3 PPO policy zip to ONNX, for flying without torch (``uavlink export``).
+
+The ONNX graph is the policy's deterministic actor exactly as SB3's ``predict(deterministic=True)``
+computes it for a Box action space with ``squash_output=False``: features -> actor MLP -> action_net
+(the Gaussian mean), then clipped to the action space bounds, as SB3 does with ``np.clip`` after the
+network. Input ``obs`` float32 [batch, obs_size], output ``action`` float32 [batch, 2]; the batch
+dimension is dynamic. The policy manifest (observation layout, action mapping, env config, training
+record) travels in the model's metadata under ``uavlink_manifest``, plus the source zip's SHA-256.
+
+Verification (on by default) rolls the SB3 policy itself through seeded episodes of the env its
+manifest describes, collects the observations it met, and requires onnxruntime's actions to equal
+SB3's within ``TOLERANCE`` on every one of them. The file is written to a temporary name beside the
+target and renamed only after it verifies, so a failed export leaves nothing behind.
+
+Uses torch's TorchScript-based exporter (``dynamo=False``): the torch.export-based one needs
+onnxscript, which the ``export`` extra does not install. Imports torch, SB3, onnx and onnxruntime.
+"""
+
+from __future__ import annotations
+
+import io
+import json
+import math
+import os
+import warnings
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from uavlink.policies.manifest import PolicyFileError, file_sha256
+
+METADATA_KEY = "uavlink_manifest"
+INPUT_NAME = "obs"
+OUTPUT_NAME = "action"
+DEFAULT_OPSET = 17
+TOLERANCE = 1e-5
+SINGLE_CHECKS = 32  # observations also checked one at a time (batch 1, as the flight loop runs)
+
+
+class ExportVerificationError(ValueError):
+    """The exported graph's actions differ from SB3's; nothing was written."""
+
+
+def _actor_module(policy: Any):
+    """A torch module: obs -> SB3's deterministic action (Gaussian mean clipped to the box)."""
+    import torch
+    from gymnasium import spaces
+    from stable_baselines3.common.distributions import DiagGaussianDistribution
+
+    space = policy.action_space
+    if not isinstance(space, spaces.Box) or space.shape != (2,):
+        raise PolicyFileError(f"cannot export: action space {space} is not Box(2,)")
+    if policy.squash_output or not isinstance(policy.action_dist, DiagGaussianDistribution):
+        raise PolicyFileError("cannot export: only PPO MlpPolicy with a diagonal Gaussian and "
+                              "squash_output=False is supported")
+
+    class DeterministicActor(torch.nn.Module):
+        def __init__(self) -> None:
+            super().__init__()
+            self.policy = policy
+            self.register_buffer("low", torch.as_tensor(space.low, dtype=torch.float32))
+            self.register_buffer("high", torch.as_tensor(space.high, dtype=torch.float32))
+
+        def forward(self, obs: torch.Tensor) -> torch.Tensor:
+            features = self.policy.extract_features(obs, self.policy.pi_features_extractor)
+            mean = self.policy.action_net(self.policy.mlp_extractor.forward_actor(features))
+            # np.clip(a, low, high) == minimum(maximum(a, low), high)
+            return torch.minimum(torch.maximum(mean, self.low), self.high)
+
+    return DeterministicActor().eval()
+
+
+def _to_onnx_bytes(policy: Any, obs_size: int, opset: int) -> bytes:
+    import torch
+
+    module = _actor_module(policy)
+    buffer = io.BytesIO()
+    with warnings.catch_warnings(), torch.no_grad():
+        warnings.simplefilter("ignore", DeprecationWarning)  # the TorchScript exporter's notice
+        warnings.simplefilter("ignore", UserWarning)
+        torch.onnx.export(
+            module, (torch.zeros(1, obs_size, dtype=torch.float32),), buffer,
+            input_names=[INPUT_NAME], output_names=[OUTPUT_NAME], opset_version=opset,
+            dynamic_axes={INPUT_NAME: {0: "batch"}, OUTPUT_NAME: {0: "batch"}},
+            do_constant_folding=True, dynamo=False,
+        )
+    return buffer.getvalue()
+
+
+def verification_observations(sb3_policy: Any, n: int, seed: int) -> np.ndarray:
+    """``n`` observations (n, obs) float32 met by the policy itself in seeded episodes of its env."""
+    from uavlink.config import EnvConfig
+    from uavlink.env.core import BatchedUavEnv
+
+    cfg = EnvConfig.from_dict(sb3_policy.manifest["env_config"])
+    n_envs = max(1, math.ceil(n / (cfg.episode_frames + 1)))
+    env = BatchedUavEnv(cfg, n_envs=n_envs, seed=np.random.SeedSequence([seed, 0xE0]))
+    batches = [env.reset()]
+    collected = n_envs
+    while collected < n:
+        batches.append(env.step(sb3_policy.act(batches[-1])).observation)
+        collected += n_envs
+    # Step-major order: any prefix holds every env's observations of the first frames.
+    return np.concatenate(batches, axis=0)[:n].astype(np.float32)
+
+
+def _session(path: Path):
+    import onnxruntime as ort
+
+    options = ort.SessionOptions()
+    options.log_severity_level = 3
+    return ort.InferenceSession(str(path), options, providers=["CPUExecutionProvider"])
+
+
+def verify_onnx(onnx_path: Path, sb3_policy: Any, n: int = 1000, seed: int = 0,
+                tolerance: float = TOLERANCE) -> dict[str, Any]:
+    """Compare onnxruntime's actions with SB3's on ``n`` real observations (batched, and the first
+    ``SINGLE_CHECKS`` one at a time); raise ExportVerificationError beyond ``tolerance``."""
+    obs = verification_observations(sb3_policy, n, seed)
+    expected = np.asarray(sb3_policy.act(obs), dtype=np.float64)
+    session = _session(onnx_path)
+    got = session.run([OUTPUT_NAME], {INPUT_NAME: obs})[0]
+    if got.shape != expected.shape or got.dtype != np.float32:
+        raise ExportVerificationError(f"exported graph returns {got.dtype} {got.shape}, "
+                                      f"expected float32 {expected.shape}")
+    diff = np.abs(got - expected)
+    singles = min(SINGLE_CHECKS, n)
+    single_diff = max((float(np.abs(session.run([OUTPUT_NAME], {INPUT_NAME: obs[i:i + 1]})[0]
+                                    - expected[i]).max()) for i in range(singles)), default=0.0)
+    max_diff = max(float(diff.max()), single_diff)
+    if not np.isfinite(got).all() or max_diff > tolerance:
+        worst = int(np.argmax(diff.max(axis=1)))
+        raise ExportVerificationError(
+            f"ONNX actions differ from SB3's by up to {max_diff:.3g} (tolerance {tolerance:g}) on "
+            f"{n} observations; worst observation #{worst}: onnx {got[worst].tolist()} vs "
+            f"sb3 {expected[worst].tolist()}")
+    return {"n_observations": n, "n_single": singles, "max_abs_diff": max_diff,
+            "tolerance": tolerance, "seed": seed}
+
+
+def export_onnx(zip_path: str | Path, out_path: str | Path, verify: bool = True, n_verify: int = 1000,
+                seed: int = 0, opset: int = DEFAULT_OPSET) -> dict[str, Any]:
+    """Write the policy zip's deterministic actor to ``out_path`` as ONNX; return what was done.
+
+    Raises PolicyFileError for an unusable zip, ExportVerificationError when the graph's actions
+    differ from SB3's; in both cases ``out_path`` is left untouched.
+    """
+    import onnx
+
+    from uavlink.policies.sb3_policy import SB3Policy
+
+    zip_path, out_path = Path(zip_path), Path(out_path)
+    if opset < DEFAULT_OPSET:
+        raise ValueError(f"opset must be {DEFAULT_OPSET} or newer, got {opset}")
+    if verify and n_verify < 1:
+        raise ValueError(f"n_verify must be a positive integer, got {n_verify}")
+    sb3 = SB3Policy(zip_path)
+    model = onnx.load_from_string(_to_onnx_bytes(sb3.model.policy, sb3.layout.size, opset))
+    manifest = dict(sb3.manifest)
+    manifest["exported_from"] = zip_path.name
+    manifest["source_policy_sha256"] = file_sha256(zip_path)
+    manifest["export"] = {"opset": opset, "input": INPUT_NAME, "output": OUTPUT_NAME,
+                          "action": "SB3 deterministic: Gaussian mean clipped to the action box"}
+    del model.metadata_props[:]
+    onnx.helper.set_model_props(model, {METADATA_KEY: json.dumps(manifest, sort_keys=True)})
+    model.doc_string = f"uavlink policy {zip_path.name}: obs [batch, {sb3.layout.size}] -> action [batch, 2]"
+    onnx.checker.check_model(model)
+
+    out_path.parent.mkdir(parents=True, exist_ok=True)
+    tmp = out_path.with_name(f".{out_path.name}.{os.getpid()}.partial")
+    try:
+        with tmp.open("wb") as handle:
+            handle.write(model.SerializeToString())
+        check = verify_onnx(tmp, sb3, n_verify, seed) if verify else None
+        tmp.replace(out_path)
+    except BaseException:
+        tmp.unlink(missing_ok=True)
+        raise
+    return {"source": str(zip_path), "out": str(out_path), "opset": opset,
+            "size_bytes": out_path.stat().st_size, "obs_size": sb3.layout.size,
+            "layout": sb3.layout.describe(), "source_policy_sha256": manifest["source_policy_sha256"],
+            "verified": check is not None, "verification": check}
+
+
+def format_report(report: dict[str, Any]) -> str:
+    """The lines ``uavlink export`` prints."""
+    lines = [f"exported {report['source']} -> {report['out']} "
+             f"(ONNX opset {report['opset']}, {report['size_bytes']:,} bytes)",
+             f"  input obs float32 [batch, {report['obs_size']}], layout {report['layout']}; "
+             f"output action float32 [batch, 2]"]
+    check = report["verification"]
+    if check is None:
+        lines.append("  not verified (--no-verify)")
+    else:
+        lines.append(f"  verified: {check['n_observations']} observations from seeded episodes "
+                     f"(seed {check['seed']}) batched, {check['n_single']} one at a time; "
+                     f"max |onnx - sb3| = {check['max_abs_diff']:.2e} <= tolerance {check['tolerance']:g}")
+    return "\n".join(lines)

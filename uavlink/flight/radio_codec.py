@@ -1,0 +1,98 @@
+"""How radio readings travel over MAVLink: two standard DEBUG_FLOAT_ARRAY (id 350) messages.
+
+Any MAVLink tool decodes them with the stock common.xml. Both come from the radio payload's own
+component (``RADIO_COMPONENT_ID``) once per frame; ``array_id`` is the frame index (0 until the
+episode starts) and ``time_usec`` the simulated time.
+
+``UL_RADIO`` (what the base station senses; the policy's input):
+    data[0] = U (number of UEs), data[1 : 1+U] = effective SINR (dB),
+    data[1+U : 1+2U] = measured AoA (deg from east, [-180, 180)),
+    data[1+2U] = 1 while the episode runs, 0 while it waits for the mission to start.
+``UL_SCORE`` (the simulator's truth, for scoring and logs only; never fed to the policy):
+    data[0] = U, data[1] = mean UE rate (Mbps), data[2] = R_fair, data[3 : 3+U] = rates (Mbps).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+RADIO_COMPONENT_ID = 158  # MAV_COMP_ID_PERIPHERAL: a payload on the vehicle's system
+READINGS_NAME = "UL_RADIO"
+SCORE_NAME = "UL_SCORE"
+DATA_LEN = 58
+MAX_UES = (DATA_LEN - 2) // 2
+
+
+class RadioReportError(ValueError):
+    """A radio message that cannot be used (wrong UE count, NaN, out of range)."""
+
+
+@dataclass(frozen=True)
+class RadioReport:
+    frame: int
+    time_s: float
+    sinr_db: np.ndarray  # (U,)
+    aoa_deg: np.ndarray  # (U,)
+    running: bool = True
+
+
+@dataclass(frozen=True)
+class ScoreReport:
+    frame: int
+    mean_rate_mbps: float
+    fair_rate: float
+
+
+def _pad(values: list[float]) -> list[float]:
+    return values + [0.0] * (DATA_LEN - len(values))
+
+
+def encode_readings(sinr_db: np.ndarray, aoa_deg: np.ndarray, running: bool) -> list[float]:
+    n = len(sinr_db)
+    if n > MAX_UES or len(aoa_deg) != n:
+        raise ValueError(f"cannot encode {n} UEs in one DEBUG_FLOAT_ARRAY (max {MAX_UES})")
+    return _pad([float(n), *map(float, sinr_db), *map(float, aoa_deg), float(running)])
+
+
+def encode_score(rate_bps: np.ndarray, fair_rate: float) -> list[float]:
+    n = len(rate_bps)
+    return _pad([float(n), float(np.mean(rate_bps)) * 1e-6, float(fair_rate),
+                 *(float(r) * 1e-6 for r in rate_bps[: DATA_LEN - 3])])
+
+
+def _name(msg) -> str:
+    name = msg.name
+    return name.decode(errors="replace") if isinstance(name, bytes) else str(name)
+
+
+def decode_readings(msg, expected_ues: int) -> RadioReport:
+    """Validate and decode a UL_RADIO message; raises RadioReportError with the reason."""
+    data = list(msg.data)
+    n = data[0]
+    if n != expected_ues:
+        raise RadioReportError(f"radio report has {n:g} UEs, policy expects {expected_ues}")
+    sinr = np.asarray(data[1:1 + expected_ues], dtype=float)
+    aoa = np.asarray(data[1 + expected_ues:1 + 2 * expected_ues], dtype=float)
+    if not (np.isfinite(sinr).all() and np.isfinite(aoa).all()):
+        raise RadioReportError("radio report contains NaN or infinite values")
+    if (np.abs(aoa) > 180.0).any() or (np.abs(sinr) > 200.0).any():
+        raise RadioReportError("radio report values out of range")
+    return RadioReport(int(msg.array_id), msg.time_usec * 1e-6, sinr, aoa,
+                       running=data[1 + 2 * expected_ues] == 1.0)
+
+
+def decode_score(msg) -> ScoreReport:
+    data = list(msg.data)
+    return ScoreReport(int(msg.array_id), float(data[1]), float(data[2]))
+
+
+def message_kind(msg) -> str | None:
+    """'readings', 'score' or None for a DEBUG_FLOAT_ARRAY from anywhere."""
+    if msg.get_type() != "DEBUG_FLOAT_ARRAY":
+        return None
+    name = _name(msg).rstrip("\x00")
+    return {"UL_RADIO": "readings", "UL_SCORE": "score"}.get(name)
+
+

@@ -1,0 +1,46 @@
+"""Where the flight loop gets radio readings: one small interface.
+
+In simulation the readings arrive over MAVLink from the SITL's radio payload
+(``MavlinkRadioSource``); on a real aircraft an adapter to the onboard base station implements the
+same two members and the loop does not change.
+"""
+
+from __future__ import annotations
+
+import logging
+from typing import Protocol
+
+from uavlink.flight.radio_codec import RadioReport, RadioReportError, decode_readings
+
+log = logging.getLogger(__name__)
+
+
+class RadioSource(Protocol):
+    n_ues: int
+
+    def take_reports(self) -> list[RadioReport]:
+        """Reports received since the last call, oldest first (non-blocking)."""
+        ...
+
+
+class MavlinkRadioSource:
+    """Decodes UL_RADIO messages handed over by the link; invalid ones are counted, logged once."""
+
+    def __init__(self, n_ues: int) -> None:
+        self.n_ues = n_ues
+        self.rejected = 0
+        self._pending: list[RadioReport] = []
+        self._logged: set[str] = set()
+
+    def feed(self, msg) -> None:
+        try:
+            self._pending.append(decode_readings(msg, self.n_ues))
+        except RadioReportError as exc:
+            self.rejected += 1
+            if str(exc) not in self._logged:
+                self._logged.add(str(exc))
+                log.warning("rejected radio report: %s", exc)
+
+    def take_reports(self) -> list[RadioReport]:
+        reports, self._pending = self._pending, []
+        return reports
