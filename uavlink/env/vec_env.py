@@ -69,7 +69,8 @@ class UavVecEnv(VecEnv):
         return [seed] * self.num_envs
 
     def get_attr(self, attr_name: str, indices=None) -> list[Any]:
-        return [getattr(self.core, attr_name)] * len(self._get_indices(indices))
+        owner = self.core if hasattr(self.core, attr_name) else self  # e.g. render_mode lives here
+        return [getattr(owner, attr_name)] * len(self._get_indices(indices))
 
     def set_attr(self, attr_name: str, value: Any, indices=None) -> None:
         setattr(self.core, attr_name, value)

@@ -1,0 +1,117 @@
+"""Training, policy files and their manifests (tiny budgets; full training is a command)."""
+
+from __future__ import annotations
+
+import json
+import subprocess
+import sys
+import zipfile
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from uavlink.config import EnvConfig
+from uavlink.evaluation import evaluate_policy
+from uavlink.policies.manifest import MANIFEST_NAME, PolicyFileError, read_zip_manifest
+from uavlink.policies.sb3_policy import SB3Policy
+from uavlink.training import TrainConfig, time_to_fraction, train
+
+TINY = dict(n_envs=16, batch_size=512, n_epochs=10)
+
+
+@pytest.fixture(scope="module")
+def tiny_policy(tmp_path_factory) -> Path:
+    """PPO on `straight` for 96 episodes (12k env steps): long enough to learn to follow the UEs."""
+    out = tmp_path_factory.mktemp("policy") / "straight.zip"
+    train(EnvConfig(scenario="straight"), TrainConfig(episodes=96, **TINY), out, None, progress=False)
+    return out
+
+
+def test_tiny_training_learns_to_follow(tiny_policy: Path) -> None:
+    cfg = EnvConfig(scenario="straight")
+    learned = evaluate_policy(SB3Policy(tiny_policy), cfg, episodes=32, seed=1)
+    untrained_out = tiny_policy.with_name("untrained.zip")
+    train(cfg, TrainConfig(episodes=1, n_envs=1, batch_size=64, n_epochs=1), untrained_out, None, progress=False)
+    untrained = evaluate_policy(SB3Policy(untrained_out), cfg, episodes=32, seed=1)
+    from uavlink.policies.baselines import StaticPolicy
+
+    static = evaluate_policy(StaticPolicy(cfg), cfg, episodes=32, seed=1)
+    print(f"\nstraight, 32 episodes: static {static.mean_rate_mbps:.3f}, untrained "
+          f"{untrained.mean_rate_mbps:.3f}, 12k-step PPO {learned.mean_rate_mbps:.3f} Mbps")
+    assert learned.mean_rate_mbps > static.mean_rate_mbps + 0.2
+    assert learned.mean_rate_mbps > untrained.mean_rate_mbps + 0.2
+
+
+def test_manifest_round_trip(tiny_policy: Path) -> None:
+    manifest = read_zip_manifest(tiny_policy)
+    assert manifest["env_config"]["scenario"] == "straight"
+    assert EnvConfig.from_dict(manifest["env_config"]) == EnvConfig(scenario="straight")
+    assert manifest["action_mapping"] == {"r_max_m": 12.0, "kind": "cartesian-v1"}
+    assert manifest["observation_layout"]["version"] == 1
+    assert manifest["training"]["hyperparameters"]["learning_rate"] == 3e-4
+    assert manifest["training"]["total_timesteps"] >= 96 * 128
+    assert "torch" in manifest["versions"] and "stable-baselines3" in manifest["versions"]
+    beside = json.loads(tiny_policy.with_suffix(".json").read_text())
+    assert beside == manifest
+
+
+def test_layout_mismatch_refused(tiny_policy: Path) -> None:
+    policy = SB3Policy(tiny_policy)
+    with pytest.raises(ValueError, match=r"policy 'straight' expects v1 \(n_ues=10, memory=4.*env provides v1 \(n_ues=10, memory=2"):
+        evaluate_policy(policy, EnvConfig(scenario="straight", memory=2), episodes=1)
+
+
+@pytest.mark.parametrize("damage", ["truncate", "garbage", "no_manifest", "bad_manifest"])
+def test_damaged_policy_file_refused(tiny_policy: Path, tmp_path: Path, damage: str) -> None:
+    path = tmp_path / "damaged.zip"
+    data = tiny_policy.read_bytes()
+    if damage == "truncate":
+        path.write_bytes(data[: len(data) // 2])
+    elif damage == "garbage":
+        path.write_bytes(b"not a zip at all" * 10)
+    else:
+        with zipfile.ZipFile(tiny_policy) as src, zipfile.ZipFile(path, "w") as dst:
+            for name in src.namelist():
+                if name != MANIFEST_NAME:
+                    dst.writestr(name, src.read(name))
+            if damage == "bad_manifest":
+                dst.writestr(MANIFEST_NAME, json.dumps({"format": "something-else"}))
+    with pytest.raises(PolicyFileError, match=str(path)):
+        SB3Policy(path)
+    proc = subprocess.run([sys.executable, "-m", "uavlink.cli", "evaluate", "--policy", str(path),
+                           "--episodes", "1"], capture_output=True, text=True, timeout=60)
+    assert proc.returncode == 2
+    assert "Traceback" not in proc.stderr and len(proc.stderr.strip().splitlines()) == 1
+
+
+def test_evaluation_is_deterministic(tiny_policy: Path) -> None:
+    cfg = EnvConfig(scenario="straight")
+    a = evaluate_policy(SB3Policy(tiny_policy), cfg, episodes=4, seed=7)
+    b = evaluate_policy(SB3Policy(tiny_policy), cfg, episodes=4, seed=7)
+    assert np.array_equal(a.episode_rate_mbps, b.episode_rate_mbps)
+
+
+def test_time_to_fraction() -> None:
+    curve = [(i * 100, min(1.0, i / 50)) for i in range(1, 101)]
+    steps = time_to_fraction(curve, 0.95, window=1)
+    assert steps == 4800
+
+
+def test_train_cli_resumes_from_checkpoint(tmp_path: Path) -> None:
+    run = tmp_path / "run"
+    out = tmp_path / "p.zip"
+    base = [sys.executable, "-m", "uavlink.cli", "train", "--scenario", "no_move", "--out", str(out),
+            "--n-envs", "4", "--batch-size", "256", "--n-epochs", "1", "--run-dir", str(run),
+            "--no-progress", "--eval-episodes", "2"]
+    first = subprocess.run([*base, "--episodes", "8"], capture_output=True, text=True, timeout=120)
+    assert first.returncode == 0, first.stderr
+    assert (run / "ppo_1").is_dir(), "TensorBoard logs"
+    manifest = read_zip_manifest(out)
+    assert set(manifest["evaluation"]) == {"no_move"}
+    checkpoint = run / "checkpoint.zip"
+    out.replace(checkpoint)  # a policy zip is a valid SB3 checkpoint
+    second = subprocess.run([*base, "--episodes", "16", "--resume", str(checkpoint)],
+                            capture_output=True, text=True, timeout=120)
+    assert second.returncode == 0, second.stderr
+    assert read_zip_manifest(out)["training"]["total_timesteps"] == 16 * 128

@@ -1,0 +1,11 @@
+"""Sweeps: scenarios x seeds x settings, each job train + evaluate, run on Dask distributed.
+
+``spec`` reads and checks a sweep file and expands it into jobs with stable keys (no dask needed);
+``jobs`` is the job function a worker runs; ``runner`` is the client side (embedded LocalCluster or
+``--scheduler``); ``aggregate`` writes the per-setting tables and plots. Only ``runner`` imports
+dask, so the core and flight installs never need it.
+"""
+
+from uavlink.sweep.spec import Job, SweepSpec, SweepSpecError, load_spec
+
+__all__ = ["Job", "SweepSpec", "SweepSpecError", "load_spec"]
