@@ -15,6 +15,7 @@ $(STAMP): pyproject.toml
 	touch $(STAMP)
 
 demo: $(STAMP)
+	$(BIN)/uavlink fly --policy policies/circular.zip --scenario circular --seed 0
 	$(BIN)/uavlink evaluate --scenario all --policy static --episodes 20 --seed 0
 	$(BIN)/uavlink evaluate --scenario all --policy aoa --episodes 20 --seed 0
 
