@@ -52,13 +52,18 @@ class MissionResult:
     episode_wall_s: float = 0.0
     interrupted: bool = False
 
+    inference_s: list[float] = field(default_factory=list)
+
     def summary(self) -> dict:
         lat_ms = np.array(self.latencies_s) * 1e3 if self.latencies_s else np.array([np.nan])
+        inf_us = np.array(self.inference_s) * 1e6 if self.inference_s else np.array([np.nan])
         return {
             "frames": self.frames,
             "mean_rate_mbps": round(float(np.mean(self.frame_rates_mbps)), 6) if self.frame_rates_mbps else None,
             "latency_ms_p50": round(float(np.percentile(lat_ms, 50)), 4),
             "latency_ms_p99": round(float(np.percentile(lat_ms, 99)), 4),
+            "inference_us_p50": round(float(np.percentile(inf_us, 50)), 2),
+            "inference_us_p99": round(float(np.percentile(inf_us, 99)), 2),
             "episode_wall_s": round(self.episode_wall_s, 3),
             "guarded_actions": self.guarded_actions,
             "rejected_radio_reports": self.rejected_reports,
@@ -79,13 +84,16 @@ class PolicyPilot:
         self.mapping = ActionMapping(cfg.r_max_m, cfg.action_mapping)
         self.builder = ObservationBuilder(self.layout, 1)
         self.guarded = 0
+        self.inference_s: list[float] = []
 
     def decide(self, report: RadioReport, uav_east_north_m: np.ndarray, first: bool) -> np.ndarray:
         """East/north displacement (m) for this frame; a hold (zero move) if the policy misbehaves."""
         pos = uav_east_north_m.reshape(1, 2)
         step = self.builder.reset if first else self.builder.push
         obs = step(pos, report.sinr_db[None, :], report.aoa_deg[None, :])
+        started = time.perf_counter()
         action = np.asarray(self.policy.act(obs), dtype=float)
+        self.inference_s.append(time.perf_counter() - started)
         if action.shape != (1, 2) or not np.isfinite(action).all() or (np.abs(action) > 1.0 + 1e-6).any():
             self.guarded += 1
             log.warning("policy returned an unusable action %s: holding position", action.tolist())
@@ -161,6 +169,7 @@ def fly_mission(link: VehicleLink, pilot: PolicyPilot, cfg: EnvConfig, mission: 
         result.frame_rates_mbps = [scores[k].mean_rate_mbps for k in sorted(scores) if 1 <= k <= mission.frames]
         result.frames = len(result.frame_rates_mbps)
         result.guarded_actions = pilot.guarded
+        result.inference_s = pilot.inference_s
         result.rejected_reports = getattr(source, "rejected", 0)
         link.stream_ned = None
         if mission.land:

@@ -20,7 +20,7 @@ from uavlink.env.core import GroundTruth
 from uavlink.env.observation import ObservationLayout
 from uavlink.policies.manifest import PolicyFileError, check_manifest
 
-METADATA_KEY = "uavlink_manifest"  # uavlink.export.METADATA_KEY (that module imports torch)
+METADATA_KEY = "uavlink_manifest"  # where `uavlink export` stores the manifest
 _ZIP_MAGIC = b"PK\x03\x04"
 
 

@@ -1,0 +1,147 @@
+"""Baselines and the simulator's calibration against the paper's static column (Table I).
+
+The static column depends only on the radio and mobility models, so it calibrates the simulator.
+To see the table:
+
+    python -m pytest tests/test_baselines.py -s -k calibration
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from uavlink.config import EnvConfig
+from uavlink.evaluation import EvalResult, evaluate_policy
+from uavlink.mobility import SCENARIOS
+from uavlink.policies.baselines import BASELINES, make_baseline
+
+# Table I of the paper, "static" column (Mbps).
+PAPER_STATIC = {"no_move": 7.95, "straight": 4.59, "circular": 3.59, "straight_90": 5.33,
+                "straight_180": 5.31, "hotspot": 4.77}
+STRAIGHT_FAMILY = ("straight", "straight_90", "straight_180")
+CALIBRATION_EPISODES = 100
+COMPARISON_EPISODES = 32  # paired comparisons: every policy meets the same UE trajectories
+MOVING = ("straight", "circular", "straight_90", "hotspot")
+
+
+def evaluate(policy: str, scenario: str, episodes: int, seed: int = 0) -> EvalResult:
+    cfg = EnvConfig(scenario=scenario)
+    return evaluate_policy(make_baseline(policy, cfg), cfg, episodes=episodes, seed=seed)
+
+
+@pytest.fixture(scope="module")
+def static_results() -> dict[str, EvalResult]:
+    return {s: evaluate("static", s, CALIBRATION_EPISODES) for s in SCENARIOS}
+
+
+@pytest.fixture(scope="module")
+def paired() -> dict[str, dict[str, EvalResult]]:
+    """static, aoa and oracle on the same seeded episodes of every scenario but no_move."""
+    return {p: {s: evaluate(p, s, COMPARISON_EPISODES) for s in SCENARIOS if s != "no_move"}
+            for p in BASELINES}
+
+
+def test_static_calibration_against_paper(static_results):
+    lines = [
+        "",
+        f"static baseline, {CALIBRATION_EPISODES} episodes, seed 0 (Mbps)",
+        f"| {'scenario':<13}| {'ours':>6} | {'±95%':>5} | {'paper':>5} | {'dev':>6} | {'check':<30} |",
+        f"|{'-' * 14}|{'-' * 8}|{'-' * 7}|{'-' * 7}|{'-' * 8}|{'-' * 32}|",
+    ]
+    for scenario in SCENARIOS:
+        ours, paper = static_results[scenario].mean_rate_mbps, PAPER_STATIC[scenario]
+        check = "expected: see straight mean" if scenario == "straight" else "within 10 %"
+        lines.append(f"| {scenario:<13}| {ours:6.3f} | {static_results[scenario].ci95_mbps:5.3f} | "
+                     f"{paper:5.2f} | {100 * (ours / paper - 1):+5.1f}% | {check:<30} |")
+    family = np.array([static_results[s].mean_rate_mbps for s in STRAIGHT_FAMILY])
+    paper_family = np.mean([PAPER_STATIC[s] for s in STRAIGHT_FAMILY])
+    lines.append(f"| {'straight mean':<13}| {family.mean():6.3f} | {'':>5} | {paper_family:5.2f} | "
+                 f"{100 * (family.mean() / paper_family - 1):+5.1f}% | {'3 straights: within 10 %':<30} |")
+    print("\n".join(lines))
+
+    for scenario in SCENARIOS:
+        if scenario == "straight":
+            # EXPECTED DEVIATION. Our model gives ~5.1 Mbps for `straight`, the paper 4.59 (+11 %).
+            # A UAV hovering at the centre sees the same distance-versus-time for `straight`,
+            # `straight_90` and `straight_180`: every UE starts in the centre cluster and recedes
+            # at 8 m/s whatever its direction, so the three static figures must agree. The paper's
+            # straight (4.59) < straight_90 (5.33) contradicts that, so we check the symmetry and
+            # the family's mean instead of `straight` alone.
+            continue
+        ours, paper = static_results[scenario].mean_rate_mbps, PAPER_STATIC[scenario]
+        assert ours == pytest.approx(paper, rel=0.10), f"{scenario}: {ours:.3f} vs paper {paper}"
+    assert family.max() / family.min() - 1 < 0.02, f"straight family disagrees: {family}"
+    assert family.mean() == pytest.approx(paper_family, rel=0.10)
+
+
+def test_no_move_static_is_about_8_mbps(static_results):
+    result = static_results["no_move"]
+    assert 7.6 <= result.mean_rate_mbps <= 8.4
+    assert result.episodes == CALIBRATION_EPISODES and len(result.episode_rate_mbps) == 100
+    assert 0.0 < result.ci95_mbps < 0.5
+
+
+def test_circular_static_is_the_worst_moving_case(static_results):
+    # The orbiting cluster stays ~195 m away: the lowest static throughput, as in the paper.
+    rates = {s: r.mean_rate_mbps for s, r in static_results.items()}
+    assert min(rates, key=rates.get) == "circular"
+    assert max(rates, key=rates.get) == "no_move"
+
+
+@pytest.mark.parametrize("scenario", MOVING)
+def test_oracle_beats_static_where_ues_move(paired, scenario):
+    static, oracle = paired["static"][scenario], paired["oracle"][scenario]
+    assert oracle.mean_rate_mbps > static.mean_rate_mbps + static.ci95_mbps
+    # Paired episodes: the oracle is at least as good in (nearly) every single one.
+    assert np.mean(oracle.episode_rate_mbps >= static.episode_rate_mbps - 0.01) > 0.9
+
+
+def test_oracle_hovers_on_straight_180(paired):
+    # Two clusters leaving in opposite directions: hovering at the centre maximises R_fair, so the
+    # oracle cannot beat static, and must not do worse.
+    static, oracle = paired["static"]["straight_180"], paired["oracle"]["straight_180"]
+    assert oracle.mean_rate_mbps >= static.mean_rate_mbps - static.ci95_mbps
+    assert oracle.mean_rate_mbps == pytest.approx(static.mean_rate_mbps, rel=0.02)
+
+
+@pytest.mark.parametrize("scenario", ["straight", "circular"])
+def test_aoa_beats_static_and_stays_under_the_oracle(paired, scenario):
+    static, aoa, oracle = (paired[p][scenario] for p in ("static", "aoa", "oracle"))
+    assert aoa.mean_rate_mbps > 1.1 * static.mean_rate_mbps
+    assert aoa.mean_rate_mbps < oracle.mean_rate_mbps + oracle.ci95_mbps
+
+
+def test_oracle_gain_is_large_where_the_paper_says(paired):
+    # The paper's big PPO gains are on straight (+71 %) and circular (+97 %): the oracle's head room
+    # over static must be large there, larger than on the two-cluster scenarios.
+    gain = {s: paired["oracle"][s].mean_rate_mbps / paired["static"][s].mean_rate_mbps - 1
+            for s in paired["static"]}
+    assert gain["straight"] > 0.4 and gain["circular"] > 0.6
+    assert min(gain["straight"], gain["circular"]) > max(gain["straight_90"], gain["straight_180"])
+
+
+def test_evaluation_is_seeded_and_uses_common_random_numbers():
+    cfg = EnvConfig(scenario="hotspot")
+    a = evaluate_policy(make_baseline("aoa", cfg), cfg, episodes=3, seed=5, record_trajectory=True)
+    b = evaluate_policy(make_baseline("aoa", cfg), cfg, episodes=3, seed=5, record_trajectory=True)
+    c = evaluate_policy(make_baseline("aoa", cfg), cfg, episodes=3, seed=6)
+    np.testing.assert_array_equal(a.episode_rate_mbps, b.episode_rate_mbps)
+    assert not np.array_equal(a.episode_rate_mbps, c.episode_rate_mbps)
+    # Another policy with the same seed meets the same UEs (its own flight differs).
+    s = evaluate_policy(make_baseline("static", cfg), cfg, episodes=3, seed=5, record_trajectory=True)
+    np.testing.assert_array_equal(s.trajectory.ue_xy_m, a.trajectory.ue_xy_m)
+    assert not np.allclose(s.trajectory.uav_xy_m, a.trajectory.uav_xy_m)
+    np.testing.assert_array_equal(s.trajectory.uav_xy_m, 0.0)  # static never leaves the centre
+    assert a.trajectory.uav_xy_m.shape == (129, 2) and a.trajectory.rate_mbps.shape == (128,)
+    assert a.to_dict()["episode_rate_mbps"] == [round(float(x), 6) for x in a.episode_rate_mbps]
+
+
+def test_oracle_needs_ground_truth_and_unknown_baseline_is_rejected():
+    cfg = EnvConfig()
+    with pytest.raises(ValueError, match="ground truth"):
+        make_baseline("oracle", cfg).act(np.zeros((1, 60)), None)
+    with pytest.raises(ValueError, match="unknown baseline 'kamikaze'"):
+        make_baseline("kamikaze", cfg)
+    with pytest.raises(ValueError, match="episodes must be a positive integer"):
+        evaluate_policy(make_baseline("static", cfg), cfg, episodes=0)

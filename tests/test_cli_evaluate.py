@@ -1,0 +1,128 @@
+"""``uavlink evaluate`` as users run it: a real subprocess of the installed console script."""
+
+from __future__ import annotations
+
+import json
+import shutil
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+from uavlink.mobility import SCENARIOS
+
+_SCRIPT = Path(sys.executable).with_name("uavlink")
+UAVLINK = [str(_SCRIPT)] if _SCRIPT.exists() else (
+    [shutil.which("uavlink")] if shutil.which("uavlink") else [sys.executable, "-m", "uavlink.cli"])
+
+
+def uavlink(*args: str, cwd: Path | None = None) -> subprocess.CompletedProcess:
+    return subprocess.run([*UAVLINK, *args], capture_output=True, text=True, timeout=120, cwd=cwd)
+
+
+def assert_user_error(proc: subprocess.CompletedProcess, *fragments: str) -> None:
+    """Exit status 2, exactly one line on stderr naming the problem, no traceback."""
+    assert proc.returncode == 2, proc.stderr
+    assert "Traceback" not in proc.stderr and "Traceback" not in proc.stdout
+    lines = proc.stderr.strip().splitlines()
+    assert len(lines) == 1, proc.stderr
+    assert lines[0].startswith("uavlink evaluate: error: ")
+    for fragment in fragments:
+        assert fragment in lines[0]
+
+
+def test_evaluate_json():
+    proc = uavlink("evaluate", "--scenario", "circular", "--policy", "static", "--episodes", "5",
+                   "--seed", "0", "--json")
+    assert proc.returncode == 0, proc.stderr
+    result = json.loads(proc.stdout)
+    assert result["scenario"] == "circular"
+    assert result["policy"] == "static"
+    assert result["episodes"] == 5
+    assert 3.0 < result["mean_rate_mbps"] < 5.0
+    assert 0.0 < result["ci95_mbps"] < 1.0
+    assert len(result["episode_rate_mbps"]) == 5
+    assert result["mean_rate_mbps"] == pytest.approx(
+        sum(result["episode_rate_mbps"]) / 5, abs=1e-5)
+
+
+def test_same_seed_same_json_other_seed_differs():
+    args = ("evaluate", "--scenario", "hotspot", "--policy", "aoa", "--episodes", "4", "--json")
+    first = uavlink(*args, "--seed", "3")
+    second = uavlink(*args, "--seed", "3")
+    other = uavlink(*args, "--seed", "4")
+    assert first.returncode == second.returncode == other.returncode == 0
+    assert first.stdout == second.stdout
+    assert json.loads(first.stdout)["episode_rate_mbps"] != json.loads(other.stdout)["episode_rate_mbps"]
+
+
+def test_scenario_all_prints_six_rows():
+    proc = uavlink("evaluate", "--scenario", "all", "--policy", "static", "--episodes", "3")
+    assert proc.returncode == 0, proc.stderr
+    lines = proc.stdout.strip().splitlines()
+    assert lines[0].split()[:2] == ["scenario", "policy"]  # header
+    rows = lines[1:]
+    assert [row.split()[0] for row in rows] == list(SCENARIOS)
+    assert all(row.split()[1] == "static" and row.split()[2] == "3" for row in rows)
+    as_json = uavlink("evaluate", "--scenario", "all", "--policy", "static", "--episodes", "3", "--json")
+    assert [r["scenario"] for r in json.loads(as_json.stdout)] == list(SCENARIOS)
+
+
+def test_set_overrides_reach_the_env():
+    base = ("evaluate", "--scenario", "no_move", "--policy", "static", "--episodes", "3", "--json")
+    quiet = json.loads(uavlink(*base, "--set", "radio.shadowing=false",
+                               "--set", "fast_fading=false").stdout)
+    # Hovering over the cluster with the mean channel: 8.08 Mbps in every episode.
+    assert all(rate == pytest.approx(8.08, abs=0.02) for rate in quiet["episode_rate_mbps"])
+    loud = json.loads(uavlink(*base, "--set", "tx_power_dbm=29").stdout)
+    assert loud["mean_rate_mbps"] > quiet["mean_rate_mbps"] + 2.0
+    noisy = json.loads(uavlink(*base, "--aoa-noise-deg", "5").stdout)
+    assert noisy["aoa_noise_deg"] == 5.0
+
+
+@pytest.mark.parametrize(("args", "fragments"), [
+    (("--scenario", "zigzag"), ("unknown scenario 'zigzag'", "circular")),
+    (("--set", "warp_drive=1"), ("unknown config key 'warp_drive'",)),
+    (("--set", "no_equals_sign"), ("--set expects key=value",)),
+    (("--set", "radio.bandwidth_hz=-1"), ("radio.bandwidth_hz must be positive",)),
+    (("--set", "n_ues=0"), ("env.n_ues must be a positive integer",)),
+    (("--aoa-noise-deg", "-2"), ("aoa_noise_deg must be >= 0",)),
+    (("--episodes", "0"), ("episodes must be a positive integer",)),
+])
+def test_bad_arguments_exit_2_with_one_line(args, fragments):
+    assert_user_error(uavlink("evaluate", "--policy", "static", "--episodes", "2", *args), *fragments)
+
+
+@pytest.mark.parametrize("policy", ["missing.zip", "missing.onnx", "no_such_policy"])
+def test_missing_policy_file_exits_2(policy, tmp_path):
+    assert_user_error(uavlink("evaluate", "--policy", policy, "--episodes", "2", cwd=tmp_path), policy)
+
+
+def test_unusable_policy_files_exit_2(tmp_path):
+    text = tmp_path / "notes.txt"
+    text.write_text("not a policy")
+    assert_user_error(uavlink("evaluate", "--policy", str(text), "--episodes", "2"), "notes.txt")
+    fake_zip = tmp_path / "circular.zip"
+    fake_zip.write_text("not a zip")
+    assert_user_error(uavlink("evaluate", "--policy", str(fake_zip), "--episodes", "2"), "circular.zip")
+    empty = tmp_path / "empty"
+    empty.mkdir()
+    assert_user_error(uavlink("evaluate", "--policy", str(empty), "--episodes", "2"), "circular")
+
+
+@pytest.mark.parametrize("args", [("--help",), ("evaluate", "--help")])
+def test_help(args):
+    proc = uavlink(*args)
+    assert proc.returncode == 0, proc.stderr
+    assert proc.stdout.startswith("usage: uavlink")
+    if args[0] == "evaluate":
+        for option in ("--scenario", "--policy", "--episodes", "--seed", "--json", "--set"):
+            assert option in proc.stdout
+    else:
+        assert "evaluate" in proc.stdout
+
+
+def test_version():
+    proc = uavlink("--version")
+    assert proc.returncode == 0 and proc.stdout.startswith("uavlink ")
