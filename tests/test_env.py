@@ -218,10 +218,7 @@ def _check_all(env: gym.Env) -> list[str]:
 def test_gymnasium_and_sb3_env_checkers_pass(scenario, aoa_noise_deg):
     env = gym.make(ENV_ID, scenario=scenario, aoa_noise_deg=aoa_noise_deg)
     messages = _check_all(env)
-    # The only thing the checkers remark on is the unbounded observation Box (a choice, not an
-    # error: the observation is scaled to O(1) but not hard-bounded).
-    unexpected = [m for m in messages if "infinity" not in m]
-    assert unexpected == []
+    assert messages == []
     assert fresh(env).config.scenario == scenario
     assert fresh(env).config.radio.aoa_noise_deg == aoa_noise_deg
 

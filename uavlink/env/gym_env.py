@@ -28,7 +28,7 @@ class UavBsEnv(gym.Env):
         self.core = BatchedUavEnv(cfg, n_envs=1)
         self.config = self.core.cfg
         self.layout = self.core.layout
-        self.observation_space = gym.spaces.Box(-np.inf, np.inf, (self.layout.size,), np.float32)
+        self.observation_space = gym.spaces.Box(*self.layout.bounds(), dtype=np.float32)
         self.action_space = gym.spaces.Box(-1.0, 1.0, (2,), np.float32)
 
     def reset(self, *, seed: int | None = None, options: dict | None = None):

@@ -50,6 +50,15 @@ class ObservationLayout:
                  "aoa_mean_sin", "aoa_mean_cos", "aoa_std"]
         return [f"t-{lag}:{name}" for lag in range(self.memory) for name in frame]
 
+    def bounds(self) -> tuple[np.ndarray, np.ndarray]:
+        """Per-feature (low, high) of the observation vector, float32."""
+        lo_db, hi_db = self.sinr_clip_db
+        sinr = ((lo_db - self.sinr_offset_db) / self.sinr_scale_db, (hi_db - self.sinr_offset_db) / self.sinr_scale_db)
+        std_max = self.aoa_std_max_rad / np.pi
+        low = [-1.0, -1.0, *([sinr[0]] * self.n_ues), -1.0, -1.0, 0.0]
+        high = [1.0, 1.0, *([sinr[1]] * self.n_ues), 1.0, 1.0, std_max]
+        return (np.tile(np.array(low, np.float32), self.memory), np.tile(np.array(high, np.float32), self.memory))
+
     def to_dict(self) -> dict[str, Any]:
         data = dataclasses.asdict(self)
         data["sinr_clip_db"] = list(self.sinr_clip_db)

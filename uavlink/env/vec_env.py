@@ -23,7 +23,7 @@ from uavlink.env.core import BatchedUavEnv
 class UavVecEnv(VecEnv):
     def __init__(self, cfg: EnvConfig, n_envs: int, seed: int | None = None) -> None:
         self.core = BatchedUavEnv(cfg, n_envs=n_envs, seed=seed)
-        obs_space = gym.spaces.Box(-np.inf, np.inf, (self.core.layout.size,), np.float32)
+        obs_space = gym.spaces.Box(*self.core.layout.bounds(), dtype=np.float32)
         act_space = gym.spaces.Box(-1.0, 1.0, (2,), np.float32)
         self.render_mode = None
         super().__init__(n_envs, obs_space, act_space)
