@@ -359,3 +359,25 @@ def test_channel_step_before_reset_is_an_error():
     channel = RadioChannel(QUIET, AREA, n_ues=1)
     with pytest.raises(RuntimeError, match="reset"):
         channel.step(rng(), np.zeros((1, 1, 2)), np.zeros((1, 1, 2)))
+
+
+def test_aoa_noise_randomised_per_episode():
+    """aoa_noise_max_deg: each env draws its own AoA noise std in [aoa_noise_deg, max] at reset."""
+    from uavlink.radio.aoa import true_aoa_deg, wrap_deg
+    from uavlink.radio.channel import RadioChannel
+
+    radio = RadioConfig(aoa_noise_deg=5.0, aoa_noise_max_deg=40.0, shadowing=False, fast_fading=False)
+    channel = RadioChannel(radio, AreaConfig(), n_ues=200)
+    rng = np.random.default_rng(3)
+    uav = np.zeros((64, 1, 2))
+    ue = rng.uniform(-150, 150, size=(64, 200, 2))
+    errors = [wrap_deg(channel.reset(rng, uav, ue).aoa_deg - true_aoa_deg(uav, ue))]
+    errors += [wrap_deg(channel.step(rng, uav, ue).aoa_deg - true_aoa_deg(uav, ue)) for _ in range(3)]
+    per_env_std = np.concatenate(errors, axis=1).std(axis=1)
+    assert per_env_std.min() > 5.0 * 0.8 and per_env_std.max() < 40.0 * 1.15
+    assert per_env_std.std() > 5.0  # the std really differs between episodes
+    # Fixed within an episode: the std seen over the first and the last frames agree.
+    first, last = np.concatenate(errors[:2], axis=1).std(axis=1), np.concatenate(errors[2:], axis=1).std(axis=1)
+    assert np.corrcoef(first, last)[0, 1] > 0.9
+    with pytest.raises(ValueError, match="aoa_noise_max_deg"):
+        RadioConfig(aoa_noise_deg=10.0, aoa_noise_max_deg=5.0).validate()

@@ -191,7 +191,7 @@ def cmd_sweep(args: argparse.Namespace) -> int:
         return 130
     if outcome.failed:
         print(f"uavlink sweep: {len(outcome.failed)} jobs failed ({', '.join(sorted(outcome.failed))}); "
-              "see runs/<sweep>/<job>.error.txt, rerun to retry them", file=sys.stderr)
+              f"see {outcome.sweep_dir}/<job>.error.txt, rerun to retry them", file=sys.stderr)
         return 1
     if args.policies_out is not None:
         for scenario, path, seed in export_median_policies(spec, outcome.sweep_dir, args.policies_out):

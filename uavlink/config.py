@@ -47,6 +47,9 @@ class RadioConfig:
     fast_fading: bool = True
     rician_k_db: float = 10.0
     aoa_noise_deg: float = 0.0
+    # Training-time robustness: when above aoa_noise_deg, every episode draws its AoA noise std
+    # uniformly from [aoa_noise_deg, aoa_noise_max_deg]. 0 (default) keeps the std fixed.
+    aoa_noise_max_deg: float = 0.0
 
     def validate(self) -> None:
         _positive("radio.carrier_ghz", self.carrier_ghz)
@@ -57,6 +60,9 @@ class RadioConfig:
         _non_negative("radio.shadowing_std_db", self.shadowing_std_db)
         _positive("radio.shadowing_decorrelation_m", self.shadowing_decorrelation_m)
         _non_negative("radio.aoa_noise_deg", self.aoa_noise_deg)
+        _non_negative("radio.aoa_noise_max_deg", self.aoa_noise_max_deg)
+        if 0 < self.aoa_noise_max_deg < self.aoa_noise_deg:
+            raise ValueError("radio.aoa_noise_max_deg must be 0 (off) or >= radio.aoa_noise_deg")
         _non_negative("radio.outdoor_to_indoor_loss_db", self.outdoor_to_indoor_loss_db)
         for name in ("tx_power_dbm", "noise_figure_db", "thermal_noise_dbm_per_hz", "antenna_gain_db",
                      "path_loss_intercept_db", "path_loss_slope_db", "rician_k_db"):

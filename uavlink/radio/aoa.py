@@ -22,10 +22,11 @@ def true_aoa_deg(uav_xy_m: np.ndarray, ue_xy_m: np.ndarray) -> np.ndarray:
 
 
 def measured_aoa_deg(
-    rng: np.random.Generator, true_deg: np.ndarray, noise_std_deg: float
+    rng: np.random.Generator, true_deg: np.ndarray, noise_std_deg: float | np.ndarray
 ) -> np.ndarray:
-    """AoA estimate: truth plus Gaussian noise of ``noise_std_deg``, wrapped to [-180, 180)."""
-    if noise_std_deg > 0.0:
+    """AoA estimate: truth plus Gaussian noise of ``noise_std_deg`` (a scalar, or per env
+    broadcasting against ``true_deg``), wrapped to [-180, 180)."""
+    if np.any(np.asarray(noise_std_deg) > 0.0):
         true_deg = true_deg + noise_std_deg * rng.standard_normal(true_deg.shape)
     return wrap_deg(true_deg)
 

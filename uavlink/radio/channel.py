@@ -55,6 +55,10 @@ class RadioChannel:
         """Draw fresh shadowing for every link and return the readings of the first frame."""
         n_envs, n_uavs = uav_xy_m.shape[0], uav_xy_m.shape[1]
         self._shadow_db = initial_shadowing_db(rng, (n_envs, self.n_ues, n_uavs), self.radio)
+        self._aoa_std_deg = self.radio.aoa_noise_deg
+        if self.radio.aoa_noise_max_deg > self.radio.aoa_noise_deg:  # per-episode std, (N, 1)
+            self._aoa_std_deg = rng.uniform(self.radio.aoa_noise_deg, self.radio.aoa_noise_max_deg,
+                                            size=(n_envs, 1))
         self._uav_prev, self._ue_prev = uav_xy_m.copy(), ue_xy_m.copy()
         return self._readings(rng, uav_xy_m, ue_xy_m)
 
@@ -82,7 +86,7 @@ class RadioChannel:
             sinr = self._multi_uav_sinr(rng, rx_dbm)
         sinr_db = 10.0 * np.log10(sinr)
         true_deg = true_aoa_deg(uav_xy_m[:, self.serving, :], ue_xy_m)  # from each UE's server
-        aoa = measured_aoa_deg(rng, true_deg, radio.aoa_noise_deg)
+        aoa = measured_aoa_deg(rng, true_deg, self._aoa_std_deg)
         return RadioReadings(sinr_db=sinr_db, rate_bps=rate_bps(sinr, radio.bandwidth_hz, self.n_ues),
                              aoa_deg=aoa)
 

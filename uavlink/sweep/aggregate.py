@@ -1,0 +1,289 @@
+"""Per-setting summary of a sweep: mean across seeds with a t interval, gain over static, share of
+oracle, wall time; Markdown, CSV and plots in ``runs/<sweep>/``; the median seed's policies.
+
+A setting is a scenario x grid point; its seeds are independent training runs evaluated on the same
+episodes (same evaluation seed), so the interval is across seeds: mean +- t(0.975, n-1) s / sqrt(n).
+"""
+
+from __future__ import annotations
+
+import json
+import math
+import shutil
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+from uavlink.report import markdown_table, write_csv
+from uavlink.sweep.jobs import read_result
+from uavlink.sweep.spec import BASELINE_COLUMNS, Job, SweepSpec, describe_point
+
+# Two-sided 95 % Student t quantiles, t(0.975, df), df = 1..30.
+_T975 = (12.706, 4.303, 3.182, 2.776, 2.571, 2.447, 2.365, 2.306, 2.262, 2.228, 2.201, 2.179, 2.160,
+         2.145, 2.131, 2.120, 2.110, 2.101, 2.093, 2.086, 2.080, 2.074, 2.069, 2.064, 2.060, 2.056,
+         2.052, 2.048, 2.045, 2.042)
+
+
+def t975(df: int) -> float:
+    """t(0.975, df); a Cornish-Fisher expansion beyond the table (error < 1e-3)."""
+    if df < 1:
+        return math.nan
+    if df <= len(_T975):
+        return _T975[df - 1]
+    z = 1.959964
+    return z + (z**3 + z) / (4 * df) + (5 * z**5 + 16 * z**3 + 3 * z) / (96 * df**2)
+
+
+@dataclass
+class SettingRow:
+    """One scenario x grid point and its finished seeds."""
+
+    scenario: str
+    point: dict[str, Any]
+    expected_seeds: int
+    results: list[dict[str, Any]] = field(default_factory=list)
+
+    def column(self, policy: str) -> list[float]:
+        return [r["evaluation"][policy]["mean_rate_mbps"] for r in self.results]
+
+    @property
+    def n(self) -> int:
+        return len(self.results)
+
+    def ppo_interval(self) -> tuple[float, float]:
+        """(mean, 95 % half-width across seeds); half-width NaN with one seed."""
+        values = self.column("ppo")
+        mean = sum(values) / len(values)
+        if len(values) < 2:
+            return mean, math.nan
+        std = math.sqrt(sum((v - mean) ** 2 for v in values) / (len(values) - 1))
+        return mean, t975(len(values) - 1) * std / math.sqrt(len(values))
+
+    def baseline(self, policy: str) -> float:
+        values = self.column(policy)  # identical across seeds: same episodes, no training
+        return sum(values) / len(values)
+
+    def median_result(self) -> dict[str, Any]:
+        """The seed whose PPO throughput is the median (the lower one of the middle two when even)."""
+        ranked = sorted(self.results, key=lambda r: (r["evaluation"]["ppo"]["mean_rate_mbps"], r["seed"]))
+        return ranked[(len(ranked) - 1) // 2]
+
+    def wall_s(self) -> list[float]:
+        return [r["timing"]["job_s"] for r in self.results]
+
+    def numbers(self) -> dict[str, Any]:
+        mean, hw = self.ppo_interval()
+        static, oracle, aoa = (self.baseline(p) for p in BASELINE_COLUMNS)
+        walls = self.wall_s()
+        median = self.median_result()
+        ppo = self.column("ppo")
+        return {
+            "scenario": self.scenario, **{k.split(".", 1)[1]: v for k, v in self.point.items()},
+            "seeds": self.n, "seeds_expected": self.expected_seeds,
+            "ppo_mbps": mean, "ppo_ci95_mbps": hw, "ppo_min_mbps": min(ppo), "ppo_max_mbps": max(ppo),
+            "static_mbps": static, "oracle_mbps": oracle, "aoa_mbps": aoa,
+            "gain_pct": 100 * (mean / static - 1), "gain_lo_pct": 100 * ((mean - hw) / static - 1),
+            "gain_hi_pct": 100 * ((mean + hw) / static - 1),
+            "oracle_share_pct": 100 * mean / oracle, "oracle_share_lo_pct": 100 * (mean - hw) / oracle,
+            "oracle_share_hi_pct": 100 * (mean + hw) / oracle,
+            "wall_s_mean": sum(walls) / len(walls), "wall_s_total": sum(walls),
+            "median_seed": median["seed"], "median_job": median["name"],
+        }
+
+
+def collect(spec: SweepSpec, sweep_dir: Path) -> list[SettingRow]:
+    """Settings in the sweep file's order, each with the finished results of its jobs."""
+    rows: dict[Any, SettingRow] = {}
+    for job in spec.jobs():
+        row = rows.setdefault(job.setting, SettingRow(job.scenario, job.point, len(spec.seeds)))
+        result = read_result(sweep_dir, job)
+        if result is not None:
+            row.results.append(result)
+    return list(rows.values())
+
+
+def summary_table(rows: list[SettingRow], grid_keys: list[str]) -> tuple[list[str], list[list[str]]]:
+    names = [k.split(".", 1)[1] for k in grid_keys]
+    header = ["scenario", *names, "seeds", "PPO (Mbps)", "PPO seed range", "static", "oracle", "aoa",
+              "gain over static", "PPO / oracle", "wall / job", "median seed"]
+    body = []
+    for row in rows:
+        if not row.n:
+            body.append([row.scenario, *[_cell(row.point[k]) for k in grid_keys], f"0/{row.expected_seeds}",
+                         *["—"] * (len(header) - 2 - len(names))])
+            continue
+        x = row.numbers()
+        hw = "n/a" if math.isnan(x["ppo_ci95_mbps"]) else f"{x['ppo_ci95_mbps']:.2f}"
+        gain = f"{x['gain_pct']:+.1f} %"
+        share = f"{x['oracle_share_pct']:.1f} %"
+        if not math.isnan(x["ppo_ci95_mbps"]):
+            gain += f" [{x['gain_lo_pct']:+.1f}, {x['gain_hi_pct']:+.1f}]"
+            share += f" [{x['oracle_share_lo_pct']:.1f}, {x['oracle_share_hi_pct']:.1f}]"
+        body.append([
+            row.scenario, *[_cell(row.point[k]) for k in grid_keys], f"{row.n}/{row.expected_seeds}",
+            f"{x['ppo_mbps']:.2f} ± {hw}", f"{x['ppo_min_mbps']:.2f}–{x['ppo_max_mbps']:.2f}",
+            f"{x['static_mbps']:.2f}", f"{x['oracle_mbps']:.2f}", f"{x['aoa_mbps']:.2f}", gain, share,
+            _duration(x["wall_s_mean"]), str(x["median_seed"]),
+        ])
+    return header, body
+
+
+def write_summary(spec: SweepSpec, sweep_dir: Path, command: str = "") -> tuple[Path, str]:
+    """Write summary.md, summary.csv, throughput.png and learning_curves.png; returns (md, table)."""
+    rows = collect(spec, sweep_dir)
+    grid_keys = list(spec.grid)
+    header, body = summary_table(rows, grid_keys)
+    finished = [r for r in rows if r.n]
+    numeric = [r.numbers() for r in finished]
+    if numeric:
+        keys = list(numeric[0])
+        write_csv(sweep_dir / "summary.csv", keys,
+                  [[_csv(x[k]) for k in keys] for x in numeric])
+        plot_throughput(finished, grid_keys, sweep_dir / "throughput.png")
+        plot_learning_curves(finished, grid_keys, sweep_dir / "learning_curves.png")
+    table = markdown_table(header, body)
+    done = sum(r.n for r in rows)
+    total = len(spec.jobs())
+    text = [
+        f"# Sweep `{spec.name}`",
+        "",
+        *([spec.description, ""] if spec.description else []),
+        f"{done} of {total} jobs finished" + (f"; made by `{command}`" if command else "") + ".",
+        f"Each job trains PPO for {spec.jobs()[0].train_config().episodes:,} episodes and evaluates PPO, "
+        f"static, oracle and aoa on the same {spec.eval['episodes']} episodes (evaluation seed "
+        f"{spec.eval['seed']}). PPO is the mean over training seeds ± the 95 % Student-t interval "
+        "across seeds; gain and oracle share carry the same interval. The median seed is the seed "
+        "whose PPO throughput is the median (the lower of the middle two for an even count).",
+        "",
+        table,
+        "",
+        *(["![throughput per setting](throughput.png)", "", "![learning curves](learning_curves.png)", ""]
+          if numeric else []),
+    ]
+    path = sweep_dir / "summary.md"
+    path.write_text("\n".join(text))
+    clean = [{k: None if isinstance(v, float) and math.isnan(v) else v for k, v in x.items()} for x in numeric]
+    (sweep_dir / "summary.json").write_text(json.dumps(clean, indent=1) + "\n")
+    return path, table
+
+
+def _label(row: SettingRow, grid_keys: list[str]) -> str:
+    return row.scenario if not grid_keys else f"{row.scenario}\n{describe_point(row.point)}"
+
+
+def plot_throughput(rows: list[SettingRow], grid_keys: list[str], path: Path) -> None:
+    """PPO mean per setting with the across-seed interval, each seed, and the baselines."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    fig, ax = plt.subplots(figsize=(max(6.0, 1.1 * len(rows) + 2), 4.5))
+    for i, row in enumerate(rows):
+        mean, hw = row.ppo_interval()
+        ax.errorbar(i, mean, yerr=0 if math.isnan(hw) else hw, fmt="o", color="tab:red", capsize=5,
+                    label="PPO (mean ± 95 % across seeds)" if i == 0 else None)
+        ax.scatter([i + 0.12] * row.n, row.column("ppo"), s=10, color="tab:red", alpha=0.4,
+                   label="PPO seeds" if i == 0 else None)
+        for name, color, marker in (("static", "tab:gray", "_"), ("aoa", "tab:blue", "x"),
+                                    ("oracle", "tab:green", "^")):
+            ax.scatter([i - 0.15], [row.baseline(name)], color=color, marker=marker, s=60,
+                       label=name if i == 0 else None)
+    ax.set_xticks(range(len(rows)), [_label(r, grid_keys) for r in rows], fontsize=8,
+                  rotation=0 if len(rows) <= 6 else 30)
+    ax.set_ylabel("average UE throughput (Mbps)")
+    ax.set_title("Throughput per setting")
+    ax.grid(alpha=0.3, axis="y")
+    ax.legend(fontsize=7, ncol=3)
+    fig.tight_layout()
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
+
+
+def plot_learning_curves(rows: list[SettingRow], grid_keys: list[str], path: Path, max_panels: int = 12) -> None:
+    """Training-episode throughput against env steps, one panel per setting, one line per seed."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    shown = rows[:max_panels]
+    cols = min(3, len(shown))
+    lines = math.ceil(len(shown) / cols)
+    fig, axes = plt.subplots(lines, cols, figsize=(4.2 * cols, 3.0 * lines), squeeze=False, sharey=True)
+    for ax, row in zip(axes.flat, shown, strict=False):
+        for result in row.results:
+            curve = result["training"]["learning_curve"]
+            if curve:
+                ax.plot([s for s, _ in curve], [r for _, r in curve], lw=0.9, label=f"seed {result['seed']}")
+        ax.set_title(_label(row, grid_keys).replace("\n", ", "), fontsize=8)
+        ax.set_xlabel("env steps", fontsize=8)
+        ax.grid(alpha=0.3)
+        ax.legend(fontsize=6)
+    for ax in axes.flat[len(shown):]:
+        ax.set_visible(False)
+    axes[0][0].set_ylabel("training episode throughput (Mbps)", fontsize=8)
+    fig.tight_layout()
+    fig.savefig(path, dpi=100)
+    plt.close(fig)
+
+
+def export_median_policies(spec: SweepSpec, sweep_dir: Path, dest: Path) -> list[tuple[str, Path, int]]:
+    """Copy each scenario's median-seed policy to ``dest/<scenario>.zip`` (manifest records the choice).
+
+    Needs one setting per scenario (no grid with several points) and every seed finished.
+    """
+    from uavlink.policies.manifest import read_zip_manifest, write_zip_manifest
+
+    if len(spec.points()) > 1:
+        raise ValueError("--policies-out needs one setting per scenario: this sweep has a grid "
+                         f"of {len(spec.points())} points")
+    rows = collect(spec, sweep_dir)
+    missing = [r.scenario for r in rows if r.n < r.expected_seeds]
+    if missing:
+        raise ValueError(f"--policies-out: not every seed finished for {', '.join(missing)}; rerun the sweep")
+    dest.mkdir(parents=True, exist_ok=True)
+    written = []
+    for row in rows:
+        chosen = row.median_result()
+        out = dest / f"{row.scenario}.zip"
+        tmp = dest / f".{row.scenario}.zip.partial"
+        shutil.copyfile(sweep_dir / chosen["name"] / "policy.zip", tmp)
+        manifest = read_zip_manifest(tmp)
+        manifest["evaluation"] = {row.scenario: {k: v for k, v in chosen["evaluation"]["ppo"].items()
+                                                 if k != "episode_rate_mbps"}}
+        manifest["selection"] = {
+            "rule": "median seed of the sweep by PPO evaluation throughput",
+            "sweep": spec.name, "job": chosen["name"], "key": chosen["key"], "seed": chosen["seed"],
+            "seeds_mbps": {str(r["seed"]): r["evaluation"]["ppo"]["mean_rate_mbps"] for r in row.results},
+        }
+        write_zip_manifest(tmp, manifest)
+        tmp.replace(out)
+        tmp.with_suffix(".json").replace(out.with_suffix(".json"))
+        written.append((row.scenario, out, chosen["seed"]))
+    return written
+
+
+def jobs_table(jobs: list[Job], sweep_dir: Path) -> str:
+    """One line per job with its status, for --dry-run."""
+    header = ["job", "scenario", "seed", "point", "status"]
+    body = [[j.name, j.scenario, str(j.seed), describe_point(j.point),
+             "done" if (sweep_dir / j.name / "result.json").is_file() else "to run"] for j in jobs]
+    return markdown_table(header, body)
+
+
+def _duration(seconds: float) -> str:
+    if seconds < 60:
+        return f"{seconds:.1f} s"
+    return f"{seconds / 60:.1f} min" if seconds < 3600 else f"{seconds / 3600:.2f} h"
+
+
+def _cell(value: Any) -> str:
+    return describe_point({"x.v": value}).split("=", 1)[1]
+
+
+def _csv(value: Any) -> Any:
+    if isinstance(value, float):
+        return "" if math.isnan(value) else round(value, 6)
+    return value
+
