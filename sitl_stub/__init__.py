@@ -1,0 +1,1 @@
+"""A lightweight PX4-style SITL vehicle with a radio payload."""

@@ -1,0 +1,149 @@
+"""``python -m sitl_stub`` / ``sitl-stub``: run the SITL vehicle until SIGINT/SIGTERM.
+
+Example: ``python -m sitl_stub --scenario circular --seed 1 --connect udpout:127.0.0.1:14550
+--speed 20``. Bad arguments print one line and exit with status 2; a connection that cannot be
+opened exits with status 1.
+"""
+
+from __future__ import annotations
+
+import argparse
+import logging
+import math
+import signal
+import sys
+import threading
+from collections.abc import Sequence
+from typing import NoReturn
+
+from sitl_stub.geo import GeoOrigin
+from sitl_stub.mavlink_server import ServerConfig, SitlServer
+from sitl_stub.params import PARAM_DEFS
+from sitl_stub.payload import (
+    PayloadFactory,
+    PayloadOptions,
+    as_payload_list,
+    default_payload_factory,
+)
+from uavlink.flight.connection import normalize_connection
+
+SCENARIOS = ("no_move", "straight", "circular", "straight_90", "straight_180", "hotspot")
+PROG = "sitl-stub"
+
+
+class _Parser(argparse.ArgumentParser):
+    def error(self, message: str) -> NoReturn:
+        self.exit(2, f"{self.prog}: error: {message}\n")
+
+
+def _positive(text: str) -> float:
+    v = _finite(text)
+    if v <= 0:
+        raise argparse.ArgumentTypeError(f"must be > 0, got {text}")
+    return v
+
+
+def _non_negative(text: str) -> float:
+    v = _finite(text)
+    if v < 0:
+        raise argparse.ArgumentTypeError(f"must be >= 0, got {text}")
+    return v
+
+
+def _finite(text: str) -> float:
+    try:
+        v = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"not a number: {text!r}") from None
+    if not math.isfinite(v):
+        raise argparse.ArgumentTypeError(f"must be finite, got {text}")
+    return v
+
+
+def _connection(text: str) -> str:
+    try:
+        normalize_connection(text)
+    except ValueError as exc:
+        raise argparse.ArgumentTypeError(str(exc)) from None
+    return text
+
+
+def _param(text: str) -> tuple[str, float]:
+    name, sep, value = text.partition("=")
+    names = {d.name for d in PARAM_DEFS}
+    if not sep or name not in names:
+        raise argparse.ArgumentTypeError(
+            f"expected NAME=VALUE with NAME one of {', '.join(sorted(names))}, got {text!r}")
+    return name, _finite(value)
+
+
+def build_parser() -> argparse.ArgumentParser:
+    p = _Parser(prog=PROG, description="A lightweight PX4-style SITL multicopter speaking "
+                "MAVLink 2, with a radio payload component.")
+    p.add_argument("--connect", type=_connection, default="udpout:127.0.0.1:14550",
+                   help="udpout:HOST:PORT sends (default udpout:127.0.0.1:14550, like PX4 SITL's "
+                   "GCS link); udp:HOST:PORT or udp:PORT listens; MAVSDK-style udpin:// and "
+                   "udpout:// URLs work too")
+    p.add_argument("--speed", type=_positive, default=1.0,
+                   help="simulated seconds per wall second (default 1)")
+    p.add_argument("--scenario", choices=SCENARIOS, default="circular",
+                   help="UE mobility scenario for the radio payload (default circular)")
+    p.add_argument("--seed", type=int, default=0, help="radio payload seed (default 0)")
+    p.add_argument("--aoa-noise-deg", type=_non_negative, default=0.0,
+                   help="AoA noise std of the radio payload, degrees (default 0)")
+    p.add_argument("--home-lat", type=_finite, default=GeoOrigin.lat_deg,
+                   help=f"home / LOCAL_NED origin latitude, deg (default {GeoOrigin.lat_deg})")
+    p.add_argument("--home-lon", type=_finite, default=GeoOrigin.lon_deg,
+                   help=f"home / LOCAL_NED origin longitude, deg (default {GeoOrigin.lon_deg})")
+    p.add_argument("--home-alt", type=_finite, default=GeoOrigin.alt_amsl_m,
+                   help=f"home altitude AMSL, m (default {GeoOrigin.alt_amsl_m})")
+    p.add_argument("--duration-s", type=_positive, default=None,
+                   help="stop after this many simulated seconds (default: run until signalled)")
+    p.add_argument("--param", type=_param, action="append", default=[], metavar="NAME=VALUE",
+                   help="override a parameter default, e.g. MIS_TAKEOFF_ALT=10 (repeatable)")
+    p.add_argument("--no-payload", action="store_true", help="run without the radio payload")
+    p.add_argument("-v", "--verbose", action="store_true", help="log every event")
+    return p
+
+
+def main(argv: Sequence[str] | None = None, payload_factory: PayloadFactory | None = None) -> int:
+    """Parse ``argv``, build payloads with ``payload_factory`` and run the vehicle."""
+    parser = build_parser()
+    args = parser.parse_args(argv)
+    logging.basicConfig(level=logging.INFO if args.verbose else logging.WARNING,
+                        format="%(name)s: %(message)s", stream=sys.stderr)
+    home = GeoOrigin(args.home_lat, args.home_lon, args.home_alt)
+    try:
+        home.validate()
+        payloads = [] if args.no_payload else as_payload_list(
+            (payload_factory or default_payload_factory)(
+                PayloadOptions(args.scenario, args.seed, args.aoa_noise_deg)))
+        config = ServerConfig(connect=args.connect, speed=args.speed, home=home,
+                              params=dict(args.param), duration_s=args.duration_s)
+        server = SitlServer(config, payloads)
+    except ValueError as exc:
+        parser.error(str(exc))
+    try:
+        server.open()
+    except OSError as exc:
+        print(f"{PROG}: error: cannot open {server.connection}: {exc}", file=sys.stderr)
+        return 1
+    print(f"{PROG}: vehicle {config.system_id} on {server.connection}, {args.speed:g}x real time, "
+          f"{len(payloads)} payload(s)", file=sys.stderr, flush=True)
+    stop = threading.Event()
+
+    def _on_signal(signum: int, _frame: object) -> None:
+        stop.set()
+
+    if threading.current_thread() is threading.main_thread():
+        for sig in (signal.SIGINT, signal.SIGTERM):
+            signal.signal(sig, _on_signal)
+    try:
+        server.run(stop)
+    finally:
+        server.close()
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

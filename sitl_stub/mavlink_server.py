@@ -1,0 +1,324 @@
+"""The SITL vehicle's MAVLink 2 endpoint: system 1, autopilot component 1, plus payload components.
+
+One thread does everything: it advances simulated time (:class:`~sitl_stub.clock.SimClock`),
+steps the :class:`~sitl_stub.vehicle.Vehicle` (stopping at payload frame boundaries to tick the
+payloads), handles incoming messages and sends the telemetry that is due. Use it blocking
+(:meth:`SitlServer.run`, as ``python -m sitl_stub`` does) or in the background
+(:meth:`SitlServer.start` / :meth:`SitlServer.stop`, or ``with SitlServer(...)``), e.g. listening
+on ``udpin:127.0.0.1:0`` and reading the chosen port from :attr:`SitlServer.address`.
+
+Accepted targets: target_system 0 or the vehicle's id, target_component 0 (broadcast, what
+pymavlink ground stations send) or 1; commands addressed to a payload's component id go to it.
+"""
+
+from __future__ import annotations
+
+import logging
+import math
+import select
+import threading
+from collections import Counter
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass, field
+from typing import Any
+
+from sitl_stub._mav import mavlink, mavutil
+from sitl_stub.clock import SimClock
+from sitl_stub.commands import CommandHandler, CommandReply, CommandRequest
+from sitl_stub.ftp import ftp_reply
+from sitl_stub.geo import GeoOrigin
+from sitl_stub.modes import decode_custom_mode
+from sitl_stub.param_protocol import ParamProtocol
+from sitl_stub.params import ParamStore
+from sitl_stub.payload import Payload, check_payload
+from sitl_stub.streams import StreamScheduler
+from sitl_stub.telemetry import TelemetrySender
+from sitl_stub.vehicle import Result, Vehicle, VehicleState
+from uavlink.config import AreaConfig
+from uavlink.flight.connection import normalize_connection
+
+log = logging.getLogger("sitl_stub")
+
+AUTOPILOT_COMPONENT = 1
+POSITION_IGNORE_MASK = 0x7  # SET_POSITION_TARGET type_mask bits x, y, z
+YAW_IGNORE_BIT = 0x400
+LOOP_WAIT_S = 0.005  # longest wait for input between loop iterations (wall)
+
+
+@dataclass(frozen=True)
+class ServerConfig:
+    """How to run the vehicle. ``speed`` is simulated seconds per wall second; ``duration_s``
+    (simulated) ends :meth:`SitlServer.run`; ``params`` overrides parameter defaults."""
+
+    connect: str = "udpout:127.0.0.1:14550"
+    speed: float = 1.0
+    home: GeoOrigin = field(default_factory=GeoOrigin)
+    area: AreaConfig = field(default_factory=AreaConfig)
+    params: Mapping[str, float] = field(default_factory=dict)
+    system_id: int = 1
+    duration_s: float | None = None
+    max_stream_wall_hz: float = 50.0
+
+
+@dataclass
+class _Slot:
+    payload: Payload
+    mav: Any
+    next_frame: int = 0
+    failures: int = 0
+
+
+class SitlServer:
+    """A PX4-style SITL multicopter speaking MAVLink 2 on one connection."""
+
+    def __init__(self, config: ServerConfig | None = None, payloads: Sequence[Payload] = ()) -> None:
+        self.config = config or ServerConfig()
+        c = self.config
+        self.connection = normalize_connection(c.connect)
+        c.home.validate()
+        if not (isinstance(c.speed, (int, float)) and math.isfinite(c.speed) and c.speed > 0):
+            raise ValueError(f"speed must be a positive number, got {c.speed}")
+        if not 1 <= c.system_id <= 255:
+            raise ValueError(f"system_id must be in 1..255, got {c.system_id}")
+        self.params = ParamStore(c.params)
+        self.vehicle = Vehicle(self.params, c.area)
+        self.streams = StreamScheduler(max_wall_hz=c.max_stream_wall_hz)
+        ids = {AUTOPILOT_COMPONENT}
+        for p in payloads:
+            check_payload(p, ids)
+            ids.add(int(p.component_id))
+        self._payloads = list(payloads)
+        self._slots: list[_Slot] = []
+        self.stats: Counter[str] = Counter()
+        self.conn: Any = None
+        self.clock: SimClock | None = None
+        self._stop = threading.Event()
+        self._thread: threading.Thread | None = None
+        self._snapshot = self.vehicle.state()
+        self.error: BaseException | None = None
+
+    # --------------------------------------------------------------- lifecycle
+    def open(self) -> None:
+        """Open the connection (raises OSError when it cannot) and reset the clock."""
+        if self.conn is not None:
+            return
+        c = self.config
+        self.conn = mavutil.mavlink_connection(self.connection, source_system=c.system_id,
+                                               source_component=AUTOPILOT_COMPONENT)
+        self.mav = self.conn.mav
+        self.telemetry = TelemetrySender(self.mav, c.home)
+        self.commands = CommandHandler(self.vehicle, self.streams, self.telemetry)
+        self.param_protocol = ParamProtocol(self.params, self.mav)
+        self._slots = [_Slot(p, mavlink.MAVLink(self.conn, srcSystem=c.system_id,
+                                                srcComponent=int(p.component_id)))
+                       for p in self._payloads]
+        self.clock = SimClock(c.speed)
+        log.debug("vehicle %d on %s at %gx real time", c.system_id, self.connection, c.speed)
+
+    def close(self) -> None:
+        if self.conn is not None:
+            self.conn.close()
+            self.conn = None
+
+    def start(self) -> SitlServer:
+        """Open and run in a daemon thread; returns self."""
+        self.open()
+        self._stop.clear()
+        self._thread = threading.Thread(target=self._run_thread, name="sitl_stub", daemon=True)
+        self._thread.start()
+        return self
+
+    def stop(self, timeout_s: float = 5.0) -> None:
+        """Stop the loop (thread or :meth:`run`) and close the connection."""
+        self._stop.set()
+        if self._thread is not None and self._thread is not threading.current_thread():
+            self._thread.join(timeout_s)
+            self._thread = None
+        self.close()
+
+    def __enter__(self) -> SitlServer:
+        return self.start()
+
+    def __exit__(self, *exc: object) -> None:
+        self.stop()
+
+    @property
+    def address(self) -> tuple[str, int]:
+        """Local (host, port) of the vehicle's socket: where to send when it listens."""
+        if self.conn is None:
+            raise RuntimeError("server not open")
+        sock = getattr(self.conn, "listen", None) or self.conn.port  # tcpin listens separately
+        host, port = sock.getsockname()[:2]
+        return str(host), int(port)
+
+    def state(self) -> VehicleState:
+        """Latest vehicle snapshot (safe from any thread)."""
+        return self._snapshot
+
+    def run(self, stop: threading.Event | None = None) -> None:
+        """Run until ``stop`` (or :meth:`stop`) is set or ``duration_s`` simulated seconds pass."""
+        self.open()
+        assert self.clock is not None
+        stop = stop or self._stop
+        duration = self.config.duration_s
+        while not stop.is_set() and not self._stop.is_set():
+            self.iterate()
+            if duration is not None and self.vehicle.t >= duration:
+                break
+            select.select([self.conn.fd], [], [], LOOP_WAIT_S)  # fd changes on a TCP accept
+
+    def _run_thread(self) -> None:
+        try:
+            self.run()
+        except BaseException as exc:  # reported to the embedding code via .error
+            self.error = exc
+            log.exception("sitl_stub loop failed")
+
+    # -------------------------------------------------------------- one tick
+    def iterate(self) -> None:
+        """Handle input, advance simulated time to the wall clock, send what is due."""
+        assert self.clock is not None
+        wall = self.clock.wall()
+        self._receive(wall)
+        self._advance_to(self.clock.advance())
+        for severity, text in self.vehicle.drain_events():
+            log.info("%s", text)
+            self.telemetry.statustext(severity, text)
+        self._send_due(wall)
+        self._snapshot = self.vehicle.state()
+
+    def _advance_to(self, target_s: float) -> None:
+        v = self.vehicle
+        while True:
+            for slot in self._slots:
+                while slot.next_frame * slot.payload.frame_s <= v.t + 1e-6:
+                    self._tick(slot, slot.next_frame * slot.payload.frame_s)
+                    slot.next_frame += 1
+            next_frame = min((s.next_frame * s.payload.frame_s for s in self._slots),
+                             default=math.inf)
+            end = min(target_s, next_frame)
+            if end <= v.t + 1e-9:
+                return
+            v.step(end - v.t)
+
+    def _tick(self, slot: _Slot, sim_time_s: float) -> None:
+        try:
+            slot.payload.on_frame(sim_time_s, self.vehicle.state(), slot.mav)
+        except Exception:
+            slot.failures += 1
+            if slot.failures == 1 or slot.failures % 100 == 0:
+                log.exception("payload %d failed in on_frame (%d failures)",
+                              slot.payload.component_id, slot.failures)
+
+    def _send_due(self, wall: float) -> None:
+        s = self.vehicle.state()
+        if self.streams.heartbeat_due(s.time_s, wall):
+            self.telemetry.heartbeat(s)
+            for slot in self._slots:
+                slot.mav.heartbeat_send(*slot.payload.heartbeat())
+        for name in self.streams.due(s.time_s, wall):
+            self.telemetry.send(name, s)
+
+    # ------------------------------------------------------------------ input
+    def _receive(self, wall: float) -> None:
+        while True:
+            msg = self.conn.recv_msg()
+            if msg is None:
+                return
+            kind = msg.get_type()
+            if kind == "BAD_DATA":
+                self.stats["bad_data"] += 1
+                continue
+            self.stats[f"rx_{kind}"] += 1
+            try:
+                self._dispatch(msg, kind, wall)
+            except Exception:
+                self.stats["handler_errors"] += 1
+                log.exception("failed to handle %s", kind)
+
+    def _dispatch(self, msg: Any, kind: str, wall: float) -> None:
+        if kind in ("COMMAND_LONG", "COMMAND_INT"):
+            self._on_command(msg, kind, wall)
+        elif kind == "SET_POSITION_TARGET_LOCAL_NED":
+            self._on_setpoint(msg)
+        elif kind.startswith("PARAM_"):
+            if self._for_autopilot(msg):
+                self.param_protocol.handle(msg)
+        elif kind == "SET_MODE":  # deprecated message: acted on like DO_SET_MODE, no ACK
+            if (msg.target_system == self.config.system_id
+                    and msg.base_mode & mavlink.MAV_MODE_FLAG_CUSTOM_MODE_ENABLED):
+                main, sub = decode_custom_mode(msg.custom_mode)
+                reply = self.commands.handle(self._request(
+                    msg, mavlink.MAV_CMD_DO_SET_MODE, (1.0, main, sub, 0, 0, 0, 0)), wall)
+                if reply.reason:
+                    self.telemetry.statustext(mavlink.MAV_SEVERITY_WARNING, reply.reason)
+        elif kind == "PING":
+            if msg.target_system == 0 and msg.target_component == 0:
+                self.mav.ping_send(msg.time_usec, msg.seq, msg.get_srcSystem(),
+                                   msg.get_srcComponent())
+        elif kind == "TIMESYNC":
+            if msg.tc1 == 0:
+                self.mav.timesync_send(int(self.vehicle.t * 1e9), msg.ts1)
+        elif kind == "FILE_TRANSFER_PROTOCOL":
+            reply = ftp_reply(msg.payload) if self._for_autopilot(msg) else None
+            if reply is not None:
+                self.mav.file_transfer_protocol_send(0, msg.get_srcSystem(),
+                                                     msg.get_srcComponent(), reply)
+        elif kind == "MISSION_REQUEST_LIST" and self._for_autopilot(msg):
+            # no mission, fence or rally items (MAVProxy asks on connect)
+            self.mav.mission_count_send(msg.get_srcSystem(), msg.get_srcComponent(), 0,
+                                        msg.mission_type)
+
+    def _for_autopilot(self, msg: Any) -> bool:
+        return (getattr(msg, "target_system", 0) in (0, self.config.system_id)
+                and getattr(msg, "target_component", 0) in (0, AUTOPILOT_COMPONENT))
+
+    def _on_setpoint(self, m: Any) -> None:
+        if (not self._for_autopilot(m) or m.coordinate_frame != mavlink.MAV_FRAME_LOCAL_NED
+                or m.type_mask & POSITION_IGNORE_MASK):
+            self.stats["setpoints_ignored"] += 1
+            return
+        yaw = None if m.type_mask & YAW_IGNORE_BIT else m.yaw
+        if not self.vehicle.offer_setpoint(m.x, m.y, m.z, yaw):
+            self.stats["setpoints_rejected"] += 1
+
+    def _on_command(self, msg: Any, kind: str, wall: float) -> None:
+        if msg.target_system not in (0, self.config.system_id):
+            return
+        slot = next((s for s in self._slots if s.payload.component_id == msg.target_component),
+                    None)
+        if slot is not None:
+            self._payload_command(slot, msg)
+            return
+        if msg.target_component not in (0, AUTOPILOT_COMPONENT):
+            return
+        if kind == "COMMAND_LONG":
+            params = (msg.param1, msg.param2, msg.param3, msg.param4, msg.param5, msg.param6,
+                      msg.param7)
+            req = self._request(msg, msg.command, params, msg.confirmation)
+        else:
+            params = (msg.param1, msg.param2, msg.param3, msg.param4, float(msg.x), float(msg.y),
+                      msg.z)
+            req = self._request(msg, msg.command, params, 0, msg.frame)
+        reply: CommandReply = self.commands.handle(req, wall)
+        self.mav.command_ack_send(msg.command, int(reply.result), 0, 0, msg.get_srcSystem(),
+                                  msg.get_srcComponent())
+        self.stats[f"ack_{Result(reply.result).name.lower()}"] += 1
+        if reply.reason:
+            log.info("%s", reply.reason)
+            self.telemetry.statustext(mavlink.MAV_SEVERITY_WARNING, reply.reason)
+        for follow_up in reply.then:
+            follow_up()
+
+    def _payload_command(self, slot: _Slot, msg: Any) -> None:
+        handler = getattr(slot.payload, "on_command", None)
+        result = handler(msg, slot.mav) if handler else mavlink.MAV_RESULT_UNSUPPORTED
+        if result is not None:
+            slot.mav.command_ack_send(msg.command, int(result), 0, 0, msg.get_srcSystem(),
+                                      msg.get_srcComponent())
+
+    @staticmethod
+    def _request(msg: Any, command: int, params: tuple, confirmation: int = 0,
+                 frame: int | None = None) -> CommandRequest:
+        return CommandRequest(int(command), tuple(float(p) for p in params), int(confirmation),
+                              frame, msg.get_srcSystem(), msg.get_srcComponent())

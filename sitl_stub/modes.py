@@ -1,0 +1,92 @@
+"""PX4 flight modes and landed states as the vehicle reports them (no MAVLink import).
+
+Encoding follows PX4 ``px4_custom_mode.h``: ``custom_mode = main << 16 | sub << 24``.
+Only the modes this stub flies are members; others (MANUAL, POSCTL, MISSION, ...) are refused.
+"""
+
+from __future__ import annotations
+
+from enum import Enum, IntEnum
+
+PX4_MAIN_MANUAL = 1
+PX4_MAIN_ALTCTL = 2
+PX4_MAIN_POSCTL = 3
+PX4_MAIN_AUTO = 4
+PX4_MAIN_ACRO = 5
+PX4_MAIN_OFFBOARD = 6
+PX4_MAIN_STABILIZED = 7
+PX4_MAIN_RATTITUDE = 8
+
+PX4_SUB_AUTO_READY = 1
+PX4_SUB_AUTO_TAKEOFF = 2
+PX4_SUB_AUTO_LOITER = 3
+PX4_SUB_AUTO_MISSION = 4
+PX4_SUB_AUTO_RTL = 5
+PX4_SUB_AUTO_LAND = 6
+
+#: PX4 main modes that need a manual-control (RC) link, which this vehicle never has.
+MANUAL_MAIN_MODES = frozenset(
+    {PX4_MAIN_MANUAL, PX4_MAIN_ALTCTL, PX4_MAIN_POSCTL, PX4_MAIN_ACRO, PX4_MAIN_STABILIZED,
+     PX4_MAIN_RATTITUDE}
+)
+
+
+class FlightMode(Enum):
+    """The modes the stub flies, valued ``(main, sub)`` as PX4 encodes them."""
+
+    TAKEOFF = (PX4_MAIN_AUTO, PX4_SUB_AUTO_TAKEOFF)
+    LOITER = (PX4_MAIN_AUTO, PX4_SUB_AUTO_LOITER)  # "Hold" in QGC/MAVSDK
+    RTL = (PX4_MAIN_AUTO, PX4_SUB_AUTO_RTL)
+    LAND = (PX4_MAIN_AUTO, PX4_SUB_AUTO_LAND)
+    OFFBOARD = (PX4_MAIN_OFFBOARD, 0)
+
+    @property
+    def main(self) -> int:
+        return self.value[0]
+
+    @property
+    def sub(self) -> int:
+        return self.value[1]
+
+    @property
+    def custom_mode(self) -> int:
+        """HEARTBEAT.custom_mode in PX4's encoding."""
+        return encode_custom_mode(self.main, self.sub)
+
+    @property
+    def px4_name(self) -> str:
+        """PX4's name, e.g. ``AUTO.LOITER``."""
+        return "OFFBOARD" if self is FlightMode.OFFBOARD else f"AUTO.{self.name}"
+
+    @classmethod
+    def from_main_sub(cls, main: int, sub: int) -> FlightMode | None:
+        """The mode for PX4's (main, sub), or None when the stub does not fly it.
+
+        OFFBOARD ignores the sub mode, as PX4 commander does.
+        """
+        if main == PX4_MAIN_OFFBOARD:
+            return cls.OFFBOARD
+        for mode in cls:
+            if mode.value == (main, sub):
+                return mode
+        return None
+
+
+class LandedState(IntEnum):
+    """MAV_LANDED_STATE values (EXTENDED_SYS_STATE.landed_state)."""
+
+    UNDEFINED = 0
+    ON_GROUND = 1
+    IN_AIR = 2
+    TAKEOFF = 3
+    LANDING = 4
+
+
+def encode_custom_mode(main: int, sub: int) -> int:
+    """PX4 ``custom_mode`` from main and sub mode."""
+    return (int(main) & 0xFF) << 16 | (int(sub) & 0xFF) << 24
+
+
+def decode_custom_mode(custom_mode: int) -> tuple[int, int]:
+    """(main, sub) from a PX4 ``custom_mode``."""
+    return (int(custom_mode) >> 16) & 0xFF, (int(custom_mode) >> 24) & 0xFF

@@ -1,0 +1,169 @@
+"""MAVLink telemetry of the vehicle as PX4's mavlink module would send it.
+
+Every message is built from a :class:`~sitl_stub.vehicle.VehicleState`; ``time_boot_ms`` and
+``time_usec`` are simulated time since boot. Global positions come from the LOCAL_NED position
+through the configured :class:`~sitl_stub.geo.GeoOrigin` (which is also home).
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Callable
+from typing import Any
+
+from sitl_stub._mav import mavlink
+from sitl_stub.geo import GeoOrigin
+from sitl_stub.vehicle import VehicleState
+
+# PX4 reports every sensor present, enabled and healthy in SITL; GEOFENCE healthy keeps MAVProxy
+# from announcing "fence breach", PREARM_CHECK and GPS make MAVSDK's health armable / position ok.
+SENSORS = (
+    mavlink.MAV_SYS_STATUS_SENSOR_3D_GYRO | mavlink.MAV_SYS_STATUS_SENSOR_3D_ACCEL
+    | mavlink.MAV_SYS_STATUS_SENSOR_3D_MAG | mavlink.MAV_SYS_STATUS_SENSOR_ABSOLUTE_PRESSURE
+    | mavlink.MAV_SYS_STATUS_SENSOR_GPS | mavlink.MAV_SYS_STATUS_SENSOR_ANGULAR_RATE_CONTROL
+    | mavlink.MAV_SYS_STATUS_SENSOR_ATTITUDE_STABILIZATION | mavlink.MAV_SYS_STATUS_SENSOR_YAW_POSITION
+    | mavlink.MAV_SYS_STATUS_SENSOR_Z_ALTITUDE_CONTROL
+    | mavlink.MAV_SYS_STATUS_SENSOR_XY_POSITION_CONTROL | mavlink.MAV_SYS_STATUS_SENSOR_MOTOR_OUTPUTS
+    | mavlink.MAV_SYS_STATUS_GEOFENCE | mavlink.MAV_SYS_STATUS_AHRS
+    | mavlink.MAV_SYS_STATUS_SENSOR_BATTERY | mavlink.MAV_SYS_STATUS_PREARM_CHECK
+)
+
+CAPABILITIES = (
+    mavlink.MAV_PROTOCOL_CAPABILITY_MAVLINK2 | mavlink.MAV_PROTOCOL_CAPABILITY_COMMAND_INT
+    | mavlink.MAV_PROTOCOL_CAPABILITY_PARAM_ENCODE_BYTEWISE
+    | mavlink.MAV_PROTOCOL_CAPABILITY_SET_POSITION_TARGET_LOCAL_NED
+)
+FLIGHT_SW_VERSION = 1 << 24 | 14 << 16 | 0 << 8 | 255  # "v1.14.0 official", PX4's encoding
+UID = int.from_bytes(b"SITLSTUB", "big")
+
+_AUTO_FLAGS = (mavlink.MAV_MODE_FLAG_AUTO_ENABLED | mavlink.MAV_MODE_FLAG_STABILIZE_ENABLED
+               | mavlink.MAV_MODE_FLAG_GUIDED_ENABLED)
+
+
+def base_mode(state: VehicleState) -> int:
+    """HEARTBEAT.base_mode: custom mode enabled, PX4's auto/guided flags, SAFETY_ARMED when armed."""
+    flags = mavlink.MAV_MODE_FLAG_CUSTOM_MODE_ENABLED | _AUTO_FLAGS
+    if state.armed:
+        flags |= mavlink.MAV_MODE_FLAG_SAFETY_ARMED
+    return flags
+
+
+class TelemetrySender:
+    """Sends the autopilot's messages with one pymavlink ``MAVLink`` object (component 1)."""
+
+    def __init__(self, mav: Any, origin: GeoOrigin) -> None:
+        self.mav = mav
+        self.origin = origin
+        self._builders: dict[str, Callable[[VehicleState], None]] = {
+            "HEARTBEAT": self.heartbeat,
+            "SYS_STATUS": self.sys_status,
+            "EXTENDED_SYS_STATE": self.extended_sys_state,
+            "HOME_POSITION": self.home_position,
+            "GPS_RAW_INT": self.gps_raw_int,
+            "GLOBAL_POSITION_INT": self.global_position_int,
+            "LOCAL_POSITION_NED": self.local_position_ned,
+            "ATTITUDE": self.attitude,
+            "ATTITUDE_QUATERNION": self.attitude_quaternion,
+            "VFR_HUD": self.vfr_hud,
+            "AUTOPILOT_VERSION": self.autopilot_version,
+        }
+
+    def names(self) -> list[str]:
+        return list(self._builders)
+
+    def can_send(self, name: str) -> bool:
+        return name in self._builders
+
+    def send(self, name: str, state: VehicleState) -> None:
+        self._builders[name](state)
+
+    # ------------------------------------------------------------------ builders
+    def heartbeat(self, s: VehicleState) -> None:
+        status = mavlink.MAV_STATE_ACTIVE if s.armed else mavlink.MAV_STATE_STANDBY
+        self.mav.heartbeat_send(mavlink.MAV_TYPE_QUADROTOR, mavlink.MAV_AUTOPILOT_PX4,
+                                base_mode(s), s.mode.custom_mode, status)
+
+    def sys_status(self, s: VehicleState) -> None:
+        self.mav.sys_status_send(SENSORS, SENSORS, SENSORS, 200, 16200, -1, 100,
+                                 0, 0, 0, 0, 0, 0)
+
+    def extended_sys_state(self, s: VehicleState) -> None:
+        self.mav.extended_sys_state_send(mavlink.MAV_VTOL_STATE_UNDEFINED, int(s.landed_state))
+
+    def home_position(self, s: VehicleState) -> None:
+        o = self.origin
+        self.mav.home_position_send(_e7(o.lat_deg), _e7(o.lon_deg), _mm(o.alt_amsl_m),
+                                    0.0, 0.0, 0.0, [1.0, 0.0, 0.0, 0.0], 0.0, 0.0, 0.0,
+                                    _us(s.time_s))
+
+    def gps_raw_int(self, s: VehicleState) -> None:
+        lat, lon = self.origin.to_global(s.north_m, s.east_m)
+        speed = s.ground_speed_mps
+        cog = 65535 if speed < 0.5 else _cdeg(math.atan2(s.ve_mps, s.vn_mps))
+        self.mav.gps_raw_int_send(_us(s.time_s), mavlink.GPS_FIX_TYPE_3D_FIX, _e7(lat), _e7(lon),
+                                  _mm(self.origin.alt_amsl_m + s.altitude_m), 70, 110,
+                                  min(int(speed * 100), 65534), cog, 12,
+                                  _mm(self.origin.alt_amsl_m + s.altitude_m), 500, 800, 200, 0, 0)
+
+    def global_position_int(self, s: VehicleState) -> None:
+        lat, lon = self.origin.to_global(s.north_m, s.east_m)
+        self.mav.global_position_int_send(
+            _ms(s.time_s), _e7(lat), _e7(lon), _mm(self.origin.alt_amsl_m + s.altitude_m),
+            _mm(s.altitude_m), _cms(s.vn_mps), _cms(s.ve_mps), _cms(s.vd_mps), _cdeg(s.yaw_rad))
+
+    def local_position_ned(self, s: VehicleState) -> None:
+        self.mav.local_position_ned_send(_ms(s.time_s), s.north_m, s.east_m, s.down_m,
+                                         s.vn_mps, s.ve_mps, s.vd_mps)
+
+    def attitude(self, s: VehicleState) -> None:
+        self.mav.attitude_send(_ms(s.time_s), s.roll_rad, s.pitch_rad, s.yaw_rad,
+                               0.0, 0.0, s.yaw_rate_radps)
+
+    def attitude_quaternion(self, s: VehicleState) -> None:
+        q = _quaternion(s.roll_rad, s.pitch_rad, s.yaw_rad)
+        self.mav.attitude_quaternion_send(_ms(s.time_s), *q, 0.0, 0.0, s.yaw_rate_radps)
+
+    def vfr_hud(self, s: VehicleState) -> None:
+        heading = int(round(math.degrees(s.yaw_rad))) % 360
+        throttle = 50 if s.armed and s.in_air else 0
+        self.mav.vfr_hud_send(s.ground_speed_mps, s.ground_speed_mps, heading, throttle,
+                              self.origin.alt_amsl_m + s.altitude_m, -s.vd_mps)
+
+    def autopilot_version(self, s: VehicleState) -> None:
+        self.mav.autopilot_version_send(CAPABILITIES, FLIGHT_SW_VERSION, 0, 0, 0,
+                                        [0] * 8, [0] * 8, [0] * 8, 0, 0, UID)
+
+    def statustext(self, severity: int, text: str) -> None:
+        self.mav.statustext_send(severity, text[:50].encode("ascii", "replace"))
+
+
+def _e7(deg: float) -> int:
+    return int(round(deg * 1e7))
+
+
+def _mm(m: float) -> int:
+    return int(round(m * 1000.0))
+
+
+def _ms(s: float) -> int:
+    return int(s * 1000.0) & 0xFFFFFFFF
+
+
+def _us(s: float) -> int:
+    return int(s * 1e6)
+
+
+def _cms(v: float) -> int:
+    return max(-32767, min(32767, int(round(v * 100.0))))
+
+
+def _cdeg(rad: float) -> int:
+    return int(round(math.degrees(rad) * 100.0)) % 36000
+
+
+def _quaternion(roll: float, pitch: float, yaw: float) -> tuple[float, float, float, float]:
+    cr, sr = math.cos(roll / 2), math.sin(roll / 2)
+    cp, sp = math.cos(pitch / 2), math.sin(pitch / 2)
+    cy, sy = math.cos(yaw / 2), math.sin(yaw / 2)
+    return (cr * cp * cy + sr * sp * sy, sr * cp * cy - cr * sp * sy,
+            cr * sp * cy + sr * cp * sy, cr * cp * sy - sr * sp * cy)

@@ -1,0 +1,89 @@
+"""MAVProxy (the ``mavproxy`` package) connects to the SITL vehicle and shows mode and position.
+
+MAVProxy listens on ``udp:127.0.0.1:P1`` (the vehicle sends there, like PX4 SITL's GCS link) and
+forwards to ``udpout:127.0.0.1:P2``, where a pymavlink client commands arm and takeoff *through*
+MAVProxy. The test reads MAVProxy's console output and its telemetry log.
+"""
+
+from __future__ import annotations
+
+import math
+import os
+import shutil
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import pytest
+
+os.environ["MAVLINK20"] = "1"
+from pymavlink import mavutil  # noqa: E402
+
+from sitl_stub.testing import free_udp_port, vehicle_process  # noqa: E402
+
+pytestmark = pytest.mark.timeout(90)
+
+mavlink = mavutil.mavlink
+MAVPROXY = shutil.which("mavproxy.py", path=str(Path(sys.executable).parent)) or shutil.which(
+    "mavproxy.py")
+
+
+def _wait_text(path: Path, text: str, timeout: float) -> None:
+    deadline = time.monotonic() + timeout
+    while text not in path.read_text(errors="replace"):
+        assert time.monotonic() < deadline, f"{text!r} not in MAVProxy output:\n{path.read_text()}"
+        time.sleep(0.1)
+
+
+@pytest.mark.skipif(MAVPROXY is None, reason="mavproxy.py not installed")
+def test_mavproxy_shows_mode_and_position(tmp_path: Path):
+    p_master, p_out = free_udp_port(), free_udp_port()
+    out_path = tmp_path / "mavproxy.out"
+    env = dict(os.environ, PYTHONUNBUFFERED="1")
+    with out_path.open("wb") as out:
+        mp = subprocess.Popen(
+            [sys.executable, MAVPROXY, f"--master=udp:127.0.0.1:{p_master}",
+             f"--out=udpout:127.0.0.1:{p_out}", "--non-interactive"],
+            stdout=out, stderr=subprocess.STDOUT, stdin=subprocess.DEVNULL, cwd=tmp_path, env=env)
+    client = None
+    try:
+        with vehicle_process(f"udpout:127.0.0.1:{p_master}", 5.0,
+                             ["--param", "MIS_TAKEOFF_ALT=10"]) as vehicle:
+            _wait_text(out_path, "Detected vehicle 1:1", 20.0)
+            _wait_text(out_path, "Mode LOITER", 10.0)
+            _wait_text(out_path, "GPS lock at 488 meters", 10.0)
+            _wait_text(out_path, "Received 13 parameters", 15.0)
+
+            client = mavutil.mavlink_connection(f"udpin:127.0.0.1:{p_out}", source_system=250,
+                                                source_component=190)
+            assert client.wait_heartbeat(timeout=10.0) is not None
+            client.mav.command_long_send(1, 0, mavlink.MAV_CMD_COMPONENT_ARM_DISARM, 0,
+                                         1, 0, 0, 0, 0, 0, 0)
+            _wait_text(out_path, "ARMED", 10.0)
+            client.mav.command_long_send(1, 0, mavlink.MAV_CMD_NAV_TAKEOFF, 0,
+                                         *[math.nan] * 7)
+            _wait_text(out_path, "Mode TAKEOFF", 10.0)
+            _wait_text(out_path, "Takeoff complete", 15.0)
+            assert vehicle.proc.poll() is None, vehicle.output()
+    finally:
+        if client is not None:
+            client.close()
+        mp.terminate()
+        try:
+            mp.wait(10)
+        except subprocess.TimeoutExpired:
+            mp.kill()
+            mp.wait(10)
+    text = out_path.read_text(errors="replace")
+    assert "fence breach" not in text
+    assert "UNKNOWN" not in text
+
+    # MAVProxy logged the vehicle's positions: the takeoff climbed over home
+    tlog = mavutil.mavlink_connection(str(tmp_path / "mav.tlog"))
+    alts = []
+    while (m := tlog.recv_match(type="GLOBAL_POSITION_INT")) is not None:
+        if m.get_srcSystem() == 1:
+            assert abs(m.lat - 473977420) < 10 and abs(m.lon - 85455940) < 10
+            alts.append(m.relative_alt / 1000.0)
+    assert alts and max(alts) > 9.0
