@@ -19,7 +19,13 @@ class SB3Policy:
         self.manifest = read_zip_manifest(path)
         self.layout = ObservationLayout.from_dict(self.manifest["observation_layout"])
         self.name = path.stem
+        import torch
         from stable_baselines3 import PPO
+
+        # One thread: a 3 x 128 MLP on one observation gains nothing from more, and in flight the
+        # loop shares the CPU with the vehicle (and, in SITL, the simulator).
+        torch.set_num_threads(1)
+        self._torch = torch
 
         try:
             self.model = PPO.load(path, device="cpu")
@@ -30,5 +36,9 @@ class SB3Policy:
                                   f"match its manifest's layout {self.layout.describe()}")
 
     def act(self, obs: np.ndarray, truth: GroundTruth | None = None) -> np.ndarray:
-        action, _ = self.model.predict(obs, deterministic=True)
-        return action
+        """SB3's ``predict(obs, deterministic=True)`` for a Box action space (the Gaussian mean,
+        clipped to the box), without its per-call input checks: the flight loop's hot path."""
+        with self._torch.inference_mode():
+            action = self.model.policy._predict(self._torch.as_tensor(obs, dtype=self._torch.float32),
+                                                deterministic=True).numpy()
+        return np.clip(action, -1.0, 1.0)
