@@ -8,7 +8,7 @@ A sweep file (``sweeps/tiny.toml`` is a commented example)::
     [train]                           # TrainConfig fields: the budget and PPO hyper-parameters
     episodes = 12000
     [env]                             # EnvConfig fields; radio.x / area.x reach the nested configs
-    "radio.aoa_noise_deg" = 5.0
+    "radio.shadowing" = true
     [eval]
     episodes = 100                    # evaluation episodes per policy (PPO, static, oracle, aoa)
     seed = 0                          # evaluation seed: every policy meets the same episodes
