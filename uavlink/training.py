@@ -45,6 +45,11 @@ class TrainConfig:
     # max-grad-norm clip. Observations are already O(1) by construction and are not normalised,
     # so the saved policy needs no statistics at inference.
     normalize_reward: bool = True
+    # Domain randomisation (ours): when > 0, every training episode draws its AoA noise std
+    # uniformly from [aoa_noise_deg, aoa_noise_max_deg], so one policy holds up under noisy AoA
+    # estimates. Training only: the manifest's env config, and so every evaluation, keep the
+    # env's own fixed noise.
+    aoa_noise_max_deg: float = 0.0
     seed: int = 0
     torch_threads: int = 1
     checkpoint_every_steps: int = 100_000
@@ -67,7 +72,8 @@ def make_model(cfg: EnvConfig, tc: TrainConfig, run_dir: Path | None):
     from uavlink.env.vec_env import UavVecEnv
 
     torch.set_num_threads(tc.torch_threads)
-    env = UavVecEnv(cfg, n_envs=tc.n_envs, seed=tc.seed)
+    train_cfg = cfg.replace(aoa_noise_max_deg=tc.aoa_noise_max_deg).validate() if tc.aoa_noise_max_deg else cfg
+    env = UavVecEnv(train_cfg, n_envs=tc.n_envs, seed=tc.seed)
     if tc.normalize_reward:
         from stable_baselines3.common.vec_env import VecNormalize
 
