@@ -91,8 +91,19 @@ def _write_results_folder(args: argparse.Namespace) -> int:
     base = env_config("no_move", args.aoa_noise_deg, parse_overrides(args.overrides))
     command = "uavlink " + " ".join(sys.argv[1:]) if sys.argv[1:2] == ["evaluate"] else "uavlink evaluate ..."
     markdown = args.markdown or args.out / "results.md"
+
+    def sweep_sections(link_prefix: Path) -> list[str]:
+        if args.sweep is None:
+            return []
+        from uavlink.sweep.aggregate import results_section
+        from uavlink.sweep.spec import load_spec
+
+        spec = load_spec(args.sweep)
+        return [results_section(spec, args.sweep_root / spec.name, args.out, link_prefix), ""]
+
     path = write_results(folder, args.out, markdown, args.episodes, args.seed, base, command,
-                         progress=lambda msg: print(f"evaluating {msg}", file=sys.stderr))
+                         progress=lambda msg: print(f"evaluating {msg}", file=sys.stderr),
+                         extra_sections=sweep_sections)
     print(path.read_text())
     return 0
 
@@ -111,7 +122,7 @@ def cmd_train(args: argparse.Namespace) -> int:
     cfg = env_config(args.scenario, args.aoa_noise_deg, parse_overrides(args.overrides))
     tc = TrainConfig(episodes=args.episodes, learning_rate=args.learning_rate, seed=args.seed,
                      n_envs=args.n_envs, batch_size=args.batch_size, n_epochs=args.n_epochs,
-                     torch_threads=args.torch_threads)
+                     torch_threads=args.torch_threads, aoa_noise_max_deg=args.aoa_noise_max_deg)
     if args.episodes < 1 or args.n_envs < 1 or args.batch_size < 1:
         raise UserError("--episodes, --n-envs and --batch-size must be positive")
     if args.resume is not None and not args.resume.is_file():
@@ -217,6 +228,9 @@ def build_parser() -> argparse.ArgumentParser:
                    help="write a results folder (Table I/II as Markdown and CSV, figures); "
                         "needs --scenario all and --policy FOLDER")
     p.add_argument("--markdown", type=Path, default=None, help="where the report goes (default OUT/results.md)")
+    p.add_argument("--sweep", type=Path, default=None,
+                   help="with --out: add the across-seed table of this finished sweep file (e.g. sweeps/table1.toml)")
+    p.add_argument("--sweep-root", type=Path, default=Path("runs"), help="where the sweep's results are (default runs)")
     p.set_defaults(func=cmd_evaluate)
 
     p = sub.add_parser("train", help="train a PPO policy",
@@ -230,6 +244,8 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--batch-size", type=int, default=512, help="PPO minibatch (ours)")
     p.add_argument("--n-epochs", type=int, default=10, help="PPO epochs per rollout (ours, SB3 default)")
     p.add_argument("--torch-threads", type=int, default=1, help="torch CPU threads (1 is fastest for 3x128 MLPs)")
+    p.add_argument("--aoa-noise-max-deg", type=float, default=0.0,
+                   help="train with each episode's AoA noise std drawn from [--aoa-noise-deg, this] (ours; 0: off)")
     p.add_argument("--run-dir", type=Path, default=None, help="TensorBoard logs and checkpoint (default runs/OUT-seedN)")
     p.add_argument("--resume", type=Path, default=None, help="continue from a checkpoint zip")
     p.add_argument("--eval-episodes", type=int, default=100, help="evaluate after training into the manifest (0: skip)")

@@ -76,13 +76,14 @@ def evaluate_scenarios(policy_folder: Path, episodes: int, seed: int, base: EnvC
 def table_one(rows: list[ScenarioRow]) -> tuple[list[str], list[list[str]]]:
     has_mixed = "ppo_mixed" in rows[0].results
     header = ["scenario", "PPO", "static", "oracle", "aoa", *(["PPO mixed"] if has_mixed else []),
-              "gain over static", "paper gain", "PPO / oracle", "target", "met"]
+              "gain over static", "paper gain", "PPO / oracle", "PPO vs aoa", "target", "met"]
     body = []
     for row in rows:
         r = row.results
         ppo, static, oracle = (r[k].episode_rate_mbps for k in ("ppo", "static", "oracle"))
         gain, glo, ghi = paired_ratio_ci(ppo, static)
         share, slo, shi = paired_ratio_ci(ppo, oracle)
+        vs_aoa, alo, ahi = paired_ratio_ci(ppo, r["aoa"].episode_rate_mbps)
         paper_ppo, paper_static = PAPER_TABLE_ONE[row.scenario]
         target, rule = row.target_mbps()
 
@@ -95,6 +96,7 @@ def table_one(rows: list[ScenarioRow]) -> tuple[list[str], list[list[str]]]:
             f"{100 * (gain - 1):+.1f} % [{100 * (glo - 1):+.1f}, {100 * (ghi - 1):+.1f}]",
             f"{100 * (paper_ppo / paper_static - 1):+.1f} %",
             f"{100 * share:.1f} % [{100 * slo:.1f}, {100 * shi:.1f}]",
+            f"{100 * (vs_aoa - 1):+.1f} % [{100 * (alo - 1):+.1f}, {100 * (ahi - 1):+.1f}]",
             f"{target:.2f} ({rule})",
             "yes" if r["ppo"].mean_rate_mbps >= target else "no",
         ])
@@ -176,7 +178,8 @@ def plot_trajectories(row: ScenarioRow, half_width_m: float, path: Path) -> None
 
 
 def write_results(policy_folder: Path, out: Path, markdown: Path, episodes: int, seed: int,
-                  base: EnvConfig, command: str, progress: Callable[[str], None] = lambda _: None) -> Path:
+                  base: EnvConfig, command: str, progress: Callable[[str], None] = lambda _: None,
+                  extra_sections: Callable[[Path], list[str]] = lambda _: []) -> Path:
     """Evaluate everything and write the folder; returns the Markdown path."""
     out.mkdir(parents=True, exist_ok=True)
     rows = evaluate_scenarios(policy_folder, episodes, seed, base, progress)
@@ -207,6 +210,7 @@ def write_results(policy_folder: Path, out: Path, markdown: Path, episodes: int,
         "",
         "Policies: " + ", ".join(f"{s} → `{n}`" for s, n in manifests.items()) + ".",
         "",
+        *extra_sections(rel),
         "## Table II — PPO on `straight` under AoA noise",
         "",
         markdown_table(h2, b2),

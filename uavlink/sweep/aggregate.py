@@ -167,6 +167,35 @@ def write_summary(spec: SweepSpec, sweep_dir: Path, command: str = "") -> tuple[
     return path, table
 
 
+def results_section(spec: SweepSpec, sweep_dir: Path, assets: Path, link_prefix: Path) -> str:
+    """Markdown for docs/results.md: the across-seed table of a finished sweep and its figures,
+    copied to ``assets`` (linked as ``link_prefix/<name>``)."""
+    rows = collect(spec, sweep_dir)
+    missing = [r.scenario for r in rows if r.n < r.expected_seeds]
+    if missing:
+        raise ValueError(f"sweep {spec.name!r} is not finished ({', '.join(missing)}): run it first")
+    header, body = summary_table(rows, list(spec.grid))
+    assets.mkdir(parents=True, exist_ok=True)
+    figures = []
+    for name in ("throughput.png", "learning_curves.png"):
+        if (sweep_dir / name).is_file():
+            shutil.copyfile(sweep_dir / name, assets / f"sweep_{name}")
+            figures += [f"![{name[:-4]}]({link_prefix / f'sweep_{name}'})", ""]
+    first = spec.jobs()[0].train_config()
+    return "\n".join([
+        f"## Table I across training seeds (sweep `{spec.name}`)",
+        "",
+        f"`uavlink sweep` of `{spec.name}` ({len(spec.seeds)} seeds per scenario, {first.episodes:,} "
+        f"training episodes each, evaluation on {spec.eval['episodes']} episodes, seed {spec.eval['seed']}). "
+        "PPO is the mean over training seeds ± the 95 % Student-t interval across seeds. The policies "
+        "in `policies/` (the single-policy table above) are each scenario's median seed.",
+        "",
+        markdown_table(header, body),
+        "",
+        *figures,
+    ])
+
+
 def _label(row: SettingRow, grid_keys: list[str]) -> str:
     return row.scenario if not grid_keys else f"{row.scenario}\n{describe_point(row.point)}"
 
