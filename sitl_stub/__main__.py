@@ -2,12 +2,16 @@
 
 Example: ``python -m sitl_stub --scenario circular --seed 1 --connect udpout:127.0.0.1:14550
 --speed 20``. Bad arguments print one line and exit with status 2; a connection that cannot be
-opened exits with status 1.
+opened exits with status 1. On exit it prints one line ``sitl-stub: stats {json}`` with the
+counters of :meth:`~sitl_stub.mavlink_server.SitlServer.report` (signing, rejected input, ACKs,
+safety monitors).
 """
 
 from __future__ import annotations
 
 import argparse
+import hashlib
+import json
 import logging
 import math
 import signal
@@ -26,6 +30,7 @@ from sitl_stub.payload import (
     default_payload_factory,
 )
 from uavlink.flight.connection import normalize_connection
+from uavlink.flight.signing import load_key
 
 SCENARIOS = ("no_move", "straight", "circular", "straight_90", "straight_180", "hotspot")
 PROG = "sitl-stub"
@@ -102,6 +107,9 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--param", type=_param, action="append", default=[], metavar="NAME=VALUE",
                    help="override a parameter default, e.g. MIS_TAKEOFF_ALT=10 (repeatable)")
     p.add_argument("--no-payload", action="store_true", help="run without the radio payload")
+    p.add_argument("--signing-key", metavar="FILE", default=None,
+                   help="MAVLink 2 signing key (32 raw bytes, e.g. from `uavlink keygen`): sign "
+                   "everything sent, drop every unsigned, wrongly signed or replayed packet")
     p.add_argument("-v", "--verbose", action="store_true", help="log every event")
     return p
 
@@ -118,8 +126,10 @@ def main(argv: Sequence[str] | None = None, payload_factory: PayloadFactory | No
         payloads = [] if args.no_payload else as_payload_list(
             (payload_factory or default_payload_factory)(
                 PayloadOptions(args.scenario, args.seed, args.aoa_noise_deg)))
+        key = load_key(args.signing_key) if args.signing_key else None
         config = ServerConfig(connect=args.connect, speed=args.speed, home=home,
-                              params=dict(args.param), duration_s=args.duration_s)
+                              params=dict(args.param), duration_s=args.duration_s,
+                              signing_key=key)
         server = SitlServer(config, payloads)
     except ValueError as exc:
         parser.error(str(exc))
@@ -128,8 +138,10 @@ def main(argv: Sequence[str] | None = None, payload_factory: PayloadFactory | No
     except OSError as exc:
         print(f"{PROG}: error: cannot open {server.connection}: {exc}", file=sys.stderr)
         return 1
+    signing = (f"signing on (key {hashlib.sha256(key).hexdigest()[:8]})" if key
+               else "signing off")
     print(f"{PROG}: vehicle {config.system_id} on {server.connection}, {args.speed:g}x real time, "
-          f"{len(payloads)} payload(s)", file=sys.stderr, flush=True)
+          f"{len(payloads)} payload(s), {signing}", file=sys.stderr, flush=True)
     stop = threading.Event()
 
     def _on_signal(signum: int, _frame: object) -> None:
@@ -142,6 +154,8 @@ def main(argv: Sequence[str] | None = None, payload_factory: PayloadFactory | No
         server.run(stop)
     finally:
         server.close()
+        print(f"{PROG}: stats {json.dumps(server.report(), sort_keys=True)}", file=sys.stderr,
+              flush=True)
     return 0
 
 

@@ -9,6 +9,12 @@ on ``udpin:127.0.0.1:0`` and reading the chosen port from :attr:`SitlServer.addr
 
 Accepted targets: target_system 0 or the vehicle's id, target_component 0 (broadcast, what
 pymavlink ground stations send) or 1; commands addressed to a payload's component id go to it.
+
+With ``ServerConfig.signing_key`` every packet the vehicle sends (autopilot and payloads) is signed
+and every packet it receives must be signed with that key, newer than the last one of its stream
+(see :mod:`uavlink.flight.signing`); anything else is dropped before it is looked at: no ACK, no
+effect. Rejected input of every kind (signing, bad bytes, unknown messages, unusable setpoints,
+refused parameters and commands) is counted in :meth:`SitlServer.report` and logged once per kind.
 """
 
 from __future__ import annotations
@@ -36,6 +42,8 @@ from sitl_stub.telemetry import TelemetrySender
 from sitl_stub.vehicle import Result, Vehicle, VehicleState
 from uavlink.config import AreaConfig
 from uavlink.flight.connection import normalize_connection
+from uavlink.flight.rejects import RejectLog
+from uavlink.flight.signing import SigningGuard
 
 log = logging.getLogger("sitl_stub")
 
@@ -43,6 +51,7 @@ AUTOPILOT_COMPONENT = 1
 POSITION_IGNORE_MASK = 0x7  # SET_POSITION_TARGET type_mask bits x, y, z
 YAW_IGNORE_BIT = 0x400
 LOOP_WAIT_S = 0.005  # longest wait for input between loop iterations (wall)
+MAX_RX_PER_TICK = 2000  # messages/datagrams handled per loop iteration: a flood cannot stall time
 
 
 @dataclass(frozen=True)
@@ -58,6 +67,7 @@ class ServerConfig:
     system_id: int = 1
     duration_s: float | None = None
     max_stream_wall_hz: float = 50.0
+    signing_key: bytes | None = field(default=None, repr=False)
 
 
 @dataclass
@@ -90,6 +100,9 @@ class SitlServer:
         self._payloads = list(payloads)
         self._slots: list[_Slot] = []
         self.stats: Counter[str] = Counter()
+        self.rejects = RejectLog(log)
+        self.signing: SigningGuard | None = None
+        self._notices: list[str] = []
         self.conn: Any = None
         self.clock: SimClock | None = None
         self._stop = threading.Event()
@@ -112,6 +125,10 @@ class SitlServer:
         self._slots = [_Slot(p, mavlink.MAVLink(self.conn, srcSystem=c.system_id,
                                                 srcComponent=int(p.component_id)))
                        for p in self._payloads]
+        if c.signing_key is not None:
+            self.signing = SigningGuard(c.signing_key, on_first_reject=self._on_signing_reject)
+            for mav in (self.mav, *(slot.mav for slot in self._slots)):
+                self.signing.attach(mav)
         self.clock = SimClock(c.speed)
         log.debug("vehicle %d on %s at %gx real time", c.system_id, self.connection, c.speed)
 
@@ -155,6 +172,28 @@ class SitlServer:
         """Latest vehicle snapshot (safe from any thread)."""
         return self._snapshot
 
+    def report(self) -> dict[str, Any]:
+        """Counters for logs and tests: signing, rejected input by kind, ACK results, and the
+        vehicle's safety monitors (geofence, offboard setpoint age, failsafes)."""
+        s = self._snapshot
+        acks = {k[4:]: v for k, v in sorted(self.stats.items()) if k.startswith("ack_")}
+        payloads = {str(p.component_id): p.summary() for p in self._payloads
+                    if callable(getattr(p, "summary", None))}
+        return {
+            "signing": self.signing.stats() if self.signing else None,
+            "payloads": payloads,
+            "rejected": self.rejects.as_dict(),
+            "acks": acks,
+            "vehicle": {
+                "time_s": round(s.time_s, 3), "armed": s.armed, "mode": s.mode.px4_name,
+                "offboard_failsafes": s.offboard_failsafes,
+                "max_offboard_setpoint_age_s": round(s.max_offboard_setpoint_age_s, 3),
+                "max_abs_xy_m": round(s.max_abs_xy_m, 3), "fence_m": self.vehicle.fence_m,
+                "setpoints_accepted": s.setpoints_accepted,
+                "setpoints_clamped": s.setpoints_clamped,
+            },
+        }
+
     def run(self, stop: threading.Event | None = None) -> None:
         """Run until ``stop`` (or :meth:`stop`) is set or ``duration_s`` simulated seconds pass."""
         self.open()
@@ -184,6 +223,9 @@ class SitlServer:
         for severity, text in self.vehicle.drain_events():
             log.info("%s", text)
             self.telemetry.statustext(severity, text)
+        for text in self._notices:
+            self.telemetry.statustext(mavlink.MAV_SEVERITY_WARNING, text)
+        self._notices.clear()
         self._send_due(wall)
         self._snapshot = self.vehicle.state()
 
@@ -220,21 +262,43 @@ class SitlServer:
             self.telemetry.send(name, s)
 
     # ------------------------------------------------------------------ input
+    def _on_signing_reject(self, reason: str, text: str) -> None:
+        self._notices.append(f"Signing: rejected {reason} packets")
+
     def _receive(self, wall: float) -> None:
-        while True:
-            msg = self.conn.recv_msg()
+        if self.signing is not None and not self.signing.is_attached(self.conn.mav):
+            raise RuntimeError("pymavlink replaced the signed MAVLink parser; refusing to go on")
+        for _ in range(MAX_RX_PER_TICK):
+            try:
+                msg = self.conn.recv_msg()
+            except Exception as exc:  # a parser error robust parsing did not turn into BAD_DATA
+                self.rejects.reject("parse_error", f"MAVLink parser error: {exc!r}")
+                self.conn.mav.buf, self.conn.mav.buf_index = bytearray(), 0
+                continue
             if msg is None:
-                return
+                # a datagram without a whole message (garbage, a split packet): go on while more
+                # are waiting, or garbage would starve the commands queued behind it
+                if not select.select([self.conn.fd], [], [], 0)[0]:
+                    return
+                continue
             kind = msg.get_type()
             if kind == "BAD_DATA":
-                self.stats["bad_data"] += 1
+                if "signature" in str(getattr(msg, "reason", "")):
+                    self.stats["signing_rejected"] += 1  # counted by reason in self.signing
+                else:
+                    self.stats["bad_data"] += 1
+                    self.rejects.reject("bad_data", f"bad MAVLink data ({msg.reason})")
+                continue
+            if kind.startswith("UNKNOWN"):
+                self.rejects.reject("unknown_message", f"unknown message id {msg.get_msgId()}",
+                                    key=f"unknown_message_{msg.get_msgId()}")
                 continue
             self.stats[f"rx_{kind}"] += 1
             try:
                 self._dispatch(msg, kind, wall)
             except Exception:
-                self.stats["handler_errors"] += 1
-                log.exception("failed to handle %s", kind)
+                self._handler_error(f"handling {kind}")
+                self.rejects.reject("handler_error", f"failed to handle {kind}", key=f"error_{kind}")
 
     def _dispatch(self, msg: Any, kind: str, wall: float) -> None:
         if kind in ("COMMAND_LONG", "COMMAND_INT"):
@@ -243,7 +307,13 @@ class SitlServer:
             self._on_setpoint(msg)
         elif kind.startswith("PARAM_"):
             if self._for_autopilot(msg):
+                refused = self.param_protocol.rejected_sets
                 self.param_protocol.handle(msg)
+                if self.param_protocol.rejected_sets > refused:
+                    name = getattr(msg, "param_id", "?")
+                    self.rejects.reject("param_set_refused",
+                                        f"PARAM_SET {name}={msg.param_value!r} out of range",
+                                        key=f"param_{name}")
         elif kind == "SET_MODE":  # deprecated message: acted on like DO_SET_MODE, no ACK
             if (msg.target_system == self.config.system_id
                     and msg.base_mode & mavlink.MAV_MODE_FLAG_CUSTOM_MODE_ENABLED):
@@ -269,18 +339,38 @@ class SitlServer:
             self.mav.mission_count_send(msg.get_srcSystem(), msg.get_srcComponent(), 0,
                                         msg.mission_type)
 
+    def _handler_error(self, what: str) -> None:
+        """A bug met by some input: counted; the first (and every 100th) traceback is logged."""
+        self.stats["handler_errors"] += 1
+        n = self.stats["handler_errors"]
+        if n == 1 or n % 100 == 0:
+            log.error("error while %s (%d so far); the vehicle flies on", what, n, exc_info=True)
+
     def _for_autopilot(self, msg: Any) -> bool:
         return (getattr(msg, "target_system", 0) in (0, self.config.system_id)
                 and getattr(msg, "target_component", 0) in (0, AUTOPILOT_COMPONENT))
 
     def _on_setpoint(self, m: Any) -> None:
-        if (not self._for_autopilot(m) or m.coordinate_frame != mavlink.MAV_FRAME_LOCAL_NED
-                or m.type_mask & POSITION_IGNORE_MASK):
+        if not self._for_autopilot(m):
+            self.stats["setpoints_ignored"] += 1  # someone else's: not an error
+            return
+        if m.coordinate_frame != mavlink.MAV_FRAME_LOCAL_NED:
             self.stats["setpoints_ignored"] += 1
+            self.rejects.reject("setpoint_frame",
+                                f"setpoint in frame {m.coordinate_frame}: only MAV_FRAME_LOCAL_NED (1)",
+                                key=f"setpoint_frame_{m.coordinate_frame}")
+            return
+        if m.type_mask & POSITION_IGNORE_MASK:
+            self.stats["setpoints_ignored"] += 1
+            self.rejects.reject("setpoint_type_mask",
+                                f"setpoint type_mask 0x{m.type_mask:x} ignores position: "
+                                "only position setpoints are flown")
             return
         yaw = None if m.type_mask & YAW_IGNORE_BIT else m.yaw
         if not self.vehicle.offer_setpoint(m.x, m.y, m.z, yaw):
             self.stats["setpoints_rejected"] += 1
+            self.rejects.reject("setpoint_not_finite",
+                                f"setpoint with a NaN/infinite position ({m.x}, {m.y}, {m.z})")
 
     def _on_command(self, msg: Any, kind: str, wall: float) -> None:
         if msg.target_system not in (0, self.config.system_id):
@@ -300,19 +390,36 @@ class SitlServer:
             params = (msg.param1, msg.param2, msg.param3, msg.param4, float(msg.x), float(msg.y),
                       msg.z)
             req = self._request(msg, msg.command, params, 0, msg.frame)
-        reply: CommandReply = self.commands.handle(req, wall)
+        try:
+            reply: CommandReply = self.commands.handle(req, wall)
+        except Exception as exc:  # a bug or an input nobody foresaw: answer FAILED, fly on
+            self._handler_error(f"command {msg.command}")
+            reply = CommandReply(Result.FAILED, f"Command {msg.command} failed: {type(exc).__name__}")
         self.mav.command_ack_send(msg.command, int(reply.result), 0, 0, msg.get_srcSystem(),
                                   msg.get_srcComponent())
-        self.stats[f"ack_{Result(reply.result).name.lower()}"] += 1
+        result = Result(reply.result)
+        self.stats[f"ack_{result.name.lower()}"] += 1
+        if result is Result.UNSUPPORTED:
+            self.rejects.reject("command_unsupported", f"unsupported command {msg.command}",
+                                key=f"command_unsupported_{msg.command}")
+        elif result is not Result.ACCEPTED:
+            self.rejects.reject(f"command_{result.name.lower()}",
+                                f"command {msg.command}: {result.name} {reply.reason}".rstrip(),
+                                key=f"{reply.reason or msg.command}")
         if reply.reason:
-            log.info("%s", reply.reason)
             self.telemetry.statustext(mavlink.MAV_SEVERITY_WARNING, reply.reason)
         for follow_up in reply.then:
             follow_up()
 
     def _payload_command(self, slot: _Slot, msg: Any) -> None:
         handler = getattr(slot.payload, "on_command", None)
-        result = handler(msg, slot.mav) if handler else mavlink.MAV_RESULT_UNSUPPORTED
+        try:
+            result = handler(msg, slot.mav) if handler else mavlink.MAV_RESULT_UNSUPPORTED
+        except Exception:
+            self._handler_error(f"payload {slot.payload.component_id} command {msg.command}")
+            self.rejects.reject("command_failed", f"payload {slot.payload.component_id} failed "
+                                f"command {msg.command}", key=f"payload_cmd_{msg.command}")
+            result = mavlink.MAV_RESULT_FAILED
         if result is not None:
             slot.mav.command_ack_send(msg.command, int(result), 0, 0, msg.get_srcSystem(),
                                       msg.get_srcComponent())

@@ -13,7 +13,9 @@ server refuses a payload whose heartbeat does not.
 
 Commands (COMMAND_LONG/INT) addressed to a payload's component id go to its optional
 ``on_command(msg, mav) -> int | None`` (a MAV_RESULT to ACK, or None to ACK nothing); without
-that method they are ACKed MAV_RESULT_UNSUPPORTED from the payload's component. Broadcast
+that method they are ACKed MAV_RESULT_UNSUPPORTED from the payload's component, and MAV_RESULT_FAILED
+when it raises. An optional ``summary() -> dict`` is included in the server's ``report()`` (and so
+in ``sitl-stub``'s exit stats line). Broadcast
 commands (target_component 0) are answered by the autopilot only.
 
 The CLI builds payloads with a factory ``(PayloadOptions) -> Payload | Sequence[Payload] | None``.

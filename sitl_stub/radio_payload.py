@@ -9,6 +9,11 @@ The episode starts at the first frame tick that finds the vehicle in OFFBOARD (t
 tick publishes frame 0, and each later tick moves the UEs one frame. Until then the UEs wait at
 their start and frame 0's readings are repeated, flagged as waiting, so arming and take-off take no
 frames from the episode and draw nothing from its random streams.
+
+Each frame's readings go out ``READINGS_COPIES`` times (the flight loop drops the repeats by frame
+number): over a link that loses packets independently, a frame's decision is lost only when every
+copy is (30 % loss: 9 % of frames with two copies instead of 30 %). Bursts that eat both copies
+still cost that frame's decision. The score (truth, for logs) goes once.
 """
 
 from __future__ import annotations
@@ -35,6 +40,7 @@ MAV_STATE_ACTIVE = 4
 
 class RadioPayload:
     component_id = RADIO_COMPONENT_ID
+    READINGS_COPIES = 2
 
     def __init__(self, options: PayloadOptions, cfg: EnvConfig | None = None) -> None:
         base = cfg or EnvConfig()
@@ -43,6 +49,7 @@ class RadioPayload:
         self.env = BatchedUavEnv(self.cfg, n_envs=1, seed=episode_seed(options.seed, 0))
         self.env.reset()
         self.started = False
+        self.frame_rates_mbps: list[float] = []  # the truth per scored frame 1, 2, ...
 
     def heartbeat(self) -> tuple[int, int, int, int, int]:
         return (MAV_TYPE_ONBOARD_CONTROLLER, MAV_AUTOPILOT_INVALID, 0, 0, MAV_STATE_ACTIVE)
@@ -50,13 +57,22 @@ class RadioPayload:
     def on_frame(self, sim_time_s: float, state: VehicleState, mav: Any) -> None:
         if self.started:
             result = self.env.step_to([[state.x_east_m, state.y_north_m]])
+            self.frame_rates_mbps.append(float(self.env.readings.rate_bps[0].mean()) * 1e-6)
             self._send(mav, sim_time_s, SCORE_NAME, encode_score(self.env.readings.rate_bps[0],
                                                                  float(result.fair_rate[0])))
         elif state.mode is FlightMode.OFFBOARD:
             self.started = True
         readings = self.env.readings
-        self._send(mav, sim_time_s, READINGS_NAME,
-                   encode_readings(readings.sinr_db[0], readings.aoa_deg[0], self.started))
+        data = encode_readings(readings.sinr_db[0], readings.aoa_deg[0], self.started)
+        for _ in range(self.READINGS_COPIES):
+            self._send(mav, sim_time_s, READINGS_NAME, data)
+
+    def summary(self) -> dict[str, Any]:
+        """Vehicle-side truth of the episode (whatever the link lost): mean UE rate over its
+        first ``episode_frames`` frames."""
+        rates = self.frame_rates_mbps[: self.cfg.episode_frames]
+        return {"frames": len(rates), "frames_total": len(self.frame_rates_mbps),
+                "mean_rate_mbps": round(sum(rates) / len(rates), 6) if rates else None}
 
     def _send(self, mav: Any, sim_time_s: float, name: str, data: list[float]) -> None:
         mav.debug_float_array_send(int(sim_time_s * 1e6), name.encode(), self.env.frame, data)

@@ -10,6 +10,8 @@ disables, 0 restores the default).
 
 from __future__ import annotations
 
+import math
+
 DEFAULT_RATES_HZ: dict[str, float] = {
     "SYS_STATUS": 1.0,
     "EXTENDED_SYS_STATE": 1.0,
@@ -42,8 +44,11 @@ class StreamScheduler:
         return name in self.rates
 
     def set_interval(self, name: str, interval_us: float) -> bool:
-        """Apply SET_MESSAGE_INTERVAL; False for an unknown stream or a bad interval."""
-        if name not in self.rates or interval_us != interval_us or interval_us < -1:
+        """Apply SET_MESSAGE_INTERVAL; False for an unknown stream or a bad interval (NaN,
+        infinite, or negative other than -1)."""
+        if name not in self.rates or not math.isfinite(interval_us):
+            return False
+        if interval_us < 0 and interval_us != -1:
             return False
         if interval_us == -1:
             self.rates[name] = 0.0

@@ -11,7 +11,12 @@ Mode logic follows PX4 commander/navigator in the small: AUTO.TAKEOFF climbs to 
 then holds in AUTO.LOITER; OFFBOARD needs a live setpoint stream and falls back to COM_OBL_ACT
 after COM_OF_LOSS_T without one; RTL climbs to RTL_RETURN_ALT, returns at MPC_XY_CRUISE and lands;
 a landed vehicle disarms after COM_DISARM_LAND. The area is a hard geofence: setpoints outside are
-clamped onto it and the position never leaves it.
+clamped onto it and the position never leaves it; altitude setpoints are clamped to
+:data:`MAX_ALTITUDE_M` (a vertical fence, PX4's GF_MAX_VER_DIST).
+
+Safety monitors for tests and logs (in :class:`VehicleState`): the largest horizontal distance from
+the centre on either axis ever reached (``max_abs_xy_m``) and the oldest setpoint the vehicle ever
+flew OFFBOARD on (``max_offboard_setpoint_age_s``; the failsafe keeps it at COM_OF_LOSS_T).
 """
 
 from __future__ import annotations
@@ -34,6 +39,7 @@ ALT_ACCEPT_M = 0.5  # takeoff / RTL climb done within this of the target altitud
 XY_ACCEPT_M = 0.5  # RTL return done within this of home
 GROUND_EPS_M = 0.05  # "on the ground" below this altitude
 TAKEN_OFF_ALT_M = 1.0  # above this the vehicle counts as having flown
+MAX_ALTITUDE_M = 500.0  # vertical fence: setpoints above are clamped (= the altitude params' max)
 
 # MAV_SEVERITY values for vehicle events (reported as STATUSTEXT by the server).
 SEVERITY_CRITICAL = 2
@@ -89,6 +95,8 @@ class VehicleState:
     setpoints_rejected: int
     setpoints_clamped: int
     offboard_failsafes: int
+    max_abs_xy_m: float = 0.0
+    max_offboard_setpoint_age_s: float = 0.0
 
     @property
     def x_east_m(self) -> float:
@@ -142,6 +150,8 @@ class Vehicle:
         self.setpoints_rejected = 0
         self.setpoints_clamped = 0
         self.offboard_failsafes = 0
+        self.max_abs_xy_m = 0.0
+        self.max_offboard_setpoint_age_s = 0.0
         self._events: deque[tuple[int, str]] = deque(maxlen=32)
 
     # ----------------------------------------------------------------- requests
@@ -179,6 +189,8 @@ class Vehicle:
         alt = self.params["MIS_TAKEOFF_ALT"] if altitude_m is None else float(altitude_m)
         if not math.isfinite(alt) or alt <= 0.0:
             return Outcome(Result.DENIED, "Takeoff denied: invalid altitude")
+        if alt > MAX_ALTITUDE_M:
+            return Outcome(Result.DENIED, f"Takeoff denied: above the {MAX_ALTITUDE_M:g} m fence")
         alt = max(alt, -self.pos[2])
         self.mode = FlightMode.TAKEOFF
         self._target = self._clamp((self.pos[0], self.pos[1], -alt))
@@ -235,11 +247,13 @@ class Vehicle:
     def offer_setpoint(self, north_m: float, east_m: float, down_m: float,
                        yaw_rad: float | None = None) -> bool:
         """A position setpoint (LOCAL_NED). Non-finite ones are rejected (False); others are
-        clamped into the geofence and above the ground, and refresh the offboard stream."""
+        clamped into the geofence, above the ground and below :data:`MAX_ALTITUDE_M`, and refresh
+        the offboard stream."""
         if not all(math.isfinite(v) for v in (north_m, east_m, down_m)):
             self.setpoints_rejected += 1
             return False
-        sp = self._clamp((float(north_m), float(east_m), min(float(down_m), 0.0)))
+        sp = self._clamp((float(north_m), float(east_m),
+                          max(min(float(down_m), 0.0), -MAX_ALTITUDE_M)))
         if sp != (north_m, east_m, down_m):
             self.setpoints_clamped += 1
         self._sp = sp
@@ -281,19 +295,25 @@ class Vehicle:
             armed=self.armed, mode=self.mode, landed_state=self._landed_state(),
             setpoint_ned=self._sp, setpoints_accepted=self.setpoints_accepted,
             setpoints_rejected=self.setpoints_rejected, setpoints_clamped=self.setpoints_clamped,
-            offboard_failsafes=self.offboard_failsafes,
+            offboard_failsafes=self.offboard_failsafes, max_abs_xy_m=self.max_abs_xy_m,
+            max_offboard_setpoint_age_s=self.max_offboard_setpoint_age_s,
         )
 
     def _substep(self, h: float) -> None:
         self.t += h
-        if self.mode is FlightMode.OFFBOARD and not self.offboard_stream_ok():
-            self._offboard_lost()
+        if self.mode is FlightMode.OFFBOARD:
+            if self.offboard_stream_ok():
+                self.max_offboard_setpoint_age_s = max(self.max_offboard_setpoint_age_s,
+                                                       self.t - self._sp_time)
+            else:
+                self._offboard_lost()
         if self.armed:
             self._advance_mode()
             self._control(h)
         else:
             self._fall(h)
         self._enforce_limits()
+        self.max_abs_xy_m = max(self.max_abs_xy_m, abs(self.pos[0]), abs(self.pos[1]))
         self._update_landed()
 
     def _offboard_lost(self) -> None:

@@ -27,12 +27,15 @@ def policy_env_config(policy, scenario: str, aoa_noise_deg: float) -> EnvConfig:
 
 
 @contextlib.contextmanager
-def embedded_sitl(scenario: str, seed: int, speed: float, aoa_noise_deg: float, log_path: Path | None):
+def embedded_sitl(scenario: str, seed: int, speed: float, aoa_noise_deg: float, log_path: Path | None,
+                  signing_key_file: Path | None = None):
     """Start ``python -m sitl_stub`` on a free loopback port; yields the URL to listen on."""
     port = free_udp_port()
     cmd = [sys.executable, "-m", "sitl_stub", "--scenario", scenario, "--seed", str(seed),
            "--connect", f"udpout:127.0.0.1:{port}", "--speed", f"{speed:g}",
            "--aoa-noise-deg", f"{aoa_noise_deg:g}"]
+    if signing_key_file is not None:
+        cmd += ["--signing-key", str(signing_key_file)]
     out = open(log_path, "w") if log_path else subprocess.DEVNULL  # noqa: SIM115
     proc = subprocess.Popen(cmd, stdout=out, stderr=subprocess.STDOUT)
     try:
@@ -50,10 +53,12 @@ def embedded_sitl(scenario: str, seed: int, speed: float, aoa_noise_deg: float, 
 def run_fly(args: argparse.Namespace) -> int:
     from uavlink.flight.link import VehicleLink
     from uavlink.flight.mission import MissionConfig, PolicyPilot, fly_mission
+    from uavlink.flight.signing import load_key
     from uavlink.policies.loader import load_policy
 
     logging.basicConfig(level=logging.INFO if args.verbose else logging.WARNING,
                         format="%(levelname)s %(name)s: %(message)s")
+    key = load_key(args.signing_key) if args.signing_key else None  # before anything flies
     provisional = EnvConfig().replace(scenario=args.scenario, aoa_noise_deg=args.aoa_noise_deg).validate()
     policy = load_policy(args.policy, provisional)
     if policy.needs_truth:
@@ -71,22 +76,28 @@ def run_fly(args: argparse.Namespace) -> int:
         print(f"\rframe {frame + 1:4d}/{args.frames}  target E {target[0]:7.1f} N {target[1]:7.1f} m  "
               f"{rate_text}", end="", file=sys.stderr, flush=True)
 
-    sitl = (embedded_sitl(args.scenario, args.seed, args.speed, args.aoa_noise_deg, out_dir / "sitl.log")
+    sitl = (embedded_sitl(args.scenario, args.seed, args.speed, args.aoa_noise_deg, out_dir / "sitl.log",
+                          Path(args.signing_key) if key else None)
             if args.connect is None else contextlib.nullcontext(args.connect))
     start = time.monotonic()
     with sitl as url:
-        link = VehicleLink(url, tlog=tlog)
+        link = VehicleLink(url, tlog=tlog, signing_key=key)
         try:
             result = fly_mission(link, pilot, cfg, MissionConfig(frames=args.frames), status=status)
             speed = link.speed_factor()
         finally:
             link.close()
+            if link.signing is not None and link.signing.rejected_total:
+                log.warning("signing: refused %d packets from the vehicle side (%s)",
+                            link.signing.rejected_total, link.signing.stats())
     if not (args.quiet or args.json):
         print(file=sys.stderr)
     summary = {
         "scenario": args.scenario, "policy": str(args.policy), "seed": args.seed,
         "connect": args.connect or "embedded sitl_stub", "speed_factor": round(speed, 2),
         **result.summary(), "wall_s": round(time.monotonic() - start, 2), "tlog": str(tlog),
+        "signing": link.signing.stats() if link.signing else None,
+        "link_rejected": link.rejects.as_dict(),
     }
     (out_dir / "summary.json").write_text(json.dumps(summary, indent=2) + "\n")
     if args.json:
@@ -115,5 +126,8 @@ def add_fly_parser(sub) -> None:
     p.add_argument("--out", type=Path, default=Path("runs/fly"), help="folder for flight.tlog and summary.json")
     p.add_argument("--json", action="store_true", help="print the summary as JSON")
     p.add_argument("--quiet", action="store_true", help="no live status line")
+    p.add_argument("--signing-key", metavar="FILE", default=None,
+                   help="MAVLink 2 signing key (32 raw bytes, from `uavlink keygen`): sign everything "
+                        "sent, accept only packets signed with it (the embedded SITL gets it too)")
     p.add_argument("--verbose", action="store_true", help="log link events")
     p.set_defaults(func=run_fly)

@@ -4,12 +4,22 @@ Follows what PX4 expects from an offboard companion (and what MAVSDK's examples 
 autopilot's heartbeat, arm, take off, stream position setpoints before and while in OFFBOARD, land.
 Every message in either direction is written to a .tlog (8-byte big-endian microsecond timestamp +
 raw packet, as MAVProxy writes; readable by ``mavlogdump.py``).
+
+Robustness: the link sends its own HEARTBEAT at 1 Hz (so a listening vehicle learns where to
+answer, and as every MAVLink component should); commands are retried about once per second of
+wall time until acknowledged (the vehicle answers retries idempotently); parameter sets are
+retried until the vehicle echoes the value. With a signing key everything sent is signed and
+everything received must be signed by the same key (:mod:`uavlink.flight.signing`). Telemetry
+that cannot be used (NaN positions, unusable radio scores, garbage bytes) is counted in
+:attr:`VehicleLink.rejects` and logged once per kind.
 """
 
 from __future__ import annotations
 
+import logging
 import math
 import os
+import select
 import struct
 import time
 from collections.abc import Callable
@@ -17,17 +27,32 @@ from dataclasses import dataclass
 from pathlib import Path
 
 from uavlink.flight.connection import normalize_connection
-from uavlink.flight.radio_codec import RADIO_COMPONENT_ID, decode_score, message_kind
+from uavlink.flight.radio_codec import (
+    RADIO_COMPONENT_ID,
+    RadioReportError,
+    decode_score,
+    message_kind,
+)
+from uavlink.flight.rejects import RejectLog
+from uavlink.flight.signing import SigningGuard
 
 os.environ.setdefault("MAVLINK20", "1")
 from pymavlink import mavutil  # noqa: E402
 
 MAV = mavutil.mavlink
 PX4_MAIN_AUTO, PX4_MAIN_OFFBOARD = 4, 6
-PX4_SUB_LOITER, PX4_SUB_LAND = 3, 6
+PX4_SUB_LOITER, PX4_SUB_RTL, PX4_SUB_LAND = 3, 5, 6
 MULTIROTOR_TYPES = {MAV.MAV_TYPE_QUADROTOR, MAV.MAV_TYPE_HEXAROTOR, MAV.MAV_TYPE_OCTOROTOR,
                     MAV.MAV_TYPE_TRICOPTER, MAV.MAV_TYPE_COAXIAL}
 POSITION_ONLY_MASK = 0x0DF8  # ignore velocity, acceleration, yaw, yaw rate: position bits clear
+HEARTBEAT_PERIOD_S = 1.0  # our own HEARTBEAT, wall time
+ACK_WAIT_S = 0.5  # wall time to wait for a COMMAND_ACK before sending the command again
+COMMAND_TRIES = 10
+PARAM_TRIES = 10
+MAX_RX_PER_POLL = 2000  # messages/datagrams handled per poll: a flood cannot stall the loop
+REBOOT_BACKSTEP_S = 5.0  # LOCAL_POSITION_NED time going back more than this: the vehicle rebooted
+
+log = logging.getLogger(__name__)
 
 
 class LinkError(RuntimeError):
@@ -45,6 +70,7 @@ class VehicleStatus:
     down_m: float = 0.0
     time_boot_ms: int = 0
     heartbeats: int = 0
+    landed_known: bool = False
 
     @property
     def in_air(self) -> bool:
@@ -57,10 +83,19 @@ class VehicleStatus:
 
 class VehicleLink:
     def __init__(self, url: str, tlog: Path | None = None, system_id: int = 255,
-                 component_id: int = MAV.MAV_COMP_ID_ONBOARD_COMPUTER) -> None:
+                 component_id: int = MAV.MAV_COMP_ID_ONBOARD_COMPUTER,
+                 signing_key: bytes | None = None) -> None:
         self.url = normalize_connection(url)
         self.conn = mavutil.mavlink_connection(self.url, source_system=system_id,
                                                source_component=component_id, dialect="common")
+        self.signing: SigningGuard | None = None
+        if signing_key is not None:
+            self.signing = SigningGuard(signing_key)
+            self.signing.attach(self.conn.mav)
+        self.rejects = RejectLog(log)
+        self.params: dict[str, float] = {}
+        self.last_rx_wall = time.monotonic()
+        self._last_heartbeat_sent = -math.inf
         self.status = VehicleStatus()
         self.target_system = 1
         self.on_radio: Callable = lambda msg: None
@@ -72,6 +107,7 @@ class VehicleLink:
         self.stream_period_vehicle_s = 0.2
         self._last_stream = 0.0
         self._boot_samples: list[tuple[float, float]] = []
+        self._speed = 1.0
         self._tlog = open(tlog, "wb") if tlog else None  # noqa: SIM115 - closed in close()
         if self._tlog:
             self.conn.mav.set_send_callback(self._log_sent)
@@ -85,27 +121,59 @@ class VehicleLink:
 
     def poll(self, timeout_s: float) -> None:
         """Handle the messages that arrive within ``timeout_s`` of wall time; keep the stream alive."""
+        now = time.monotonic()
+        if now - self._last_heartbeat_sent >= HEARTBEAT_PERIOD_S:
+            self._last_heartbeat_sent = now
+            self.conn.mav.heartbeat_send(MAV.MAV_TYPE_ONBOARD_CONTROLLER, MAV.MAV_AUTOPILOT_INVALID,
+                                         0, 0, MAV.MAV_STATE_ACTIVE)
         if self.stream_ned is not None:
             period = self.stream_period_vehicle_s / self.speed_factor()
-            due = self._last_stream + period - time.monotonic()
+            due = self._last_stream + period - now
             if due <= 0:
                 self.send_setpoint(*self.stream_ned)
                 due = period
             timeout_s = min(timeout_s, due)
-        msg = self.conn.recv_match(blocking=True, timeout=max(timeout_s, 0.0))
-        while msg is not None:
-            self._handle(msg)
-            msg = self.conn.recv_match(blocking=False)
+        timeout_s = min(timeout_s, HEARTBEAT_PERIOD_S)
+        msg = self._recv(blocking=True, timeout=timeout_s) if timeout_s > 0 else None
+        for _ in range(MAX_RX_PER_POLL):
+            if msg is not None:
+                self._handle(msg)
+            elif not self._readable():  # nothing waiting (a None can also be a garbage datagram)
+                return
+            msg = self._recv(blocking=False)
+
+    def _readable(self) -> bool:
+        try:
+            return bool(select.select([self.conn.fd], [], [], 0)[0])
+        except (OSError, ValueError):
+            return False
+
+    def _recv(self, **kwargs):
+        if self.signing is not None and not self.signing.is_attached(self.conn.mav):
+            raise LinkError("pymavlink replaced the signed MAVLink parser; refusing to go on")
+        try:
+            return self.conn.recv_match(**kwargs)
+        except Exception as exc:  # a parser error robust parsing did not turn into BAD_DATA
+            self.rejects.reject("parse_error", f"MAVLink parser error: {exc!r}")
+            self.conn.mav.buf, self.conn.mav.buf_index = bytearray(), 0
+            return None
 
     def _handle(self, msg) -> None:
         kind = msg.get_type()
         if kind == "BAD_DATA":
+            if "signature" not in str(getattr(msg, "reason", "")):  # signing counts its own
+                self.rejects.reject("bad_data", f"bad MAVLink data ({msg.reason})")
+            return
+        if kind.startswith("UNKNOWN"):
+            self.rejects.reject("unknown_message", f"unknown message id {msg.get_msgId()}",
+                                key=f"unknown_{msg.get_msgId()}")
             return
         if self._tlog:
             self._log(msg)
         src_sys, src_comp = msg.get_srcSystem(), msg.get_srcComponent()
         if src_sys != self.target_system:
             return
+        self.last_rx_wall = time.monotonic()
         st = self.status
         if kind == "HEARTBEAT" and src_comp == 1:
             st.heartbeats += 1
@@ -114,20 +182,38 @@ class VehicleLink:
             st.main_mode = (msg.custom_mode >> 16) & 0xFF
             st.sub_mode = (msg.custom_mode >> 24) & 0xFF
         elif kind == "LOCAL_POSITION_NED":
+            if not all(math.isfinite(v) for v in (msg.x, msg.y, msg.z)):
+                self.rejects.reject("position_not_finite",
+                                    f"LOCAL_POSITION_NED with NaN/infinite position ({msg.x}, {msg.y}, {msg.z})")
+                return
+            newest = self._boot_samples[-1][1] if self._boot_samples else -math.inf
+            if msg.time_boot_ms * 1e-3 < newest - REBOOT_BACKSTEP_S:
+                self._boot_samples.clear()  # the vehicle rebooted: its clock started again
+            elif msg.time_boot_ms * 1e-3 < newest:
+                return  # a late (reordered) sample: the vehicle has moved on since
             st.north_m, st.east_m, st.down_m = msg.x, msg.y, msg.z
             st.time_boot_ms = msg.time_boot_ms
             self._boot_samples.append((time.monotonic(), msg.time_boot_ms * 1e-3))
             del self._boot_samples[:-50]
         elif kind == "EXTENDED_SYS_STATE":
             st.landed_state = msg.landed_state
+            st.landed_known = True
         elif kind == "COMMAND_ACK":
             self._acks[msg.command] = msg.result
+        elif kind == "PARAM_VALUE":
+            name = msg.param_id if isinstance(msg.param_id, str) else msg.param_id.decode("ascii", "replace")
+            self.params[name.split("\x00", 1)[0]] = msg.param_value
         elif src_comp == RADIO_COMPONENT_ID:
             which = message_kind(msg)
             if which == "readings":
                 self.on_radio(msg)
             elif which == "score":
-                self.on_score(decode_score(msg))
+                try:
+                    score = decode_score(msg)
+                except RadioReportError as exc:
+                    self.rejects.reject("radio_score", f"radio score: {exc}")
+                    return
+                self.on_score(score)
 
     def close(self) -> None:
         if self._tlog:
@@ -137,11 +223,13 @@ class VehicleLink:
 
     # -- time ----------------------------------------------------------------------------------
     def speed_factor(self) -> float:
-        """Vehicle seconds per wall second, from LOCAL_POSITION_NED timestamps (1.0 until known)."""
-        if len(self._boot_samples) < 5:
-            return 1.0
-        (w0, b0), (w1, b1) = self._boot_samples[0], self._boot_samples[-1]
-        return max((b1 - b0) / (w1 - w0), 0.1) if w1 - w0 > 0.05 and b1 > b0 else 1.0
+        """Vehicle seconds per wall second, from LOCAL_POSITION_NED timestamps (1.0 until known;
+        the last estimate while too few samples are at hand)."""
+        if len(self._boot_samples) >= 5:
+            (w0, b0), (w1, b1) = self._boot_samples[0], self._boot_samples[-1]
+            if w1 - w0 > 0.05 and b1 > b0:
+                self._speed = max((b1 - b0) / (w1 - w0), 0.1)
+        return self._speed
 
     def wait_until(self, condition: Callable[[], bool], vehicle_s: float, what: str) -> None:
         """Poll until ``condition()``; LinkError after ``vehicle_s`` of vehicle time (at least 3 s wall)."""
@@ -153,7 +241,8 @@ class VehicleLink:
 
     # -- vehicle -------------------------------------------------------------------------------
     def wait_vehicle(self, timeout_s: float = 30.0) -> None:
-        """Wait for the autopilot's heartbeat; refuse anything but a PX4 multicopter."""
+        """Wait for the autopilot's heartbeat; refuse anything but a PX4 multicopter. Then wait for
+        its position and landed state: whether it is already flying decides take-off or resume."""
         deadline = time.monotonic() + timeout_s
         while self.status.heartbeats == 0:
             if time.monotonic() > deadline:
@@ -162,43 +251,76 @@ class VehicleLink:
         hb = self.heartbeat
         if hb.autopilot != MAV.MAV_AUTOPILOT_PX4 or hb.type not in MULTIROTOR_TYPES:
             raise LinkError(f"vehicle is not a PX4 multicopter (autopilot {hb.autopilot}, type {hb.type})")
-        # Wait for a position too: the mission starts from it.
+        # Wait for a position too: the mission starts from it; and for the landed state.
         self.wait_until(lambda: len(self._boot_samples) >= 5, 10.0, "LOCAL_POSITION_NED")
+        self.wait_until(lambda: self.status.landed_known, 10.0, "EXTENDED_SYS_STATE")
 
-    def command(self, command: int, *params: float, vehicle_s: float = 3.0, retries: int = 3) -> None:
-        """COMMAND_LONG to the autopilot, retried (confirmation 0, 1, ...) until an ACK; LinkError on refusal."""
+    def wait_wall(self, condition: Callable[[], bool], wall_s: float) -> bool:
+        """Poll until ``condition()`` (True) or ``wall_s`` of wall time pass (False)."""
+        deadline = time.monotonic() + wall_s
+        while not condition():
+            if time.monotonic() > deadline:
+                return False
+            self.poll(0.02)
+        return True
+
+    def command(self, command: int, *params: float, ack_wait_s: float = ACK_WAIT_S,
+                tries: int = COMMAND_TRIES, done: Callable[[], bool] | None = None) -> None:
+        """COMMAND_LONG to the autopilot, sent again (confirmation 0, 1, ...) every ``ack_wait_s``
+        of wall time until an ACK comes (or ``done()``: the telemetry already shows the effect, so
+        a lost ACK costs no retry); LinkError on refusal or after ``tries`` sends."""
         params = tuple(params) + (math.nan,) * (7 - len(params))
         name = MAV.enums["MAV_CMD"][command].name if command in MAV.enums["MAV_CMD"] else str(command)
-        for confirmation in range(retries):
-            self._acks.pop(command, None)
-            self.conn.mav.command_long_send(self.target_system, 1, command, confirmation, *params)
-            try:
-                self.wait_until(lambda: command in self._acks, vehicle_s, f"ACK of {name}")
-            except LinkError:
+        self._acks.pop(command, None)
+        for confirmation in range(tries):
+            self.conn.mav.command_long_send(self.target_system, 1, command, min(confirmation, 255),
+                                            *params)
+            if not self.wait_wall(lambda: command in self._acks or (done is not None and done()),
+                                  ack_wait_s):
                 continue
-            result = self._acks[command]
+            if command not in self._acks:
+                return  # done() although the ACK was lost
+            result = self._acks.pop(command)
             if result not in (MAV.MAV_RESULT_ACCEPTED, MAV.MAV_RESULT_IN_PROGRESS):
                 raise LinkError(f"vehicle refused {name} (MAV_RESULT {result})")
             return
-        raise LinkError(f"no ACK for {name} after {retries} tries")
+        raise LinkError(f"no ACK for {name} after {tries} tries")
 
-    def set_param(self, name: str, value: float) -> None:
-        self.conn.mav.param_set_send(self.target_system, 1, name.encode(), float(value),
-                                     MAV.MAV_PARAM_TYPE_REAL32)
+    def set_param(self, name: str, value: float, tries: int = PARAM_TRIES) -> None:
+        """PARAM_SET, sent again until the vehicle's PARAM_VALUE shows the value (REAL32 only)."""
+        self.params.pop(name, None)
+        for _ in range(tries):
+            self.conn.mav.param_set_send(self.target_system, 1, name.encode(), float(value),
+                                         MAV.MAV_PARAM_TYPE_REAL32)
+            if self.wait_wall(lambda: name in self.params, ACK_WAIT_S):
+                if abs(self.params[name] - value) <= 1e-3 * max(1.0, abs(value)):
+                    return
+                raise LinkError(f"vehicle refused {name}={value:g} (keeps {self.params[name]:g})")
+        raise LinkError(f"no PARAM_VALUE for {name} after {tries} tries")
 
     def arm(self) -> None:
-        self.command(MAV.MAV_CMD_COMPONENT_ARM_DISARM, 1.0)
+        beats = self.status.heartbeats
+        self.command(MAV.MAV_CMD_COMPONENT_ARM_DISARM, 1.0,
+                     done=lambda: self.status.armed and self.status.heartbeats > beats)
         self.wait_until(lambda: self.status.armed, 3.0, "armed heartbeat")
 
     def takeoff(self, altitude_m: float) -> None:
         self.set_param("MIS_TAKEOFF_ALT", altitude_m)
-        self.poll(0.05)
         self.command(MAV.MAV_CMD_NAV_TAKEOFF)
         self.wait_until(lambda: -self.status.down_m >= altitude_m - 1.0, 120.0, f"take-off to {altitude_m:g} m")
 
-    def set_mode(self, main: int, sub: int = 0) -> None:
-        base = MAV.MAV_MODE_FLAG_CUSTOM_MODE_ENABLED | (MAV.MAV_MODE_FLAG_SAFETY_ARMED if self.status.armed else 0)
-        self.command(MAV.MAV_CMD_DO_SET_MODE, float(base), float(main), float(sub))
+    def set_mode(self, main: int, sub: int = 0, tries: int = COMMAND_TRIES) -> None:
+        """DO_SET_MODE; done when ACKed or when a heartbeat received after sending shows the mode."""
+        st = self.status
+        base = MAV.MAV_MODE_FLAG_CUSTOM_MODE_ENABLED | (MAV.MAV_MODE_FLAG_SAFETY_ARMED if st.armed else 0)
+        beats = st.heartbeats
+
+        def shows_mode() -> bool:
+            in_mode = st.main_mode == main and (main == PX4_MAIN_OFFBOARD or st.sub_mode == sub)
+            return st.heartbeats > beats and in_mode
+
+        self.command(MAV.MAV_CMD_DO_SET_MODE, float(base), float(main), float(sub), tries=tries,
+                     done=shows_mode)
 
     def send_setpoint(self, north_m: float, east_m: float, down_m: float) -> None:
         self._last_stream = time.monotonic()

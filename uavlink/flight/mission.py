@@ -5,11 +5,22 @@ OFFBOARD; then for every radio report: build the observation with the env's own 
 policy, turn its move into a LOCAL_NED position target clamped to the geofence, send it at once.
 Between reports the current target is re-sent every ``stream_period_vehicle_s`` so PX4's offboard
 loss timeout (COM_OF_LOSS_T, 1 s) never fires. At the end (or on Ctrl-C) it lands.
+
+Faults: a vehicle that is already armed and in the air (``uavlink fly`` restarted after a crash) is
+resumed without a take-off, from whatever frame its radio payload has reached. When the vehicle
+falls back to hold (offboard-loss failsafe after lost setpoints), the loop re-enters OFFBOARD,
+trying again about once a second until the vehicle takes it. If the vehicle goes to AUTO.LAND or
+AUTO.RTL, or disarms (an operator with the key, or a failsafe meant to end the flight), the mission
+ends and leaves it alone. Lost radio reports cost their frame's decision only; a backlog of reports
+(the loop was held up) is decided once, on the newest, the older ones only entering the observation
+history; lost scores do not stall the end of the episode. Without any message from the vehicle for
+``link_timeout_s`` of wall time the mission gives up with a LinkError.
 """
 
 from __future__ import annotations
 
 import logging
+import math
 import time
 from collections.abc import Callable
 from dataclasses import dataclass, field
@@ -22,7 +33,9 @@ from uavlink.env.observation import ObservationBuilder, ObservationLayout
 from uavlink.flight.link import (
     PX4_MAIN_AUTO,
     PX4_MAIN_OFFBOARD,
+    PX4_SUB_LAND,
     PX4_SUB_LOITER,
+    PX4_SUB_RTL,
     LinkError,
     VehicleLink,
 )
@@ -36,9 +49,12 @@ log = logging.getLogger(__name__)
 @dataclass
 class MissionConfig:
     frames: int = 128
-    stream_period_vehicle_s: float = 0.2
+    stream_period_vehicle_s: float = 0.1  # 10 setpoints per COM_OF_LOSS_T: survives lossy links
     takeoff: bool = True
     land: bool = True
+    link_timeout_s: float = 20.0  # wall seconds without any message from the vehicle: give up
+    offboard_entry_s: float = 20.0  # wall seconds to get the vehicle into OFFBOARD at the start
+    reenter_interval_s: float = 1.0  # wall seconds between attempts to re-enter OFFBOARD
 
 
 @dataclass
@@ -51,6 +67,12 @@ class MissionResult:
     resumed: bool = False
     episode_wall_s: float = 0.0
     interrupted: bool = False
+    first_frame: int | None = None
+    decisions: int = 0
+    frames_missed: int = 0
+    stale_reports: int = 0
+    offboard_reentries: int = 0
+    ended_by: str = ""
 
     inference_s: list[float] = field(default_factory=list)
 
@@ -69,6 +91,12 @@ class MissionResult:
             "rejected_radio_reports": self.rejected_reports,
             "resumed_in_air": self.resumed,
             "interrupted": self.interrupted,
+            "first_frame": self.first_frame,
+            "decisions": self.decisions,
+            "radio_frames_missed": self.frames_missed,
+            "stale_radio_reports": self.stale_reports,
+            "offboard_reentries": self.offboard_reentries,
+            "ended_by": self.ended_by,
         }
 
 
@@ -86,17 +114,26 @@ class PolicyPilot:
         self.guarded = 0
         self.inference_s: list[float] = []
 
-    def decide(self, report: RadioReport, uav_east_north_m: np.ndarray, first: bool) -> np.ndarray:
-        """East/north displacement (m) for this frame; a hold (zero move) if the policy misbehaves."""
+    def observe(self, report: RadioReport, uav_east_north_m: np.ndarray, first: bool) -> np.ndarray:
+        """Add this frame to the observation history (no decision); returns the observation."""
         pos = uav_east_north_m.reshape(1, 2)
         step = self.builder.reset if first else self.builder.push
-        obs = step(pos, report.sinr_db[None, :], report.aoa_deg[None, :])
+        return step(pos, report.sinr_db[None, :], report.aoa_deg[None, :])
+
+    def decide(self, report: RadioReport, uav_east_north_m: np.ndarray, first: bool) -> np.ndarray:
+        """East/north displacement (m) for this frame; a hold (zero move) if the policy misbehaves."""
+        obs = self.observe(report, uav_east_north_m, first)
         started = time.perf_counter()
         action = np.asarray(self.policy.act(obs), dtype=float)
         self.inference_s.append(time.perf_counter() - started)
         if action.shape != (1, 2) or not np.isfinite(action).all() or (np.abs(action) > 1.0 + 1e-6).any():
             self.guarded += 1
-            log.warning("policy returned an unusable action %s: holding position", action.tolist())
+            why = ("wrong shape" if action.shape != (1, 2) else
+                   "NaN/infinite" if not np.isfinite(action).all() else "outside [-1, 1]")
+            log.warning("policy output guard: frame %d: policy %r returned an unusable action %s "
+                        "(%s): holding position (hold setpoint, no move); %d guarded so far",
+                        report.frame, getattr(self.policy, "name", "?"), action.tolist(), why,
+                        self.guarded)
             return np.zeros(2)
         return self.mapping.to_displacement_m(action)[0]
 
@@ -115,8 +152,11 @@ def fly_mission(link: VehicleLink, pilot: PolicyPilot, cfg: EnvConfig, mission: 
     link.wait_vehicle()
     st = link.status
     if st.armed and st.in_air:
+        if _ending_mode(st):
+            raise LinkError(f"vehicle is armed and in {_mode_name(st)}: not taking it over")
         result.resumed = True
-        log.info("vehicle already armed and in the air: resuming without take-off")
+        log.warning("vehicle already armed and in the air (%s, %.0f m): resuming without take-off",
+                    _mode_name(st), -st.down_m)
     elif mission.takeoff:
         link.arm()
         link.takeoff(altitude)
@@ -132,38 +172,66 @@ def fly_mission(link: VehicleLink, pilot: PolicyPilot, cfg: EnvConfig, mission: 
     send()
     for _ in range(5):
         link.poll(mission.stream_period_vehicle_s / link.speed_factor())
-    if not st.offboard:
-        link.set_mode(PX4_MAIN_OFFBOARD)
-        link.wait_until(lambda: st.offboard, 3.0, "OFFBOARD in the heartbeat")
+    _enter_offboard(link, mission.offboard_entry_s)
 
-    last_frame, started_wall = -1, None
+    last_frame, started_wall, last_reentry = -1, None, -math.inf
     try:
         while True:
             link.poll(0.5)
+            fresh = []
             for report in source.take_reports():
                 if not report.running or report.frame <= last_frame and last_frame >= 0:
-                    continue
-                arrived = time.monotonic()
+                    continue  # waiting for the episode, or a duplicate / late (reordered) report
                 if started_wall is None:
-                    started_wall = arrived
-                first = last_frame < 0
+                    started_wall = time.monotonic()
+                    result.first_frame = report.frame
+                if last_frame >= 0:
+                    result.frames_missed += report.frame - last_frame - 1
+                fresh.append((report, last_frame < 0))
                 last_frame = report.frame
+            # A backlog (the loop was held up, e.g. by a mode change) is history, not a string of
+            # moves to make at once: only the newest frame is decided.
+            for report, first in fresh[:-1]:
+                result.stale_reports += 1
+                pilot.observe(report, np.array([st.east_m, st.north_m]), first)
+            for report, first in fresh[-1:]:
+                arrived = time.monotonic()
                 if report.frame >= mission.frames:
                     continue
                 move = pilot.decide(report, np.array([st.east_m, st.north_m]), first)
                 target = np.clip(target + move, -half, half)
                 send()
+                result.decisions += 1
                 result.latencies_s.append(time.monotonic() - arrived)
                 if status:
                     frame_score = scores.get(report.frame)
                     status(report.frame, target, frame_score.mean_rate_mbps if frame_score else None)
-            if st.main_mode == PX4_MAIN_AUTO and st.sub_mode == PX4_SUB_LOITER and last_frame >= 0:
-                log.warning("vehicle left OFFBOARD (failsafe hold); re-entering")
-                link.set_mode(PX4_MAIN_OFFBOARD)
-            if mission.frames in scores or (last_frame >= mission.frames and len(scores) >= mission.frames):
+            if mission.frames in scores or last_frame >= mission.frames + 2 or (
+                    last_frame >= mission.frames and len(scores) >= mission.frames):
+                result.ended_by = "episode done"
                 break
+            if not st.armed or _ending_mode(st):
+                result.ended_by = f"vehicle in {_mode_name(st)}"
+                log.warning("vehicle is now %s (operator or failsafe): ending the mission, "
+                            "leaving the vehicle alone", _mode_name(st))
+                break
+            now = time.monotonic()
+            if not st.offboard and now - last_reentry >= mission.reenter_interval_s:
+                last_reentry = now
+                log.warning("vehicle left OFFBOARD (now %s, failsafe hold?): re-entering",
+                            _mode_name(st))
+                try:
+                    link.set_mode(PX4_MAIN_OFFBOARD, tries=3)
+                    result.offboard_reentries += 1
+                except LinkError as exc:
+                    log.warning("could not re-enter OFFBOARD yet: %s", exc)
+            if now - link.last_rx_wall > mission.link_timeout_s:
+                result.ended_by = "link lost"
+                raise LinkError(f"no message from the vehicle for {mission.link_timeout_s:g} s: "
+                                "link lost")
     except KeyboardInterrupt:
         result.interrupted = True
+        result.ended_by = "interrupted"
     finally:
         result.episode_wall_s = time.monotonic() - started_wall if started_wall else 0.0
         result.frame_rates_mbps = [scores[k].mean_rate_mbps for k in sorted(scores) if 1 <= k <= mission.frames]
@@ -171,13 +239,44 @@ def fly_mission(link: VehicleLink, pilot: PolicyPilot, cfg: EnvConfig, mission: 
         result.guarded_actions = pilot.guarded
         result.inference_s = pilot.inference_s
         result.rejected_reports = getattr(source, "rejected", 0)
-        link.stream_ned = None
-        if mission.land:
+        if mission.land and st.armed and not _ending_mode(st) and result.ended_by != "link lost":
             try:
-                link.set_mode(PX4_MAIN_AUTO, PX4_SUB_LOITER)
+                link.set_mode(PX4_MAIN_AUTO, PX4_SUB_LOITER)  # streaming until hold is taken
+                link.stream_ned = None
                 link.land()
             except LinkError as exc:
                 log.error("landing command failed: %s", exc)
+        link.stream_ned = None
     return result
 
 
+def _enter_offboard(link: VehicleLink, within_s: float) -> None:
+    """DO_SET_MODE OFFBOARD until the heartbeat shows it (the setpoint stream is already running);
+    a refusal or a lost ACK or heartbeat is tried again until ``within_s`` of wall time pass."""
+    st = link.status
+    deadline = time.monotonic() + within_s
+    while not st.offboard:
+        try:
+            link.set_mode(PX4_MAIN_OFFBOARD, tries=3)
+            if link.wait_wall(lambda: st.offboard, 2.0):
+                return
+            problem = "the heartbeat does not show OFFBOARD"
+        except LinkError as exc:
+            problem = str(exc)
+        if time.monotonic() > deadline:
+            raise LinkError(f"could not enter OFFBOARD within {within_s:g} s: {problem}")
+        log.warning("entering OFFBOARD: %s; trying again", problem)
+
+
+def _ending_mode(st) -> bool:
+    """AUTO.LAND or AUTO.RTL: the flight is being ended (by an operator or a failsafe)."""
+    return st.main_mode == PX4_MAIN_AUTO and st.sub_mode in (PX4_SUB_LAND, PX4_SUB_RTL)
+
+
+def _mode_name(st) -> str:
+    if st.main_mode == PX4_MAIN_OFFBOARD:
+        return "OFFBOARD"
+    names = {2: "TAKEOFF", 3: "LOITER", 4: "MISSION", 5: "RTL", 6: "LAND"}
+    if st.main_mode == PX4_MAIN_AUTO:
+        return f"AUTO.{names.get(st.sub_mode, st.sub_mode)}"
+    return f"mode {st.main_mode}.{st.sub_mode}" + ("" if st.armed else ", disarmed")

@@ -1,8 +1,9 @@
 """How radio readings travel over MAVLink: two standard DEBUG_FLOAT_ARRAY (id 350) messages.
 
 Any MAVLink tool decodes them with the stock common.xml. Both come from the radio payload's own
-component (``RADIO_COMPONENT_ID``) once per frame; ``array_id`` is the frame index (0 until the
-episode starts) and ``time_usec`` the simulated time.
+component (``RADIO_COMPONENT_ID``) every frame (UL_RADIO twice, as a copy against packet loss:
+receivers keep the first of each frame); ``array_id`` is the frame index (0 until the episode
+starts) and ``time_usec`` the simulated time.
 
 ``UL_RADIO`` (what the base station senses; the policy's input):
     data[0] = U (number of UEs), data[1 : 1+U] = effective SINR (dB),
@@ -84,8 +85,12 @@ def decode_readings(msg, expected_ues: int) -> RadioReport:
 
 
 def decode_score(msg) -> ScoreReport:
+    """Decode a UL_SCORE message; RadioReportError when its rates are NaN, infinite or negative."""
     data = list(msg.data)
-    return ScoreReport(int(msg.array_id), float(data[1]), float(data[2]))
+    mean, fair = float(data[1]), float(data[2])
+    if not (np.isfinite(mean) and np.isfinite(fair)) or mean < 0 or fair < 0:
+        raise RadioReportError(f"radio score with unusable rates (mean {mean}, fair {fair})")
+    return ScoreReport(int(msg.array_id), mean, fair)
 
 
 def message_kind(msg) -> str | None:

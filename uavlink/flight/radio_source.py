@@ -11,6 +11,7 @@ import logging
 from typing import Protocol
 
 from uavlink.flight.radio_codec import RadioReport, RadioReportError, decode_readings
+from uavlink.flight.rejects import RejectLog
 
 log = logging.getLogger(__name__)
 
@@ -24,22 +25,21 @@ class RadioSource(Protocol):
 
 
 class MavlinkRadioSource:
-    """Decodes UL_RADIO messages handed over by the link; invalid ones are counted, logged once."""
+    """Decodes UL_RADIO messages handed over by the link; invalid ones (wrong UE count, NaN or
+    out-of-range values) are counted in ``rejected`` and logged once per reason."""
 
     def __init__(self, n_ues: int) -> None:
         self.n_ues = n_ues
         self.rejected = 0
+        self.rejects = RejectLog(log)
         self._pending: list[RadioReport] = []
-        self._logged: set[str] = set()
 
     def feed(self, msg) -> None:
         try:
             self._pending.append(decode_readings(msg, self.n_ues))
         except RadioReportError as exc:
             self.rejected += 1
-            if str(exc) not in self._logged:
-                self._logged.add(str(exc))
-                log.warning("rejected radio report: %s", exc)
+            self.rejects.reject("radio_report", f"radio report: {exc}", key=str(exc))
 
     def take_reports(self) -> list[RadioReport]:
         reports, self._pending = self._pending, []

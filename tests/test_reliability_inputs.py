@@ -1,0 +1,457 @@
+"""Bad input: fuzzed and mutated MAVLink into the vehicle and into fly's link, out-of-range fields,
+bad radio reports, COMMAND_ACK results, and the policy output guard in flight.
+
+Nothing may crash, nothing unsafe may be flown (the vehicle stays finite, inside the geofence and
+under the vertical fence), every rejected input is counted and logged once, and every command
+gets the right COMMAND_ACK. Hypothesis runs are bounded (examples, no deadline); everything stays
+on loopback and in this process (the vehicle's loop is stepped by the test).
+"""
+
+from __future__ import annotations
+
+import logging
+import math
+import os
+import socket
+import threading
+import time
+from collections.abc import Iterator
+from contextlib import contextmanager
+
+import numpy as np
+import pytest
+from hypothesis import HealthCheck, given, settings
+from hypothesis import strategies as st
+
+os.environ["MAVLINK20"] = "1"
+from pymavlink.dialects.v20 import common as mavlink  # noqa: E402
+
+from sitl_stub.mavlink_server import ServerConfig, SitlServer  # noqa: E402
+from sitl_stub.params import PARAM_DEFS  # noqa: E402
+from sitl_stub.payload import PayloadOptions  # noqa: E402
+from sitl_stub.radio_payload import RadioPayload  # noqa: E402
+from sitl_stub.vehicle import MAX_ALTITUDE_M  # noqa: E402
+from uavlink.config import EnvConfig  # noqa: E402
+from uavlink.flight.connection import free_udp_port  # noqa: E402
+from uavlink.flight.link import VehicleLink  # noqa: E402
+from uavlink.flight.mission import MissionConfig, PolicyPilot, fly_mission  # noqa: E402
+from uavlink.flight.radio_codec import (  # noqa: E402
+    RADIO_COMPONENT_ID,
+    encode_readings,
+    encode_score,
+)
+from uavlink.flight.radio_source import MavlinkRadioSource  # noqa: E402
+from uavlink.flight.signing import SigningGuard  # noqa: E402
+
+pytestmark = pytest.mark.timeout(60)
+FUZZ = settings(max_examples=200, deadline=None, derandomize=True,
+                suppress_health_check=[HealthCheck.too_slow, HealthCheck.data_too_large])
+R = mavlink  # MAV_RESULT_* names
+ARM = mavlink.MAV_CMD_COMPONENT_ARM_DISARM
+FAST = {"MPC_TKO_SPEED": 5.0, "MPC_Z_VEL_MAX_UP": 5.0}
+RESULTS = {R.MAV_RESULT_ACCEPTED, R.MAV_RESULT_TEMPORARILY_REJECTED, R.MAV_RESULT_DENIED,
+           R.MAV_RESULT_UNSUPPORTED, R.MAV_RESULT_FAILED}
+
+
+# --------------------------------------------------------------------------- the harness
+class Vehicle:
+    """An in-process SitlServer on udpin loopback, stepped by the test; a socket talks to it."""
+
+    def __init__(self, server: SitlServer) -> None:
+        self.server = server
+        self.sock = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
+        self.sock.bind(("127.0.0.1", 0))
+        self.sock.setblocking(False)
+        self.parser = mavlink.MAVLink(None)
+        self.parser.robust_parsing = True
+        self.acks: list = []
+
+    def send(self, data: bytes, chunks: int = 1) -> None:
+        step = max(1, math.ceil(len(data) / chunks))
+        for i in range(0, max(len(data), 1), step):
+            self.sock.sendto(data[i:i + step], self.server.address)
+        for _ in range(2):
+            self.server.iterate()
+        self.drain()
+
+    def drain(self) -> None:
+        while True:
+            try:
+                data = self.sock.recv(65535)
+            except BlockingIOError:
+                return
+            for m in self.parser.parse_buffer(data) or []:
+                if m.get_type() == "COMMAND_ACK":
+                    self.acks.append(m)
+
+    def safe(self) -> None:
+        """Nothing crashed and nothing unsafe is being flown."""
+        s = self.server.vehicle.state()
+        values = (s.north_m, s.east_m, s.down_m, s.vn_mps, s.ve_mps, s.vd_mps, s.yaw_rad,
+                  s.roll_rad, s.pitch_rad)
+        assert all(math.isfinite(v) for v in values), s
+        fence = self.server.vehicle.fence_m
+        assert abs(s.north_m) <= fence and abs(s.east_m) <= fence and s.max_abs_xy_m <= fence
+        assert -MAX_ALTITUDE_M - 1e-6 <= s.down_m <= 1e-9, s
+        sp = s.setpoint_ned
+        assert sp is None or (all(math.isfinite(v) for v in sp) and -MAX_ALTITUDE_M <= sp[2] <= 0)
+        for d in PARAM_DEFS:
+            assert d.min <= self.server.params[d.name] <= d.max
+        assert self.server.stats["handler_errors"] == 0
+        assert self.server.error is None
+
+
+@contextmanager
+def vehicle(key: bytes | None = None, payload: bool = False) -> Iterator[Vehicle]:
+    payloads = [RadioPayload(PayloadOptions("straight", 0))] if payload else []
+    server = SitlServer(ServerConfig(connect="udpin:127.0.0.1:0", speed=20.0, params=FAST,
+                                     signing_key=key), payloads)
+    server.open()
+    v = Vehicle(server)
+    try:
+        v.send(b"")  # say hello (the vehicle answers whoever sent something)
+        yield v
+    finally:
+        v.sock.close()
+        server.close()
+
+
+def gcs_encoder(key: bytes | None = None, sysid: int = 245, compid: int = 190):
+    enc = mavlink.MAVLink(None, sysid, compid)
+    if key is not None:
+        SigningGuard(key).attach(enc)
+    return enc
+
+
+def packets(enc) -> list[bytes]:
+    """Valid packets of every kind the vehicle acts on."""
+    msgs = [
+        enc.command_long_encode(1, 0, ARM, 0, 1, 0, 0, 0, 0, 0, 0),
+        enc.command_long_encode(1, 1, mavlink.MAV_CMD_NAV_TAKEOFF, 0, *[math.nan] * 7),
+        enc.command_long_encode(1, 0, mavlink.MAV_CMD_DO_SET_MODE, 0, 129, 6, 0, 0, 0, 0, 0),
+        enc.command_int_encode(1, 0, 6, mavlink.MAV_CMD_NAV_LAND, 0, 0, 0, 0, 0, 0, 0, 0, 0),
+        enc.set_position_target_local_ned_encode(0, 1, 0, 1, 0xDF8, 50, -50, -20, 0, 0, 0, 0, 0, 0,
+                                                 0, 0),
+        enc.param_set_encode(1, 0, b"MPC_XY_VEL_MAX", 3.0, 9),
+        enc.set_mode_encode(1, 1, 4 << 16 | 2 << 24),
+        enc.param_request_list_encode(1, 0),
+        enc.mission_request_list_encode(1, 0, 0),
+        enc.ping_encode(1, 2, 0, 0),
+        enc.file_transfer_protocol_encode(0, 1, 1, [0, 0, 0, 4] + [0] * 247),
+        enc.heartbeat_encode(6, 8, 0, 0, 4),
+    ]
+    return [bytes(m.pack(enc)) for m in msgs]
+
+
+def _corrupt(pkt: bytes, pos: int, flip: int) -> bytes:
+    """Flip one byte (never a no-op) somewhere after the start marker."""
+    i = 1 + pos % (len(pkt) - 1)
+    b = bytearray(pkt)
+    b[i] ^= flip
+    return bytes(b)
+
+
+def _until_ack(v: Vehicle, packet, tries: int = 10) -> None:
+    for _ in range(tries):
+        v.send(packet())
+        if v.acks:
+            return
+    raise AssertionError("no ACK for an intact packet")
+
+
+mutation = st.tuples(st.integers(0, 11), st.integers(0, 10_000), st.integers(1, 255),
+                     st.binary(max_size=8))
+
+
+# -------------------------------------------------------------------- into the vehicle
+def test_random_bytes_into_the_vehicle() -> None:
+    with vehicle() as v:
+        @FUZZ
+        @given(st.binary(max_size=400), st.integers(1, 4))
+        def run(data: bytes, chunks: int) -> None:
+            v.send(data, chunks)
+            v.safe()
+            assert not v.server.vehicle.armed
+
+        run()
+        # everything was counted, and each kind was logged once, not once per packet
+        assert v.server.rejects.total > 0
+
+
+def test_mutated_packets_into_the_vehicle_are_counted_and_have_no_effect(caplog) -> None:
+    caplog.set_level(logging.WARNING, logger="sitl_stub")
+    with vehicle() as v:
+        valid = packets(gcs_encoder())
+        before = v.server.vehicle.state()
+
+        @FUZZ
+        @given(st.lists(mutation, min_size=1, max_size=4), st.integers(1, 3))
+        def run(mutations, chunks: int) -> None:
+            stream = b"".join(_corrupt(valid[k], pos, flip) + junk for k, pos, flip, junk in mutations)
+            v.send(stream, chunks)
+            v.safe()
+
+        run()
+        after = v.server.vehicle.state()
+        assert not after.armed and after.mode is before.mode
+        assert after.setpoints_accepted == 0 and v.server.params["MPC_XY_VEL_MAX"] == 12.0
+        assert not [a for a in v.acks if a.command in (ARM, mavlink.MAV_CMD_NAV_TAKEOFF)]
+        counts = v.server.rejects.counts
+        assert counts["bad_data"] > 20
+        bad_data_logs = [r for r in caplog.records if "bad MAVLink data" in r.getMessage()]
+        assert len(bad_data_logs) == 1  # logged once, counted every time
+        # intact packets still work after all that (once the parser has skipped what is left of
+        # a corrupted length: at most one maximum-size packet)
+        _until_ack(v, lambda: valid[0])
+        assert v.acks[-1].command == ARM and v.acks[-1].result == R.MAV_RESULT_ACCEPTED
+
+
+def test_mutated_signed_packets_never_pass_the_signing_check() -> None:
+    key = os.urandom(32)
+    with vehicle(key=key) as v:
+        enc = gcs_encoder(key)
+
+        @FUZZ
+        @given(st.lists(mutation, min_size=1, max_size=3))
+        def run(mutations) -> None:
+            fresh = packets(enc)  # freshly signed: only the corruption can make them fail
+            v.send(b"".join(_corrupt(fresh[k], pos, flip) + junk for k, pos, flip, junk in mutations))
+            v.safe()
+
+        run()
+        assert not v.server.vehicle.armed and v.server.vehicle.setpoints_accepted == 0
+        assert v.acks == []
+        signing = v.server.signing.stats()
+        assert signing["rejected_bad_signature"] + signing["rejected_unsigned"] > 50
+        _until_ack(v, lambda: packets(enc)[0])  # an intact one does
+        assert [(a.command, a.result) for a in v.acks] == [(ARM, R.MAV_RESULT_ACCEPTED)]
+
+
+finite_or_not = st.one_of(st.floats(allow_nan=True, allow_infinity=True, width=32),
+                          st.sampled_from([math.nan, math.inf, -math.inf, 3.4e38, -3.4e38, 0.0, 1.0]))
+
+
+def test_out_of_range_fields_are_refused_or_clamped(caplog) -> None:
+    caplog.set_level(logging.WARNING, logger="sitl_stub")
+    with vehicle(payload=True) as v:
+        enc = gcs_encoder()
+        known = [ARM, 22, 21, 20, 176, 511, 512, 510, 520, 31337, 0, 65535]
+
+        @FUZZ
+        @given(st.one_of(st.sampled_from(known), st.integers(0, 65535)),
+               st.lists(finite_or_not, min_size=7, max_size=7), st.sampled_from([0, 1, 158]),
+               st.one_of(st.just(1), st.integers(0, 255)),
+               st.one_of(st.sampled_from([0xDF8, 0x9F8, 0]), st.integers(0, 0xFFFF)),
+               st.lists(finite_or_not, min_size=4, max_size=4), st.booleans())
+        def run(command, params, component, frame, type_mask, sp, as_int) -> None:
+            if as_int:
+                msg = enc.command_int_encode(1, component, frame, command, 0, 0, *params[:4],
+                                             int(np.clip(np.nan_to_num(params[4]), -2**31, 2**31 - 1)),
+                                             int(np.clip(np.nan_to_num(params[5]), -2**31, 2**31 - 1)),
+                                             params[6])
+            else:
+                msg = enc.command_long_encode(1, component, command, 0, *params)
+            before = len(v.acks)
+            v.send(bytes(msg.pack(enc)))
+            acks = v.acks[before:]
+            assert len(acks) == 1 and acks[0].command == command  # exactly one answer
+            assert acks[0].result in RESULTS
+            known_ids = mavlink.enums["MAV_CMD"]
+            if component == 158 or command not in known_ids or command in (0, 31337):
+                assert acks[0].result == R.MAV_RESULT_UNSUPPORTED
+            sp_msg = enc.set_position_target_local_ned_encode(0, 1, 0, frame, type_mask, *sp[:3],
+                                                              0, 0, 0, 0, 0, 0, sp[3], 0)
+            v.send(bytes(sp_msg.pack(enc)))
+            v.safe()
+
+        run()
+        counts = v.server.rejects.counts
+        assert counts["command_unsupported"] > 0 and counts["setpoint_frame"] > 0
+        assert counts["setpoint_type_mask"] > 0 and counts["setpoint_not_finite"] > 0
+        assert counts["command_denied"] > 0
+    logged = [r.getMessage() for r in caplog.records]
+    assert len([m for m in logged if "unsupported command 31337" in m]) <= 1
+
+
+@pytest.mark.parametrize("name,params,result", [
+    ("unknown command", (31337, 0, 0, 0, 0, 0, 0, 0), R.MAV_RESULT_UNSUPPORTED),
+    ("arm p1 NaN", (ARM, math.nan, 0, 0, 0, 0, 0, 0), R.MAV_RESULT_DENIED),
+    ("takeoff while disarmed", (22, *[math.nan] * 7), R.MAV_RESULT_DENIED),
+    ("mode with infinite base", (176, math.inf, 4, 3, 0, 0, 0, 0), R.MAV_RESULT_DENIED),
+    ("unknown mode", (176, 1, 99, 0, 0, 0, 0, 0), R.MAV_RESULT_DENIED),
+    ("manual mode (no RC)", (176, 1, 1, 0, 0, 0, 0, 0), R.MAV_RESULT_DENIED),
+    ("message interval infinite", (511, 30, math.inf, 0, 0, 0, 0, 0), R.MAV_RESULT_DENIED),
+    ("message interval negative", (511, 30, -0.5, 0, 0, 0, 0, 0), R.MAV_RESULT_DENIED),
+    ("request unknown message", (512, 1e9, 0, 0, 0, 0, 0, 0), R.MAV_RESULT_DENIED),
+    ("request NaN message", (512, math.nan, 0, 0, 0, 0, 0, 0), R.MAV_RESULT_DENIED),
+    ("arm", (ARM, 1, 0, 0, 0, 0, 0, 0), R.MAV_RESULT_ACCEPTED),
+])
+def test_command_ack_results(name: str, params: tuple, result: int, caplog) -> None:
+    caplog.set_level(logging.WARNING, logger="sitl_stub")
+    with vehicle() as v:
+        enc = gcs_encoder()
+        for _ in range(3):  # the same refusal three times: three ACKs, one log line
+            v.send(bytes(enc.command_long_encode(1, 0, params[0], 0, *params[1:]).pack(enc)))
+        assert [(a.command, a.result) for a in v.acks] == [(params[0], result)] * 3
+        if result != R.MAV_RESULT_ACCEPTED:
+            assert sum(v.server.rejects.counts.values()) == 3
+            assert len([r for r in caplog.records if "rejected input" in r.getMessage()]) == 1
+        v.safe()
+
+
+def test_a_failing_command_handler_answers_failed_and_the_vehicle_flies_on(monkeypatch) -> None:
+    with vehicle(payload=True) as v:
+        enc = gcs_encoder()
+
+        def broken(req, wall):
+            raise ZeroDivisionError("a bug")
+
+        monkeypatch.setattr(v.server.commands, "handle", broken)
+        v.send(bytes(enc.command_long_encode(1, 0, ARM, 0, 1, 0, 0, 0, 0, 0, 0).pack(enc)))
+        assert [(a.command, a.result) for a in v.acks] == [(ARM, R.MAV_RESULT_FAILED)]
+        monkeypatch.undo()
+        v.server.stats["handler_errors"] = 0
+        # a command for the radio payload component (it has no command handler)
+        v.send(bytes(enc.command_long_encode(1, RADIO_COMPONENT_ID, ARM, 0, 1, 0, 0, 0, 0, 0, 0).pack(enc)))
+        assert (v.acks[-1].command, v.acks[-1].result) == (ARM, R.MAV_RESULT_UNSUPPORTED)
+        v.send(bytes(enc.command_long_encode(1, 0, ARM, 0, 1, 0, 0, 0, 0, 0, 0).pack(enc)))
+        assert (v.acks[-1].command, v.acks[-1].result) == (ARM, R.MAV_RESULT_ACCEPTED)
+        v.safe()
+
+
+# -------------------------------------------------------------------- into fly's link
+def _vehicle_packets() -> list[bytes]:
+    enc = mavlink.MAVLink(None, 1, 1)
+    radio = mavlink.MAVLink(None, 1, RADIO_COMPONENT_ID)
+    readings = encode_readings(np.full(10, 12.0), np.zeros(10), True)
+    msgs = [
+        (enc, enc.heartbeat_encode(2, 12, 1 | 128, 6 << 16, 4)),
+        (enc, enc.local_position_ned_encode(1000, 10, 20, -95, 0, 0, 0)),
+        (enc, enc.extended_sys_state_encode(0, 2)),
+        (enc, enc.command_ack_encode(ARM, 0, 0, 0, 255, 191)),
+        (enc, enc.param_value_encode(b"MIS_TAKEOFF_ALT", 95.0, 9, 13, 11)),
+        (radio, radio.debug_float_array_encode(0, b"UL_RADIO", 3, readings)),
+        (radio, radio.debug_float_array_encode(0, b"UL_SCORE", 3,
+                                               encode_score(np.full(10, 5e6), 0.5))),
+    ]
+    return [bytes(m.pack(e)) for e, m in msgs]
+
+
+@contextmanager
+def fly_link() -> Iterator[tuple[VehicleLink, MavlinkRadioSource, socket.socket, list]]:
+    port = free_udp_port()
+    link = VehicleLink(f"udpin:127.0.0.1:{port}")
+    source = MavlinkRadioSource(10)
+    scores: list = []
+    link.on_radio, link.on_score = source.feed, scores.append
+    sock = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
+    try:
+        yield link, source, sock, scores
+    finally:
+        sock.close()
+        link.close()
+
+
+def _deliver(link: VehicleLink, sock: socket.socket, data: bytes) -> None:
+    sock.sendto(data, link.conn.port.getsockname())
+    link.poll(0.0)
+    link.poll(0.0)
+
+
+def _finite_status(link: VehicleLink) -> None:
+    s = link.status
+    assert all(math.isfinite(v) for v in (s.north_m, s.east_m, s.down_m))
+
+
+def test_random_and_mutated_bytes_into_fly() -> None:
+    with fly_link() as (link, source, sock, scores):
+        valid = _vehicle_packets()
+
+        @FUZZ
+        @given(st.one_of(st.binary(max_size=300),
+                         st.lists(mutation.map(lambda m: (m[0] % len(valid), *m[1:])),
+                                  min_size=1, max_size=4)))
+        def run(data) -> None:
+            if isinstance(data, list):
+                data = b"".join(_corrupt(valid[k], pos, flip) + junk for k, pos, flip, junk in data)
+            _deliver(link, sock, data)
+            _finite_status(link)
+            assert source.take_reports() == [] and scores == []  # nothing corrupted got through
+
+        run()
+        assert link.status.heartbeats == 0 and link.rejects.total > 0
+        for _ in range(3):  # intact packets still work (after what is left of a corrupted length)
+            for pkt in valid:
+                _deliver(link, sock, pkt)
+        assert link.status.heartbeats >= 2 and link.status.armed and link.status.offboard
+        assert (link.status.north_m, link.status.down_m) == (10.0, -95.0)
+        assert len(source.take_reports()) >= 2 and len(scores) >= 2
+
+
+def test_fly_rejects_bad_telemetry_and_radio_reports_counts_and_logs_once(caplog) -> None:
+    caplog.set_level(logging.WARNING)
+    with fly_link() as (link, source, sock, scores):
+        enc = mavlink.MAVLink(None, 1, 1)
+        radio = mavlink.MAVLink(None, 1, RADIO_COMPONENT_ID)
+        _deliver(link, sock, bytes(enc.local_position_ned_encode(1000, 1, 2, -3, 0, 0, 0).pack(enc)))
+        good = encode_readings(np.full(10, 12.0), np.zeros(10), True)
+        wrong_count = encode_readings(np.full(7, 12.0), np.zeros(7), True)
+        nan_sinr = list(good)
+        nan_sinr[3] = math.nan
+        inf_aoa = list(good)
+        inf_aoa[12] = math.inf
+        for _ in range(3):
+            for data in (wrong_count, nan_sinr, inf_aoa):
+                _deliver(link, sock, bytes(radio.debug_float_array_encode(0, b"UL_RADIO", 5, data).pack(radio)))
+            _deliver(link, sock, bytes(radio.debug_float_array_encode(
+                0, b"UL_SCORE", 5, encode_score(np.full(10, np.nan), 0.5)).pack(radio)))
+            _deliver(link, sock, bytes(enc.local_position_ned_encode(
+                2000, math.nan, math.inf, -95, 0, 0, 0).pack(enc)))
+        assert source.rejected == 9 and source.take_reports() == [] and scores == []
+        assert link.rejects.counts["position_not_finite"] == 3 and link.rejects.counts["radio_score"] == 3
+        assert (link.status.north_m, link.status.east_m, link.status.down_m) == (1.0, 2.0, -3.0)
+    messages = [r.getMessage() for r in caplog.records]
+    assert len([m for m in messages if "policy expects 10" in m]) == 1
+    assert len([m for m in messages if "NaN or infinite" in m]) == 1
+    assert len([m for m in messages if "LOCAL_POSITION_NED with NaN" in m]) == 1
+    assert len([m for m in messages if "radio score" in m]) == 1
+
+
+# ------------------------------------------------------------------ policy output guard
+class _NanPolicy:
+    name, layout, needs_truth = "nan-policy", None, False
+
+    def act(self, obs, truth=None):
+        return np.array([[math.nan, 0.5]])
+
+
+@pytest.mark.timeout(60)
+def test_policy_output_guard_in_flight_holds_position_and_logs_clearly(caplog) -> None:
+    caplog.set_level(logging.WARNING, logger="uavlink.flight.mission")
+    cfg = EnvConfig().replace(scenario="straight").validate()
+    server = SitlServer(ServerConfig(connect="udpin:127.0.0.1:0", speed=20.0, params=FAST),
+                        [RadioPayload(PayloadOptions("straight", 0))]).start()
+    link = None
+    try:
+        host, port = server.address
+        link = VehicleLink(f"udpout:{host}:{port}")
+        pilot = PolicyPilot(_NanPolicy(), cfg)
+        done: dict = {}
+        t = threading.Thread(target=lambda: done.setdefault(
+            "r", fly_mission(link, pilot, cfg, MissionConfig(frames=8, land=False))), daemon=True)
+        t.start()
+        t.join(45)
+        assert "r" in done, "the flight did not finish"
+        result = done["r"]
+        state = server.state()
+    finally:
+        if link is not None:
+            link.close()
+        server.stop()
+    assert result.decisions == 8 and result.guarded_actions == 8
+    assert state.armed and state.max_abs_xy_m < 1.0  # took off at home and held there
+    lines = [r.getMessage() for r in caplog.records if "policy output guard" in r.getMessage()]
+    assert len(lines) == 8
+    assert "policy 'nan-policy' returned an unusable action [[nan, 0.5]] (NaN/infinite): " \
+           "holding position" in lines[0]
+    assert time.monotonic()  # the test process is alive and well

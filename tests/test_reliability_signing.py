@@ -1,0 +1,292 @@
+"""MAVLink 2 signing end to end: the key file, the verifier, the vehicle, and a signed flight.
+
+The vehicle (``python -m sitl_stub --signing-key``) must ignore, without an ACK, every packet that
+is unsigned, signed with another key, replayed, or forged with a future timestamp, and count them;
+a stock pymavlink ground station with the key (``setup_signing``) must still command it.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import stat
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import pytest
+
+os.environ["MAVLINK20"] = "1"
+from pymavlink.dialects.v20 import common as mavlink  # noqa: E402
+from udp_relay import FAST_TAKEOFF, Gcs, parse_vehicle_stats, wait_for_vehicle  # noqa: E402
+
+from sitl_stub.testing import free_udp_port, vehicle_process  # noqa: E402
+from uavlink.flight.signing import (  # noqa: E402
+    NEW_STREAM_WINDOW_TICKS,
+    TICKS_PER_S,
+    SigningGuard,
+    load_key,
+    packet_timestamp,
+    signing_timestamp,
+    write_key,
+)
+
+ROOT = Path(__file__).resolve().parents[1]
+UAVLINK = [sys.executable, "-m", "uavlink.cli"]
+ARM = mavlink.MAV_CMD_COMPONENT_ARM_DISARM
+SET_MODE = mavlink.MAV_CMD_DO_SET_MODE
+ACCEPTED = mavlink.MAV_RESULT_ACCEPTED
+LOITER = 4 << 16 | 3 << 24
+TAKEOFF = 4 << 16 | 2 << 24
+LAND = 4 << 16 | 6 << 24
+OFFBOARD = 6 << 16
+FORCE = 21196
+
+
+class _Wire:
+    """A file-like sink for pymavlink's encoder."""
+
+    def __init__(self) -> None:
+        self.packets: list[bytes] = []
+
+    def write(self, buf: bytes) -> None:
+        self.packets.append(bytes(buf))
+
+
+def _endpoint(key: bytes | None, sysid: int, compid: int, clock=time.time):
+    mav = mavlink.MAVLink(_Wire(), sysid, compid)
+    mav.robust_parsing = True
+    guard = None
+    if key is not None:
+        guard = SigningGuard(key, clock=clock)
+        guard.attach(mav)
+    return mav, guard
+
+
+def _arm_packet(mav) -> bytes:
+    mav.command_long_send(1, 1, ARM, 0, 1, 0, 0, 0, 0, 0, 0)
+    return mav.file.packets[-1]
+
+
+# ------------------------------------------------------------------------------- unit level
+def test_keygen_writes_a_private_32_byte_key_and_never_overwrites(tmp_path: Path) -> None:
+    out = tmp_path / "vehicle.key"
+    r = subprocess.run([*UAVLINK, "keygen", "--out", str(out)], capture_output=True, text=True,
+                       timeout=60, cwd=ROOT)
+    assert r.returncode == 0, r.stderr
+    assert len(out.read_bytes()) == 32 and stat.S_IMODE(out.stat().st_mode) == 0o600
+    key = out.read_bytes()
+    again = subprocess.run([*UAVLINK, "keygen", "--out", str(out)], capture_output=True, text=True,
+                           timeout=60, cwd=ROOT)
+    assert again.returncode == 2 and "refusing to overwrite" in again.stderr
+    assert out.read_bytes() == key
+    assert write_key(tmp_path / "other.key").read_bytes() != key  # os.urandom, not a constant
+    short = tmp_path / "short.key"
+    short.write_bytes(b"x" * 16)
+    with pytest.raises(ValueError, match="16 bytes"):
+        load_key(short)
+    for cmd in ([sys.executable, "-m", "sitl_stub", "--signing-key", str(short)],
+                [*UAVLINK, "fly", "--signing-key", str(short), "--policy", "static"]):
+        r = subprocess.run(cmd, capture_output=True, text=True, timeout=60, cwd=ROOT)
+        assert r.returncode == 2 and "32 raw bytes" in r.stderr and "Traceback" not in r.stderr
+
+
+def test_verifier_refuses_unsigned_wrong_key_replay_and_stale_streams() -> None:
+    key = os.urandom(32)
+    rx, guard = _endpoint(key, 1, 1)
+    tx, _ = _endpoint(key, 245, 190)
+    pkt = _arm_packet(tx)
+    assert rx.parse_char(pkt).get_type() == "COMMAND_LONG"
+    assert rx.parse_char(pkt).get_type() == "BAD_DATA"  # the same packet again: a replay
+    plain, _ = _endpoint(None, 245, 190)
+    assert rx.parse_char(_arm_packet(plain)).get_type() == "BAD_DATA"
+    other, _ = _endpoint(os.urandom(32), 245, 191)
+    assert rx.parse_char(_arm_packet(other)).get_type() == "BAD_DATA"
+    # a new stream (component 192) signed with the key but 2 minutes old: an old capture
+    old, _ = _endpoint(key, 245, 192, clock=lambda: time.time() - 120)
+    assert rx.parse_char(_arm_packet(old)).get_type() == "BAD_DATA"
+    # ... while one 30 s old is accepted (MAVLink's 60 s window for new streams)
+    recent, _ = _endpoint(key, 245, 193, clock=lambda: time.time() - 30)
+    assert rx.parse_char(_arm_packet(recent)).get_type() == "COMMAND_LONG"
+    assert guard.stats() == {"accepted": 2, "rejected_unsigned": 1, "rejected_bad_signature": 1,
+                             "rejected_replay": 1, "rejected_stale_stream": 1}
+
+
+def test_forged_future_timestamp_does_not_block_the_stream() -> None:
+    """pymavlink records a stream's timestamp before checking the signature, so one forged
+    packet blocks the genuine sender; our verifier checks first."""
+    key = os.urandom(32)
+    tx, _ = _endpoint(key, 245, 190)
+    first = _arm_packet(tx)
+    forged = bytearray(first)
+    forged[-12:-6] = (packet_timestamp(first) + 3600 * TICKS_PER_S).to_bytes(6, "little")
+
+    stock = mavlink.MAVLink(_Wire(), 1, 1)  # pymavlink's own verification
+    stock.robust_parsing = True
+    stock.signing.secret_key = key
+    stock.signing.timestamp = signing_timestamp()
+    ours, guard = _endpoint(key, 1, 1)
+    for rx in (stock, ours):
+        assert rx.parse_char(first).get_type() == "COMMAND_LONG"
+        assert rx.parse_char(bytes(forged)).get_type() == "BAD_DATA"
+    genuine = _arm_packet(tx)
+    assert stock.parse_char(genuine).get_type() == "BAD_DATA", "pymavlink's flaw is gone?"
+    assert ours.parse_char(genuine).get_type() == "COMMAND_LONG"
+    assert guard.rejected["bad_signature"] == 1 and guard.rejected["replay"] == 0
+
+
+def test_signing_clock_tracks_wall_time() -> None:
+    now = [1.7e9]
+    tx, _ = _endpoint(os.urandom(32), 245, 190, clock=lambda: now[0])
+    a = packet_timestamp(_arm_packet(tx))
+    b = packet_timestamp(_arm_packet(tx))
+    assert a == signing_timestamp(now[0]) and b == a + 1  # strictly rising within a burst
+    now[0] += 600.0  # ten minutes later: pymavlink alone would still be at a + 2
+    c = packet_timestamp(_arm_packet(tx))
+    assert c == signing_timestamp(now[0]) and c - a > NEW_STREAM_WINDOW_TICKS
+
+
+# ---------------------------------------------------------------------------- the vehicle
+@pytest.mark.timeout(60)
+def test_vehicle_obeys_only_fresh_packets_signed_with_its_key(tmp_path: Path) -> None:
+    keyfile = write_key(tmp_path / "k")
+    key = keyfile.read_bytes()
+    port = free_udp_port()
+    args = ["--no-payload", "--signing-key", str(keyfile), "--param", "MIS_TAKEOFF_ALT=5"]
+    with vehicle_process(f"udp:127.0.0.1:{port}", 10.0, args) as vehicle:
+        good = Gcs(port, 245, 190, key=key)
+        unsigned = Gcs(port, 246, 190)
+        wrong = Gcs(port, 247, 190, key=os.urandom(32))
+        try:
+            wait_for_vehicle(good, vehicle)
+            unsigned.pump(0.2)
+            wrong.pump(0.2)
+            # without the key: no ACK and no effect, for arm, mode, parameters
+            for gcs in (unsigned, wrong):
+                assert gcs.command(ARM, 1, wait_s=0.8) is None
+                assert gcs.command(SET_MODE, 1, 4, 2, wait_s=0.5) is None
+                gcs.mav.param_set_send(1, 0, b"COM_OF_LOSS_T", 30.0, mavlink.MAV_PARAM_TYPE_REAL32)
+            good.pump(0.3)
+            assert good.mode == (LOITER, False)
+            good.mav.param_request_read_send(1, 0, b"COM_OF_LOSS_T", -1)
+            assert good.wait_message("PARAM_VALUE").param_value == pytest.approx(1.0)
+            assert any("Signing: rejected" in t for t in good.texts)
+
+            # with the key: arm (captured for a replay), mode change, disarm
+            msg = good.mav.command_long_encode(1, 0, ARM, 0, 1, 0, 0, 0, 0, 0, 0)
+            captured = msg.pack(good.mav)
+            good.conn.write(captured)
+            good.wait(lambda: good.acks_for(ARM), 3.0, "ACK of the signed arm")
+            assert good.acks_for(ARM)[-1].result == ACCEPTED
+            good.wait(lambda: good.mode == (LOITER, True), 3.0, "armed heartbeat")
+            assert good.command(ARM, 0) == ACCEPTED
+            good.wait(lambda: good.mode == (LOITER, False), 3.0, "disarmed heartbeat")
+
+            # a replay of the captured, correctly signed arm is refused
+            good.acks.clear()
+            good.conn.write(captured)
+            good.pump(0.8)
+            assert good.acks_for(ARM) == [] and good.mode == (LOITER, False)
+
+            # a forged packet on our stream with a future timestamp does not block it
+            forged = bytearray(captured)
+            forged[-12:-6] = (packet_timestamp(captured) + 3600 * TICKS_PER_S).to_bytes(6, "little")
+            good.conn.write(bytes(forged))
+            good.pump(0.3)
+            assert good.command(ARM, 1) == ACCEPTED
+            assert good.command(SET_MODE, 129, 4, 2) == ACCEPTED  # AUTO.TAKEOFF
+            good.wait(lambda: (TAKEOFF, True) in [m[1:] for m in good.modes], 3.0, "takeoff mode")
+            assert unsigned.command(ARM, 0, FORCE, wait_s=0.5) is None  # no kill from outside
+            assert good.command(mavlink.MAV_CMD_NAV_LAND) == ACCEPTED
+            good.wait(lambda: (LAND, True) in [m[1:] for m in good.modes], 3.0, "land mode")
+            assert unsigned.acks == [] and wrong.acks == []
+        finally:
+            for gcs in (good, unsigned, wrong):
+                gcs.close()
+        vehicle.stop()
+        output = vehicle.output()
+    signing = parse_vehicle_stats(output)["signing"]
+    assert signing["rejected_unsigned"] >= 3 and signing["rejected_bad_signature"] >= 4
+    assert signing["rejected_replay"] >= 1 and signing["accepted"] >= 6
+    assert output.count("signing: refused unsigned packet") == 1  # counted always, logged once
+
+
+# ------------------------------------------------------------------------ a signed flight
+@pytest.mark.timeout(90)
+def test_signed_flight_ignores_ground_stations_without_the_key(tmp_path: Path) -> None:
+    keyfile = write_key(tmp_path / "k")
+    key = keyfile.read_bytes()
+    port = free_udp_port()
+    frames = 40
+    args = ["--scenario", "straight", "--seed", "2", "--signing-key", str(keyfile), *FAST_TAKEOFF]
+    with vehicle_process(f"udp:127.0.0.1:{port}", 20.0, args) as vehicle:
+        attackers = [Gcs(port, 246, 190), Gcs(port, 247, 190, key=os.urandom(32))]
+        fly = subprocess.Popen(
+            [*UAVLINK, "fly", "--connect", f"udpout:127.0.0.1:{port}", "--signing-key", str(keyfile),
+             "--policy", "aoa", "--scenario", "straight", "--seed", "2", "--frames", str(frames),
+             "--out", str(tmp_path / "fly"), "--json", "--quiet"],
+            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, cwd=ROOT)
+        low_in_offboard, attacks, last = [], 0, 0.0
+        try:
+            deadline = time.monotonic() + 60
+            while fly.poll() is None and time.monotonic() < deadline:
+                for a in attackers:
+                    a.pump(0.005)
+                spy = attackers[0]
+                if spy.mode == (OFFBOARD, True) and time.monotonic() - last > 0.1:
+                    last = time.monotonic()
+                    attacks += 1
+                    for a in attackers:  # disarm (forced), land, dive to a corner, retune
+                        a.mav.command_long_send(1, 0, ARM, 0, 0, FORCE, 0, 0, 0, 0, 0)
+                        a.mav.command_long_send(1, 0, SET_MODE, 0, 129, 4, 6, 0, 0, 0, 0)
+                        a.mav.set_position_target_local_ned_send(
+                            0, 1, 0, mavlink.MAV_FRAME_LOCAL_NED, 0xDF8, -195, -195, -5,
+                            0, 0, 0, 0, 0, 0, 0, 0)
+                        a.mav.param_set_send(1, 0, b"MPC_XY_VEL_MAX", 0.5, mavlink.MAV_PARAM_TYPE_REAL32)
+                    pos = spy.last.get("LOCAL_POSITION_NED")
+                    if pos is not None:
+                        low_in_offboard.append(-pos.z)
+            out, err = fly.communicate(timeout=30)
+            for _ in range(10):
+                for a in attackers:
+                    a.pump(0.02)
+        finally:
+            if fly.poll() is None:
+                fly.kill()
+                fly.wait(10)
+        assert fly.returncode == 0, err
+        summary = json.loads(out)
+        # the flight went on as if nobody else was there
+        assert summary["frames"] == frames and summary["decisions"] == frames
+        assert summary["ended_by"] == "episode done" and summary["signing"]["rejected_bad_signature"] == 0
+        assert attacks >= 10 and min(low_in_offboard) > 90.0
+        offboard_at = next(t for t, mode, _ in attackers[0].modes if mode == OFFBOARD)
+        during = [(mode, armed) for t, mode, armed in attackers[0].modes if t >= offboard_at]
+        # OFFBOARD until fly itself ends the episode (hold, then land); armed all along
+        assert during[0] == (OFFBOARD, True) and during[-1] == (LAND, True), during
+        assert all(armed and mode in (OFFBOARD, LOITER, LAND) for mode, armed in during), during
+        assert all(a.acks == [] for a in attackers)
+
+        # the operator with the key can take over the (landing) vehicle; the others still cannot
+        good = Gcs(port, 245, 190, key=key)
+        try:
+            wait_for_vehicle(good, vehicle)
+            assert good.mode == (LAND, True)
+            good.mav.param_request_read_send(1, 0, b"MPC_XY_VEL_MAX", -1)
+            assert good.wait_message("PARAM_VALUE").param_value == pytest.approx(12.0)
+            assert good.command(SET_MODE, 129, 4, 3) == ACCEPTED  # AUTO.LOITER
+            good.wait(lambda: good.mode == (LOITER, True), 3.0, "hold on the operator's command")
+            assert attackers[0].command(SET_MODE, 129, 4, 6, wait_s=0.5) is None
+            good.pump(0.3)
+            assert good.mode == (LOITER, True)
+            assert good.command(mavlink.MAV_CMD_NAV_LAND) == ACCEPTED
+        finally:
+            good.close()
+            for a in attackers:
+                a.close()
+        vehicle.stop()
+        stats = parse_vehicle_stats(vehicle.output())
+    assert stats["signing"]["rejected_unsigned"] >= attacks * 4
+    assert stats["signing"]["rejected_bad_signature"] >= attacks * 4
+    assert stats["vehicle"]["offboard_failsafes"] == 0
