@@ -282,16 +282,10 @@ class SitlServer:
                     return
                 continue
             kind = msg.get_type()
-            if kind == "BAD_DATA":
-                if "signature" in str(getattr(msg, "reason", "")):
-                    self.stats["signing_rejected"] += 1  # counted by reason in self.signing
-                else:
-                    self.stats["bad_data"] += 1
-                    self.rejects.reject("bad_data", f"bad MAVLink data ({msg.reason})")
-                continue
-            if kind.startswith("UNKNOWN"):
-                self.rejects.reject("unknown_message", f"unknown message id {msg.get_msgId()}",
-                                    key=f"unknown_message_{msg.get_msgId()}")
+            if not self.rejects.screen(msg):
+                if kind == "BAD_DATA":  # signing rejects are counted by reason in self.signing
+                    bad_signature = "signature" in str(getattr(msg, "reason", ""))
+                    self.stats["signing_rejected" if bad_signature else "bad_data"] += 1
                 continue
             self.stats[f"rx_{kind}"] += 1
             try:

@@ -160,13 +160,7 @@ class VehicleLink:
 
     def _handle(self, msg) -> None:
         kind = msg.get_type()
-        if kind == "BAD_DATA":
-            if "signature" not in str(getattr(msg, "reason", "")):  # signing counts its own
-                self.rejects.reject("bad_data", f"bad MAVLink data ({msg.reason})")
-            return
-        if kind.startswith("UNKNOWN"):
-            self.rejects.reject("unknown_message", f"unknown message id {msg.get_msgId()}",
-                                key=f"unknown_{msg.get_msgId()}")
+        if not self.rejects.screen(msg):
             return
         if self._tlog:
             self._log(msg)

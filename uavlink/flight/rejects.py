@@ -27,6 +27,20 @@ class RejectLog:
         self.logger.warning("rejected input: %s (counted as %r; logged once)", text, kind)
         return True
 
+    def screen(self, msg) -> bool:
+        """True for a usable pymavlink message. BAD_DATA and unknown message ids are counted and
+        logged once and give False; a bad signature is left to the signing check's own counters."""
+        kind = msg.get_type()
+        if kind == "BAD_DATA":
+            if "signature" not in str(getattr(msg, "reason", "")):
+                self.reject("bad_data", f"bad MAVLink data ({msg.reason})")
+            return False
+        if kind.startswith("UNKNOWN"):
+            self.reject("unknown_message", f"unknown message id {msg.get_msgId()}",
+                        key=f"unknown_message_{msg.get_msgId()}")
+            return False
+        return True
+
     @property
     def total(self) -> int:
         return sum(self.counts.values())
