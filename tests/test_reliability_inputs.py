@@ -151,9 +151,16 @@ def _corrupt(pkt: bytes, pos: int, flip: int) -> bytes:
     return bytes(b)
 
 
-def _until_ack(v: Vehicle, packet, tries: int = 10) -> None:
+def _until_ack(v: Vehicle, packet, tries: int = 10, wait_s: float = 0.3) -> None:
+    """Send ``packet()`` until an ACK comes back. Each try keeps stepping the vehicle for up to
+    ``wait_s``: on a loaded machine a loopback datagram (or its ACK) can take longer than the two
+    server iterations ``send`` runs."""
     for _ in range(tries):
         v.send(packet())
+        deadline = time.monotonic() + wait_s
+        while not v.acks and time.monotonic() < deadline:
+            time.sleep(0.005)
+            v.send(b"")
         if v.acks:
             return
     raise AssertionError("no ACK for an intact packet")
