@@ -12,6 +12,7 @@ from __future__ import annotations
 import logging
 import math
 import os
+import select
 import socket
 import threading
 import time
@@ -70,8 +71,12 @@ class Vehicle:
         step = max(1, math.ceil(len(data) / chunks))
         for i in range(0, max(len(data), 1), step):
             self.sock.sendto(data[i:i + step], self.server.address)
+        # Loopback delivery is quick but not instant on a loaded machine: let the datagrams land
+        # before the vehicle reads, and give an answer a moment before draining.
+        select.select([self.server.conn.port], [], [], 0.05)
         for _ in range(2):
             self.server.iterate()
+        select.select([self.sock], [], [], 0.005)
         self.drain()
 
     def drain(self) -> None:
