@@ -57,7 +57,7 @@ class RadioPayload:
     def on_frame(self, sim_time_s: float, state: VehicleState, mav: Any) -> None:
         if self.started:
             result = self.env.step_to([[state.x_east_m, state.y_north_m]])
-            self.frame_rates_mbps.append(float(self.env.readings.rate_bps[0].mean()) * 1e-6)
+            self.frame_rates_mbps.append(float(result.mean_rate_mbps[0]))
             self._send(mav, sim_time_s, SCORE_NAME, encode_score(self.env.readings.rate_bps[0],
                                                                  float(result.fair_rate[0])))
         elif state.mode is FlightMode.OFFBOARD:

@@ -110,14 +110,11 @@ class VehicleLink:
         self._speed = 1.0
         self._tlog = open(tlog, "wb") if tlog else None  # noqa: SIM115 - closed in close()
         if self._tlog:
-            self.conn.mav.set_send_callback(self._log_sent)
+            self.conn.mav.set_send_callback(self._log)
 
     # -- I/O ---------------------------------------------------------------------------------
     def _log(self, msg) -> None:
         self._tlog.write(struct.pack(">Q", int(time.time() * 1e6)) + msg.get_msgbuf())
-
-    def _log_sent(self, msg) -> None:
-        self._log(msg)
 
     def poll(self, timeout_s: float) -> None:
         """Handle the messages that arrive within ``timeout_s`` of wall time; keep the stream alive."""

@@ -126,10 +126,11 @@ class PolicyPilot:
         started = time.perf_counter()
         action = np.asarray(self.policy.act(obs), dtype=float)
         self.inference_s.append(time.perf_counter() - started)
-        if action.shape != (1, 2) or not np.isfinite(action).all() or (np.abs(action) > 1.0 + 1e-6).any():
+        why = ("wrong shape" if action.shape != (1, 2) else
+               "NaN/infinite" if not np.isfinite(action).all() else
+               "outside [-1, 1]" if (np.abs(action) > 1.0 + 1e-6).any() else None)
+        if why is not None:
             self.guarded += 1
-            why = ("wrong shape" if action.shape != (1, 2) else
-                   "NaN/infinite" if not np.isfinite(action).all() else "outside [-1, 1]")
             log.warning("policy output guard: frame %d: policy %r returned an unusable action %s "
                         "(%s): holding position (hold setpoint, no move); %d guarded so far",
                         report.frame, getattr(self.policy, "name", "?"), action.tolist(), why,
