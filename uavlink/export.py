@@ -3,20 +3,18 @@
 The ONNX graph is the policy's deterministic actor exactly as SB3's ``predict(deterministic=True)``
 computes it for a Box action space with ``squash_output=False``: features -> actor MLP -> action_net
 (the Gaussian mean), then clipped to the action space bounds, as SB3 does with ``np.clip`` after the
-network. Input ``obs`` float32 [batch, obs_size], output ``action`` float32 [batch, 2]; the batch
-dimension is dynamic. The policy manifest (observation layout, action mapping, env config, training
+network. The graph is the zip runtime's own module (``SB3Policy.actor``, ``deterministic_actor``):
+float64 between a float32 input ``obs`` [batch, obs_size] and a float32 output ``action``
+[batch, 2], so the two runtimes return bit-identical actions and closed-loop evaluations of the two
+files coincide at every digit. The batch dimension is dynamic. The policy manifest (observation layout, action mapping, env config, training
 record) travels in the model's metadata under ``uavlink_manifest``, plus the source zip's SHA-256.
 
 Verification (on by default) rolls the SB3 policy itself through seeded episodes of the env its
 manifest describes, collects the observations it met, and requires the runtime's actions
-(``OnnxPolicy``, batched and one at a time) to equal SB3's within ``TOLERANCE`` on every one of
-them. The file is written to a temporary name beside the target and renamed only after it
-verifies, so a failed export leaves nothing behind (and an earlier file at the target intact).
-
-Per-decision parity is the contract. Closed-loop evaluations of a trained policy agree only
-statistically: a tracking policy amplifies a 1e-7 action difference to metres within ~70 frames
-in some episodes (as it does a 1-ulp nudge of SB3's own actions), so per-episode throughputs of
-those episodes differ while the means agree within their confidence interval.
+(``OnnxPolicy``, batched and one at a time) to equal SB3's float32 ``predict`` within ``TOLERANCE``
+on every one of them; it also counts how many equal the zip runtime's (``SB3Policy.act``) exactly.
+The file is written to a temporary name beside the target and renamed only after it verifies, so a
+failed export leaves nothing behind (and an earlier file at the target intact).
 
 Uses torch's TorchScript-based exporter (``dynamo=False``): the torch.export-based one needs
 onnxscript, which the ``export`` extra does not install. Imports torch, SB3, onnx and onnxruntime.
@@ -34,7 +32,7 @@ from typing import Any
 
 import numpy as np
 
-from uavlink.policies.manifest import PolicyFileError, file_sha256
+from uavlink.policies.manifest import file_sha256
 from uavlink.policies.onnx_policy import METADATA_KEY
 
 __all__ = ["METADATA_KEY", "ExportVerificationError", "export_onnx", "format_report",
@@ -51,45 +49,16 @@ class ExportVerificationError(ValueError):
     """The exported graph's actions differ from SB3's; nothing was written."""
 
 
-def _actor_module(policy: Any):
-    """A torch module: obs -> SB3's deterministic action (Gaussian mean clipped to the box)."""
-    import torch
-    from gymnasium import spaces
-    from stable_baselines3.common.distributions import DiagGaussianDistribution
-
-    space = policy.action_space
-    if not isinstance(space, spaces.Box) or space.shape != (2,):
-        raise PolicyFileError(f"cannot export: action space {space} is not Box(2,)")
-    if policy.squash_output or not isinstance(policy.action_dist, DiagGaussianDistribution):
-        raise PolicyFileError("cannot export: only PPO MlpPolicy with a diagonal Gaussian and "
-                              "squash_output=False is supported")
-
-    class DeterministicActor(torch.nn.Module):
-        def __init__(self) -> None:
-            super().__init__()
-            self.policy = policy
-            self.register_buffer("low", torch.as_tensor(space.low, dtype=torch.float32))
-            self.register_buffer("high", torch.as_tensor(space.high, dtype=torch.float32))
-
-        def forward(self, obs: torch.Tensor) -> torch.Tensor:
-            features = self.policy.extract_features(obs, self.policy.pi_features_extractor)
-            mean = self.policy.action_net(self.policy.mlp_extractor.forward_actor(features))
-            # np.clip(a, low, high) == minimum(maximum(a, low), high)
-            return torch.minimum(torch.maximum(mean, self.low), self.high)
-
-    return DeterministicActor().eval()
-
-
-def _to_onnx_bytes(policy: Any, obs_size: int, opset: int) -> bytes:
+def _to_onnx_bytes(actor: Any, obs_size: int, opset: int) -> bytes:
+    """The torch module ``actor`` (``SB3Policy.actor``) as an ONNX model."""
     import torch
 
-    module = _actor_module(policy)
     buffer = io.BytesIO()
     with warnings.catch_warnings(), torch.no_grad():
         warnings.simplefilter("ignore", DeprecationWarning)  # the TorchScript exporter's notice
         warnings.simplefilter("ignore", UserWarning)
         torch.onnx.export(
-            module, (torch.zeros(1, obs_size, dtype=torch.float32),), buffer,
+            actor, (torch.zeros(1, obs_size, dtype=torch.float32),), buffer,
             input_names=[INPUT_NAME], output_names=[OUTPUT_NAME], opset_version=opset,
             dynamic_axes={INPUT_NAME: {0: "batch"}, OUTPUT_NAME: {0: "batch"}},
             do_constant_folding=True, dynamo=False,
@@ -116,31 +85,32 @@ def verification_observations(sb3_policy: Any, n: int, seed: int) -> np.ndarray:
 
 def verify_onnx(onnx_path: Path, sb3_policy: Any, n: int = 1000, seed: int = 0,
                 tolerance: float = TOLERANCE) -> dict[str, Any]:
-    """Compare the runtime's actions (``OnnxPolicy``, as flight loads it) with SB3's on ``n`` real
-    observations, batched and the first ``SINGLE_CHECKS`` one at a time; raise
-    ExportVerificationError beyond ``tolerance``."""
+    """Compare the runtime's actions (``OnnxPolicy``, as flight loads it) with SB3's ``predict`` on
+    ``n`` real observations, batched and the first ``SINGLE_CHECKS`` one at a time; raise
+    ExportVerificationError beyond ``tolerance``. Also count the actions bit-identical to the zip's
+    runtime (``SB3Policy.act``, what ``uavlink evaluate/fly`` run for the zip)."""
     from uavlink.policies.onnx_policy import OnnxPolicy
 
     obs = verification_observations(sb3_policy, n, seed)
-    expected = np.asarray(sb3_policy.act(obs), dtype=np.float64)
+    expected, _ = sb3_policy.model.predict(obs, deterministic=True)
     runtime = OnnxPolicy(onnx_path)
     got = runtime.act(obs)
     if got.shape != expected.shape or got.dtype != np.float32:
         raise ExportVerificationError(f"exported graph returns {got.dtype} {got.shape}, "
                                       f"expected float32 {expected.shape}")
-    diff = np.abs(got - expected)
+    diff = np.abs(got.astype(np.float64) - expected)
     singles = min(SINGLE_CHECKS, n)
-    single_diff = max((float(np.abs(runtime.act(obs[i]) - expected[i]).max()) for i in range(singles)),
-                      default=0.0)
-    max_diff = max(float(diff.max()), single_diff)
+    single = np.concatenate([runtime.act(obs[i]) for i in range(singles)])
+    max_diff = max(float(diff.max()), float(np.abs(single.astype(np.float64) - expected[:singles]).max()))
     if not np.isfinite(got).all() or max_diff > tolerance:
         worst = int(np.argmax(diff.max(axis=1)))
         raise ExportVerificationError(
             f"ONNX actions differ from SB3's by up to {max_diff:.3g} (tolerance {tolerance:g}) on "
             f"{n} observations; worst observation #{worst}: onnx {got[worst].tolist()} vs "
             f"sb3 {expected[worst].tolist()}")
+    identical = int(np.all(got == sb3_policy.act(obs), axis=1).sum())
     return {"n_observations": n, "n_single": singles, "max_abs_diff": max_diff,
-            "tolerance": tolerance, "seed": seed}
+            "tolerance": tolerance, "seed": seed, "n_identical_to_zip_runtime": identical}
 
 
 def export_onnx(zip_path: str | Path, out_path: str | Path, verify: bool = True, n_verify: int = 1000,
@@ -160,12 +130,13 @@ def export_onnx(zip_path: str | Path, out_path: str | Path, verify: bool = True,
     if verify and n_verify < 1:
         raise ValueError(f"n_verify must be a positive integer, got {n_verify}")
     sb3 = SB3Policy(zip_path)
-    model = onnx.load_from_string(_to_onnx_bytes(sb3.model.policy, sb3.layout.size, opset))
+    model = onnx.load_from_string(_to_onnx_bytes(sb3.actor, sb3.layout.size, opset))
     manifest = dict(sb3.manifest)
     manifest["exported_from"] = zip_path.name
     manifest["source_policy_sha256"] = file_sha256(zip_path)
     manifest["export"] = {"opset": opset, "input": INPUT_NAME, "output": OUTPUT_NAME,
-                          "action": "SB3 deterministic: Gaussian mean clipped to the action box"}
+                          "action": "SB3 deterministic: Gaussian mean clipped to the action box",
+                          "precision": "float64 inside, float32 input and output"}
     del model.metadata_props[:]
     onnx.helper.set_model_props(model, {METADATA_KEY: json.dumps(manifest, sort_keys=True)})
     model.doc_string = f"uavlink policy {zip_path.name}: obs [batch, {sb3.layout.size}] -> action [batch, 2]"
@@ -199,5 +170,7 @@ def format_report(report: dict[str, Any]) -> str:
     else:
         lines.append(f"  verified: {check['n_observations']} observations from seeded episodes "
                      f"(seed {check['seed']}) batched, {check['n_single']} one at a time; "
-                     f"max |onnx - sb3| = {check['max_abs_diff']:.2e} <= tolerance {check['tolerance']:g}")
+                     f"max |onnx - sb3 predict| = {check['max_abs_diff']:.2e} <= tolerance "
+                     f"{check['tolerance']:g}; {check['n_identical_to_zip_runtime']} of "
+                     f"{check['n_observations']} bit-identical to the zip's runtime (both float64)")
     return "\n".join(lines)

@@ -152,6 +152,11 @@ def train(cfg: EnvConfig, tc: TrainConfig, out: Path, run_dir: Path | None = Non
     model = make_model(cfg, tc, run_dir)
     if resume is not None:
         model = PPO.load(resume, env=model.get_env(), device="cpu", tensorboard_log=str(run_dir) if run_dir else None)
+    if run_dir is None:
+        # Without a run folder SB3 would make an empty one under the temp dir for every run.
+        from stable_baselines3.common.logger import Logger
+
+        model.set_logger(Logger(folder=None, output_formats=[]))
     monitor = _callback(tc.total_timesteps, run_dir, tc.checkpoint_every_steps, progress)
     start = time.perf_counter()
     model.learn(total_timesteps=tc.total_timesteps - model.num_timesteps, callback=monitor,

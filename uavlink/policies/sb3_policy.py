@@ -1,14 +1,56 @@
-"""A trained SB3 PPO policy (zip) behind the Policy interface. Imports torch and SB3."""
+"""A trained SB3 PPO policy (zip) behind the Policy interface. Imports torch and SB3.
+
+Decisions are SB3's deterministic action (the Gaussian mean clipped to the action box), computed in
+float64 from the float32 weights (which widen exactly) and rounded to float32 at the end.
+``uavlink export`` writes this same module to ONNX, so torch and onnxruntime return bit-identical
+actions: in float32 their sums run in different orders and differ by ~1e-7, which a trained policy
+magnifies over a 128-frame closed loop into a different trajectory in a few episodes; in float64 the
+difference is ~1e-16 and vanishes in the final rounding. Against SB3's own float32 ``predict`` the
+actions agree to ~1e-6. (SB3's ``predict`` itself cannot run in float64: its preprocessing casts
+observations to float32.)
+"""
 
 from __future__ import annotations
 
+import copy
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
 from uavlink.env.core import GroundTruth
 from uavlink.env.observation import ObservationLayout
 from uavlink.policies.manifest import PolicyFileError, read_zip_manifest
+
+
+def deterministic_actor(policy: Any):
+    """A torch module: obs float32 (N, obs) -> SB3's deterministic action float32 (N, 2), computed in
+    float64 on a copy of the actor (``policy`` is left as it is)."""
+    import torch
+    from gymnasium import spaces
+    from stable_baselines3.common.distributions import DiagGaussianDistribution
+    from stable_baselines3.common.torch_layers import FlattenExtractor
+
+    space = policy.action_space
+    if not isinstance(space, spaces.Box) or space.shape != (2,) or np.ptp(space.low) or np.ptp(space.high):
+        raise PolicyFileError(f"action space {space} is not a Box(low, high, (2,)) with scalar bounds")
+    if (policy.squash_output or not isinstance(policy.action_dist, DiagGaussianDistribution)
+            or not isinstance(policy.pi_features_extractor, FlattenExtractor)):
+        raise PolicyFileError("only PPO MlpPolicy with a diagonal Gaussian and squash_output=False is supported")
+    low, high = float(space.low[0]), float(space.high[0])
+
+    class DeterministicActor(torch.nn.Module):
+        def __init__(self) -> None:
+            super().__init__()
+            # SB3's features extractor flattens, a no-op on (N, obs): left out.
+            self.latent = copy.deepcopy(policy.mlp_extractor.policy_net).double()
+            self.mean = copy.deepcopy(policy.action_net).double()
+
+        def forward(self, obs: torch.Tensor) -> torch.Tensor:
+            mean = self.mean(self.latent(obs.to(torch.float64)))
+            return torch.clamp(mean, low, high).to(torch.float32)  # SB3: np.clip(action, low, high)
+
+    return DeterministicActor().eval()
 
 
 class SB3Policy:
@@ -34,11 +76,14 @@ class SB3Policy:
         if self.model.observation_space.shape != (self.layout.size,):
             raise PolicyFileError(f"{path}: model input {self.model.observation_space.shape} does not "
                                   f"match its manifest's layout {self.layout.describe()}")
+        try:
+            self.actor = deterministic_actor(self.model.policy)
+        except PolicyFileError as exc:
+            raise PolicyFileError(f"{path}: {exc}") from None
 
     def act(self, obs: np.ndarray, truth: GroundTruth | None = None) -> np.ndarray:
-        """SB3's ``predict(obs, deterministic=True)`` for a Box action space (the Gaussian mean,
-        clipped to the box), without its per-call input checks: the flight loop's hot path."""
+        """Actions (N, 2) float32 in the box for observations (N, obs); a single (obs,) is N=1.
+        SB3's ``predict(obs, deterministic=True)`` in float64, without its per-call input checks."""
+        obs = np.asarray(obs, dtype=np.float32).reshape(-1, self.layout.size)
         with self._torch.inference_mode():
-            action = self.model.policy._predict(self._torch.as_tensor(obs, dtype=self._torch.float32),
-                                                deterministic=True).numpy()
-        return np.clip(action, -1.0, 1.0)
+            return self.actor(self._torch.as_tensor(obs)).numpy()
