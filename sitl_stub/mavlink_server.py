@@ -33,7 +33,6 @@ from sitl_stub.clock import SimClock
 from sitl_stub.commands import CommandHandler, CommandReply, CommandRequest
 from sitl_stub.ftp import ftp_reply
 from sitl_stub.geo import GeoOrigin
-from sitl_stub.modes import decode_custom_mode
 from sitl_stub.param_protocol import ParamProtocol
 from sitl_stub.params import ParamStore
 from sitl_stub.payload import Payload, check_payload
@@ -42,6 +41,7 @@ from sitl_stub.telemetry import TelemetrySender
 from sitl_stub.vehicle import Result, Vehicle, VehicleState
 from uavlink.config import AreaConfig
 from uavlink.flight.connection import normalize_connection
+from uavlink.flight.px4_modes import decode_custom_mode
 from uavlink.flight.rejects import RejectLog
 from uavlink.flight.signing import SigningGuard
 

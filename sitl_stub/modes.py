@@ -1,28 +1,29 @@
-"""PX4 flight modes and landed states as the vehicle reports them (no MAVLink import).
+"""The flight modes this vehicle flies and its landed states (no MAVLink import).
 
-Encoding follows PX4 ``px4_custom_mode.h``: ``custom_mode = main << 16 | sub << 24``.
-Only the modes this stub flies are members; others (MANUAL, POSCTL, MISSION, ...) are refused.
+PX4's mode encoding lives in ``uavlink.flight.px4_modes``. Only the modes this stub flies are
+members; others (MANUAL, POSCTL, MISSION, ...) are refused.
 """
 
 from __future__ import annotations
 
 from enum import Enum, IntEnum
 
-PX4_MAIN_MANUAL = 1
-PX4_MAIN_ALTCTL = 2
-PX4_MAIN_POSCTL = 3
-PX4_MAIN_AUTO = 4
-PX4_MAIN_ACRO = 5
-PX4_MAIN_OFFBOARD = 6
-PX4_MAIN_STABILIZED = 7
-PX4_MAIN_RATTITUDE = 8
-
-PX4_SUB_AUTO_READY = 1
-PX4_SUB_AUTO_TAKEOFF = 2
-PX4_SUB_AUTO_LOITER = 3
-PX4_SUB_AUTO_MISSION = 4
-PX4_SUB_AUTO_RTL = 5
-PX4_SUB_AUTO_LAND = 6
+from uavlink.flight.px4_modes import (
+    PX4_MAIN_ACRO,
+    PX4_MAIN_ALTCTL,
+    PX4_MAIN_AUTO,
+    PX4_MAIN_MANUAL,
+    PX4_MAIN_OFFBOARD,
+    PX4_MAIN_POSCTL,
+    PX4_MAIN_RATTITUDE,
+    PX4_MAIN_STABILIZED,
+    PX4_SUB_AUTO_LAND,
+    PX4_SUB_AUTO_LOITER,
+    PX4_SUB_AUTO_RTL,
+    PX4_SUB_AUTO_TAKEOFF,
+    encode_custom_mode,
+    px4_mode_name,
+)
 
 #: PX4 main modes that need a manual-control (RC) link, which this vehicle never has.
 MANUAL_MAIN_MODES = frozenset(
@@ -56,7 +57,7 @@ class FlightMode(Enum):
     @property
     def px4_name(self) -> str:
         """PX4's name, e.g. ``AUTO.LOITER``."""
-        return "OFFBOARD" if self is FlightMode.OFFBOARD else f"AUTO.{self.name}"
+        return px4_mode_name(self.main, self.sub)
 
     @classmethod
     def from_main_sub(cls, main: int, sub: int) -> FlightMode | None:
@@ -80,13 +81,3 @@ class LandedState(IntEnum):
     IN_AIR = 2
     TAKEOFF = 3
     LANDING = 4
-
-
-def encode_custom_mode(main: int, sub: int) -> int:
-    """PX4 ``custom_mode`` from main and sub mode."""
-    return (int(main) & 0xFF) << 16 | (int(sub) & 0xFF) << 24
-
-
-def decode_custom_mode(custom_mode: int) -> tuple[int, int]:
-    """(main, sub) from a PX4 ``custom_mode``."""
-    return (int(custom_mode) >> 16) & 0xFF, (int(custom_mode) >> 24) & 0xFF

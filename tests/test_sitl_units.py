@@ -12,11 +12,12 @@ from hypothesis import strategies as st
 from sitl_stub.clock import SimClock
 from sitl_stub.ftp import ERR_FILE_NOT_FOUND, OP_ACK, OP_NAK, ftp_reply
 from sitl_stub.geo import GeoOrigin
-from sitl_stub.modes import FlightMode, decode_custom_mode, encode_custom_mode
+from sitl_stub.modes import FlightMode
 from sitl_stub.params import ParamStore, ParamType, int_to_param_float, param_float_to_int
 from sitl_stub.payload import check_payload
 from sitl_stub.streams import StreamScheduler
 from uavlink.flight.connection import is_listening, normalize_connection
+from uavlink.flight.px4_modes import decode_custom_mode, encode_custom_mode, px4_mode_name
 
 pytestmark = pytest.mark.timeout(30)
 
@@ -204,3 +205,9 @@ def test_payload_contract_is_checked():
         check_payload(_Payload((18, 8, 1, 0, 4)), {1})
     with pytest.raises(ValueError, match="component_id"):
         check_payload(_Payload((18, 8, 0, 0, 4), component_id=1), {1})
+
+
+@pytest.mark.parametrize("main, sub, name", [(4, 3, "AUTO.LOITER"), (4, 6, "AUTO.LAND"), (6, 0, "OFFBOARD"),
+                                             (3, 0, "POSCTL"), (4, 9, "AUTO.9"), (12, 1, "mode 12.1")])
+def test_px4_mode_names(main, sub, name):
+    assert px4_mode_name(main, sub) == name

@@ -27,6 +27,7 @@ from dataclasses import dataclass
 from pathlib import Path
 
 from uavlink.flight.connection import normalize_connection
+from uavlink.flight.px4_modes import PX4_MAIN_OFFBOARD, decode_custom_mode
 from uavlink.flight.radio_codec import (
     RADIO_COMPONENT_ID,
     RadioReportError,
@@ -40,12 +41,11 @@ os.environ.setdefault("MAVLINK20", "1")
 from pymavlink import mavutil  # noqa: E402
 
 MAV = mavutil.mavlink
-PX4_MAIN_AUTO, PX4_MAIN_OFFBOARD = 4, 6
-PX4_SUB_LOITER, PX4_SUB_RTL, PX4_SUB_LAND = 3, 5, 6
 MULTIROTOR_TYPES = {MAV.MAV_TYPE_QUADROTOR, MAV.MAV_TYPE_HEXAROTOR, MAV.MAV_TYPE_OCTOROTOR,
                     MAV.MAV_TYPE_TRICOPTER, MAV.MAV_TYPE_COAXIAL}
 POSITION_ONLY_MASK = 0x0DF8  # ignore velocity, acceleration, yaw, yaw rate: position bits clear
 HEARTBEAT_PERIOD_S = 1.0  # our own HEARTBEAT, wall time
+STREAM_PERIOD_VEHICLE_S = 0.1  # offboard keep-alive: 10 setpoints per COM_OF_LOSS_T survive a lossy link
 ACK_WAIT_S = 0.5  # wall time to wait for a COMMAND_ACK before sending the command again
 COMMAND_TRIES = 10
 PARAM_TRIES = 10
@@ -104,7 +104,7 @@ class VehicleLink:
         # Offboard keep-alive: while set, poll() re-sends this NED setpoint every
         # ``stream_period_vehicle_s`` of vehicle time, so waits never starve PX4's offboard stream.
         self.stream_ned: tuple[float, float, float] | None = None
-        self.stream_period_vehicle_s = 0.2
+        self.stream_period_vehicle_s = STREAM_PERIOD_VEHICLE_S
         self._last_stream = 0.0
         self._boot_samples: list[tuple[float, float]] = []
         self._speed = 1.0
@@ -170,8 +170,7 @@ class VehicleLink:
             st.heartbeats += 1
             self.heartbeat = msg
             st.armed = bool(msg.base_mode & MAV.MAV_MODE_FLAG_SAFETY_ARMED)
-            st.main_mode = (msg.custom_mode >> 16) & 0xFF
-            st.sub_mode = (msg.custom_mode >> 24) & 0xFF
+            st.main_mode, st.sub_mode = decode_custom_mode(msg.custom_mode)
         elif kind == "LOCAL_POSITION_NED":
             if not all(math.isfinite(v) for v in (msg.x, msg.y, msg.z)):
                 self.rejects.reject("position_not_finite",

@@ -30,14 +30,14 @@ import numpy as np
 from uavlink.config import EnvConfig
 from uavlink.env.actions import ActionMapping
 from uavlink.env.observation import ObservationBuilder, ObservationLayout
-from uavlink.flight.link import (
+from uavlink.flight.link import STREAM_PERIOD_VEHICLE_S, LinkError, VehicleLink
+from uavlink.flight.px4_modes import (
     PX4_MAIN_AUTO,
     PX4_MAIN_OFFBOARD,
-    PX4_SUB_LAND,
-    PX4_SUB_LOITER,
-    PX4_SUB_RTL,
-    LinkError,
-    VehicleLink,
+    PX4_SUB_AUTO_LAND,
+    PX4_SUB_AUTO_LOITER,
+    PX4_SUB_AUTO_RTL,
+    px4_mode_name,
 )
 from uavlink.flight.radio_codec import RadioReport, ScoreReport
 from uavlink.flight.radio_source import MavlinkRadioSource, RadioSource
@@ -49,7 +49,7 @@ log = logging.getLogger(__name__)
 @dataclass
 class MissionConfig:
     frames: int = 128
-    stream_period_vehicle_s: float = 0.1  # 10 setpoints per COM_OF_LOSS_T: survives lossy links
+    stream_period_vehicle_s: float = STREAM_PERIOD_VEHICLE_S
     takeoff: bool = True
     land: bool = True
     link_timeout_s: float = 20.0  # wall seconds without any message from the vehicle: give up
@@ -242,7 +242,7 @@ def fly_mission(link: VehicleLink, pilot: PolicyPilot, cfg: EnvConfig, mission: 
         result.rejected_reports = getattr(source, "rejected", 0)
         if mission.land and st.armed and not _ending_mode(st) and result.ended_by != "link lost":
             try:
-                link.set_mode(PX4_MAIN_AUTO, PX4_SUB_LOITER)  # streaming until hold is taken
+                link.set_mode(PX4_MAIN_AUTO, PX4_SUB_AUTO_LOITER)  # streaming until hold is taken
                 link.stream_ned = None
                 link.land()
             except LinkError as exc:
@@ -271,13 +271,8 @@ def _enter_offboard(link: VehicleLink, within_s: float) -> None:
 
 def _ending_mode(st) -> bool:
     """AUTO.LAND or AUTO.RTL: the flight is being ended (by an operator or a failsafe)."""
-    return st.main_mode == PX4_MAIN_AUTO and st.sub_mode in (PX4_SUB_LAND, PX4_SUB_RTL)
+    return st.main_mode == PX4_MAIN_AUTO and st.sub_mode in (PX4_SUB_AUTO_LAND, PX4_SUB_AUTO_RTL)
 
 
 def _mode_name(st) -> str:
-    if st.main_mode == PX4_MAIN_OFFBOARD:
-        return "OFFBOARD"
-    names = {2: "TAKEOFF", 3: "LOITER", 4: "MISSION", 5: "RTL", 6: "LAND"}
-    if st.main_mode == PX4_MAIN_AUTO:
-        return f"AUTO.{names.get(st.sub_mode, st.sub_mode)}"
-    return f"mode {st.main_mode}.{st.sub_mode}" + ("" if st.armed else ", disarmed")
+    return px4_mode_name(st.main_mode, st.sub_mode) + ("" if st.armed else ", disarmed")
