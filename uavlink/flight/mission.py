@@ -142,27 +142,22 @@ class PolicyPilot:
 def fly_mission(link: VehicleLink, pilot: PolicyPilot, cfg: EnvConfig, mission: MissionConfig,
                 radio: RadioSource | None = None,
                 status: Callable[[int, np.ndarray, float | None], None] | None = None) -> MissionResult:
+    """Fly one episode: take control (arm and take off, or resume in the air), stream setpoints and
+    enter OFFBOARD, make one decision per fresh radio frame until the episode ends, the operator or
+    a failsafe takes over, or the link is lost; then land unless someone else is already ending the
+    flight. Ctrl-C lands too."""
     result = MissionResult()
     source = radio or MavlinkRadioSource(cfg.n_ues)
     if isinstance(source, MavlinkRadioSource):
         link.on_radio = source.feed
     scores: dict[int, ScoreReport] = {}
     link.on_score = lambda s: scores.__setitem__(s.frame, s)
-    half, altitude = cfg.area.half_width_m, cfg.area.uav_altitude_m
+    half = cfg.area.half_width_m
 
-    link.wait_vehicle()
+    _take_control(link, mission, cfg.area.uav_altitude_m, result)
     st = link.status
-    if st.armed and st.in_air:
-        if _ending_mode(st):
-            raise LinkError(f"vehicle is armed and in {_mode_name(st)}: not taking it over")
-        result.resumed = True
-        log.warning("vehicle already armed and in the air (%s, %.0f m): resuming without take-off",
-                    _mode_name(st), -st.down_m)
-    elif mission.takeoff:
-        link.arm()
-        link.takeoff(altitude)
     target = np.array([st.east_m, st.north_m])  # env frame: x east, y north
-    down = -altitude
+    down = -cfg.area.uav_altitude_m
 
     def send() -> None:
         link.stream_ned = (float(target[1]), float(target[0]), down)
@@ -175,21 +170,12 @@ def fly_mission(link: VehicleLink, pilot: PolicyPilot, cfg: EnvConfig, mission: 
         link.poll(mission.stream_period_vehicle_s / link.speed_factor())
     _enter_offboard(link, mission.offboard_entry_s)
 
-    last_frame, started_wall, last_reentry = -1, None, -math.inf
+    frames = _FrameTracker()
+    last_reentry = -math.inf
     try:
         while True:
             link.poll(0.5)
-            fresh = []
-            for report in source.take_reports():
-                if not report.running or report.frame <= last_frame and last_frame >= 0:
-                    continue  # waiting for the episode, or a duplicate / late (reordered) report
-                if started_wall is None:
-                    started_wall = time.monotonic()
-                    result.first_frame = report.frame
-                if last_frame >= 0:
-                    result.frames_missed += report.frame - last_frame - 1
-                fresh.append((report, last_frame < 0))
-                last_frame = report.frame
+            fresh = frames.fresh(source.take_reports(), result)
             # A backlog (the loop was held up, e.g. by a mode change) is history, not a string of
             # moves to make at once: only the newest frame is decided.
             for report, first in fresh[:-1]:
@@ -207,8 +193,8 @@ def fly_mission(link: VehicleLink, pilot: PolicyPilot, cfg: EnvConfig, mission: 
                 if status:
                     frame_score = scores.get(report.frame)
                     status(report.frame, target, frame_score.mean_rate_mbps if frame_score else None)
-            if mission.frames in scores or last_frame >= mission.frames + 2 or (
-                    last_frame >= mission.frames and len(scores) >= mission.frames):
+            if mission.frames in scores or frames.last >= mission.frames + 2 or (
+                    frames.last >= mission.frames and len(scores) >= mission.frames):
                 result.ended_by = "episode done"
                 break
             if not st.armed or _ending_mode(st):
@@ -219,13 +205,7 @@ def fly_mission(link: VehicleLink, pilot: PolicyPilot, cfg: EnvConfig, mission: 
             now = time.monotonic()
             if not st.offboard and now - last_reentry >= mission.reenter_interval_s:
                 last_reentry = now
-                log.warning("vehicle left OFFBOARD (now %s, failsafe hold?): re-entering",
-                            _mode_name(st))
-                try:
-                    link.set_mode(PX4_MAIN_OFFBOARD, tries=3)
-                    result.offboard_reentries += 1
-                except LinkError as exc:
-                    log.warning("could not re-enter OFFBOARD yet: %s", exc)
+                _reenter_offboard(link, result)
             if now - link.last_rx_wall > mission.link_timeout_s:
                 result.ended_by = "link lost"
                 raise LinkError(f"no message from the vehicle for {mission.link_timeout_s:g} s: "
@@ -234,21 +214,75 @@ def fly_mission(link: VehicleLink, pilot: PolicyPilot, cfg: EnvConfig, mission: 
         result.interrupted = True
         result.ended_by = "interrupted"
     finally:
-        result.episode_wall_s = time.monotonic() - started_wall if started_wall else 0.0
+        result.episode_wall_s = time.monotonic() - frames.started_wall if frames.started_wall else 0.0
         result.frame_rates_mbps = [scores[k].mean_rate_mbps for k in sorted(scores) if 1 <= k <= mission.frames]
         result.frames = len(result.frame_rates_mbps)
         result.guarded_actions = pilot.guarded
         result.inference_s = pilot.inference_s
         result.rejected_reports = getattr(source, "rejected", 0)
         if mission.land and st.armed and not _ending_mode(st) and result.ended_by != "link lost":
-            try:
-                link.set_mode(PX4_MAIN_AUTO, PX4_SUB_AUTO_LOITER)  # streaming until hold is taken
-                link.stream_ned = None
-                link.land()
-            except LinkError as exc:
-                log.error("landing command failed: %s", exc)
+            _land(link)
         link.stream_ned = None
     return result
+
+
+class _FrameTracker:
+    """Which radio reports are new: the episode's frames in order, each once."""
+
+    def __init__(self) -> None:
+        self.last = -1  # newest frame taken
+        self.started_wall: float | None = None  # wall time of the first running frame
+
+    def fresh(self, reports: list[RadioReport], result: MissionResult) -> list[tuple[RadioReport, bool]]:
+        """The new reports in order, each with whether it is the episode's first; counts gaps."""
+        fresh = []
+        for report in reports:
+            if not report.running or report.frame <= self.last and self.last >= 0:
+                continue  # waiting for the episode, or a duplicate / late (reordered) report
+            if self.started_wall is None:
+                self.started_wall = time.monotonic()
+                result.first_frame = report.frame
+            if self.last >= 0:
+                result.frames_missed += report.frame - self.last - 1
+            fresh.append((report, self.last < 0))
+            self.last = report.frame
+        return fresh
+
+
+def _take_control(link: VehicleLink, mission: MissionConfig, altitude_m: float, result: MissionResult) -> None:
+    """Wait for the vehicle; arm and take off, or resume a vehicle already flying (not one that is
+    landing or returning: someone else is ending that flight)."""
+    link.wait_vehicle()
+    st = link.status
+    if st.armed and st.in_air:
+        if _ending_mode(st):
+            raise LinkError(f"vehicle is armed and in {_mode_name(st)}: not taking it over")
+        result.resumed = True
+        log.warning("vehicle already armed and in the air (%s, %.0f m): resuming without take-off",
+                    _mode_name(st), -st.down_m)
+    elif mission.takeoff:
+        link.arm()
+        link.takeoff(altitude_m)
+
+
+def _reenter_offboard(link: VehicleLink, result: MissionResult) -> None:
+    """The vehicle left OFFBOARD (a failsafe hold, say) but is still ours: ask for it back once."""
+    log.warning("vehicle left OFFBOARD (now %s, failsafe hold?): re-entering", _mode_name(link.status))
+    try:
+        link.set_mode(PX4_MAIN_OFFBOARD, tries=3)
+        result.offboard_reentries += 1
+    except LinkError as exc:
+        log.warning("could not re-enter OFFBOARD yet: %s", exc)
+
+
+def _land(link: VehicleLink) -> None:
+    """Hold (still streaming until the hold is taken), then land."""
+    try:
+        link.set_mode(PX4_MAIN_AUTO, PX4_SUB_AUTO_LOITER)
+        link.stream_ned = None
+        link.land()
+    except LinkError as exc:
+        log.error("landing command failed: %s", exc)
 
 
 def _enter_offboard(link: VehicleLink, within_s: float) -> None:
