@@ -15,6 +15,7 @@ from typing import Any
 
 from uavlink.config import EnvConfig
 from uavlink.mobility import MIXED, SCENARIOS
+from uavlink.policies.baselines import BASELINES
 
 
 class UserError(Exception):
@@ -122,9 +123,10 @@ def cmd_train(args: argparse.Namespace) -> int:
     cfg = env_config(args.scenario, args.aoa_noise_deg, parse_overrides(args.overrides))
     tc = TrainConfig(episodes=args.episodes, learning_rate=args.learning_rate, seed=args.seed,
                      n_envs=args.n_envs, batch_size=args.batch_size, n_epochs=args.n_epochs,
-                     torch_threads=args.torch_threads, aoa_noise_max_deg=args.aoa_noise_max_deg)
-    if args.episodes < 1 or args.n_envs < 1 or args.batch_size < 1:
-        raise UserError("--episodes, --n-envs and --batch-size must be positive")
+                     torch_threads=args.torch_threads, aoa_noise_max_deg=args.aoa_noise_max_deg,
+                     warm_start_teacher=args.warm_start, warm_start_episodes=args.warm_start_episodes)
+    if args.episodes < 1 or args.n_envs < 1 or args.batch_size < 1 or args.warm_start_episodes < 1:
+        raise UserError("--episodes, --n-envs, --batch-size and --warm-start-episodes must be positive")
     if args.resume is not None and not args.resume.is_file():
         raise UserError(f"--resume {args.resume}: no such checkpoint")
     run_dir = args.run_dir or Path("runs") / f"{args.out.stem}-seed{args.seed}"
@@ -264,6 +266,11 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--torch-threads", type=int, default=1, help="torch CPU threads (1 is fastest for 3x128 MLPs)")
     p.add_argument("--aoa-noise-max-deg", type=float, default=0.0,
                    help="train with each episode's AoA noise std drawn from [--aoa-noise-deg, this] (ours; 0: off)")
+    p.add_argument("--warm-start", default="", choices=["", *BASELINES], metavar="RULE",
+                   help="first fit the actor to a rule's actions (behaviour cloning), then run PPO "
+                        "(ours; e.g. aoa, as the shipped policies; default: off, the paper's PPO from scratch)")
+    p.add_argument("--warm-start-episodes", type=int, default=256,
+                   help="episodes the rule flies to make the cloning data (default 256)")
     p.add_argument("--run-dir", type=Path, default=None, help="TensorBoard logs and checkpoint (default runs/OUT-seedN)")
     p.add_argument("--resume", type=Path, default=None, help="continue from a checkpoint zip")
     p.add_argument("--eval-episodes", type=int, default=100, help="evaluate after training into the manifest (0: skip)")

@@ -50,6 +50,14 @@ class TrainConfig:
     # estimates. Training only: the manifest's env config, and so every evaluation, keep the
     # env's own fixed noise.
     aoa_noise_max_deg: float = 0.0
+    # Behaviour-cloning warm start (ours; uavlink/imitation.py): when set to a baseline's name,
+    # the actor is first fitted to that rule's actions over warm_start_episodes of its own flying
+    # and its exploration std set to exp(warm_start_log_std); PPO then fits only the critic for
+    # warm_start_critic_rollouts rollouts (the actor frozen) and trains as usual after that.
+    warm_start_teacher: str = ""
+    warm_start_episodes: int = 256
+    warm_start_log_std: float = -1.0
+    warm_start_critic_rollouts: int = 10  # PPO updates with the actor frozen, fitting the critic
     seed: int = 0
     torch_threads: int = 1
     checkpoint_every_steps: int = 100_000
@@ -65,6 +73,11 @@ class TrainConfig:
         return data
 
 
+def training_env_config(cfg: EnvConfig, tc: TrainConfig) -> EnvConfig:
+    """The env PPO trains in: ``cfg`` plus the training-only AoA noise randomisation."""
+    return cfg.replace(aoa_noise_max_deg=tc.aoa_noise_max_deg).validate() if tc.aoa_noise_max_deg else cfg
+
+
 def make_model(cfg: EnvConfig, tc: TrainConfig, run_dir: Path | None):
     import torch
     from stable_baselines3 import PPO
@@ -72,8 +85,7 @@ def make_model(cfg: EnvConfig, tc: TrainConfig, run_dir: Path | None):
     from uavlink.env.vec_env import UavVecEnv
 
     torch.set_num_threads(tc.torch_threads)
-    train_cfg = cfg.replace(aoa_noise_max_deg=tc.aoa_noise_max_deg).validate() if tc.aoa_noise_max_deg else cfg
-    env = UavVecEnv(train_cfg, n_envs=tc.n_envs, seed=tc.seed)
+    env = UavVecEnv(training_env_config(cfg, tc), n_envs=tc.n_envs, seed=tc.seed)
     if tc.normalize_reward:
         from stable_baselines3.common.vec_env import VecNormalize
 
@@ -152,14 +164,25 @@ def train(cfg: EnvConfig, tc: TrainConfig, out: Path, run_dir: Path | None = Non
     model = make_model(cfg, tc, run_dir)
     if resume is not None:
         model = PPO.load(resume, env=model.get_env(), device="cpu", tensorboard_log=str(run_dir) if run_dir else None)
+    start = time.perf_counter()  # the wall time counts the warm start too
+    cloned = None
+    if tc.warm_start_teacher and resume is None:
+        from uavlink.imitation import warm_start
+
+        cloned = warm_start(model.policy, training_env_config(cfg, tc), tc.warm_start_teacher,
+                            tc.warm_start_episodes, tc.seed, log_std=tc.warm_start_log_std).to_dict()
     if run_dir is None:
         # Without a run folder SB3 would make an empty one under the temp dir for every run.
         from stable_baselines3.common.logger import Logger
 
         model.set_logger(Logger(folder=None, output_formats=[]))
     monitor = _callback(tc.total_timesteps, run_dir, tc.checkpoint_every_steps, progress)
-    start = time.perf_counter()
-    model.learn(total_timesteps=tc.total_timesteps - model.num_timesteps, callback=monitor,
+    callbacks = [monitor]
+    if cloned is not None:
+        from uavlink.imitation import critic_warmup_callback
+
+        callbacks.append(critic_warmup_callback(tc.warm_start_critic_rollouts))
+    model.learn(total_timesteps=tc.total_timesteps - model.num_timesteps, callback=callbacks,
                 reset_num_timesteps=resume is None, tb_log_name="ppo")
     wall_s = time.perf_counter() - start
     out.parent.mkdir(parents=True, exist_ok=True)
@@ -174,6 +197,7 @@ def train(cfg: EnvConfig, tc: TrainConfig, out: Path, run_dir: Path | None = Non
         "wall_time_s": round(wall_s, 1),
         "steps_to_95pct_final": t95,
         "resumed_from": str(resume) if resume else None,
+        "warm_start": cloned,
         "learning_curve": monitor.curve[:: max(1, len(monitor.curve) // 200)],
     }
     write_zip_manifest(tmp, build_manifest(cfg, training))

@@ -28,12 +28,14 @@ class StaticPolicy:
 
 
 class AoaPolicy:
-    """GPS-free rule: fly towards the circular-mean AoA, slower as the SINRs approach the hover level.
+    """GPS-free rule (SPEC "Baselines"): fly towards the circular-mean AoA, slower as the SINRs
+    level off at the hover level.
 
-    Speed = r_max * clip((hover SINR - mean SINR) / span, 0, 1) * R, where the hover SINR is the
-    link budget straight overhead (no shadowing/fading) and R = exp(-std^2 / 2) is the mean
-    resultant length of the AoAs: R is near 1 when the UEs lie in one direction and near 0 when
-    they surround the UAV (overhead, or split into opposite groups), where moving cannot help.
+    Speed = r_max * clip((hover SINR - mean SINR) / span, 0, 1), where the hover SINR is the link
+    budget straight overhead (no shadowing or fading). Because a shadowed frame also lowers the
+    SINRs, the rule keeps moving while its UEs are shadowed and stops when they are not, which under
+    the SPEC's shadowing model (no memory of place) buys throughput even when the UEs stay put
+    (docs/design.md).
     """
 
     name = "aoa"
@@ -49,8 +51,7 @@ class AoaPolicy:
     def act(self, obs: np.ndarray, truth: GroundTruth | None = None) -> np.ndarray:
         frame = self.layout.newest_frame(obs)
         gap = (self.hover_sinr_db - frame["sinr_db"].mean(axis=1)) / self.sinr_span_db
-        resultant = np.exp(-0.5 * np.radians(frame["aoa_std_deg"]) ** 2)
-        distance = self.mapping.r_max_m * np.clip(gap, 0.0, 1.0) * resultant
+        distance = self.mapping.r_max_m * np.clip(gap, 0.0, 1.0)
         return self.mapping.from_polar(frame["aoa_mean_deg"], distance)
 
 

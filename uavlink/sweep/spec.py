@@ -118,6 +118,10 @@ class Job:
         train = self.train_config().hyperparameters()
         for name in ("torch_threads", "checkpoint_every_steps", "extra"):
             train.pop(name, None)
+        if not train["warm_start_teacher"]:  # off: its knobs change nothing (and keys stay as before)
+            for name in ("warm_start_teacher", "warm_start_episodes", "warm_start_log_std",
+                         "warm_start_critic_rollouts"):
+                train.pop(name)
         return {"format": JOB_FORMAT, "env": self.env_config().to_dict(), "train": train,
                 "eval": {**self.eval, "policies": ["ppo", *BASELINE_COLUMNS]}}
 

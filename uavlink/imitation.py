@@ -1,0 +1,127 @@
+"""Behaviour-cloning warm start (ours, not the paper's): fit PPO's actor to a rule before PPO runs.
+
+PPO from scratch finds the moves that follow the team, but not the subtler habit of the ``aoa`` rule:
+keep moving while the SINRs sit below the hover level (shadowed) and stop when they do not, which
+under the SPEC's shadowing model is worth up to 4 % on ``no_move`` (docs/design.md). Starting PPO
+from a copy of the rule lets it keep that habit and improve on the rest. The teacher acts on its own
+rollouts of the training env (seeded); the student's actor (MLP + action head) is fitted to the
+teacher's actions by mean squared error, and its exploration std is reset. The critic knows
+nothing yet, and PPO's first updates with its random advantages would undo the copy, so the actor
+stays frozen for the first few rollouts while the critic learns the cloned policy's values
+(``critic_warmup_callback``). Imports torch.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+
+from uavlink.config import EnvConfig
+from uavlink.env.core import BatchedUavEnv
+from uavlink.policies.baselines import BASELINES, make_baseline
+
+TEACHER_ENVS = 64  # envs per teacher rollout batch
+
+
+@dataclass(frozen=True)
+class CloneReport:
+    teacher: str
+    samples: int
+    epochs: int
+    final_mse: float
+
+    def to_dict(self) -> dict[str, Any]:
+        return {"teacher": self.teacher, "samples": self.samples, "epochs": self.epochs,
+                "final_mse": round(self.final_mse, 6)}
+
+
+def teacher_dataset(cfg: EnvConfig, teacher: str, episodes: int, seed: int) -> tuple[np.ndarray, np.ndarray]:
+    """(observations, actions) float32 from ``episodes`` seeded episodes flown by the rule ``teacher``."""
+    if teacher not in BASELINES:
+        raise ValueError(f"unknown teacher {teacher!r}; choose from {', '.join(BASELINES)}")
+    policy = make_baseline(teacher, cfg)
+    observations, actions = [], []
+    for chunk in range(math.ceil(episodes / TEACHER_ENVS)):
+        n_envs = min(TEACHER_ENVS, episodes - chunk * TEACHER_ENVS)
+        env = BatchedUavEnv(cfg, n_envs=n_envs, seed=np.random.SeedSequence([seed, 0xB0, chunk]))
+        obs = env.reset()
+        for _ in range(cfg.episode_frames):
+            action = policy.act(obs, env.ground_truth() if policy.needs_truth else None)
+            observations.append(obs)
+            actions.append(action)
+            obs = env.step(action).observation
+    return np.concatenate(observations).astype(np.float32), np.concatenate(actions).astype(np.float32)
+
+
+def clone_actor(sb3_policy: Any, observations: np.ndarray, actions: np.ndarray, epochs: int = 20,
+                batch_size: int = 1024, learning_rate: float = 1e-3, log_std: float = -1.0,
+                seed: int = 0) -> float:
+    """Fit the SB3 policy's actor mean to ``actions`` (MSE, Adam) and set its log std; returns the
+    final epoch's mean squared error."""
+    import torch
+
+    generator = torch.Generator().manual_seed(seed)
+    obs_t, act_t = torch.as_tensor(observations), torch.as_tensor(actions)
+    params = [*sb3_policy.mlp_extractor.policy_net.parameters(), *sb3_policy.action_net.parameters()]
+    optimizer = torch.optim.Adam(params, lr=learning_rate)
+    loss_sum = 0.0
+    for _ in range(epochs):
+        loss_sum, order = 0.0, torch.randperm(len(obs_t), generator=generator)
+        for start in range(0, len(order), batch_size):
+            idx = order[start:start + batch_size]
+            latent = sb3_policy.mlp_extractor.forward_actor(obs_t[idx])
+            loss = torch.nn.functional.mse_loss(sb3_policy.action_net(latent), act_t[idx])
+            optimizer.zero_grad()
+            loss.backward()
+            optimizer.step()
+            loss_sum += float(loss.detach()) * len(idx)
+    with torch.no_grad():
+        sb3_policy.log_std.fill_(log_std)
+    return loss_sum / len(obs_t)
+
+
+def warm_start(sb3_policy: Any, cfg: EnvConfig, teacher: str, episodes: int, seed: int,
+               epochs: int = 20, log_std: float = -1.0) -> CloneReport:
+    """Clone ``teacher`` into the policy's actor from ``episodes`` of its own flying."""
+    observations, actions = teacher_dataset(cfg, teacher, episodes, seed)
+    mse = clone_actor(sb3_policy, observations, actions, epochs=epochs, log_std=log_std, seed=seed)
+    return CloneReport(teacher, len(observations), epochs, mse)
+
+
+def critic_warmup_callback(rollouts: int):
+    """An SB3 callback that freezes the actor (MLP, action head, log std) for the first ``rollouts``
+    rollouts, so PPO's first updates fit only the critic."""
+    from stable_baselines3.common.callbacks import BaseCallback
+
+    class CriticWarmup(BaseCallback):
+        def __init__(self) -> None:
+            super().__init__()
+            self.rollouts_done = 0
+
+        def _actor_parameters(self):
+            policy = self.model.policy
+            return [*policy.mlp_extractor.policy_net.parameters(), *policy.action_net.parameters(),
+                    policy.log_std]
+
+        def _set_frozen(self, frozen: bool) -> None:
+            for param in self._actor_parameters():
+                param.requires_grad_(not frozen)
+
+        def _on_training_start(self) -> None:
+            self._set_frozen(rollouts > 0)
+
+        def _on_rollout_end(self) -> None:
+            self.rollouts_done += 1
+            if self.rollouts_done == rollouts + 1:  # the updates after this rollout move the actor
+                self._set_frozen(False)
+
+        def _on_step(self) -> bool:
+            return True
+
+        def _on_training_end(self) -> None:
+            self._set_frozen(False)
+
+    return CriticWarmup()
