@@ -10,9 +10,11 @@ import pytest
 
 from uavlink.cli import main
 from uavlink.config import EnvConfig
-from uavlink.imitation import clone_actor, teacher_dataset
+from uavlink.env.core import BatchedUavEnv
+from uavlink.imitation import clone_actor, teacher_action, teacher_dataset
 from uavlink.policies.baselines import make_baseline
 from uavlink.policies.manifest import read_zip_manifest
+from uavlink.radio.aoa import circular_mean_std_deg, true_aoa_deg
 from uavlink.training import TrainConfig, make_model
 
 CFG = EnvConfig(scenario="hotspot")
@@ -28,6 +30,25 @@ def test_teacher_dataset_is_the_rules_own_flying_and_seeded() -> None:
     assert not np.array_equal(obs, teacher_dataset(CFG, "aoa", episodes=3, seed=5)[0])
     with pytest.raises(ValueError, match="unknown teacher 'gps'"):
         teacher_dataset(CFG, "gps", episodes=1, seed=0)
+
+
+def test_aoa_teacher_reads_the_true_aoa_under_noise() -> None:
+    """Privileged teacher: with 100 degrees of AoA noise the observation's AoA mean is garbage, but the
+    teacher flies towards the UEs' true circular-mean AoA (at the speed the SINRs ask for)."""
+    noisy = CFG.replace(aoa_noise_deg=100.0)
+    env = BatchedUavEnv(noisy, n_envs=16, seed=3)
+    rule = make_baseline("aoa", noisy)
+    env.reset()
+    for _ in range(20):  # let the UEs spread out from the UAV
+        obs = env.step(np.zeros((16, 2), np.float32)).observation
+    truth = env.ground_truth()
+    true_mean, _ = circular_mean_std_deg(true_aoa_deg(truth.uav_xy_m[:, None, :], truth.ue_xy_m))
+    teacher = teacher_action(rule, obs, env)
+    angle, distance = rule.mapping.to_polar(teacher)
+    moving = distance > 0.5
+    assert moving.sum() >= 8
+    np.testing.assert_allclose(np.cos(np.radians(angle - true_mean))[moving], 1.0, atol=1e-4)
+    assert np.abs(teacher - rule.act(obs)).max() > 0.1  # the rule on the noisy observation differs
 
 
 def test_cloned_actor_flies_like_its_teacher() -> None:

@@ -21,7 +21,8 @@ import numpy as np
 
 from uavlink.config import EnvConfig
 from uavlink.env.core import BatchedUavEnv
-from uavlink.policies.baselines import BASELINES, make_baseline
+from uavlink.policies.baselines import BASELINES, AoaPolicy, make_baseline
+from uavlink.radio.aoa import circular_mean_std_deg, true_aoa_deg
 
 TEACHER_ENVS = 64  # envs per teacher rollout batch
 
@@ -38,8 +39,21 @@ class CloneReport:
                 "final_mse": round(self.final_mse, 6)}
 
 
+def teacher_action(policy: Any, obs: np.ndarray, env: BatchedUavEnv) -> np.ndarray:
+    """What the rule does in ``env`` now. The ``aoa`` rule reads the true AoAs rather than the
+    observation's noisy estimates: a privileged teacher, so that under heavy AoA noise the student
+    learns what the noisy observation implies about the clean rule's move, not to copy a rule that
+    flies wherever the noise points."""
+    truth = env.ground_truth()
+    if isinstance(policy, AoaPolicy):
+        aoa_mean_deg, _ = circular_mean_std_deg(true_aoa_deg(truth.uav_xy_m[:, None, :], truth.ue_xy_m))
+        return policy.decide(policy.layout.newest_frame(obs)["sinr_db"].mean(axis=1), aoa_mean_deg)
+    return policy.act(obs, truth if policy.needs_truth else None)
+
+
 def teacher_dataset(cfg: EnvConfig, teacher: str, episodes: int, seed: int) -> tuple[np.ndarray, np.ndarray]:
-    """(observations, actions) float32 from ``episodes`` seeded episodes flown by the rule ``teacher``."""
+    """(observations, actions) float32 from ``episodes`` seeded episodes flown by the rule ``teacher``
+    (``teacher_action``)."""
     if teacher not in BASELINES:
         raise ValueError(f"unknown teacher {teacher!r}; choose from {', '.join(BASELINES)}")
     policy = make_baseline(teacher, cfg)
@@ -49,7 +63,7 @@ def teacher_dataset(cfg: EnvConfig, teacher: str, episodes: int, seed: int) -> t
         env = BatchedUavEnv(cfg, n_envs=n_envs, seed=np.random.SeedSequence([seed, 0xB0, chunk]))
         obs = env.reset()
         for _ in range(cfg.episode_frames):
-            action = policy.act(obs, env.ground_truth() if policy.needs_truth else None)
+            action = teacher_action(policy, obs, env)
             observations.append(obs)
             actions.append(action)
             obs = env.step(action).observation

@@ -50,9 +50,13 @@ class AoaPolicy:
 
     def act(self, obs: np.ndarray, truth: GroundTruth | None = None) -> np.ndarray:
         frame = self.layout.newest_frame(obs)
-        gap = (self.hover_sinr_db - frame["sinr_db"].mean(axis=1)) / self.sinr_span_db
+        return self.decide(frame["sinr_db"].mean(axis=1), frame["aoa_mean_deg"])
+
+    def decide(self, mean_sinr_db: np.ndarray, aoa_mean_deg: np.ndarray) -> np.ndarray:
+        """Actions (N, 2) from each env's mean SINR (dB) and circular-mean AoA (deg)."""
+        gap = (self.hover_sinr_db - mean_sinr_db) / self.sinr_span_db
         distance = self.mapping.r_max_m * np.clip(gap, 0.0, 1.0)
-        return self.mapping.from_polar(frame["aoa_mean_deg"], distance)
+        return self.mapping.from_polar(aoa_mean_deg, distance)
 
 
 class OraclePolicy:
