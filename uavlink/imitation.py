@@ -3,8 +3,9 @@
 PPO from scratch finds the moves that follow the team, but not the subtler habit of the ``aoa`` rule:
 keep moving while the SINRs sit below the hover level (shadowed) and stop when they do not, which
 under the SPEC's shadowing model is worth up to 4 % on ``no_move`` (docs/design.md). Starting PPO
-from a copy of the rule lets it keep that habit and improve on the rest. The teacher acts on its own
-rollouts of the training env (seeded); the student's actor (MLP + action head) is fitted to the
+from a copy of the rule lets it keep that habit and improve on the rest. The teacher flies its own
+seeded rollouts of the training env, reading the true AoAs where the student sees noisy ones
+(``teacher_action``); the student's actor (MLP + action head) is fitted to the
 teacher's actions by mean squared error, and its exploration std is reset. The critic knows
 nothing yet, and PPO's first updates with its random advantages would undo the copy, so the actor
 stays frozen for the first few rollouts while the critic learns the cloned policy's values
