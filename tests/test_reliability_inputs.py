@@ -460,10 +460,11 @@ def test_policy_output_guard_in_flight_holds_position_and_logs_clearly(caplog) -
         if link is not None:
             link.close()
         server.stop()
-    assert result.decisions == 8 and result.guarded_actions == 8
+    # Every decision is guarded; under load a backlog of reports is observed, not decided.
+    assert result.decisions >= 4 and result.guarded_actions == result.decisions
+    assert result.decisions + result.stale_reports == 8
     assert state.armed and state.max_abs_xy_m < 1.0  # took off at home and held there
     lines = [r.getMessage() for r in caplog.records if "policy output guard" in r.getMessage()]
-    assert len(lines) == 8
+    assert len(lines) == result.guarded_actions
     assert "policy 'nan-policy' returned an unusable action [[nan, 0.5]] (NaN/infinite): " \
            "holding position" in lines[0]
-    assert time.monotonic()  # the test process is alive and well
