@@ -1,13 +1,14 @@
 """Export a trained SB3 PPO policy zip to ONNX, for flying without torch (``uavlink export``).
 
-The ONNX graph is the policy's deterministic actor exactly as SB3's ``predict(deterministic=True)``
-computes it for a Box action space with ``squash_output=False``: features -> actor MLP -> action_net
-(the Gaussian mean), then clipped to the action space bounds, as SB3 does with ``np.clip`` after the
-network. The graph is the zip runtime's own module (``SB3Policy.actor``, ``deterministic_actor``):
-float64 between a float32 input ``obs`` [batch, obs_size] and a float32 output ``action``
-[batch, 2], so the two runtimes return bit-identical actions and closed-loop evaluations of the two
-files coincide at every digit. The batch dimension is dynamic. The policy manifest (observation layout, action mapping, env config, training
-record) travels in the model's metadata under ``uavlink_manifest``, plus the source zip's SHA-256.
+The ONNX graph is the policy's deterministic actor as SB3's ``predict(deterministic=True)`` computes
+it for a Box action space with ``squash_output=False``: actor MLP -> action_net (the Gaussian mean),
+then clipped to the action space bounds, as SB3 does with ``np.clip`` after the network. It is the
+zip runtime's own module (``SB3Policy.actor``, ``deterministic_actor``): float64 between a float32
+input ``obs`` [batch, obs_size] and a float32 output ``action`` [batch, 2], so the two runtimes
+return bit-identical actions and closed-loop evaluations of the two files coincide at every digit.
+The batch dimension is dynamic. The policy manifest (observation layout, action mapping, env
+config, training record) travels in the model's metadata under ``uavlink_manifest``, plus the
+source zip's SHA-256.
 
 Verification (on by default) rolls the SB3 policy itself through seeded episodes of the env its
 manifest describes, collects the observations it met, and requires the runtime's actions
