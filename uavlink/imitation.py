@@ -23,7 +23,6 @@ import numpy as np
 from uavlink.config import EnvConfig
 from uavlink.env.core import BatchedUavEnv
 from uavlink.policies.baselines import BASELINES, AoaPolicy, make_baseline
-from uavlink.radio.aoa import circular_mean_std_deg, true_aoa_deg
 
 TEACHER_ENVS = 64  # envs per teacher rollout batch
 
@@ -45,11 +44,9 @@ def teacher_action(policy: Any, obs: np.ndarray, env: BatchedUavEnv) -> np.ndarr
     observation's noisy estimates: a privileged teacher, so that under heavy AoA noise the student
     learns what the noisy observation implies about the clean rule's move, not to copy a rule that
     flies wherever the noise points."""
-    truth = env.ground_truth()
     if isinstance(policy, AoaPolicy):
-        aoa_mean_deg, _ = circular_mean_std_deg(true_aoa_deg(truth.uav_xy_m[:, None, :], truth.ue_xy_m))
-        return policy.decide(policy.layout.newest_frame(obs)["sinr_db"].mean(axis=1), aoa_mean_deg)
-    return policy.act(obs, truth if policy.needs_truth else None)
+        return policy.act_on_true_aoa(obs, env.ground_truth())
+    return policy.act(obs, env.ground_truth() if policy.needs_truth else None)
 
 
 def teacher_dataset(cfg: EnvConfig, teacher: str, episodes: int, seed: int) -> tuple[np.ndarray, np.ndarray]:

@@ -8,6 +8,7 @@ from uavlink.config import EnvConfig
 from uavlink.env.actions import ActionMapping
 from uavlink.env.core import GroundTruth
 from uavlink.env.observation import ObservationLayout
+from uavlink.radio.aoa import circular_mean_std_deg, true_aoa_deg
 from uavlink.radio.noise import noise_power_dbm
 from uavlink.radio.pathloss import mean_rx_power_dbm
 from uavlink.radio.rates import fair_rate, rate_bps
@@ -50,11 +51,17 @@ class AoaPolicy:
 
     def act(self, obs: np.ndarray, truth: GroundTruth | None = None) -> np.ndarray:
         frame = self.layout.newest_frame(obs)
-        return self.decide(frame["sinr_db"].mean(axis=1), frame["aoa_mean_deg"])
+        return self._move(frame["sinr_db"], frame["aoa_mean_deg"])
 
-    def decide(self, mean_sinr_db: np.ndarray, aoa_mean_deg: np.ndarray) -> np.ndarray:
-        """Actions (N, 2) from each env's mean SINR (dB) and circular-mean AoA (deg)."""
-        gap = (self.hover_sinr_db - mean_sinr_db) / self.sinr_span_db
+    def act_on_true_aoa(self, obs: np.ndarray, truth: GroundTruth) -> np.ndarray:
+        """The rule on the UEs' true AoAs instead of the observation's estimates: the privileged
+        teacher of the warm start (uavlink/imitation.py); not a GPS-free policy."""
+        aoa_mean_deg, _ = circular_mean_std_deg(true_aoa_deg(truth.uav_xy_m[:, None, :], truth.ue_xy_m))
+        return self._move(self.layout.newest_frame(obs)["sinr_db"], aoa_mean_deg)
+
+    def _move(self, sinr_db: np.ndarray, aoa_mean_deg: np.ndarray) -> np.ndarray:
+        """Actions (N, 2) from each env's per-UE SINRs (dB) and circular-mean AoA (deg)."""
+        gap = (self.hover_sinr_db - sinr_db.mean(axis=1)) / self.sinr_span_db
         distance = self.mapping.r_max_m * np.clip(gap, 0.0, 1.0)
         return self.mapping.from_polar(aoa_mean_deg, distance)
 
