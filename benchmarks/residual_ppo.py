@@ -10,7 +10,8 @@ the reward PPO maximises, over the same seeded evaluation episodes for the rule,
 policy before training and after it.
 
     python benchmarks/residual_ppo.py [--scenarios straight_90 straight_180 hotspot]
-        [--train-episodes 4000] [--episodes 100] [--seed 0] [--json]
+        [--train-episodes 4000] [--n-envs 256] [--batch-size 4096] [--log-std -3]
+        [--learning-rate 3e-4] [--gamma 0.99] [--gae-lambda 0.95] [--episodes 100] [--seed 0] [--json]
 """
 
 from __future__ import annotations
@@ -28,6 +29,7 @@ from uavlink.env.core import GroundTruth
 from uavlink.env.vec_env import UavVecEnv
 from uavlink.evaluation import evaluate_policy
 from uavlink.policies.baselines import AoaPolicy
+from uavlink.training import TrainConfig
 
 
 def compose(rule_action: np.ndarray, residual: np.ndarray) -> np.ndarray:
@@ -72,11 +74,11 @@ class ResidualPolicy:
 
 
 def measure(scenarios: list[str], train_episodes: int, episodes: int, seed: int, n_envs: int,
-            batch_size: int, log_std: float) -> dict[str, Any]:
+            batch_size: int, log_std: float, **train_overrides: float) -> dict[str, Any]:
     import torch
     from stable_baselines3.common.logger import Logger
 
-    from uavlink.training import TrainConfig, make_model
+    from uavlink.training import make_model
 
     def score(policy: Any, cfg: EnvConfig) -> dict[str, float]:
         result = evaluate_policy(policy, cfg, episodes=episodes, seed=seed)
@@ -85,7 +87,8 @@ def measure(scenarios: list[str], train_episodes: int, episodes: int, seed: int,
     rows = {}
     for scenario in scenarios:
         cfg = EnvConfig(scenario=scenario)
-        tc = TrainConfig(episodes=train_episodes, seed=seed, n_envs=n_envs, batch_size=batch_size)
+        tc = TrainConfig(episodes=train_episodes, seed=seed, n_envs=n_envs, batch_size=batch_size,
+                         **train_overrides)
         rule = AoaPolicy(cfg)
         model = make_model(cfg, tc, None)
         model.set_env(VecNormalize(RuleResidualVecEnv(UavVecEnv(cfg, n_envs=tc.n_envs, seed=tc.seed), rule),
@@ -100,7 +103,7 @@ def measure(scenarios: list[str], train_episodes: int, episodes: int, seed: int,
         row["residual_after"] = score(ResidualPolicy(model, rule), cfg)
         rows[scenario] = row
     return {"train_episodes": train_episodes, "n_envs": n_envs, "batch_size": batch_size,
-            "log_std_init": log_std, "episodes": episodes, "seed": seed, "scenarios": rows}
+            "log_std_init": log_std, **train_overrides, "episodes": episodes, "seed": seed, "scenarios": rows}
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -110,12 +113,17 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--n-envs", type=int, default=256, help="envs per rollout (TrainConfig: 32)")
     parser.add_argument("--batch-size", type=int, default=4096, help="minibatch (TrainConfig: 512)")
     parser.add_argument("--log-std", type=float, default=-3.0, help="initial exploration log std")
+    defaults = TrainConfig()
+    parser.add_argument("--learning-rate", type=float, default=defaults.learning_rate)
+    parser.add_argument("--gamma", type=float, default=defaults.gamma)
+    parser.add_argument("--gae-lambda", type=float, default=defaults.gae_lambda)
     parser.add_argument("--episodes", type=int, default=100, help="evaluation episodes")
     parser.add_argument("--seed", type=int, default=0)
     parser.add_argument("--json", action="store_true", help="print JSON")
     args = parser.parse_args(argv)
     result = measure(args.scenarios, args.train_episodes, args.episodes, args.seed, args.n_envs,
-                     args.batch_size, args.log_std)
+                     args.batch_size, args.log_std, learning_rate=args.learning_rate, gamma=args.gamma,
+                     gae_lambda=args.gae_lambda)
     if args.json:
         print(json.dumps(result, indent=2))
         return 0

@@ -257,8 +257,12 @@ def test_signed_flight_ignores_ground_stations_without_the_key(tmp_path: Path) -
                 fly.wait(10)
         assert fly.returncode == 0, err
         summary = json.loads(out)
-        # the flight went on as if nobody else was there
-        assert summary["frames"] == frames and summary["decisions"] == frames
+        # the flight went on as if nobody else was there: every frame decided, except that on a
+        # loaded machine a frame can reach the loop in a backlog with the next (then only the
+        # newest is decided and the other counts as stale)
+        assert summary["frames"] == frames and summary["radio_frames_missed"] == 0
+        assert summary["decisions"] + summary["stale_radio_reports"] == frames, summary
+        assert summary["decisions"] >= 0.9 * frames, summary
         assert summary["ended_by"] == "episode done" and summary["signing"]["rejected_bad_signature"] == 0
         assert attacks >= 10 and min(low_in_offboard) > 90.0
         offboard_at = next(t for t, mode, _ in attackers[0].modes if mode == OFFBOARD)
