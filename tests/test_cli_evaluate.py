@@ -111,6 +111,17 @@ def test_unusable_policy_files_exit_2(tmp_path):
     assert_user_error(uavlink("evaluate", "--policy", str(empty), "--episodes", "2"), "circular")
 
 
+def test_results_folder_with_an_unfinished_sweep_fails_before_evaluating(tmp_path):
+    """The across-seed table needs the finished sweep: refused at once, and nothing is written."""
+    root = Path(__file__).resolve().parents[1]
+    out = tmp_path / "results"
+    proc = uavlink("evaluate", "--scenario", "all", "--policy", str(root / "policies"), "--episodes", "2",
+                   "--out", str(out), "--sweep", str(root / "sweeps" / "table1.toml"),
+                   "--sweep-root", str(tmp_path / "runs"))
+    assert_user_error(proc, "sweep 'table1'", "not finished", "hotspot")
+    assert not out.exists()  # refused before the evaluation, which would have written it
+
+
 @pytest.mark.parametrize("args", [("--help",), ("evaluate", "--help")])
 def test_help(args):
     proc = uavlink(*args)

@@ -93,13 +93,19 @@ def _write_results_folder(args: argparse.Namespace) -> int:
     command = "uavlink " + " ".join(sys.argv[1:]) if sys.argv[1:2] == ["evaluate"] else "uavlink evaluate ..."
     markdown = args.markdown or args.out / "results.md"
 
-    def sweep_sections(link_prefix: Path) -> list[str]:
-        if args.sweep is None:
-            return []
-        from uavlink.sweep.aggregate import results_section
+    spec = None
+    if args.sweep is not None:  # checked before the long evaluation, which would write the folder
+        from uavlink.sweep.aggregate import finished_rows
         from uavlink.sweep.spec import load_spec
 
         spec = load_spec(args.sweep)
+        finished_rows(spec, args.sweep_root / spec.name)
+
+    def sweep_sections(link_prefix: Path) -> list[str]:
+        if spec is None:
+            return []
+        from uavlink.sweep.aggregate import results_section
+
         return [results_section(spec, args.sweep_root / spec.name, args.out, link_prefix), ""]
 
     path = write_results(folder, args.out, markdown, args.episodes, args.seed, base, command,

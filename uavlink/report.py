@@ -182,12 +182,13 @@ def plot_trajectories(row: ScenarioRow, half_width_m: float, path: Path) -> None
 def write_results(policy_folder: Path, out: Path, markdown: Path, episodes: int, seed: int,
                   base: EnvConfig, command: str, progress: Callable[[str], None] = lambda _: None,
                   extra_sections: Callable[[Path], list[str]] = lambda _: []) -> Path:
-    """Evaluate everything and write the folder; returns the Markdown path."""
-    out.mkdir(parents=True, exist_ok=True)
+    """Evaluate everything, then write the folder (nothing is written if an evaluation fails);
+    returns the Markdown path."""
     rows = evaluate_scenarios(policy_folder, episodes, seed, base, progress)
     h1, b1 = table_one(rows)
     progress("table II")
     h2, b2 = table_two(policy_folder, episodes, seed, base)
+    out.mkdir(parents=True, exist_ok=True)
     write_csv(out / "table1.csv", h1, b1)
     write_csv(out / "table2.csv", h2, b2)
     plot_throughput_per_episode(rows, out / "throughput_per_episode.png")

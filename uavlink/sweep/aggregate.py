@@ -167,14 +167,20 @@ def write_summary(spec: SweepSpec, sweep_dir: Path, command: str = "") -> tuple[
     return path, table
 
 
-def results_section(spec: SweepSpec, sweep_dir: Path, assets: Path, link_prefix: Path) -> str:
-    """Markdown for docs/results.md: the across-seed table of a finished sweep and its figures,
-    copied to ``assets`` (linked as ``link_prefix/<name>``)."""
+def finished_rows(spec: SweepSpec, sweep_dir: Path) -> list[SettingRow]:
+    """The sweep's rows; a ValueError naming the unfinished scenarios if any job is missing."""
     rows = collect(spec, sweep_dir)
     missing = [r.scenario for r in rows if r.n < r.expected_seeds]
     if missing:
-        raise ValueError(f"sweep {spec.name!r} is not finished ({', '.join(missing)}): run it first")
-    header, body = summary_table(rows, list(spec.grid))
+        raise ValueError(f"sweep {spec.name!r} in {sweep_dir} is not finished ({', '.join(missing)}): "
+                         f"run `uavlink sweep` on it first")
+    return rows
+
+
+def results_section(spec: SweepSpec, sweep_dir: Path, assets: Path, link_prefix: Path) -> str:
+    """Markdown for docs/results.md: the across-seed table of a finished sweep and its figures,
+    copied to ``assets`` (linked as ``link_prefix/<name>``)."""
+    header, body = summary_table(finished_rows(spec, sweep_dir), list(spec.grid))
     assets.mkdir(parents=True, exist_ok=True)
     figures = []
     for name in ("throughput.png", "learning_curves.png"):
