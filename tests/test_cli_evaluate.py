@@ -137,3 +137,27 @@ def test_help(args):
 def test_version():
     proc = uavlink("--version")
     assert proc.returncode == 0 and proc.stdout.startswith("uavlink ")
+
+
+def test_results_folder_has_the_tables_and_figures_and_is_reproducible(tmp_path):
+    root = Path(__file__).resolve().parents[1]
+    runs = []
+    for name in ("a", "b"):
+        out = tmp_path / name
+        proc = uavlink("evaluate", "--scenario", "all", "--policy", str(root / "policies"), "--episodes", "3",
+                       "--seed", "0", "--out", str(out))
+        assert proc.returncode == 0, proc.stderr[-2000:]
+        runs.append(out)
+    a, b = runs
+    table1 = (a / "table1.csv").read_text().splitlines()
+    assert len(table1) == 1 + len(SCENARIOS) and all(row.split(",")[0] in SCENARIOS for row in table1[1:])
+    assert len((a / "table2.csv").read_text().splitlines()) == 1 + 6  # AoA noise 0, 1, 5, 10, 50, 100
+    figures = ["throughput_per_episode.png", "throughput_vs_fairness.png",
+               *(f"trajectory_{s}.png" for s in SCENARIOS)]
+    for figure in figures:
+        assert (a / figure).read_bytes()[:8] == b"\x89PNG\r\n\x1a\n", figure
+    markdown = (a / "results.md").read_text()
+    assert "--episodes 3" in markdown and all(f"]({figure})" in markdown for figure in figures)
+    # seeded: the same command gives the same tables and raw results
+    for name in ("table1.csv", "table2.csv", "results.json"):
+        assert (a / name).read_bytes() == (b / name).read_bytes(), name

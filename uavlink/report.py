@@ -151,6 +151,36 @@ def plot_throughput_per_episode(rows: list[ScenarioRow], path: Path) -> None:
     plt.close(fig)
 
 
+def plot_throughput_vs_fairness(rows: list[ScenarioRow], path: Path) -> None:
+    """Per scenario, each policy's mean throughput (the table's metric) against its mean R_fair
+    (PPO's reward): where the two rank policies differently, the reward does not pay for the metric."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    styles = {"ppo": ("tab:red", "o"), "ppo_mixed": ("tab:orange", "v"), "aoa": ("tab:blue", "s"),
+              "oracle": ("tab:green", "D"), "static": ("tab:gray", "x")}
+    fig, axes = plt.subplots(2, 3, figsize=(11, 6.5))
+    for ax, row in zip(axes.flat, rows, strict=True):  # the six scenarios
+        for key, result in row.results.items():
+            color, marker = styles[key]
+            ax.errorbar(result.mean_fair_rate, result.mean_rate_mbps, yerr=result.ci95_mbps, color=color,
+                        marker=marker, ms=6, capsize=2, ls="none", label=key.replace("_", " "))
+        ax.set_title(row.scenario, fontsize=10)
+        ax.grid(alpha=0.3)
+        ax.tick_params(labelsize=8)
+    for ax in axes[-1]:
+        ax.set_xlabel("R_fair (sum of log10 rate), PPO's reward")
+    for ax in axes[:, 0]:
+        ax.set_ylabel("average UE throughput (Mbps)")
+    axes.flat[0].legend(fontsize=8)
+    fig.suptitle("Throughput against R_fair, mean over the evaluation episodes (bars: 95 % interval)")
+    fig.tight_layout()
+    fig.savefig(path, dpi=100)
+    plt.close(fig)
+
+
 def plot_trajectories(row: ScenarioRow, half_width_m: float, path: Path) -> None:
     import matplotlib
 
@@ -192,6 +222,7 @@ def write_results(policy_folder: Path, out: Path, markdown: Path, episodes: int,
     write_csv(out / "table1.csv", h1, b1)
     write_csv(out / "table2.csv", h2, b2)
     plot_throughput_per_episode(rows, out / "throughput_per_episode.png")
+    plot_throughput_vs_fairness(rows, out / "throughput_vs_fairness.png")
     for row in rows:
         plot_trajectories(row, base.area.half_width_m, out / f"trajectory_{row.scenario}.png")
     raw = {row.scenario: {k: v.to_dict() for k, v in row.results.items()} for row in rows}
@@ -222,6 +253,12 @@ def write_results(policy_folder: Path, out: Path, markdown: Path, episodes: int,
         "## Average throughput per evaluation episode",
         "",
         f"![throughput per episode]({rel / 'throughput_per_episode.png'})",
+        "",
+        "## Throughput against R_fair",
+        "",
+        "PPO is trained on R_fair; the tables rank by throughput. Up and right is better on both.",
+        "",
+        f"![throughput vs R_fair]({rel / 'throughput_vs_fairness.png'})",
         "",
         "## One episode per scenario (UAV trajectories of PPO, aoa and oracle; UEs in grey)",
         "",
