@@ -11,8 +11,8 @@ import pytest
 from uavlink.cli import main
 from uavlink.config import EnvConfig
 from uavlink.env.core import BatchedUavEnv
-from uavlink.imitation import clone_actor, teacher_action, teacher_dataset
-from uavlink.policies.baselines import make_baseline
+from uavlink.imitation import clone_actor, make_teacher, teacher_action, teacher_dataset
+from uavlink.policies.baselines import AoaPolicy, make_baseline
 from uavlink.policies.manifest import read_zip_manifest
 from uavlink.radio.aoa import circular_mean_std_deg, true_aoa_deg
 from uavlink.training import TrainConfig, make_model
@@ -81,3 +81,24 @@ def test_train_with_warm_start_records_it_and_starts_from_the_rule(tmp_path: Pat
     assert np.allclose(policy.log_std.detach().numpy(), TrainConfig().warm_start_log_std)
     fresh = make_model(CFG, TrainConfig(n_envs=2), None).policy  # same seed: the same initial critic
     assert not np.allclose(policy.value_net.weight.detach().numpy(), fresh.value_net.weight.detach().numpy())
+
+
+def test_gated_teacher_and_its_settings(tmp_path: Path, capsys) -> None:
+    """The aoa teacher with its shadow gate flies the gated rule; the gate belongs to aoa only, and
+    `uavlink train` records it (and the exploration std PPO restarts from) in the manifest."""
+    cfg = EnvConfig(scenario="straight_180")
+    obs, actions = teacher_dataset(cfg, "aoa", episodes=2, seed=3, shadow_gate_db=0.0)
+    np.testing.assert_allclose(actions, AoaPolicy(cfg, shadow_gate_db=0.0).act(obs), atol=1e-6)
+    assert (np.abs(actions).sum(axis=1) == 0).any()  # the gate made it hover somewhere
+    with pytest.raises(ValueError, match="aoa teacher"):
+        make_teacher(cfg, "static", shadow_gate_db=0.0)
+    assert main(["train", "--scenario", "straight_180", "--out", str(tmp_path / "x.zip"),
+                 "--warm-start-shadow-gate-db", "0"]) == 2
+    assert "needs --warm-start aoa" in capsys.readouterr().err and not (tmp_path / "x.zip").exists()
+    out = tmp_path / "gated.zip"
+    assert main(["train", "--scenario", "straight_180", "--out", str(out), "--episodes", "4", "--n-envs", "4",
+                 "--batch-size", "128", "--warm-start", "aoa", "--warm-start-episodes", "4",
+                 "--warm-start-shadow-gate-db", "0.5", "--warm-start-log-std", "-3",
+                 "--eval-episodes", "0", "--no-progress", "--run-dir", str(tmp_path / "run")]) == 0
+    hyper = read_zip_manifest(out)["training"]["hyperparameters"]
+    assert hyper["warm_start_shadow_gate_db"] == 0.5 and hyper["warm_start_log_std"] == -3.0

@@ -217,6 +217,10 @@ BAD_SPECS = [
     ("[grid]\n\"radio.aoa_noise_deg\" = [0.0, -5.0]\n", "radio.aoa_noise_deg"),
     ("[eval]\nepisodes = 0\n", "eval.episodes"),
     ("scenarios = [\"sideways\"]\n", "scenarios"),
+    ("[scenario_train.circular]\nepisodes = 4\n", "'circular'"),  # not one of the sweep's scenarios
+    ("[scenario_train.straight]\nradio.shadowing = false\n", "radio.shadowing"),  # train fields only
+    ("[scenario_train.straight]\nn_envs = 0\n", "train.n_envs"),
+    ("[scenario_train.straight]\nlearning_rate = 1e-4\n[grid]\nlearning_rate = [1e-4]\n", "'learning_rate'"),
 ]
 
 
@@ -247,6 +251,19 @@ def test_job_keys_are_stable_and_grid_expands() -> None:
     # The default 12.0 written out is the same job as leaving r_max_m alone.
     assert parse_spec({"seeds": [0], "env": {"r_max_m": 12}}).jobs()[0].key == \
         parse_spec({"seeds": [0]}).jobs()[0].key
+
+
+def test_scenario_train_overrides_reach_only_their_scenario() -> None:
+    base = {"name": "a", "scenarios": ["straight", "hotspot"], "seeds": [0], "train": {"episodes": 4}}
+    plain = {j.scenario: j for j in parse_spec(base).jobs()}
+    spec = parse_spec({**base, "scenario_train": {"hotspot": {"n_envs": 8, "warm_start_teacher": "aoa",
+                                                              "warm_start_shadow_gate_db": 1}}})
+    jobs = {j.scenario: j for j in spec.jobs()}
+    assert jobs["straight"].key == plain["straight"].key  # untouched scenario: same job
+    hotspot = jobs["hotspot"].train_config()
+    assert jobs["hotspot"].key != plain["hotspot"].key
+    assert (hotspot.n_envs, hotspot.episodes, hotspot.warm_start_shadow_gate_db) == (8, 4, 1.0)
+    assert jobs["straight"].train_config().n_envs == 32
 
 
 def test_t_quantiles() -> None:

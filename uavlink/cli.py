@@ -130,9 +130,13 @@ def cmd_train(args: argparse.Namespace) -> int:
     tc = TrainConfig(episodes=args.episodes, learning_rate=args.learning_rate, seed=args.seed,
                      n_envs=args.n_envs, batch_size=args.batch_size, n_epochs=args.n_epochs,
                      torch_threads=args.torch_threads, aoa_noise_max_deg=args.aoa_noise_max_deg,
-                     warm_start_teacher=args.warm_start, warm_start_episodes=args.warm_start_episodes)
+                     warm_start_teacher=args.warm_start, warm_start_episodes=args.warm_start_episodes,
+                     warm_start_log_std=args.warm_start_log_std,
+                     warm_start_shadow_gate_db=args.warm_start_shadow_gate_db)
     if args.episodes < 1 or args.n_envs < 1 or args.batch_size < 1 or args.warm_start_episodes < 1:
         raise UserError("--episodes, --n-envs, --batch-size and --warm-start-episodes must be positive")
+    if args.warm_start_shadow_gate_db is not None and args.warm_start != "aoa":
+        raise UserError("--warm-start-shadow-gate-db needs --warm-start aoa")
     if args.resume is not None and not args.resume.is_file():
         raise UserError(f"--resume {args.resume}: no such checkpoint")
     run_dir = args.run_dir or Path("runs") / f"{args.out.stem}-seed{args.seed}"
@@ -277,6 +281,11 @@ def build_parser() -> argparse.ArgumentParser:
                         "(ours; e.g. aoa, as the shipped policies; default: off, the paper's PPO from scratch)")
     p.add_argument("--warm-start-episodes", type=int, default=256,
                    help="episodes the rule flies to make the cloning data (default 256)")
+    p.add_argument("--warm-start-log-std", type=float, default=-1.0,
+                   help="exploration log std PPO starts from after the cloning (default -1)")
+    p.add_argument("--warm-start-shadow-gate-db", type=float, default=None, metavar="DB",
+                   help="aoa teacher only: hover when the newest frame's mean SINR beats the older "
+                        "frames' by more than DB (ours; default: off, the SPEC's rule)")
     p.add_argument("--run-dir", type=Path, default=None, help="TensorBoard logs and checkpoint (default runs/OUT-seedN)")
     p.add_argument("--resume", type=Path, default=None, help="continue from a checkpoint zip")
     p.add_argument("--eval-episodes", type=int, default=100, help="evaluate after training into the manifest (0: skip)")
@@ -296,7 +305,7 @@ def build_parser() -> argparse.ArgumentParser:
     p.set_defaults(func=cmd_export)
 
     p = sub.add_parser("sweep", help="train + evaluate a grid of scenarios x seeds x settings on Dask",
-                       description="Run a sweep file (TOML: scenarios, seeds, [train], [env], [eval], "
+                       description="Run a sweep file (TOML: scenarios, seeds, [train], [scenario_train.NAME], [env], [eval], "
                                    "[grid]) on an embedded Dask cluster or --scheduler; writes "
                                    "OUT_ROOT/<name>/<job>/ and a per-setting summary. Finished jobs "
                                    "are skipped on a rerun. See sweeps/tiny.toml.")

@@ -58,6 +58,9 @@ class TrainConfig:
     warm_start_episodes: int = 256
     warm_start_log_std: float = -1.0
     warm_start_critic_rollouts: int = 10  # PPO updates with the actor frozen, fitting the critic
+    # The aoa teacher with its shadow gate (AoaPolicy): it hovers when the newest frame's mean SINR
+    # beats the older frames' by more than this many dB. None: the SPEC's rule as it is.
+    warm_start_shadow_gate_db: float | None = None
     seed: int = 0
     torch_threads: int = 1
     checkpoint_every_steps: int = 100_000
@@ -170,7 +173,8 @@ def train(cfg: EnvConfig, tc: TrainConfig, out: Path, run_dir: Path | None = Non
         from uavlink.imitation import warm_start
 
         cloned = warm_start(model.policy, training_env_config(cfg, tc), tc.warm_start_teacher,
-                            tc.warm_start_episodes, tc.seed, log_std=tc.warm_start_log_std).to_dict()
+                            tc.warm_start_episodes, tc.seed, log_std=tc.warm_start_log_std,
+                            shadow_gate_db=tc.warm_start_shadow_gate_db).to_dict()
     if run_dir is None:
         # Without a run folder SB3 would make an empty one under the temp dir for every run.
         from stable_baselines3.common.logger import Logger

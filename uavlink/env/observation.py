@@ -93,6 +93,11 @@ class ObservationLayout:
             np.minimum(np.radians(std_deg), self.aoa_std_max_rad)[:, None] / np.pi,
         ], axis=1)
 
+    def sinr_db_history(self, obs: np.ndarray) -> np.ndarray:
+        """Per-UE SINRs (N, memory, U) in dB, newest frame first, decoded from observations (N, size)."""
+        frames = obs.reshape(obs.shape[0], self.memory, self.frame_size)[:, :, 2:2 + self.n_ues]
+        return frames.astype(float) * self.sinr_scale_db + self.sinr_offset_db
+
     def newest_frame(self, obs: np.ndarray) -> dict[str, np.ndarray]:
         """Decode the newest frame of observations (N, size) back to physical units."""
         frame = obs[:, : self.frame_size].astype(float)

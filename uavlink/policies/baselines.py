@@ -42,28 +42,42 @@ class AoaPolicy:
     name = "aoa"
     needs_truth = False
 
-    def __init__(self, cfg: EnvConfig, sinr_span_db: float = 10.0) -> None:
+    def __init__(self, cfg: EnvConfig, sinr_span_db: float = 10.0, shadow_gate_db: float | None = None) -> None:
         self.layout = ObservationLayout.for_config(cfg)
         self.mapping = ActionMapping(cfg.r_max_m, cfg.action_mapping)
         self.hover_sinr_db = float(mean_rx_power_dbm(cfg.area.uav_altitude_m, cfg.radio)
                                    - noise_power_dbm(cfg.radio.bandwidth_hz, cfg.radio))
         self.sinr_span_db = sinr_span_db
+        if shadow_gate_db is not None and cfg.memory < 2:
+            raise ValueError("the aoa rule's shadow gate compares frames: it needs memory >= 2")
+        self.shadow_gate_db = shadow_gate_db
 
     def act(self, obs: np.ndarray, truth: GroundTruth | None = None) -> np.ndarray:
         frame = self.layout.newest_frame(obs)
-        return self._move(frame["sinr_db"], frame["aoa_mean_deg"])
+        return self._gate(obs, self._move(frame["sinr_db"], frame["aoa_mean_deg"]))
 
     def act_on_true_aoa(self, obs: np.ndarray, truth: GroundTruth) -> np.ndarray:
         """The rule on the UEs' true AoAs instead of the observation's estimates: the privileged
         teacher of the warm start (uavlink/imitation.py); not a GPS-free policy."""
         aoa_mean_deg, _ = circular_mean_std_deg(true_aoa_deg(truth.uav_xy_m[:, None, :], truth.ue_xy_m))
-        return self._move(self.layout.newest_frame(obs)["sinr_db"], aoa_mean_deg)
+        return self._gate(obs, self._move(self.layout.newest_frame(obs)["sinr_db"], aoa_mean_deg))
 
     def _move(self, sinr_db: np.ndarray, aoa_mean_deg: np.ndarray) -> np.ndarray:
         """Actions (N, 2) from each env's per-UE SINRs (dB) and circular-mean AoA (deg)."""
         gap = (self.hover_sinr_db - sinr_db.mean(axis=1)) / self.sinr_span_db
         distance = self.mapping.r_max_m * np.clip(gap, 0.0, 1.0)
         return self.mapping.from_polar(aoa_mean_deg, distance)
+
+    def _gate(self, obs: np.ndarray, action: np.ndarray) -> np.ndarray:
+        """With ``shadow_gate_db`` set (ours, not the SPEC's rule): hover instead wherever the newest
+        frame's mean SINR beats the mean of the older frames in memory by more than the gate. Path
+        loss changes little from frame to frame, so such a jump is mostly a good shadowing draw,
+        which moving would throw away (docs/design.md)."""
+        if self.shadow_gate_db is None:
+            return action
+        mean_sinr_db = self.layout.sinr_db_history(obs).mean(axis=2)  # (N, memory), newest first
+        lucky = mean_sinr_db[:, 0] > mean_sinr_db[:, 1:].mean(axis=1) + self.shadow_gate_db
+        return np.where(lucky[:, None], self.mapping.from_polar(0.0, 0.0), action)
 
 
 class OraclePolicy:

@@ -7,6 +7,8 @@ A sweep file (``sweeps/tiny.toml`` is a commented example)::
     seeds = [0, 1, 2]                 # or a count: seeds = 3 means 0, 1, 2
     [train]                           # TrainConfig fields: the budget and PPO hyper-parameters
     episodes = 12000
+    [scenario_train.circular]         # TrainConfig fields for one scenario's jobs only
+    n_envs = 64
     [env]                             # EnvConfig fields; radio.x / area.x reach the nested configs
     "radio.shadowing" = true
     [eval]
@@ -42,7 +44,7 @@ else:  # pragma: no cover - the sweep extra installs tomli on 3.10
     import tomli as tomllib
 
 JOB_FORMAT = "uavlink-sweep-job-v1"
-TOP_KEYS = ("name", "description", "scenarios", "seeds", "train", "env", "eval", "grid")
+TOP_KEYS = ("name", "description", "scenarios", "seeds", "train", "scenario_train", "env", "eval", "grid")
 EVAL_DEFAULTS: dict[str, int] = {"episodes": 100, "seed": 0}
 BASELINE_COLUMNS = ("static", "oracle", "aoa")
 # TrainConfig fields a sweep does not set, and why.
@@ -120,8 +122,9 @@ class Job:
             train.pop(name, None)
         if not train["warm_start_teacher"]:  # off: its knobs change nothing (and keys stay as before)
             for name in ("warm_start_teacher", "warm_start_episodes", "warm_start_log_std",
-                         "warm_start_critic_rollouts"):
+                         "warm_start_critic_rollouts", "warm_start_shadow_gate_db"):
                 train.pop(name)
+        train = {k: v for k, v in train.items() if v is not None}  # None: an optional feature left off
         return {"format": JOB_FORMAT, "env": self.env_config().to_dict(), "train": train,
                 "eval": {**self.eval, "policies": ["ppo", *BASELINE_COLUMNS]}}
 
@@ -149,6 +152,7 @@ class SweepSpec:
     grid: dict[str, list[Any]]  # qualified key -> values
     description: str = ""
     source: Path | None = None
+    scenario_train: dict[str, dict[str, Any]] = field(default_factory=dict)  # scenario -> train overrides
 
     def points(self) -> list[dict[str, Any]]:
         keys = list(self.grid)
@@ -160,7 +164,7 @@ class SweepSpec:
         for scenario in self.scenarios:
             for point in self.points():
                 env = dict(self.env)
-                train = dict(self.train)
+                train = {**self.train, **self.scenario_train.get(scenario, {})}
                 for key, value in point.items():
                     section, name = key.split(".", 1)
                     (train if section == "train" else env)[name] = value
@@ -230,6 +234,18 @@ def parse_spec(data: dict[str, Any], default_name: str = "sweep") -> SweepSpec:
     for key, value in _flatten(_table(data, "train")).items():
         field_name = _qualify(key, "train", train_defaults, env_defaults, allow=("train",))[1]
         train[field_name] = _coerce(f"train.{field_name}", value, train_defaults[field_name])
+    scenario_train: dict[str, dict[str, Any]] = {}
+    for scenario, table in _table(data, "scenario_train").items():
+        if scenario not in scenarios or not isinstance(table, dict):
+            raise SweepSpecError(f"[scenario_train] key {scenario!r} must be a table named after one of "
+                                 f"the sweep's scenarios ({', '.join(scenarios)})")
+        overrides = scenario_train[scenario] = {}
+        for key, value in _flatten(table).items():
+            field_name = _qualify(key, f"scenario_train.{scenario}", train_defaults, env_defaults,
+                                  allow=("train",))[1]
+            overrides[field_name] = _coerce(f"scenario_train.{scenario}.{field_name}", value,
+                                            train_defaults[field_name])
+        _check_ranges("train", overrides)
     env = {}
     for key, value in _flatten(_table(data, "env")).items():
         field_name = _qualify(key, "env", train_defaults, env_defaults, allow=("env",))[1]
@@ -253,6 +269,8 @@ def parse_spec(data: dict[str, Any], default_name: str = "sweep") -> SweepSpec:
             raise SweepSpecError(f"[grid] key {key!r} is empty: give at least one value")
         if field_name in (train if section == "train" else env):
             raise SweepSpecError(f"key {key!r} is set in both [{section}] and [grid]")
+        if section == "train" and any(field_name in o for o in scenario_train.values()):
+            raise SweepSpecError(f"key {key!r} is set in both [scenario_train] and [grid]")
         if qualified in grid:
             raise SweepSpecError(f"[grid] key {key!r} is given twice")
         defaults = train_defaults if section == "train" else env_defaults
@@ -268,9 +286,10 @@ def parse_spec(data: dict[str, Any], default_name: str = "sweep") -> SweepSpec:
         for v in values:
             _check_ranges(section, {field_name: v})
 
-    spec = SweepSpec(name, list(scenarios), list(seeds), train, env, evaluation, grid, description)
-    for point in spec.points():
-        merged = {**train_defaults, **train, **{k[6:]: v for k, v in point.items() if k.startswith("train.")}}
+    spec = SweepSpec(name, list(scenarios), list(seeds), train, env, evaluation, grid, description,
+                     scenario_train=scenario_train)
+    for job in spec.jobs():
+        merged = {**train_defaults, **job.train}
         if merged["n_envs"] * merged["n_steps"] < 2:
             raise SweepSpecError("keys 'train.n_envs' x 'train.n_steps' must be >= 2 (PPO's rollout buffer)")
     from uavlink.env.actions import ActionMapping
@@ -336,14 +355,15 @@ def _qualify(key: str, where: str, train_defaults: dict[str, Any], env_defaults:
 
 
 def _coerce(key: str, value: Any, default: Any) -> Any:
-    """Check ``value`` has the field's type; ints become floats where the field is a float."""
+    """Check ``value`` has the field's type; ints become floats where the field is a float (or an
+    optional number, default None)."""
     if isinstance(default, bool):
         if not isinstance(value, bool):
             raise SweepSpecError(f"key {key!r} must be true or false, got {value!r}")
     elif isinstance(default, int):
         if isinstance(value, bool) or not isinstance(value, int):
             raise SweepSpecError(f"key {key!r} must be an integer, got {value!r}")
-    elif isinstance(default, float):
+    elif isinstance(default, float) or default is None:
         if isinstance(value, bool) or not isinstance(value, (int, float)):
             raise SweepSpecError(f"key {key!r} must be a number, got {value!r}")
         value = float(value)
