@@ -227,6 +227,20 @@ def test_channel_shadowing_decorrelates_over_combined_ue_and_uav_move():
     np.testing.assert_array_equal(still_before, still_after)
 
 
+def test_channel_shadow_db_is_what_the_readings_add_and_a_copy():
+    radio = RadioConfig(fast_fading=False)
+    channel = RadioChannel(radio, AREA, n_ues=10)
+    with pytest.raises(RuntimeError, match="before reset"):
+        _ = channel.shadow_db
+    uav, ue = np.zeros((4, 1, 2)), np.full((4, 10, 2), 60.0)
+    readings = channel.reset(rng(3), uav, ue)
+    shadow = channel.shadow_db
+    without = float(mean_rx_power_dbm(math.hypot(60.0 * math.sqrt(2), 95.0))) - channel.noise_dbm
+    np.testing.assert_allclose(readings.sinr_db, without + shadow[..., 0], atol=1e-9)
+    shadow[:] = 0.0  # a copy: the channel is untouched
+    assert np.abs(channel.shadow_db).max() > 1.0
+
+
 def test_channel_fading_spreads_sinr_with_unit_mean_gain():
     radio = RadioConfig(shadowing=False)
     channel = RadioChannel(radio, AREA, n_ues=10)

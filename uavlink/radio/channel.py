@@ -51,6 +51,14 @@ class RadioChannel:
         self._uav_prev: np.ndarray | None = None
         self._ue_prev: np.ndarray | None = None
 
+    @property
+    def shadow_db(self) -> np.ndarray:
+        """The links' current shadowing (N, U, D) in dB, a copy: for analysis and privileged
+        experiments only; nothing a base station senses (never part of an observation)."""
+        if self._shadow_db is None:
+            raise RuntimeError("RadioChannel.shadow_db read before reset()")
+        return self._shadow_db.copy()
+
     def reset(self, rng: np.random.Generator, uav_xy_m: np.ndarray, ue_xy_m: np.ndarray) -> RadioReadings:
         """Draw fresh shadowing for every link and return the readings of the first frame."""
         n_envs, n_uavs = uav_xy_m.shape[0], uav_xy_m.shape[1]
