@@ -51,6 +51,7 @@ class AoaPolicy:
         if shadow_gate_db is not None and cfg.memory < 2:
             raise ValueError("the aoa rule's shadow gate compares frames: it needs memory >= 2")
         self.shadow_gate_db = shadow_gate_db
+        self.hover = self.mapping.from_polar(0.0, 0.0)
 
     def act(self, obs: np.ndarray, truth: GroundTruth | None = None) -> np.ndarray:
         frame = self.layout.newest_frame(obs)
@@ -77,7 +78,7 @@ class AoaPolicy:
             return action
         mean_sinr_db = self.layout.sinr_db_history(obs).mean(axis=2)  # (N, memory), newest first
         lucky = mean_sinr_db[:, 0] > mean_sinr_db[:, 1:].mean(axis=1) + self.shadow_gate_db
-        return np.where(lucky[:, None], self.mapping.from_polar(0.0, 0.0), action)
+        return np.where(lucky[:, None], self.hover, action)
 
 
 class OraclePolicy:
