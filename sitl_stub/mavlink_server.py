@@ -42,7 +42,7 @@ from sitl_stub.vehicle import Result, Vehicle, VehicleState
 from uavlink.config import AreaConfig
 from uavlink.flight.connection import normalize_connection
 from uavlink.flight.px4_modes import decode_custom_mode
-from uavlink.flight.rejects import RejectLog
+from uavlink.flight.rejects import RejectLog, rescan_bad_frame
 from uavlink.flight.signing import SigningGuard
 
 log = logging.getLogger("sitl_stub")
@@ -282,6 +282,7 @@ class SitlServer:
                     return
                 continue
             kind = msg.get_type()
+            rescan_bad_frame(self.conn.mav, msg)
             if not self.rejects.screen(msg):
                 if kind == "BAD_DATA":  # signing rejects are counted by reason in self.signing
                     bad_signature = "signature" in str(getattr(msg, "reason", ""))

@@ -34,7 +34,7 @@ from uavlink.flight.radio_codec import (
     decode_score,
     message_kind,
 )
-from uavlink.flight.rejects import RejectLog
+from uavlink.flight.rejects import RejectLog, rescan_bad_frame
 from uavlink.flight.signing import SigningGuard
 
 os.environ.setdefault("MAVLINK20", "1")
@@ -157,6 +157,7 @@ class VehicleLink:
 
     def _handle(self, msg) -> None:
         kind = msg.get_type()
+        rescan_bad_frame(self.conn.mav, msg)
         if not self.rejects.screen(msg):
             return
         if self._tlog:

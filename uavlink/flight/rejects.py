@@ -47,3 +47,29 @@ class RejectLog:
 
     def as_dict(self) -> dict[str, int]:
         return dict(sorted(self.counts.items()))
+
+
+def rescan_bad_frame(mav, msg) -> None:
+    """After pymavlink's robust parser (``mav``) returns a frame it could not trust (bad CRC, length
+    or flags, or an unknown message id, whose CRC it cannot check), make it read that frame's bytes
+    again from the one after its start marker.
+
+    pymavlink drops the whole length a start marker claims. When the marker was a stray byte of
+    garbage, the genuine packets inside that span are lost with it, and if the packets that follow
+    all have one length (a ground station repeating a command) they can stay out of frame: measured,
+    a vehicle that ignored every intact command after one fuzzed datagram
+    (tests/test_reliability_inputs.py). A byte-wise rescan finds the next real marker; a genuine
+    frame of an unknown message costs only a few extra rejects. A bad signature belongs to a whole,
+    well-framed packet and a bad prefix was already skipped byte by byte: both are left alone."""
+    kind = msg.get_type()
+    if kind == "BAD_DATA":
+        reason = str(msg.reason)
+        if "signature" in reason or reason == "Bad prefix":
+            return
+    elif not kind.startswith("UNKNOWN"):
+        return
+    data = bytes(msg.data)
+    if len(data) < 2:
+        return
+    mav.buf = bytearray(data[1:]) + mav.buf[mav.buf_index:]
+    mav.buf_index = 0
