@@ -6,13 +6,10 @@
 2. How good the warm start's copy of the rule is before PPO: the actor of a fresh PPO model cloned
    as ``uavlink train --warm-start aoa`` does (``TrainConfig``'s defaults, the shipped sweep's
    training AoA noise), flown deterministically, against the rule itself.
-3. Variants of the rule on ``straight_180`` and ``hotspot``, on validation episodes (``--validation-seed``,
-   not the evaluation seed of docs/results.md): its speed span (``sinr_span_db``, 10 dB in the
-   baseline) and the shadow gate (ours, ``shadow_gate_db``; off in the baseline), in Mbps / R_fair;
-   and, as a bound on what any gate could gain, the rule gated on the true mean shadowing of the
-   links (hover while it is above a threshold), which no GPS-free policy can read.
 
-    python benchmarks/aoa_rule_effects.py [--episodes 100] [--seed 0] [--validation-seed 1] [--json]
+The variants of the rule that the warm start copies on some scenarios: benchmarks/aoa_teacher_search.py.
+
+    python benchmarks/aoa_rule_effects.py [--episodes 100] [--seed 0] [--json]
 """
 
 from __future__ import annotations
@@ -24,16 +21,12 @@ from typing import Any
 import numpy as np
 
 from uavlink.config import EnvConfig
-from uavlink.env.core import BatchedUavEnv, GroundTruth
-from uavlink.evaluation import CHUNK, episode_seed, evaluate_policy
-from uavlink.policies.baselines import AoaPolicy, make_baseline
+from uavlink.env.core import GroundTruth
+from uavlink.evaluation import evaluate_policy
+from uavlink.policies.baselines import make_baseline
 
 SHADOWING_SCENARIOS = ("no_move", "straight_180")
 CLONE_SCENARIOS = ("no_move", "straight_180", "hotspot")
-VARIANT_SCENARIOS = ("straight_180", "hotspot")
-SPANS_DB = (6.0, 8.0, 10.0, 12.0)
-GATES_DB = (None, 0.0, 1.0, 2.0, 3.0)
-TRUE_SHADOW_THRESHOLDS_DB = (0.0, 1.5, 3.0, 4.5)
 TRAIN_AOA_NOISE_MAX_DEG = 100.0  # as sweeps/table1.toml
 
 
@@ -79,40 +72,7 @@ def clone_of_the_rule(cfg: EnvConfig) -> ClonedActor:
     return ClonedActor(model)
 
 
-def rule_variants(episodes: int, seed: int) -> dict[str, dict[str, list[float]]]:
-    """{scenario: {"span=S gate=G": [Mbps, R_fair]}} over the same seeded episodes."""
-    table: dict[str, dict[str, list[float]]] = {}
-    for scenario in VARIANT_SCENARIOS:
-        cfg = EnvConfig(scenario=scenario)
-        table[scenario] = {}
-        for span in SPANS_DB:
-            for gate in GATES_DB:
-                result = evaluate_policy(AoaPolicy(cfg, sinr_span_db=span, shadow_gate_db=gate), cfg,
-                                         episodes=episodes, seed=seed)
-                table[scenario][f"span={span:g} gate={'off' if gate is None else f'{gate:g}'}"] = [
-                    round(result.mean_rate_mbps, 3), round(result.mean_fair_rate, 3)]
-        for threshold in TRUE_SHADOW_THRESHOLDS_DB:
-            table[scenario][f"true shadow > {threshold:g} dB"] = true_shadow_gate(cfg, threshold, episodes, seed)
-    return table
-
-
-def true_shadow_gate(cfg: EnvConfig, threshold_db: float, episodes: int, seed: int) -> list[float]:
-    """[Mbps, R_fair] of the rule that hovers while the links' true mean shadowing is above
-    ``threshold_db``, on the episodes ``evaluate_policy`` would fly (privileged: reads the channel)."""
-    rule, rates, fairs = AoaPolicy(cfg), [], []
-    for chunk, start in enumerate(range(0, episodes, CHUNK)):
-        env = BatchedUavEnv(cfg, n_envs=min(CHUNK, episodes - start), seed=episode_seed(seed, chunk))
-        obs = env.reset()
-        for _ in range(cfg.episode_frames):
-            lucky = env.channel.shadow_db.mean(axis=(1, 2)) > threshold_db
-            step = env.step(np.where(lucky[:, None], 0.0, rule.act(obs)))
-            obs = step.observation
-            rates.append(step.mean_rate_mbps)
-            fairs.append(step.fair_rate)
-    return [round(float(np.mean(rates)), 3), round(float(np.mean(fairs)), 3)]
-
-
-def measure(episodes: int, seed: int, validation_seed: int) -> dict[str, Any]:
+def measure(episodes: int, seed: int) -> dict[str, Any]:
     def mbps(policy: Any, cfg: EnvConfig) -> float:
         return round(evaluate_policy(policy, cfg, episodes=episodes, seed=seed).mean_rate_mbps, 3)
 
@@ -125,19 +85,16 @@ def measure(episodes: int, seed: int, validation_seed: int) -> dict[str, Any]:
     for scenario in CLONE_SCENARIOS:
         cfg = EnvConfig(scenario=scenario)
         clone[scenario] = {"clone": mbps(clone_of_the_rule(cfg), cfg), "aoa": mbps(make_baseline("aoa", cfg), cfg)}
-    return {"episodes": episodes, "seed": seed, "shadowing_mbps": shadowing, "clone_before_ppo_mbps": clone,
-            "validation_seed": validation_seed,
-            "rule_variants_mbps_r_fair": rule_variants(episodes, validation_seed)}
+    return {"episodes": episodes, "seed": seed, "shadowing_mbps": shadowing, "clone_before_ppo_mbps": clone}
 
 
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--episodes", type=int, default=100)
     parser.add_argument("--seed", type=int, default=0)
-    parser.add_argument("--validation-seed", type=int, default=1, help="episodes of the rule variants")
     parser.add_argument("--json", action="store_true", help="print JSON")
     args = parser.parse_args(argv)
-    result = measure(args.episodes, args.seed, args.validation_seed)
+    result = measure(args.episodes, args.seed)
     if args.json:
         print(json.dumps(result, indent=2))
         return 0
@@ -148,11 +105,6 @@ def main(argv: list[str] | None = None) -> int:
     print("\n| scenario | clone of aoa, before PPO | aoa |\n|---|---:|---:|")
     for scenario, row in result["clone_before_ppo_mbps"].items():
         print(f"| {scenario} | {row['clone']:.3f} | {row['aoa']:.3f} |")
-    variants = result["rule_variants_mbps_r_fair"]
-    print(f"\nrule variants, validation seed {args.validation_seed}, Mbps / R_fair (baseline: span=10 gate=off)")
-    print("| variant | " + " | ".join(variants) + " |\n|---|" + "---:|" * len(variants))
-    for name in next(iter(variants.values())):
-        print(f"| {name} | " + " | ".join(f"{v[name][0]:.3f} / {v[name][1]:.3f}" for v in variants.values()) + " |")
     return 0
 
 

@@ -43,3 +43,17 @@ def test_residual_composition_stays_a_legal_move() -> None:
     np.testing.assert_allclose(action[1], [0.5, -0.25], atol=1e-7)  # inside the disc: unchanged
     np.testing.assert_allclose(action[2], [1.0, 0.0], atol=1e-7)
     assert np.all(np.hypot(action[:, 0], action[:, 1]) <= 1.0 + 1e-6)
+
+
+def test_teacher_search_compares_variants_with_the_rule_and_picks_one_that_loses_no_throughput() -> None:
+    result = run_json("aoa_teacher_search.py", "--scenarios", "straight_180", "--episodes", "8",
+                      "--spans-db", "10", "4", "--gates-db", "off", "0")
+    row = result["scenarios"]["straight_180"]
+    assert len(row["variants"]) == 4
+    baseline = next(v for v in row["variants"] if v["sinr_span_db"] == 10 and v["shadow_gate_db"] is None)
+    assert baseline["d_r_fair"] == [0.0, 0.0] and baseline["d_mbps_pct"] == [0.0, 0.0]  # the rule itself
+    assert (baseline["mbps"], baseline["r_fair"]) == (row["rule"]["mbps"], row["rule"]["r_fair"])
+    pick = row["pick"]
+    assert pick["d_mbps_pct"][0] >= 0.0
+    assert all(pick["d_r_fair"][0] >= v["d_r_fair"][0] for v in row["variants"] if v["d_mbps_pct"][0] >= 0.0)
+    assert set(row["true_shadow_gate_mbps_r_fair"]) == {"0", "1.5", "3", "4.5"}

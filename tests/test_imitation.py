@@ -84,21 +84,28 @@ def test_train_with_warm_start_records_it_and_starts_from_the_rule(tmp_path: Pat
 
 
 def test_gated_teacher_and_its_settings(tmp_path: Path, capsys) -> None:
-    """The aoa teacher with its shadow gate flies the gated rule; the gate belongs to aoa only, and
-    `uavlink train` records it (and the exploration std PPO restarts from) in the manifest."""
+    """The aoa teacher with its shadow gate and speed span flies that variant of the rule; both belong
+    to aoa only, and `uavlink train` records them (and the exploration std PPO restarts from) in the
+    manifest."""
     cfg = EnvConfig(scenario="straight_180")
-    obs, actions = teacher_dataset(cfg, "aoa", episodes=2, seed=3, shadow_gate_db=0.0)
-    np.testing.assert_allclose(actions, AoaPolicy(cfg, shadow_gate_db=0.0).act(obs), atol=1e-6)
+    obs, actions = teacher_dataset(cfg, "aoa", episodes=2, seed=3, shadow_gate_db=0.0, sinr_span_db=2.0)
+    np.testing.assert_allclose(actions, AoaPolicy(cfg, sinr_span_db=2.0, shadow_gate_db=0.0).act(obs), atol=1e-6)
     assert (np.abs(actions).sum(axis=1) == 0).any()  # the gate made it hover somewhere
-    with pytest.raises(ValueError, match="aoa teacher"):
-        make_teacher(cfg, "static", shadow_gate_db=0.0)
-    assert main(["train", "--scenario", "straight_180", "--out", str(tmp_path / "x.zip"),
-                 "--warm-start-shadow-gate-db", "0"]) == 2
-    assert "needs --warm-start aoa" in capsys.readouterr().err and not (tmp_path / "x.zip").exists()
+    assert not np.allclose(actions, AoaPolicy(cfg, shadow_gate_db=0.0).act(obs), atol=1e-3)  # the span counts
+    for setting in ({"shadow_gate_db": 0.0}, {"sinr_span_db": 2.0}):
+        with pytest.raises(ValueError, match="aoa teacher"):
+            make_teacher(cfg, "static", **setting)
+    for flag in ("--warm-start-shadow-gate-db", "--warm-start-sinr-span-db"):
+        assert main(["train", "--scenario", "straight_180", "--out", str(tmp_path / "x.zip"), flag, "2"]) == 2
+        assert "needs --warm-start aoa" in capsys.readouterr().err and not (tmp_path / "x.zip").exists()
+    assert main(["train", "--scenario", "straight_180", "--out", str(tmp_path / "x.zip"), "--warm-start", "aoa",
+                 "--warm-start-sinr-span-db", "0"]) == 2
+    assert "must be positive" in capsys.readouterr().err and not (tmp_path / "x.zip").exists()
     out = tmp_path / "gated.zip"
     assert main(["train", "--scenario", "straight_180", "--out", str(out), "--episodes", "4", "--n-envs", "4",
                  "--batch-size", "128", "--warm-start", "aoa", "--warm-start-episodes", "4",
-                 "--warm-start-shadow-gate-db", "0.5", "--warm-start-log-std", "-3",
+                 "--warm-start-shadow-gate-db", "0.5", "--warm-start-sinr-span-db", "3", "--warm-start-log-std", "-3",
                  "--eval-episodes", "0", "--no-progress", "--run-dir", str(tmp_path / "run")]) == 0
     hyper = read_zip_manifest(out)["training"]["hyperparameters"]
     assert hyper["warm_start_shadow_gate_db"] == 0.5 and hyper["warm_start_log_std"] == -3.0
+    assert hyper["warm_start_sinr_span_db"] == 3.0

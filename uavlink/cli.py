@@ -132,11 +132,16 @@ def cmd_train(args: argparse.Namespace) -> int:
                      torch_threads=args.torch_threads, aoa_noise_max_deg=args.aoa_noise_max_deg,
                      warm_start_teacher=args.warm_start, warm_start_episodes=args.warm_start_episodes,
                      warm_start_log_std=args.warm_start_log_std,
-                     warm_start_shadow_gate_db=args.warm_start_shadow_gate_db)
+                     warm_start_shadow_gate_db=args.warm_start_shadow_gate_db,
+                     warm_start_sinr_span_db=args.warm_start_sinr_span_db)
     if args.episodes < 1 or args.n_envs < 1 or args.batch_size < 1 or args.warm_start_episodes < 1:
         raise UserError("--episodes, --n-envs, --batch-size and --warm-start-episodes must be positive")
-    if args.warm_start_shadow_gate_db is not None and args.warm_start != "aoa":
-        raise UserError("--warm-start-shadow-gate-db needs --warm-start aoa")
+    for flag, value in (("--warm-start-shadow-gate-db", args.warm_start_shadow_gate_db),
+                        ("--warm-start-sinr-span-db", args.warm_start_sinr_span_db)):
+        if value is not None and args.warm_start != "aoa":
+            raise UserError(f"{flag} needs --warm-start aoa")
+    if args.warm_start_sinr_span_db is not None and args.warm_start_sinr_span_db <= 0:
+        raise UserError("--warm-start-sinr-span-db must be positive")
     if args.resume is not None and not args.resume.is_file():
         raise UserError(f"--resume {args.resume}: no such checkpoint")
     run_dir = args.run_dir or Path("runs") / f"{args.out.stem}-seed{args.seed}"
@@ -286,6 +291,9 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--warm-start-shadow-gate-db", type=float, default=None, metavar="DB",
                    help="aoa teacher only: hover when the newest frame's mean SINR beats the older "
                         "frames' by more than DB (ours; default: off, the SPEC's rule)")
+    p.add_argument("--warm-start-sinr-span-db", type=float, default=None, metavar="DB",
+                   help="aoa teacher only: its speed span, full speed DB below the hover SINR "
+                        "(default: the baseline's 10 dB)")
     p.add_argument("--run-dir", type=Path, default=None, help="TensorBoard logs and checkpoint (default runs/OUT-seedN)")
     p.add_argument("--resume", type=Path, default=None, help="continue from a checkpoint zip")
     p.add_argument("--eval-episodes", type=int, default=100, help="evaluate after training into the manifest (0: skip)")

@@ -49,22 +49,25 @@ def teacher_action(policy: Any, obs: np.ndarray, env: BatchedUavEnv) -> np.ndarr
     return policy.act(obs, env.ground_truth() if policy.needs_truth else None)
 
 
-def make_teacher(cfg: EnvConfig, teacher: str, shadow_gate_db: float | None = None) -> Any:
-    """The rule named ``teacher``; ``shadow_gate_db`` turns on the aoa rule's shadow gate."""
+def make_teacher(cfg: EnvConfig, teacher: str, shadow_gate_db: float | None = None,
+                 sinr_span_db: float | None = None) -> Any:
+    """The rule named ``teacher``; ``shadow_gate_db`` turns on the aoa rule's shadow gate and
+    ``sinr_span_db`` replaces its speed span (None: the baseline's)."""
     if teacher not in BASELINES:
         raise ValueError(f"unknown teacher {teacher!r}; choose from {', '.join(BASELINES)}")
-    if shadow_gate_db is None:
+    if shadow_gate_db is None and sinr_span_db is None:
         return make_baseline(teacher, cfg)
     if teacher != "aoa":
-        raise ValueError(f"a shadow gate is a setting of the aoa teacher, not of {teacher!r}")
-    return AoaPolicy(cfg, shadow_gate_db=shadow_gate_db)
+        raise ValueError(f"a shadow gate and a speed span are settings of the aoa teacher, not of {teacher!r}")
+    span = {} if sinr_span_db is None else {"sinr_span_db": sinr_span_db}
+    return AoaPolicy(cfg, shadow_gate_db=shadow_gate_db, **span)
 
 
-def teacher_dataset(cfg: EnvConfig, teacher: str, episodes: int, seed: int,
-                    shadow_gate_db: float | None = None) -> tuple[np.ndarray, np.ndarray]:
+def teacher_dataset(cfg: EnvConfig, teacher: str, episodes: int, seed: int, shadow_gate_db: float | None = None,
+                    sinr_span_db: float | None = None) -> tuple[np.ndarray, np.ndarray]:
     """(observations, actions) float32 from ``episodes`` seeded episodes flown by the rule ``teacher``
     (``teacher_action``)."""
-    policy = make_teacher(cfg, teacher, shadow_gate_db)
+    policy = make_teacher(cfg, teacher, shadow_gate_db, sinr_span_db)
     observations, actions = [], []
     for chunk in range(math.ceil(episodes / TEACHER_ENVS)):
         n_envs = min(TEACHER_ENVS, episodes - chunk * TEACHER_ENVS)
@@ -106,9 +109,10 @@ def clone_actor(sb3_policy: Any, observations: np.ndarray, actions: np.ndarray, 
 
 
 def warm_start(sb3_policy: Any, cfg: EnvConfig, teacher: str, episodes: int, seed: int,
-               epochs: int = 20, log_std: float = -1.0, shadow_gate_db: float | None = None) -> CloneReport:
-    """Clone ``teacher`` into the policy's actor from ``episodes`` of its own flying."""
-    observations, actions = teacher_dataset(cfg, teacher, episodes, seed, shadow_gate_db)
+               epochs: int = 20, log_std: float = -1.0, shadow_gate_db: float | None = None,
+               sinr_span_db: float | None = None) -> CloneReport:
+    """Clone ``teacher`` (``make_teacher``) into the policy's actor from ``episodes`` of its own flying."""
+    observations, actions = teacher_dataset(cfg, teacher, episodes, seed, shadow_gate_db, sinr_span_db)
     mse = clone_actor(sb3_policy, observations, actions, epochs=epochs, log_std=log_std, seed=seed)
     return CloneReport(teacher, len(observations), epochs, mse)
 

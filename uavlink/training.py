@@ -61,6 +61,9 @@ class TrainConfig:
     # The aoa teacher with its shadow gate (AoaPolicy): it hovers when the newest frame's mean SINR
     # beats the older frames' by more than this many dB. None: the SPEC's rule as it is.
     warm_start_shadow_gate_db: float | None = None
+    # The aoa teacher's speed span (AoaPolicy.sinr_span_db): full speed this many dB below the hover
+    # SINR. None: the baseline's.
+    warm_start_sinr_span_db: float | None = None
     seed: int = 0
     torch_threads: int = 1
     checkpoint_every_steps: int = 100_000
@@ -174,7 +177,8 @@ def train(cfg: EnvConfig, tc: TrainConfig, out: Path, run_dir: Path | None = Non
 
         cloned = warm_start(model.policy, training_env_config(cfg, tc), tc.warm_start_teacher,
                             tc.warm_start_episodes, tc.seed, log_std=tc.warm_start_log_std,
-                            shadow_gate_db=tc.warm_start_shadow_gate_db).to_dict()
+                            shadow_gate_db=tc.warm_start_shadow_gate_db,
+                            sinr_span_db=tc.warm_start_sinr_span_db).to_dict()
     if run_dir is None:
         # Without a run folder SB3 would make an empty one under the temp dir for every run.
         from stable_baselines3.common.logger import Logger

@@ -122,7 +122,7 @@ class Job:
             train.pop(name, None)
         if not train["warm_start_teacher"]:  # off: its knobs change nothing (and keys stay as before)
             for name in ("warm_start_teacher", "warm_start_episodes", "warm_start_log_std",
-                         "warm_start_critic_rollouts", "warm_start_shadow_gate_db"):
+                         "warm_start_critic_rollouts", "warm_start_shadow_gate_db", "warm_start_sinr_span_db"):
                 train.pop(name)
         train = {k: v for k, v in train.items() if v is not None}  # None: an optional feature left off
         return {"format": JOB_FORMAT, "env": self.env_config().to_dict(), "train": train,
