@@ -15,7 +15,12 @@ the metric the table reports; on ``hotspot`` the two part ways (docs/design.md).
 As a bound on what any gate could gain, the rule gated on the links' true mean shadowing (hover
 while it is above a threshold), which no GPS-free policy can read.
 
-    python benchmarks/aoa_teacher_search.py [--scenarios ...] [--episodes 100] [--seed 1] [--json]
+With ``--clone EPISODESxEPOCHS ...`` it also fits a fresh PPO actor to the pick as the sweep's warm
+start does (no AoA noise, log std -3; imports torch) from that many teacher episodes and epochs, and
+flies the copy deterministically on the same validation episodes: how close the copy PPO starts from is.
+
+    python benchmarks/aoa_teacher_search.py [--scenarios ...] [--episodes 100] [--seed 1]
+                                            [--clone 256x20 1024x80] [--json]
 """
 
 from __future__ import annotations
@@ -83,6 +88,29 @@ def true_shadow_gate(cfg: EnvConfig, threshold_db: float, episodes: int, seed: i
     return [round(float(np.mean(rates)), 3), round(float(np.mean(fairs)), 3)]
 
 
+def clone_of(cfg: EnvConfig, pick: dict[str, Any], teacher_episodes: int, epochs: int, episodes: int,
+             seed: int) -> dict[str, Any]:
+    """The pick copied into a fresh PPO actor (``uavlink.imitation.warm_start``), flown on the
+    validation episodes: Mbps, R_fair and the cloning's final mean squared error."""
+    # aoa_rule_effects is a sibling script: benchmarks/ is on the path when this one runs
+    from aoa_rule_effects import ClonedActor
+
+    from uavlink.imitation import warm_start
+    from uavlink.training import TrainConfig, make_model
+
+    model = make_model(cfg, TrainConfig(warm_start_teacher="aoa"), None)
+    report = warm_start(model.policy, cfg, "aoa", teacher_episodes, 0, epochs=epochs, log_std=-3.0,
+                        shadow_gate_db=pick["shadow_gate_db"], sinr_span_db=pick["sinr_span_db"])
+    result = evaluate_policy(ClonedActor(model), cfg, episodes=episodes, seed=seed)
+    return {"teacher_episodes": teacher_episodes, "epochs": epochs, "mse": round(report.final_mse, 5),
+            "mbps": round(result.mean_rate_mbps, 3), "r_fair": round(result.mean_fair_rate, 3)}
+
+
+def clone_arg(text: str) -> tuple[int, int]:
+    episodes, _, epochs = text.partition("x")
+    return int(episodes), int(epochs)
+
+
 def gate_arg(text: str) -> float | None:
     return None if text == "off" else float(text)
 
@@ -100,11 +128,17 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--spans-db", nargs="+", type=float, default=list(SPANS_DB))
     parser.add_argument("--gates-db", nargs="+", type=gate_arg, default=list(GATES_DB), help="dB, or off")
     parser.add_argument("--top", type=int, default=5, help="variants listed per scenario, by R_fair")
+    parser.add_argument("--clone", nargs="*", type=clone_arg, default=[], metavar="EPISODESxEPOCHS",
+                        help="also copy the pick into a PPO actor this way and fly the copy")
     parser.add_argument("--json", action="store_true", help="print JSON")
     args = parser.parse_args(argv)
     result = {"episodes": args.episodes, "seed": args.seed,
               "scenarios": {s: search(s, tuple(args.spans_db), tuple(args.gates_db), args.episodes, args.seed)
                             for s in args.scenarios}}
+    for scenario, row in result["scenarios"].items():
+        if row["pick"] is not None and args.clone:
+            row["clones_of_pick"] = [clone_of(EnvConfig(scenario=scenario), row["pick"], teacher_episodes, epochs,
+                                              args.episodes, args.seed) for teacher_episodes, epochs in args.clone]
     if args.json:
         print(json.dumps(result, indent=2))
         return 0
@@ -118,6 +152,9 @@ def main(argv: list[str] | None = None) -> int:
             print(f"| {variant_name(v)} | {v['mbps']:.3f} | {v['r_fair']:.3f} | {v['d_r_fair'][0]:+.3f} ± "
                   f"{v['d_r_fair'][1]:.3f} | {v['d_mbps_pct'][0]:+.2f} ± {v['d_mbps_pct'][1]:.2f} |")
         print("pick: " + ("none loses no throughput" if row["pick"] is None else variant_name(row["pick"])))
+        for c in row.get("clones_of_pick", []):
+            print(f"copy of the pick, {c['teacher_episodes']} episodes x {c['epochs']} epochs: "
+                  f"{c['mbps']:.3f} Mbps, R_fair {c['r_fair']:.3f} (mse {c['mse']:.5f})")
         print("true-shadow gate (privileged bound), Mbps / R_fair: " + ", ".join(
             f"> {t} dB {m:.3f} / {f:.3f}" for t, (m, f) in row["true_shadow_gate_mbps_r_fair"].items()))
     return 0

@@ -47,7 +47,7 @@ def test_residual_composition_stays_a_legal_move() -> None:
 
 def test_teacher_search_compares_variants_with_the_rule_and_picks_one_that_loses_no_throughput() -> None:
     result = run_json("aoa_teacher_search.py", "--scenarios", "straight_180", "--episodes", "8",
-                      "--spans-db", "10", "4", "--gates-db", "off", "0")
+                      "--spans-db", "10", "4", "--gates-db", "off", "0", "--clone", "4x2")
     row = result["scenarios"]["straight_180"]
     assert len(row["variants"]) == 4
     baseline = next(v for v in row["variants"] if v["sinr_span_db"] == 10 and v["shadow_gate_db"] is None)
@@ -57,3 +57,5 @@ def test_teacher_search_compares_variants_with_the_rule_and_picks_one_that_loses
     assert pick["d_mbps_pct"][0] >= 0.0
     assert all(pick["d_r_fair"][0] >= v["d_r_fair"][0] for v in row["variants"] if v["d_mbps_pct"][0] >= 0.0)
     assert set(row["true_shadow_gate_mbps_r_fair"]) == {"0", "1.5", "3", "4.5"}
+    (clone,) = row["clones_of_pick"]
+    assert (clone["teacher_episodes"], clone["epochs"]) == (4, 2) and np.isfinite(clone["mbps"])

@@ -98,14 +98,17 @@ def test_gated_teacher_and_its_settings(tmp_path: Path, capsys) -> None:
     for flag in ("--warm-start-shadow-gate-db", "--warm-start-sinr-span-db"):
         assert main(["train", "--scenario", "straight_180", "--out", str(tmp_path / "x.zip"), flag, "2"]) == 2
         assert "needs --warm-start aoa" in capsys.readouterr().err and not (tmp_path / "x.zip").exists()
-    assert main(["train", "--scenario", "straight_180", "--out", str(tmp_path / "x.zip"), "--warm-start", "aoa",
-                 "--warm-start-sinr-span-db", "0"]) == 2
-    assert "must be positive" in capsys.readouterr().err and not (tmp_path / "x.zip").exists()
+    for flag in ("--warm-start-sinr-span-db", "--warm-start-epochs"):
+        assert main(["train", "--scenario", "straight_180", "--out", str(tmp_path / "x.zip"), "--warm-start", "aoa",
+                     flag, "0"]) == 2
+        assert "must be positive" in capsys.readouterr().err and not (tmp_path / "x.zip").exists()
     out = tmp_path / "gated.zip"
     assert main(["train", "--scenario", "straight_180", "--out", str(out), "--episodes", "4", "--n-envs", "4",
                  "--batch-size", "128", "--warm-start", "aoa", "--warm-start-episodes", "4",
                  "--warm-start-shadow-gate-db", "0.5", "--warm-start-sinr-span-db", "3", "--warm-start-log-std", "-3",
+                 "--warm-start-epochs", "2",
                  "--eval-episodes", "0", "--no-progress", "--run-dir", str(tmp_path / "run")]) == 0
     hyper = read_zip_manifest(out)["training"]["hyperparameters"]
     assert hyper["warm_start_shadow_gate_db"] == 0.5 and hyper["warm_start_log_std"] == -3.0
-    assert hyper["warm_start_sinr_span_db"] == 3.0
+    assert hyper["warm_start_sinr_span_db"] == 3.0 and hyper["warm_start_epochs"] == 2
+    assert read_zip_manifest(out)["training"]["warm_start"]["epochs"] == 2

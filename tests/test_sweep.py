@@ -220,6 +220,9 @@ BAD_SPECS = [
     ("[scenario_train.circular]\nepisodes = 4\n", "'circular'"),  # not one of the sweep's scenarios
     ("[scenario_train.straight]\nradio.shadowing = false\n", "radio.shadowing"),  # train fields only
     ("[scenario_train.straight]\nn_envs = 0\n", "train.n_envs"),
+    ("[train]\nwarm_start_epochs = 8.5\n", "warm_start_epochs"),  # optional, but an integer
+    ("[train]\nwarm_start_epochs = 0\n", "warm_start_epochs"),
+    ("[train]\nwarm_start_sinr_span_db = 0\n", "warm_start_sinr_span_db"),
     ("[scenario_train.straight]\nlearning_rate = 1e-4\n[grid]\nlearning_rate = [1e-4]\n", "'learning_rate'"),
 ]
 
@@ -257,12 +260,15 @@ def test_scenario_train_overrides_reach_only_their_scenario() -> None:
     base = {"name": "a", "scenarios": ["straight", "hotspot"], "seeds": [0], "train": {"episodes": 4}}
     plain = {j.scenario: j for j in parse_spec(base).jobs()}
     spec = parse_spec({**base, "scenario_train": {"hotspot": {"n_envs": 8, "warm_start_teacher": "aoa",
-                                                              "warm_start_shadow_gate_db": 1}}})
+                                                              "warm_start_shadow_gate_db": 1,
+                                                              "warm_start_epochs": 80}}})
     jobs = {j.scenario: j for j in spec.jobs()}
     assert jobs["straight"].key == plain["straight"].key  # untouched scenario: same job
     hotspot = jobs["hotspot"].train_config()
     assert jobs["hotspot"].key != plain["hotspot"].key
     assert (hotspot.n_envs, hotspot.episodes, hotspot.warm_start_shadow_gate_db) == (8, 4, 1.0)
+    assert hotspot.warm_start_epochs == 80 and isinstance(hotspot.warm_start_epochs, int)
+    assert isinstance(hotspot.warm_start_shadow_gate_db, float)  # an optional number: 1 becomes 1.0
     assert jobs["straight"].train_config().n_envs == 32
 
 

@@ -131,11 +131,14 @@ def cmd_train(args: argparse.Namespace) -> int:
                      n_envs=args.n_envs, batch_size=args.batch_size, n_epochs=args.n_epochs,
                      torch_threads=args.torch_threads, aoa_noise_max_deg=args.aoa_noise_max_deg,
                      warm_start_teacher=args.warm_start, warm_start_episodes=args.warm_start_episodes,
+                     warm_start_epochs=args.warm_start_epochs,
                      warm_start_log_std=args.warm_start_log_std,
                      warm_start_shadow_gate_db=args.warm_start_shadow_gate_db,
                      warm_start_sinr_span_db=args.warm_start_sinr_span_db)
-    if args.episodes < 1 or args.n_envs < 1 or args.batch_size < 1 or args.warm_start_episodes < 1:
-        raise UserError("--episodes, --n-envs, --batch-size and --warm-start-episodes must be positive")
+    counts = (args.episodes, args.n_envs, args.batch_size, args.warm_start_episodes, args.warm_start_epochs)
+    if any(count is not None and count < 1 for count in counts):
+        raise UserError("--episodes, --n-envs, --batch-size, --warm-start-episodes and --warm-start-epochs "
+                        "must be positive")
     for flag, value in (("--warm-start-shadow-gate-db", args.warm_start_shadow_gate_db),
                         ("--warm-start-sinr-span-db", args.warm_start_sinr_span_db)):
         if value is not None and args.warm_start != "aoa":
@@ -286,6 +289,8 @@ def build_parser() -> argparse.ArgumentParser:
                         "(ours; e.g. aoa, as the shipped policies; default: off, the paper's PPO from scratch)")
     p.add_argument("--warm-start-episodes", type=int, default=256,
                    help="episodes the rule flies to make the cloning data (default 256)")
+    p.add_argument("--warm-start-epochs", type=int, default=None, metavar="N",
+                   help="passes of the actor over the cloning data (default 20)")
     p.add_argument("--warm-start-log-std", type=float, default=-1.0,
                    help="exploration log std PPO starts from after the cloning (default -1)")
     p.add_argument("--warm-start-shadow-gate-db", type=float, default=None, metavar="DB",

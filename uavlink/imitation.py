@@ -25,6 +25,7 @@ from uavlink.env.core import BatchedUavEnv
 from uavlink.policies.baselines import BASELINES, AoaPolicy, make_baseline
 
 TEACHER_ENVS = 64  # envs per teacher rollout batch
+CLONE_EPOCHS = 20  # passes over the cloning data unless TrainConfig.warm_start_epochs says otherwise
 
 
 @dataclass(frozen=True)
@@ -81,7 +82,7 @@ def teacher_dataset(cfg: EnvConfig, teacher: str, episodes: int, seed: int, shad
     return np.concatenate(observations).astype(np.float32), np.concatenate(actions).astype(np.float32)
 
 
-def clone_actor(sb3_policy: Any, observations: np.ndarray, actions: np.ndarray, epochs: int = 20,
+def clone_actor(sb3_policy: Any, observations: np.ndarray, actions: np.ndarray, epochs: int = CLONE_EPOCHS,
                 batch_size: int = 1024, learning_rate: float = 1e-3, log_std: float = -1.0,
                 seed: int = 0) -> float:
     """Fit the SB3 policy's actor mean to ``actions`` (MSE, Adam) and set its log std; returns the
@@ -109,7 +110,7 @@ def clone_actor(sb3_policy: Any, observations: np.ndarray, actions: np.ndarray, 
 
 
 def warm_start(sb3_policy: Any, cfg: EnvConfig, teacher: str, episodes: int, seed: int,
-               epochs: int = 20, log_std: float = -1.0, shadow_gate_db: float | None = None,
+               epochs: int = CLONE_EPOCHS, log_std: float = -1.0, shadow_gate_db: float | None = None,
                sinr_span_db: float | None = None) -> CloneReport:
     """Clone ``teacher`` (``make_teacher``) into the policy's actor from ``episodes`` of its own flying."""
     observations, actions = teacher_dataset(cfg, teacher, episodes, seed, shadow_gate_db, sinr_span_db)

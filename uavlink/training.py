@@ -56,6 +56,7 @@ class TrainConfig:
     # warm_start_critic_rollouts rollouts (the actor frozen) and trains as usual after that.
     warm_start_teacher: str = ""
     warm_start_episodes: int = 256
+    warm_start_epochs: int | None = None  # passes over the cloning data; None: imitation.CLONE_EPOCHS (20)
     warm_start_log_std: float = -1.0
     warm_start_critic_rollouts: int = 10  # PPO updates with the actor frozen, fitting the critic
     # The aoa teacher with its shadow gate (AoaPolicy): it hovers when the newest frame's mean SINR
@@ -173,10 +174,11 @@ def train(cfg: EnvConfig, tc: TrainConfig, out: Path, run_dir: Path | None = Non
     start = time.perf_counter()  # the wall time counts the warm start too
     cloned = None
     if tc.warm_start_teacher and resume is None:
-        from uavlink.imitation import warm_start
+        from uavlink.imitation import CLONE_EPOCHS, warm_start
 
+        epochs = CLONE_EPOCHS if tc.warm_start_epochs is None else tc.warm_start_epochs
         cloned = warm_start(model.policy, training_env_config(cfg, tc), tc.warm_start_teacher,
-                            tc.warm_start_episodes, tc.seed, log_std=tc.warm_start_log_std,
+                            tc.warm_start_episodes, tc.seed, epochs=epochs, log_std=tc.warm_start_log_std,
                             shadow_gate_db=tc.warm_start_shadow_gate_db,
                             sinr_span_db=tc.warm_start_sinr_span_db).to_dict()
     if run_dir is None:

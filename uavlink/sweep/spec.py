@@ -27,6 +27,7 @@ file, on any machine, and changes whenever anything that could change its figure
 from __future__ import annotations
 
 import dataclasses
+import typing
 import hashlib
 import itertools
 import json
@@ -63,9 +64,13 @@ class SweepSpecError(ValueError):
 
 
 def _train_defaults() -> dict[str, Any]:
+    """Default of every TrainConfig field; an optional integer (default None) stands as 0, so that
+    ``_coerce`` checks its values as integers (other optional fields are numbers)."""
     from uavlink.training import TrainConfig  # numpy only; torch is imported by train()
 
-    return {f.name: getattr(TrainConfig(), f.name) for f in dataclasses.fields(TrainConfig)}
+    hints = typing.get_type_hints(TrainConfig)
+    defaults = {f.name: getattr(TrainConfig(), f.name) for f in dataclasses.fields(TrainConfig)}
+    return {name: 0 if value is None and hints[name] == int | None else value for name, value in defaults.items()}
 
 
 def _env_defaults() -> dict[str, Any]:
@@ -121,7 +126,7 @@ class Job:
         for name in ("torch_threads", "checkpoint_every_steps", "extra"):
             train.pop(name, None)
         if not train["warm_start_teacher"]:  # off: its knobs change nothing (and keys stay as before)
-            for name in ("warm_start_teacher", "warm_start_episodes", "warm_start_log_std",
+            for name in ("warm_start_teacher", "warm_start_episodes", "warm_start_epochs", "warm_start_log_std",
                          "warm_start_critic_rollouts", "warm_start_shadow_gate_db", "warm_start_sinr_span_db"):
                 train.pop(name)
         train = {k: v for k, v in train.items() if v is not None}  # None: an optional feature left off
@@ -384,7 +389,8 @@ _TRAIN_RANGES: dict[str, tuple[float, float, bool]] = {  # field: (low, high, lo
     "n_epochs": (1, float("inf"), True), "learning_rate": (0, float("inf"), False),
     "gamma": (0, 1, False), "gae_lambda": (0, 1, True), "max_grad_norm": (0, float("inf"), False),
     "clip_range": (0, float("inf"), False), "ent_coef": (0, float("inf"), True),
-    "vf_coef": (0, float("inf"), True),
+    "vf_coef": (0, float("inf"), True), "warm_start_episodes": (1, float("inf"), True),
+    "warm_start_epochs": (1, float("inf"), True), "warm_start_sinr_span_db": (0, float("inf"), False),
 }
 
 
