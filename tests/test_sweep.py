@@ -169,6 +169,12 @@ def test_sweep_on_scheduler_and_two_workers(tmp_path: Path, cluster_factory, cap
         seeds = {int(s): v for s, v in manifest["selection"]["seeds_mbps"].items()}
         assert manifest["selection"]["seed"] == min(seeds, key=lambda s: (seeds[s], s))  # lower median of 2
         assert zipfile.is_zipfile(policies / f"{scenario}.zip")
+    # Shipping again writes the same bytes: re-shipped policies show no diff in git.
+    shipped = {p.name: p.read_bytes() for p in policies.iterdir()}
+    time.sleep(2.1)  # zip timestamps have a 2 s resolution
+    assert main(["sweep", str(sweep_file), "--out-root", str(out), "--workers", "0", "--no-progress",
+                 "--policies-out", str(policies)]) == 0
+    assert {p.name: p.read_bytes() for p in policies.iterdir()} == shipped
 
 
 @pytest.mark.timeout(120)

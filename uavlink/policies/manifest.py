@@ -80,12 +80,16 @@ def read_zip_manifest(path: Path) -> dict[str, Any]:
 def write_zip_manifest(path: Path, manifest: dict[str, Any]) -> None:
     """Add (or replace) the manifest inside a zip, and write it beside the zip as JSON for readers."""
     with zipfile.ZipFile(path) as archive:
-        entries = {n: archive.read(n) for n in archive.namelist() if n != MANIFEST_NAME}
+        entries = [(info, archive.read(info)) for info in archive.infolist() if info.filename != MANIFEST_NAME]
+    # Entries keep their own timestamps and the manifest takes the newest of them, not the clock:
+    # the same policy and manifest give the same bytes (a re-shipped policy shows no diff).
+    stamp = max((info.date_time for info, _ in entries), default=(1980, 1, 1, 0, 0, 0))
     tmp = path.with_suffix(path.suffix + ".tmp")
     with zipfile.ZipFile(tmp, "w", zipfile.ZIP_DEFLATED) as archive:
-        for name, data in entries.items():
-            archive.writestr(name, data)
-        archive.writestr(MANIFEST_NAME, json.dumps(manifest, indent=2, sort_keys=True))
+        for info, data in entries:
+            archive.writestr(info, data)
+        archive.writestr(zipfile.ZipInfo(MANIFEST_NAME, stamp), json.dumps(manifest, indent=2, sort_keys=True),
+                         compress_type=zipfile.ZIP_DEFLATED)
     tmp.replace(path)
     path.with_suffix(".json").write_text(json.dumps(manifest, indent=2, sort_keys=True) + "\n")
 
