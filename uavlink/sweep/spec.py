@@ -27,12 +27,12 @@ file, on any machine, and changes whenever anything that could change its figure
 from __future__ import annotations
 
 import dataclasses
-import typing
 import hashlib
 import itertools
 import json
 import re
 import sys
+import typing
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
