@@ -161,3 +161,31 @@ def test_results_folder_has_the_tables_and_figures_and_is_reproducible(tmp_path)
     # seeded: the same command gives the same tables and raw results
     for name in ("table1.csv", "table2.csv", "results.json"):
         assert (a / name).read_bytes() == (b / name).read_bytes(), name
+
+
+def test_evaluate_against_pairs_two_policies_on_the_same_episodes():
+    proc = uavlink("evaluate", "--scenario", "hotspot", "--policy", "aoa", "--against", "static",
+                   "--episodes", "6", "--seed", "3", "--json")
+    assert proc.returncode == 0, proc.stderr
+    payload = json.loads(proc.stdout)
+    aoa, static = payload["results"]
+    (comparison,) = payload["comparisons"]
+    assert (aoa["policy"], static["policy"]) == ("aoa", "static") and comparison["episodes"] == 6
+    assert comparison["throughput_ratio"] == pytest.approx(aoa["mean_rate_mbps"] / static["mean_rate_mbps"], rel=1e-5)
+    lo, hi = comparison["throughput_ratio_ci95"]
+    assert lo <= comparison["throughput_ratio"] <= hi
+    assert comparison["fair_rate_difference"] == pytest.approx(aoa["mean_fair_rate"] - static["mean_fair_rate"], abs=1e-5)
+    won = sum(a > s for a, s in zip(aoa["episode_rate_mbps"], static["episode_rate_mbps"], strict=True))
+    assert comparison["a_better_episodes"] == won
+
+    # A policy against itself: the same episodes, so a ratio of exactly 1 and no spread.
+    proc = uavlink("evaluate", "--scenario", "straight", "--policy", "aoa", "--against", "aoa", "--episodes", "4")
+    assert proc.returncode == 0, proc.stderr
+    assert "straight: aoa vs aoa: throughput +0.00 % [+0.00, +0.00]" in proc.stdout
+    assert "better in 0 of 4 episodes" in proc.stdout
+
+
+def test_evaluate_against_refuses_the_results_folder(tmp_path: Path):
+    assert_user_error(uavlink("evaluate", "--scenario", "all", "--policy", "policies", "--against", "aoa",
+                              "--out", str(tmp_path / "out")), "--against")
+    assert not (tmp_path / "out").exists()

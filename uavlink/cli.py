@@ -65,21 +65,32 @@ def _add_env_options(p: argparse.ArgumentParser, scenario_default: str | None = 
 
 
 def cmd_evaluate(args: argparse.Namespace) -> int:
-    from uavlink.evaluation import evaluate_policy
+    from uavlink.evaluation import compare, evaluate_policy
     from uavlink.policies.loader import load_policy
 
     if args.out is not None:
+        if args.against is not None:
+            raise UserError("--against compares two policies in a table; it does not go with --out")
         return _write_results_folder(args)
-    results = []
+    results, comparisons = [], []
     for scenario in scenario_list(args.scenario):
         cfg = env_config(scenario, args.aoa_noise_deg, parse_overrides(args.overrides))
-        policy = load_policy(args.policy, cfg)
-        results.append(evaluate_policy(policy, cfg, args.episodes, args.seed))
+        result = evaluate_policy(load_policy(args.policy, cfg), cfg, args.episodes, args.seed)
+        results.append(result)
+        if args.against is not None:
+            other = evaluate_policy(load_policy(args.against, cfg), cfg, args.episodes, args.seed)
+            results.append(other)
+            comparisons.append(compare(result, other))
     if args.json:
         payload = [r.to_dict() for r in results]
-        print(json.dumps(payload[0] if len(payload) == 1 else payload, indent=2))
+        if comparisons:
+            print(json.dumps({"results": payload, "comparisons": [c.to_dict() for c in comparisons]}, indent=2))
+        else:
+            print(json.dumps(payload[0] if len(payload) == 1 else payload, indent=2))
     else:
         print(format_table(results))
+        for comparison in comparisons:
+            print(comparison.describe())
     return 0
 
 
@@ -259,6 +270,9 @@ def build_parser() -> argparse.ArgumentParser:
                        description="Evaluate a policy file, a folder of them, or a baseline (static, aoa, oracle).")
     _add_env_options(p, scenario_default="circular")
     p.add_argument("--policy", default="static", help="static | aoa | oracle | FILE.zip | FILE.onnx | FOLDER")
+    p.add_argument("--against", default=None, metavar="POLICY",
+                   help="also fly this policy (same forms) on the same episodes and print the paired "
+                        "throughput ratio with its 95 %% interval, the R_fair difference and the episodes won")
     p.add_argument("--episodes", type=int, default=100)
     p.add_argument("--seed", type=int, default=0)
     p.add_argument("--json", action="store_true", help="print JSON instead of a table")

@@ -95,3 +95,48 @@ def evaluate_policy(policy: Policy, cfg: EnvConfig, episodes: int = 100, seed: i
             trajectory = Trajectory(np.array(uav), np.array(ue), np.array(frame_rates)[:, 0])
     return EvalResult(cfg.scenario, policy.name, episodes, seed, cfg.radio.aoa_noise_deg,
                       np.concatenate(rates), np.concatenate(fairs), trajectory)
+
+
+def paired_ratio_ci(num: np.ndarray, den: np.ndarray, n_boot: int = 2000) -> tuple[float, float, float]:
+    """mean(num)/mean(den) with a 95 % paired-bootstrap interval (episodes share seeds)."""
+    rng = np.random.default_rng(0)
+    idx = rng.integers(0, len(num), size=(n_boot, len(num)))
+    ratios = num[idx].mean(axis=1) / den[idx].mean(axis=1)
+    lo, hi = np.percentile(ratios, [2.5, 97.5])
+    return float(num.mean() / den.mean()), float(lo), float(hi)
+
+
+@dataclass(frozen=True)
+class PairedComparison:
+    """Policy ``a`` against policy ``b`` over the same seeded episodes."""
+
+    scenario: str
+    a: str
+    b: str
+    episodes: int
+    throughput_ratio: tuple[float, float, float]  # mean(a)/mean(b), 95 % paired-bootstrap interval
+    fair_rate_difference: float  # mean R_fair of a minus that of b
+    a_better_episodes: int  # episodes where a's throughput beats b's
+
+    def describe(self) -> str:
+        ratio, lo, hi = self.throughput_ratio
+        return (f"{self.scenario}: {self.a} vs {self.b}: throughput {100 * (ratio - 1):+.2f} % "
+                f"[{100 * (lo - 1):+.2f}, {100 * (hi - 1):+.2f}] (95 %, paired over {self.episodes} episodes), "
+                f"R_fair {self.fair_rate_difference:+.3f}, better in {self.a_better_episodes} of {self.episodes} episodes")
+
+    def to_dict(self) -> dict[str, Any]:
+        ratio, lo, hi = self.throughput_ratio
+        return {"scenario": self.scenario, "a": self.a, "b": self.b, "episodes": self.episodes,
+                "throughput_ratio": round(ratio, 6), "throughput_ratio_ci95": [round(lo, 6), round(hi, 6)],
+                "fair_rate_difference": round(self.fair_rate_difference, 6),
+                "a_better_episodes": self.a_better_episodes}
+
+
+def compare(a: EvalResult, b: EvalResult) -> PairedComparison:
+    """Pair two evaluations episode by episode; they must have flown the same episodes."""
+    if (a.scenario, a.episodes, a.seed, a.aoa_noise_deg) != (b.scenario, b.episodes, b.seed, b.aoa_noise_deg):
+        raise ValueError(f"cannot pair {a.policy!r} and {b.policy!r}: they flew different episodes")
+    return PairedComparison(a.scenario, a.policy, b.policy, a.episodes,
+                            paired_ratio_ci(a.episode_rate_mbps, b.episode_rate_mbps),
+                            a.mean_fair_rate - b.mean_fair_rate,
+                            int((a.episode_rate_mbps > b.episode_rate_mbps).sum()))

@@ -16,7 +16,7 @@ from pathlib import Path
 import numpy as np
 
 from uavlink.config import EnvConfig
-from uavlink.evaluation import EvalResult, evaluate_policy
+from uavlink.evaluation import EvalResult, evaluate_policy, paired_ratio_ci
 from uavlink.mobility import SCENARIOS
 from uavlink.policies.baselines import make_baseline
 from uavlink.policies.loader import load_policy, policy_for_scenario
@@ -27,15 +27,6 @@ PAPER_TABLE_ONE = {
     "straight_90": (6.27, 5.33), "straight_180": (5.91, 5.31), "hotspot": (5.19, 4.77),
 }
 PAPER_TABLE_TWO = {0: 7.87, 1: 7.84, 5: 7.82, 10: 7.80, 50: 7.70, 100: 7.16}
-
-
-def paired_ratio_ci(num: np.ndarray, den: np.ndarray, n_boot: int = 2000) -> tuple[float, float, float]:
-    """mean(num)/mean(den) with a 95 % paired-bootstrap interval (episodes share seeds)."""
-    rng = np.random.default_rng(0)
-    idx = rng.integers(0, len(num), size=(n_boot, len(num)))
-    ratios = num[idx].mean(axis=1) / den[idx].mean(axis=1)
-    lo, hi = np.percentile(ratios, [2.5, 97.5])
-    return float(num.mean() / den.mean()), float(lo), float(hi)
 
 
 @dataclass
