@@ -32,10 +32,9 @@ import itertools
 import json
 import re
 import sys
-import typing
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any
+from typing import Any, get_type_hints
 
 from uavlink.config import AreaConfig, EnvConfig, RadioConfig
 
@@ -68,7 +67,7 @@ def _train_defaults() -> dict[str, Any]:
     ``_coerce`` checks its values as integers (other optional fields are numbers)."""
     from uavlink.training import TrainConfig  # numpy only; torch is imported by train()
 
-    hints = typing.get_type_hints(TrainConfig)
+    hints = get_type_hints(TrainConfig)
     defaults = {f.name: getattr(TrainConfig(), f.name) for f in dataclasses.fields(TrainConfig)}
     return {name: 0 if value is None and hints[name] == int | None else value for name, value in defaults.items()}
 
