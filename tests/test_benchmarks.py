@@ -47,15 +47,20 @@ def test_residual_composition_stays_a_legal_move() -> None:
 
 def test_teacher_search_compares_variants_with_the_rule_and_picks_one_that_loses_no_throughput() -> None:
     result = run_json("aoa_teacher_search.py", "--scenarios", "straight_180", "--episodes", "8",
-                      "--spans-db", "10", "4", "--gates-db", "off", "0", "--clone", "4x2")
+                      "--spans-db", "10", "4", "--jump-gates-db", "0", "--estimate-gates-db", "1",
+                      "--estimator-episodes", "16", "--clone", "4x2")
     row = result["scenarios"]["straight_180"]
-    assert len(row["variants"]) == 4
-    baseline = next(v for v in row["variants"] if v["sinr_span_db"] == 10 and v["shadow_gate_db"] is None)
+    assert len(row["variants"]) == 6 and {v["gate_on"] for v in row["variants"]} == {"off", "jump", "estimate"}
+    assert 0.0 < row["shadow_estimator_r2"] < 1.0
+    baseline = next(v for v in row["variants"] if v["sinr_span_db"] == 10 and v["gate_on"] == "off")
     assert baseline["d_r_fair"] == [0.0, 0.0] and baseline["d_mbps_pct"] == [0.0, 0.0]  # the rule itself
     assert (baseline["mbps"], baseline["r_fair"]) == (row["rule"]["mbps"], row["rule"]["r_fair"])
+    gaining = [v for v in row["variants"] if v["d_mbps_pct"][0] - v["d_mbps_pct"][1] > 0.0]
     pick = row["pick"]
-    assert pick["d_mbps_pct"][0] >= 0.0
-    assert all(pick["d_r_fair"][0] >= v["d_r_fair"][0] for v in row["variants"] if v["d_mbps_pct"][0] >= 0.0)
+    if not gaining:
+        assert pick is None
+    else:
+        assert pick in gaining and all(pick["d_r_fair"][0] >= v["d_r_fair"][0] for v in gaining)
     assert set(row["true_shadow_gate_mbps_r_fair"]) == {"0", "1.5", "3", "4.5"}
     (clone,) = row["clones_of_pick"]
     assert (clone["teacher_episodes"], clone["epochs"]) == (4, 2) and np.isfinite(clone["mbps"])

@@ -88,17 +88,21 @@ def test_gated_teacher_and_its_settings(tmp_path: Path, capsys) -> None:
     to aoa only, and `uavlink train` records them (and the exploration std PPO restarts from) in the
     manifest."""
     cfg = EnvConfig(scenario="straight_180")
-    obs, actions = teacher_dataset(cfg, "aoa", episodes=2, seed=3, shadow_gate_db=0.0, sinr_span_db=2.0)
+    obs, actions = teacher_dataset(cfg, make_teacher(cfg, "aoa", shadow_gate_db=0.0, sinr_span_db=2.0),
+                                   episodes=2, seed=3)
     np.testing.assert_allclose(actions, AoaPolicy(cfg, sinr_span_db=2.0, shadow_gate_db=0.0).act(obs), atol=1e-6)
     assert (np.abs(actions).sum(axis=1) == 0).any()  # the gate made it hover somewhere
     assert not np.allclose(actions, AoaPolicy(cfg, shadow_gate_db=0.0).act(obs), atol=1e-3)  # the span counts
-    for setting in ({"shadow_gate_db": 0.0}, {"sinr_span_db": 2.0}):
+    for setting in ({"shadow_gate_db": 0.0}, {"sinr_span_db": 2.0}, {"shadow_estimator": object()}):
         with pytest.raises(ValueError, match="aoa teacher"):
             make_teacher(cfg, "static", **setting)
-    for flag in ("--warm-start-shadow-gate-db", "--warm-start-sinr-span-db"):
+    for flag in ("--warm-start-shadow-gate-db", "--warm-start-sinr-span-db", "--warm-start-shadow-estimator-episodes"):
         assert main(["train", "--scenario", "straight_180", "--out", str(tmp_path / "x.zip"), flag, "2"]) == 2
         assert "needs --warm-start aoa" in capsys.readouterr().err and not (tmp_path / "x.zip").exists()
-    for flag in ("--warm-start-sinr-span-db", "--warm-start-epochs"):
+    assert main(["train", "--scenario", "straight_180", "--out", str(tmp_path / "x.zip"), "--warm-start", "aoa",
+                 "--warm-start-shadow-estimator-episodes", "8"]) == 2
+    assert "needs --warm-start-shadow-gate-db" in capsys.readouterr().err and not (tmp_path / "x.zip").exists()
+    for flag in ("--warm-start-sinr-span-db", "--warm-start-epochs", "--warm-start-shadow-estimator-episodes"):
         assert main(["train", "--scenario", "straight_180", "--out", str(tmp_path / "x.zip"), "--warm-start", "aoa",
                      flag, "0"]) == 2
         assert "must be positive" in capsys.readouterr().err and not (tmp_path / "x.zip").exists()
@@ -106,9 +110,11 @@ def test_gated_teacher_and_its_settings(tmp_path: Path, capsys) -> None:
     assert main(["train", "--scenario", "straight_180", "--out", str(out), "--episodes", "4", "--n-envs", "4",
                  "--batch-size", "128", "--warm-start", "aoa", "--warm-start-episodes", "4",
                  "--warm-start-shadow-gate-db", "0.5", "--warm-start-sinr-span-db", "3", "--warm-start-log-std", "-3",
-                 "--warm-start-epochs", "2",
+                 "--warm-start-epochs", "2", "--warm-start-shadow-estimator-episodes", "8",
                  "--eval-episodes", "0", "--no-progress", "--run-dir", str(tmp_path / "run")]) == 0
-    hyper = read_zip_manifest(out)["training"]["hyperparameters"]
+    training = read_zip_manifest(out)["training"]
+    hyper = training["hyperparameters"]
     assert hyper["warm_start_shadow_gate_db"] == 0.5 and hyper["warm_start_log_std"] == -3.0
     assert hyper["warm_start_sinr_span_db"] == 3.0 and hyper["warm_start_epochs"] == 2
-    assert read_zip_manifest(out)["training"]["warm_start"]["epochs"] == 2
+    assert hyper["warm_start_shadow_estimator_episodes"] == 8
+    assert training["warm_start"]["epochs"] == 2 and training["warm_start"]["shadow_estimator_r2"] < 1.0

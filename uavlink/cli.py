@@ -145,15 +145,19 @@ def cmd_train(args: argparse.Namespace) -> int:
                      warm_start_epochs=args.warm_start_epochs,
                      warm_start_log_std=args.warm_start_log_std,
                      warm_start_shadow_gate_db=args.warm_start_shadow_gate_db,
-                     warm_start_sinr_span_db=args.warm_start_sinr_span_db)
-    counts = (args.episodes, args.n_envs, args.batch_size, args.warm_start_episodes, args.warm_start_epochs)
+                     warm_start_sinr_span_db=args.warm_start_sinr_span_db,
+                     warm_start_shadow_estimator_episodes=args.warm_start_shadow_estimator_episodes)
+    counts = (args.episodes, args.n_envs, args.batch_size, args.warm_start_episodes, args.warm_start_epochs,
+              args.warm_start_shadow_estimator_episodes)
     if any(count is not None and count < 1 for count in counts):
-        raise UserError("--episodes, --n-envs, --batch-size, --warm-start-episodes and --warm-start-epochs "
-                        "must be positive")
+        raise UserError("--episodes, --n-envs, --batch-size and the --warm-start-* counts must be positive")
     for flag, value in (("--warm-start-shadow-gate-db", args.warm_start_shadow_gate_db),
-                        ("--warm-start-sinr-span-db", args.warm_start_sinr_span_db)):
+                        ("--warm-start-sinr-span-db", args.warm_start_sinr_span_db),
+                        ("--warm-start-shadow-estimator-episodes", args.warm_start_shadow_estimator_episodes)):
         if value is not None and args.warm_start != "aoa":
             raise UserError(f"{flag} needs --warm-start aoa")
+    if args.warm_start_shadow_estimator_episodes is not None and args.warm_start_shadow_gate_db is None:
+        raise UserError("--warm-start-shadow-estimator-episodes needs --warm-start-shadow-gate-db (the gate's threshold)")
     if args.warm_start_sinr_span_db is not None and args.warm_start_sinr_span_db <= 0:
         raise UserError("--warm-start-sinr-span-db must be positive")
     if args.resume is not None and not args.resume.is_file():
@@ -313,6 +317,10 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--warm-start-sinr-span-db", type=float, default=None, metavar="DB",
                    help="aoa teacher only: its speed span, full speed DB below the hover SINR "
                         "(default: the baseline's 10 dB)")
+    p.add_argument("--warm-start-shadow-estimator-episodes", type=int, default=None, metavar="N",
+                   help="aoa teacher only: gate on a shadowing estimate fitted on N simulated episodes "
+                        "(hover while the estimated mean shadowing is above --warm-start-shadow-gate-db) "
+                        "instead of on the SINR jump (ours)")
     p.add_argument("--run-dir", type=Path, default=None, help="TensorBoard logs and checkpoint (default runs/OUT-seedN)")
     p.add_argument("--resume", type=Path, default=None, help="continue from a checkpoint zip")
     p.add_argument("--eval-episodes", type=int, default=100, help="evaluate after training into the manifest (0: skip)")

@@ -51,24 +51,25 @@ def teacher_action(policy: Any, obs: np.ndarray, env: BatchedUavEnv) -> np.ndarr
 
 
 def make_teacher(cfg: EnvConfig, teacher: str, shadow_gate_db: float | None = None,
-                 sinr_span_db: float | None = None) -> Any:
-    """The rule named ``teacher``; ``shadow_gate_db`` turns on the aoa rule's shadow gate and
+                 sinr_span_db: float | None = None, shadow_estimator: Any = None) -> Any:
+    """The rule named ``teacher``. For the aoa rule, ``shadow_gate_db`` turns on its shadow gate
+    (on the SINR jump, or on ``shadow_estimator``'s estimate, ``uavlink.shadow_estimation``) and
     ``sinr_span_db`` replaces its speed span (None: the baseline's)."""
     if teacher not in BASELINES:
         raise ValueError(f"unknown teacher {teacher!r}; choose from {', '.join(BASELINES)}")
-    if shadow_gate_db is None and sinr_span_db is None:
+    if shadow_gate_db is None and sinr_span_db is None and shadow_estimator is None:
         return make_baseline(teacher, cfg)
     if teacher != "aoa":
-        raise ValueError(f"a shadow gate and a speed span are settings of the aoa teacher, not of {teacher!r}")
+        raise ValueError(f"a shadow gate, a speed span and a shadow estimator are settings of the aoa "
+                         f"teacher, not of {teacher!r}")
     span = {} if sinr_span_db is None else {"sinr_span_db": sinr_span_db}
-    return AoaPolicy(cfg, shadow_gate_db=shadow_gate_db, **span)
+    return AoaPolicy(cfg, shadow_gate_db=shadow_gate_db, shadow_estimator=shadow_estimator, **span)
 
 
-def teacher_dataset(cfg: EnvConfig, teacher: str, episodes: int, seed: int, shadow_gate_db: float | None = None,
-                    sinr_span_db: float | None = None) -> tuple[np.ndarray, np.ndarray]:
-    """(observations, actions) float32 from ``episodes`` seeded episodes flown by the rule ``teacher``
-    (``teacher_action``)."""
-    policy = make_teacher(cfg, teacher, shadow_gate_db, sinr_span_db)
+def teacher_dataset(cfg: EnvConfig, teacher: str | Any, episodes: int, seed: int) -> tuple[np.ndarray, np.ndarray]:
+    """(observations, actions) float32 from ``episodes`` seeded episodes flown by ``teacher`` (a rule's
+    name, or a policy from ``make_teacher``; ``teacher_action``)."""
+    policy = make_teacher(cfg, teacher) if isinstance(teacher, str) else teacher
     observations, actions = [], []
     for chunk in range(math.ceil(episodes / TEACHER_ENVS)):
         n_envs = min(TEACHER_ENVS, episodes - chunk * TEACHER_ENVS)
@@ -109,13 +110,14 @@ def clone_actor(sb3_policy: Any, observations: np.ndarray, actions: np.ndarray, 
     return loss_sum / len(obs_t)
 
 
-def warm_start(sb3_policy: Any, cfg: EnvConfig, teacher: str, episodes: int, seed: int,
-               epochs: int = CLONE_EPOCHS, log_std: float = -1.0, shadow_gate_db: float | None = None,
-               sinr_span_db: float | None = None) -> CloneReport:
-    """Clone ``teacher`` (``make_teacher``) into the policy's actor from ``episodes`` of its own flying."""
-    observations, actions = teacher_dataset(cfg, teacher, episodes, seed, shadow_gate_db, sinr_span_db)
+def warm_start(sb3_policy: Any, cfg: EnvConfig, teacher: str | Any, episodes: int, seed: int,
+               epochs: int = CLONE_EPOCHS, log_std: float = -1.0) -> CloneReport:
+    """Clone ``teacher`` (a rule's name, or a policy from ``make_teacher``) into the policy's actor
+    from ``episodes`` of its own flying."""
+    policy = make_teacher(cfg, teacher) if isinstance(teacher, str) else teacher
+    observations, actions = teacher_dataset(cfg, policy, episodes, seed)
     mse = clone_actor(sb3_policy, observations, actions, epochs=epochs, log_std=log_std, seed=seed)
-    return CloneReport(teacher, len(observations), epochs, mse)
+    return CloneReport(policy.name, len(observations), epochs, mse)
 
 
 def critic_warmup_callback(rollouts: int):

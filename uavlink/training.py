@@ -65,6 +65,10 @@ class TrainConfig:
     # The aoa teacher's speed span (AoaPolicy.sinr_span_db): full speed this many dB below the hover
     # SINR. None: the baseline's.
     warm_start_sinr_span_db: float | None = None
+    # Gate the aoa teacher on a shadowing estimate (uavlink/shadow_estimation.py) fitted on this many
+    # episodes, instead of on the SINR jump: it hovers while the estimated mean shadowing of the links
+    # is above warm_start_shadow_gate_db. None: the SINR jump.
+    warm_start_shadow_estimator_episodes: int | None = None
     seed: int = 0
     torch_threads: int = 1
     checkpoint_every_steps: int = 100_000
@@ -159,6 +163,25 @@ def time_to_fraction(curve: list[tuple[int, float]], fraction: float = 0.95, win
     return int(steps[window - 1 + reached[0]]) if len(reached) else None
 
 
+def _warm_start(sb3_policy: Any, cfg: EnvConfig, tc: TrainConfig) -> dict[str, Any]:
+    """Clone the teacher TrainConfig names into the actor (uavlink/imitation.py); the report."""
+    from uavlink.imitation import CLONE_EPOCHS, make_teacher, warm_start
+
+    estimator = None
+    if tc.warm_start_shadow_estimator_episodes is not None:
+        from uavlink.shadow_estimation import fit_shadow_estimator
+
+        estimator = fit_shadow_estimator(cfg, tc.warm_start_shadow_estimator_episodes, tc.seed)
+    teacher = make_teacher(cfg, tc.warm_start_teacher, tc.warm_start_shadow_gate_db, tc.warm_start_sinr_span_db,
+                           estimator)
+    epochs = CLONE_EPOCHS if tc.warm_start_epochs is None else tc.warm_start_epochs
+    report = warm_start(sb3_policy, cfg, teacher, tc.warm_start_episodes, tc.seed, epochs=epochs,
+                        log_std=tc.warm_start_log_std).to_dict()
+    if estimator is not None:
+        report["shadow_estimator_r2"] = round(estimator.r2, 4)
+    return report
+
+
 def train(cfg: EnvConfig, tc: TrainConfig, out: Path, run_dir: Path | None = None,
           resume: Path | None = None, progress: bool = True) -> dict[str, Any]:
     """Train, save ``out`` (SB3 zip with manifest) and return the manifest's training section."""
@@ -174,13 +197,7 @@ def train(cfg: EnvConfig, tc: TrainConfig, out: Path, run_dir: Path | None = Non
     start = time.perf_counter()  # the wall time counts the warm start too
     cloned = None
     if tc.warm_start_teacher and resume is None:
-        from uavlink.imitation import CLONE_EPOCHS, warm_start
-
-        epochs = CLONE_EPOCHS if tc.warm_start_epochs is None else tc.warm_start_epochs
-        cloned = warm_start(model.policy, training_env_config(cfg, tc), tc.warm_start_teacher,
-                            tc.warm_start_episodes, tc.seed, epochs=epochs, log_std=tc.warm_start_log_std,
-                            shadow_gate_db=tc.warm_start_shadow_gate_db,
-                            sinr_span_db=tc.warm_start_sinr_span_db).to_dict()
+        cloned = _warm_start(model.policy, training_env_config(cfg, tc), tc)
     if run_dir is None:
         # Without a run folder SB3 would make an empty one under the temp dir for every run.
         from stable_baselines3.common.logger import Logger

@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+from typing import Protocol
+
 import numpy as np
 
 from uavlink.config import EnvConfig
@@ -12,6 +14,13 @@ from uavlink.radio.aoa import circular_mean_std_deg, true_aoa_deg
 from uavlink.radio.noise import noise_power_dbm
 from uavlink.radio.pathloss import mean_rx_power_dbm
 from uavlink.radio.rates import fair_rate, rate_bps
+
+
+class ShadowEstimate(Protocol):
+    """Anything that estimates the links' mean shadowing (dB) from observations (N, size), such as
+    ``uavlink.shadow_estimation.ShadowEstimator``."""
+
+    def predict_db(self, obs: np.ndarray) -> np.ndarray: ...
 
 
 class StaticPolicy:
@@ -42,7 +51,8 @@ class AoaPolicy:
     name = "aoa"
     needs_truth = False
 
-    def __init__(self, cfg: EnvConfig, sinr_span_db: float = 10.0, shadow_gate_db: float | None = None) -> None:
+    def __init__(self, cfg: EnvConfig, sinr_span_db: float = 10.0, shadow_gate_db: float | None = None,
+                 shadow_estimator: ShadowEstimate | None = None) -> None:
         self.layout = ObservationLayout.for_config(cfg)
         self.mapping = ActionMapping(cfg.r_max_m, cfg.action_mapping)
         self.hover_sinr_db = float(mean_rx_power_dbm(cfg.area.uav_altitude_m, cfg.radio)
@@ -50,7 +60,10 @@ class AoaPolicy:
         self.sinr_span_db = sinr_span_db
         if shadow_gate_db is not None and cfg.memory < 2:
             raise ValueError("the aoa rule's shadow gate compares frames: it needs memory >= 2")
+        if shadow_estimator is not None and shadow_gate_db is None:
+            raise ValueError("a shadow estimator needs the gate's threshold (shadow_gate_db)")
         self.shadow_gate_db = shadow_gate_db
+        self.shadow_estimator = shadow_estimator
         self.hover = self.mapping.from_polar(0.0, 0.0)
 
     def act(self, obs: np.ndarray, truth: GroundTruth | None = None) -> np.ndarray:
@@ -70,14 +83,19 @@ class AoaPolicy:
         return self.mapping.from_polar(aoa_mean_deg, distance)
 
     def _gate(self, obs: np.ndarray, action: np.ndarray) -> np.ndarray:
-        """With ``shadow_gate_db`` set (ours, not the SPEC's rule): hover instead wherever the newest
-        frame's mean SINR beats the mean of the older frames in memory by more than the gate. Path
-        loss changes little from frame to frame, so such a jump is mostly a good shadowing draw,
-        which moving would throw away (docs/design.md)."""
+        """With ``shadow_gate_db`` set (ours, not the SPEC's rule): hover instead wherever the links
+        look favourably shadowed, a draw that moving would throw away (docs/design.md). Without an
+        estimator: where the newest frame's mean SINR beats the mean of the older frames in memory
+        by more than the gate (path loss changes little from frame to frame, so such a jump is
+        mostly a good shadowing draw). With one (``uavlink.shadow_estimation``): where the
+        estimated mean shadowing of the links is above the gate."""
         if self.shadow_gate_db is None:
             return action
-        mean_sinr_db = self.layout.sinr_db_history(obs).mean(axis=2)  # (N, memory), newest first
-        lucky = mean_sinr_db[:, 0] > mean_sinr_db[:, 1:].mean(axis=1) + self.shadow_gate_db
+        if self.shadow_estimator is not None:
+            lucky = self.shadow_estimator.predict_db(obs) > self.shadow_gate_db
+        else:
+            mean_sinr_db = self.layout.sinr_db_history(obs).mean(axis=2)  # (N, memory), newest first
+            lucky = mean_sinr_db[:, 0] > mean_sinr_db[:, 1:].mean(axis=1) + self.shadow_gate_db
         return np.where(lucky[:, None], self.hover, action)
 
 

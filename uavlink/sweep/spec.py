@@ -125,9 +125,7 @@ class Job:
         for name in ("torch_threads", "checkpoint_every_steps", "extra"):
             train.pop(name, None)
         if not train["warm_start_teacher"]:  # off: its knobs change nothing (and keys stay as before)
-            for name in ("warm_start_teacher", "warm_start_episodes", "warm_start_epochs", "warm_start_log_std",
-                         "warm_start_critic_rollouts", "warm_start_shadow_gate_db", "warm_start_sinr_span_db"):
-                train.pop(name)
+            train = {k: v for k, v in train.items() if not k.startswith("warm_start_")}
         train = {k: v for k, v in train.items() if v is not None}  # None: an optional feature left off
         return {"format": JOB_FORMAT, "env": self.env_config().to_dict(), "train": train,
                 "eval": {**self.eval, "policies": ["ppo", *BASELINE_COLUMNS]}}
@@ -390,6 +388,7 @@ _TRAIN_RANGES: dict[str, tuple[float, float, bool]] = {  # field: (low, high, lo
     "clip_range": (0, float("inf"), False), "ent_coef": (0, float("inf"), True),
     "vf_coef": (0, float("inf"), True), "warm_start_episodes": (1, float("inf"), True),
     "warm_start_epochs": (1, float("inf"), True), "warm_start_sinr_span_db": (0, float("inf"), False),
+    "warm_start_shadow_estimator_episodes": (1, float("inf"), True),
 }
 
 
