@@ -22,7 +22,7 @@ import numpy as np
 
 from uavlink.config import EnvConfig
 from uavlink.env.core import BatchedUavEnv
-from uavlink.policies.baselines import BASELINES, AoaPolicy, make_baseline
+from uavlink.policies.baselines import BASELINES, AoaPolicy, ShadowEstimate, make_baseline
 
 TEACHER_ENVS = 64  # envs per teacher rollout batch
 CLONE_EPOCHS = 20  # passes over the cloning data unless TrainConfig.warm_start_epochs says otherwise
@@ -51,7 +51,7 @@ def teacher_action(policy: Any, obs: np.ndarray, env: BatchedUavEnv) -> np.ndarr
 
 
 def make_teacher(cfg: EnvConfig, teacher: str, shadow_gate_db: float | None = None,
-                 sinr_span_db: float | None = None, shadow_estimator: Any = None) -> Any:
+                 sinr_span_db: float | None = None, shadow_estimator: ShadowEstimate | None = None) -> Any:
     """The rule named ``teacher``. For the aoa rule, ``shadow_gate_db`` turns on its shadow gate
     (on the SINR jump, or on ``shadow_estimator``'s estimate, ``uavlink.shadow_estimation``) and
     ``sinr_span_db`` replaces its speed span (None: the baseline's)."""
