@@ -63,13 +63,14 @@ class SweepSpecError(ValueError):
 
 
 def _train_defaults() -> dict[str, Any]:
-    """Default of every TrainConfig field; an optional integer (default None) stands as 0, so that
-    ``_coerce`` checks its values as integers (other optional fields are numbers)."""
+    """Default of every TrainConfig field; an optional one (default None) stands as a zero of its
+    type (0 or 0.0), so that ``_coerce`` checks its values by that type."""
     from uavlink.training import TrainConfig  # numpy only; torch is imported by train()
 
     hints = get_type_hints(TrainConfig)
     defaults = {f.name: getattr(TrainConfig(), f.name) for f in dataclasses.fields(TrainConfig)}
-    return {name: 0 if value is None and hints[name] == int | None else value for name, value in defaults.items()}
+    optional_zero = {int | None: 0, float | None: 0.0}
+    return {name: optional_zero[hints[name]] if value is None else value for name, value in defaults.items()}
 
 
 def _env_defaults() -> dict[str, Any]:
@@ -357,15 +358,14 @@ def _qualify(key: str, where: str, train_defaults: dict[str, Any], env_defaults:
 
 
 def _coerce(key: str, value: Any, default: Any) -> Any:
-    """Check ``value`` has the field's type; ints become floats where the field is a float (or an
-    optional number, default None)."""
+    """Check ``value`` has the field's type; ints become floats where the field is a float."""
     if isinstance(default, bool):
         if not isinstance(value, bool):
             raise SweepSpecError(f"key {key!r} must be true or false, got {value!r}")
     elif isinstance(default, int):
         if isinstance(value, bool) or not isinstance(value, int):
             raise SweepSpecError(f"key {key!r} must be an integer, got {value!r}")
-    elif isinstance(default, float) or default is None:
+    elif isinstance(default, float):
         if isinstance(value, bool) or not isinstance(value, (int, float)):
             raise SweepSpecError(f"key {key!r} must be a number, got {value!r}")
         value = float(value)
