@@ -176,6 +176,11 @@ def test_observation_layout_and_decoding():
         mean, std = circular_mean_std_deg(readings.aoa_deg)
         np.testing.assert_allclose(((decoded["aoa_mean_deg"] - mean) + 180) % 360 - 180, 0, atol=1e-3)
         np.testing.assert_allclose(decoded["aoa_std_deg"], std, atol=1e-3)
+        # The history decoders agree with the newest frame's decoding and with the encoding.
+        np.testing.assert_allclose(layout.uav_xy_m_history(obs)[:, 0], decoded["uav_xy_m"])
+        np.testing.assert_allclose(layout.sinr_db_history(obs)[:, 0], decoded["sinr_db"])
+        np.testing.assert_allclose(layout.aoa_feature_history(obs)[:, 0], expected[:, -3:], atol=1e-6)
+        np.testing.assert_array_equal(layout.frames(obs)[:, 1:], layout.frames(previous)[:, :-1])
         previous = obs
 
 

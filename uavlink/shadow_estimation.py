@@ -32,12 +32,11 @@ def shadow_features(layout: ObservationLayout, obs: np.ndarray) -> np.ndarray:
     between frames, the AoA features, and a constant."""
     n = obs.shape[0]
     sinr_db = layout.sinr_db_history(obs)  # (N, memory, U), newest first
-    frames = obs.reshape(n, layout.memory, layout.frame_size).astype(float)
-    uav_xy_m = frames[:, :, :2] * layout.half_width_m
+    uav_xy_m = layout.uav_xy_m_history(obs)
     displacement_m = np.linalg.norm(uav_xy_m[:, :-1] - uav_xy_m[:, 1:], axis=2)
     jump_db = sinr_db[:, :1] - sinr_db[:, 1:]
     return np.concatenate([sinr_db.reshape(n, -1), jump_db.reshape(n, -1), sinr_db.mean(axis=2),
-                           jump_db.mean(axis=2), displacement_m, frames[:, :, -3:].reshape(n, -1),
+                           jump_db.mean(axis=2), displacement_m, layout.aoa_feature_history(obs).reshape(n, -1),
                            np.ones((n, 1))], axis=1)
 
 

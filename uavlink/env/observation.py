@@ -93,10 +93,21 @@ class ObservationLayout:
             np.minimum(np.radians(std_deg), self.aoa_std_max_rad)[:, None] / np.pi,
         ], axis=1)
 
+    def frames(self, obs: np.ndarray) -> np.ndarray:
+        """Observations (N, size) as (N, memory, frame_size) float64, newest frame first."""
+        return obs.reshape(obs.shape[0], self.memory, self.frame_size).astype(float)
+
     def sinr_db_history(self, obs: np.ndarray) -> np.ndarray:
         """Per-UE SINRs (N, memory, U) in dB, newest frame first, decoded from observations (N, size)."""
-        frames = obs.reshape(obs.shape[0], self.memory, self.frame_size)[:, :, 2:2 + self.n_ues]
-        return frames.astype(float) * self.sinr_scale_db + self.sinr_offset_db
+        return self.frames(obs)[:, :, 2:2 + self.n_ues] * self.sinr_scale_db + self.sinr_offset_db
+
+    def uav_xy_m_history(self, obs: np.ndarray) -> np.ndarray:
+        """UAV positions (N, memory, 2) in m, newest frame first."""
+        return self.frames(obs)[:, :, :2] * self.half_width_m
+
+    def aoa_feature_history(self, obs: np.ndarray) -> np.ndarray:
+        """The encoded AoA features (N, memory, 3): sin and cos of the circular mean, scaled std."""
+        return self.frames(obs)[:, :, 2 + self.n_ues:]
 
     def newest_frame(self, obs: np.ndarray) -> dict[str, np.ndarray]:
         """Decode the newest frame of observations (N, size) back to physical units."""
