@@ -2,7 +2,7 @@
 
 Every constant of the geometry, the radio model and the learning problem lives here; modules take
 these dataclasses rather than loose numbers. ``validate()`` rejects configs that make no physical
-sense with a one-line ``ValueError`` naming the field.
+sense with a one-line ``ConfigError`` (a ``UserError``) naming the field.
 """
 
 from __future__ import annotations
@@ -11,6 +11,8 @@ import dataclasses
 import math
 from dataclasses import dataclass, field
 from typing import Any
+
+from uavlink.errors import ConfigError
 
 
 @dataclass(frozen=True)
@@ -55,14 +57,14 @@ class RadioConfig:
         _positive("radio.carrier_ghz", self.carrier_ghz)
         _positive("radio.bandwidth_hz", self.bandwidth_hz)
         if int(self.n_resource_blocks) != self.n_resource_blocks or self.n_resource_blocks < 1:
-            raise ValueError(f"radio.n_resource_blocks must be a positive integer, got {self.n_resource_blocks}")
+            raise ConfigError(f"radio.n_resource_blocks must be a positive integer, got {self.n_resource_blocks}")
         _positive("radio.min_distance_m", self.min_distance_m)
         _non_negative("radio.shadowing_std_db", self.shadowing_std_db)
         _positive("radio.shadowing_decorrelation_m", self.shadowing_decorrelation_m)
         _non_negative("radio.aoa_noise_deg", self.aoa_noise_deg)
         _non_negative("radio.aoa_noise_max_deg", self.aoa_noise_max_deg)
         if 0 < self.aoa_noise_max_deg < self.aoa_noise_deg:
-            raise ValueError("radio.aoa_noise_max_deg must be 0 (off) or >= radio.aoa_noise_deg")
+            raise ConfigError("radio.aoa_noise_max_deg must be 0 (off) or >= radio.aoa_noise_deg")
         _non_negative("radio.outdoor_to_indoor_loss_db", self.outdoor_to_indoor_loss_db)
         for name in ("tx_power_dbm", "noise_figure_db", "thermal_noise_dbm_per_hz", "antenna_gain_db",
                      "path_loss_intercept_db", "path_loss_slope_db", "rician_k_db"):
@@ -93,20 +95,20 @@ class EnvConfig:
         from uavlink.mobility import MIXED, SCENARIOS  # local: mobility imports config
 
         if self.scenario not in (*SCENARIOS, MIXED):
-            raise ValueError(
+            raise ConfigError(
                 f"unknown scenario {self.scenario!r}; choose from {', '.join(SCENARIOS)} or {MIXED}")
         for name in ("n_ues", "episode_frames", "memory"):
             value = getattr(self, name)
             if int(value) != value or value < 1:
-                raise ValueError(f"env.{name} must be a positive integer, got {value}")
+                raise ConfigError(f"env.{name} must be a positive integer, got {value}")
         if self.n_ues < 2 and self.scenario in ("straight_90", "straight_180", "hotspot", MIXED):
-            raise ValueError(f"scenario {self.scenario!r} needs at least 2 UEs, got n_ues={self.n_ues}")
+            raise ConfigError(f"scenario {self.scenario!r} needs at least 2 UEs, got n_ues={self.n_ues}")
         _positive("env.frame_s", self.frame_s)
         _positive("env.r_max_m", self.r_max_m)
         _non_negative("env.ue_speed_mps", self.ue_speed_mps)
         _non_negative("env.cluster_size_m", self.cluster_size_m)
         if self.cluster_size_m >= 2 * self.area.half_width_m:
-            raise ValueError("env.cluster_size_m must be smaller than the area")
+            raise ConfigError("env.cluster_size_m must be smaller than the area")
         self.area.validate()
         self.radio.validate()
         return self
@@ -119,7 +121,7 @@ class EnvConfig:
             head, _, tail = key.partition(".")
             if tail:
                 if head not in nested:
-                    raise ValueError(f"unknown config key {key!r}")
+                    raise ConfigError(f"unknown config key {key!r}")
                 nested[head][tail] = value
             elif key in _field_names(EnvConfig):
                 top[key] = value
@@ -128,13 +130,13 @@ class EnvConfig:
             elif key in _field_names(AreaConfig):
                 nested["area"][key] = value
             else:
-                raise ValueError(f"unknown config key {key!r}")
+                raise ConfigError(f"unknown config key {key!r}")
         for head, sub in nested.items():
             if sub:
                 current = top.get(head, getattr(self, head))
                 unknown = set(sub) - _field_names(type(current))
                 if unknown:
-                    raise ValueError(f"unknown config key {head}.{sorted(unknown)[0]}")
+                    raise ConfigError(f"unknown config key {head}.{sorted(unknown)[0]}")
                 top[head] = dataclasses.replace(current, **sub)
         return dataclasses.replace(self, **top)
 
@@ -155,16 +157,16 @@ def _field_names(cls: type) -> set[str]:
 
 def _finite(name: str, value: float) -> None:
     if not isinstance(value, (int, float)) or not math.isfinite(value):
-        raise ValueError(f"{name} must be a finite number, got {value!r}")
+        raise ConfigError(f"{name} must be a finite number, got {value!r}")
 
 
 def _positive(name: str, value: float) -> None:
     _finite(name, value)
     if value <= 0:
-        raise ValueError(f"{name} must be positive, got {value}")
+        raise ConfigError(f"{name} must be positive, got {value}")
 
 
 def _non_negative(name: str, value: float) -> None:
     _finite(name, value)
     if value < 0:
-        raise ValueError(f"{name} must be >= 0, got {value}")
+        raise ConfigError(f"{name} must be >= 0, got {value}")

@@ -17,12 +17,13 @@ from typing import Any
 from uavlink.config import EnvConfig
 from uavlink.env.actions import ActionMapping
 from uavlink.env.observation import ObservationLayout
+from uavlink.errors import UserError
 
 MANIFEST_FORMAT = "uavlink-policy-v1"
 MANIFEST_NAME = "uavlink_manifest.json"
 
 
-class PolicyFileError(ValueError):
+class PolicyFileError(UserError):
     """A policy file that cannot be used; the message says which file and why."""
 
 
