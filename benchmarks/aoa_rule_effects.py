@@ -62,13 +62,14 @@ class ClonedActor:
 
 
 def clone_of_the_rule(cfg: EnvConfig) -> ClonedActor:
+    from uavlink.config import WarmStartConfig
     from uavlink.imitation import warm_start
     from uavlink.training import TrainConfig, make_model, training_env_config
 
-    tc = TrainConfig(warm_start_teacher="aoa", aoa_noise_max_deg=TRAIN_AOA_NOISE_MAX_DEG)
+    tc = TrainConfig(warm_start=WarmStartConfig(teacher="aoa"), aoa_noise_max_deg=TRAIN_AOA_NOISE_MAX_DEG)
     model = make_model(cfg, tc, None)
-    warm_start(model.policy, training_env_config(cfg, tc), tc.warm_start_teacher, tc.warm_start_episodes,
-               tc.seed, log_std=tc.warm_start_log_std)
+    warm_start(model.policy, training_env_config(cfg, tc), tc.warm_start.teacher, tc.warm_start.episodes,
+               tc.seed, log_std=tc.warm_start.log_std)
     return ClonedActor(model)
 
 

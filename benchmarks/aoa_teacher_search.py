@@ -45,7 +45,7 @@ SCENARIOS = ("straight_90", "straight_180", "hotspot")
 SPANS_DB = (2.0, 3.0, 4.0, 6.0, 8.0, 10.0)
 JUMP_GATES_DB = (0.0, 1.0, 2.0, 3.0)
 ESTIMATE_GATES_DB = (0.0, 1.0, 2.0, 3.0, 4.0)
-ESTIMATOR_EPISODES = 512  # as sweeps/table1.toml's warm_start_shadow_estimator_episodes
+ESTIMATOR_EPISODES = 512  # as sweeps/table1.toml's warm_start.shadow_estimator_episodes
 TRUE_SHADOW_THRESHOLDS_DB = (0.0, 1.5, 3.0, 4.5)
 BASELINE_SPAN_DB = 10.0  # AoaPolicy's default: the `aoa` column of every table
 
@@ -113,10 +113,11 @@ def clone_of(cfg: EnvConfig, pick: dict[str, Any], estimator_episodes: int, teac
     # aoa_rule_effects is a sibling script: benchmarks/ is on the path when this one runs
     from aoa_rule_effects import ClonedActor
 
+    from uavlink.config import WarmStartConfig
     from uavlink.imitation import warm_start
     from uavlink.training import TrainConfig, make_model
 
-    model = make_model(cfg, TrainConfig(warm_start_teacher="aoa"), None)
+    model = make_model(cfg, TrainConfig(warm_start=WarmStartConfig(teacher="aoa")), None)
     estimator = fit_shadow_estimator(cfg, estimator_episodes, seed=0) if pick["gate_on"] == "estimate" else None
     report = warm_start(model.policy, cfg, variant_policy(cfg, pick, estimator), teacher_episodes, 0,
                         epochs=epochs, log_std=-3.0)

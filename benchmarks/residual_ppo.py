@@ -98,7 +98,7 @@ def measure(scenarios: list[str], train_episodes: int, episodes: int, seed: int,
             model.policy.log_std.fill_(log_std)
         row = {"aoa": score(rule, cfg), "residual_before": score(ResidualPolicy(model, rule), cfg)}
         start = time.perf_counter()
-        model.learn(total_timesteps=tc.total_timesteps)
+        model.learn(total_timesteps=tc.total_timesteps(cfg))
         row["train_wall_s"] = round(time.perf_counter() - start, 1)
         row["residual_after"] = score(ResidualPolicy(model, rule), cfg)
         rows[scenario] = row

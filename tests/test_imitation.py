@@ -113,8 +113,8 @@ def test_gated_teacher_and_its_settings(tmp_path: Path, capsys) -> None:
                  "--warm-start-epochs", "2", "--warm-start-shadow-estimator-episodes", "8",
                  "--eval-episodes", "0", "--no-progress", "--run-dir", str(tmp_path / "run")]) == 0
     training = read_zip_manifest(out)["training"]
-    hyper = training["hyperparameters"]
-    assert hyper["warm_start_shadow_gate_db"] == 0.5 and hyper["warm_start_log_std"] == -3.0
-    assert hyper["warm_start_sinr_span_db"] == 3.0 and hyper["warm_start_epochs"] == 2
-    assert hyper["warm_start_shadow_estimator_episodes"] == 8
+    hyper = training["hyperparameters"]["warm_start"]
+    assert hyper["shadow_gate_db"] == 0.5 and hyper["log_std"] == -3.0
+    assert hyper["sinr_span_db"] == 3.0 and hyper["epochs"] == 2
+    assert hyper["shadow_estimator_episodes"] == 8
     assert training["warm_start"]["epochs"] == 2 and training["warm_start"]["shadow_estimator_r2"] < 1.0

@@ -23,10 +23,12 @@ pytest.importorskip("distributed")
 pytest.importorskip("stable_baselines3")
 
 from uavlink.cli import main  # noqa: E402
+from uavlink.config import EnvConfig, TrainConfig, WarmStartConfig  # noqa: E402
+from uavlink.config.fields import config_fields, with_changes  # noqa: E402
 from uavlink.sweep.aggregate import t975  # noqa: E402
 from uavlink.sweep.jobs import figures  # noqa: E402
 from uavlink.sweep.runner import run_sweep  # noqa: E402
-from uavlink.sweep.spec import load_spec, parse_spec  # noqa: E402
+from uavlink.sweep.spec import KEY_VERSION, Job, load_spec, parse_spec  # noqa: E402
 
 TINY = """
 name = "tiny4"
@@ -124,6 +126,7 @@ def _results(sweep_dir: Path) -> dict[str, dict]:
     return {p.parent.name: json.loads(p.read_text()) for p in sweep_dir.glob("*/result.json")}
 
 
+@pytest.mark.slow
 @pytest.mark.timeout(120)
 def test_sweep_on_scheduler_and_two_workers(tmp_path: Path, cluster_factory, capsys) -> None:
     sweep_file = tmp_path / "tiny4.toml"
@@ -177,6 +180,7 @@ def test_sweep_on_scheduler_and_two_workers(tmp_path: Path, cluster_factory, cap
     assert {p.name: p.read_bytes() for p in policies.iterdir()} == shipped
 
 
+@pytest.mark.slow
 @pytest.mark.timeout(120)
 def test_worker_killed_mid_job_is_retried_elsewhere(tmp_path: Path, cluster_factory) -> None:
     sweep_file = tmp_path / "tiny4.toml"
@@ -227,8 +231,11 @@ BAD_SPECS = [
     ("[scenario_train.straight]\nradio.shadowing = false\n", "radio.shadowing"),  # train fields only
     ("[scenario_train.straight]\nn_envs = 0\n", "train.n_envs"),
     ("[train]\nwarm_start_epochs = 8.5\n", "warm_start_epochs"),  # optional, but an integer
-    ("[train]\nwarm_start_epochs = 0\n", "warm_start_epochs"),
-    ("[train]\nwarm_start_sinr_span_db = 0\n", "warm_start_sinr_span_db"),
+    ("[train]\nwarm_start_epochs = 0\n", "train.warm_start.epochs"),  # an old key: the error names the new one
+    ("[train.warm_start]\nsinr_span_db = 0\n", "train.warm_start.sinr_span_db"),
+    ("[train]\nwarm_start.shadow_gate_db = 1.0\n", "train.warm_start.shadow_gate_db needs"),
+    ("[train]\nwarm_start.teacher = \"aoa\"\nwarm_start_teacher = \"aoa\"\n", "'warm_start_teacher'"),
+    ("[env]\n\"radio.aoa_noise_max_deg\" = 50.0\n", "set train.aoa_noise_max_deg"),
     ("[scenario_train.straight]\nlearning_rate = 1e-4\n[grid]\nlearning_rate = [1e-4]\n", "'learning_rate'"),
 ]
 
@@ -265,17 +272,71 @@ def test_job_keys_are_stable_and_grid_expands() -> None:
 def test_scenario_train_overrides_reach_only_their_scenario() -> None:
     base = {"name": "a", "scenarios": ["straight", "hotspot"], "seeds": [0], "train": {"episodes": 4}}
     plain = {j.scenario: j for j in parse_spec(base).jobs()}
-    spec = parse_spec({**base, "scenario_train": {"hotspot": {"n_envs": 8, "warm_start_teacher": "aoa",
-                                                              "warm_start_shadow_gate_db": 1,
-                                                              "warm_start_epochs": 80}}})
+    spec = parse_spec({**base, "scenario_train": {"hotspot": {"n_envs": 8, "warm_start": {
+        "teacher": "aoa", "shadow_gate_db": 1, "epochs": 80}}}})
     jobs = {j.scenario: j for j in spec.jobs()}
     assert jobs["straight"].key == plain["straight"].key  # untouched scenario: same job
     hotspot = jobs["hotspot"].train_config()
     assert jobs["hotspot"].key != plain["hotspot"].key
-    assert (hotspot.n_envs, hotspot.episodes, hotspot.warm_start_shadow_gate_db) == (8, 4, 1.0)
-    assert hotspot.warm_start_epochs == 80 and isinstance(hotspot.warm_start_epochs, int)
-    assert isinstance(hotspot.warm_start_shadow_gate_db, float)  # an optional number: 1 becomes 1.0
+    assert (hotspot.n_envs, hotspot.episodes, hotspot.warm_start.shadow_gate_db) == (8, 4, 1.0)
+    assert hotspot.warm_start.epochs == 80 and isinstance(hotspot.warm_start.epochs, int)
+    assert isinstance(hotspot.warm_start.shadow_gate_db, float)  # an optional number: 1 becomes 1.0
     assert jobs["straight"].train_config().n_envs == 32
+    # The old flat keys name the same fields: the same jobs.
+    old = parse_spec({**base, "scenario_train": {"hotspot": {"n_envs": 8, "warm_start_teacher": "aoa",
+                                                             "warm_start_shadow_gate_db": 1.0,
+                                                             "warm_start_epochs": 80}}})
+    assert [j.key for j in old.jobs()] == [j.key for j in spec.jobs()]
+
+
+def test_shipped_sweeps_and_their_old_spelling(tmp_path: Path, capsys) -> None:
+    assert main(["sweep", "sweeps/table1.toml", "--dry-run", "--out-root", str(tmp_path)]) == 0
+    rows = [line for line in capsys.readouterr().out.splitlines() if line.endswith("| to run |")]
+    assert len(rows) == 18 and sum("| hotspot |" in r for r in rows) == 3
+    # table1.toml as it was written before the warm start's fields were nested: the same 18 jobs.
+    old = Path("sweeps/table1.toml").read_text().replace("warm_start.", "warm_start_")
+    (tmp_path / "table1.toml").write_text(old)
+    assert [j.key for j in load_spec(tmp_path / "table1.toml").jobs()] == \
+        [j.key for j in load_spec("sweeps/table1.toml").jobs()]
+    hotspot = load_spec("sweeps/table1.toml").jobs()[-1].train_config()
+    assert hotspot.warm_start == WarmStartConfig("aoa", 1024, 80, -3.0, 10, 2.0, 8.0, 512)
+    assert len(load_spec("sweeps/tiny.toml").jobs()) == 8
+
+
+def test_job_keys_are_versioned_hashes_of_the_full_configs() -> None:
+    job = parse_spec({"name": "a", "scenarios": ["straight"], "seeds": [0]}).jobs()[0]
+    assert job.settings()["key_version"] == KEY_VERSION
+    assert job.settings()["train"] == job.train_config().to_dict()  # nothing left out, nothing bent
+    assert Job.from_dict(json.loads(json.dumps(job.to_dict()))).key == job.key
+    # Reordering keys changes nothing; changing any setting changes the key.
+    reordered = Job(job.sweep, job.scenario, job.seed, {}, EnvConfig.from_dict(
+        dict(reversed(job.env_config().to_dict().items()))), TrainConfig.from_dict(
+        dict(reversed(job.train_config().to_dict().items()))), dict(reversed(job.eval.items())))
+    assert reordered.key == job.key
+    keys = {job.key}
+    for path, value in _changed_train_fields(job.train_config()):
+        keys.add(Job(job.sweep, job.scenario, job.seed, {}, job.env_config(),
+                     with_changes(job.train_config(), {path: value}), job.eval).key)
+    for changes in ({"r_max_m": 8.0}, {"radio.shadowing": False}, {"area.half_width_m": 150.0}):
+        keys.add(Job(job.sweep, job.scenario, job.seed, {}, job.env_config().replace(**changes),
+                     job.train_config(), job.eval).key)
+    keys.add(Job(job.sweep, job.scenario, job.seed, {}, job.env_config(), job.train_config(),
+                 {**job.eval, "episodes": 7}).key)
+    assert len(keys) == 1 + len(_changed_train_fields(job.train_config())) + 3 + 1
+
+
+def _changed_train_fields(tc: TrainConfig) -> list[tuple[str, object]]:
+    """(path, another value) for every field of ``tc``, nested ones included."""
+    other = {bool: lambda v: not v, int: lambda v: v + 1, float: lambda v: v + 0.5, str: lambda v: "aoa",
+             tuple: lambda v: (64,), type(None): lambda v: 1}
+    out = []
+    for f, _ in config_fields(TrainConfig):
+        if f.name == "warm_start":
+            out += [(f"warm_start.{w.name}", other[type(getattr(tc.warm_start, w.name))](
+                getattr(tc.warm_start, w.name))) for w, _ in config_fields(WarmStartConfig)]
+        else:
+            out.append((f.name, other[type(getattr(tc, f.name))](getattr(tc, f.name))))
+    return out
 
 
 def test_t_quantiles() -> None:

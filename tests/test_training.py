@@ -11,6 +11,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from uavlink.cli import main
 from uavlink.config import EnvConfig
 from uavlink.evaluation import evaluate_policy
 from uavlink.policies.manifest import MANIFEST_NAME, PolicyFileError, read_zip_manifest
@@ -28,6 +29,7 @@ def tiny_policy(tmp_path_factory) -> Path:
     return out
 
 
+@pytest.mark.slow
 def test_tiny_training_learns_to_follow(tiny_policy: Path) -> None:
     cfg = EnvConfig(scenario="straight")
     learned = evaluate_policy(SB3Policy(tiny_policy), cfg, episodes=32, seed=1)
@@ -43,25 +45,30 @@ def test_tiny_training_learns_to_follow(tiny_policy: Path) -> None:
     assert learned.mean_rate_mbps > untrained.mean_rate_mbps + 0.2
 
 
+@pytest.mark.slow
 def test_manifest_round_trip(tiny_policy: Path) -> None:
     manifest = read_zip_manifest(tiny_policy)
     assert manifest["env_config"]["scenario"] == "straight"
     assert EnvConfig.from_dict(manifest["env_config"]) == EnvConfig(scenario="straight")
     assert manifest["action_mapping"] == {"r_max_m": 12.0, "kind": "cartesian-v1"}
     assert manifest["observation_layout"]["version"] == 1
-    assert manifest["training"]["hyperparameters"]["learning_rate"] == 3e-4
+    hyper = manifest["training"]["hyperparameters"]
+    assert TrainConfig.from_dict(hyper) == TrainConfig(episodes=96, **TINY)
+    assert hyper["learning_rate"] == 3e-4 and hyper["warm_start"]["teacher"] == ""  # the nested shape
     assert manifest["training"]["total_timesteps"] >= 96 * 128
     assert "torch" in manifest["versions"] and "stable-baselines3" in manifest["versions"]
     beside = json.loads(tiny_policy.with_suffix(".json").read_text())
     assert beside == manifest
 
 
+@pytest.mark.slow
 def test_layout_mismatch_refused(tiny_policy: Path) -> None:
     policy = SB3Policy(tiny_policy)
     with pytest.raises(ValueError, match=r"policy 'straight' expects v1 \(n_ues=10, memory=4.*env provides v1 \(n_ues=10, memory=2"):
         evaluate_policy(policy, EnvConfig(scenario="straight", memory=2), episodes=1)
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("damage", ["truncate", "garbage", "no_manifest", "bad_manifest"])
 def test_damaged_policy_file_refused(tiny_policy: Path, tmp_path: Path, damage: str) -> None:
     path = tmp_path / "damaged.zip"
@@ -85,6 +92,7 @@ def test_damaged_policy_file_refused(tiny_policy: Path, tmp_path: Path, damage: 
     assert "Traceback" not in proc.stderr and len(proc.stderr.strip().splitlines()) == 1
 
 
+@pytest.mark.slow
 def test_evaluation_is_deterministic(tiny_policy: Path) -> None:
     cfg = EnvConfig(scenario="straight")
     a = evaluate_policy(SB3Policy(tiny_policy), cfg, episodes=4, seed=7)
@@ -98,6 +106,7 @@ def test_time_to_fraction() -> None:
     assert steps == 4800
 
 
+@pytest.mark.slow
 def test_train_cli_resumes_from_checkpoint(tmp_path: Path) -> None:
     run = tmp_path / "run"
     out = tmp_path / "p.zip"
@@ -115,3 +124,14 @@ def test_train_cli_resumes_from_checkpoint(tmp_path: Path) -> None:
                             capture_output=True, text=True, timeout=120)
     assert second.returncode == 0, second.stderr
     assert read_zip_manifest(out)["training"]["total_timesteps"] == 16 * 128
+
+
+@pytest.mark.slow
+def test_budget_is_in_episodes_of_the_envs_length(tmp_path: Path, capsys) -> None:
+    out = tmp_path / "short.zip"
+    assert main(["train", "--scenario", "straight", "--set", "episode_frames=16", "--episodes", "4",
+                 "--n-envs", "4", "--n-steps", "16", "--batch-size", "32", "--n-epochs", "1", "--out", str(out),
+                 "--run-dir", str(tmp_path / "run"), "--eval-episodes", "0", "--no-progress"]) == 0
+    assert "for 64 env steps" in capsys.readouterr().err
+    manifest = read_zip_manifest(out)
+    assert manifest["training"]["total_timesteps"] == 4 * 16 and manifest["env_config"]["episode_frames"] == 16

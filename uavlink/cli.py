@@ -15,7 +15,6 @@ from typing import Any
 
 from uavlink.config import EnvConfig
 from uavlink.mobility import MIXED, SCENARIOS
-from uavlink.policies.baselines import BASELINES
 
 
 class UserError(Exception):
@@ -135,35 +134,18 @@ def format_table(results) -> str:
 
 
 def cmd_train(args: argparse.Namespace) -> int:
-    from uavlink.training import TrainConfig, train
+    from uavlink.config import TrainConfig
+    from uavlink.config.fields import flag_of, from_options
+    from uavlink.training import train
 
     cfg = env_config(args.scenario, args.aoa_noise_deg, parse_overrides(args.overrides))
-    tc = TrainConfig(episodes=args.episodes, learning_rate=args.learning_rate, seed=args.seed,
-                     n_envs=args.n_envs, batch_size=args.batch_size, n_epochs=args.n_epochs,
-                     torch_threads=args.torch_threads, aoa_noise_max_deg=args.aoa_noise_max_deg,
-                     warm_start_teacher=args.warm_start, warm_start_episodes=args.warm_start_episodes,
-                     warm_start_epochs=args.warm_start_epochs,
-                     warm_start_log_std=args.warm_start_log_std,
-                     warm_start_shadow_gate_db=args.warm_start_shadow_gate_db,
-                     warm_start_sinr_span_db=args.warm_start_sinr_span_db,
-                     warm_start_shadow_estimator_episodes=args.warm_start_shadow_estimator_episodes)
-    counts = (args.episodes, args.n_envs, args.batch_size, args.warm_start_episodes, args.warm_start_epochs,
-              args.warm_start_shadow_estimator_episodes)
-    if any(count is not None and count < 1 for count in counts):
-        raise UserError("--episodes, --n-envs, --batch-size and the --warm-start-* counts must be positive")
-    for flag, value in (("--warm-start-shadow-gate-db", args.warm_start_shadow_gate_db),
-                        ("--warm-start-sinr-span-db", args.warm_start_sinr_span_db),
-                        ("--warm-start-shadow-estimator-episodes", args.warm_start_shadow_estimator_episodes)):
-        if value is not None and args.warm_start != "aoa":
-            raise UserError(f"{flag} needs --warm-start aoa")
-    if args.warm_start_shadow_estimator_episodes is not None and args.warm_start_shadow_gate_db is None:
-        raise UserError("--warm-start-shadow-estimator-episodes needs --warm-start-shadow-gate-db (the gate's threshold)")
-    if args.warm_start_sinr_span_db is not None and args.warm_start_sinr_span_db <= 0:
-        raise UserError("--warm-start-sinr-span-db must be positive")
+    tc = from_options(TrainConfig, args).validate(cfg, name=lambda path: flag_of(TrainConfig, path))
+    if args.eval_episodes < 0:
+        raise UserError(f"--eval-episodes must be >= 0 (0: skip), got {args.eval_episodes}")
     if args.resume is not None and not args.resume.is_file():
         raise UserError(f"--resume {args.resume}: no such checkpoint")
-    run_dir = args.run_dir or Path("runs") / f"{args.out.stem}-seed{args.seed}"
-    print(f"training PPO on {cfg.scenario!r} for {tc.total_timesteps:,} env steps; "
+    run_dir = args.run_dir or Path("runs") / f"{args.out.stem}-seed{tc.seed}"
+    print(f"training PPO on {cfg.scenario!r} for {tc.total_timesteps(cfg):,} env steps; "
           f"TensorBoard logs and checkpoint in {run_dir}", file=sys.stderr)
     training = train(cfg, tc, args.out, run_dir, resume=args.resume, progress=not args.no_progress)
     if args.eval_episodes:
@@ -290,37 +272,14 @@ def build_parser() -> argparse.ArgumentParser:
     p.set_defaults(func=cmd_evaluate)
 
     p = sub.add_parser("train", help="train a PPO policy",
-                       description="Train PPO on the batched env. Defaults are the paper's; see TrainConfig.")
+                       description="Train PPO on the batched env. Defaults are the paper's; the training "
+                                   "options are TrainConfig's fields (uavlink/config/train.py).")
     _add_env_options(p)
     p.add_argument("--out", type=Path, required=True, help="policy zip to write")
-    p.add_argument("--episodes", type=int, default=12_000, help="training budget in 128-frame episodes (paper: 12000)")
-    p.add_argument("--learning-rate", type=float, default=3e-4, help="(paper: 3e-4)")
-    p.add_argument("--seed", type=int, default=0)
-    p.add_argument("--n-envs", type=int, default=32, help="parallel envs in the batched VecEnv (ours)")
-    p.add_argument("--batch-size", type=int, default=512, help="PPO minibatch (ours)")
-    p.add_argument("--n-epochs", type=int, default=10, help="PPO epochs per rollout (ours, SB3 default)")
-    p.add_argument("--torch-threads", type=int, default=1, help="torch CPU threads (1 is fastest for 3x128 MLPs)")
-    p.add_argument("--aoa-noise-max-deg", type=float, default=0.0,
-                   help="train with each episode's AoA noise std drawn from [--aoa-noise-deg, this] (ours; 0: off)")
-    p.add_argument("--warm-start", default="", choices=["", *BASELINES], metavar="RULE",
-                   help="first fit the actor to a rule's actions (behaviour cloning), then run PPO "
-                        "(ours; e.g. aoa, as the shipped policies; default: off, the paper's PPO from scratch)")
-    p.add_argument("--warm-start-episodes", type=int, default=256,
-                   help="episodes the rule flies to make the cloning data (default 256)")
-    p.add_argument("--warm-start-epochs", type=int, default=None, metavar="N",
-                   help="passes of the actor over the cloning data (default 20)")
-    p.add_argument("--warm-start-log-std", type=float, default=-1.0,
-                   help="exploration log std PPO starts from after the cloning (default -1)")
-    p.add_argument("--warm-start-shadow-gate-db", type=float, default=None, metavar="DB",
-                   help="aoa teacher only: hover when the newest frame's mean SINR beats the older "
-                        "frames' by more than DB (ours; default: off, the SPEC's rule)")
-    p.add_argument("--warm-start-sinr-span-db", type=float, default=None, metavar="DB",
-                   help="aoa teacher only: its speed span, full speed DB below the hover SINR "
-                        "(default: the baseline's 10 dB)")
-    p.add_argument("--warm-start-shadow-estimator-episodes", type=int, default=None, metavar="N",
-                   help="aoa teacher only: gate on a shadowing estimate fitted on N simulated episodes "
-                        "(hover while the estimated mean shadowing is above --warm-start-shadow-gate-db) "
-                        "instead of on the SINR jump (ours)")
+    from uavlink.config import TrainConfig
+    from uavlink.config.fields import add_options
+
+    add_options(p, TrainConfig)
     p.add_argument("--run-dir", type=Path, default=None, help="TensorBoard logs and checkpoint (default runs/OUT-seedN)")
     p.add_argument("--resume", type=Path, default=None, help="continue from a checkpoint zip")
     p.add_argument("--eval-episodes", type=int, default=100, help="evaluate after training into the manifest (0: skip)")

@@ -25,7 +25,7 @@ from uavlink.env.core import BatchedUavEnv
 from uavlink.policies.baselines import BASELINES, AoaPolicy, ShadowEstimate, make_baseline
 
 TEACHER_ENVS = 64  # envs per teacher rollout batch
-CLONE_EPOCHS = 20  # passes over the cloning data unless TrainConfig.warm_start_epochs says otherwise
+CLONE_EPOCHS = 20  # passes over the cloning data unless TrainConfig.warm_start.epochs says otherwise
 
 
 @dataclass(frozen=True)

@@ -12,10 +12,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from uavlink.config import EnvConfig
-
-SCENARIOS: tuple[str, ...] = ("no_move", "straight", "circular", "straight_90", "straight_180", "hotspot")
-MIXED = "mixed"
+from uavlink.config import MIXED, SCENARIOS, EnvConfig
 
 
 @dataclass

@@ -6,7 +6,7 @@ from typing import Protocol
 
 import numpy as np
 
-from uavlink.config import EnvConfig
+from uavlink.config import BASELINE_NAMES, EnvConfig
 from uavlink.env.actions import ActionMapping
 from uavlink.env.core import GroundTruth
 from uavlink.env.observation import ObservationLayout
@@ -138,7 +138,7 @@ class OraclePolicy:
         return self.mapping.from_polar(angle, np.hypot(move[:, 0], move[:, 1]))
 
 
-BASELINES = ("static", "oracle", "aoa")
+BASELINES = BASELINE_NAMES  # declared in config, where a warm start names its teacher
 
 
 def make_baseline(name: str, cfg: EnvConfig):

@@ -1,18 +1,25 @@
-"""Typed configuration with the SPEC's defaults, in one place.
+"""The env's typed configuration with the SPEC's defaults: area, radio, learning problem.
 
 Every constant of the geometry, the radio model and the learning problem lives here; modules take
-these dataclasses rather than loose numbers. ``validate()`` rejects configs that make no physical
+these dataclasses rather than loose numbers. The scenario names are declared here, the lowest
+layer, and ``uavlink.mobility`` implements them. ``validate()`` rejects configs that make no physical
 sense with a one-line ``ConfigError`` (a ``UserError``) naming the field.
 """
 
 from __future__ import annotations
 
 import dataclasses
-import math
 from dataclasses import dataclass, field
 from typing import Any
 
+from uavlink.config.fields import finite as _finite
+from uavlink.config.fields import non_negative as _non_negative
+from uavlink.config.fields import positive as _positive
 from uavlink.errors import ConfigError
+
+# The UE mobility scenarios (uavlink.mobility implements them); MIXED draws one per env and episode.
+SCENARIOS: tuple[str, ...] = ("no_move", "straight", "circular", "straight_90", "straight_180", "hotspot")
+MIXED = "mixed"
 
 
 @dataclass(frozen=True)
@@ -49,8 +56,10 @@ class RadioConfig:
     fast_fading: bool = True
     rician_k_db: float = 10.0
     aoa_noise_deg: float = 0.0
-    # Training-time robustness: when above aoa_noise_deg, every episode draws its AoA noise std
-    # uniformly from [aoa_noise_deg, aoa_noise_max_deg]. 0 (default) keeps the std fixed.
+    # Per-episode AoA noise: when above aoa_noise_deg, every episode draws its AoA noise std
+    # uniformly from [aoa_noise_deg, aoa_noise_max_deg]; 0 (default) keeps the std fixed. The env
+    # core reads it; it is training-time randomisation, set from TrainConfig.aoa_noise_max_deg by
+    # uavlink.training.training_env_config and never part of a policy's own env config.
     aoa_noise_max_deg: float = 0.0
 
     def validate(self) -> None:
@@ -92,8 +101,6 @@ class EnvConfig:
     radio: RadioConfig = field(default_factory=RadioConfig)
 
     def validate(self) -> EnvConfig:
-        from uavlink.mobility import MIXED, SCENARIOS  # local: mobility imports config
-
         if self.scenario not in (*SCENARIOS, MIXED):
             raise ConfigError(
                 f"unknown scenario {self.scenario!r}; choose from {', '.join(SCENARIOS)} or {MIXED}")
@@ -154,19 +161,3 @@ class EnvConfig:
 def _field_names(cls: type) -> set[str]:
     return {f.name for f in dataclasses.fields(cls)}
 
-
-def _finite(name: str, value: float) -> None:
-    if not isinstance(value, (int, float)) or not math.isfinite(value):
-        raise ConfigError(f"{name} must be a finite number, got {value!r}")
-
-
-def _positive(name: str, value: float) -> None:
-    _finite(name, value)
-    if value <= 0:
-        raise ConfigError(f"{name} must be positive, got {value}")
-
-
-def _non_negative(name: str, value: float) -> None:
-    _finite(name, value)
-    if value < 0:
-        raise ConfigError(f"{name} must be >= 0, got {value}")

@@ -1,0 +1,199 @@
+"""Config fields that carry their own help, range and flag; everything else is derived from them.
+
+A field declared with ``setting(default, help, ...)`` holds, in one place, what the command line
+(``add_options`` / ``from_options``), sweep files (``coerce``, ``resolve``) and ``validate()``
+(``check_fields``) need: its default, help text, type (the annotation), range and flag. Nested
+config dataclasses (``nested``) get their fields' flags prefixed: ``warm_start.episodes`` is
+``--warm-start-episodes``. Imports nothing heavy: ``import uavlink.config`` stays light.
+"""
+
+from __future__ import annotations
+
+import argparse
+import dataclasses
+import math
+import types
+from collections.abc import Callable
+from functools import cache
+from typing import Any, Union, get_args, get_origin, get_type_hints
+
+from uavlink.errors import ConfigError
+
+Namer = Callable[[str], str]  # field path ("warm_start.episodes") -> how the user wrote it
+
+
+def setting(default: Any, help: str, *, low: float | None = None, high: float | None = None,
+            low_open: bool = False, flag: str | None = None, metavar: str | None = None,
+            choices: tuple[str, ...] | None = None, paper: bool = False) -> Any:
+    """A config field: its default and help, the range ``validate()`` checks ([low, high]; (low, high]
+    with ``low_open``; an optional field may also be None), its flag (default ``--field-name``), and
+    ``paper``: the value is the paper's, not our choice."""
+    meta = {"help": help, "low": low, "high": high, "low_open": low_open, "flag": flag,
+            "metavar": metavar, "choices": choices, "paper": paper}
+    return dataclasses.field(default=default, metadata=meta)
+
+
+def nested(cls: type, help: str) -> Any:
+    """A field holding another config dataclass; its fields' flags carry this field's name."""
+    return dataclasses.field(default_factory=cls, metadata={"help": help})
+
+
+@cache
+def _hints(cls: type) -> dict[str, Any]:
+    return get_type_hints(cls)
+
+
+def kind(hint: Any) -> tuple[Any, bool]:
+    """(base type, optional) of an annotation: ``int | None`` -> (int, True)."""
+    if get_origin(hint) in (Union, types.UnionType):
+        args = [a for a in get_args(hint) if a is not type(None)]
+        return args[0], True
+    return (tuple if get_origin(hint) is tuple else hint), False
+
+
+def config_fields(cls: type) -> list[tuple[dataclasses.Field, Any]]:
+    """(field, annotation) of every field of a config dataclass, in declaration order."""
+    return [(f, _hints(cls)[f.name]) for f in dataclasses.fields(cls)]
+
+
+def resolve(cls: type, path: str) -> tuple[type, str] | None:
+    """(the dataclass that owns it, field name) for a dotted field path, or None if there is none."""
+    head, _, tail = path.partition(".")
+    hint = _hints(cls).get(head)
+    if hint is None:
+        return None
+    if dataclasses.is_dataclass(hint):
+        return resolve(hint, tail) if tail else None
+    return None if tail else (cls, head)
+
+
+_WHAT = {bool: "true or false", int: "an integer", float: "a number", str: "a string",
+         tuple: "a non-empty list of positive integers"}
+
+
+def coerce(cls: type, path: str, value: Any, label: str) -> Any:
+    """``value`` as the field at ``path`` of ``cls`` takes it (ints become floats where the field is
+    a float, a list becomes a tuple); a ``ConfigError`` naming ``label`` if it has the wrong type."""
+    owner, name = resolve(cls, path) or (None, None)
+    if owner is None:
+        raise ConfigError(f"unknown config key {label!r}")
+    base, optional = kind(_hints(owner)[name])
+    if value is None and optional:
+        return None
+    number = isinstance(value, (int, float)) and not isinstance(value, bool)
+    if base is bool:
+        ok = isinstance(value, bool)
+    elif base is int:
+        ok = number and isinstance(value, int)
+    elif base is float:
+        ok, value = number, float(value) if number else value
+    elif base is tuple:
+        ok = (isinstance(value, (list, tuple)) and len(value) > 0
+              and all(isinstance(v, int) and not isinstance(v, bool) and v >= 1 for v in value))
+        value = tuple(value) if ok else value
+    else:
+        ok = isinstance(value, base)
+    if not ok:
+        raise ConfigError(f"{label} must be {_WHAT.get(base, base.__name__)}, got {value!r}")
+    return value
+
+
+def check_fields(config: Any, name: Namer) -> None:
+    """Type and range of every field, as ``setting`` declared them (a nested config's own
+    ``validate()`` checks its fields)."""
+    for f, hint in config_fields(type(config)):
+        value, path = getattr(config, f.name), f.name
+        if dataclasses.is_dataclass(hint):
+            continue
+        coerce(type(config), f.name, value, name(path))
+        low, high, low_open = f.metadata.get("low"), f.metadata.get("high"), f.metadata.get("low_open")
+        choices = f.metadata.get("choices")
+        if value is None or isinstance(value, (bool, str, tuple)):
+            if choices is not None and value not in choices:
+                raise ConfigError(f"{name(path)} must be one of {', '.join(map(repr, choices))}, got {value!r}")
+            continue
+        if not math.isfinite(value):
+            raise ConfigError(f"{name(path)} must be a finite number, got {value!r}")
+        if low is not None and (value <= low if low_open else value < low):
+            positive = (low == 0 and low_open) or (low == 1 and isinstance(value, int))
+            bound = "positive" if positive else f"{'>' if low_open else '>='} {low:g}"
+            raise ConfigError(f"{name(path)} must be {bound}, got {value!r}")
+        if high is not None and value > high:
+            raise ConfigError(f"{name(path)} must be <= {high:g}, got {value!r}")
+
+
+def with_changes(config: Any, changes: dict[str, Any]) -> Any:
+    """A copy of a (nested) config dataclass with fields changed by dotted path."""
+    top: dict[str, Any] = {}
+    inner: dict[str, dict[str, Any]] = {}
+    for path, value in changes.items():
+        head, _, tail = path.partition(".")
+        if tail:
+            inner.setdefault(head, {})[tail] = value
+        else:
+            top[head] = value
+    for head, sub in inner.items():
+        top[head] = with_changes(getattr(config, head), sub)
+    return dataclasses.replace(config, **top)
+
+
+def flag_of(cls: type, path: str, prefix: str = "") -> str:
+    """The command-line flag of the field at ``path`` (``warm_start.episodes``)."""
+    head, _, tail = path.partition(".")
+    if tail:
+        return flag_of(_hints(cls)[head], tail, f"{prefix}{head}_")
+    field = next(f for f in dataclasses.fields(cls) if f.name == head)
+    return field.metadata.get("flag") or "--" + (prefix + head).replace("_", "-")
+
+
+def add_options(parser: argparse.ArgumentParser, cls: type, prefix: str = "") -> None:
+    """One option per field of ``cls`` (nested configs' fields prefixed), with the field's default
+    and help; ``from_options`` turns the parsed namespace back into the config."""
+    defaults = cls()
+    for f, hint in config_fields(cls):
+        if dataclasses.is_dataclass(hint):
+            add_options(parser, hint, f"{prefix}{f.name}_")
+            continue
+        default, meta = getattr(defaults, f.name), f.metadata
+        base, _ = kind(hint)
+        shown = "" if default in (None, "") else " (default: %(default)s)"
+        options: dict[str, Any] = {"dest": prefix + f.name, "default": default, "help": meta["help"] + shown}
+        if base is bool:
+            options["action"] = argparse.BooleanOptionalAction
+        elif base is tuple:
+            options.update(nargs="+", type=int, metavar="N")
+        else:
+            options["type"] = base
+        for key in ("metavar", "choices"):
+            if meta.get(key) is not None:
+                options[key] = meta[key]
+        parser.add_argument(meta.get("flag") or "--" + (prefix + f.name).replace("_", "-"), **options)
+
+
+def from_options(cls: type, args: argparse.Namespace, prefix: str = "") -> Any:
+    """The config ``add_options``' flags describe, from the parsed namespace (not yet validated)."""
+    values = {}
+    for f, hint in config_fields(cls):
+        if dataclasses.is_dataclass(hint):
+            values[f.name] = from_options(hint, args, f"{prefix}{f.name}_")
+        else:
+            value = getattr(args, prefix + f.name)
+            values[f.name] = tuple(value) if isinstance(value, list) else value
+    return cls(**values)
+
+
+def finite(name: str, value: float) -> None:
+    if not isinstance(value, (int, float)) or not math.isfinite(value):
+        raise ConfigError(f"{name} must be a finite number, got {value!r}")
+
+
+def positive(name: str, value: float) -> None:
+    finite(name, value)
+    if value <= 0:
+        raise ConfigError(f"{name} must be positive, got {value}")
+
+
+def non_negative(name: str, value: float) -> None:
+    finite(name, value)
+    if value < 0:
+        raise ConfigError(f"{name} must be >= 0, got {value}")

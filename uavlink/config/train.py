@@ -1,0 +1,156 @@
+"""The training's typed configuration: PPO's hyper-parameters, the budget, the warm start.
+
+Each field says, in one place, its default, help, range and whether the paper states it; the
+``uavlink train`` flags and the sweep files' ``[train]`` tables are derived from these fields
+(``uavlink.config.fields``), and ``validate()`` holds every check of a training's settings.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from dataclasses import dataclass
+from typing import Any
+
+from uavlink.config.env import EnvConfig
+from uavlink.config.fields import Namer, check_fields, coerce, config_fields, nested, setting
+from uavlink.errors import ConfigError
+
+# The rules a warm start can copy; uavlink.policies.baselines implements them by these names.
+BASELINE_NAMES = ("static", "oracle", "aoa")
+_INF = float("inf")
+
+
+def config_name(path: str) -> str:
+    """How validate() names a field by default: ``train.warm_start.episodes``."""
+    return f"train.{path}"
+
+
+@dataclass(frozen=True)
+class WarmStartConfig:
+    """Behaviour-cloning warm start (ours; uavlink/imitation.py): the actor is first fitted to a rule's
+    actions over ``episodes`` of its own flying, its exploration std set to exp(``log_std``); PPO then
+    fits only the critic for ``critic_rollouts`` rollouts (the actor frozen) and trains as usual."""
+
+    teacher: str = setting("", "first fit the actor to this rule's actions (behaviour cloning), then run "
+                           "PPO (ours; e.g. aoa, as the shipped policies; default: off, the paper's PPO "
+                           "from scratch)", flag="--warm-start", metavar="RULE", choices=("", *BASELINE_NAMES))
+    episodes: int = setting(256, "episodes the rule flies to make the cloning data", low=1)
+    epochs: int | None = setting(None, "passes of the actor over the cloning data (default 20, "
+                                 "imitation.CLONE_EPOCHS)", low=1, metavar="N")
+    log_std: float = setting(-1.0, "exploration log std PPO starts from after the cloning")
+    critic_rollouts: int = setting(10, "PPO updates with the actor frozen, fitting the critic", low=0)
+    shadow_gate_db: float | None = setting(
+        None, "aoa teacher only: hover when the newest frame's mean SINR beats the older frames' by "
+        "more than DB (ours; default: off, the SPEC's rule)", metavar="DB")
+    sinr_span_db: float | None = setting(
+        None, "aoa teacher only: its speed span, full speed DB below the hover SINR (default: the "
+        "baseline's 10 dB)", low=0, low_open=True, metavar="DB")
+    shadow_estimator_episodes: int | None = setting(
+        None, "aoa teacher only: gate on a shadowing estimate (uavlink/shadow_estimation.py) fitted on "
+        "N simulated episodes (hover while the estimated mean shadowing is above "
+        "--warm-start-shadow-gate-db) instead of on the SINR jump (ours)", low=1, metavar="N")
+
+    def validate(self, name: Namer = config_name) -> WarmStartConfig:
+        check_fields(self, lambda path: name(f"warm_start.{path}"))
+        for knob in ("shadow_gate_db", "sinr_span_db", "shadow_estimator_episodes"):
+            if getattr(self, knob) is not None and self.teacher != "aoa":
+                raise ConfigError(f"{name('warm_start.' + knob)} needs {name('warm_start.teacher')} aoa")
+        if self.shadow_estimator_episodes is not None and self.shadow_gate_db is None:
+            raise ConfigError(f"{name('warm_start.shadow_estimator_episodes')} needs "
+                              f"{name('warm_start.shadow_gate_db')} (the gate's threshold)")
+        return self
+
+
+@dataclass(frozen=True)
+class TrainConfig:
+    """PPO as the paper configures it (SPEC "What the paper reports": 12,000 episodes, lr 3e-4, 3 x 128
+    actor and critic, gamma 0.99, GAE lambda 0.95, max grad norm 1.0, clip 0.2; memory M = 4 lives in
+    EnvConfig) and, not marked ``paper``, our choices. An episode is ``EnvConfig.episode_frames``
+    steps, so the budget is ``total_timesteps(env)``."""
+
+    episodes: int = setting(12_000, "training budget in episodes of the env's episode_frames steps "
+                            "(paper: 12000)", low=1, paper=True)
+    learning_rate: float = setting(3e-4, "Adam learning rate (paper: 3e-4)", low=0, low_open=True, paper=True)
+    net_arch: tuple[int, ...] = setting((128, 128, 128), "hidden layers of the actor and of the critic "
+                                        "(paper: 128 128 128)", paper=True)
+    gamma: float = setting(0.99, "discount (paper: 0.99)", low=0, low_open=True, high=1, paper=True)
+    gae_lambda: float = setting(0.95, "GAE lambda (paper: 0.95)", low=0, high=1, paper=True)
+    max_grad_norm: float = setting(1.0, "gradient clip norm (paper: 1.0)", low=0, low_open=True, paper=True)
+    clip_range: float = setting(0.2, "PPO clip range (paper: 0.2)", low=0, low_open=True, paper=True)
+    n_envs: int = setting(32, "parallel envs in the batched VecEnv (ours)", low=1)
+    n_steps: int = setting(128, "steps per env per rollout (ours: one 128-frame episode)", low=1)
+    batch_size: int = setting(512, "PPO minibatch (ours)", low=2)
+    n_epochs: int = setting(10, "PPO epochs per rollout (ours, SB3 default)", low=1)
+    ent_coef: float = setting(0.0, "entropy bonus coefficient (ours, SB3 default)", low=0)
+    vf_coef: float = setting(0.5, "value loss coefficient (ours, SB3 default)", low=0)
+    # Undiscounted returns reach ~100; without the scaling the critic's gradient dominates the
+    # shared max-grad-norm clip. Observations are O(1) by construction and are not normalised, so
+    # a saved policy needs no statistics at inference.
+    normalize_reward: bool = setting(True, "scale rewards by a running estimate of the return's std "
+                                     "(SB3 VecNormalize, rewards only; ours)")
+    # Domain randomisation belongs to the training, not to the policy's env: training_env_config puts
+    # it into the env PPO trains in (RadioConfig.aoa_noise_max_deg, which the env core reads), while
+    # the manifest keeps the env without it, so evaluation and flight run without it unless asked.
+    aoa_noise_max_deg: float = setting(0.0, "train with each episode's AoA noise std drawn from "
+                                       "[--aoa-noise-deg, this] (ours; 0: off)", low=0)
+    warm_start: WarmStartConfig = nested(WarmStartConfig, "behaviour-cloning warm start (ours)")
+    seed: int = setting(0, "seed of the envs, the network and the warm start", low=0)
+    torch_threads: int = setting(1, "torch CPU threads (1 is fastest for 3x128 MLPs)", low=1)
+    checkpoint_every_steps: int = setting(100_000, "save RUN_DIR/checkpoint.zip every this many env "
+                                          "steps", low=1)
+
+    def total_timesteps(self, env: EnvConfig) -> int:
+        """The budget in env steps: ``episodes`` of the env's ``episode_frames``."""
+        return self.episodes * env.episode_frames
+
+    def validate(self, env: EnvConfig | None = None, name: Namer = config_name) -> TrainConfig:
+        """Every check of a training's settings, each a one-line ConfigError naming the field (as
+        ``name`` spells it: ``train.x`` by default, a flag for the command line). With ``env``, also
+        the checks against the env it trains in."""
+        check_fields(self, name)
+        if self.n_envs * self.n_steps < 2:
+            raise ConfigError(f"{name('n_envs')} x {name('n_steps')} must be >= 2 (PPO's rollout buffer)")
+        self.warm_start.validate(name)
+        if env is not None:
+            if env.radio.aoa_noise_max_deg:
+                raise ConfigError(f"radio.aoa_noise_max_deg is the training's AoA noise randomisation: "
+                                  f"set {name('aoa_noise_max_deg')} instead")
+            if 0 < self.aoa_noise_max_deg < env.radio.aoa_noise_deg:
+                raise ConfigError(f"{name('aoa_noise_max_deg')} must be 0 (off) or >= the env's "
+                                  f"aoa_noise_deg ({env.radio.aoa_noise_deg:g}), got {self.aoa_noise_max_deg:g}")
+        return self
+
+    def to_dict(self) -> dict[str, Any]:
+        """The manifest's ``training.hyperparameters``: the nested shape, lists for tuples."""
+        data = dataclasses.asdict(self)
+        data["net_arch"] = list(self.net_arch)
+        return data
+
+    @classmethod
+    def from_dict(cls, data: dict[str, Any]) -> TrainConfig:
+        """From ``to_dict``'s shape, or from an old manifest's flat one (``warm_start_teacher``, ...,
+        and the unused ``extra``); an unknown key is a ConfigError."""
+        values: dict[str, Any] = {}
+        warm = dict(data.get("warm_start") or {})
+        for key, value in data.items():
+            if key in ("warm_start", "extra"):
+                continue
+            flat = legacy_warm_start_key(key)
+            if flat is not None:
+                warm[flat] = value
+            else:
+                values[key] = coerce(cls, key, value, f"train.{key}")
+        values["warm_start"] = WarmStartConfig(**{k: coerce(WarmStartConfig, k, v, f"train.warm_start.{k}")
+                                                  for k, v in warm.items()})
+        return cls(**values)
+
+
+def legacy_warm_start_key(key: str) -> str | None:
+    """The WarmStartConfig field an old flat key (``warm_start_teacher``) names, else None."""
+    if not key.startswith("warm_start_"):
+        return None
+    name = key.removeprefix("warm_start_")
+    return name if name in {f.name for f, _ in config_fields(WarmStartConfig)} else None
+
+
+PAPER_HYPERPARAMETERS = tuple(f.name for f, _ in config_fields(TrainConfig) if f.metadata.get("paper"))
