@@ -78,7 +78,7 @@ def test_train_with_warm_start_records_it_and_starts_from_the_rule(tmp_path: Pat
     from stable_baselines3 import PPO
 
     policy = PPO.load(out, device="cpu").policy
-    assert np.allclose(policy.log_std.detach().numpy(), TrainConfig().warm_start_log_std)
+    assert np.allclose(policy.log_std.detach().numpy(), TrainConfig().warm_start.log_std)
     fresh = make_model(CFG, TrainConfig(n_envs=2), None).policy  # same seed: the same initial critic
     assert not np.allclose(policy.value_net.weight.detach().numpy(), fresh.value_net.weight.detach().numpy())
 
