@@ -236,6 +236,7 @@ BAD_SPECS = [
     ("[train]\nwarm_start.shadow_gate_db = 1.0\n", "train.warm_start.shadow_gate_db needs"),
     ("[train]\nwarm_start.teacher = \"aoa\"\nwarm_start_teacher = \"aoa\"\n", "'warm_start_teacher'"),
     ("[env]\n\"radio.aoa_noise_max_deg\" = 50.0\n", "set train.aoa_noise_max_deg"),
+    ("[env]\naoa_noise_max_deg = 50.0\n", "set train.aoa_noise_max_deg"),
     ("[scenario_train.straight]\nlearning_rate = 1e-4\n[grid]\nlearning_rate = [1e-4]\n", "'learning_rate'"),
 ]
 

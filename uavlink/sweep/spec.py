@@ -7,6 +7,7 @@ A sweep file (``sweeps/tiny.toml`` is a commented example)::
     seeds = [0, 1, 2]                 # or a count: seeds = 3 means 0, 1, 2
     [train]                           # TrainConfig fields: the budget and PPO hyper-parameters
     episodes = 12000
+    warm_start.teacher = "aoa"        # the warm start's fields (WarmStartConfig) are nested
     [scenario_train.circular]         # TrainConfig fields for one scenario's jobs only
     n_envs = 64
     [env]                             # EnvConfig fields; radio.x / area.x reach the nested configs
@@ -319,8 +320,8 @@ def _qualify(key: str, where: str, allow: tuple[str, ...]) -> tuple[str, str]:
     head, _, tail = key.partition(".")
     if head in ("train", "env") and tail:
         section, name = head, tail
-    else:
-        section, name = ("train" if _train_path(key) else "env"), key
+    else:  # a bare key: the table's own section, or in [grid] the config that has the field
+        section, name = (allow[0] if len(allow) == 1 else "train" if _train_path(key) else "env"), key
     path = _train_path(name) if section == "train" else _env_path(name)
     label = f"[{where}] key {key!r}"
     fixed = TRAIN_FIXED if section == "train" else ENV_FIXED
