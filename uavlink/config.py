@@ -14,6 +14,8 @@ from typing import Any
 
 from uavlink.errors import ConfigError
 
+SHADOWING_MODELS = ("ar1", "spatial")
+
 
 @dataclass(frozen=True)
 class AreaConfig:
@@ -45,7 +47,11 @@ class RadioConfig:
     min_distance_m: float = 35.0
     shadowing: bool = True
     shadowing_std_db: float = 8.0
-    shadowing_decorrelation_m: float = 50.0
+    shadowing_decorrelation_m: float = 50.0  # the UE end's (and the AR(1) model's) distance
+    # "ar1": the SPEC's per-link AR(1) over displacement (the paper's channel, no memory of place);
+    # "spatial": one field per episode over (UE, UAV) positions (uavlink/radio/spatial_shadowing.py).
+    shadowing_model: str = "ar1"
+    shadowing_uav_decorrelation_m: float = 50.0  # the UAV end's distance, spatial model only
     fast_fading: bool = True
     rician_k_db: float = 10.0
     aoa_noise_deg: float = 0.0
@@ -61,6 +67,10 @@ class RadioConfig:
         _positive("radio.min_distance_m", self.min_distance_m)
         _non_negative("radio.shadowing_std_db", self.shadowing_std_db)
         _positive("radio.shadowing_decorrelation_m", self.shadowing_decorrelation_m)
+        _positive("radio.shadowing_uav_decorrelation_m", self.shadowing_uav_decorrelation_m)
+        if self.shadowing_model not in SHADOWING_MODELS:
+            raise ConfigError(f"radio.shadowing_model must be one of {', '.join(SHADOWING_MODELS)}, "
+                              f"got {self.shadowing_model!r}")
         _non_negative("radio.aoa_noise_deg", self.aoa_noise_deg)
         _non_negative("radio.aoa_noise_max_deg", self.aoa_noise_max_deg)
         if 0 < self.aoa_noise_max_deg < self.aoa_noise_deg:
