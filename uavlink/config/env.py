@@ -20,6 +20,8 @@ from uavlink.errors import ConfigError
 # The UE mobility scenarios (uavlink.mobility implements them); MIXED draws one per env and episode.
 SCENARIOS: tuple[str, ...] = ("no_move", "straight", "circular", "straight_90", "straight_180", "hotspot")
 MIXED = "mixed"
+# Shadowing: the SPEC's per-link AR(1) (the paper's) or the spatially consistent field.
+SHADOWING_MODELS = ("ar1", "spatial")
 
 
 @dataclass(frozen=True)
@@ -52,7 +54,11 @@ class RadioConfig:
     min_distance_m: float = 35.0
     shadowing: bool = True
     shadowing_std_db: float = 8.0
-    shadowing_decorrelation_m: float = 50.0
+    shadowing_decorrelation_m: float = 50.0  # the UE end's (and the AR(1) model's) distance
+    # "ar1": the SPEC's per-link AR(1) over displacement (the paper's channel, no memory of place);
+    # "spatial": one field per episode over (UE, UAV) positions (uavlink/radio/spatial_shadowing.py).
+    shadowing_model: str = "ar1"
+    shadowing_uav_decorrelation_m: float = 50.0  # the UAV end's distance, spatial model only
     fast_fading: bool = True
     rician_k_db: float = 10.0
     aoa_noise_deg: float = 0.0
@@ -70,6 +76,10 @@ class RadioConfig:
         _positive("radio.min_distance_m", self.min_distance_m)
         _non_negative("radio.shadowing_std_db", self.shadowing_std_db)
         _positive("radio.shadowing_decorrelation_m", self.shadowing_decorrelation_m)
+        _positive("radio.shadowing_uav_decorrelation_m", self.shadowing_uav_decorrelation_m)
+        if self.shadowing_model not in SHADOWING_MODELS:
+            raise ConfigError(f"radio.shadowing_model must be one of {', '.join(SHADOWING_MODELS)}, "
+                              f"got {self.shadowing_model!r}")
         _non_negative("radio.aoa_noise_deg", self.aoa_noise_deg)
         _non_negative("radio.aoa_noise_max_deg", self.aoa_noise_max_deg)
         if 0 < self.aoa_noise_max_deg < self.aoa_noise_deg:

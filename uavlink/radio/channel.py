@@ -3,7 +3,8 @@
 Shapes: UAV positions (N, D, 2), UE positions (N, U, 2), metres in the env frame (x east, y north).
 Each UE is served by one UAV (``serving``, default UAV 0) and interfered by the others on every RB
 (full frequency reuse). Per frame the channel draws fast fading and advances the shadowing, then
-reports per-UE effective SINR, round-robin rate and measured AoA at the serving UAV.
+reports per-UE effective SINR, round-robin rate and measured AoA at the serving UAV. Shadowing
+follows ``RadioConfig.shadowing_model``: per-link AR(1) (the paper's) or a spatial field.
 """
 
 from __future__ import annotations
@@ -19,6 +20,7 @@ from uavlink.radio.noise import noise_power_dbm
 from uavlink.radio.pathloss import distance_3d_m, mean_rx_power_dbm
 from uavlink.radio.rates import rate_bps, round_robin_mask, round_robin_rbs
 from uavlink.radio.shadowing import initial_shadowing_db, update_shadowing_db
+from uavlink.radio.spatial_shadowing import SpatialShadowField
 
 
 @dataclass
@@ -48,6 +50,7 @@ class RadioChannel:
         self.rb_mask = round_robin_mask(radio.n_resource_blocks, n_ues)
         self.noise_dbm = noise_power_dbm(radio.bandwidth_hz, radio)
         self._shadow_db: np.ndarray | None = None
+        self._field: SpatialShadowField | None = None  # the episode's field (spatial model)
         self._uav_prev: np.ndarray | None = None
         self._ue_prev: np.ndarray | None = None
 
@@ -62,7 +65,12 @@ class RadioChannel:
     def reset(self, rng: np.random.Generator, uav_xy_m: np.ndarray, ue_xy_m: np.ndarray) -> RadioReadings:
         """Draw fresh shadowing for every link and return the readings of the first frame."""
         n_envs, n_uavs = uav_xy_m.shape[0], uav_xy_m.shape[1]
-        self._shadow_db = initial_shadowing_db(rng, (n_envs, self.n_ues, n_uavs), self.radio)
+        if self.radio.shadowing and self.radio.shadowing_model == "spatial":
+            self._field = SpatialShadowField.draw(rng, n_envs, self.radio)
+            self._shadow_db = self._field.shadow_db(uav_xy_m, ue_xy_m)
+        else:
+            self._field = None
+            self._shadow_db = initial_shadowing_db(rng, (n_envs, self.n_ues, n_uavs), self.radio)
         self._aoa_std_deg = self.radio.aoa_noise_deg
         if self.radio.aoa_noise_max_deg > self.radio.aoa_noise_deg:  # per-episode std, (N, 1)
             self._aoa_std_deg = rng.uniform(self.radio.aoa_noise_deg, self.radio.aoa_noise_max_deg,
@@ -71,10 +79,13 @@ class RadioChannel:
         return self._readings(rng, uav_xy_m, ue_xy_m)
 
     def step(self, rng: np.random.Generator, uav_xy_m: np.ndarray, ue_xy_m: np.ndarray) -> RadioReadings:
-        """Advance shadowing by each link's displacement since the last call, then read the frame."""
+        """Advance the shadowing (AR(1): by each link's displacement since the last call; spatial:
+        the episode's field at the new positions), then read the frame."""
         if self._shadow_db is None:
             raise RuntimeError("RadioChannel.step() called before reset()")
-        if self.radio.shadowing:
+        if self._field is not None:
+            self._shadow_db = self._field.shadow_db(uav_xy_m, ue_xy_m)
+        elif self.radio.shadowing:
             ue_moved = np.linalg.norm(ue_xy_m - self._ue_prev, axis=-1)  # (N, U)
             uav_moved = np.linalg.norm(uav_xy_m - self._uav_prev, axis=-1)  # (N, D)
             displacement = ue_moved[:, :, None] + uav_moved[:, None, :]
