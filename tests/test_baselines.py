@@ -42,6 +42,7 @@ def paired() -> dict[str, dict[str, EvalResult]]:
             for p in BASELINES}
 
 
+@pytest.mark.slow
 def test_static_calibration_against_paper(static_results):
     lines = [
         "",
@@ -75,6 +76,7 @@ def test_static_calibration_against_paper(static_results):
     assert family.mean() == pytest.approx(paper_family, rel=0.10)
 
 
+@pytest.mark.slow
 def test_no_move_static_is_about_8_mbps(static_results):
     result = static_results["no_move"]
     assert 7.6 <= result.mean_rate_mbps <= 8.4
@@ -82,6 +84,7 @@ def test_no_move_static_is_about_8_mbps(static_results):
     assert 0.0 < result.ci95_mbps < 0.5
 
 
+@pytest.mark.slow
 def test_circular_static_is_the_worst_moving_case(static_results):
     # The orbiting cluster stays ~195 m away: the lowest static throughput, as in the paper.
     rates = {s: r.mean_rate_mbps for s, r in static_results.items()}
@@ -89,6 +92,7 @@ def test_circular_static_is_the_worst_moving_case(static_results):
     assert max(rates, key=rates.get) == "no_move"
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("scenario", MOVING)
 def test_oracle_beats_static_where_ues_move(paired, scenario):
     static, oracle = paired["static"][scenario], paired["oracle"][scenario]
@@ -97,6 +101,7 @@ def test_oracle_beats_static_where_ues_move(paired, scenario):
     assert np.mean(oracle.episode_rate_mbps >= static.episode_rate_mbps - 0.01) > 0.9
 
 
+@pytest.mark.slow
 def test_oracle_hovers_on_straight_180(paired):
     # Two clusters leaving in opposite directions: hovering at the centre maximises R_fair, so the
     # oracle cannot beat static, and must not do worse.
@@ -105,6 +110,7 @@ def test_oracle_hovers_on_straight_180(paired):
     assert oracle.mean_rate_mbps == pytest.approx(static.mean_rate_mbps, rel=0.02)
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("scenario", ["straight", "circular"])
 def test_aoa_beats_static_and_stays_under_the_oracle(paired, scenario):
     static, aoa, oracle = (paired[p][scenario] for p in ("static", "aoa", "oracle"))
@@ -112,6 +118,7 @@ def test_aoa_beats_static_and_stays_under_the_oracle(paired, scenario):
     assert aoa.mean_rate_mbps < oracle.mean_rate_mbps + oracle.ci95_mbps
 
 
+@pytest.mark.slow
 def test_aoa_moves_while_shadowed_and_beats_static_on_no_move():
     """The SPEC's aoa rule speeds up as the SINRs fall below the hover level, so over a static cluster
     it keeps moving while the links are shadowed and stops when they are not; under the SPEC's
@@ -134,6 +141,7 @@ def test_aoa_rule_is_the_specs_rule_without_teacher_knobs():
         AoaPolicy(cfg, shadow_gate_db=1.0)
 
 
+@pytest.mark.slow
 def test_oracle_gain_is_large_where_the_paper_says(paired):
     # The paper's big PPO gains are on straight (+71 %) and circular (+97 %): the oracle's head room
     # over static must be large there, larger than on the two-cluster scenarios.

@@ -42,6 +42,7 @@ def test_teacher_dataset_flies_what_the_teacher_says_it_is() -> None:
     assert np.abs(privileged[:2] - actions[:2]).max() > 0.1
 
 
+@pytest.mark.slow
 def test_cloned_actor_flies_like_its_teacher() -> None:
     """After cloning, the untrained PPO actor acts like the aoa rule on episodes it never saw, and
     flies about as well as the rule, far from what the random initial actor does."""
@@ -55,6 +56,7 @@ def test_cloned_actor_flies_like_its_teacher() -> None:
     assert float(np.mean((student - teacher_actions) ** 2)) < 0.02
 
 
+@pytest.mark.slow
 def test_train_with_warm_start_records_it_and_starts_from_the_rule(tmp_path: Path) -> None:
     out = tmp_path / "ws.zip"
     code = main(["train", "--scenario", "no_move", "--out", str(out), "--episodes", "8", "--n-envs", "4",
@@ -74,6 +76,7 @@ def test_train_with_warm_start_records_it_and_starts_from_the_rule(tmp_path: Pat
     assert not np.allclose(policy.value_net.weight.detach().numpy(), fresh.value_net.weight.detach().numpy())
 
 
+@pytest.mark.slow
 def test_gated_teacher_and_its_settings(tmp_path: Path, capsys) -> None:
     """The aoa teacher with its shadow gate and speed span flies that variant of the rule; both belong
     to aoa only, and `uavlink train` records them (and the exploration std PPO restarts from) in the
