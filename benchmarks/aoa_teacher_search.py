@@ -36,10 +36,13 @@ from typing import Any
 import numpy as np
 
 from uavlink.config import EnvConfig
-from uavlink.env.core import BatchedUavEnv
-from uavlink.evaluation import CHUNK, EvalResult, episode_seed, evaluate_policy
+from uavlink.env.core import BatchedUavEnv, GroundTruth
+from uavlink.evaluation import EvalResult, evaluate_policy
 from uavlink.policies.baselines import AoaPolicy
+from uavlink.rollout import chunks
+from uavlink.seeding import EVAL
 from uavlink.shadow_estimation import ShadowEstimator, fit_shadow_estimator
+from uavlink.teachers import AoaVariant, TrueAoaTeacher
 
 SCENARIOS = ("straight_90", "straight_180", "hotspot")
 SPANS_DB = (2.0, 3.0, 4.0, 6.0, 8.0, 10.0)
@@ -47,7 +50,7 @@ JUMP_GATES_DB = (0.0, 1.0, 2.0, 3.0)
 ESTIMATE_GATES_DB = (0.0, 1.0, 2.0, 3.0, 4.0)
 ESTIMATOR_EPISODES = 512  # as sweeps/table1.toml's warm_start.shadow_estimator_episodes
 TRUE_SHADOW_THRESHOLDS_DB = (0.0, 1.5, 3.0, 4.5)
-BASELINE_SPAN_DB = 10.0  # AoaPolicy's default: the `aoa` column of every table
+BASELINE_SPAN_DB = AoaPolicy.sinr_span_db  # the `aoa` column of every table
 
 
 def paired(diff: np.ndarray) -> list[float]:
@@ -65,16 +68,16 @@ def differences_from_rule(variant: EvalResult, rule: EvalResult) -> dict[str, An
             "d_mbps_pct": paired(100.0 * (variant.episode_rate_mbps / rule.episode_rate_mbps - 1.0))}
 
 
-def variant_policy(cfg: EnvConfig, variant: dict[str, Any], estimator: ShadowEstimator | None) -> AoaPolicy:
-    return AoaPolicy(cfg, sinr_span_db=variant["sinr_span_db"], shadow_gate_db=variant["shadow_gate_db"],
-                     shadow_estimator=estimator if variant["gate_on"] == "estimate" else None)
+def variant_policy(cfg: EnvConfig, variant: dict[str, Any], estimator: ShadowEstimator | None) -> AoaVariant:
+    return AoaVariant(cfg, sinr_span_db=variant["sinr_span_db"], shadow_gate_db=variant["shadow_gate_db"],
+                      shadow_estimator=estimator if variant["gate_on"] == "estimate" else None)
 
 
 def search(scenario: str, spans_db: tuple[float, ...], jump_gates_db: tuple[float, ...],
            estimate_gates_db: tuple[float, ...], estimator_episodes: int, episodes: int, seed: int) -> dict[str, Any]:
     cfg = EnvConfig(scenario=scenario)
     estimator = fit_shadow_estimator(cfg, estimator_episodes, seed=0)
-    rule = evaluate_policy(AoaPolicy(cfg, sinr_span_db=BASELINE_SPAN_DB), cfg, episodes=episodes, seed=seed)
+    rule = evaluate_policy(AoaPolicy(cfg), cfg, episodes=episodes, seed=seed)
     gates = [("off", None), *(("jump", g) for g in jump_gates_db), *(("estimate", g) for g in estimate_gates_db)]
     variants = []
     for span in spans_db:
@@ -90,20 +93,32 @@ def search(scenario: str, spans_db: tuple[float, ...], jump_gates_db: tuple[floa
             "true_shadow_gate_mbps_r_fair": bound}
 
 
+class TrueShadowGate:
+    """The rule, hovering while the links' true mean shadowing in ``env`` is above ``threshold_db``
+    (privileged: reads the channel)."""
+
+    name = "true-shadow-gate"
+    layout = None
+    needs_truth = False
+
+    def __init__(self, rule: AoaPolicy, env: BatchedUavEnv, threshold_db: float) -> None:
+        self.rule, self.env, self.threshold_db = rule, env, threshold_db
+
+    def act(self, obs: np.ndarray, truth: GroundTruth | None = None) -> np.ndarray:
+        lucky = self.env.channel.shadow_db.mean(axis=(1, 2)) > self.threshold_db
+        return np.where(lucky[:, None], 0.0, self.rule.act(obs))
+
+
 def true_shadow_gate(cfg: EnvConfig, threshold_db: float, episodes: int, seed: int) -> list[float]:
     """[Mbps, R_fair] of the rule that hovers while the links' true mean shadowing is above
-    ``threshold_db``, on the episodes ``evaluate_policy`` would fly (privileged: reads the channel)."""
+    ``threshold_db``, on the episodes ``evaluate_policy`` would fly (each frame of each episode weighs
+    the same)."""
     rule, rates, fairs = AoaPolicy(cfg), [], []
-    for chunk, start in enumerate(range(0, episodes, CHUNK)):
-        env = BatchedUavEnv(cfg, n_envs=min(CHUNK, episodes - start), seed=episode_seed(seed, chunk))
-        obs = env.reset()
-        for _ in range(cfg.episode_frames):
-            lucky = env.channel.shadow_db.mean(axis=(1, 2)) > threshold_db
-            step = env.step(np.where(lucky[:, None], 0.0, rule.act(obs)))
-            obs = step.observation
-            rates.append(step.mean_rate_mbps)
-            fairs.append(step.fair_rate)
-    return [round(float(np.mean(rates)), 3), round(float(np.mean(fairs)), 3)]
+    for chunk in chunks(cfg, EVAL, episodes, seed):
+        for frame in chunk.frames(TrueShadowGate(rule, chunk.env, threshold_db)):
+            rates.append(frame.result.mean_rate_mbps)
+            fairs.append(frame.result.fair_rate)
+    return [round(float(np.mean(np.concatenate(rates))), 3), round(float(np.mean(np.concatenate(fairs))), 3)]
 
 
 def clone_of(cfg: EnvConfig, pick: dict[str, Any], estimator_episodes: int, teacher_episodes: int, epochs: int,
@@ -119,7 +134,7 @@ def clone_of(cfg: EnvConfig, pick: dict[str, Any], estimator_episodes: int, teac
 
     model = make_model(cfg, TrainConfig(warm_start=WarmStartConfig(teacher="aoa")), None)
     estimator = fit_shadow_estimator(cfg, estimator_episodes, seed=0) if pick["gate_on"] == "estimate" else None
-    report = warm_start(model.policy, cfg, variant_policy(cfg, pick, estimator), teacher_episodes, 0,
+    report = warm_start(model.policy, cfg, TrueAoaTeacher(variant_policy(cfg, pick, estimator)), teacher_episodes, 0,
                         epochs=epochs, log_std=-3.0)
     result = evaluate_policy(ClonedActor(model), cfg, episodes=episodes, seed=seed)
     return {"teacher_episodes": teacher_episodes, "epochs": epochs, "mse": round(report.final_mse, 5),

@@ -1,5 +1,5 @@
-"""The environment: action mapping, geofence, reward, observation, the Gymnasium and SB3 faces,
-determinism, and rejection of bad input."""
+"""The environment: action mapping, geofence, reward, the Gymnasium and SB3 faces, determinism,
+and rejection of bad input (the observation: test_observation.py)."""
 
 from __future__ import annotations
 
@@ -12,12 +12,9 @@ import pytest
 
 import uavlink
 from uavlink.config import EnvConfig
-from uavlink.env import ActionMapping, BatchedUavEnv, ObservationLayout, RewardBounds
+from uavlink.env import ActionMapping, BatchedUavEnv, RewardBounds
 from uavlink.env.gym_env import UavBsEnv
-from uavlink.evaluation import evaluate_policy
 from uavlink.mobility import MIXED, SCENARIOS
-from uavlink.policies.baselines import AoaPolicy
-from uavlink.radio import circular_mean_std_deg
 
 ENV_ID = "uavlink/UavBs-v0"
 QUIET = {"shadowing": False, "fast_fading": False}
@@ -141,62 +138,6 @@ def test_reward_is_one_hovering_over_the_cluster_and_zero_at_the_far_corner():
     np.testing.assert_allclose(far.reward, 0.0, atol=1e-9)
     np.testing.assert_allclose(far.mean_rate_mbps, 0.395, atol=0.005)
     np.testing.assert_allclose(far.reward, env.reward_bounds.normalise(far.fair_rate))
-
-
-# --- observation -------------------------------------------------------------------------------
-
-
-def test_observation_layout_and_decoding():
-    env = BatchedUavEnv(EnvConfig(scenario="hotspot").replace(aoa_noise_deg=5.0), n_envs=3, seed=1)
-    layout = env.layout
-    assert layout.frame_size == 2 + 10 + 3 and layout.size == 4 * 15
-    names = layout.feature_names()
-    assert len(names) == layout.size
-    # Only what the base station senses: the UAV's own position, SINRs, AoA statistics.
-    allowed = {"uav_x", "uav_y", "aoa_mean_sin", "aoa_mean_cos", "aoa_std"} | {f"sinr_{u}" for u in range(10)}
-    assert {name.split(":")[1] for name in names} == allowed
-    obs = env.reset()
-    assert obs.shape == (3, layout.size) and obs.dtype == np.float32
-    # A fresh episode fills every memory slot with the first frame.
-    frames = obs.reshape(3, 4, -1)
-    np.testing.assert_array_equal(frames, frames[:, :1].repeat(4, axis=1))
-    rng = np.random.default_rng(0)
-    previous = obs
-    for _ in range(5):
-        obs = env.step(rng.uniform(-1, 1, (3, 2))).observation
-        readings = env.readings
-        # The newest frame is exactly the encoding of (UAV position, SINR, AoA): nothing else.
-        expected = layout.encode_frame(env.uav_xy_m, readings.sinr_db, readings.aoa_deg)
-        np.testing.assert_allclose(obs[:, : layout.frame_size], expected, rtol=1e-6, atol=1e-6)
-        # The older frames are the previous observation shifted by one frame.
-        np.testing.assert_array_equal(obs[:, layout.frame_size:], previous[:, : 3 * layout.frame_size])
-        decoded = layout.newest_frame(obs)
-        np.testing.assert_allclose(decoded["uav_xy_m"], env.uav_xy_m, atol=1e-4)
-        np.testing.assert_allclose(decoded["sinr_db"], np.clip(readings.sinr_db, -30, 50), atol=1e-4)
-        mean, std = circular_mean_std_deg(readings.aoa_deg)
-        np.testing.assert_allclose(((decoded["aoa_mean_deg"] - mean) + 180) % 360 - 180, 0, atol=1e-3)
-        np.testing.assert_allclose(decoded["aoa_std_deg"], std, atol=1e-3)
-        # The history decoders agree with the newest frame's decoding and with the encoding.
-        np.testing.assert_allclose(layout.uav_xy_m_history(obs)[:, 0], decoded["uav_xy_m"])
-        np.testing.assert_allclose(layout.sinr_db_history(obs)[:, 0], decoded["sinr_db"])
-        np.testing.assert_allclose(layout.aoa_feature_history(obs)[:, 0], expected[:, -3:], atol=1e-6)
-        np.testing.assert_array_equal(layout.frames(obs)[:, 1:], layout.frames(previous)[:, :-1])
-        previous = obs
-
-
-def test_layout_mismatch_names_both_layouts():
-    policy_layout = ObservationLayout(memory=4)
-    env_layout = ObservationLayout(memory=2)
-    with pytest.raises(ValueError) as excinfo:
-        policy_layout.check_matches(env_layout)
-    message = str(excinfo.value)
-    assert policy_layout.describe() in message and env_layout.describe() in message
-    assert "memory=4" in message and "memory=2" in message and "\n" not in message
-    policy_layout.check_matches(ObservationLayout.from_dict(policy_layout.to_dict()))  # equal: fine
-    # Evaluating a policy built for another layout fails the same way.
-    policy = AoaPolicy(EnvConfig(memory=4))
-    with pytest.raises(ValueError, match=r"mismatch.*memory=4.*memory=2"):
-        evaluate_policy(policy, EnvConfig(memory=2), episodes=1)
 
 
 # --- Gymnasium face ----------------------------------------------------------------------------

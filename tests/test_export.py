@@ -62,6 +62,7 @@ def exported(policy_zip: Path) -> tuple[Path, dict]:
     return out, export_onnx(policy_zip, out, verify=True, n_verify=1000, seed=0)
 
 
+@pytest.mark.slow
 def test_export_verifies_parity_on_1000_real_observations(policy_zip: Path, exported) -> None:
     path, report = exported
     check = report["verification"]
@@ -80,6 +81,7 @@ def test_export_verifies_parity_on_1000_real_observations(policy_zip: Path, expo
     np.testing.assert_allclose(singles, expected[:50], rtol=0, atol=1e-5)
 
 
+@pytest.mark.slow
 def test_graph_signature(exported) -> None:
     model = onnx.load(str(exported[0]))
     onnx.checker.check_model(model)
@@ -96,6 +98,7 @@ def test_graph_signature(exported) -> None:
     assert policy.act(batch).shape == (5, 2)
 
 
+@pytest.mark.slow
 def test_clip_to_the_action_box_is_in_the_graph(policy_zip: Path, tmp_path: Path) -> None:
     """SB3 clips the Gaussian mean to [-1, 1] after the network; the graph must do the same."""
     import torch
@@ -117,6 +120,7 @@ def test_clip_to_the_action_box_is_in_the_graph(policy_zip: Path, tmp_path: Path
     assert (np.abs(actions) == 1.0).any() and (np.abs(actions) < 1.0).any()
 
 
+@pytest.mark.slow
 def test_evaluation_throughput_equals_the_zip(policy_zip: Path, exported) -> None:
     zipped = evaluate_policy(SB3Policy(policy_zip), CFG, episodes=8, seed=3)
     onnxed = evaluate_policy(load_policy(exported[0], CFG), CFG, episodes=8, seed=3)
@@ -125,6 +129,7 @@ def test_evaluation_throughput_equals_the_zip(policy_zip: Path, exported) -> Non
     np.testing.assert_array_equal(onnxed.episode_fair_rate, zipped.episode_fair_rate)
 
 
+@pytest.mark.slow
 def test_manifest_round_trips_through_metadata(policy_zip: Path, exported) -> None:
     path, report = exported
     source = read_zip_manifest(policy_zip)
@@ -139,6 +144,7 @@ def test_manifest_round_trips_through_metadata(policy_zip: Path, exported) -> No
     assert policy.layout == SB3Policy(policy_zip).layout
 
 
+@pytest.mark.slow
 def test_not_onnx_files_are_refused(policy_zip: Path, tmp_path: Path) -> None:
     noise = tmp_path / "noise.onnx"
     noise.write_bytes(np.random.default_rng(0).bytes(4096))
@@ -169,6 +175,7 @@ def test_foreign_onnx_without_manifest_is_refused(tmp_path: Path) -> None:
         OnnxPolicy(tmp_path / "foreign.onnx")
 
 
+@pytest.mark.slow
 def test_wrong_input_shape_is_refused(exported, tmp_path: Path) -> None:
     manifest = OnnxPolicy(exported[0]).session.get_modelmeta().custom_metadata_map[METADATA_KEY]
     onnx.save(_tiny_model(60, {METADATA_KEY: manifest}), str(tmp_path / "right.onnx"))
@@ -178,6 +185,7 @@ def test_wrong_input_shape_is_refused(exported, tmp_path: Path) -> None:
         OnnxPolicy(tmp_path / "wrong.onnx")
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("change", [{"n_ues": 5}, {"memory": 3}])
 def test_layout_mismatch_is_refused_naming_both(exported, change: dict) -> None:
     policy = OnnxPolicy(exported[0])
@@ -191,6 +199,7 @@ def test_layout_mismatch_is_refused_naming_both(exported, change: dict) -> None:
     assert ObservationLayout.for_config(cfg).describe() in message
 
 
+@pytest.mark.slow
 def test_failed_verification_leaves_nothing(policy_zip: Path, tmp_path: Path, monkeypatch) -> None:
     import torch
 
@@ -218,6 +227,7 @@ def test_failed_verification_leaves_nothing(policy_zip: Path, tmp_path: Path, mo
     assert sorted(p.name for p in tmp_path.iterdir()) == ["kept.onnx"]
 
 
+@pytest.mark.slow
 def test_cli_default_out_and_help(policy_zip: Path, tmp_path: Path, capsys) -> None:
     copy = tmp_path / "copy.zip"
     copy.write_bytes(policy_zip.read_bytes())
@@ -235,6 +245,7 @@ def _run(args: list[str], env: dict | None = None, cwd: Path | None = None) -> s
                           env=env, cwd=cwd or ROOT)
 
 
+@pytest.mark.slow
 def test_cli_export_prints_what_it_checked(policy_zip: Path, tmp_path: Path) -> None:
     out = tmp_path / "cli.onnx"
     done = _run(["-m", "uavlink.cli", "export", str(policy_zip), "--out", str(out)])
@@ -247,6 +258,7 @@ def test_cli_export_prints_what_it_checked(policy_zip: Path, tmp_path: Path) -> 
     assert "missing.zip: no such policy file" in missing.stderr
 
 
+@pytest.mark.slow
 def test_onnx_policy_runs_with_torch_and_sb3_blocked(exported, tmp_path: Path) -> None:
     path = exported[0]
     (tmp_path / "sitecustomize.py").write_text(BLOCKER)
@@ -292,6 +304,7 @@ def test_onnx_policy_runs_with_torch_and_sb3_blocked(exported, tmp_path: Path) -
 SHIPPED = sorted((Path(__file__).resolve().parents[1] / "policies").glob("*.zip"))
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("zip_path", SHIPPED, ids=[p.stem for p in SHIPPED])
 def test_every_shipped_policy_exports_with_parity(zip_path: Path, tmp_path: Path) -> None:
     """Each committed policy: ONNX agrees with SB3's predict to 1e-5 on 1,000 real observations and
@@ -309,3 +322,20 @@ def test_every_shipped_policy_exports_with_parity(zip_path: Path, tmp_path: Path
           f"Mbps, max |onnx - sb3 predict| {check['max_abs_diff']:.1e}")
     np.testing.assert_array_equal(onnx_result.episode_rate_mbps, zip_result.episode_rate_mbps)
     np.testing.assert_array_equal(onnx_result.episode_fair_rate, zip_result.episode_fair_rate)
+
+
+@pytest.mark.slow
+def test_verification_observations_are_the_export_streams_frames_step_major() -> None:
+    """Every env's first observation, then every env's next one, from the EXPORT stream's episodes
+    flown by the policy itself; n = 300 with 128-frame episodes takes 3 envs and 99 steps."""
+    from uavlink.env.core import BatchedUavEnv
+    from uavlink.seeding import EXPORT
+
+    sb3 = SB3Policy(ROOT / "policies" / "circular.zip")
+    obs = verification_observations(sb3, 300, seed=4)
+    env = BatchedUavEnv(EnvConfig.from_dict(sb3.manifest["env_config"]), n_envs=3, seed=EXPORT.seed(4))
+    first = env.reset()
+    np.testing.assert_array_equal(obs[:3], first)
+    np.testing.assert_array_equal(obs[3:6], env.step(sb3.act(first)).observation)
+    assert obs.shape == (300, sb3.layout.size) and obs.dtype == np.float32
+    assert not np.array_equal(verification_observations(sb3, 3, seed=5), obs[:3])

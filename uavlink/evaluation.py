@@ -1,8 +1,8 @@
 """Seeded, batched evaluation of any policy on a scenario.
 
-Episodes run as batches of ``CHUNK`` parallel envs; chunk i is seeded with SeedSequence([seed, i]),
-so results do not depend on anything but (policy, config, episodes, seed). The SITL radio payload
-uses chunk 0's seed, so ``fly --seed S`` meets the same UE trajectories as episode 0 here.
+Episodes come from the ``EVAL`` stream (``uavlink.seeding``, run by ``uavlink.rollout``), so results
+depend on nothing but (policy, config, episodes, seed). The SITL radio payload uses chunk 0's seed,
+so ``fly --seed S`` meets the same UE trajectories as episode 0 here.
 """
 
 from __future__ import annotations
@@ -14,14 +14,9 @@ from typing import Any
 import numpy as np
 
 from uavlink.config import EnvConfig
-from uavlink.env.core import BatchedUavEnv
 from uavlink.policies.base import Policy
-
-CHUNK = 128
-
-
-def episode_seed(seed: int, chunk: int = 0) -> np.random.SeedSequence:
-    return np.random.SeedSequence([seed, chunk])
+from uavlink.rollout import chunks
+from uavlink.seeding import EVAL
 
 
 @dataclass
@@ -71,27 +66,20 @@ class EvalResult:
 def evaluate_policy(policy: Policy, cfg: EnvConfig, episodes: int = 100, seed: int = 0,
                     record_trajectory: bool = False) -> EvalResult:
     """Run ``episodes`` seeded episodes; the trajectory of episode 0 is kept on request."""
-    if int(episodes) != episodes or episodes < 1:
-        raise ValueError(f"episodes must be a positive integer, got {episodes}")
     rates, fairs, trajectory = [], [], None
-    for chunk, start in enumerate(range(0, episodes, CHUNK)):
-        env = BatchedUavEnv(cfg, n_envs=min(CHUNK, episodes - start), seed=episode_seed(seed, chunk))
-        if policy.layout is not None:
-            policy.layout.check_matches(env.layout, what=f"policy {policy.name!r}")
-        obs = env.reset()
-        uav, ue, frame_rates, frame_fair = [env.uav_xy_m[0].copy()], [env.mobility.position_m[0].copy()], [], []
-        for _ in range(cfg.episode_frames):
-            truth = env.ground_truth() if policy.needs_truth else None
-            result = env.step(policy.act(obs, truth))
-            obs = result.observation
-            frame_rates.append(result.mean_rate_mbps)
-            frame_fair.append(result.fair_rate)
-            if record_trajectory and chunk == 0:
-                uav.append(env.uav_xy_m[0].copy())
-                ue.append(env.mobility.position_m[0].copy())
+    for chunk in chunks(cfg, EVAL, episodes, seed):
+        keep = record_trajectory and chunk.index == 0
+        uav, ue = [chunk.env.uav_xy_m[0].copy()], [chunk.env.mobility.position_m[0].copy()]
+        frame_rates, frame_fair = [], []
+        for frame in chunk.frames(policy):
+            frame_rates.append(frame.result.mean_rate_mbps)
+            frame_fair.append(frame.result.fair_rate)
+            if keep:
+                uav.append(frame.env.uav_xy_m[0].copy())
+                ue.append(frame.env.mobility.position_m[0].copy())
         rates.append(np.mean(frame_rates, axis=0))
         fairs.append(np.mean(frame_fair, axis=0))
-        if record_trajectory and chunk == 0:
+        if keep:
             trajectory = Trajectory(np.array(uav), np.array(ue), np.array(frame_rates)[:, 0])
     return EvalResult(cfg.scenario, policy.name, episodes, seed, cfg.radio.aoa_noise_deg,
                       np.concatenate(rates), np.concatenate(fairs), trajectory)

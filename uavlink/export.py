@@ -68,19 +68,25 @@ def _to_onnx_bytes(actor: Any, obs_size: int, opset: int) -> bytes:
 
 
 def verification_observations(sb3_policy: Any, n: int, seed: int) -> np.ndarray:
-    """``n`` observations (n, obs) float32 met by the policy itself in seeded episodes of its env."""
+    """``n`` observations (n, obs) float32 met by the policy itself in seeded episodes of its env
+    (the ``EXPORT`` stream), step-major: every env's first observation, then every env's next one,
+    so any prefix holds every env's first frames. Steps no further than it needs."""
     from uavlink.config import EnvConfig
-    from uavlink.env.core import BatchedUavEnv
+    from uavlink.rollout import chunks
+    from uavlink.seeding import EXPORT
 
     cfg = EnvConfig.from_dict(sb3_policy.manifest["env_config"])
-    n_envs = max(1, math.ceil(n / (cfg.episode_frames + 1)))
-    env = BatchedUavEnv(cfg, n_envs=n_envs, seed=np.random.SeedSequence([seed, 0xE0]))
-    batches = [env.reset()]
-    collected = n_envs
-    while collected < n:
-        batches.append(env.step(sb3_policy.act(batches[-1])).observation)
-        collected += n_envs
-    # Step-major order: any prefix holds every env's observations of the first frames.
+    episodes = max(1, math.ceil(n / (cfg.episode_frames + 1)))
+    batches, collected = [], 0
+    for chunk in chunks(cfg, EXPORT, episodes, seed):
+        batches.append(chunk.observation)
+        collected += len(chunk.observation)
+        frames = chunk.frames(sb3_policy)
+        while collected < n and (frame := next(frames, None)) is not None:
+            batches.append(frame.result.observation)
+            collected += len(frame.result.observation)
+        if collected >= n:
+            break
     return np.concatenate(batches, axis=0)[:n].astype(np.float32)
 
 

@@ -3,28 +3,27 @@
 PPO from scratch finds the moves that follow the team, but not the subtler habit of the ``aoa`` rule:
 keep moving while the SINRs sit below the hover level (shadowed) and stop when they do not, which
 under the SPEC's shadowing model is worth up to 4 % on ``no_move`` (docs/design.md). Starting PPO
-from a copy of the rule lets it keep that habit and improve on the rest. The teacher flies its own
-seeded rollouts of the training env, reading the true AoAs where the student sees noisy ones
-(``teacher_action``); the student's actor (MLP + action head) is fitted to the
-teacher's actions by mean squared error, and its exploration std is reset. The critic knows
-nothing yet, and PPO's first updates with its random advantages would undo the copy, so the actor
-stays frozen for the first few rollouts while the critic learns the cloned policy's values
-(``critic_warmup_callback``). Imports torch.
+from a copy of the rule lets it keep that habit and improve on the rest. The teacher
+(``uavlink.teachers``; the aoa rule reads the true AoAs where the student sees noisy ones) flies its
+own seeded rollouts of the training env on the ``TEACHER`` stream; the student's actor (MLP +
+action head) is fitted to the teacher's actions by mean squared error, and its exploration std is
+reset. The critic knows nothing yet, and PPO's first updates with its random advantages would undo
+the copy, so the actor stays frozen for the first few rollouts while the critic learns the cloned
+policy's values (``critic_warmup_callback``). Imports torch.
 """
 
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
 
 from uavlink.config import EnvConfig
-from uavlink.env.core import BatchedUavEnv
-from uavlink.policies.baselines import BASELINES, AoaPolicy, ShadowEstimate, make_baseline
+from uavlink.rollout import Actor, rollout
+from uavlink.seeding import TEACHER
+from uavlink.teachers import make_teacher
 
-TEACHER_ENVS = 64  # envs per teacher rollout batch
 CLONE_EPOCHS = 20  # passes over the cloning data unless TrainConfig.warm_start.epochs says otherwise
 
 
@@ -40,46 +39,14 @@ class CloneReport:
                 "final_mse": round(self.final_mse, 6)}
 
 
-def teacher_action(policy: Any, obs: np.ndarray, env: BatchedUavEnv) -> np.ndarray:
-    """What the rule does in ``env`` now. The ``aoa`` rule reads the true AoAs rather than the
-    observation's noisy estimates: a privileged teacher, so that under heavy AoA noise the student
-    learns what the noisy observation implies about the clean rule's move, not to copy a rule that
-    flies wherever the noise points."""
-    if isinstance(policy, AoaPolicy):
-        return policy.act_on_true_aoa(obs, env.ground_truth())
-    return policy.act(obs, env.ground_truth() if policy.needs_truth else None)
-
-
-def make_teacher(cfg: EnvConfig, teacher: str, shadow_gate_db: float | None = None,
-                 sinr_span_db: float | None = None, shadow_estimator: ShadowEstimate | None = None) -> Any:
-    """The rule named ``teacher``. For the aoa rule, ``shadow_gate_db`` turns on its shadow gate
-    (on the SINR jump, or on ``shadow_estimator``'s estimate, ``uavlink.shadow_estimation``) and
-    ``sinr_span_db`` replaces its speed span (None: the baseline's)."""
-    if teacher not in BASELINES:
-        raise ValueError(f"unknown teacher {teacher!r}; choose from {', '.join(BASELINES)}")
-    if shadow_gate_db is None and sinr_span_db is None and shadow_estimator is None:
-        return make_baseline(teacher, cfg)
-    if teacher != "aoa":
-        raise ValueError(f"a shadow gate, a speed span and a shadow estimator are settings of the aoa "
-                         f"teacher, not of {teacher!r}")
-    span = {} if sinr_span_db is None else {"sinr_span_db": sinr_span_db}
-    return AoaPolicy(cfg, shadow_gate_db=shadow_gate_db, shadow_estimator=shadow_estimator, **span)
-
-
-def teacher_dataset(cfg: EnvConfig, teacher: str | Any, episodes: int, seed: int) -> tuple[np.ndarray, np.ndarray]:
+def teacher_dataset(cfg: EnvConfig, teacher: str | Actor, episodes: int, seed: int) -> tuple[np.ndarray, np.ndarray]:
     """(observations, actions) float32 from ``episodes`` seeded episodes flown by ``teacher`` (a rule's
-    name, or a policy from ``make_teacher``; ``teacher_action``)."""
+    name, or a teacher from ``uavlink.teachers.make_teacher``)."""
     policy = make_teacher(cfg, teacher) if isinstance(teacher, str) else teacher
     observations, actions = [], []
-    for chunk in range(math.ceil(episodes / TEACHER_ENVS)):
-        n_envs = min(TEACHER_ENVS, episodes - chunk * TEACHER_ENVS)
-        env = BatchedUavEnv(cfg, n_envs=n_envs, seed=np.random.SeedSequence([seed, 0xB0, chunk]))
-        obs = env.reset()
-        for _ in range(cfg.episode_frames):
-            action = teacher_action(policy, obs, env)
-            observations.append(obs)
-            actions.append(action)
-            obs = env.step(action).observation
+    for frame in rollout(policy, cfg, TEACHER, episodes, seed):
+        observations.append(frame.observation)
+        actions.append(frame.action)
     return np.concatenate(observations).astype(np.float32), np.concatenate(actions).astype(np.float32)
 
 
@@ -110,7 +77,7 @@ def clone_actor(sb3_policy: Any, observations: np.ndarray, actions: np.ndarray, 
     return loss_sum / len(obs_t)
 
 
-def warm_start(sb3_policy: Any, cfg: EnvConfig, teacher: str | Any, episodes: int, seed: int,
+def warm_start(sb3_policy: Any, cfg: EnvConfig, teacher: str | Actor, episodes: int, seed: int,
                epochs: int = CLONE_EPOCHS, log_std: float = -1.0) -> CloneReport:
     """Clone ``teacher`` (a rule's name, or a policy from ``make_teacher``) into the policy's actor
     from ``episodes`` of its own flying."""

@@ -1,4 +1,5 @@
-"""A GPS-free estimate of the links' shadowing from the observation (ours), for the aoa rule's gate.
+"""A GPS-free estimate of the links' shadowing from the observation (ours), for the aoa teacher's gate
+(``uavlink.teachers.AoaVariant``).
 
 Under the SPEC's shadowing (Gudmundson: it decorrelates with displacement and has no memory of
 place) a favourable draw is worth keeping by hovering, and moving re-draws it (docs/design.md). The
@@ -17,11 +18,12 @@ from dataclasses import dataclass
 import numpy as np
 
 from uavlink.config import EnvConfig
-from uavlink.env.core import BatchedUavEnv
+from uavlink.env.core import GroundTruth
 from uavlink.env.observation import ObservationLayout
 from uavlink.policies.baselines import AoaPolicy
+from uavlink.rollout import chunks
+from uavlink.seeding import SHADOW, SHADOW_HELD_OUT, SHADOW_HELD_OUT_HOVERS, SHADOW_HOVERS
 
-ESTIMATOR_ENVS = 64  # envs per rollout batch of the fitting data
 HOVER_PROBABILITY = 0.3  # the data's rule hovers at random in this share of frames, so both are seen
 RIDGE = 1.0  # L2 penalty on the weights (features are O(1) to O(10))
 
@@ -53,23 +55,30 @@ class ShadowEstimator:
         return shadow_features(self.layout, obs) @ self.weights
 
 
+class RandomHovers:
+    """The aoa rule, hovering instead in a random ``HOVER_PROBABILITY`` share of frames (``draws``)."""
+
+    needs_truth = False
+
+    def __init__(self, rule: AoaPolicy, draws: np.random.Generator) -> None:
+        self.rule, self.draws, self.name, self.layout = rule, draws, rule.name, rule.layout
+
+    def act(self, obs: np.ndarray, truth: GroundTruth | None = None) -> np.ndarray:
+        hover = self.draws.random(obs.shape[0]) < HOVER_PROBABILITY
+        return np.where(hover[:, None], self.rule.hover, self.rule.act(obs))
+
+
 def shadow_dataset(cfg: EnvConfig, episodes: int, seed: int, held_out: bool = False) -> tuple[np.ndarray, np.ndarray]:
     """(features, mean shadowing dB) of every frame with a full memory, from ``episodes`` seeded
     episodes flown by the aoa rule with random hovers; ``held_out`` draws another set of episodes."""
     rule, layout = AoaPolicy(cfg), ObservationLayout.for_config(cfg)
+    stream, hovers = (SHADOW_HELD_OUT, SHADOW_HELD_OUT_HOVERS) if held_out else (SHADOW, SHADOW_HOVERS)
     features, targets = [], []
-    for chunk, start in enumerate(range(0, episodes, ESTIMATOR_ENVS)):
-        n_envs = min(ESTIMATOR_ENVS, episodes - start)
-        stream = [seed, 0x5AD, int(held_out), chunk]
-        env = BatchedUavEnv(cfg, n_envs=n_envs, seed=np.random.SeedSequence(stream))
-        hover_rng = np.random.default_rng([*stream, 1])
-        obs = env.reset()
-        for frame in range(cfg.episode_frames):
-            hover = hover_rng.random(n_envs) < HOVER_PROBABILITY
-            obs = env.step(np.where(hover[:, None], rule.hover, rule.act(obs))).observation
-            if frame + 1 >= cfg.memory:
-                features.append(shadow_features(layout, obs))
-                targets.append(env.channel.shadow_db.mean(axis=(1, 2)))
+    for chunk in chunks(cfg, stream, episodes, seed):
+        for frame in chunk.frames(RandomHovers(rule, hovers.generator(seed, chunk.index))):
+            if frame.index + 1 >= cfg.memory:
+                features.append(shadow_features(layout, frame.result.observation))
+                targets.append(frame.env.channel.shadow_db.mean(axis=(1, 2)))
     return np.concatenate(features), np.concatenate(targets)
 
 

@@ -102,7 +102,8 @@ def time_to_fraction(curve: list[tuple[int, float]], fraction: float = 0.95, win
 
 def _warm_start(sb3_policy: Any, cfg: EnvConfig, tc: TrainConfig) -> dict[str, Any]:
     """Clone the teacher TrainConfig names into the actor (uavlink/imitation.py); the report."""
-    from uavlink.imitation import CLONE_EPOCHS, make_teacher, warm_start
+    from uavlink.imitation import CLONE_EPOCHS, warm_start
+    from uavlink.teachers import make_teacher
 
     estimator = None
     ws = tc.warm_start

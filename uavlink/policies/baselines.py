@@ -2,25 +2,15 @@
 
 from __future__ import annotations
 
-from typing import Protocol
-
 import numpy as np
 
 from uavlink.config import BASELINE_NAMES, EnvConfig
 from uavlink.env.actions import ActionMapping
 from uavlink.env.core import GroundTruth
 from uavlink.env.observation import ObservationLayout
-from uavlink.radio.aoa import circular_mean_std_deg, true_aoa_deg
 from uavlink.radio.noise import noise_power_dbm
 from uavlink.radio.pathloss import mean_rx_power_dbm
 from uavlink.radio.rates import fair_rate, rate_bps
-
-
-class ShadowEstimate(Protocol):
-    """Anything that estimates the links' mean shadowing (dB) from observations (N, size), such as
-    ``uavlink.shadow_estimation.ShadowEstimator``."""
-
-    def predict_db(self, obs: np.ndarray) -> np.ndarray: ...
 
 
 class StaticPolicy:
@@ -41,62 +31,33 @@ class AoaPolicy:
     """GPS-free rule (SPEC "Baselines"): fly towards the circular-mean AoA, slower as the SINRs
     level off at the hover level.
 
-    Speed = r_max * clip((hover SINR - mean SINR) / span, 0, 1), where the hover SINR is the link
-    budget straight overhead (no shadowing or fading). Because a shadowed frame also lowers the
-    SINRs, the rule keeps moving while its UEs are shadowed and stops when they are not, which under
-    the SPEC's shadowing model (no memory of place) buys throughput even when the UEs stay put
-    (docs/design.md).
+    Speed = r_max * clip((hover SINR - mean SINR) / ``sinr_span_db``, 0, 1), where the hover SINR is
+    the link budget straight overhead (no shadowing or fading). Because a shadowed frame also lowers
+    the SINRs, the rule keeps moving while its UEs are shadowed and stops when they are not, which
+    under the SPEC's shadowing model (no memory of place) buys throughput even when the UEs stay put
+    (docs/design.md). The warm start's variants of it: ``uavlink.teachers``.
     """
 
     name = "aoa"
     needs_truth = False
+    sinr_span_db = 10.0  # full speed this far below the hover SINR
 
-    def __init__(self, cfg: EnvConfig, sinr_span_db: float = 10.0, shadow_gate_db: float | None = None,
-                 shadow_estimator: ShadowEstimate | None = None) -> None:
+    def __init__(self, cfg: EnvConfig) -> None:
         self.layout = ObservationLayout.for_config(cfg)
         self.mapping = ActionMapping(cfg.r_max_m, cfg.action_mapping)
         self.hover_sinr_db = float(mean_rx_power_dbm(cfg.area.uav_altitude_m, cfg.radio)
                                    - noise_power_dbm(cfg.radio.bandwidth_hz, cfg.radio))
-        self.sinr_span_db = sinr_span_db
-        if shadow_gate_db is not None and cfg.memory < 2:
-            raise ValueError("the aoa rule's shadow gate compares frames: it needs memory >= 2")
-        if shadow_estimator is not None and shadow_gate_db is None:
-            raise ValueError("a shadow estimator needs the gate's threshold (shadow_gate_db)")
-        self.shadow_gate_db = shadow_gate_db
-        self.shadow_estimator = shadow_estimator
         self.hover = self.mapping.from_polar(0.0, 0.0)
 
     def act(self, obs: np.ndarray, truth: GroundTruth | None = None) -> np.ndarray:
-        frame = self.layout.newest_frame(obs)
-        return self._gate(obs, self._move(frame["sinr_db"], frame["aoa_mean_deg"]))
+        return self.act_towards(obs, self.layout.newest_frame(obs)["aoa_mean_deg"])
 
-    def act_on_true_aoa(self, obs: np.ndarray, truth: GroundTruth) -> np.ndarray:
-        """The rule on the UEs' true AoAs instead of the observation's estimates: the privileged
-        teacher of the warm start (uavlink/imitation.py); not a GPS-free policy."""
-        aoa_mean_deg, _ = circular_mean_std_deg(true_aoa_deg(truth.uav_xy_m[:, None, :], truth.ue_xy_m))
-        return self._gate(obs, self._move(self.layout.newest_frame(obs)["sinr_db"], aoa_mean_deg))
-
-    def _move(self, sinr_db: np.ndarray, aoa_mean_deg: np.ndarray) -> np.ndarray:
-        """Actions (N, 2) from each env's per-UE SINRs (dB) and circular-mean AoA (deg)."""
-        gap = (self.hover_sinr_db - sinr_db.mean(axis=1)) / self.sinr_span_db
+    def act_towards(self, obs: np.ndarray, aoa_mean_deg: np.ndarray) -> np.ndarray:
+        """The rule's actions (N, 2) with the circular-mean AoA (N,) in deg given, rather than read
+        from the observations (N, size): the seam a privileged teacher uses (``uavlink.teachers``)."""
+        gap = (self.hover_sinr_db - self.layout.newest_frame(obs)["sinr_db"].mean(axis=1)) / self.sinr_span_db
         distance = self.mapping.r_max_m * np.clip(gap, 0.0, 1.0)
         return self.mapping.from_polar(aoa_mean_deg, distance)
-
-    def _gate(self, obs: np.ndarray, action: np.ndarray) -> np.ndarray:
-        """With ``shadow_gate_db`` set (ours, not the SPEC's rule): hover instead wherever the links
-        look favourably shadowed, a draw that moving would throw away (docs/design.md). Without an
-        estimator: where the newest frame's mean SINR beats the mean of the older frames in memory
-        by more than the gate (path loss changes little from frame to frame, so such a jump is
-        mostly a good shadowing draw). With one (``uavlink.shadow_estimation``): where the
-        estimated mean shadowing of the links is above the gate."""
-        if self.shadow_gate_db is None:
-            return action
-        if self.shadow_estimator is not None:
-            lucky = self.shadow_estimator.predict_db(obs) > self.shadow_gate_db
-        else:
-            mean_sinr_db = self.layout.sinr_db_history(obs).mean(axis=2)  # (N, memory), newest first
-            lucky = mean_sinr_db[:, 0] > mean_sinr_db[:, 1:].mean(axis=1) + self.shadow_gate_db
-        return np.where(lucky[:, None], self.hover, action)
 
 
 class OraclePolicy:

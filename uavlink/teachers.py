@@ -1,0 +1,95 @@
+"""The rules the warm start clones (ours, not the SPEC's): variants of the aoa rule and the privileged
+teacher that flies them on the UEs' true AoAs.
+
+``AoaVariant`` is the aoa rule with another speed span and/or a shadow gate that hovers where the
+links look favourably shadowed, a draw that moving would throw away (docs/design.md); it stays
+GPS-free, so benchmarks evaluate it like any policy. ``TrueAoaTeacher`` flies a rule on the true
+AoAs instead of the observation's estimates and says so with ``needs_truth``: under heavy AoA noise
+the student then learns what the noisy observation implies about the clean rule's move, not to copy
+a rule that flies wherever the noise points. ``make_teacher`` builds what ``TrainConfig`` names.
+The shadowing estimator a gate can read lives in ``uavlink.shadow_estimation``.
+"""
+
+from __future__ import annotations
+
+from typing import Any, Protocol
+
+import numpy as np
+
+from uavlink.config import EnvConfig
+from uavlink.env.core import GroundTruth
+from uavlink.errors import UserError
+from uavlink.policies.baselines import BASELINES, AoaPolicy, make_baseline
+from uavlink.radio.aoa import circular_mean_std_deg, true_aoa_deg
+
+
+class ShadowEstimate(Protocol):
+    """Anything that estimates the links' mean shadowing (dB) from observations (N, size), such as
+    ``uavlink.shadow_estimation.ShadowEstimator``."""
+
+    def predict_db(self, obs: np.ndarray) -> np.ndarray: ...
+
+
+class AoaVariant(AoaPolicy):
+    """The aoa rule with its speed span replaced and an optional shadow gate; GPS-free.
+
+    With ``shadow_gate_db`` set it hovers instead wherever the links look favourably shadowed.
+    Without an estimator: where the newest frame's mean SINR beats the mean of the older frames in
+    memory by more than the gate (path loss changes little from frame to frame, so such a jump is
+    mostly a good shadowing draw). With one: where the estimated mean shadowing is above the gate.
+    """
+
+    def __init__(self, cfg: EnvConfig, sinr_span_db: float = AoaPolicy.sinr_span_db,
+                 shadow_gate_db: float | None = None, shadow_estimator: ShadowEstimate | None = None) -> None:
+        super().__init__(cfg)
+        if shadow_gate_db is not None and cfg.memory < 2:
+            raise UserError("the aoa rule's shadow gate compares frames: it needs memory >= 2")
+        if shadow_estimator is not None and shadow_gate_db is None:
+            raise UserError("a shadow estimator needs the gate's threshold (shadow_gate_db)")
+        self.sinr_span_db = sinr_span_db
+        self.shadow_gate_db = shadow_gate_db
+        self.shadow_estimator = shadow_estimator
+
+    def act_towards(self, obs: np.ndarray, aoa_mean_deg: np.ndarray) -> np.ndarray:
+        action = super().act_towards(obs, aoa_mean_deg)
+        if self.shadow_gate_db is None:
+            return action
+        if self.shadow_estimator is not None:
+            lucky = self.shadow_estimator.predict_db(obs) > self.shadow_gate_db
+        else:
+            mean_sinr_db = self.layout.sinr_db_history(obs).mean(axis=2)  # (N, memory), newest first
+            lucky = mean_sinr_db[:, 0] > mean_sinr_db[:, 1:].mean(axis=1) + self.shadow_gate_db
+        return np.where(lucky[:, None], self.hover, action)
+
+
+class TrueAoaTeacher:
+    """``rule`` flown on the UEs' true AoAs (privileged: reads ground truth, never flies for real)."""
+
+    needs_truth = True
+
+    def __init__(self, rule: AoaPolicy) -> None:
+        self.rule = rule
+        self.name = rule.name
+        self.layout = rule.layout
+
+    def act(self, obs: np.ndarray, truth: GroundTruth | None = None) -> np.ndarray:
+        if truth is None:
+            raise ValueError("the true-AoA teacher needs ground truth; it cannot fly from MAVLink data")
+        aoa_mean_deg, _ = circular_mean_std_deg(true_aoa_deg(truth.uav_xy_m[:, None, :], truth.ue_xy_m))
+        return self.rule.act_towards(obs, aoa_mean_deg)
+
+
+def make_teacher(cfg: EnvConfig, teacher: str, shadow_gate_db: float | None = None,
+                 sinr_span_db: float | None = None, shadow_estimator: ShadowEstimate | None = None) -> Any:
+    """The warm start's teacher named ``teacher``: the aoa rule (or its variant, when
+    ``shadow_gate_db``, ``sinr_span_db`` or ``shadow_estimator`` is set) on the true AoAs, or
+    another baseline as it is."""
+    if teacher not in BASELINES:
+        raise UserError(f"unknown teacher {teacher!r}; choose from {', '.join(BASELINES)}")
+    if shadow_gate_db is None and sinr_span_db is None and shadow_estimator is None:
+        return TrueAoaTeacher(AoaPolicy(cfg)) if teacher == "aoa" else make_baseline(teacher, cfg)
+    if teacher != "aoa":
+        raise UserError(f"a shadow gate, a speed span and a shadow estimator are settings of the aoa "
+                         f"teacher, not of {teacher!r}")
+    span = {} if sinr_span_db is None else {"sinr_span_db": sinr_span_db}
+    return TrueAoaTeacher(AoaVariant(cfg, shadow_gate_db=shadow_gate_db, shadow_estimator=shadow_estimator, **span))
