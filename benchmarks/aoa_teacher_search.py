@@ -35,7 +35,7 @@ from typing import Any
 
 import numpy as np
 
-from uavlink.config import EnvConfig
+from uavlink.config import SHADOWING_MODELS, EnvConfig
 from uavlink.env.core import BatchedUavEnv, GroundTruth
 from uavlink.evaluation import EvalResult, evaluate_policy
 from uavlink.policies.baselines import AoaPolicy
@@ -73,9 +73,8 @@ def variant_policy(cfg: EnvConfig, variant: dict[str, Any], estimator: ShadowEst
                       shadow_estimator=estimator if variant["gate_on"] == "estimate" else None)
 
 
-def search(scenario: str, spans_db: tuple[float, ...], jump_gates_db: tuple[float, ...],
+def search(cfg: EnvConfig, spans_db: tuple[float, ...], jump_gates_db: tuple[float, ...],
            estimate_gates_db: tuple[float, ...], estimator_episodes: int, episodes: int, seed: int) -> dict[str, Any]:
-    cfg = EnvConfig(scenario=scenario)
     estimator = fit_shadow_estimator(cfg, estimator_episodes, seed=0)
     rule = evaluate_policy(AoaPolicy(cfg), cfg, episodes=episodes, seed=seed)
     gates = [("off", None), *(("jump", g) for g in jump_gates_db), *(("estimate", g) for g in estimate_gates_db)]
@@ -160,18 +159,22 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--jump-gates-db", nargs="*", type=float, default=list(JUMP_GATES_DB))
     parser.add_argument("--estimate-gates-db", nargs="*", type=float, default=list(ESTIMATE_GATES_DB))
     parser.add_argument("--estimator-episodes", type=int, default=ESTIMATOR_EPISODES)
+    parser.add_argument("--shadowing-model", choices=SHADOWING_MODELS, default="ar1",
+                        help="the channel's shadowing (radio.shadowing_model; default ar1, the paper's)")
     parser.add_argument("--top", type=int, default=5, help="variants listed per scenario, by R_fair")
     parser.add_argument("--clone", nargs="*", type=clone_arg, default=[], metavar="EPISODESxEPOCHS",
                         help="also copy the pick into a PPO actor this way and fly the copy")
     parser.add_argument("--json", action="store_true", help="print JSON")
     args = parser.parse_args(argv)
-    result = {"episodes": args.episodes, "seed": args.seed,
-              "scenarios": {s: search(s, tuple(args.spans_db), tuple(args.jump_gates_db),
+    configs = {s: EnvConfig(scenario=s).replace(**{"radio.shadowing_model": args.shadowing_model}).validate()
+               for s in args.scenarios}
+    result = {"episodes": args.episodes, "seed": args.seed, "shadowing_model": args.shadowing_model,
+              "scenarios": {s: search(configs[s], tuple(args.spans_db), tuple(args.jump_gates_db),
                                       tuple(args.estimate_gates_db), args.estimator_episodes, args.episodes,
                                       args.seed) for s in args.scenarios}}
     for scenario, row in result["scenarios"].items():
         if row["pick"] is not None and args.clone:
-            row["clones_of_pick"] = [clone_of(EnvConfig(scenario=scenario), row["pick"], args.estimator_episodes,
+            row["clones_of_pick"] = [clone_of(configs[scenario], row["pick"], args.estimator_episodes,
                                               teacher_episodes, epochs, args.episodes, args.seed)
                                      for teacher_episodes, epochs in args.clone]
     if args.json:

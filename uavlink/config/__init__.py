@@ -1,8 +1,15 @@
 """Typed configuration, one dataclass per thing: the env (area, radio, learning problem) and the
 training (PPO, budget, warm start). Imports nothing heavy and nothing from the layers above."""
 
-from uavlink.config.env import MIXED, SCENARIOS, AreaConfig, EnvConfig, RadioConfig
+from uavlink.config.env import (
+           MIXED,
+           SCENARIOS,
+           SHADOWING_MODELS,
+           AreaConfig,
+           EnvConfig,
+           RadioConfig,
+)
 from uavlink.config.train import BASELINE_NAMES, PAPER_HYPERPARAMETERS, TrainConfig, WarmStartConfig
 
-__all__ = ["BASELINE_NAMES", "MIXED", "PAPER_HYPERPARAMETERS", "SCENARIOS", "AreaConfig", "EnvConfig",
+__all__ = ["BASELINE_NAMES", "MIXED", "PAPER_HYPERPARAMETERS", "SCENARIOS", "SHADOWING_MODELS", "AreaConfig", "EnvConfig",
            "RadioConfig", "TrainConfig", "WarmStartConfig"]
