@@ -10,6 +10,7 @@ from uavlink.config import EnvConfig
 from uavlink.env.actions import ActionMapping
 from uavlink.env.core import GroundTruth
 from uavlink.env.observation import ObservationLayout
+from uavlink.errors import UserError
 from uavlink.radio.aoa import circular_mean_std_deg, true_aoa_deg
 from uavlink.radio.noise import noise_power_dbm
 from uavlink.radio.pathloss import mean_rx_power_dbm
@@ -148,6 +149,6 @@ def make_baseline(name: str, cfg: EnvConfig):
         return AoaPolicy(cfg)
     if name == "oracle":
         return OraclePolicy(cfg)
-    raise ValueError(f"unknown baseline {name!r}; choose from {', '.join(BASELINES)}")
+    raise UserError(f"unknown baseline {name!r}; choose from {', '.join(BASELINES)}")
 
 

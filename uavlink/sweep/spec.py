@@ -37,6 +37,7 @@ from pathlib import Path
 from typing import Any, get_type_hints
 
 from uavlink.config import AreaConfig, EnvConfig, RadioConfig
+from uavlink.errors import UserError
 
 if sys.version_info >= (3, 11):
     import tomllib
@@ -58,7 +59,7 @@ ENV_FIXED = {"scenario": "set the top-level 'scenarios'"}
 _NAME = re.compile(r"^[A-Za-z0-9][A-Za-z0-9_.-]*$")
 
 
-class SweepSpecError(ValueError):
+class SweepSpecError(UserError):
     """A sweep file that cannot run; the one-line message names the file and the key."""
 
 
