@@ -173,3 +173,14 @@ def test_fly_and_the_embedded_sitl_run_the_policy_env(polar_zip: Path, tmp_path:
     assert abs(flown["mean_rate_mbps"] - simulated) <= 0.05 * simulated
     assert_refused(uavlink("fly", "--policy", str(polar_zip), "--set", "r_max_m=12", "--out", str(tmp_path)),
                    "was built for r_max_m=8", "--set r_max_m=12 conflicts")
+
+
+def test_the_sitl_radio_payload_simulates_the_set_pairs_fly_passes() -> None:
+    from sitl_stub.__main__ import build_parser
+    from sitl_stub.payload import PayloadOptions
+    from sitl_stub.radio_payload import RadioPayload
+
+    cfg = POLAR.replace(**{"radio.shadowing": False, "radio.tx_power_dbm": 25.0})
+    args = build_parser().parse_args([arg for pair in changed_settings(cfg) for arg in ("--set", pair)])
+    payload = RadioPayload(PayloadOptions("straight", 5, 0.0, tuple(args.settings)))
+    assert payload.cfg == cfg

@@ -17,7 +17,13 @@ from uavlink.config import EnvConfig, parse_settings
 from uavlink.errors import UserError
 from uavlink.mobility import MIXED, SCENARIOS
 from uavlink.policies.baselines import BASELINES
-from uavlink.policies.contract import OVERRIDES_HELP, EnvOverrides, apply_overrides, load_with_env
+from uavlink.policies.contract import (
+    BUILT_FOR,
+    OVERRIDES_HELP,
+    EnvOverrides,
+    apply_overrides,
+    load_with_env,
+)
 
 parse_overrides = parse_settings  # ``--set`` pairs -> {key: value}
 
@@ -49,8 +55,8 @@ def _add_env_options(p: argparse.ArgumentParser, scenario_default: str | None = 
                    help="std of the AoA estimate noise (deg)" + (" (default: the policy's; 0 for a baseline alone)" if for_policy else ""))
     p.add_argument("--set", dest="overrides", action="append", default=[], metavar="KEY=VALUE",
                    help="override an env config field, e.g. --set r_max_m=10 --set radio.shadowing=false"
-                        + ("; radio fields may change under a policy file, action_mapping, r_max_m, memory, "
-                           "n_ues and area.half_width_m may not" if for_policy else ""))
+                        + (f"; under a policy file radio fields may change, {', '.join(BUILT_FOR)} may not"
+                           if for_policy else ""))
 
 
 def cmd_evaluate(args: argparse.Namespace) -> int:
