@@ -29,6 +29,7 @@ from sitl_stub.payload import (
     as_payload_list,
     default_payload_factory,
 )
+from uavlink.config import parse_settings
 from uavlink.flight.connection import normalize_connection
 from uavlink.flight.signing import load_key
 
@@ -82,6 +83,14 @@ def _param(text: str) -> tuple[str, float]:
     return name, _finite(value)
 
 
+def _setting(text: str) -> tuple[str, object]:
+    try:
+        [(key, value)] = parse_settings([text]).items()
+    except ValueError as exc:
+        raise argparse.ArgumentTypeError(str(exc)) from None
+    return key, value
+
+
 def build_parser() -> argparse.ArgumentParser:
     p = _Parser(prog=PROG, description="A lightweight PX4-style SITL multicopter speaking "
                 "MAVLink 2, with a radio payload component.")
@@ -96,6 +105,9 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--seed", type=int, default=0, help="radio payload seed (default 0)")
     p.add_argument("--aoa-noise-deg", type=_non_negative, default=0.0,
                    help="AoA noise std of the radio payload, degrees (default 0)")
+    p.add_argument("--set", dest="settings", type=_setting, action="append", default=[],
+                   metavar="KEY=VALUE", help="env config field of the radio payload, as uavlink's "
+                   "--set, e.g. action_mapping=polar-v1 or radio.shadowing=false (repeatable)")
     p.add_argument("--home-lat", type=_finite, default=GeoOrigin.lat_deg,
                    help=f"home / LOCAL_NED origin latitude, deg (default {GeoOrigin.lat_deg})")
     p.add_argument("--home-lon", type=_finite, default=GeoOrigin.lon_deg,
@@ -125,7 +137,7 @@ def main(argv: Sequence[str] | None = None, payload_factory: PayloadFactory | No
         home.validate()
         payloads = [] if args.no_payload else as_payload_list(
             (payload_factory or default_payload_factory)(
-                PayloadOptions(args.scenario, args.seed, args.aoa_noise_deg)))
+                PayloadOptions(args.scenario, args.seed, args.aoa_noise_deg, tuple(args.settings))))
         key = load_key(args.signing_key) if args.signing_key else None
         config = ServerConfig(connect=args.connect, speed=args.speed, home=home,
                               params=dict(args.param), duration_s=args.duration_s,

@@ -62,6 +62,7 @@ class PayloadOptions:
     scenario: str = "circular"
     seed: int = 0
     aoa_noise_deg: float = 0.0
+    settings: tuple[tuple[str, object], ...] = ()  # --set KEY=VALUE: the radio payload's env fields
 
 
 PayloadFactory = Callable[[PayloadOptions], "Payload | Sequence[Payload] | None"]

@@ -43,7 +43,7 @@ class RadioPayload:
     READINGS_COPIES = 2
 
     def __init__(self, options: PayloadOptions, cfg: EnvConfig | None = None) -> None:
-        base = cfg or EnvConfig()
+        base = cfg or EnvConfig().replace(**dict(options.settings))
         self.cfg = base.replace(scenario=options.scenario, aoa_noise_deg=options.aoa_noise_deg).validate()
         self.frame_s = self.cfg.frame_s
         self.env = BatchedUavEnv(self.cfg, n_envs=1, seed=episode_seed(options.seed, 0))

@@ -13,38 +13,26 @@ from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
 
-from uavlink.config import EnvConfig
-from uavlink.mobility import MIXED, SCENARIOS
-
-
-class UserError(Exception):
-    """An error to report in one line, exit status 2."""
-
-
-def parse_overrides(pairs: Sequence[str]) -> dict[str, Any]:
-    """``--set key=value`` pairs -> typed values (JSON literal when it parses, else a string)."""
-    overrides: dict[str, Any] = {}
-    for pair in pairs:
-        key, sep, raw = pair.partition("=")
-        if not sep or not key:
-            raise UserError(f"--set expects key=value, got {pair!r}")
-        try:
-            overrides[key.strip()] = json.loads(raw)
-        except json.JSONDecodeError:
-            overrides[key.strip()] = raw
-    return overrides
+from uavlink.config import MIXED, SCENARIOS, EnvConfig, parse_settings
+from uavlink.errors import UserError
+from uavlink.policies.contract import (
+    BUILT_FOR,
+    OVERRIDES_HELP,
+    EnvOverrides,
+    apply_overrides,
+    load_with_env,
+)
 
 
 def env_config(scenario: str, aoa_noise_deg: float | None = None, overrides: dict[str, Any] | None = None,
                base: EnvConfig | None = None) -> EnvConfig:
-    changes = dict(overrides or {})
-    changes["scenario"] = scenario
-    if aoa_noise_deg is not None:
-        changes["aoa_noise_deg"] = aoa_noise_deg
-    try:
-        return (base or EnvConfig()).replace(**changes).validate()
-    except (TypeError, ValueError) as exc:
-        raise UserError(str(exc)) from None
+    """``base`` (default: the defaults) with the command line's overrides, validated."""
+    return apply_overrides(base or EnvConfig(), EnvOverrides(scenario, aoa_noise_deg, overrides or {}))
+
+
+def env_overrides(args: argparse.Namespace, scenario: str | None = None) -> EnvOverrides:
+    """The explicit env overrides of a command line (``--scenario``, ``--aoa-noise-deg``, ``--set``)."""
+    return EnvOverrides(scenario, args.aoa_noise_deg, parse_settings(args.overrides))
 
 
 def scenario_list(name: str) -> list[str]:
@@ -55,31 +43,36 @@ def scenario_list(name: str) -> list[str]:
     return [name]
 
 
-def _add_env_options(p: argparse.ArgumentParser, scenario_default: str | None = "circular") -> None:
+def _add_env_options(p: argparse.ArgumentParser, scenario_default: str | None = "circular",
+                     for_policy: bool = False) -> None:
     p.add_argument("--scenario", default=scenario_default,
                    help=f"one of {', '.join(SCENARIOS)}, {MIXED}" + (" or all" if scenario_default is None else ""))
-    p.add_argument("--aoa-noise-deg", type=float, default=None, help="std of the AoA estimate noise (deg)")
+    p.add_argument("--aoa-noise-deg", type=float, default=None,
+                   help="std of the AoA estimate noise (deg)" + (" (default: the policy's; 0 for a baseline alone)" if for_policy else ""))
     p.add_argument("--set", dest="overrides", action="append", default=[], metavar="KEY=VALUE",
-                   help="override an env config field, e.g. --set r_max_m=10 --set radio.shadowing=false")
+                   help="override an env config field, e.g. --set r_max_m=10 --set radio.shadowing=false"
+                        + (f"; under a policy file radio fields may change, {', '.join(BUILT_FOR)} may not"
+                           if for_policy else ""))
 
 
 def cmd_evaluate(args: argparse.Namespace) -> int:
     from uavlink.evaluation import compare, evaluate_policy
-    from uavlink.policies.loader import load_policy
 
+    if args.episodes < 1:
+        raise UserError(f"--episodes must be a positive integer, got {args.episodes}")
     if args.out is not None:
         if args.against is not None:
             raise UserError("--against compares two policies in a table; it does not go with --out")
         return _write_results_folder(args)
     results, comparisons = [], []
+    overrides = env_overrides(args)
+    specs = [args.policy] if args.against is None else [args.policy, args.against]
     for scenario in scenario_list(args.scenario):
-        cfg = env_config(scenario, args.aoa_noise_deg, parse_overrides(args.overrides))
-        result = evaluate_policy(load_policy(args.policy, cfg), cfg, args.episodes, args.seed)
-        results.append(result)
+        flown = [evaluate_policy(policy, cfg, args.episodes, args.seed)
+                 for policy, cfg in load_with_env(specs, overrides.on(scenario))]
+        results += flown
         if args.against is not None:
-            other = evaluate_policy(load_policy(args.against, cfg), cfg, args.episodes, args.seed)
-            results.append(other)
-            comparisons.append(compare(result, other))
+            comparisons.append(compare(*flown))
     if args.json:
         payload = [r.to_dict() for r in results]
         if comparisons:
@@ -99,7 +92,8 @@ def _write_results_folder(args: argparse.Namespace) -> int:
     folder = Path(args.policy)
     if args.scenario != "all" or not folder.is_dir():
         raise UserError("--out needs --scenario all and --policy FOLDER (one policy file per scenario)")
-    base = env_config("no_move", args.aoa_noise_deg, parse_overrides(args.overrides))
+    overrides = env_overrides(args)
+    apply_overrides(EnvConfig(), overrides.on("no_move"))  # a bad --set fails before the long run
     command = "uavlink " + " ".join(sys.argv[1:]) if sys.argv[1:2] == ["evaluate"] else "uavlink evaluate ..."
     markdown = args.markdown or args.out / "results.md"
 
@@ -118,7 +112,7 @@ def _write_results_folder(args: argparse.Namespace) -> int:
 
         return [results_section(spec, args.sweep_root / spec.name, args.out, link_prefix), ""]
 
-    path = write_results(folder, args.out, markdown, args.episodes, args.seed, base, command,
+    path = write_results(folder, args.out, markdown, args.episodes, args.seed, overrides, command,
                          progress=lambda msg: print(f"evaluating {msg}", file=sys.stderr),
                          extra_sections=sweep_sections)
     print(path.read_text())
@@ -138,7 +132,7 @@ def cmd_train(args: argparse.Namespace) -> int:
     from uavlink.config.fields import flag_of, from_options
     from uavlink.training import train
 
-    cfg = env_config(args.scenario, args.aoa_noise_deg, parse_overrides(args.overrides))
+    cfg = env_config(args.scenario, args.aoa_noise_deg, parse_settings(args.overrides))
     tc = from_options(TrainConfig, args).validate(cfg, name=lambda path: flag_of(TrainConfig, path))
     if args.eval_episodes < 0:
         raise UserError(f"--eval-episodes must be >= 0 (0: skip), got {args.eval_episodes}")
@@ -189,7 +183,7 @@ def cmd_sweep(args: argparse.Namespace) -> int:
     from uavlink.sweep.aggregate import export_median_policies, jobs_table, write_summary
     from uavlink.sweep.spec import load_spec
 
-    spec = load_spec(args.file)  # SweepSpecError (a ValueError): one line, exit 2, before any job
+    spec = load_spec(args.file)  # SweepSpecError (a UserError): one line, exit 2, before any job
     if args.workers is not None and args.workers < 0:
         raise UserError("--workers must be >= 0 (0: run in this process without Dask)")
     if args.retries < 0:
@@ -253,8 +247,9 @@ def build_parser() -> argparse.ArgumentParser:
     sub = parser.add_subparsers(dest="command", required=True, metavar="COMMAND")
 
     p = sub.add_parser("evaluate", help="evaluate a policy or baseline, print a table",
-                       description="Evaluate a policy file, a folder of them, or a baseline (static, aoa, oracle).")
-    _add_env_options(p, scenario_default="circular")
+                       description="Evaluate a policy file, a folder of them, or a baseline (static, aoa, "
+                                   "oracle). " + OVERRIDES_HELP)
+    _add_env_options(p, scenario_default="circular", for_policy=True)
     p.add_argument("--policy", default="static", help="static | aoa | oracle | FILE.zip | FILE.onnx | FOLDER")
     p.add_argument("--against", default=None, metavar="POLICY",
                    help="also fly this policy (same forms) on the same episodes and print the paired "
@@ -334,11 +329,9 @@ def build_parser() -> argparse.ArgumentParser:
 def main(argv: Sequence[str] | None = None) -> int:
     parser = build_parser()
     args = parser.parse_args(argv)
-    from uavlink.policies.manifest import PolicyFileError
-
     try:
         return args.func(args)
-    except (UserError, PolicyFileError, ValueError) as exc:
+    except UserError as exc:
         print(f"uavlink {args.command}: error: {exc}", file=sys.stderr)
         return 2
     except RuntimeError as exc:  # the vehicle link (LinkError) and other run-time failures

@@ -33,6 +33,7 @@ from typing import Any
 
 import numpy as np
 
+from uavlink.errors import UserError
 from uavlink.policies.manifest import file_sha256
 from uavlink.policies.onnx_policy import METADATA_KEY
 
@@ -46,7 +47,7 @@ TOLERANCE = 1e-5
 SINGLE_CHECKS = 32  # observations also checked one at a time (batch 1, as the flight loop runs)
 
 
-class ExportVerificationError(ValueError):
+class ExportVerificationError(UserError):
     """The exported graph's actions differ from SB3's; nothing was written."""
 
 

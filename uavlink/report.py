@@ -18,8 +18,8 @@ import numpy as np
 from uavlink.config import EnvConfig
 from uavlink.evaluation import EvalResult, evaluate_policy, paired_ratio_ci
 from uavlink.mobility import SCENARIOS
-from uavlink.policies.baselines import make_baseline
-from uavlink.policies.loader import load_policy, policy_for_scenario
+from uavlink.policies.contract import EnvOverrides, load_with_env
+from uavlink.policies.loader import policy_for_scenario
 
 # The paper's Table I (PPO, static) and Table II (straight under AoA noise), Mbps (SPEC).
 PAPER_TABLE_ONE = {
@@ -33,6 +33,7 @@ PAPER_TABLE_TWO = {0: 7.87, 1: 7.84, 5: 7.82, 10: 7.80, 50: 7.70, 100: 7.16}
 class ScenarioRow:
     scenario: str
     results: dict[str, EvalResult]  # by column: ppo, static, oracle, aoa (+ ppo_mixed)
+    cfg: EnvConfig  # the env of the scenario's policy, which the baselines flew too
 
     def target_mbps(self) -> tuple[float, str]:
         """The SPEC's per-scenario target for PPO and which rule set it."""
@@ -45,22 +46,20 @@ class ScenarioRow:
         return max(min(paper_ppo, 0.95 * oracle), 0.9 * oracle), "min(paper PPO, 95% oracle)"
 
 
-def evaluate_scenarios(policy_folder: Path, episodes: int, seed: int, base: EnvConfig,
+def evaluate_scenarios(policy_folder: Path, episodes: int, seed: int, overrides: EnvOverrides,
                        progress: Callable[[str], None] = lambda _: None) -> list[ScenarioRow]:
+    """Per scenario: its policy, the baselines in that policy's env, and the mixed policy if any."""
     rows = []
     mixed = next((p for p in (policy_folder / "mixed.zip", policy_folder / "mixed.onnx") if p.is_file()), None)
+    columns = {"ppo": policy_folder, "static": "static", "oracle": "oracle", "aoa": "aoa",
+               **({"ppo_mixed": mixed} if mixed is not None else {})}
     for scenario in SCENARIOS:
-        cfg = base.replace(scenario=scenario).validate()
+        loaded = load_with_env(list(columns.values()), overrides.on(scenario))
         results = {}
-        for column in ("ppo", "static", "oracle", "aoa"):
+        for column, (policy, cfg) in zip(columns, loaded, strict=True):
             progress(f"{scenario}: {column}")
-            policy = (load_policy(policy_for_scenario(policy_folder, scenario), cfg) if column == "ppo"
-                      else make_baseline(column, cfg))
-            results[column] = evaluate_policy(policy, cfg, episodes, seed, record_trajectory=True)
-        if mixed is not None:
-            progress(f"{scenario}: ppo_mixed")
-            results["ppo_mixed"] = evaluate_policy(load_policy(mixed, cfg), cfg, episodes, seed)
-        rows.append(ScenarioRow(scenario, results))
+            results[column] = evaluate_policy(policy, cfg, episodes, seed, record_trajectory=column != "ppo_mixed")
+        rows.append(ScenarioRow(scenario, results, loaded[0][1]))
     return rows
 
 
@@ -96,13 +95,14 @@ def table_one(rows: list[ScenarioRow]) -> tuple[list[str], list[list[str]]]:
     return header, body
 
 
-def table_two(policy_folder: Path, episodes: int, seed: int, base: EnvConfig) -> tuple[list[str], list[list[str]]]:
+def table_two(policy_folder: Path, episodes: int, seed: int,
+              overrides: EnvOverrides) -> tuple[list[str], list[list[str]]]:
     header = ["AoA noise std (deg)", "PPO (Mbps)", "drop from 0 deg", "paper (Mbps)", "paper drop"]
     body, clean = [], None
     for std, paper in PAPER_TABLE_TWO.items():
-        cfg = base.replace(scenario="straight", aoa_noise_deg=float(std)).validate()
-        result = evaluate_policy(load_policy(policy_for_scenario(policy_folder, "straight"), cfg), cfg,
-                                 episodes, seed)
+        noisy = EnvOverrides("straight", float(std), overrides.settings)
+        [(policy, cfg)] = load_with_env([policy_folder], noisy)
+        result = evaluate_policy(policy, cfg, episodes, seed)
         clean = result.mean_rate_mbps if clean is None else clean
         body.append([str(std), f"{result.mean_rate_mbps:.2f} ± {result.ci95_mbps:.2f}",
                      f"{clean - result.mean_rate_mbps:.2f}", f"{paper:.2f}", f"{7.87 - paper:.2f}"])
@@ -201,21 +201,21 @@ def plot_trajectories(row: ScenarioRow, half_width_m: float, path: Path) -> None
 
 
 def write_results(policy_folder: Path, out: Path, markdown: Path, episodes: int, seed: int,
-                  base: EnvConfig, command: str, progress: Callable[[str], None] = lambda _: None,
+                  overrides: EnvOverrides, command: str, progress: Callable[[str], None] = lambda _: None,
                   extra_sections: Callable[[Path], list[str]] = lambda _: []) -> Path:
     """Evaluate everything, then write the folder (nothing is written if an evaluation fails);
     returns the Markdown path."""
-    rows = evaluate_scenarios(policy_folder, episodes, seed, base, progress)
+    rows = evaluate_scenarios(policy_folder, episodes, seed, overrides, progress)
     h1, b1 = table_one(rows)
     progress("table II")
-    h2, b2 = table_two(policy_folder, episodes, seed, base)
+    h2, b2 = table_two(policy_folder, episodes, seed, overrides)
     out.mkdir(parents=True, exist_ok=True)
     write_csv(out / "table1.csv", h1, b1)
     write_csv(out / "table2.csv", h2, b2)
     plot_throughput_per_episode(rows, out / "throughput_per_episode.png")
     plot_throughput_vs_fairness(rows, out / "throughput_vs_fairness.png")
     for row in rows:
-        plot_trajectories(row, base.area.half_width_m, out / f"trajectory_{row.scenario}.png")
+        plot_trajectories(row, row.cfg.area.half_width_m, out / f"trajectory_{row.scenario}.png")
     raw = {row.scenario: {k: v.to_dict() for k, v in row.results.items()} for row in rows}
     (out / "results.json").write_text(json.dumps(raw, indent=1))
     rel = Path(os.path.relpath(out, markdown.parent))

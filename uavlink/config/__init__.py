@@ -2,14 +2,16 @@
 training (PPO, budget, warm start). Imports nothing heavy and nothing from the layers above."""
 
 from uavlink.config.env import (
-           MIXED,
-           SCENARIOS,
-           SHADOWING_MODELS,
-           AreaConfig,
-           EnvConfig,
-           RadioConfig,
+    MIXED,
+    SCENARIOS,
+    SHADOWING_MODELS,
+    AreaConfig,
+    EnvConfig,
+    RadioConfig,
+    changed_settings,
+    parse_settings,
 )
 from uavlink.config.train import BASELINE_NAMES, PAPER_HYPERPARAMETERS, TrainConfig, WarmStartConfig
 
-__all__ = ["BASELINE_NAMES", "MIXED", "PAPER_HYPERPARAMETERS", "SCENARIOS", "SHADOWING_MODELS", "AreaConfig", "EnvConfig",
-           "RadioConfig", "TrainConfig", "WarmStartConfig"]
+__all__ = ["BASELINE_NAMES", "MIXED", "PAPER_HYPERPARAMETERS", "SCENARIOS", "SHADOWING_MODELS", "AreaConfig",
+           "EnvConfig", "RadioConfig", "TrainConfig", "WarmStartConfig", "changed_settings", "parse_settings"]

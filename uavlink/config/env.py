@@ -9,6 +9,8 @@ sense with a one-line ``ConfigError`` (a ``UserError``) naming the field.
 from __future__ import annotations
 
 import dataclasses
+import json
+from collections.abc import Sequence
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -166,6 +168,33 @@ class EnvConfig:
         area = AreaConfig(**data.pop("area", {}))
         radio = RadioConfig(**data.pop("radio", {}))
         return cls(area=area, radio=radio, **data)
+
+
+def parse_settings(pairs: Sequence[str]) -> dict[str, Any]:
+    """``--set KEY=VALUE`` pairs -> {key: value}, the value a JSON literal when it parses, else a string."""
+    settings: dict[str, Any] = {}
+    for pair in pairs:
+        key, sep, raw = pair.partition("=")
+        if not sep or not key.strip():
+            raise ConfigError(f"--set expects key=value, got {pair!r}")
+        try:
+            settings[key.strip()] = json.loads(raw)
+        except json.JSONDecodeError:
+            settings[key.strip()] = raw
+    return settings
+
+
+def changed_settings(cfg: EnvConfig, base: EnvConfig | None = None) -> list[str]:
+    """``cfg``'s fields that differ from ``base`` (default: the defaults) as ``KEY=JSON`` pairs for
+    ``--set`` (``radio.x`` / ``area.x`` for nested ones); ``parse_settings`` reads them back exactly."""
+    ref = (base or EnvConfig()).to_dict()
+    pairs = []
+    for key, value in cfg.to_dict().items():
+        nested = value if isinstance(value, dict) else {None: value}
+        was = ref[key] if isinstance(value, dict) else {None: ref[key]}
+        pairs += [f"{key if sub is None else f'{key}.{sub}'}={json.dumps(v)}"
+                  for sub, v in nested.items() if v != was[sub]]
+    return pairs
 
 
 def _field_names(cls: type) -> set[str]:

@@ -4,9 +4,14 @@ from __future__ import annotations
 
 import dataclasses
 from dataclasses import dataclass
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
+
+from uavlink.errors import ConfigError
+
+if TYPE_CHECKING:
+    from uavlink.config import EnvConfig
 
 POLAR = "polar-v1"
 CARTESIAN = "cartesian-v1"
@@ -31,7 +36,12 @@ class ActionMapping:
 
     def __post_init__(self) -> None:
         if self.kind not in ACTION_MAPPINGS:
-            raise ValueError(f"unknown action mapping {self.kind!r}; choose from {', '.join(ACTION_MAPPINGS)}")
+            raise ConfigError(f"unknown action mapping {self.kind!r}; choose from {', '.join(ACTION_MAPPINGS)}")
+
+    @classmethod
+    def for_config(cls, cfg: EnvConfig) -> ActionMapping:
+        """The mapping an env config asks for (``r_max_m``, ``action_mapping``)."""
+        return cls(cfg.r_max_m, cfg.action_mapping)
 
     def validate(self, action: np.ndarray, n_envs: int) -> np.ndarray:
         """Check shape (n_envs, 2) and finiteness, then clip into the box."""

@@ -9,31 +9,30 @@ import logging
 import subprocess
 import sys
 import time
+from collections.abc import Sequence
 from pathlib import Path
 
 import numpy as np
 
-from uavlink.config import EnvConfig
-from uavlink.flight.connection import free_udp_port
+from uavlink.config import changed_settings, parse_settings
+from uavlink.errors import UserError
+from uavlink.flight.connection import free_udp_port, normalize_connection
+from uavlink.policies.contract import OVERRIDES_HELP, EnvOverrides, load_with_env
 
 log = logging.getLogger("uavlink.fly")
 
 
-def policy_env_config(policy, scenario: str, aoa_noise_deg: float) -> EnvConfig:
-    """The env config the policy was trained on (from its manifest), on the requested scenario."""
-    manifest = getattr(policy, "manifest", None)
-    base = EnvConfig.from_dict(manifest["env_config"]) if manifest else EnvConfig()
-    return base.replace(scenario=scenario, aoa_noise_deg=aoa_noise_deg).validate()
-
-
 @contextlib.contextmanager
 def embedded_sitl(scenario: str, seed: int, speed: float, aoa_noise_deg: float, log_path: Path | None,
-                  signing_key_file: Path | None = None):
-    """Start ``python -m sitl_stub`` on a free loopback port; yields the URL to listen on."""
+                  signing_key_file: Path | None = None, settings: Sequence[str] = ()):
+    """Start ``python -m sitl_stub`` on a free loopback port; yields the URL to listen on.
+    ``settings`` (``KEY=VALUE``) go to its radio payload's env as ``--set`` pairs."""
     port = free_udp_port()
     cmd = [sys.executable, "-m", "sitl_stub", "--scenario", scenario, "--seed", str(seed),
            "--connect", f"udpout:127.0.0.1:{port}", "--speed", f"{speed:g}",
-           "--aoa-noise-deg", f"{aoa_noise_deg:g}"]
+           "--aoa-noise-deg", f"{aoa_noise_deg!r}"]
+    for pair in settings:
+        cmd += ["--set", pair]
     if signing_key_file is not None:
         cmd += ["--signing-key", str(signing_key_file)]
     out = open(log_path, "w") if log_path else subprocess.DEVNULL  # noqa: SIM115
@@ -54,16 +53,19 @@ def run_fly(args: argparse.Namespace) -> int:
     from uavlink.flight.link import VehicleLink
     from uavlink.flight.mission import MissionConfig, PolicyPilot, fly_mission
     from uavlink.flight.signing import load_key
-    from uavlink.policies.loader import load_policy
 
     logging.basicConfig(level=logging.INFO if args.verbose else logging.WARNING,
                         format="%(levelname)s %(name)s: %(message)s")
     key = load_key(args.signing_key) if args.signing_key else None  # before anything flies
-    provisional = EnvConfig().replace(scenario=args.scenario, aoa_noise_deg=args.aoa_noise_deg).validate()
-    policy = load_policy(args.policy, provisional)
+    if args.connect is not None:
+        try:
+            normalize_connection(args.connect)
+        except ValueError as exc:
+            raise UserError(str(exc)) from None
+    overrides = EnvOverrides(args.scenario, args.aoa_noise_deg, parse_settings(args.overrides))
+    [(policy, cfg)] = load_with_env([args.policy], overrides)
     if policy.needs_truth:
-        raise ValueError("the oracle needs UE positions (GPS) and cannot fly; use a policy file, aoa or static")
-    cfg = policy_env_config(policy, args.scenario, args.aoa_noise_deg)
+        raise UserError("the oracle needs UE positions (GPS) and cannot fly; use a policy file, aoa or static")
     pilot = PolicyPilot(policy, cfg)  # layout checks happen here, before anything is armed
     out_dir = args.out
     out_dir.mkdir(parents=True, exist_ok=True)
@@ -76,8 +78,8 @@ def run_fly(args: argparse.Namespace) -> int:
         print(f"\rframe {frame + 1:4d}/{args.frames}  target E {target[0]:7.1f} N {target[1]:7.1f} m  "
               f"{rate_text}", end="", file=sys.stderr, flush=True)
 
-    sitl = (embedded_sitl(args.scenario, args.seed, args.speed, args.aoa_noise_deg, out_dir / "sitl.log",
-                          Path(args.signing_key) if key else None)
+    sitl = (embedded_sitl(args.scenario, args.seed, args.speed, cfg.radio.aoa_noise_deg, out_dir / "sitl.log",
+                          Path(args.signing_key) if key else None, changed_settings(cfg))
             if args.connect is None else contextlib.nullcontext(args.connect))
     start = time.monotonic()
     with sitl as url:
@@ -113,14 +115,19 @@ def run_fly(args: argparse.Namespace) -> int:
 def add_fly_parser(sub) -> None:
     p = sub.add_parser("fly", help="fly a policy over MAVLink (embedded SITL without --connect)",
                        description="Fly a policy: each radio frame becomes a MAVLink position setpoint. "
-                                   "Without --connect, an embedded sitl_stub vehicle is started on a free port.")
+                                   "Without --connect, an embedded sitl_stub vehicle is started on a free "
+                                   "port, simulating the policy's env. " + OVERRIDES_HELP)
     p.add_argument("--policy", default="policies/circular.zip", help="FILE.zip | FILE.onnx | aoa | static")
     p.add_argument("--connect", default=None,
                    help="vehicle link: udp:14550 (listen), udp:HOST:PORT, udpout:HOST:PORT, tcp:HOST:PORT, "
                         "udpin://0.0.0.0:14550, udpout://HOST:PORT")
     p.add_argument("--scenario", default="circular", help="scenario of the embedded SITL (and the policy's env)")
     p.add_argument("--seed", type=int, default=0, help="seed of the embedded SITL's scenario")
-    p.add_argument("--aoa-noise-deg", type=float, default=0.0)
+    p.add_argument("--aoa-noise-deg", type=float, default=None,
+                   help="std of the AoA estimate noise (deg) (default: the policy's, 0)")
+    p.add_argument("--set", dest="overrides", action="append", default=[], metavar="KEY=VALUE",
+                   help="override a field of the policy's env (the embedded SITL simulates it too), "
+                        "e.g. --set radio.shadowing=false")
     p.add_argument("--speed", type=float, default=20.0, help="embedded SITL speed factor")
     p.add_argument("--frames", type=int, default=128, help="decision frames to fly (one episode: 128)")
     p.add_argument("--out", type=Path, default=Path("runs/fly"), help="folder for flight.tlog and summary.json")

@@ -8,6 +8,7 @@ from uavlink.config import BASELINE_NAMES, EnvConfig
 from uavlink.env.actions import ActionMapping
 from uavlink.env.core import GroundTruth
 from uavlink.env.observation import ObservationLayout
+from uavlink.errors import UserError
 from uavlink.radio.noise import noise_power_dbm
 from uavlink.radio.pathloss import mean_rx_power_dbm
 from uavlink.radio.rates import fair_rate, rate_bps
@@ -109,6 +110,6 @@ def make_baseline(name: str, cfg: EnvConfig):
         return AoaPolicy(cfg)
     if name == "oracle":
         return OraclePolicy(cfg)
-    raise ValueError(f"unknown baseline {name!r}; choose from {', '.join(BASELINES)}")
+    raise UserError(f"unknown baseline {name!r}; choose from {', '.join(BASELINES)}")
 
 

@@ -39,7 +39,7 @@ def build_manifest(cfg: EnvConfig, training: dict[str, Any]) -> dict[str, Any]:
     return {
         "format": MANIFEST_FORMAT,
         "observation_layout": ObservationLayout.for_config(cfg).to_dict(),
-        "action_mapping": ActionMapping(cfg.r_max_m, cfg.action_mapping).to_dict(),
+        "action_mapping": ActionMapping.for_config(cfg).to_dict(),
         "env_config": cfg.to_dict(),
         "training": training,
         "versions": package_versions(),

@@ -14,6 +14,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
+from uavlink.errors import UserError
 from uavlink.report import markdown_table, write_csv
 from uavlink.sweep.jobs import read_result
 from uavlink.sweep.spec import BASELINE_COLUMNS, Job, SweepSpec, describe_point
@@ -172,7 +173,7 @@ def finished_rows(spec: SweepSpec, sweep_dir: Path) -> list[SettingRow]:
     rows = collect(spec, sweep_dir)
     missing = [r.scenario for r in rows if r.n < r.expected_seeds]
     if missing:
-        raise ValueError(f"sweep {spec.name!r} in {sweep_dir} is not finished ({', '.join(missing)}): "
+        raise UserError(f"sweep {spec.name!r} in {sweep_dir} is not finished ({', '.join(missing)}): "
                          f"run `uavlink sweep` on it first")
     return rows
 
@@ -271,12 +272,12 @@ def export_median_policies(spec: SweepSpec, sweep_dir: Path, dest: Path) -> list
     from uavlink.policies.manifest import read_zip_manifest, write_zip_manifest
 
     if len(spec.points()) > 1:
-        raise ValueError("--policies-out needs one setting per scenario: this sweep has a grid "
+        raise UserError("--policies-out needs one setting per scenario: this sweep has a grid "
                          f"of {len(spec.points())} points")
     rows = collect(spec, sweep_dir)
     missing = [r.scenario for r in rows if r.n < r.expected_seeds]
     if missing:
-        raise ValueError(f"--policies-out: not every seed finished for {', '.join(missing)}; rerun the sweep")
+        raise UserError(f"--policies-out: not every seed finished for {', '.join(missing)}; rerun the sweep")
     dest.mkdir(parents=True, exist_ok=True)
     written = []
     for row in rows:

@@ -40,9 +40,8 @@ def run_job(job_data: dict[str, Any]) -> dict[str, Any]:
 
     torch.set_num_threads(1)
     from uavlink.evaluation import evaluate_policy
-    from uavlink.policies.baselines import make_baseline
+    from uavlink.policies.contract import EnvOverrides, load_with_env
     from uavlink.policies.manifest import read_zip_manifest
-    from uavlink.policies.sb3_policy import SB3Policy
     from uavlink.training import train
 
     cfg, tc = job.env_config(), job.train_config()
@@ -55,9 +54,11 @@ def run_job(job_data: dict[str, Any]) -> dict[str, Any]:
         manifest = read_zip_manifest(path)
         t0 = time.perf_counter()
         episodes, seed = job.eval["episodes"], job.eval["seed"]
-        evaluation = {"ppo": evaluate_policy(SB3Policy(path), cfg, episodes, seed).to_dict()}
-        for name in BASELINE_COLUMNS:
-            evaluation[name] = evaluate_policy(make_baseline(name, cfg), cfg, episodes, seed).to_dict()
+        # The policy's env (its manifest's, without training-time randomisation); the baselines fly it too.
+        columns = ("ppo", *BASELINE_COLUMNS)
+        loaded = load_with_env([path, *BASELINE_COLUMNS], EnvOverrides())
+        evaluation = {name: evaluate_policy(policy, env, episodes, seed).to_dict()
+                      for name, (policy, env) in zip(columns, loaded, strict=True)}
         eval_s = time.perf_counter() - t0
     _trace("end", job.key)
     return {

@@ -1,0 +1,158 @@
+"""The policy contract: the env a policy runs in is the one its manifest records, plus explicit overrides.
+
+Every consumer (``uavlink evaluate`` and its ``--against``, the results report, sweep evaluation,
+``uavlink fly`` and, through fly, the embedded SITL's radio payload) gets its env here, so a policy
+trained with ``--set action_mapping=polar-v1 --set r_max_m=8`` is evaluated and flown that way
+without the user repeating it. On top of the manifest's env go the user's explicit overrides:
+the scenario, the AoA noise and ``--set`` pairs. Two kinds of change are treated differently:
+
+* what the policy was built for (``BUILT_FOR``: how its outputs become moves and what its input
+  holds) cannot change: such an override is refused with one line naming both values;
+* the world (radio physics, UE motion, episode length) may: evaluating a policy under other
+  radio settings is a robustness study.
+
+Training-time randomisation (``radio.aoa_noise_max_deg``) belongs to the training, not to the
+policy's env: it is 0 here unless an override asks for it. Baselines have no manifest: they take
+the env of the policy they are compared with, or the defaults plus the overrides when alone.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+from uavlink.config import EnvConfig
+from uavlink.env.actions import ActionMapping
+from uavlink.env.observation import ObservationLayout
+from uavlink.errors import ConfigError, UserError
+from uavlink.policies.base import Policy
+from uavlink.policies.baselines import BASELINES
+from uavlink.policies.loader import load_policy, policy_for_scenario
+from uavlink.policies.manifest import PolicyFileError
+
+# Fields a policy was built for: its action mapping and its observation layout's inputs.
+BUILT_FOR = ("action_mapping", "r_max_m", "memory", "n_ues", "area.half_width_m")
+OVERRIDES_HELP = (f"A policy file runs in the env its manifest records; --scenario, --aoa-noise-deg and --set "
+                  f"override it. Radio physics and the world may be overridden (a robustness study); what "
+                  f"the policy was built for ({', '.join(BUILT_FOR)}) may not. Baselines get the env of the "
+                  f"policy they are compared with.")
+# What compared policies may differ in: each flies with its own action mapping and memory.
+PER_POLICY = ("action_mapping", "r_max_m", "memory")
+# Training-time randomisation: off in a policy's env unless an override turns it on.
+TRAINING_ONLY = "radio.aoa_noise_max_deg"
+
+
+@dataclass(frozen=True)
+class EnvOverrides:
+    """What the user asks on top of a policy's env: ``--scenario``, ``--aoa-noise-deg``, ``--set``.
+    None (and no settings) keeps the policy's value."""
+
+    scenario: str | None = None
+    aoa_noise_deg: float | None = None
+    settings: Mapping[str, Any] = field(default_factory=dict)
+
+    def on(self, scenario: str) -> EnvOverrides:
+        """The same overrides on another scenario."""
+        return EnvOverrides(scenario, self.aoa_noise_deg, self.settings)
+
+    def changes(self) -> dict[str, Any]:
+        """The overrides as ``EnvConfig.replace`` keys (explicit flags win over ``--set``)."""
+        changes = dict(self.settings)
+        if self.scenario is not None:
+            changes["scenario"] = self.scenario
+        if self.aoa_noise_deg is not None:
+            changes["aoa_noise_deg"] = self.aoa_noise_deg
+        return changes
+
+
+def manifest_env(manifest: Mapping[str, Any] | None) -> EnvConfig:
+    """The env a manifest's policy was built for, without training-time randomisation
+    (the defaults when there is no manifest)."""
+    if manifest is None:
+        return EnvConfig()
+    return EnvConfig.from_dict(manifest["env_config"]).replace(**{TRAINING_ONLY: 0.0})
+
+
+def apply_overrides(base: EnvConfig, overrides: EnvOverrides, built_for: str | None = None) -> EnvConfig:
+    """``base`` with ``overrides`` on top, validated. With ``built_for`` (the policy file's name),
+    an override that changes a ``BUILT_FOR`` field is refused naming both values."""
+    changes = overrides.changes()
+    try:
+        cfg = base.replace(**changes).validate()
+        ActionMapping.for_config(cfg)
+    except ConfigError:
+        raise
+    except (TypeError, ValueError) as exc:  # e.g. a string for a number: validate()'s int() fails
+        raise ConfigError(str(exc)) from None
+    if built_for is not None:
+        for path in BUILT_FOR:
+            if _get(cfg, path) != _get(base, path):
+                key = next((k for k in changes if k == path or k == path.rpartition(".")[2]), path)
+                raise UserError(f"policy {built_for} was built for {path}={_get(base, path)!r}; "
+                                f"--set {key}={changes.get(key)} conflicts (drop the --set)")
+    return cfg
+
+
+def policy_env(policy: Policy, overrides: EnvOverrides, source: str | Path | None = None) -> EnvConfig:
+    """The env of a loaded policy: its manifest's (defaults for a baseline) plus ``overrides``."""
+    manifest = getattr(policy, "manifest", None)
+    if manifest is None:
+        return apply_overrides(EnvConfig(), overrides)
+    source = str(source or policy.name)
+    cfg = apply_overrides(manifest_env(manifest), overrides, built_for=source)
+    if policy.layout is not None:
+        try:
+            policy.layout.check_matches(ObservationLayout.for_config(cfg), what=f"policy {source}")
+        except ValueError as exc:  # the manifest's layout disagrees with its own env config
+            raise PolicyFileError(f"{source}: {exc}") from None
+    return cfg
+
+
+def resolve(spec: str | Path, scenario: str | None) -> str | Path:
+    """A baseline name or a policy file; a folder resolves to its policy for ``scenario``."""
+    if str(spec) in BASELINES or not Path(spec).is_dir():
+        return spec
+    if scenario is None:
+        raise UserError(f"{spec} is a folder of policies: name a scenario to pick one")
+    return policy_for_scenario(Path(spec), scenario)
+
+
+def load_with_env(specs: Sequence[str | Path], overrides: EnvOverrides) -> list[tuple[Policy, EnvConfig]]:
+    """Load the policies ``specs`` names (baselines, files, folders resolved per scenario), each
+    with the env it runs in. Files get their own manifest's env; baselines get the first file's,
+    so compared policies fly the same world. Files built for different worlds are refused: they
+    could not fly the same episodes."""
+    resolved = [str(resolve(spec, overrides.scenario)) for spec in specs]
+    defaults = apply_overrides(EnvConfig(), overrides)
+    files = {spec: load_policy(spec, defaults) for spec in resolved if spec not in BASELINES}
+    envs = {spec: policy_env(policy, overrides, spec) for spec, policy in files.items()}
+    first = next(iter(envs), None)
+    world = envs[first] if first is not None else defaults
+    for spec, cfg in envs.items():
+        _check_same_world(first, world, spec, cfg)
+    return [(files[spec], envs[spec]) if spec in files else (load_policy(spec, world), world)
+            for spec in resolved]
+
+
+def _check_same_world(first: str | None, world: EnvConfig, spec: str, cfg: EnvConfig) -> None:
+    """Compared policies may differ in ``PER_POLICY`` fields only."""
+    ours = _flat(world)
+    theirs = _flat(cfg.replace(**{key: ours[key] for key in PER_POLICY}))
+    key = next((k for k, v in theirs.items() if ours[k] != v), None)
+    if key is not None:
+        raise UserError(f"{first} and {spec} were built for different envs ({key}={ours[key]!r} vs "
+                        f"{theirs[key]!r}); they cannot be compared on the same episodes")
+
+
+def _flat(cfg: EnvConfig) -> dict[str, Any]:
+    out: dict[str, Any] = {}
+    for key, value in cfg.to_dict().items():
+        out.update({f"{key}.{k}": v for k, v in value.items()} if isinstance(value, dict) else {key: value})
+    return out
+
+
+def _get(cfg: EnvConfig, path: str) -> Any:
+    head, _, tail = path.partition(".")
+    return getattr(getattr(cfg, head), tail) if tail else getattr(cfg, head)
