@@ -29,8 +29,8 @@ from sitl_stub.payload import (
     as_payload_list,
     default_payload_factory,
 )
-from uavlink.flight.connection import normalize_connection
-from uavlink.flight.signing import load_key
+from uavlink.mavlink.connection import normalize_connection
+from uavlink.mavlink.signing import load_key
 
 SCENARIOS = ("no_move", "straight", "circular", "straight_90", "straight_180", "hotspot")
 PROG = "sitl-stub"

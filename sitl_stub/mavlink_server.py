@@ -12,7 +12,7 @@ pymavlink ground stations send) or 1; commands addressed to a payload's componen
 
 With ``ServerConfig.signing_key`` every packet the vehicle sends (autopilot and payloads) is signed
 and every packet it receives must be signed with that key, newer than the last one of its stream
-(see :mod:`uavlink.flight.signing`); anything else is dropped before it is looked at: no ACK, no
+(see :mod:`uavlink.mavlink.signing`); anything else is dropped before it is looked at: no ACK, no
 effect. Rejected input of every kind (signing, bad bytes, unknown messages, unusable setpoints,
 refused parameters and commands) is counted in :meth:`SitlServer.report` and logged once per kind.
 """
@@ -28,7 +28,6 @@ from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 from typing import Any
 
-from sitl_stub._mav import mavlink, mavutil
 from sitl_stub.clock import SimClock
 from sitl_stub.commands import CommandHandler, CommandReply, CommandRequest
 from sitl_stub.ftp import ftp_reply
@@ -40,10 +39,11 @@ from sitl_stub.streams import StreamScheduler
 from sitl_stub.telemetry import TelemetrySender
 from sitl_stub.vehicle import Result, Vehicle, VehicleState
 from uavlink.config import AreaConfig
-from uavlink.flight.connection import normalize_connection
-from uavlink.flight.px4_modes import decode_custom_mode
-from uavlink.flight.rejects import RejectLog, rescan_bad_frame
-from uavlink.flight.signing import SigningGuard
+from uavlink.mavlink.connection import normalize_connection
+from uavlink.mavlink.dialect import mavlink, mavutil
+from uavlink.mavlink.px4_modes import decode_custom_mode
+from uavlink.mavlink.rejects import RejectLog, rescan_bad_frame
+from uavlink.mavlink.signing import SigningGuard
 
 log = logging.getLogger("sitl_stub")
 

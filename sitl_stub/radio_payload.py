@@ -2,7 +2,7 @@
 
 It runs the simulator's UE mobility and radio model (``uavlink.env.core.BatchedUavEnv`` with one
 env, stepped with ``step_to`` at the vehicle's actual position) and publishes each frame's readings
-as ``uavlink.flight.radio_codec`` describes. The scenario is seeded as ``uavlink evaluate`` seeds
+as ``uavlink.mavlink.radio_codec`` describes. The scenario is seeded as ``uavlink evaluate`` seeds
 episode 0, so a flight with ``--seed S`` meets the UEs of ``uavlink evaluate --episodes 1 --seed S``.
 
 The episode starts at the first frame tick that finds the vehicle in OFFBOARD (the mission): that
@@ -26,7 +26,7 @@ from sitl_stub.vehicle import VehicleState
 from uavlink.config import EnvConfig
 from uavlink.env.core import BatchedUavEnv
 from uavlink.evaluation import episode_seed
-from uavlink.flight.radio_codec import (
+from uavlink.mavlink.radio_codec import (
     RADIO_COMPONENT_ID,
     READINGS_NAME,
     SCORE_NAME,

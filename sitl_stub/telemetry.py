@@ -11,9 +11,9 @@ import math
 from collections.abc import Callable
 from typing import Any
 
-from sitl_stub._mav import mavlink
 from sitl_stub.geo import GeoOrigin
 from sitl_stub.vehicle import VehicleState
+from uavlink.mavlink.dialect import mavlink
 
 # PX4 reports every sensor present, enabled and healthy in SITL; GEOFENCE healthy keeps MAVProxy
 # from announcing "fence breach", PREARM_CHECK and GPS make MAVSDK's health armable / position ok.

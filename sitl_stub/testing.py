@@ -15,7 +15,7 @@ from contextlib import contextmanager
 from dataclasses import dataclass
 from pathlib import Path
 
-from uavlink.flight.connection import free_udp_port
+from uavlink.mavlink.connection import free_udp_port
 
 __all__ = ["VehicleProcess", "free_udp_port", "vehicle_process"]
 

@@ -11,9 +11,9 @@ import numpy as np
 import pytest
 
 from uavlink.config import EnvConfig
-from uavlink.flight.connection import free_udp_port
 from uavlink.flight.mission import PolicyPilot
-from uavlink.flight.radio_codec import RadioReport
+from uavlink.mavlink.connection import free_udp_port
+from uavlink.mavlink.radio_codec import RadioReport
 
 ROOT = Path(__file__).resolve().parents[1]
 UAVLINK = [sys.executable, "-m", "uavlink.cli"]

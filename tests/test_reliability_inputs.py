@@ -24,26 +24,24 @@ import pytest
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
-os.environ["MAVLINK20"] = "1"
-from pymavlink.dialects.v20 import common as mavlink  # noqa: E402
-
-from sitl_stub.mavlink_server import ServerConfig, SitlServer  # noqa: E402
-from sitl_stub.params import PARAM_DEFS  # noqa: E402
-from sitl_stub.payload import PayloadOptions  # noqa: E402
-from sitl_stub.radio_payload import RadioPayload  # noqa: E402
-from sitl_stub.vehicle import MAX_ALTITUDE_M  # noqa: E402
-from uavlink.config import EnvConfig  # noqa: E402
-from uavlink.flight.connection import free_udp_port  # noqa: E402
-from uavlink.flight.link import VehicleLink  # noqa: E402
-from uavlink.flight.mission import MissionConfig, PolicyPilot, fly_mission  # noqa: E402
-from uavlink.flight.radio_codec import (  # noqa: E402
+from sitl_stub.mavlink_server import ServerConfig, SitlServer
+from sitl_stub.params import PARAM_DEFS
+from sitl_stub.payload import PayloadOptions
+from sitl_stub.radio_payload import RadioPayload
+from sitl_stub.vehicle import MAX_ALTITUDE_M
+from uavlink.config import EnvConfig
+from uavlink.flight.link import VehicleLink
+from uavlink.flight.mission import MissionConfig, PolicyPilot, fly_mission
+from uavlink.flight.radio_source import MavlinkRadioSource
+from uavlink.mavlink.connection import free_udp_port
+from uavlink.mavlink.dialect import mavlink
+from uavlink.mavlink.radio_codec import (
     RADIO_COMPONENT_ID,
     encode_readings,
     encode_score,
 )
-from uavlink.flight.radio_source import MavlinkRadioSource  # noqa: E402
-from uavlink.flight.rejects import rescan_bad_frame  # noqa: E402
-from uavlink.flight.signing import SigningGuard  # noqa: E402
+from uavlink.mavlink.rejects import rescan_bad_frame
+from uavlink.mavlink.signing import SigningGuard
 
 pytestmark = pytest.mark.timeout(60)
 FUZZ = settings(max_examples=200, deadline=None, derandomize=True,

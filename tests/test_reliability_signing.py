@@ -16,13 +16,11 @@ import time
 from pathlib import Path
 
 import pytest
+from udp_relay import FAST_TAKEOFF, Gcs, parse_vehicle_stats, wait_for_vehicle
 
-os.environ["MAVLINK20"] = "1"
-from pymavlink.dialects.v20 import common as mavlink  # noqa: E402
-from udp_relay import FAST_TAKEOFF, Gcs, parse_vehicle_stats, wait_for_vehicle  # noqa: E402
-
-from sitl_stub.testing import free_udp_port, vehicle_process  # noqa: E402
-from uavlink.flight.signing import (  # noqa: E402
+from sitl_stub.testing import free_udp_port, vehicle_process
+from uavlink.mavlink.dialect import mavlink
+from uavlink.mavlink.signing import (
     NEW_STREAM_WINDOW_TICKS,
     TICKS_PER_S,
     SigningGuard,

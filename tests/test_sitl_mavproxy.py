@@ -17,10 +17,8 @@ from pathlib import Path
 
 import pytest
 
-os.environ["MAVLINK20"] = "1"
-from pymavlink import mavutil  # noqa: E402
-
-from sitl_stub.testing import free_udp_port, vehicle_process  # noqa: E402
+from sitl_stub.testing import free_udp_port, vehicle_process
+from uavlink.mavlink.dialect import mavutil
 
 pytestmark = pytest.mark.timeout(90)
 

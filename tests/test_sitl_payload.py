@@ -2,18 +2,15 @@
 
 from __future__ import annotations
 
-import os
 import time
 from typing import Any
 
 import pytest
 
-os.environ["MAVLINK20"] = "1"
-from pymavlink import mavutil  # noqa: E402
-
-from sitl_stub.mavlink_server import ServerConfig, SitlServer  # noqa: E402
-from sitl_stub.payload import MAV_AUTOPILOT_INVALID  # noqa: E402
-from sitl_stub.vehicle import VehicleState  # noqa: E402
+from sitl_stub.mavlink_server import ServerConfig, SitlServer
+from sitl_stub.payload import MAV_AUTOPILOT_INVALID
+from sitl_stub.vehicle import VehicleState
+from uavlink.mavlink.dialect import mavutil
 
 pytestmark = pytest.mark.timeout(60)
 

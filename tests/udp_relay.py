@@ -204,8 +204,7 @@ class Gcs:
 
     def __init__(self, port: int, system_id: int = 245, component_id: int = 190,
                  key: bytes | None = None) -> None:
-        os.environ.setdefault("MAVLINK20", "1")
-        from pymavlink import mavutil
+        from uavlink.mavlink.dialect import mavutil
 
         self.conn = mavutil.mavlink_connection(f"udpout:127.0.0.1:{port}", source_system=system_id,
                                                source_component=component_id, dialect="common")
@@ -299,8 +298,7 @@ class ModeWatch:
     custom_mode, armed) whenever the heartbeat changes, and the radio payload's frame numbers."""
 
     def __init__(self) -> None:
-        os.environ.setdefault("MAVLINK20", "1")
-        from pymavlink.dialects.v20 import common
+        from uavlink.mavlink.dialect import mavlink as common
 
         self._mav = common.MAVLink(None)
         self._mav.robust_parsing = True

@@ -14,7 +14,7 @@ from pathlib import Path
 import numpy as np
 
 from uavlink.config import EnvConfig
-from uavlink.flight.connection import free_udp_port
+from uavlink.mavlink.connection import free_udp_port
 
 log = logging.getLogger("uavlink.fly")
 
@@ -53,7 +53,7 @@ def embedded_sitl(scenario: str, seed: int, speed: float, aoa_noise_deg: float, 
 def run_fly(args: argparse.Namespace) -> int:
     from uavlink.flight.link import VehicleLink
     from uavlink.flight.mission import MissionConfig, PolicyPilot, fly_mission
-    from uavlink.flight.signing import load_key
+    from uavlink.mavlink.signing import load_key
     from uavlink.policies.loader import load_policy
 
     logging.basicConfig(level=logging.INFO if args.verbose else logging.WARNING,

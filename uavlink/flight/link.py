@@ -9,7 +9,7 @@ Robustness: the link sends its own HEARTBEAT at 1 Hz (so a listening vehicle lea
 answer, and as every MAVLink component should); commands are retried about once per second of
 wall time until acknowledged (the vehicle answers retries idempotently); parameter sets are
 retried until the vehicle echoes the value. With a signing key everything sent is signed and
-everything received must be signed by the same key (:mod:`uavlink.flight.signing`). Telemetry
+everything received must be signed by the same key (:mod:`uavlink.mavlink.signing`). Telemetry
 that cannot be used (NaN positions, unusable radio scores, garbage bytes) is counted in
 :attr:`VehicleLink.rejects` and logged once per kind.
 """
@@ -18,7 +18,6 @@ from __future__ import annotations
 
 import logging
 import math
-import os
 import select
 import struct
 import time
@@ -26,21 +25,19 @@ from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
 
-from uavlink.flight.connection import normalize_connection
-from uavlink.flight.px4_modes import PX4_MAIN_OFFBOARD, decode_custom_mode
-from uavlink.flight.radio_codec import (
+from uavlink.mavlink.connection import normalize_connection
+from uavlink.mavlink.dialect import mavlink, mavutil
+from uavlink.mavlink.px4_modes import PX4_MAIN_OFFBOARD, decode_custom_mode
+from uavlink.mavlink.radio_codec import (
     RADIO_COMPONENT_ID,
     RadioReportError,
     decode_score,
     message_kind,
 )
-from uavlink.flight.rejects import RejectLog, rescan_bad_frame
-from uavlink.flight.signing import SigningGuard
+from uavlink.mavlink.rejects import RejectLog, rescan_bad_frame
+from uavlink.mavlink.signing import SigningGuard
 
-os.environ.setdefault("MAVLINK20", "1")
-from pymavlink import mavutil  # noqa: E402
-
-MAV = mavutil.mavlink
+MAV = mavlink
 MULTIROTOR_TYPES = {MAV.MAV_TYPE_QUADROTOR, MAV.MAV_TYPE_HEXAROTOR, MAV.MAV_TYPE_OCTOROTOR,
                     MAV.MAV_TYPE_TRICOPTER, MAV.MAV_TYPE_COAXIAL}
 POSITION_ONLY_MASK = 0x0DF8  # ignore velocity, acceleration, yaw, yaw rate: position bits clear

@@ -36,6 +36,8 @@ from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
+from uavlink.errors import UserError
+
 log = logging.getLogger(__name__)
 
 KEY_LEN = 32
@@ -53,7 +55,7 @@ REASONS = {
 }
 
 
-class SigningKeyError(ValueError):
+class SigningKeyError(UserError):
     """A key file that cannot be used; the message says why (one line)."""
 
 
