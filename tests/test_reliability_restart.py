@@ -17,7 +17,8 @@ from pathlib import Path
 import pytest
 from udp_relay import FAST_TAKEOFF, Gcs, parse_vehicle_stats, wait_for_vehicle
 
-from sitl_stub.testing import free_udp_port, vehicle_process
+from sitl_stub.launcher import vehicle_process
+from uavlink.mavlink.connection import free_udp_port
 
 ROOT = Path(__file__).resolve().parents[1]
 SPEED = 20.0

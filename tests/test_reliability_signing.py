@@ -18,7 +18,8 @@ from pathlib import Path
 import pytest
 from udp_relay import FAST_TAKEOFF, Gcs, parse_vehicle_stats, wait_for_vehicle
 
-from sitl_stub.testing import free_udp_port, vehicle_process
+from sitl_stub.launcher import vehicle_process
+from uavlink.mavlink.connection import free_udp_port
 from uavlink.mavlink.dialect import mavlink
 from uavlink.mavlink.signing import (
     NEW_STREAM_WINDOW_TICKS,

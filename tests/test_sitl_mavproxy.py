@@ -17,7 +17,8 @@ from pathlib import Path
 
 import pytest
 
-from sitl_stub.testing import free_udp_port, vehicle_process
+from sitl_stub.launcher import vehicle_process
+from uavlink.mavlink.connection import free_udp_port
 from uavlink.mavlink.dialect import mavutil
 
 pytestmark = pytest.mark.timeout(90)

@@ -23,7 +23,8 @@ from mavsdk.asyncio.plugins.offboard import OffboardAsync, PositionNedYaw  # noq
 from mavsdk.asyncio.plugins.param import ParamAsync  # noqa: E402
 from mavsdk.asyncio.plugins.telemetry import FlightMode, LandedState, TelemetryAsync  # noqa: E402
 
-from sitl_stub.testing import free_udp_port, vehicle_process  # noqa: E402
+from sitl_stub.launcher import vehicle_process  # noqa: E402
+from uavlink.mavlink.connection import free_udp_port  # noqa: E402
 
 pytestmark = pytest.mark.timeout(120)
 

@@ -343,7 +343,8 @@ def fly_through_relay(faults: Faults, *, policy: str = "aoa", scenario: str = "s
     """Fly one episode through a relay with ``faults``. ``schedule``: (seconds after the vehicle
     first reports OFFBOARD, new faults) pairs; ``keep``: a folder for fly's tlog and summary (else
     a temporary one). Returns {"fly", "vehicle", "relay", "modes", ...}."""
-    from sitl_stub.testing import free_udp_port, vehicle_process
+    from sitl_stub.launcher import vehicle_process
+    from uavlink.mavlink.connection import free_udp_port
 
     fly_port = free_udp_port()
     watch = ModeWatch()

@@ -6,9 +6,9 @@ import argparse
 import contextlib
 import json
 import logging
-import subprocess
 import sys
 import time
+from collections.abc import Sequence
 from pathlib import Path
 
 import numpy as np
@@ -28,26 +28,17 @@ def policy_env_config(policy, scenario: str, aoa_noise_deg: float) -> EnvConfig:
 
 @contextlib.contextmanager
 def embedded_sitl(scenario: str, seed: int, speed: float, aoa_noise_deg: float, log_path: Path | None,
-                  signing_key_file: Path | None = None):
-    """Start ``python -m sitl_stub`` on a free loopback port; yields the URL to listen on."""
+                  signing_key_file: Path | None = None, extra_args: Sequence[str] = ()):
+    """Start the SITL vehicle (:mod:`sitl_stub.launcher`) on a free loopback port; yields the URL
+    to listen on. ``extra_args`` go to ``sitl-stub`` after the scenario options."""
+    from sitl_stub.launcher import vehicle_process
+
     port = free_udp_port()
-    cmd = [sys.executable, "-m", "sitl_stub", "--scenario", scenario, "--seed", str(seed),
-           "--connect", f"udpout:127.0.0.1:{port}", "--speed", f"{speed:g}",
-           "--aoa-noise-deg", f"{aoa_noise_deg:g}"]
+    args = ["--scenario", scenario, "--seed", str(seed), "--aoa-noise-deg", repr(float(aoa_noise_deg))]
     if signing_key_file is not None:
-        cmd += ["--signing-key", str(signing_key_file)]
-    out = open(log_path, "w") if log_path else subprocess.DEVNULL  # noqa: SIM115
-    proc = subprocess.Popen(cmd, stdout=out, stderr=subprocess.STDOUT)
-    try:
+        args += ["--signing-key", str(signing_key_file)]
+    with vehicle_process(f"udpout:127.0.0.1:{port}", speed, [*args, *extra_args], log_path=log_path):
         yield f"udpin:127.0.0.1:{port}"
-    finally:
-        proc.terminate()
-        try:
-            proc.wait(timeout=5)
-        except subprocess.TimeoutExpired:
-            proc.kill()
-        if log_path:
-            out.close()
 
 
 def run_fly(args: argparse.Namespace) -> int:
