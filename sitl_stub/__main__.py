@@ -82,6 +82,16 @@ def _param(text: str) -> tuple[str, float]:
     return name, _finite(value)
 
 
+def _system_id(text: str) -> int:
+    try:
+        v = int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"not an integer: {text!r}") from None
+    if not 1 <= v <= 255:
+        raise argparse.ArgumentTypeError(f"must be in 1..255, got {text}")
+    return v
+
+
 def build_parser() -> argparse.ArgumentParser:
     p = _Parser(prog=PROG, description="A lightweight PX4-style SITL multicopter speaking "
                 "MAVLink 2, with a radio payload component.")
@@ -106,6 +116,9 @@ def build_parser() -> argparse.ArgumentParser:
                    help="stop after this many simulated seconds (default: run until signalled)")
     p.add_argument("--param", type=_param, action="append", default=[], metavar="NAME=VALUE",
                    help="override a parameter default, e.g. MIS_TAKEOFF_ALT=10 (repeatable)")
+    p.add_argument("--system-id", type=_system_id, default=1,
+                   help="MAVLink system id of the vehicle and its payloads (PX4's MAV_SYS_ID; "
+                   "default 1)")
     p.add_argument("--no-payload", action="store_true", help="run without the radio payload")
     p.add_argument("--signing-key", metavar="FILE", default=None,
                    help="MAVLink 2 signing key (32 raw bytes, e.g. from `uavlink keygen`): sign "
@@ -128,8 +141,8 @@ def main(argv: Sequence[str] | None = None, payload_factory: PayloadFactory | No
                 PayloadOptions(args.scenario, args.seed, args.aoa_noise_deg)))
         key = load_key(args.signing_key) if args.signing_key else None
         config = ServerConfig(connect=args.connect, speed=args.speed, home=home,
-                              params=dict(args.param), duration_s=args.duration_s,
-                              signing_key=key)
+                              params=dict(args.param), system_id=args.system_id,
+                              duration_s=args.duration_s, signing_key=key)
         server = SitlServer(config, payloads)
     except ValueError as exc:
         parser.error(str(exc))

@@ -378,7 +378,7 @@ def _vehicle_packets() -> list[bytes]:
 @contextmanager
 def fly_link() -> Iterator[tuple[VehicleLink, MavlinkRadioSource, socket.socket, list]]:
     port = free_udp_port()
-    link = VehicleLink(f"udpin:127.0.0.1:{port}")
+    link = VehicleLink(f"udpin:127.0.0.1:{port}", target_system=1)  # the packets below are system 1's
     source = MavlinkRadioSource(10)
     scores: list = []
     link.on_radio, link.on_score = source.feed, scores.append
