@@ -15,7 +15,8 @@ from dataclasses import dataclass, field
 from sitl_stub.modes import MANUAL_MAIN_MODES, FlightMode
 from sitl_stub.streams import StreamScheduler
 from sitl_stub.telemetry import TelemetrySender
-from sitl_stub.vehicle import Outcome, Result, Vehicle
+from sitl_stub.vehicle import Vehicle
+from sitl_stub.vehicle_state import Outcome, Result
 from uavlink.mavlink.dialect import mavlink
 
 RETRY_WINDOW_S = 3.0  # wall seconds

@@ -37,7 +37,8 @@ from sitl_stub.params import ParamStore
 from sitl_stub.payload import Payload, check_payload
 from sitl_stub.streams import StreamScheduler
 from sitl_stub.telemetry import TelemetrySender
-from sitl_stub.vehicle import Result, Vehicle, VehicleState
+from sitl_stub.vehicle import Vehicle
+from sitl_stub.vehicle_state import Result, VehicleState
 from uavlink.config import AreaConfig
 from uavlink.mavlink.connection import normalize_connection
 from uavlink.mavlink.dialect import mavlink, mavutil

@@ -31,7 +31,7 @@ from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from typing import Any, Protocol, runtime_checkable
 
-from sitl_stub.vehicle import VehicleState
+from sitl_stub.vehicle_state import VehicleState
 
 log = logging.getLogger(__name__)
 

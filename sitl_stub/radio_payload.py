@@ -22,7 +22,7 @@ from typing import Any
 
 from sitl_stub.modes import FlightMode
 from sitl_stub.payload import MAV_AUTOPILOT_INVALID, PayloadOptions
-from sitl_stub.vehicle import VehicleState
+from sitl_stub.vehicle_state import VehicleState
 from uavlink.config import EnvConfig
 from uavlink.env.radio_world import RadioWorld
 from uavlink.mavlink.radio_codec import (

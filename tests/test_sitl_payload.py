@@ -9,7 +9,7 @@ import pytest
 
 from sitl_stub.mavlink_server import ServerConfig, SitlServer
 from sitl_stub.payload import MAV_AUTOPILOT_INVALID
-from sitl_stub.vehicle import VehicleState
+from sitl_stub.vehicle_state import VehicleState
 from uavlink.mavlink.dialect import mavutil
 
 pytestmark = pytest.mark.timeout(60)
