@@ -64,6 +64,16 @@ class PayloadOptions:
     aoa_noise_deg: float = 0.0
 
 
+@dataclass
+class PayloadSlot:
+    """A payload as the server runs it: its own MAVLink sender and its next frame."""
+
+    payload: Payload
+    mav: Any
+    next_frame: int = 0
+    failures: int = 0
+
+
 PayloadFactory = Callable[[PayloadOptions], "Payload | Sequence[Payload] | None"]
 
 
