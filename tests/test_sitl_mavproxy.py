@@ -21,7 +21,7 @@ from sitl_stub.launcher import vehicle_process
 from uavlink.mavlink.connection import free_udp_port
 from uavlink.mavlink.dialect import mavutil
 
-pytestmark = pytest.mark.timeout(90)
+pytestmark = [pytest.mark.slow, pytest.mark.timeout(90)]
 
 mavlink = mavutil.mavlink
 MAVPROXY = shutil.which("mavproxy.py", path=str(Path(sys.executable).parent)) or shutil.which(

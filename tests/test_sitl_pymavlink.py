@@ -19,7 +19,7 @@ from sitl_stub.params import int_to_param_float, param_float_to_int
 from uavlink.mavlink.connection import free_udp_port
 from uavlink.mavlink.dialect import mavutil
 
-pytestmark = pytest.mark.timeout(90)
+pytestmark = [pytest.mark.slow, pytest.mark.timeout(90)]
 
 mavlink = mavutil.mavlink
 GCS_SYS, GCS_COMP = 245, 190
