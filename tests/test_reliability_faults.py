@@ -30,6 +30,7 @@ def _safe(run: dict) -> None:
     assert run["fly"]["guarded_actions"] == 0
 
 
+@pytest.mark.slow
 @pytest.mark.timeout(30)
 def test_relay_drops_delays_duplicates_and_reorders_and_stops_by_itself() -> None:
     with socket.socket(socket.AF_INET, socket.SOCK_DGRAM) as dest, \
