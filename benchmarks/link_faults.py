@@ -28,7 +28,8 @@ ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT / "tests"))
 sys.path.insert(0, str(ROOT))
 
-from udp_relay import CLEAN, Faults, fly_through_relay, format_table, table_row  # noqa: E402
+from relay_flight import fly_through_relay, format_table, table_row  # noqa: E402
+from udp_relay import CLEAN, Faults  # noqa: E402
 
 
 def main() -> None:

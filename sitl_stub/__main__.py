@@ -30,8 +30,8 @@ from sitl_stub.payload import (
     default_payload_factory,
 )
 from uavlink.config import parse_settings
-from uavlink.flight.connection import normalize_connection
-from uavlink.flight.signing import load_key
+from uavlink.mavlink.connection import normalize_connection
+from uavlink.mavlink.signing import load_key
 
 SCENARIOS = ("no_move", "straight", "circular", "straight_90", "straight_180", "hotspot")
 PROG = "sitl-stub"
@@ -91,6 +91,16 @@ def _setting(text: str) -> tuple[str, object]:
     return key, value
 
 
+def _system_id(text: str) -> int:
+    try:
+        v = int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"not an integer: {text!r}") from None
+    if not 1 <= v <= 255:
+        raise argparse.ArgumentTypeError(f"must be in 1..255, got {text}")
+    return v
+
+
 def build_parser() -> argparse.ArgumentParser:
     p = _Parser(prog=PROG, description="A lightweight PX4-style SITL multicopter speaking "
                 "MAVLink 2, with a radio payload component.")
@@ -118,6 +128,9 @@ def build_parser() -> argparse.ArgumentParser:
                    help="stop after this many simulated seconds (default: run until signalled)")
     p.add_argument("--param", type=_param, action="append", default=[], metavar="NAME=VALUE",
                    help="override a parameter default, e.g. MIS_TAKEOFF_ALT=10 (repeatable)")
+    p.add_argument("--system-id", type=_system_id, default=1,
+                   help="MAVLink system id of the vehicle and its payloads (PX4's MAV_SYS_ID; "
+                   "default 1)")
     p.add_argument("--no-payload", action="store_true", help="run without the radio payload")
     p.add_argument("--signing-key", metavar="FILE", default=None,
                    help="MAVLink 2 signing key (32 raw bytes, e.g. from `uavlink keygen`): sign "
@@ -140,8 +153,8 @@ def main(argv: Sequence[str] | None = None, payload_factory: PayloadFactory | No
                 PayloadOptions(args.scenario, args.seed, args.aoa_noise_deg, tuple(args.settings))))
         key = load_key(args.signing_key) if args.signing_key else None
         config = ServerConfig(connect=args.connect, speed=args.speed, home=home,
-                              params=dict(args.param), duration_s=args.duration_s,
-                              signing_key=key)
+                              params=dict(args.param), system_id=args.system_id,
+                              duration_s=args.duration_s, signing_key=key)
         server = SitlServer(config, payloads)
     except ValueError as exc:
         parser.error(str(exc))

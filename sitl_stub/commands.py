@@ -12,11 +12,12 @@ import math
 from collections.abc import Callable
 from dataclasses import dataclass, field
 
-from sitl_stub._mav import mavlink
 from sitl_stub.modes import MANUAL_MAIN_MODES, FlightMode
 from sitl_stub.streams import StreamScheduler
 from sitl_stub.telemetry import TelemetrySender
-from sitl_stub.vehicle import Outcome, Result, Vehicle
+from sitl_stub.vehicle import Vehicle
+from sitl_stub.vehicle_state import Outcome, Result
+from uavlink.mavlink.dialect import mavlink
 
 RETRY_WINDOW_S = 3.0  # wall seconds
 FORCE_MAGIC = 21196  # COMPONENT_ARM_DISARM param2 that forces (PX4, ArduPilot)

@@ -12,7 +12,7 @@ pymavlink ground stations send) or 1; commands addressed to a payload's componen
 
 With ``ServerConfig.signing_key`` every packet the vehicle sends (autopilot and payloads) is signed
 and every packet it receives must be signed with that key, newer than the last one of its stream
-(see :mod:`uavlink.flight.signing`); anything else is dropped before it is looked at: no ACK, no
+(see :mod:`uavlink.mavlink.signing`); anything else is dropped before it is looked at: no ACK, no
 effect. Rejected input of every kind (signing, bad bytes, unknown messages, unusable setpoints,
 refused parameters and commands) is counted in :meth:`SitlServer.report` and logged once per kind.
 """
@@ -28,30 +28,26 @@ from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 from typing import Any
 
-from sitl_stub._mav import mavlink, mavutil
 from sitl_stub.clock import SimClock
-from sitl_stub.commands import CommandHandler, CommandReply, CommandRequest
-from sitl_stub.ftp import ftp_reply
+from sitl_stub.commands import CommandHandler
 from sitl_stub.geo import GeoOrigin
+from sitl_stub.message_handler import AUTOPILOT_COMPONENT, MessageHandler
 from sitl_stub.param_protocol import ParamProtocol
 from sitl_stub.params import ParamStore
-from sitl_stub.payload import Payload, check_payload
+from sitl_stub.payload import Payload, PayloadSlot, check_payload
 from sitl_stub.streams import StreamScheduler
 from sitl_stub.telemetry import TelemetrySender
-from sitl_stub.vehicle import Result, Vehicle, VehicleState
+from sitl_stub.vehicle import Vehicle
+from sitl_stub.vehicle_state import VehicleState
 from uavlink.config import AreaConfig
-from uavlink.flight.connection import normalize_connection
-from uavlink.flight.px4_modes import decode_custom_mode
-from uavlink.flight.rejects import RejectLog, rescan_bad_frame
-from uavlink.flight.signing import SigningGuard
+from uavlink.mavlink.connection import normalize_connection
+from uavlink.mavlink.dialect import mavlink, mavutil
+from uavlink.mavlink.rejects import RejectLog
+from uavlink.mavlink.signing import SigningGuard
 
 log = logging.getLogger("sitl_stub")
 
-AUTOPILOT_COMPONENT = 1
-POSITION_IGNORE_MASK = 0x7  # SET_POSITION_TARGET type_mask bits x, y, z
-YAW_IGNORE_BIT = 0x400
 LOOP_WAIT_S = 0.005  # longest wait for input between loop iterations (wall)
-MAX_RX_PER_TICK = 2000  # messages/datagrams handled per loop iteration: a flood cannot stall time
 
 
 @dataclass(frozen=True)
@@ -68,14 +64,6 @@ class ServerConfig:
     duration_s: float | None = None
     max_stream_wall_hz: float = 50.0
     signing_key: bytes | None = field(default=None, repr=False)
-
-
-@dataclass
-class _Slot:
-    payload: Payload
-    mav: Any
-    next_frame: int = 0
-    failures: int = 0
 
 
 class SitlServer:
@@ -98,7 +86,7 @@ class SitlServer:
             check_payload(p, ids)
             ids.add(int(p.component_id))
         self._payloads = list(payloads)
-        self._slots: list[_Slot] = []
+        self._slots: list[PayloadSlot] = []
         self.stats: Counter[str] = Counter()
         self.rejects = RejectLog(log)
         self.signing: SigningGuard | None = None
@@ -122,13 +110,16 @@ class SitlServer:
         self.telemetry = TelemetrySender(self.mav, c.home)
         self.commands = CommandHandler(self.vehicle, self.streams, self.telemetry)
         self.param_protocol = ParamProtocol(self.params, self.mav)
-        self._slots = [_Slot(p, mavlink.MAVLink(self.conn, srcSystem=c.system_id,
+        self._slots = [PayloadSlot(p, mavlink.MAVLink(self.conn, srcSystem=c.system_id,
                                                 srcComponent=int(p.component_id)))
                        for p in self._payloads]
         if c.signing_key is not None:
             self.signing = SigningGuard(c.signing_key, on_first_reject=self._on_signing_reject)
             for mav in (self.mav, *(slot.mav for slot in self._slots)):
                 self.signing.attach(mav)
+        self.inbox = MessageHandler(c.system_id, self.conn, self.vehicle, self.commands,
+                                    self.telemetry, self.param_protocol, self._slots, self.stats,
+                                    self.rejects, self.signing)
         self.clock = SimClock(c.speed)
         log.debug("vehicle %d on %s at %gx real time", c.system_id, self.connection, c.speed)
 
@@ -218,7 +209,7 @@ class SitlServer:
         """Handle input, advance simulated time to the wall clock, send what is due."""
         assert self.clock is not None
         wall = self.clock.wall()
-        self._receive(wall)
+        self.inbox.receive(wall)
         self._advance_to(self.clock.advance())
         for severity, text in self.vehicle.drain_events():
             log.info("%s", text)
@@ -243,7 +234,7 @@ class SitlServer:
                 return
             v.step(end - v.t)
 
-    def _tick(self, slot: _Slot, sim_time_s: float) -> None:
+    def _tick(self, slot: PayloadSlot, sim_time_s: float) -> None:
         try:
             slot.payload.on_frame(sim_time_s, self.vehicle.state(), slot.mav)
         except Exception:
@@ -264,163 +255,3 @@ class SitlServer:
     # ------------------------------------------------------------------ input
     def _on_signing_reject(self, reason: str, text: str) -> None:
         self._notices.append(f"Signing: rejected {reason} packets")
-
-    def _receive(self, wall: float) -> None:
-        if self.signing is not None and not self.signing.is_attached(self.conn.mav):
-            raise RuntimeError("pymavlink replaced the signed MAVLink parser; refusing to go on")
-        for _ in range(MAX_RX_PER_TICK):
-            try:
-                msg = self.conn.recv_msg()
-            except Exception as exc:  # a parser error robust parsing did not turn into BAD_DATA
-                self.rejects.reject("parse_error", f"MAVLink parser error: {exc!r}")
-                self.conn.mav.buf, self.conn.mav.buf_index = bytearray(), 0
-                continue
-            if msg is None:
-                # a datagram without a whole message (garbage, a split packet): go on while more
-                # are waiting, or garbage would starve the commands queued behind it
-                if not select.select([self.conn.fd], [], [], 0)[0]:
-                    return
-                continue
-            kind = msg.get_type()
-            rescan_bad_frame(self.conn.mav, msg)
-            if not self.rejects.screen(msg):
-                if kind == "BAD_DATA":  # signing rejects are counted by reason in self.signing
-                    bad_signature = "signature" in str(getattr(msg, "reason", ""))
-                    self.stats["signing_rejected" if bad_signature else "bad_data"] += 1
-                continue
-            self.stats[f"rx_{kind}"] += 1
-            try:
-                self._dispatch(msg, kind, wall)
-            except Exception:
-                self._handler_error(f"handling {kind}")
-                self.rejects.reject("handler_error", f"failed to handle {kind}", key=f"error_{kind}")
-
-    def _dispatch(self, msg: Any, kind: str, wall: float) -> None:
-        if kind in ("COMMAND_LONG", "COMMAND_INT"):
-            self._on_command(msg, kind, wall)
-        elif kind == "SET_POSITION_TARGET_LOCAL_NED":
-            self._on_setpoint(msg)
-        elif kind.startswith("PARAM_"):
-            if self._for_autopilot(msg):
-                refused = self.param_protocol.rejected_sets
-                self.param_protocol.handle(msg)
-                if self.param_protocol.rejected_sets > refused:
-                    name = getattr(msg, "param_id", "?")
-                    self.rejects.reject("param_set_refused",
-                                        f"PARAM_SET {name}={msg.param_value!r} out of range",
-                                        key=f"param_{name}")
-        elif kind == "SET_MODE":  # deprecated message: acted on like DO_SET_MODE, no ACK
-            if (msg.target_system == self.config.system_id
-                    and msg.base_mode & mavlink.MAV_MODE_FLAG_CUSTOM_MODE_ENABLED):
-                main, sub = decode_custom_mode(msg.custom_mode)
-                reply = self.commands.handle(self._request(
-                    msg, mavlink.MAV_CMD_DO_SET_MODE, (1.0, main, sub, 0, 0, 0, 0)), wall)
-                if reply.reason:
-                    self.telemetry.statustext(mavlink.MAV_SEVERITY_WARNING, reply.reason)
-        elif kind == "PING":
-            if msg.target_system == 0 and msg.target_component == 0:
-                self.mav.ping_send(msg.time_usec, msg.seq, msg.get_srcSystem(),
-                                   msg.get_srcComponent())
-        elif kind == "TIMESYNC":
-            if msg.tc1 == 0:
-                self.mav.timesync_send(int(self.vehicle.t * 1e9), msg.ts1)
-        elif kind == "FILE_TRANSFER_PROTOCOL":
-            reply = ftp_reply(msg.payload) if self._for_autopilot(msg) else None
-            if reply is not None:
-                self.mav.file_transfer_protocol_send(0, msg.get_srcSystem(),
-                                                     msg.get_srcComponent(), reply)
-        elif kind == "MISSION_REQUEST_LIST" and self._for_autopilot(msg):
-            # no mission, fence or rally items (MAVProxy asks on connect)
-            self.mav.mission_count_send(msg.get_srcSystem(), msg.get_srcComponent(), 0,
-                                        msg.mission_type)
-
-    def _handler_error(self, what: str) -> None:
-        """A bug met by some input: counted; the first (and every 100th) traceback is logged."""
-        self.stats["handler_errors"] += 1
-        n = self.stats["handler_errors"]
-        if n == 1 or n % 100 == 0:
-            log.error("error while %s (%d so far); the vehicle flies on", what, n, exc_info=True)
-
-    def _for_autopilot(self, msg: Any) -> bool:
-        return (getattr(msg, "target_system", 0) in (0, self.config.system_id)
-                and getattr(msg, "target_component", 0) in (0, AUTOPILOT_COMPONENT))
-
-    def _on_setpoint(self, m: Any) -> None:
-        if not self._for_autopilot(m):
-            self.stats["setpoints_ignored"] += 1  # someone else's: not an error
-            return
-        if m.coordinate_frame != mavlink.MAV_FRAME_LOCAL_NED:
-            self.stats["setpoints_ignored"] += 1
-            self.rejects.reject("setpoint_frame",
-                                f"setpoint in frame {m.coordinate_frame}: only MAV_FRAME_LOCAL_NED (1)",
-                                key=f"setpoint_frame_{m.coordinate_frame}")
-            return
-        if m.type_mask & POSITION_IGNORE_MASK:
-            self.stats["setpoints_ignored"] += 1
-            self.rejects.reject("setpoint_type_mask",
-                                f"setpoint type_mask 0x{m.type_mask:x} ignores position: "
-                                "only position setpoints are flown")
-            return
-        yaw = None if m.type_mask & YAW_IGNORE_BIT else m.yaw
-        if not self.vehicle.offer_setpoint(m.x, m.y, m.z, yaw):
-            self.stats["setpoints_rejected"] += 1
-            self.rejects.reject("setpoint_not_finite",
-                                f"setpoint with a NaN/infinite position ({m.x}, {m.y}, {m.z})")
-
-    def _on_command(self, msg: Any, kind: str, wall: float) -> None:
-        if msg.target_system not in (0, self.config.system_id):
-            return
-        slot = next((s for s in self._slots if s.payload.component_id == msg.target_component),
-                    None)
-        if slot is not None:
-            self._payload_command(slot, msg)
-            return
-        if msg.target_component not in (0, AUTOPILOT_COMPONENT):
-            return
-        if kind == "COMMAND_LONG":
-            params = (msg.param1, msg.param2, msg.param3, msg.param4, msg.param5, msg.param6,
-                      msg.param7)
-            req = self._request(msg, msg.command, params, msg.confirmation)
-        else:
-            params = (msg.param1, msg.param2, msg.param3, msg.param4, float(msg.x), float(msg.y),
-                      msg.z)
-            req = self._request(msg, msg.command, params, 0, msg.frame)
-        try:
-            reply: CommandReply = self.commands.handle(req, wall)
-        except Exception as exc:  # a bug or an input nobody foresaw: answer FAILED, fly on
-            self._handler_error(f"command {msg.command}")
-            reply = CommandReply(Result.FAILED, f"Command {msg.command} failed: {type(exc).__name__}")
-        self.mav.command_ack_send(msg.command, int(reply.result), 0, 0, msg.get_srcSystem(),
-                                  msg.get_srcComponent())
-        result = Result(reply.result)
-        self.stats[f"ack_{result.name.lower()}"] += 1
-        if result is Result.UNSUPPORTED:
-            self.rejects.reject("command_unsupported", f"unsupported command {msg.command}",
-                                key=f"command_unsupported_{msg.command}")
-        elif result is not Result.ACCEPTED:
-            self.rejects.reject(f"command_{result.name.lower()}",
-                                f"command {msg.command}: {result.name} {reply.reason}".rstrip(),
-                                key=f"{reply.reason or msg.command}")
-        if reply.reason:
-            self.telemetry.statustext(mavlink.MAV_SEVERITY_WARNING, reply.reason)
-        for follow_up in reply.then:
-            follow_up()
-
-    def _payload_command(self, slot: _Slot, msg: Any) -> None:
-        handler = getattr(slot.payload, "on_command", None)
-        try:
-            result = handler(msg, slot.mav) if handler else mavlink.MAV_RESULT_UNSUPPORTED
-        except Exception:
-            self._handler_error(f"payload {slot.payload.component_id} command {msg.command}")
-            self.rejects.reject("command_failed", f"payload {slot.payload.component_id} failed "
-                                f"command {msg.command}", key=f"payload_cmd_{msg.command}")
-            result = mavlink.MAV_RESULT_FAILED
-        if result is not None:
-            slot.mav.command_ack_send(msg.command, int(result), 0, 0, msg.get_srcSystem(),
-                                      msg.get_srcComponent())
-
-    @staticmethod
-    def _request(msg: Any, command: int, params: tuple, confirmation: int = 0,
-                 frame: int | None = None) -> CommandRequest:
-        return CommandRequest(int(command), tuple(float(p) for p in params), int(confirmation),
-                              frame, msg.get_srcSystem(), msg.get_srcComponent())

@@ -1,6 +1,6 @@
 """The flight modes this vehicle flies and its landed states (no MAVLink import).
 
-PX4's mode encoding lives in ``uavlink.flight.px4_modes``. Only the modes this stub flies are
+PX4's mode encoding lives in ``uavlink.mavlink.px4_modes``. Only the modes this stub flies are
 members; others (MANUAL, POSCTL, MISSION, ...) are refused.
 """
 
@@ -8,7 +8,7 @@ from __future__ import annotations
 
 from enum import Enum, IntEnum
 
-from uavlink.flight.px4_modes import (
+from uavlink.mavlink.px4_modes import (
     PX4_MAIN_ACRO,
     PX4_MAIN_ALTCTL,
     PX4_MAIN_AUTO,

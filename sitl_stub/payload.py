@@ -31,7 +31,7 @@ from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from typing import Any, Protocol, runtime_checkable
 
-from sitl_stub.vehicle import VehicleState
+from sitl_stub.vehicle_state import VehicleState
 
 log = logging.getLogger(__name__)
 
@@ -63,6 +63,16 @@ class PayloadOptions:
     seed: int = 0
     aoa_noise_deg: float = 0.0
     settings: tuple[tuple[str, object], ...] = ()  # --set KEY=VALUE: the radio payload's env fields
+
+
+@dataclass
+class PayloadSlot:
+    """A payload as the server runs it: its own MAVLink sender and its next frame."""
+
+    payload: Payload
+    mav: Any
+    next_frame: int = 0
+    failures: int = 0
 
 
 PayloadFactory = Callable[[PayloadOptions], "Payload | Sequence[Payload] | None"]

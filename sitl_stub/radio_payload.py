@@ -1,9 +1,9 @@
 """The radio payload: the base station as its own MAVLink component on the vehicle's system.
 
-It runs the simulator's UE mobility and radio model (``uavlink.env.core.BatchedUavEnv`` with one
-env, stepped with ``step_to`` at the vehicle's actual position) and publishes each frame's readings
-as ``uavlink.flight.radio_codec`` describes. The scenario is seeded as ``uavlink evaluate`` seeds
-episode 0, so a flight with ``--seed S`` meets the UEs of ``uavlink evaluate --episodes 1 --seed S``.
+It runs the simulator's UE mobility and radio model (``uavlink.env.radio_world.RadioWorld``,
+advanced at the vehicle's actual position) and publishes each frame's readings as
+``uavlink.mavlink.radio_codec`` describes. The world is episode 0 of the evaluation stream, so a
+flight with ``--seed S`` meets the UEs of ``uavlink evaluate --episodes 1 --seed S``.
 
 The episode starts at the first frame tick that finds the vehicle in OFFBOARD (the mission): that
 tick publishes frame 0, and each later tick moves the UEs one frame. Until then the UEs wait at
@@ -22,11 +22,10 @@ from typing import Any
 
 from sitl_stub.modes import FlightMode
 from sitl_stub.payload import MAV_AUTOPILOT_INVALID, PayloadOptions
-from sitl_stub.vehicle import VehicleState
+from sitl_stub.vehicle_state import VehicleState
 from uavlink.config import EnvConfig
-from uavlink.env.core import BatchedUavEnv
-from uavlink.evaluation import episode_seed
-from uavlink.flight.radio_codec import (
+from uavlink.env.radio_world import RadioWorld
+from uavlink.mavlink.radio_codec import (
     RADIO_COMPONENT_ID,
     READINGS_NAME,
     SCORE_NAME,
@@ -46,8 +45,7 @@ class RadioPayload:
         base = cfg or EnvConfig().replace(**dict(options.settings))
         self.cfg = base.replace(scenario=options.scenario, aoa_noise_deg=options.aoa_noise_deg).validate()
         self.frame_s = self.cfg.frame_s
-        self.env = BatchedUavEnv(self.cfg, n_envs=1, seed=episode_seed(options.seed, 0))
-        self.env.reset()
+        self.world = RadioWorld(self.cfg, options.seed)
         self.started = False
         self.frame_rates_mbps: list[float] = []  # the truth per scored frame 1, 2, ...
 
@@ -56,14 +54,13 @@ class RadioPayload:
 
     def on_frame(self, sim_time_s: float, state: VehicleState, mav: Any) -> None:
         if self.started:
-            result = self.env.step_to([[state.x_east_m, state.y_north_m]])
-            self.frame_rates_mbps.append(float(result.mean_rate_mbps[0]))
-            self._send(mav, sim_time_s, SCORE_NAME, encode_score(self.env.readings.rate_bps[0],
-                                                                 float(result.fair_rate[0])))
+            score = self.world.advance([state.x_east_m, state.y_north_m])
+            self.frame_rates_mbps.append(score.mean_rate_mbps)
+            self._send(mav, sim_time_s, SCORE_NAME, encode_score(score.rate_bps, score.fair_rate))
         elif state.mode is FlightMode.OFFBOARD:
             self.started = True
-        readings = self.env.readings
-        data = encode_readings(readings.sinr_db[0], readings.aoa_deg[0], self.started)
+        readings = self.world.readings()
+        data = encode_readings(readings.sinr_db, readings.aoa_deg, self.started)
         for _ in range(self.READINGS_COPIES):
             self._send(mav, sim_time_s, READINGS_NAME, data)
 
@@ -75,4 +72,4 @@ class RadioPayload:
                 "mean_rate_mbps": round(sum(rates) / len(rates), 6) if rates else None}
 
     def _send(self, mav: Any, sim_time_s: float, name: str, data: list[float]) -> None:
-        mav.debug_float_array_send(int(sim_time_s * 1e6), name.encode(), self.env.frame, data)
+        mav.debug_float_array_send(int(sim_time_s * 1e6), name.encode(), self.world.frame, data)

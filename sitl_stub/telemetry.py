@@ -1,6 +1,6 @@
 """MAVLink telemetry of the vehicle as PX4's mavlink module would send it.
 
-Every message is built from a :class:`~sitl_stub.vehicle.VehicleState`; ``time_boot_ms`` and
+Every message is built from a :class:`~sitl_stub.vehicle_state.VehicleState`; ``time_boot_ms`` and
 ``time_usec`` are simulated time since boot. Global positions come from the LOCAL_NED position
 through the configured :class:`~sitl_stub.geo.GeoOrigin` (which is also home).
 """
@@ -11,9 +11,9 @@ import math
 from collections.abc import Callable
 from typing import Any
 
-from sitl_stub._mav import mavlink
 from sitl_stub.geo import GeoOrigin
-from sitl_stub.vehicle import VehicleState
+from sitl_stub.vehicle_state import VehicleState
+from uavlink.mavlink.dialect import mavlink
 
 # PX4 reports every sensor present, enabled and healthy in SITL; GEOFENCE healthy keeps MAVProxy
 # from announcing "fence breach", PREARM_CHECK and GPS make MAVSDK's health armable / position ok.

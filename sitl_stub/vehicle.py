@@ -4,9 +4,8 @@ Frame: LOCAL_NED, origin at the area centre on the ground (= home): north = env 
 down = -altitude. Positions in metres, velocities in m/s, angles in radians, time in simulated
 seconds advanced only by :meth:`Vehicle.step`.
 
-The position controller is a velocity-limited P loop with an acceleration limit and a braking
-curve (``v <= sqrt(2 a d)``), so it never overshoots a setpoint. Limits come from the PX4
-parameters in :mod:`sitl_stub.params`, read every step so PARAM_SET takes effect at once.
+The position controller (:mod:`sitl_stub.position_control`) never overshoots a setpoint. Limits
+come from the PX4 parameters in :mod:`sitl_stub.params`, read every step so PARAM_SET takes effect at once.
 Mode logic follows PX4 commander/navigator in the small: AUTO.TAKEOFF climbs to MIS_TAKEOFF_ALT
 then holds in AUTO.LOITER; OFFBOARD needs a live setpoint stream and falls back to COM_OBL_ACT
 after COM_OF_LOSS_T without one; RTL climbs to RTL_RETURN_ALT, returns at MPC_XY_CRUISE and lands;
@@ -14,112 +13,33 @@ a landed vehicle disarms after COM_DISARM_LAND. The area is a hard geofence: set
 clamped onto it and the position never leaves it; altitude setpoints are clamped to
 :data:`MAX_ALTITUDE_M` (a vertical fence, PX4's GF_MAX_VER_DIST).
 
-Safety monitors for tests and logs (in :class:`VehicleState`): the largest horizontal distance from
-the centre on either axis ever reached (``max_abs_xy_m``) and the oldest setpoint the vehicle ever
-flew OFFBOARD on (``max_offboard_setpoint_age_s``; the failsafe keeps it at COM_OF_LOSS_T).
+Its snapshot, request outcomes and safety monitors are in :mod:`sitl_stub.vehicle_state`; the
+position controller is :mod:`sitl_stub.position_control`.
 """
 
 from __future__ import annotations
 
 import math
 from collections import deque
-from dataclasses import dataclass
-from enum import IntEnum
 
 from sitl_stub.modes import FlightMode, LandedState
 from sitl_stub.params import ParamStore
+from sitl_stub.position_control import GROUND_EPS_M, fall, stopping_point, tilt, track, turn, wrap
+from sitl_stub.vehicle_state import (
+    ACCEPTED,
+    SEVERITY_INFO,
+    SEVERITY_WARNING,
+    Outcome,
+    Result,
+    VehicleState,
+)
 from uavlink.config import AreaConfig
 
-GRAVITY_MPS2 = 9.81
 SUBSTEP_S = 0.02  # integration step; step(dt) subdivides
-ACC_Z_MPS2 = 3.0  # PX4 MPC_ACC_DOWN_MAX (and below MPC_ACC_UP_MAX 4)
-POS_GAIN = 1.0  # PX4 MPC_XY_P / MPC_Z_P ~ 1 /s
-YAW_RATE_RADPS = math.radians(45.0)  # PX4 MPC_YAWRAUTO_MAX
 ALT_ACCEPT_M = 0.5  # takeoff / RTL climb done within this of the target altitude
 XY_ACCEPT_M = 0.5  # RTL return done within this of home
-GROUND_EPS_M = 0.05  # "on the ground" below this altitude
 TAKEN_OFF_ALT_M = 1.0  # above this the vehicle counts as having flown
 MAX_ALTITUDE_M = 500.0  # vertical fence: setpoints above are clamped (= the altitude params' max)
-
-# MAV_SEVERITY values for vehicle events (reported as STATUSTEXT by the server).
-SEVERITY_CRITICAL = 2
-SEVERITY_WARNING = 4
-SEVERITY_INFO = 6
-
-
-class Result(IntEnum):
-    """Outcome of a request, valued as MAV_RESULT."""
-
-    ACCEPTED = 0
-    TEMPORARILY_REJECTED = 1
-    DENIED = 2
-    UNSUPPORTED = 3
-    FAILED = 4
-
-
-@dataclass(frozen=True)
-class Outcome:
-    """A request's result and, when refused, PX4-style reason text."""
-
-    result: Result
-    reason: str = ""
-
-    @property
-    def ok(self) -> bool:
-        return self.result is Result.ACCEPTED
-
-
-ACCEPTED = Outcome(Result.ACCEPTED)
-
-
-@dataclass(frozen=True)
-class VehicleState:
-    """Snapshot of the vehicle at ``time_s`` (simulated seconds since boot), LOCAL_NED."""
-
-    time_s: float
-    north_m: float
-    east_m: float
-    down_m: float
-    vn_mps: float
-    ve_mps: float
-    vd_mps: float
-    roll_rad: float
-    pitch_rad: float
-    yaw_rad: float
-    yaw_rate_radps: float
-    armed: bool
-    mode: FlightMode
-    landed_state: LandedState
-    setpoint_ned: tuple[float, float, float] | None
-    setpoints_accepted: int
-    setpoints_rejected: int
-    setpoints_clamped: int
-    offboard_failsafes: int
-    max_abs_xy_m: float = 0.0
-    max_offboard_setpoint_age_s: float = 0.0
-
-    @property
-    def x_east_m(self) -> float:
-        """Environment x (east)."""
-        return self.east_m
-
-    @property
-    def y_north_m(self) -> float:
-        """Environment y (north)."""
-        return self.north_m
-
-    @property
-    def altitude_m(self) -> float:
-        """Height above home (the ground), m."""
-        return -self.down_m
-
-    @property
-    def ground_speed_mps(self) -> float:
-        return math.hypot(self.vn_mps, self.ve_mps)
-
-    @property
-    def in_air(self) -> bool:
-        return self.landed_state is not LandedState.ON_GROUND
 
 
 class Vehicle:
@@ -257,7 +177,7 @@ class Vehicle:
         if sp != (north_m, east_m, down_m):
             self.setpoints_clamped += 1
         self._sp = sp
-        self._sp_yaw = _wrap(yaw_rad) if yaw_rad is not None and math.isfinite(yaw_rad) else None
+        self._sp_yaw = wrap(yaw_rad) if yaw_rad is not None and math.isfinite(yaw_rad) else None
         self._sp_time = self.t
         self.setpoints_accepted += 1
         if self.mode is FlightMode.OFFBOARD:
@@ -359,57 +279,19 @@ class Vehicle:
         return xy, up, down
 
     def _control(self, h: float) -> None:
-        xy_max, up_max, down_max = self._limits()
-        acc_xy = self.params["MPC_ACC_HOR_MAX"]
-        tn, te, td = self._target
-        if self._landed and -td <= GROUND_EPS_M:
+        limits = self._limits()
+        if self._landed and -self._target[2] <= GROUND_EPS_M:
             self.vel = [0.0, 0.0, 0.0]  # sitting on the ground, nothing to do
             self._acc_ne = (0.0, 0.0)
             return
-        # Horizontal: braking-curve P control, acceleration-limited.
-        en, ee = tn - self.pos[0], te - self.pos[1]
-        dist = math.hypot(en, ee)
-        speed = min(xy_max, POS_GAIN * dist, math.sqrt(2.0 * 0.9 * acc_xy * dist))
-        vdn, vde = (en / dist * speed, ee / dist * speed) if dist > 1e-9 else (0.0, 0.0)
-        dvn, dve = vdn - self.vel[0], vde - self.vel[1]
-        dv = math.hypot(dvn, dve)
-        if dv > acc_xy * h:
-            dvn, dve = dvn * acc_xy * h / dv, dve * acc_xy * h / dv
-        self.vel[0] += dvn
-        self.vel[1] += dve
-        self._acc_ne = (dvn / h, dve / h)
-        hs = math.hypot(self.vel[0], self.vel[1])
-        if hs > xy_max:  # a lowered MPC_XY_VEL_MAX applies at once
-            self.vel[0] *= xy_max / hs
-            self.vel[1] *= xy_max / hs
-        # Vertical (down positive).
-        ed = td - self.pos[2]
-        vmax = down_max if ed > 0 else up_max
-        vd_des = math.copysign(min(vmax, POS_GAIN * abs(ed), math.sqrt(2.0 * 0.9 * ACC_Z_MPS2 * abs(ed))), ed)
-        dvd = max(-ACC_Z_MPS2 * h, min(ACC_Z_MPS2 * h, vd_des - self.vel[2]))
-        self.vel[2] = max(-up_max, min(down_max, self.vel[2] + dvd))
-        for i in range(3):
-            self.pos[i] += self.vel[i] * h
-        self._turn(h)
-
-    def _turn(self, h: float) -> None:
-        if self._yaw_target is None:
-            self._yaw_rate = 0.0
-            return
-        err = _wrap(self._yaw_target - self.yaw)
-        step = max(-YAW_RATE_RADPS * h, min(YAW_RATE_RADPS * h, err))
-        self.yaw = _wrap(self.yaw + step)
-        self._yaw_rate = step / h
+        self._acc_ne = track(self.pos, self.vel, self._target, limits,
+                             self.params["MPC_ACC_HOR_MAX"], h)
+        self.yaw, self._yaw_rate = turn(self.yaw, self._yaw_target, h)
 
     def _fall(self, h: float) -> None:
         self._acc_ne = (0.0, 0.0)
         self._yaw_rate = 0.0
-        if -self.pos[2] > GROUND_EPS_M or self.vel[2] < 0:
-            self.vel[2] += GRAVITY_MPS2 * h
-            for i in range(3):
-                self.pos[i] += self.vel[i] * h
-        else:
-            self.vel = [0.0, 0.0, 0.0]
+        fall(self.pos, self.vel, h)
 
     def _enforce_limits(self) -> None:
         for i in (0, 1):
@@ -469,23 +351,13 @@ class Vehicle:
         return (self.pos[0], self.pos[1], 0.0)
 
     def _stopping_point(self) -> tuple[float, float, float]:
-        """Where braking at 90 % of MPC_ACC_HOR_MAX from the current velocity ends."""
-        a = 0.9 * self.params["MPC_ACC_HOR_MAX"]
-        vn, ve = self.vel[0], self.vel[1]
-        s = math.hypot(vn, ve) / (2.0 * a)
-        return self._clamp((self.pos[0] + vn * s, self.pos[1] + ve * s, self.pos[2]))
+        """Where braking at 90 % of MPC_ACC_HOR_MAX ends, inside the geofence."""
+        return self._clamp(stopping_point(self.pos, self.vel, self.params["MPC_ACC_HOR_MAX"]))
 
     def _tilt(self) -> tuple[float, float]:
         if not self.armed or self._landed:
             return 0.0, 0.0
-        an, ae = self._acc_ne
-        c, s = math.cos(self.yaw), math.sin(self.yaw)
-        fwd, right = an * c + ae * s, -an * s + ae * c
-        return math.atan2(right, GRAVITY_MPS2), -math.atan2(fwd, GRAVITY_MPS2)
+        return tilt(self._acc_ne, self.yaw)
 
     def _event(self, severity: int, text: str) -> None:
         self._events.append((severity, text))
-
-
-def _wrap(a: float) -> float:
-    return (a + math.pi) % (2.0 * math.pi) - math.pi

@@ -1,6 +1,6 @@
 """Link faults between `uavlink fly` and the vehicle: loss, delay, duplicates, reordering, blackouts.
 
-Flights go through ``tests/udp_relay.py`` on loopback (fly and the vehicle are child processes);
+Flights go through the relay of ``tests/udp_relay.py`` (``tests/relay_flight.py``) on loopback (fly and the vehicle are child processes);
 the vehicle's exit stats give its own truth of the episode's throughput (whatever the link lost)
 and its safety monitors. ``pytest -s`` prints the table; ``benchmarks/link_faults.py`` makes the
 full one (with 200 ms delay at --speed 1).
@@ -12,15 +12,8 @@ import socket
 import time
 
 import pytest
-from udp_relay import (
-    BLACKOUT,
-    CLEAN,
-    Faults,
-    UdpRelay,
-    fly_through_relay,
-    format_table,
-    table_row,
-)
+from relay_flight import fly_through_relay, format_table, table_row
+from udp_relay import BLACKOUT, CLEAN, Faults, UdpRelay
 
 OFFBOARD = 6 << 16
 LOITER = 4 << 16 | 3 << 24
@@ -37,6 +30,7 @@ def _safe(run: dict) -> None:
     assert run["fly"]["guarded_actions"] == 0
 
 
+@pytest.mark.slow
 @pytest.mark.timeout(30)
 def test_relay_drops_delays_duplicates_and_reorders_and_stops_by_itself() -> None:
     with socket.socket(socket.AF_INET, socket.SOCK_DGRAM) as dest, \
@@ -74,6 +68,7 @@ def test_relay_drops_delays_duplicates_and_reorders_and_stops_by_itself() -> Non
     assert stats["up_dropped"] + len(distinct) == 1000
 
 
+@pytest.mark.slow
 @pytest.mark.timeout(120)
 def test_throughput_under_10_percent_loss_stays_within_5_percent_of_clean() -> None:
     clean = fly_through_relay(CLEAN, timeout_s=60)
@@ -92,6 +87,7 @@ def test_throughput_under_10_percent_loss_stays_within_5_percent_of_clean() -> N
     assert abs(rows[1]["vs_clean_pct"]) <= 5.0, rows
 
 
+@pytest.mark.slow
 @pytest.mark.timeout(90)
 def test_30_percent_loss_and_a_blackout_fail_safe_and_the_loop_recovers() -> None:
     """30 % loss from the start; 2 s into the episode a 1 s blackout (20 s of vehicle time at
@@ -116,6 +112,7 @@ def test_30_percent_loss_and_a_blackout_fail_safe_and_the_loop_recovers() -> Non
     assert fly["decisions"] >= 128 - frame_back
 
 
+@pytest.mark.slow
 @pytest.mark.timeout(90)
 def test_delay_duplicates_and_reordering_at_low_speed() -> None:
     """200 ms each way at --speed 5 (1 s of vehicle time), 5 % duplicated, 5 % reordered."""

@@ -1,5 +1,5 @@
-"""Bad input: fuzzed and mutated MAVLink into the vehicle and into fly's link, out-of-range fields,
-bad radio reports, COMMAND_ACK results, and the policy output guard in flight.
+"""Bad input into the vehicle: fuzzed and mutated MAVLink, out-of-range fields, COMMAND_ACK results
+(fly's side: tests/test_reliability_fly_inputs.py).
 
 Nothing may crash, nothing unsafe may be flown (the vehicle stays finite, inside the geofence and
 under the vertical fence), every rejected input is counted and logged once, and every command
@@ -14,43 +14,30 @@ import math
 import os
 import select
 import socket
-import threading
 import time
 from collections.abc import Iterator
 from contextlib import contextmanager
 
 import numpy as np
 import pytest
-from hypothesis import HealthCheck, given, settings
+from hypothesis import given
 from hypothesis import strategies as st
+from mavlink_fuzz import FUZZ, corrupt, mutation
+from mavlink_gcs import FAST_CLIMB_PARAMS
 
-os.environ["MAVLINK20"] = "1"
-from pymavlink.dialects.v20 import common as mavlink  # noqa: E402
-
-from sitl_stub.mavlink_server import ServerConfig, SitlServer  # noqa: E402
-from sitl_stub.params import PARAM_DEFS  # noqa: E402
-from sitl_stub.payload import PayloadOptions  # noqa: E402
-from sitl_stub.radio_payload import RadioPayload  # noqa: E402
-from sitl_stub.vehicle import MAX_ALTITUDE_M  # noqa: E402
-from uavlink.config import EnvConfig  # noqa: E402
-from uavlink.flight.connection import free_udp_port  # noqa: E402
-from uavlink.flight.link import VehicleLink  # noqa: E402
-from uavlink.flight.mission import MissionConfig, PolicyPilot, fly_mission  # noqa: E402
-from uavlink.flight.radio_codec import (  # noqa: E402
-    RADIO_COMPONENT_ID,
-    encode_readings,
-    encode_score,
-)
-from uavlink.flight.radio_source import MavlinkRadioSource  # noqa: E402
-from uavlink.flight.rejects import rescan_bad_frame  # noqa: E402
-from uavlink.flight.signing import SigningGuard  # noqa: E402
+from sitl_stub.mavlink_server import ServerConfig, SitlServer
+from sitl_stub.params import PARAM_DEFS
+from sitl_stub.payload import PayloadOptions
+from sitl_stub.radio_payload import RadioPayload
+from sitl_stub.vehicle import MAX_ALTITUDE_M
+from uavlink.mavlink.dialect import mavlink
+from uavlink.mavlink.radio_codec import RADIO_COMPONENT_ID
+from uavlink.mavlink.rejects import rescan_bad_frame
+from uavlink.mavlink.signing import SigningGuard
 
 pytestmark = pytest.mark.timeout(60)
-FUZZ = settings(max_examples=200, deadline=None, derandomize=True,
-                suppress_health_check=[HealthCheck.too_slow, HealthCheck.data_too_large])
 R = mavlink  # MAV_RESULT_* names
 ARM = mavlink.MAV_CMD_COMPONENT_ARM_DISARM
-FAST = {"MPC_TKO_SPEED": 5.0, "MPC_Z_VEL_MAX_UP": 5.0}
 RESULTS = {R.MAV_RESULT_ACCEPTED, R.MAV_RESULT_TEMPORARILY_REJECTED, R.MAV_RESULT_DENIED,
            R.MAV_RESULT_UNSUPPORTED, R.MAV_RESULT_FAILED}
 
@@ -110,7 +97,7 @@ class Vehicle:
 @contextmanager
 def vehicle(key: bytes | None = None, payload: bool = False) -> Iterator[Vehicle]:
     payloads = [RadioPayload(PayloadOptions("straight", 0))] if payload else []
-    server = SitlServer(ServerConfig(connect="udpin:127.0.0.1:0", speed=20.0, params=FAST,
+    server = SitlServer(ServerConfig(connect="udpin:127.0.0.1:0", speed=20.0, params=FAST_CLIMB_PARAMS,
                                      signing_key=key), payloads)
     server.open()
     v = Vehicle(server)
@@ -149,14 +136,6 @@ def packets(enc) -> list[bytes]:
     return [bytes(m.pack(enc)) for m in msgs]
 
 
-def _corrupt(pkt: bytes, pos: int, flip: int) -> bytes:
-    """Flip one byte (never a no-op) somewhere after the start marker."""
-    i = 1 + pos % (len(pkt) - 1)
-    b = bytearray(pkt)
-    b[i] ^= flip
-    return bytes(b)
-
-
 def _until_ack(v: Vehicle, packet, tries: int = 10, wait_s: float = 0.3) -> int:
     """Send ``packet()`` until an ACK comes back; returns how many were sent. Each try keeps stepping
     the vehicle for up to ``wait_s``: on a loaded machine a loopback datagram (or its ACK) can take
@@ -171,10 +150,6 @@ def _until_ack(v: Vehicle, packet, tries: int = 10, wait_s: float = 0.3) -> int:
         if v.acks:
             return sent
     raise AssertionError("no ACK for an intact packet")
-
-
-mutation = st.tuples(st.integers(0, 11), st.integers(0, 10_000), st.integers(1, 255),
-                     st.binary(max_size=8))
 
 
 # -------------------------------------------------------------------- into the vehicle
@@ -204,6 +179,7 @@ def test_rescan_puts_a_parser_back_in_frame_after_a_stray_marker() -> None:
     assert kinds.count("COMMAND_LONG") == 6 and "BAD_DATA" in kinds
 
 
+@pytest.mark.slow
 def test_random_bytes_into_the_vehicle() -> None:
     with vehicle() as v:
         @FUZZ
@@ -218,6 +194,7 @@ def test_random_bytes_into_the_vehicle() -> None:
         assert v.server.rejects.total > 0
 
 
+@pytest.mark.slow
 def test_mutated_packets_into_the_vehicle_are_counted_and_have_no_effect(caplog) -> None:
     caplog.set_level(logging.WARNING, logger="sitl_stub")
     with vehicle() as v:
@@ -227,7 +204,7 @@ def test_mutated_packets_into_the_vehicle_are_counted_and_have_no_effect(caplog)
         @FUZZ
         @given(st.lists(mutation, min_size=1, max_size=4), st.integers(1, 3))
         def run(mutations, chunks: int) -> None:
-            stream = b"".join(_corrupt(valid[k], pos, flip) + junk for k, pos, flip, junk in mutations)
+            stream = b"".join(corrupt(valid[k], pos, flip) + junk for k, pos, flip, junk in mutations)
             v.send(stream, chunks)
             v.safe()
 
@@ -246,6 +223,7 @@ def test_mutated_packets_into_the_vehicle_are_counted_and_have_no_effect(caplog)
         assert v.acks[-1].command == ARM and v.acks[-1].result == R.MAV_RESULT_ACCEPTED
 
 
+@pytest.mark.slow
 def test_mutated_signed_packets_never_pass_the_signing_check() -> None:
     key = os.urandom(32)
     with vehicle(key=key) as v:
@@ -255,7 +233,7 @@ def test_mutated_signed_packets_never_pass_the_signing_check() -> None:
         @given(st.lists(mutation, min_size=1, max_size=3))
         def run(mutations) -> None:
             fresh = packets(enc)  # freshly signed: only the corruption can make them fail
-            v.send(b"".join(_corrupt(fresh[k], pos, flip) + junk for k, pos, flip, junk in mutations))
+            v.send(b"".join(corrupt(fresh[k], pos, flip) + junk for k, pos, flip, junk in mutations))
             v.safe()
 
         run()
@@ -271,6 +249,7 @@ finite_or_not = st.one_of(st.floats(allow_nan=True, allow_infinity=True, width=3
                           st.sampled_from([math.nan, math.inf, -math.inf, 3.4e38, -3.4e38, 0.0, 1.0]))
 
 
+@pytest.mark.slow
 def test_out_of_range_fields_are_refused_or_clamped(caplog) -> None:
     caplog.set_level(logging.WARNING, logger="sitl_stub")
     with vehicle(payload=True) as v:
@@ -357,142 +336,3 @@ def test_a_failing_command_handler_answers_failed_and_the_vehicle_flies_on(monke
         v.send(bytes(enc.command_long_encode(1, 0, ARM, 0, 1, 0, 0, 0, 0, 0, 0).pack(enc)))
         assert (v.acks[-1].command, v.acks[-1].result) == (ARM, R.MAV_RESULT_ACCEPTED)
         v.safe()
-
-
-# -------------------------------------------------------------------- into fly's link
-def _vehicle_packets() -> list[bytes]:
-    enc = mavlink.MAVLink(None, 1, 1)
-    radio = mavlink.MAVLink(None, 1, RADIO_COMPONENT_ID)
-    readings = encode_readings(np.full(10, 12.0), np.zeros(10), True)
-    msgs = [
-        (enc, enc.heartbeat_encode(2, 12, 1 | 128, 6 << 16, 4)),
-        (enc, enc.local_position_ned_encode(1000, 10, 20, -95, 0, 0, 0)),
-        (enc, enc.extended_sys_state_encode(0, 2)),
-        (enc, enc.command_ack_encode(ARM, 0, 0, 0, 255, 191)),
-        (enc, enc.param_value_encode(b"MIS_TAKEOFF_ALT", 95.0, 9, 13, 11)),
-        (radio, radio.debug_float_array_encode(0, b"UL_RADIO", 3, readings)),
-        (radio, radio.debug_float_array_encode(0, b"UL_SCORE", 3,
-                                               encode_score(np.full(10, 5e6), 0.5))),
-    ]
-    return [bytes(m.pack(e)) for e, m in msgs]
-
-
-@contextmanager
-def fly_link() -> Iterator[tuple[VehicleLink, MavlinkRadioSource, socket.socket, list]]:
-    port = free_udp_port()
-    link = VehicleLink(f"udpin:127.0.0.1:{port}")
-    source = MavlinkRadioSource(10)
-    scores: list = []
-    link.on_radio, link.on_score = source.feed, scores.append
-    sock = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
-    try:
-        yield link, source, sock, scores
-    finally:
-        sock.close()
-        link.close()
-
-
-def _deliver(link: VehicleLink, sock: socket.socket, data: bytes) -> None:
-    sock.sendto(data, link.conn.port.getsockname())
-    link.poll(0.0)
-    link.poll(0.0)
-
-
-def _finite_status(link: VehicleLink) -> None:
-    s = link.status
-    assert all(math.isfinite(v) for v in (s.north_m, s.east_m, s.down_m))
-
-
-def test_random_and_mutated_bytes_into_fly() -> None:
-    with fly_link() as (link, source, sock, scores):
-        valid = _vehicle_packets()
-
-        @FUZZ
-        @given(st.one_of(st.binary(max_size=300),
-                         st.lists(mutation.map(lambda m: (m[0] % len(valid), *m[1:])),
-                                  min_size=1, max_size=4)))
-        def run(data) -> None:
-            if isinstance(data, list):
-                data = b"".join(_corrupt(valid[k], pos, flip) + junk for k, pos, flip, junk in data)
-            _deliver(link, sock, data)
-            _finite_status(link)
-            assert source.take_reports() == [] and scores == []  # nothing corrupted got through
-
-        run()
-        assert link.status.heartbeats == 0 and link.rejects.total > 0
-        for _ in range(3):  # intact packets still work (after what is left of a corrupted length)
-            for pkt in valid:
-                _deliver(link, sock, pkt)
-        assert link.status.heartbeats >= 2 and link.status.armed and link.status.offboard
-        assert (link.status.north_m, link.status.down_m) == (10.0, -95.0)
-        assert len(source.take_reports()) >= 2 and len(scores) >= 2
-
-
-def test_fly_rejects_bad_telemetry_and_radio_reports_counts_and_logs_once(caplog) -> None:
-    caplog.set_level(logging.WARNING)
-    with fly_link() as (link, source, sock, scores):
-        enc = mavlink.MAVLink(None, 1, 1)
-        radio = mavlink.MAVLink(None, 1, RADIO_COMPONENT_ID)
-        _deliver(link, sock, bytes(enc.local_position_ned_encode(1000, 1, 2, -3, 0, 0, 0).pack(enc)))
-        good = encode_readings(np.full(10, 12.0), np.zeros(10), True)
-        wrong_count = encode_readings(np.full(7, 12.0), np.zeros(7), True)
-        nan_sinr = list(good)
-        nan_sinr[3] = math.nan
-        inf_aoa = list(good)
-        inf_aoa[12] = math.inf
-        for _ in range(3):
-            for data in (wrong_count, nan_sinr, inf_aoa):
-                _deliver(link, sock, bytes(radio.debug_float_array_encode(0, b"UL_RADIO", 5, data).pack(radio)))
-            _deliver(link, sock, bytes(radio.debug_float_array_encode(
-                0, b"UL_SCORE", 5, encode_score(np.full(10, np.nan), 0.5)).pack(radio)))
-            _deliver(link, sock, bytes(enc.local_position_ned_encode(
-                2000, math.nan, math.inf, -95, 0, 0, 0).pack(enc)))
-        assert source.rejected == 9 and source.take_reports() == [] and scores == []
-        assert link.rejects.counts["position_not_finite"] == 3 and link.rejects.counts["radio_score"] == 3
-        assert (link.status.north_m, link.status.east_m, link.status.down_m) == (1.0, 2.0, -3.0)
-    messages = [r.getMessage() for r in caplog.records]
-    assert len([m for m in messages if "policy expects 10" in m]) == 1
-    assert len([m for m in messages if "NaN or infinite" in m]) == 1
-    assert len([m for m in messages if "LOCAL_POSITION_NED with NaN" in m]) == 1
-    assert len([m for m in messages if "radio score" in m]) == 1
-
-
-# ------------------------------------------------------------------ policy output guard
-class _NanPolicy:
-    name, layout, needs_truth = "nan-policy", None, False
-
-    def act(self, obs, truth=None):
-        return np.array([[math.nan, 0.5]])
-
-
-@pytest.mark.timeout(60)
-def test_policy_output_guard_in_flight_holds_position_and_logs_clearly(caplog) -> None:
-    caplog.set_level(logging.WARNING, logger="uavlink.flight.mission")
-    cfg = EnvConfig().replace(scenario="straight").validate()
-    server = SitlServer(ServerConfig(connect="udpin:127.0.0.1:0", speed=20.0, params=FAST),
-                        [RadioPayload(PayloadOptions("straight", 0))]).start()
-    link = None
-    try:
-        host, port = server.address
-        link = VehicleLink(f"udpout:{host}:{port}")
-        pilot = PolicyPilot(_NanPolicy(), cfg)
-        done: dict = {}
-        t = threading.Thread(target=lambda: done.setdefault(
-            "r", fly_mission(link, pilot, cfg, MissionConfig(frames=8, land=False))), daemon=True)
-        t.start()
-        t.join(45)
-        assert "r" in done, "the flight did not finish"
-        result = done["r"]
-        state = server.state()
-    finally:
-        if link is not None:
-            link.close()
-        server.stop()
-    # Every decision is guarded; under load a backlog of reports is observed, not decided.
-    assert result.decisions >= 4 and result.guarded_actions == result.decisions
-    assert result.decisions + result.stale_reports == 8
-    assert state.armed and state.max_abs_xy_m < 1.0  # took off at home and held there
-    lines = [r.getMessage() for r in caplog.records if "policy output guard" in r.getMessage()]
-    assert len(lines) == result.guarded_actions
-    assert "policy 'nan-policy' returned an unusable action [[nan, 0.5]] (NaN/infinite): " \
-           "holding position" in lines[0]

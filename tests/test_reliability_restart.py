@@ -15,9 +15,10 @@ import time
 from pathlib import Path
 
 import pytest
-from udp_relay import FAST_TAKEOFF, Gcs, parse_vehicle_stats, wait_for_vehicle
+from mavlink_gcs import FAST_TAKEOFF, Gcs, parse_vehicle_stats, wait_for_vehicle
 
-from sitl_stub.testing import free_udp_port, vehicle_process
+from sitl_stub.launcher import vehicle_process
+from uavlink.mavlink.connection import free_udp_port
 
 ROOT = Path(__file__).resolve().parents[1]
 SPEED = 20.0
@@ -42,6 +43,7 @@ def _frame(gcs: Gcs) -> int:
     return int(m.array_id) if m is not None else -1
 
 
+@pytest.mark.slow
 @pytest.mark.timeout(90)
 def test_killed_fly_fails_safe_to_hold_and_a_restart_resumes_without_takeoff(tmp_path: Path) -> None:
     port = free_udp_port()

@@ -16,13 +16,12 @@ import time
 from pathlib import Path
 
 import pytest
+from mavlink_gcs import FAST_TAKEOFF, Gcs, parse_vehicle_stats, wait_for_vehicle
 
-os.environ["MAVLINK20"] = "1"
-from pymavlink.dialects.v20 import common as mavlink  # noqa: E402
-from udp_relay import FAST_TAKEOFF, Gcs, parse_vehicle_stats, wait_for_vehicle  # noqa: E402
-
-from sitl_stub.testing import free_udp_port, vehicle_process  # noqa: E402
-from uavlink.flight.signing import (  # noqa: E402
+from sitl_stub.launcher import vehicle_process
+from uavlink.mavlink.connection import free_udp_port
+from uavlink.mavlink.dialect import mavlink
+from uavlink.mavlink.signing import (
     NEW_STREAM_WINDOW_TICKS,
     TICKS_PER_S,
     SigningGuard,
@@ -148,6 +147,7 @@ def test_signing_clock_tracks_wall_time() -> None:
 
 
 # ---------------------------------------------------------------------------- the vehicle
+@pytest.mark.slow
 @pytest.mark.timeout(60)
 def test_vehicle_obeys_only_fresh_packets_signed_with_its_key(tmp_path: Path) -> None:
     keyfile = write_key(tmp_path / "k")
@@ -213,6 +213,7 @@ def test_vehicle_obeys_only_fresh_packets_signed_with_its_key(tmp_path: Path) ->
 
 
 # ------------------------------------------------------------------------ a signed flight
+@pytest.mark.slow
 @pytest.mark.timeout(90)
 def test_signed_flight_ignores_ground_stations_without_the_key(tmp_path: Path) -> None:
     keyfile = write_key(tmp_path / "k")

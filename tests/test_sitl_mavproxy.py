@@ -17,12 +17,11 @@ from pathlib import Path
 
 import pytest
 
-os.environ["MAVLINK20"] = "1"
-from pymavlink import mavutil  # noqa: E402
+from sitl_stub.launcher import vehicle_process
+from uavlink.mavlink.connection import free_udp_port
+from uavlink.mavlink.dialect import mavutil
 
-from sitl_stub.testing import free_udp_port, vehicle_process  # noqa: E402
-
-pytestmark = pytest.mark.timeout(90)
+pytestmark = [pytest.mark.slow, pytest.mark.timeout(90)]
 
 mavlink = mavutil.mavlink
 MAVPROXY = shutil.which("mavproxy.py", path=str(Path(sys.executable).parent)) or shutil.which(

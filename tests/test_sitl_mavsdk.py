@@ -23,9 +23,10 @@ from mavsdk.asyncio.plugins.offboard import OffboardAsync, PositionNedYaw  # noq
 from mavsdk.asyncio.plugins.param import ParamAsync  # noqa: E402
 from mavsdk.asyncio.plugins.telemetry import FlightMode, LandedState, TelemetryAsync  # noqa: E402
 
-from sitl_stub.testing import free_udp_port, vehicle_process  # noqa: E402
+from sitl_stub.launcher import vehicle_process  # noqa: E402
+from uavlink.mavlink.connection import free_udp_port  # noqa: E402
 
-pytestmark = pytest.mark.timeout(120)
+pytestmark = [pytest.mark.slow, pytest.mark.timeout(120)]
 
 SPEED = 5.0  # MAVSDK streams offboard setpoints at 20 Hz of wall time: keep speed <= 5
 

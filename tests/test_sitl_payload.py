@@ -2,18 +2,15 @@
 
 from __future__ import annotations
 
-import os
 import time
 from typing import Any
 
 import pytest
 
-os.environ["MAVLINK20"] = "1"
-from pymavlink import mavutil  # noqa: E402
-
-from sitl_stub.mavlink_server import ServerConfig, SitlServer  # noqa: E402
-from sitl_stub.payload import MAV_AUTOPILOT_INVALID  # noqa: E402
-from sitl_stub.vehicle import VehicleState  # noqa: E402
+from sitl_stub.mavlink_server import ServerConfig, SitlServer
+from sitl_stub.payload import MAV_AUTOPILOT_INVALID
+from sitl_stub.vehicle_state import VehicleState
+from uavlink.mavlink.dialect import mavutil
 
 pytestmark = pytest.mark.timeout(60)
 
@@ -60,6 +57,7 @@ def _acks(gcs: Any, command: int, window_s: float) -> list[Any]:
     return out
 
 
+@pytest.mark.slow
 def test_payload_components_tick_per_frame_and_answer_commands():
     counting, commandable = CountingPayload(), CommandablePayload()
     server = SitlServer(ServerConfig(connect="udpin:127.0.0.1:0", speed=20.0),

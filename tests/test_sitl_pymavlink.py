@@ -6,7 +6,6 @@ The GCS sends target_component 0 (broadcast), as pymavlink ground stations do.
 from __future__ import annotations
 
 import math
-import os
 import signal
 import subprocess
 import sys
@@ -15,13 +14,12 @@ from collections.abc import Callable, Iterator
 
 import pytest
 
-os.environ["MAVLINK20"] = "1"
-from pymavlink import mavutil  # noqa: E402
+from sitl_stub.launcher import vehicle_process
+from sitl_stub.params import int_to_param_float, param_float_to_int
+from uavlink.mavlink.connection import free_udp_port
+from uavlink.mavlink.dialect import mavutil
 
-from sitl_stub.params import int_to_param_float, param_float_to_int  # noqa: E402
-from sitl_stub.testing import free_udp_port, vehicle_process  # noqa: E402
-
-pytestmark = pytest.mark.timeout(90)
+pytestmark = [pytest.mark.slow, pytest.mark.timeout(90)]
 
 mavlink = mavutil.mavlink
 GCS_SYS, GCS_COMP = 245, 190

@@ -16,8 +16,8 @@ from sitl_stub.modes import FlightMode
 from sitl_stub.params import ParamStore, ParamType, int_to_param_float, param_float_to_int
 from sitl_stub.payload import check_payload
 from sitl_stub.streams import StreamScheduler
-from uavlink.flight.connection import is_listening, normalize_connection
-from uavlink.flight.px4_modes import decode_custom_mode, encode_custom_mode, px4_mode_name
+from uavlink.mavlink.connection import is_listening, normalize_connection
+from uavlink.mavlink.px4_modes import decode_custom_mode, encode_custom_mode, px4_mode_name
 
 pytestmark = pytest.mark.timeout(30)
 

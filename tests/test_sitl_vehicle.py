@@ -10,7 +10,8 @@ from hypothesis import strategies as st
 
 from sitl_stub.modes import FlightMode, LandedState
 from sitl_stub.params import ParamStore
-from sitl_stub.vehicle import Result, Vehicle
+from sitl_stub.vehicle import Vehicle
+from sitl_stub.vehicle_state import Result
 
 pytestmark = pytest.mark.timeout(60)
 

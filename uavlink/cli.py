@@ -225,7 +225,7 @@ def cmd_keygen(args: argparse.Namespace) -> int:
     """Write a new MAVLink 2 signing key: 32 random bytes (os.urandom), mode 0600, never overwriting."""
     import hashlib
 
-    from uavlink.flight.signing import write_key
+    from uavlink.mavlink.signing import write_key
 
     try:
         path = write_key(args.out)

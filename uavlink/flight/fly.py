@@ -6,7 +6,6 @@ import argparse
 import contextlib
 import json
 import logging
-import subprocess
 import sys
 import time
 from collections.abc import Sequence
@@ -16,7 +15,7 @@ import numpy as np
 
 from uavlink.config import changed_settings, parse_settings
 from uavlink.errors import UserError
-from uavlink.flight.connection import free_udp_port, normalize_connection
+from uavlink.mavlink.connection import free_udp_port, normalize_connection
 from uavlink.policies.contract import OVERRIDES_HELP, EnvOverrides, load_with_env
 
 log = logging.getLogger("uavlink.fly")
@@ -25,34 +24,24 @@ log = logging.getLogger("uavlink.fly")
 @contextlib.contextmanager
 def embedded_sitl(scenario: str, seed: int, speed: float, aoa_noise_deg: float, log_path: Path | None,
                   signing_key_file: Path | None = None, settings: Sequence[str] = ()):
-    """Start ``python -m sitl_stub`` on a free loopback port; yields the URL to listen on.
-    ``settings`` (``KEY=VALUE``) go to its radio payload's env as ``--set`` pairs."""
+    """Start the SITL vehicle (:mod:`sitl_stub.launcher`) on a free loopback port; yields the URL
+    to listen on. ``settings`` (``KEY=VALUE``) go to its radio payload's env as ``--set`` pairs."""
+    from sitl_stub.launcher import vehicle_process
+
     port = free_udp_port()
-    cmd = [sys.executable, "-m", "sitl_stub", "--scenario", scenario, "--seed", str(seed),
-           "--connect", f"udpout:127.0.0.1:{port}", "--speed", f"{speed:g}",
-           "--aoa-noise-deg", f"{aoa_noise_deg!r}"]
+    args = ["--scenario", scenario, "--seed", str(seed), "--aoa-noise-deg", repr(float(aoa_noise_deg))]
     for pair in settings:
-        cmd += ["--set", pair]
+        args += ["--set", pair]
     if signing_key_file is not None:
-        cmd += ["--signing-key", str(signing_key_file)]
-    out = open(log_path, "w") if log_path else subprocess.DEVNULL  # noqa: SIM115
-    proc = subprocess.Popen(cmd, stdout=out, stderr=subprocess.STDOUT)
-    try:
+        args += ["--signing-key", str(signing_key_file)]
+    with vehicle_process(f"udpout:127.0.0.1:{port}", speed, args, log_path=log_path):
         yield f"udpin:127.0.0.1:{port}"
-    finally:
-        proc.terminate()
-        try:
-            proc.wait(timeout=5)
-        except subprocess.TimeoutExpired:
-            proc.kill()
-        if log_path:
-            out.close()
 
 
 def run_fly(args: argparse.Namespace) -> int:
     from uavlink.flight.link import VehicleLink
     from uavlink.flight.mission import MissionConfig, PolicyPilot, fly_mission
-    from uavlink.flight.signing import load_key
+    from uavlink.mavlink.signing import load_key
 
     logging.basicConfig(level=logging.INFO if args.verbose else logging.WARNING,
                         format="%(levelname)s %(name)s: %(message)s")

@@ -9,38 +9,42 @@ Robustness: the link sends its own HEARTBEAT at 1 Hz (so a listening vehicle lea
 answer, and as every MAVLink component should); commands are retried about once per second of
 wall time until acknowledged (the vehicle answers retries idempotently); parameter sets are
 retried until the vehicle echoes the value. With a signing key everything sent is signed and
-everything received must be signed by the same key (:mod:`uavlink.flight.signing`). Telemetry
+everything received must be signed by the same key (:mod:`uavlink.mavlink.signing`). Telemetry
 that cannot be used (NaN positions, unusable radio scores, garbage bytes) is counted in
 :attr:`VehicleLink.rejects` and logged once per kind.
+
+Systems: the link keeps a :class:`VehicleStatus` per MAVLink system id it hears (as pymavlink's
+``mavfile.sysid_state``), and commands one of them, its target: the one given, or else the system
+(and component) of the first autopilot heartbeat (any HEARTBEAT whose autopilot is not
+MAV_AUTOPILOT_INVALID: payloads, cameras and ground stations send INVALID). PX4's MAV_SYS_ID is 1
+by default, but nothing here assumes it.
 """
 
 from __future__ import annotations
 
 import logging
 import math
-import os
 import select
 import struct
 import time
 from collections.abc import Callable
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
+from typing import Any
 
-from uavlink.flight.connection import normalize_connection
-from uavlink.flight.px4_modes import PX4_MAIN_OFFBOARD, decode_custom_mode
-from uavlink.flight.radio_codec import (
+from uavlink.mavlink.connection import normalize_connection
+from uavlink.mavlink.dialect import mavlink, mavutil
+from uavlink.mavlink.px4_modes import PX4_MAIN_OFFBOARD, decode_custom_mode
+from uavlink.mavlink.radio_codec import (
     RADIO_COMPONENT_ID,
     RadioReportError,
     decode_score,
     message_kind,
 )
-from uavlink.flight.rejects import RejectLog, rescan_bad_frame
-from uavlink.flight.signing import SigningGuard
+from uavlink.mavlink.rejects import RejectLog, rescan_bad_frame
+from uavlink.mavlink.signing import SigningGuard
 
-os.environ.setdefault("MAVLINK20", "1")
-from pymavlink import mavutil  # noqa: E402
-
-MAV = mavutil.mavlink
+MAV = mavlink
 MULTIROTOR_TYPES = {MAV.MAV_TYPE_QUADROTOR, MAV.MAV_TYPE_HEXAROTOR, MAV.MAV_TYPE_OCTOROTOR,
                     MAV.MAV_TYPE_TRICOPTER, MAV.MAV_TYPE_COAXIAL}
 POSITION_ONLY_MASK = 0x0DF8  # ignore velocity, acceleration, yaw, yaw rate: position bits clear
@@ -61,6 +65,10 @@ class LinkError(RuntimeError):
 
 @dataclass
 class VehicleStatus:
+    """What the link knows of one MAVLink system, from its messages."""
+
+    component_id: int | None = None  # its autopilot's component, from its first autopilot heartbeat
+    heartbeat: Any = None  # the autopilot's last HEARTBEAT
     armed: bool = False
     main_mode: int = 0
     sub_mode: int = 0
@@ -71,6 +79,8 @@ class VehicleStatus:
     time_boot_ms: int = 0
     heartbeats: int = 0
     landed_known: bool = False
+    # (wall s, vehicle s) of recent LOCAL_POSITION_NED: the vehicle's clock, for the speed factor
+    boot_samples: list[tuple[float, float]] = field(default_factory=list)
 
     @property
     def in_air(self) -> bool:
@@ -82,9 +92,16 @@ class VehicleStatus:
 
 
 class VehicleLink:
+    """The link to one vehicle: ``target_system``/``target_component`` when given, else learnt from
+    the first autopilot heartbeat. ``system_id``/``component_id`` are the link's own ids."""
+
     def __init__(self, url: str, tlog: Path | None = None, system_id: int = 255,
                  component_id: int = MAV.MAV_COMP_ID_ONBOARD_COMPUTER,
-                 signing_key: bytes | None = None) -> None:
+                 signing_key: bytes | None = None, target_system: int | None = None,
+                 target_component: int | None = None) -> None:
+        for name, value in (("target_system", target_system), ("target_component", target_component)):
+            if value is not None and not 1 <= value <= 255:
+                raise ValueError(f"{name} must be in 1..255, got {value}")
         self.url = normalize_connection(url)
         self.conn = mavutil.mavlink_connection(self.url, source_system=system_id,
                                                source_component=component_id, dialect="common")
@@ -96,8 +113,9 @@ class VehicleLink:
         self.params: dict[str, float] = {}
         self.last_rx_wall = time.monotonic()
         self._last_heartbeat_sent = -math.inf
-        self.status = VehicleStatus()
-        self.target_system = 1
+        self.systems: dict[int, VehicleStatus] = {}
+        self.target_system = target_system
+        self._target_component = target_component
         self.on_radio: Callable = lambda msg: None
         self.on_score: Callable = lambda score: None
         self._acks: dict[int, int] = {}
@@ -106,11 +124,26 @@ class VehicleLink:
         self.stream_ned: tuple[float, float, float] | None = None
         self.stream_period_vehicle_s = STREAM_PERIOD_VEHICLE_S
         self._last_stream = 0.0
-        self._boot_samples: list[tuple[float, float]] = []
         self._speed = 1.0
         self._tlog = open(tlog, "wb") if tlog else None  # noqa: SIM115 - closed in close()
         if self._tlog:
             self.conn.mav.set_send_callback(self._log)
+
+    # -- systems -------------------------------------------------------------------------------
+    @property
+    def status(self) -> VehicleStatus:
+        """The target system's state (an empty one until the target is known)."""
+        if self.target_system is None:
+            return VehicleStatus()
+        return self.systems.setdefault(self.target_system, VehicleStatus())
+
+    @property
+    def target_component(self) -> int:
+        """The component commands go to: the one given, else the target's autopilot component
+        (MAV_COMP_ID_AUTOPILOT1 until its heartbeat is heard)."""
+        if self._target_component is not None:
+            return self._target_component
+        return self.status.component_id or MAV.MAV_COMP_ID_AUTOPILOT1
 
     # -- I/O ---------------------------------------------------------------------------------
     def _log(self, msg) -> None:
@@ -163,33 +196,15 @@ class VehicleLink:
         if self._tlog:
             self._log(msg)
         src_sys, src_comp = msg.get_srcSystem(), msg.get_srcComponent()
+        if self.target_system is None and kind == "HEARTBEAT" and msg.autopilot != MAV.MAV_AUTOPILOT_INVALID:
+            self.target_system = src_sys
+            log.info("target: system %d component %d (first autopilot heartbeat)", src_sys, src_comp)
+        st = self.systems.setdefault(src_sys, VehicleStatus())
+        self._track(st, msg, kind, src_comp)
         if src_sys != self.target_system:
             return
         self.last_rx_wall = time.monotonic()
-        st = self.status
-        if kind == "HEARTBEAT" and src_comp == 1:
-            st.heartbeats += 1
-            self.heartbeat = msg
-            st.armed = bool(msg.base_mode & MAV.MAV_MODE_FLAG_SAFETY_ARMED)
-            st.main_mode, st.sub_mode = decode_custom_mode(msg.custom_mode)
-        elif kind == "LOCAL_POSITION_NED":
-            if not all(math.isfinite(v) for v in (msg.x, msg.y, msg.z)):
-                self.rejects.reject("position_not_finite",
-                                    f"LOCAL_POSITION_NED with NaN/infinite position ({msg.x}, {msg.y}, {msg.z})")
-                return
-            newest = self._boot_samples[-1][1] if self._boot_samples else -math.inf
-            if msg.time_boot_ms * 1e-3 < newest - REBOOT_BACKSTEP_S:
-                self._boot_samples.clear()  # the vehicle rebooted: its clock started again
-            elif msg.time_boot_ms * 1e-3 < newest:
-                return  # a late (reordered) sample: the vehicle has moved on since
-            st.north_m, st.east_m, st.down_m = msg.x, msg.y, msg.z
-            st.time_boot_ms = msg.time_boot_ms
-            self._boot_samples.append((time.monotonic(), msg.time_boot_ms * 1e-3))
-            del self._boot_samples[:-50]
-        elif kind == "EXTENDED_SYS_STATE":
-            st.landed_state = msg.landed_state
-            st.landed_known = True
-        elif kind == "COMMAND_ACK":
+        if kind == "COMMAND_ACK":
             self._acks[msg.command] = msg.result
         elif kind == "PARAM_VALUE":
             name = msg.param_id if isinstance(msg.param_id, str) else msg.param_id.decode("ascii", "replace")
@@ -206,6 +221,38 @@ class VehicleLink:
                     return
                 self.on_score(score)
 
+    def _track(self, st: VehicleStatus, msg, kind: str, src_comp: int) -> None:
+        """Update a system's state from its HEARTBEAT, LOCAL_POSITION_NED or EXTENDED_SYS_STATE
+        (a NaN position is rejected, a late one ignored)."""
+        if kind == "HEARTBEAT":
+            if msg.autopilot == MAV.MAV_AUTOPILOT_INVALID:
+                return  # a payload's, a ground station's: not the vehicle's state
+            if st.component_id is None:
+                st.component_id = src_comp
+            if src_comp == st.component_id:
+                st.heartbeats += 1
+                st.heartbeat = msg
+                st.armed = bool(msg.base_mode & MAV.MAV_MODE_FLAG_SAFETY_ARMED)
+                st.main_mode, st.sub_mode = decode_custom_mode(msg.custom_mode)
+        elif kind == "LOCAL_POSITION_NED":
+            if not all(math.isfinite(v) for v in (msg.x, msg.y, msg.z)):
+                self.rejects.reject("position_not_finite",
+                                    f"LOCAL_POSITION_NED with NaN/infinite position ({msg.x}, {msg.y}, {msg.z})")
+                return
+            samples = st.boot_samples
+            newest = samples[-1][1] if samples else -math.inf
+            if msg.time_boot_ms * 1e-3 < newest - REBOOT_BACKSTEP_S:
+                samples.clear()  # the vehicle rebooted: its clock started again
+            elif msg.time_boot_ms * 1e-3 < newest:
+                return  # a late (reordered) sample: the vehicle has moved on since
+            st.north_m, st.east_m, st.down_m = msg.x, msg.y, msg.z
+            st.time_boot_ms = msg.time_boot_ms
+            samples.append((time.monotonic(), msg.time_boot_ms * 1e-3))
+            del samples[:-50]
+        elif kind == "EXTENDED_SYS_STATE":
+            st.landed_state = msg.landed_state
+            st.landed_known = True
+
     def close(self) -> None:
         if self._tlog:
             self._tlog.close()
@@ -216,8 +263,9 @@ class VehicleLink:
     def speed_factor(self) -> float:
         """Vehicle seconds per wall second, from LOCAL_POSITION_NED timestamps (1.0 until known;
         the last estimate while too few samples are at hand)."""
-        if len(self._boot_samples) >= 5:
-            (w0, b0), (w1, b1) = self._boot_samples[0], self._boot_samples[-1]
+        samples = self.status.boot_samples
+        if len(samples) >= 5:
+            (w0, b0), (w1, b1) = samples[0], samples[-1]
             if w1 - w0 > 0.05 and b1 > b0:
                 self._speed = max((b1 - b0) / (w1 - w0), 0.1)
         return self._speed
@@ -232,18 +280,19 @@ class VehicleLink:
 
     # -- vehicle -------------------------------------------------------------------------------
     def wait_vehicle(self, timeout_s: float = 30.0) -> None:
-        """Wait for the autopilot's heartbeat; refuse anything but a PX4 multicopter. Then wait for
-        its position and landed state: whether it is already flying decides take-off or resume."""
+        """Wait for the target autopilot's heartbeat (the first autopilot's, when no target was
+        given); refuse anything but a PX4 multicopter. Then wait for its position and landed state:
+        whether it is already flying decides take-off or resume."""
         deadline = time.monotonic() + timeout_s
         while self.status.heartbeats == 0:
             if time.monotonic() > deadline:
                 raise LinkError(f"no heartbeat from a vehicle on {self.url} within {timeout_s:.0f} s")
             self.poll(0.2)
-        hb = self.heartbeat
+        hb = self.status.heartbeat
         if hb.autopilot != MAV.MAV_AUTOPILOT_PX4 or hb.type not in MULTIROTOR_TYPES:
             raise LinkError(f"vehicle is not a PX4 multicopter (autopilot {hb.autopilot}, type {hb.type})")
         # Wait for a position too: the mission starts from it; and for the landed state.
-        self.wait_until(lambda: len(self._boot_samples) >= 5, 10.0, "LOCAL_POSITION_NED")
+        self.wait_until(lambda: len(self.status.boot_samples) >= 5, 10.0, "LOCAL_POSITION_NED")
         self.wait_until(lambda: self.status.landed_known, 10.0, "EXTENDED_SYS_STATE")
 
     def wait_wall(self, condition: Callable[[], bool], wall_s: float) -> bool:
@@ -264,8 +313,8 @@ class VehicleLink:
         name = MAV.enums["MAV_CMD"][command].name if command in MAV.enums["MAV_CMD"] else str(command)
         self._acks.pop(command, None)
         for confirmation in range(tries):
-            self.conn.mav.command_long_send(self.target_system, 1, command, min(confirmation, 255),
-                                            *params)
+            self.conn.mav.command_long_send(self.target_system, self.target_component, command,
+                                            min(confirmation, 255), *params)
             if not self.wait_wall(lambda: command in self._acks or (done is not None and done()),
                                   ack_wait_s):
                 continue
@@ -281,8 +330,8 @@ class VehicleLink:
         """PARAM_SET, sent again until the vehicle's PARAM_VALUE shows the value (REAL32 only)."""
         self.params.pop(name, None)
         for _ in range(tries):
-            self.conn.mav.param_set_send(self.target_system, 1, name.encode(), float(value),
-                                         MAV.MAV_PARAM_TYPE_REAL32)
+            self.conn.mav.param_set_send(self.target_system, self.target_component, name.encode(),
+                                         float(value), MAV.MAV_PARAM_TYPE_REAL32)
             if self.wait_wall(lambda: name in self.params, ACK_WAIT_S):
                 if abs(self.params[name] - value) <= 1e-3 * max(1.0, abs(value)):
                     return
@@ -316,7 +365,7 @@ class VehicleLink:
     def send_setpoint(self, north_m: float, east_m: float, down_m: float) -> None:
         self._last_stream = time.monotonic()
         self.conn.mav.set_position_target_local_ned_send(
-            self.status.time_boot_ms, self.target_system, 1, MAV.MAV_FRAME_LOCAL_NED,
+            self.status.time_boot_ms, self.target_system, self.target_component, MAV.MAV_FRAME_LOCAL_NED,
             POSITION_ONLY_MASK, north_m, east_m, down_m, 0, 0, 0, 0, 0, 0, 0, 0)
 
     def land(self) -> None:

@@ -31,7 +31,8 @@ from uavlink.config import EnvConfig
 from uavlink.env.actions import ActionMapping
 from uavlink.env.observation import ObservationBuilder, ObservationLayout
 from uavlink.flight.link import STREAM_PERIOD_VEHICLE_S, LinkError, VehicleLink
-from uavlink.flight.px4_modes import (
+from uavlink.flight.radio_source import MavlinkRadioSource, RadioSource
+from uavlink.mavlink.px4_modes import (
     PX4_MAIN_AUTO,
     PX4_MAIN_OFFBOARD,
     PX4_SUB_AUTO_LAND,
@@ -39,8 +40,7 @@ from uavlink.flight.px4_modes import (
     PX4_SUB_AUTO_RTL,
     px4_mode_name,
 )
-from uavlink.flight.radio_codec import RadioReport, ScoreReport
-from uavlink.flight.radio_source import MavlinkRadioSource, RadioSource
+from uavlink.mavlink.radio_codec import RadioReport, ScoreReport
 from uavlink.policies.base import Policy
 
 log = logging.getLogger(__name__)

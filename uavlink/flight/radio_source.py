@@ -10,8 +10,8 @@ from __future__ import annotations
 import logging
 from typing import Protocol
 
-from uavlink.flight.radio_codec import RadioReport, RadioReportError, decode_readings
-from uavlink.flight.rejects import RejectLog
+from uavlink.mavlink.radio_codec import RadioReport, RadioReportError, decode_readings
+from uavlink.mavlink.rejects import RejectLog
 
 log = logging.getLogger(__name__)
 

@@ -1,0 +1,53 @@
+"""The layering around MAVLink: ``sitl_stub`` and ``uavlink fly`` share ``uavlink.mavlink`` and
+nothing else of each other, and MAVLink 2 is switched on in one place."""
+
+from __future__ import annotations
+
+import os
+import subprocess
+import sys
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parents[1]
+FORBIDDEN = ("uavlink.flight", "uavlink.evaluation")
+SOURCE_DIRS = ("uavlink", "sitl_stub", "tests", "benchmarks")
+
+
+def _run(code: str) -> str:
+    env = dict(os.environ)
+    env.pop("MAVLINK20", None)  # a fresh interpreter, as a user's would be
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=60,
+                         env=env, cwd=ROOT, check=True)
+    return out.stdout.strip()
+
+
+def test_sitl_stub_imports_no_flight_or_evaluation_module() -> None:
+    code = (
+        "import importlib, pkgutil, sys, sitl_stub\n"
+        "for m in pkgutil.iter_modules(sitl_stub.__path__):\n"
+        "    importlib.import_module('sitl_stub.' + m.name)\n"
+        f"print(','.join(sorted(m for m in sys.modules if m.startswith({FORBIDDEN!r}))))"
+    )
+    assert _run(code) == ""
+    for path in sorted((ROOT / "sitl_stub").glob("*.py")):  # not even lazily, in a function
+        text = path.read_text()
+        assert not [name for name in FORBIDDEN if name in text], path
+
+
+def test_mavlink_package_is_light_and_its_dialect_is_mavlink_2() -> None:
+    code = (
+        "import sys, uavlink.mavlink, uavlink.mavlink.connection, uavlink.mavlink.px4_modes, "
+        "uavlink.mavlink.signing, uavlink.mavlink.rejects\n"
+        "print('pymavlink' in sys.modules, any(m.startswith('uavlink.flight') for m in sys.modules))\n"
+        "from uavlink.mavlink.dialect import mavlink\n"
+        "import os; print(os.environ['MAVLINK20'], mavlink.WIRE_PROTOCOL_VERSION)"
+    )
+    assert _run(code).splitlines() == ["False False", "1 2.0"]
+
+
+def test_mavlink20_is_set_in_one_place() -> None:
+    here = Path(__file__).resolve()
+    setters = [path.relative_to(ROOT).as_posix()
+               for folder in SOURCE_DIRS for path in sorted((ROOT / folder).rglob("*.py"))
+               if path != here and "MAVLINK20" in path.read_text()]
+    assert setters == ["uavlink/mavlink/dialect.py"]

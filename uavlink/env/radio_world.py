@@ -1,0 +1,65 @@
+"""The radio world a flying vehicle lives in: the env's UE mobility and channel, stepped at the
+positions the vehicle actually reaches instead of at positions mapped from actions.
+
+The SITL's radio payload is its user: it asks for the readings the base station senses and, once a
+frame, advances the world with the vehicle's position. Episode 0 of the evaluation stream
+(``uavlink.seeding.EVAL``) with seed S: a flight with ``--seed S`` meets the UEs of
+``uavlink evaluate --episodes 1 --seed S``. The world holds one UAV today; positions and readings
+are indexed per UAV so a fleet can share one world later without changing the callers' shape.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from uavlink.config import EnvConfig
+from uavlink.env.core import BatchedUavEnv
+from uavlink.seeding import EVAL
+
+
+@dataclass(frozen=True)
+class UavReadings:
+    """What one UAV's base station senses this frame (the policy's input)."""
+
+    sinr_db: np.ndarray  # (U,) effective SINR per UE
+    aoa_deg: np.ndarray  # (U,) measured angle of arrival per UE, deg from east
+
+
+@dataclass(frozen=True)
+class FrameScore:
+    """The simulator's truth for one advanced frame (for scoring and logs, never for the policy)."""
+
+    mean_rate_mbps: float
+    fair_rate: float
+    rate_bps: np.ndarray  # (U,) per-UE rate
+
+
+class RadioWorld:
+    """UEs and channel of one episode, advanced one frame at a time at given UAV positions."""
+
+    n_uavs = 1
+
+    def __init__(self, cfg: EnvConfig, seed: int) -> None:
+        self.cfg = cfg.validate()
+        self._env = BatchedUavEnv(self.cfg, n_envs=1, seed=EVAL.seed(seed, 0))
+        self._env.reset()
+
+    @property
+    def frame(self) -> int:
+        """Frames advanced since the episode started (0 before the first :meth:`advance`)."""
+        return self._env.frame
+
+    def readings(self, uav: int = 0) -> UavReadings:
+        """The current frame's readings at UAV ``uav`` (index into the world's UAVs)."""
+        r = self._env.readings
+        return UavReadings(r.sinr_db[uav], r.aoa_deg[uav])
+
+    def advance(self, uav_xy_m: np.ndarray) -> FrameScore:
+        """Move the UEs one frame with the UAVs at ``uav_xy_m`` ((n_uavs, 2) or (2,), metres east
+        and north, clipped to the area) and score the new frame."""
+        xy = np.asarray(uav_xy_m, dtype=float).reshape(self.n_uavs, 2)
+        result = self._env.step_to(xy)
+        return FrameScore(float(result.mean_rate_mbps[0]), float(result.fair_rate[0]),
+                          self._env.readings.rate_bps[0].copy())

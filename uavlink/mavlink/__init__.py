@@ -1,0 +1,12 @@
+"""MAVLink pieces both ends of the flight link share: ``uavlink fly`` and the ``sitl_stub`` vehicle.
+
+- :mod:`~uavlink.mavlink.dialect`: the one place that imports pymavlink (MAVLink 2, ``common``);
+- :mod:`~uavlink.mavlink.connection`: connection strings;
+- :mod:`~uavlink.mavlink.signing`: MAVLink 2 message signing and key files;
+- :mod:`~uavlink.mavlink.rejects`: counting and logging rejected input;
+- :mod:`~uavlink.mavlink.px4_modes`: PX4's flight-mode encoding;
+- :mod:`~uavlink.mavlink.radio_codec`: how radio readings travel (DEBUG_FLOAT_ARRAY).
+
+Nothing here imports the flight loop, the vehicle or the trainer; importing this package imports
+no pymavlink (only :mod:`~uavlink.mavlink.dialect` does).
+"""
