@@ -322,7 +322,6 @@ def test_negative_aoa_noise_is_rejected():
 @pytest.mark.parametrize(("changes", "message"), [
     ({"bandwidth_hz": -10e6}, r"radio\.bandwidth_hz must be positive"),
     ({"n_resource_blocks": 0}, r"radio\.n_resource_blocks must be a positive integer, got 0"),
-    ({"n_resource_blocks": 2.5}, r"radio\.n_resource_blocks must be a positive integer"),
     ({"cluster_size_m": 500.0}, r"cluster_size_m must be smaller than the area"),
     ({"n_ues": 0}, r"env\.n_ues must be a positive integer, got 0"),
     ({"tx_power_dbm": float("nan")}, r"radio\.tx_power_dbm must be a finite number"),
@@ -338,10 +337,20 @@ def test_non_physical_config_is_rejected(changes, message):
         BatchedUavEnv(cfg)
 
 
+@pytest.mark.parametrize(("key", "value", "message"), [
+    ("n_resource_blocks", 2.5, r"radio\.n_resource_blocks must be an integer, got 2\.5"),
+    ("n_ues", "ten", r"n_ues must be an integer, got 'ten'"),
+    ("radio.fast_fading", "maybe", r"radio\.fast_fading must be true or false, got 'maybe'"),
+])
+def test_a_value_of_the_wrong_type_is_refused_naming_its_key(key, value, message):
+    with pytest.raises(ValueError, match=message):
+        EnvConfig().replace(**{key: value})
+
+
 def test_unknown_config_key_is_rejected():
     with pytest.raises(ValueError, match="unknown config key 'warp_drive'"):
         EnvConfig().replace(warp_drive=True)
-    with pytest.raises(ValueError, match=r"unknown config key radio\.warp"):
+    with pytest.raises(ValueError, match=r"unknown config key 'radio\.warp'"):
         EnvConfig().replace(**{"radio.warp": 1})
 
 

@@ -14,6 +14,7 @@ from collections.abc import Sequence
 from dataclasses import dataclass, field
 from typing import Any
 
+from uavlink.config.fields import coerce
 from uavlink.config.fields import finite as _finite
 from uavlink.config.fields import non_negative as _non_negative
 from uavlink.config.fields import positive as _positive
@@ -24,6 +25,8 @@ SCENARIOS: tuple[str, ...] = ("no_move", "straight", "circular", "straight_90", 
 MIXED = "mixed"
 # Shadowing: the SPEC's per-link AR(1) (the paper's) or the spatially consistent field.
 SHADOWING_MODELS = ("ar1", "spatial")
+# How a policy's output becomes a move (uavlink.env.actions.ActionMapping implements them).
+ACTION_MAPPINGS = ("cartesian-v1", "polar-v1")
 
 
 @dataclass(frozen=True)
@@ -105,7 +108,7 @@ class EnvConfig:
     episode_frames: int = 128
     frame_s: float = 1.0
     r_max_m: float = 12.0  # PX4 MPC_XY_VEL_MAX default, 12 m/s x 1 s frame
-    action_mapping: str = "cartesian-v1"  # see uavlink.env.actions.ActionMapping
+    action_mapping: str = ACTION_MAPPINGS[0]  # see uavlink.env.actions.ActionMapping
     memory: int = 4
     ue_speed_mps: float = 8.0
     cluster_size_m: float = 10.0
@@ -116,6 +119,9 @@ class EnvConfig:
         if self.scenario not in (*SCENARIOS, MIXED):
             raise ConfigError(
                 f"unknown scenario {self.scenario!r}; choose from {', '.join(SCENARIOS)} or {MIXED}")
+        if self.action_mapping not in ACTION_MAPPINGS:
+            raise ConfigError(f"unknown action mapping {self.action_mapping!r}; choose from "
+                              f"{', '.join(ACTION_MAPPINGS)}")
         for name in ("n_ues", "episode_frames", "memory"):
             value = getattr(self, name)
             if int(value) != value or value < 1:
@@ -133,7 +139,9 @@ class EnvConfig:
         return self
 
     def replace(self, **changes: Any) -> EnvConfig:
-        """A copy with fields changed; ``radio.x`` / ``area.x`` keys reach the nested configs."""
+        """A copy with fields changed; ``radio.x`` / ``area.x`` keys reach the nested configs. Values
+        take their field's type (an int where a float goes becomes a float); a value of the wrong
+        type is a ``ConfigError`` naming the key (``--set radio.fast_fading=maybe`` is refused)."""
         top: dict[str, Any] = {}
         nested: dict[str, dict[str, Any]] = {"radio": {}, "area": {}}
         for key, value in changes.items():
@@ -141,13 +149,13 @@ class EnvConfig:
             if tail:
                 if head not in nested:
                     raise ConfigError(f"unknown config key {key!r}")
-                nested[head][tail] = value
+                nested[head][tail] = coerce(EnvConfig, key, value, key)
             elif key in _field_names(EnvConfig):
-                top[key] = value
+                top[key] = value if dataclasses.is_dataclass(value) else coerce(EnvConfig, key, value, key)
             elif key in _field_names(RadioConfig):
-                nested["radio"][key] = value
+                nested["radio"][key] = coerce(RadioConfig, key, value, f"radio.{key}")
             elif key in _field_names(AreaConfig):
-                nested["area"][key] = value
+                nested["area"][key] = coerce(AreaConfig, key, value, f"area.{key}")
             else:
                 raise ConfigError(f"unknown config key {key!r}")
         for head, sub in nested.items():

@@ -8,14 +8,13 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
+from uavlink.config.env import ACTION_MAPPINGS
 from uavlink.errors import ConfigError
 
 if TYPE_CHECKING:
     from uavlink.config import EnvConfig
 
-POLAR = "polar-v1"
-CARTESIAN = "cartesian-v1"
-ACTION_MAPPINGS = (CARTESIAN, POLAR)
+CARTESIAN, POLAR = ACTION_MAPPINGS
 
 
 @dataclass(frozen=True)

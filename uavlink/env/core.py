@@ -52,7 +52,7 @@ class BatchedUavEnv:
             raise ValueError(f"n_envs must be a positive integer, got {n_envs}")
         self.n_envs = int(n_envs)
         self.layout = ObservationLayout.for_config(self.cfg)
-        self.actions = ActionMapping(self.cfg.r_max_m, self.cfg.action_mapping)
+        self.actions = ActionMapping.for_config(self.cfg)
         self.reward_bounds = RewardBounds.for_config(self.cfg)
         self.channel = RadioChannel(self.cfg.radio, self.cfg.area, self.cfg.n_ues)
         self._builder = ObservationBuilder(self.layout, self.n_envs)

@@ -20,6 +20,7 @@ from typing import Any, ClassVar
 import numpy as np
 
 from uavlink.config import EnvConfig
+from uavlink.errors import UserError
 from uavlink.radio.aoa import circular_mean_std_deg
 
 OBS_LAYOUT_VERSION = 1
@@ -136,9 +137,9 @@ class ObservationLayout:
         return cls(**data)
 
     def check_matches(self, other: ObservationLayout, what: str = "policy") -> None:
-        """Raise a one-line ValueError naming both layouts when they differ."""
+        """Raise a one-line UserError naming both layouts when they differ."""
         if self != other:
-            raise ValueError(f"observation layout mismatch: {what} expects {self.describe()}, "
+            raise UserError(f"observation layout mismatch: {what} expects {self.describe()}, "
                              f"env provides {other.describe()}")
 
     def describe(self) -> str:

@@ -109,7 +109,7 @@ class PolicyPilot:
         self.layout = ObservationLayout.for_config(cfg)
         if policy.layout is not None:
             policy.layout.check_matches(self.layout, what=f"policy {policy.name!r}")
-        self.mapping = ActionMapping(cfg.r_max_m, cfg.action_mapping)
+        self.mapping = ActionMapping.for_config(cfg)
         self.builder = ObservationBuilder(self.layout, 1)
         self.guarded = 0
         self.inference_s: list[float] = []

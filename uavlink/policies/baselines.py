@@ -22,7 +22,7 @@ class StaticPolicy:
     needs_truth = False
 
     def __init__(self, cfg: EnvConfig) -> None:
-        self.hover = ActionMapping(cfg.r_max_m, cfg.action_mapping).from_polar(0.0, 0.0)
+        self.hover = ActionMapping.for_config(cfg).from_polar(0.0, 0.0)
 
     def act(self, obs: np.ndarray, truth: GroundTruth | None = None) -> np.ndarray:
         return np.tile(self.hover, (obs.shape[0], 1))
@@ -45,7 +45,7 @@ class AoaPolicy:
 
     def __init__(self, cfg: EnvConfig) -> None:
         self.layout = ObservationLayout.for_config(cfg)
-        self.mapping = ActionMapping(cfg.r_max_m, cfg.action_mapping)
+        self.mapping = ActionMapping.for_config(cfg)
         self.hover_sinr_db = float(mean_rx_power_dbm(cfg.area.uav_altitude_m, cfg.radio)
                                    - noise_power_dbm(cfg.radio.bandwidth_hz, cfg.radio))
         self.hover = self.mapping.from_polar(0.0, 0.0)
@@ -73,7 +73,7 @@ class OraclePolicy:
 
     def __init__(self, cfg: EnvConfig, n_angles: int = 32, n_radii: int = 6) -> None:
         self.cfg = cfg
-        self.mapping = ActionMapping(cfg.r_max_m, cfg.action_mapping)
+        self.mapping = ActionMapping.for_config(cfg)
         angles = np.linspace(-180.0, 180.0, n_angles, endpoint=False)
         radii = np.linspace(cfg.r_max_m / n_radii, cfg.r_max_m, n_radii)
         grid_a, grid_r = np.meshgrid(angles, radii)
