@@ -90,6 +90,7 @@ def test_circular_static_is_the_worst_moving_case(static_results):
     assert max(rates, key=rates.get) == "no_move"
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("scenario", MOVING)
 def test_oracle_beats_static_where_ues_move(paired, scenario):
     static, oracle = paired["static"][scenario], paired["oracle"][scenario]
@@ -98,6 +99,7 @@ def test_oracle_beats_static_where_ues_move(paired, scenario):
     assert np.mean(oracle.episode_rate_mbps >= static.episode_rate_mbps - 0.01) > 0.9
 
 
+@pytest.mark.slow
 def test_oracle_hovers_on_straight_180(paired):
     # Two clusters leaving in opposite directions: hovering at the centre maximises R_fair, so the
     # oracle cannot beat static, and must not do worse.
@@ -106,6 +108,7 @@ def test_oracle_hovers_on_straight_180(paired):
     assert oracle.mean_rate_mbps == pytest.approx(static.mean_rate_mbps, rel=0.02)
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("scenario", ["straight", "circular"])
 def test_aoa_beats_static_and_stays_under_the_oracle(paired, scenario):
     static, aoa, oracle = (paired[p][scenario] for p in ("static", "aoa", "oracle"))
@@ -154,6 +157,7 @@ def test_aoa_shadow_gate_beats_the_plain_rule_on_straight_180():
     assert gated.mean_fair_rate > plain.mean_fair_rate
 
 
+@pytest.mark.slow
 def test_oracle_gain_is_large_where_the_paper_says(paired):
     # The paper's big PPO gains are on straight (+71 %) and circular (+97 %): the oracle's head room
     # over static must be large there, larger than on the two-cluster scenarios.

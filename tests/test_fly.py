@@ -9,14 +9,12 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from conftest import ROOT, UAVLINK
 
 from uavlink.config import EnvConfig
 from uavlink.flight.connection import free_udp_port
 from uavlink.flight.mission import PolicyPilot
 from uavlink.flight.radio_codec import RadioReport
-
-ROOT = Path(__file__).resolve().parents[1]
-UAVLINK = [sys.executable, "-m", "uavlink.cli"]
 
 
 def run(args: list[str], timeout: float = 120) -> subprocess.CompletedProcess:
@@ -36,6 +34,7 @@ def evaluate_one(policy: str, scenario: str, seed: int) -> float:
     return json.loads(proc.stdout)["mean_rate_mbps"]
 
 
+@pytest.mark.slow
 @pytest.mark.timeout(180)
 @pytest.mark.parametrize("scenario,seed", [("circular", 3), ("straight", 5)])
 def test_sim_to_sitl_parity(tmp_path: Path, scenario: str, seed: int) -> None:
@@ -49,6 +48,7 @@ def test_sim_to_sitl_parity(tmp_path: Path, scenario: str, seed: int) -> None:
     assert flown["guarded_actions"] == 0 and flown["rejected_radio_reports"] == 0
 
 
+@pytest.mark.slow
 @pytest.mark.timeout(120)
 def test_fly_aoa_baseline_writes_tlog_and_summary(tmp_path: Path) -> None:
     summary = fly_json(tmp_path, "--policy", "aoa", "--scenario", "straight", "--frames", "20")
@@ -60,6 +60,18 @@ def test_fly_aoa_baseline_writes_tlog_and_summary(tmp_path: Path) -> None:
     assert "HEARTBEAT" in dump.stdout and "SET_POSITION_TARGET_LOCAL_NED" in dump.stdout
 
 
+@pytest.mark.slow
+@pytest.mark.timeout(120)
+def test_fly_status_line_quiet_when_piped(tmp_path: Path) -> None:
+    """The live `\r` status line is for a terminal; stderr to a pipe (a log, CI) gets none of it."""
+    proc = run([*UAVLINK, "fly", "--policy", "aoa", "--scenario", "straight", "--frames", "3",
+                "--out", str(tmp_path)])
+    assert proc.returncode == 0, proc.stderr
+    assert "\r" not in proc.stderr and "frame " not in proc.stderr, proc.stderr
+    assert json.loads((tmp_path / "summary.json").read_text())["frames"] == 3
+
+
+@pytest.mark.slow
 @pytest.mark.timeout(120)
 def test_fly_bare_port_connect(tmp_path: Path) -> None:
     """The design card's `--connect udp:PORT` (listen on all interfaces) against a separate SITL."""

@@ -51,6 +51,7 @@ def test_aoa_teacher_reads_the_true_aoa_under_noise() -> None:
     assert np.abs(teacher - rule.act(obs)).max() > 0.1  # the rule on the noisy observation differs
 
 
+@pytest.mark.slow
 def test_cloned_actor_flies_like_its_teacher() -> None:
     """After cloning, the untrained PPO actor acts like the aoa rule on episodes it never saw, and
     flies about as well as the rule, far from what the random initial actor does."""
@@ -64,6 +65,7 @@ def test_cloned_actor_flies_like_its_teacher() -> None:
     assert float(np.mean((student - teacher_actions) ** 2)) < 0.02
 
 
+@pytest.mark.slow
 def test_train_with_warm_start_records_it_and_starts_from_the_rule(tmp_path: Path) -> None:
     out = tmp_path / "ws.zip"
     code = main(["train", "--scenario", "no_move", "--out", str(out), "--episodes", "8", "--n-envs", "4",
@@ -83,6 +85,7 @@ def test_train_with_warm_start_records_it_and_starts_from_the_rule(tmp_path: Pat
     assert not np.allclose(policy.value_net.weight.detach().numpy(), fresh.value_net.weight.detach().numpy())
 
 
+@pytest.mark.slow
 def test_gated_teacher_and_its_settings(tmp_path: Path, capsys) -> None:
     """The aoa teacher with its shadow gate and speed span flies that variant of the rule; both belong
     to aoa only, and `uavlink train` records them (and the exploration std PPO restarts from) in the

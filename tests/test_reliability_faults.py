@@ -22,6 +22,8 @@ from udp_relay import (
     table_row,
 )
 
+pytestmark = pytest.mark.slow  # flights through a lossy relay
+
 OFFBOARD = 6 << 16
 LOITER = 4 << 16 | 3 << 24
 COM_OF_LOSS_T = 1.0

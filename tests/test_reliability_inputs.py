@@ -204,6 +204,7 @@ def test_rescan_puts_a_parser_back_in_frame_after_a_stray_marker() -> None:
     assert kinds.count("COMMAND_LONG") == 6 and "BAD_DATA" in kinds
 
 
+@pytest.mark.slow
 def test_random_bytes_into_the_vehicle() -> None:
     with vehicle() as v:
         @FUZZ
@@ -218,6 +219,7 @@ def test_random_bytes_into_the_vehicle() -> None:
         assert v.server.rejects.total > 0
 
 
+@pytest.mark.slow
 def test_mutated_packets_into_the_vehicle_are_counted_and_have_no_effect(caplog) -> None:
     caplog.set_level(logging.WARNING, logger="sitl_stub")
     with vehicle() as v:
@@ -246,6 +248,7 @@ def test_mutated_packets_into_the_vehicle_are_counted_and_have_no_effect(caplog)
         assert v.acks[-1].command == ARM and v.acks[-1].result == R.MAV_RESULT_ACCEPTED
 
 
+@pytest.mark.slow
 def test_mutated_signed_packets_never_pass_the_signing_check() -> None:
     key = os.urandom(32)
     with vehicle(key=key) as v:
@@ -271,6 +274,7 @@ finite_or_not = st.one_of(st.floats(allow_nan=True, allow_infinity=True, width=3
                           st.sampled_from([math.nan, math.inf, -math.inf, 3.4e38, -3.4e38, 0.0, 1.0]))
 
 
+@pytest.mark.slow
 def test_out_of_range_fields_are_refused_or_clamped(caplog) -> None:
     caplog.set_level(logging.WARNING, logger="sitl_stub")
     with vehicle(payload=True) as v:
@@ -403,6 +407,7 @@ def _finite_status(link: VehicleLink) -> None:
     assert all(math.isfinite(v) for v in (s.north_m, s.east_m, s.down_m))
 
 
+@pytest.mark.slow
 def test_random_and_mutated_bytes_into_fly() -> None:
     with fly_link() as (link, source, sock, scores):
         valid = _vehicle_packets()
@@ -465,6 +470,7 @@ class _NanPolicy:
         return np.array([[math.nan, 0.5]])
 
 
+@pytest.mark.slow
 @pytest.mark.timeout(60)
 def test_policy_output_guard_in_flight_holds_position_and_logs_clearly(caplog) -> None:
     caplog.set_level(logging.WARNING, logger="uavlink.flight.mission")

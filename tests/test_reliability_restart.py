@@ -19,6 +19,8 @@ from udp_relay import FAST_TAKEOFF, Gcs, parse_vehicle_stats, wait_for_vehicle
 
 from sitl_stub.testing import free_udp_port, vehicle_process
 
+pytestmark = pytest.mark.slow  # a killed and restarted flight
+
 ROOT = Path(__file__).resolve().parents[1]
 SPEED = 20.0
 COM_OF_LOSS_T = 1.0

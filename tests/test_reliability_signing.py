@@ -70,6 +70,7 @@ def _arm_packet(mav) -> bytes:
 
 
 # ------------------------------------------------------------------------------- unit level
+@pytest.mark.slow
 def test_keygen_writes_a_private_32_byte_key_and_never_overwrites(tmp_path: Path) -> None:
     out = tmp_path / "vehicle.key"
     r = subprocess.run([*UAVLINK, "keygen", "--out", str(out)], capture_output=True, text=True,
@@ -148,6 +149,7 @@ def test_signing_clock_tracks_wall_time() -> None:
 
 
 # ---------------------------------------------------------------------------- the vehicle
+@pytest.mark.slow
 @pytest.mark.timeout(60)
 def test_vehicle_obeys_only_fresh_packets_signed_with_its_key(tmp_path: Path) -> None:
     keyfile = write_key(tmp_path / "k")
@@ -213,6 +215,7 @@ def test_vehicle_obeys_only_fresh_packets_signed_with_its_key(tmp_path: Path) ->
 
 
 # ------------------------------------------------------------------------ a signed flight
+@pytest.mark.slow
 @pytest.mark.timeout(90)
 def test_signed_flight_ignores_ground_stations_without_the_key(tmp_path: Path) -> None:
     keyfile = write_key(tmp_path / "k")

@@ -13,6 +13,7 @@ from uavlink.shadow_estimation import fit_shadow_estimator, shadow_dataset, shad
 CFG = EnvConfig(scenario="hotspot")
 
 
+@pytest.mark.slow
 def test_estimator_explains_most_of_the_links_shadowing_on_held_out_episodes() -> None:
     estimator = fit_shadow_estimator(CFG, episodes=64, seed=0)
     assert estimator.r2 > 0.5  # about 0.7 with 512 episodes (benchmarks/aoa_teacher_search.py)

@@ -22,7 +22,7 @@ from pymavlink import mavutil  # noqa: E402
 
 from sitl_stub.testing import free_udp_port, vehicle_process  # noqa: E402
 
-pytestmark = pytest.mark.timeout(90)
+pytestmark = [pytest.mark.slow, pytest.mark.timeout(90)]  # MAVProxy against a vehicle process
 
 mavlink = mavutil.mavlink
 MAVPROXY = shutil.which("mavproxy.py", path=str(Path(sys.executable).parent)) or shutil.which(

@@ -25,7 +25,7 @@ from mavsdk.asyncio.plugins.telemetry import FlightMode, LandedState, TelemetryA
 
 from sitl_stub.testing import free_udp_port, vehicle_process  # noqa: E402
 
-pytestmark = pytest.mark.timeout(120)
+pytestmark = [pytest.mark.slow, pytest.mark.timeout(120)]  # MAVSDK against a vehicle process
 
 SPEED = 5.0  # MAVSDK streams offboard setpoints at 20 Hz of wall time: keep speed <= 5
 

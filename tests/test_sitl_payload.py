@@ -60,6 +60,7 @@ def _acks(gcs: Any, command: int, window_s: float) -> list[Any]:
     return out
 
 
+@pytest.mark.slow
 def test_payload_components_tick_per_frame_and_answer_commands():
     counting, commandable = CountingPayload(), CommandablePayload()
     server = SitlServer(ServerConfig(connect="udpin:127.0.0.1:0", speed=20.0),

@@ -21,7 +21,7 @@ from pymavlink import mavutil  # noqa: E402
 from sitl_stub.params import int_to_param_float, param_float_to_int  # noqa: E402
 from sitl_stub.testing import free_udp_port, vehicle_process  # noqa: E402
 
-pytestmark = pytest.mark.timeout(90)
+pytestmark = [pytest.mark.slow, pytest.mark.timeout(90)]  # a vehicle process and a pymavlink GCS
 
 mavlink = mavutil.mavlink
 GCS_SYS, GCS_COMP = 245, 190

@@ -124,6 +124,7 @@ def _results(sweep_dir: Path) -> dict[str, dict]:
     return {p.parent.name: json.loads(p.read_text()) for p in sweep_dir.glob("*/result.json")}
 
 
+@pytest.mark.slow
 @pytest.mark.timeout(120)
 def test_sweep_on_scheduler_and_two_workers(tmp_path: Path, cluster_factory, capsys) -> None:
     sweep_file = tmp_path / "tiny4.toml"
@@ -177,6 +178,7 @@ def test_sweep_on_scheduler_and_two_workers(tmp_path: Path, cluster_factory, cap
     assert {p.name: p.read_bytes() for p in policies.iterdir()} == shipped
 
 
+@pytest.mark.slow
 @pytest.mark.timeout(120)
 def test_worker_killed_mid_job_is_retried_elsewhere(tmp_path: Path, cluster_factory) -> None:
     sweep_file = tmp_path / "tiny4.toml"

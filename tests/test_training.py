@@ -17,21 +17,19 @@ from uavlink.policies.manifest import MANIFEST_NAME, PolicyFileError, read_zip_m
 from uavlink.policies.sb3_policy import SB3Policy
 from uavlink.training import TrainConfig, time_to_fraction, train
 
-TINY = dict(n_envs=16, batch_size=512, n_epochs=10)
+pytestmark = pytest.mark.slow  # trains PPO
 
 
-@pytest.fixture(scope="module")
-def tiny_policy(tmp_path_factory) -> Path:
-    """PPO on `straight` for 96 episodes (12k env steps): long enough to learn to follow the UEs."""
-    out = tmp_path_factory.mktemp("policy") / "straight.zip"
-    train(EnvConfig(scenario="straight"), TrainConfig(episodes=96, **TINY), out, None, progress=False)
-    return out
+@pytest.fixture
+def tiny_policy(tiny_policy_zip: Path) -> Path:
+    """The session's tiny `straight` policy (tests/conftest.py)."""
+    return tiny_policy_zip
 
 
-def test_tiny_training_learns_to_follow(tiny_policy: Path) -> None:
+def test_tiny_training_learns_to_follow(tiny_policy: Path, tmp_path: Path) -> None:
     cfg = EnvConfig(scenario="straight")
     learned = evaluate_policy(SB3Policy(tiny_policy), cfg, episodes=32, seed=1)
-    untrained_out = tiny_policy.with_name("untrained.zip")
+    untrained_out = tmp_path / "untrained.zip"
     train(cfg, TrainConfig(episodes=1, n_envs=1, batch_size=64, n_epochs=1), untrained_out, None, progress=False)
     untrained = evaluate_policy(SB3Policy(untrained_out), cfg, episodes=32, seed=1)
     from uavlink.policies.baselines import StaticPolicy
@@ -103,8 +101,9 @@ def test_train_cli_resumes_from_checkpoint(tmp_path: Path) -> None:
     out = tmp_path / "p.zip"
     base = [sys.executable, "-m", "uavlink.cli", "train", "--scenario", "no_move", "--out", str(out),
             "--n-envs", "4", "--batch-size", "256", "--n-epochs", "1", "--run-dir", str(run),
-            "--no-progress", "--eval-episodes", "2"]
-    first = subprocess.run([*base, "--episodes", "8"], capture_output=True, text=True, timeout=120)
+            "--eval-episodes", "2"]
+    first = subprocess.run([*base, "--episodes", "8", "--no-progress"], capture_output=True, text=True,
+                           timeout=120)
     assert first.returncode == 0, first.stderr
     assert (run / "ppo_1").is_dir(), "TensorBoard logs"
     manifest = read_zip_manifest(out)
@@ -114,4 +113,5 @@ def test_train_cli_resumes_from_checkpoint(tmp_path: Path) -> None:
     second = subprocess.run([*base, "--episodes", "16", "--resume", str(checkpoint)],
                             capture_output=True, text=True, timeout=120)
     assert second.returncode == 0, second.stderr
+    assert "\r" not in second.stderr, "no progress bar when stderr is not a terminal"
     assert read_zip_manifest(out)["training"]["total_timesteps"] == 16 * 128
