@@ -9,6 +9,9 @@ import sys
 from pathlib import Path
 
 import numpy as np
+import pytest
+
+pytestmark = pytest.mark.slow  # experiment scripts in child processes, some training
 
 ROOT = Path(__file__).resolve().parents[1]
 

@@ -3,33 +3,13 @@
 from __future__ import annotations
 
 import json
-import shutil
-import subprocess
-import sys
 from pathlib import Path
 
 import pytest
+from conftest import assert_user_error
+from conftest import run_uavlink as uavlink
 
 from uavlink.mobility import SCENARIOS
-
-_SCRIPT = Path(sys.executable).with_name("uavlink")
-UAVLINK = [str(_SCRIPT)] if _SCRIPT.exists() else (
-    [shutil.which("uavlink")] if shutil.which("uavlink") else [sys.executable, "-m", "uavlink.cli"])
-
-
-def uavlink(*args: str, cwd: Path | None = None) -> subprocess.CompletedProcess:
-    return subprocess.run([*UAVLINK, *args], capture_output=True, text=True, timeout=120, cwd=cwd)
-
-
-def assert_user_error(proc: subprocess.CompletedProcess, *fragments: str) -> None:
-    """Exit status 2, exactly one line on stderr naming the problem, no traceback."""
-    assert proc.returncode == 2, proc.stderr
-    assert "Traceback" not in proc.stderr and "Traceback" not in proc.stdout
-    lines = proc.stderr.strip().splitlines()
-    assert len(lines) == 1, proc.stderr
-    assert lines[0].startswith("uavlink evaluate: error: ")
-    for fragment in fragments:
-        assert fragment in lines[0]
 
 
 def test_evaluate_json():
@@ -47,6 +27,7 @@ def test_evaluate_json():
         sum(result["episode_rate_mbps"]) / 5, abs=1e-5)
 
 
+@pytest.mark.slow
 def test_same_seed_same_json_other_seed_differs():
     args = ("evaluate", "--scenario", "hotspot", "--policy", "aoa", "--episodes", "4", "--json")
     first = uavlink(*args, "--seed", "3")
@@ -57,6 +38,7 @@ def test_same_seed_same_json_other_seed_differs():
     assert json.loads(first.stdout)["episode_rate_mbps"] != json.loads(other.stdout)["episode_rate_mbps"]
 
 
+@pytest.mark.slow
 def test_scenario_all_prints_six_rows():
     proc = uavlink("evaluate", "--scenario", "all", "--policy", "static", "--episodes", "3")
     assert proc.returncode == 0, proc.stderr
@@ -69,6 +51,7 @@ def test_scenario_all_prints_six_rows():
     assert [r["scenario"] for r in json.loads(as_json.stdout)] == list(SCENARIOS)
 
 
+@pytest.mark.slow
 def test_set_overrides_reach_the_env():
     base = ("evaluate", "--scenario", "no_move", "--policy", "static", "--episodes", "3", "--json")
     quiet = json.loads(uavlink(*base, "--set", "radio.shadowing=false",
@@ -99,6 +82,7 @@ def test_missing_policy_file_exits_2(policy, tmp_path):
     assert_user_error(uavlink("evaluate", "--policy", policy, "--episodes", "2", cwd=tmp_path), policy)
 
 
+@pytest.mark.slow
 def test_unusable_policy_files_exit_2(tmp_path):
     text = tmp_path / "notes.txt"
     text.write_text("not a policy")
@@ -139,6 +123,7 @@ def test_version():
     assert proc.returncode == 0 and proc.stdout.startswith("uavlink ")
 
 
+@pytest.mark.slow
 def test_results_folder_has_the_tables_and_figures_and_is_reproducible(tmp_path):
     root = Path(__file__).resolve().parents[1]
     runs = []
@@ -163,6 +148,7 @@ def test_results_folder_has_the_tables_and_figures_and_is_reproducible(tmp_path)
         assert (a / name).read_bytes() == (b / name).read_bytes(), name
 
 
+@pytest.mark.slow
 def test_evaluate_against_pairs_two_policies_on_the_same_episodes():
     proc = uavlink("evaluate", "--scenario", "hotspot", "--policy", "aoa", "--against", "static",
                    "--episodes", "6", "--seed", "3", "--json")

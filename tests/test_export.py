@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import json
 import os
+import shutil
 import subprocess
 import sys
 import textwrap
@@ -27,10 +28,11 @@ from uavlink.policies.loader import load_policy
 from uavlink.policies.manifest import PolicyFileError, file_sha256, read_zip_manifest
 from uavlink.policies.onnx_policy import OnnxPolicy
 from uavlink.policies.sb3_policy import SB3Policy
-from uavlink.training import TrainConfig, train
 
 ROOT = Path(__file__).resolve().parent.parent
-CFG = EnvConfig(scenario="no_move")
+pytestmark = pytest.mark.slow  # the tiny trained policy, ONNX exports of every shipped policy
+
+CFG = EnvConfig(scenario="straight")  # the tiny policy's env
 
 BLOCKER = '''
 import os, sys
@@ -50,9 +52,10 @@ sys.meta_path.insert(0, _BlockTorch())
 
 
 @pytest.fixture(scope="module")
-def policy_zip(tmp_path_factory) -> Path:
+def policy_zip(tiny_policy_zip: Path, tmp_path_factory) -> Path:
+    """A copy of the session's tiny policy (tests/conftest.py), exported beside it."""
     out = tmp_path_factory.mktemp("policy") / "tiny.zip"
-    train(CFG, TrainConfig(episodes=40, n_envs=8, batch_size=256), out, None, progress=False)
+    shutil.copyfile(tiny_policy_zip, out)
     return out
 
 

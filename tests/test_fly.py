@@ -9,14 +9,12 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from conftest import ROOT, UAVLINK
 
 from uavlink.config import EnvConfig
 from uavlink.flight.mission import PolicyPilot
 from uavlink.mavlink.connection import free_udp_port
 from uavlink.mavlink.radio_codec import RadioReport
-
-ROOT = Path(__file__).resolve().parents[1]
-UAVLINK = [sys.executable, "-m", "uavlink.cli"]
 
 
 def run(args: list[str], timeout: float = 120) -> subprocess.CompletedProcess:
@@ -60,6 +58,17 @@ def test_fly_aoa_baseline_writes_tlog_and_summary(tmp_path: Path) -> None:
                 "HEARTBEAT,SET_POSITION_TARGET_LOCAL_NED", str(tmp_path / "flight.tlog")])
     assert dump.returncode == 0, dump.stderr
     assert "HEARTBEAT" in dump.stdout and "SET_POSITION_TARGET_LOCAL_NED" in dump.stdout
+
+
+@pytest.mark.slow
+@pytest.mark.timeout(120)
+def test_fly_status_line_quiet_when_piped(tmp_path: Path) -> None:
+    """The live `\r` status line is for a terminal; stderr to a pipe (a log, CI) gets none of it."""
+    proc = run([*UAVLINK, "fly", "--policy", "aoa", "--scenario", "straight", "--frames", "3",
+                "--out", str(tmp_path)])
+    assert proc.returncode == 0, proc.stderr
+    assert "\r" not in proc.stderr and "frame " not in proc.stderr, proc.stderr
+    assert json.loads((tmp_path / "summary.json").read_text())["frames"] == 3
 
 
 @pytest.mark.slow

@@ -15,6 +15,8 @@ import pytest
 from relay_flight import fly_through_relay, format_table, table_row
 from udp_relay import BLACKOUT, CLEAN, Faults, UdpRelay
 
+pytestmark = pytest.mark.slow  # flights through a lossy relay
+
 OFFBOARD = 6 << 16
 LOITER = 4 << 16 | 3 << 24
 COM_OF_LOSS_T = 1.0

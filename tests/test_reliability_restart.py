@@ -20,6 +20,8 @@ from mavlink_gcs import FAST_TAKEOFF, Gcs, parse_vehicle_stats, wait_for_vehicle
 from sitl_stub.launcher import vehicle_process
 from uavlink.mavlink.connection import free_udp_port
 
+pytestmark = pytest.mark.slow  # a killed and restarted flight
+
 ROOT = Path(__file__).resolve().parents[1]
 SPEED = 20.0
 COM_OF_LOSS_T = 1.0

@@ -69,6 +69,7 @@ def _arm_packet(mav) -> bytes:
 
 
 # ------------------------------------------------------------------------------- unit level
+@pytest.mark.slow
 def test_keygen_writes_a_private_32_byte_key_and_never_overwrites(tmp_path: Path) -> None:
     out = tmp_path / "vehicle.key"
     r = subprocess.run([*UAVLINK, "keygen", "--out", str(out)], capture_output=True, text=True,

@@ -10,6 +10,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from conftest import TINY_TRAINING
 
 from uavlink.cli import main
 from uavlink.config import EnvConfig
@@ -18,22 +19,19 @@ from uavlink.policies.manifest import MANIFEST_NAME, PolicyFileError, read_zip_m
 from uavlink.policies.sb3_policy import SB3Policy
 from uavlink.training import TrainConfig, time_to_fraction, train
 
-TINY = dict(n_envs=16, batch_size=512, n_epochs=10)
+pytestmark = pytest.mark.slow  # trains PPO
 
 
-@pytest.fixture(scope="module")
-def tiny_policy(tmp_path_factory) -> Path:
-    """PPO on `straight` for 96 episodes (12k env steps): long enough to learn to follow the UEs."""
-    out = tmp_path_factory.mktemp("policy") / "straight.zip"
-    train(EnvConfig(scenario="straight"), TrainConfig(episodes=96, **TINY), out, None, progress=False)
-    return out
+@pytest.fixture
+def tiny_policy(tiny_policy_zip: Path) -> Path:
+    """The session's tiny `straight` policy (tests/conftest.py)."""
+    return tiny_policy_zip
 
 
-@pytest.mark.slow
-def test_tiny_training_learns_to_follow(tiny_policy: Path) -> None:
+def test_tiny_training_learns_to_follow(tiny_policy: Path, tmp_path: Path) -> None:
     cfg = EnvConfig(scenario="straight")
     learned = evaluate_policy(SB3Policy(tiny_policy), cfg, episodes=32, seed=1)
-    untrained_out = tiny_policy.with_name("untrained.zip")
+    untrained_out = tmp_path / "untrained.zip"
     train(cfg, TrainConfig(episodes=1, n_envs=1, batch_size=64, n_epochs=1), untrained_out, None, progress=False)
     untrained = evaluate_policy(SB3Policy(untrained_out), cfg, episodes=32, seed=1)
     from uavlink.policies.baselines import StaticPolicy
@@ -45,7 +43,6 @@ def test_tiny_training_learns_to_follow(tiny_policy: Path) -> None:
     assert learned.mean_rate_mbps > untrained.mean_rate_mbps + 0.2
 
 
-@pytest.mark.slow
 def test_manifest_round_trip(tiny_policy: Path) -> None:
     manifest = read_zip_manifest(tiny_policy)
     assert manifest["env_config"]["scenario"] == "straight"
@@ -53,7 +50,7 @@ def test_manifest_round_trip(tiny_policy: Path) -> None:
     assert manifest["action_mapping"] == {"r_max_m": 12.0, "kind": "cartesian-v1"}
     assert manifest["observation_layout"]["version"] == 1
     hyper = manifest["training"]["hyperparameters"]
-    assert TrainConfig.from_dict(hyper) == TrainConfig(episodes=96, **TINY)
+    assert TrainConfig.from_dict(hyper) == TrainConfig(**TINY_TRAINING)
     assert hyper["learning_rate"] == 3e-4 and hyper["warm_start"]["teacher"] == ""  # the nested shape
     assert manifest["training"]["total_timesteps"] >= 96 * 128
     assert "torch" in manifest["versions"] and "stable-baselines3" in manifest["versions"]
@@ -61,7 +58,6 @@ def test_manifest_round_trip(tiny_policy: Path) -> None:
     assert beside == manifest
 
 
-@pytest.mark.slow
 def test_layout_mismatch_refused(tiny_policy: Path) -> None:
     policy = SB3Policy(tiny_policy)
     with pytest.raises(ValueError, match=r"policy 'straight' expects v1 \(n_ues=10, memory=4.*env provides v1 \(n_ues=10, memory=2"):
@@ -92,7 +88,6 @@ def test_damaged_policy_file_refused(tiny_policy: Path, tmp_path: Path, damage: 
     assert "Traceback" not in proc.stderr and len(proc.stderr.strip().splitlines()) == 1
 
 
-@pytest.mark.slow
 def test_evaluation_is_deterministic(tiny_policy: Path) -> None:
     cfg = EnvConfig(scenario="straight")
     a = evaluate_policy(SB3Policy(tiny_policy), cfg, episodes=4, seed=7)
@@ -106,14 +101,14 @@ def test_time_to_fraction() -> None:
     assert steps == 4800
 
 
-@pytest.mark.slow
 def test_train_cli_resumes_from_checkpoint(tmp_path: Path) -> None:
     run = tmp_path / "run"
     out = tmp_path / "p.zip"
     base = [sys.executable, "-m", "uavlink.cli", "train", "--scenario", "no_move", "--out", str(out),
             "--n-envs", "4", "--batch-size", "256", "--n-epochs", "1", "--run-dir", str(run),
-            "--no-progress", "--eval-episodes", "2"]
-    first = subprocess.run([*base, "--episodes", "8"], capture_output=True, text=True, timeout=120)
+            "--eval-episodes", "2"]
+    first = subprocess.run([*base, "--episodes", "8", "--no-progress"], capture_output=True, text=True,
+                           timeout=120)
     assert first.returncode == 0, first.stderr
     assert (run / "ppo_1").is_dir(), "TensorBoard logs"
     manifest = read_zip_manifest(out)
@@ -123,10 +118,10 @@ def test_train_cli_resumes_from_checkpoint(tmp_path: Path) -> None:
     second = subprocess.run([*base, "--episodes", "16", "--resume", str(checkpoint)],
                             capture_output=True, text=True, timeout=120)
     assert second.returncode == 0, second.stderr
+    assert "\r" not in second.stderr, "no progress bar when stderr is not a terminal"
     assert read_zip_manifest(out)["training"]["total_timesteps"] == 16 * 128
 
 
-@pytest.mark.slow
 def test_budget_is_in_episodes_of_the_envs_length(tmp_path: Path, capsys) -> None:
     out = tmp_path / "short.zip"
     assert main(["train", "--scenario", "straight", "--set", "episode_frames=16", "--episodes", "4",

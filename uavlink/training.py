@@ -64,7 +64,9 @@ def _callback(total: int, run_dir: Path | None, checkpoint_every: int, progress:
             if progress:
                 from tqdm.auto import tqdm
 
-                self._bar = tqdm(total=total, initial=self.num_timesteps, unit="step", dynamic_ncols=True)
+                # disable=None: no bar when stderr is not a terminal (logs, pipes, CI)
+                self._bar = tqdm(total=total, initial=self.num_timesteps, unit="step", dynamic_ncols=True,
+                                 disable=None)
 
         def _on_step(self) -> bool:
             rates = [i["episode"]["mean_rate_mbps"] for i in self.locals["infos"] if "episode" in i]

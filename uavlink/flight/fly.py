@@ -60,8 +60,11 @@ def run_fly(args: argparse.Namespace) -> int:
     out_dir.mkdir(parents=True, exist_ok=True)
     tlog = out_dir / "flight.tlog"
 
+    # The live line is for a person at a terminal; piped or logged output gets none of its \r frames.
+    live = not (args.quiet or args.json) and sys.stderr.isatty()
+
     def status(frame: int, target: np.ndarray, rate: float | None) -> None:
-        if args.quiet or args.json:
+        if not live:
             return
         rate_text = f"{rate:5.2f} Mbps" if rate is not None else "  --- Mbps"
         print(f"\rframe {frame + 1:4d}/{args.frames}  target E {target[0]:7.1f} N {target[1]:7.1f} m  "
@@ -81,7 +84,7 @@ def run_fly(args: argparse.Namespace) -> int:
             if link.signing is not None and link.signing.rejected_total:
                 log.warning("signing: refused %d packets from the vehicle side (%s)",
                             link.signing.rejected_total, link.signing.stats())
-    if not (args.quiet or args.json):
+    if live:
         print(file=sys.stderr)
     summary = {
         "scenario": args.scenario, "policy": str(args.policy), "seed": args.seed,

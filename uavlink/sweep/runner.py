@@ -247,5 +247,6 @@ def _running(client: Any, remaining: set[Any]) -> int:
 def _bar(total: int, progress: bool) -> Any:
     from tqdm.auto import tqdm
 
-    return tqdm(total=total, unit="job", disable=not progress, dynamic_ncols=True, file=sys.stderr,
-                bar_format="{l_bar}{bar}| {n_fmt}/{total_fmt} done [{elapsed}<{remaining}] {postfix}")
+    # disable=None: no bar when stderr is not a terminal (logs, pipes, CI)
+    return tqdm(total=total, unit="job", disable=None if progress else True, dynamic_ncols=True,
+                file=sys.stderr, bar_format="{l_bar}{bar}| {n_fmt}/{total_fmt} done [{elapsed}<{remaining}] {postfix}")

@@ -1,0 +1,55 @@
+"""Shared test helpers and the tiny trained models, built once per test session.
+
+Two lanes: ``pytest -m "not slow"`` runs the units in about a minute; plain ``pytest`` (``make
+test``) adds every test marked ``slow`` (SITL, MAVSDK, MAVProxy, Dask, training, anything over
+~1.5 s). Helpers are plain functions (``from conftest import run_uavlink``) so that a test reads as
+what it checks; the models are session fixtures so the whole suite trains each of them once.
+"""
+
+from __future__ import annotations
+
+import shutil
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+ROOT = Path(__file__).resolve().parents[1]
+
+# The installed console script, as users run it; `python -m uavlink.cli` where none is installed.
+_SCRIPT = Path(sys.executable).with_name("uavlink")
+UAVLINK = [str(_SCRIPT)] if _SCRIPT.exists() else (
+    [shutil.which("uavlink")] if shutil.which("uavlink") else [sys.executable, "-m", "uavlink.cli"])
+
+
+def run_uavlink(*args: str, timeout: float = 120, cwd: Path | None = ROOT) -> subprocess.CompletedProcess:
+    """Run ``uavlink ARGS`` in a child process, capturing text output (stderr is a pipe, not a TTY)."""
+    return subprocess.run([*UAVLINK, *args], capture_output=True, text=True, timeout=timeout, cwd=cwd)
+
+
+def assert_user_error(proc: subprocess.CompletedProcess, *fragments: str) -> None:
+    """Exit status 2 and exactly one line on stderr, ``uavlink COMMAND: error: ...`` naming the
+    problem (each of ``fragments``), no traceback: what the CLI does with a UserError."""
+    assert proc.returncode == 2, proc.stderr
+    assert "Traceback" not in proc.stderr and "Traceback" not in proc.stdout
+    lines = proc.stderr.strip().splitlines()
+    assert len(lines) == 1, proc.stderr
+    assert lines[0].startswith("uavlink ") and ": error: " in lines[0], lines[0]
+    for fragment in fragments:
+        assert fragment in lines[0]
+
+
+TINY_TRAINING = {"episodes": 96, "n_envs": 16, "batch_size": 512, "n_epochs": 10}  # tiny_policy_zip's
+
+
+@pytest.fixture(scope="session")
+def tiny_policy_zip(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    """PPO on `straight` for 96 episodes (12k env steps, default env): long enough to learn to follow
+    the UEs. Shared by the whole session, so treat it as read-only (copy it before changing it)."""
+    from uavlink.config import EnvConfig
+    from uavlink.training import TrainConfig, train
+
+    out = tmp_path_factory.mktemp("tiny_policy") / "straight.zip"
+    train(EnvConfig(scenario="straight"), TrainConfig(**TINY_TRAINING), out, None, progress=False)
+    return out
