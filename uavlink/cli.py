@@ -97,24 +97,29 @@ def _write_results_folder(args: argparse.Namespace) -> int:
     command = "uavlink " + " ".join(sys.argv[1:]) if sys.argv[1:2] == ["evaluate"] else "uavlink evaluate ..."
     markdown = args.markdown or args.out / "results.md"
 
-    spec = None
-    if args.sweep is not None:  # checked before the long evaluation, which would write the folder
+    if args.spatial is not None and not args.spatial.is_dir():
+        raise UserError(f"--spatial {args.spatial}: not a folder of policies")
+    specs = []
+    if args.sweep:  # checked before the long evaluation, which would write the folder
         from uavlink.sweep.aggregate import finished_rows
         from uavlink.sweep.spec import load_spec
 
-        spec = load_spec(args.sweep)
-        finished_rows(spec, args.sweep_root / spec.name)
+        specs = [load_spec(path) for path in args.sweep]
+        for spec in specs:
+            finished_rows(spec, args.sweep_root / spec.name)
 
-    def sweep_sections(link_prefix: Path) -> list[str]:
-        if spec is None:
-            return []
+    def sweep_sections(link_prefix: Path, shadowing_model: str) -> list[str]:
         from uavlink.sweep.aggregate import results_section
 
-        return [results_section(spec, args.sweep_root / spec.name, args.out, link_prefix), ""]
+        spatial = shadowing_model == "spatial"
+        return [section for spec in specs if spec.jobs()[0].env_config().radio.shadowing_model == shadowing_model
+                for section in (results_section(spec, args.sweep_root / spec.name, args.out, link_prefix,
+                                                f"{args.spatial}/" if spatial else f"{folder}/",
+                                                "###" if spatial else "##"), "")]
 
     path = write_results(folder, args.out, markdown, args.episodes, args.seed, overrides, command,
                          progress=lambda msg: print(f"evaluating {msg}", file=sys.stderr),
-                         extra_sections=sweep_sections)
+                         sweep_sections=sweep_sections, spatial_folder=args.spatial)
     print(path.read_text())
     return 0
 
@@ -261,8 +266,12 @@ def build_parser() -> argparse.ArgumentParser:
                    help="write a results folder (Table I/II as Markdown and CSV, figures); "
                         "needs --scenario all and --policy FOLDER")
     p.add_argument("--markdown", type=Path, default=None, help="where the report goes (default OUT/results.md)")
-    p.add_argument("--sweep", type=Path, default=None,
-                   help="with --out: add the across-seed table of this finished sweep file (e.g. sweeps/table1.toml)")
+    p.add_argument("--sweep", type=Path, action="append", default=[],
+                   help="with --out: add the across-seed table of this finished sweep file (e.g. "
+                        "sweeps/table1.toml; repeat for more; a spatial-channel sweep goes with --spatial)")
+    p.add_argument("--spatial", type=Path, default=None, metavar="FOLDER",
+                   help="with --out: add the spatial-channel tables (radio.shadowing_model=spatial): FOLDER's "
+                        "policies, trained on it, and --policy's flown on it (e.g. policies/spatial)")
     p.add_argument("--sweep-root", type=Path, default=Path("runs"), help="where the sweep's results are (default runs)")
     p.set_defaults(func=cmd_evaluate)
 

@@ -202,14 +202,24 @@ def plot_trajectories(row: ScenarioRow, half_width_m: float, path: Path) -> None
 
 def write_results(policy_folder: Path, out: Path, markdown: Path, episodes: int, seed: int,
                   overrides: EnvOverrides, command: str, progress: Callable[[str], None] = lambda _: None,
-                  extra_sections: Callable[[Path], list[str]] = lambda _: []) -> Path:
+                  sweep_sections: Callable[[Path, str], list[str]] = lambda _, __: [],
+                  spatial_folder: Path | None = None) -> Path:
     """Evaluate everything, then write the folder (nothing is written if an evaluation fails);
-    returns the Markdown path."""
+    returns the Markdown path. ``sweep_sections(link_prefix, shadowing_model)`` gives the
+    across-seed sections of the sweeps on that channel; with ``spatial_folder`` (policies trained on
+    the spatial channel) the report gains its spatial part (``uavlink.report_spatial``)."""
     rows = evaluate_scenarios(policy_folder, episodes, seed, overrides, progress)
     h1, b1 = table_one(rows)
     progress("table II")
     h2, b2 = table_two(policy_folder, episodes, seed, overrides)
+    rel = Path(os.path.relpath(out, markdown.parent))
     out.mkdir(parents=True, exist_ok=True)
+    spatial = []
+    if spatial_folder is not None:
+        from uavlink.report_spatial import spatial_sections
+
+        spatial = spatial_sections(policy_folder, spatial_folder, rows, episodes, seed, overrides, out,
+                                   sweep_sections(rel, "spatial"), progress)
     write_csv(out / "table1.csv", h1, b1)
     write_csv(out / "table2.csv", h2, b2)
     plot_throughput_per_episode(rows, out / "throughput_per_episode.png")
@@ -218,7 +228,6 @@ def write_results(policy_folder: Path, out: Path, markdown: Path, episodes: int,
         plot_trajectories(row, row.cfg.area.half_width_m, out / f"trajectory_{row.scenario}.png")
     raw = {row.scenario: {k: v.to_dict() for k, v in row.results.items()} for row in rows}
     (out / "results.json").write_text(json.dumps(raw, indent=1))
-    rel = Path(os.path.relpath(out, markdown.parent))
     manifests = {s: policy_for_scenario(policy_folder, s).name for s in SCENARIOS}
     text = [
         "# Results",
@@ -236,7 +245,7 @@ def write_results(policy_folder: Path, out: Path, markdown: Path, episodes: int,
         "",
         "Policies: " + ", ".join(f"{s} → `{n}`" for s, n in manifests.items()) + ".",
         "",
-        *extra_sections(rel),
+        *sweep_sections(rel, "ar1"),
         "## Table II — PPO on `straight` under AoA noise",
         "",
         markdown_table(h2, b2),
@@ -255,6 +264,7 @@ def write_results(policy_folder: Path, out: Path, markdown: Path, episodes: int,
         "",
         *[f"![{s}]({rel / f'trajectory_{s}.png'})" for s in SCENARIOS],
         "",
+        *spatial,
     ]
     markdown.write_text("\n".join(text))
     return markdown

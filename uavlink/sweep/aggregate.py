@@ -178,24 +178,27 @@ def finished_rows(spec: SweepSpec, sweep_dir: Path) -> list[SettingRow]:
     return rows
 
 
-def results_section(spec: SweepSpec, sweep_dir: Path, assets: Path, link_prefix: Path) -> str:
+def results_section(spec: SweepSpec, sweep_dir: Path, assets: Path, link_prefix: Path,
+                    shipped_to: str = "policies/", level: str = "##") -> str:
     """Markdown for docs/results.md: the across-seed table of a finished sweep and its figures,
-    copied to ``assets`` (linked as ``link_prefix/<name>``)."""
+    copied to ``assets`` as ``sweep_<sweep name>_<figure>`` (linked as ``link_prefix/<file>``, so several
+    sweeps share one folder); its median seeds are shipped to ``shipped_to``."""
     header, body = summary_table(finished_rows(spec, sweep_dir), list(spec.grid))
     assets.mkdir(parents=True, exist_ok=True)
     figures = []
+    prefix = f"sweep_{spec.name}_"
     for name in ("throughput.png", "learning_curves.png"):
         if (sweep_dir / name).is_file():
-            shutil.copyfile(sweep_dir / name, assets / f"sweep_{name}")
-            figures += [f"![{name[:-4]}]({link_prefix / f'sweep_{name}'})", ""]
+            shutil.copyfile(sweep_dir / name, assets / f"{prefix}{name}")
+            figures += [f"![{name[:-4]}]({link_prefix / f'{prefix}{name}'})", ""]
     first = spec.jobs()[0].train_config()
     return "\n".join([
-        f"## Table I across training seeds (sweep `{spec.name}`)",
+        f"{level} Table I across training seeds (sweep `{spec.name}`)",
         "",
         f"`uavlink sweep` of `{spec.name}` ({len(spec.seeds)} seeds per scenario, {first.episodes:,} "
         f"training episodes each, evaluation on {spec.eval['episodes']} episodes, seed {spec.eval['seed']}). "
         "PPO is the mean over training seeds ± the 95 % Student-t interval across seeds. The policies "
-        "in `policies/` (the single-policy table above) are each scenario's median seed.",
+        f"in `{shipped_to}` (the single-policy table above) are each scenario's median seed.",
         "",
         markdown_table(header, body),
         "",
