@@ -65,13 +65,15 @@ class SpatialShadowField:
 
     def shadow_db(self, uav_xy_m: np.ndarray, ue_xy_m: np.ndarray) -> np.ndarray:
         """Shadowing (N, U, D) in dB of every link, for UAVs (N, D, 2) and UEs (N, U, 2)."""
-        phase = ue_xy_m.astype(np.float32) @ self.ue_wave_per_m  # (N, U, K)
         uav_phase = uav_xy_m.astype(np.float32) @ self.uav_wave_per_m + self.phase_rad  # (N, D, K)
-        if uav_phase.shape[1] == 1:  # one UAV: no (N, U, D, K) temporary, the hot path of training
-            phase += uav_phase
-            phase = phase[:, :, None, :]
+        if uav_phase.shape[1] == 1:
+            # One UAV, the hot path of training: its phase rides in the same matrix product as the
+            # UEs' ([p, 1] @ [w; phase]), with no (N, U, D, K) temporary.
+            ue = np.concatenate([ue_xy_m.astype(np.float32), np.ones((*ue_xy_m.shape[:2], 1), np.float32)], axis=2)
+            phase = (ue @ np.concatenate([self.ue_wave_per_m, uav_phase], axis=1))[:, :, None, :]
         else:
-            phase = phase[:, :, None, :] + uav_phase[:, None, :, :]
+            ue_phase = ue_xy_m.astype(np.float32) @ self.ue_wave_per_m  # (N, U, K)
+            phase = ue_phase[:, :, None, :] + uav_phase[:, None, :, :]
         np.cos(phase, out=phase)
         # A plain sum, not a product with ones: BLAS may round rows differently, and two UAVs over
         # one spot must read the same value.
