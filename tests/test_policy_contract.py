@@ -180,7 +180,9 @@ def test_the_sitl_radio_payload_simulates_the_set_pairs_fly_passes() -> None:
     from sitl_stub.payload import PayloadOptions
     from sitl_stub.radio_payload import RadioPayload
 
-    cfg = POLAR.replace(**{"radio.shadowing": False, "radio.tx_power_dbm": 25.0})
-    args = build_parser().parse_args([arg for pair in changed_settings(cfg) for arg in ("--set", pair)])
-    payload = RadioPayload(PayloadOptions("straight", 5, 0.0, tuple(args.settings)))
-    assert payload.cfg == cfg
+    for changes in ({"radio.shadowing": False, "radio.tx_power_dbm": 25.0},
+                    {"radio.shadowing_model": "spatial"}):  # a spatial-channel policy's embedded SITL
+        cfg = POLAR.replace(**changes)
+        args = build_parser().parse_args([arg for pair in changed_settings(cfg) for arg in ("--set", pair)])
+        payload = RadioPayload(PayloadOptions("straight", 5, 0.0, tuple(args.settings)))
+        assert payload.cfg == cfg
