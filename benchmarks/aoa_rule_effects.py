@@ -62,9 +62,9 @@ class ClonedActor:
 
 
 def clone_of_the_rule(cfg: EnvConfig) -> ClonedActor:
-    from uavlink.config import WarmStartConfig
+    from uavlink.config import TrainConfig, WarmStartConfig
     from uavlink.imitation import warm_start
-    from uavlink.training import TrainConfig, make_model, training_env_config
+    from uavlink.training import make_model, training_env_config
 
     tc = TrainConfig(warm_start=WarmStartConfig(teacher="aoa"), aoa_noise_max_deg=TRAIN_AOA_NOISE_MAX_DEG)
     model = make_model(cfg, tc, None)

@@ -127,9 +127,9 @@ def clone_of(cfg: EnvConfig, pick: dict[str, Any], estimator_episodes: int, teac
     # aoa_rule_effects is a sibling script: benchmarks/ is on the path when this one runs
     from aoa_rule_effects import ClonedActor
 
-    from uavlink.config import WarmStartConfig
+    from uavlink.config import TrainConfig, WarmStartConfig
     from uavlink.imitation import warm_start
-    from uavlink.training import TrainConfig, make_model
+    from uavlink.training import make_model
 
     model = make_model(cfg, TrainConfig(warm_start=WarmStartConfig(teacher="aoa")), None)
     estimator = fit_shadow_estimator(cfg, estimator_episodes, seed=0) if pick["gate_on"] == "estimate" else None

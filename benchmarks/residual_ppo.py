@@ -24,12 +24,11 @@ from typing import Any
 import numpy as np
 from stable_baselines3.common.vec_env import VecEnvWrapper, VecNormalize
 
-from uavlink.config import EnvConfig
+from uavlink.config import EnvConfig, TrainConfig
 from uavlink.env.core import GroundTruth
 from uavlink.env.vec_env import UavVecEnv
 from uavlink.evaluation import evaluate_policy
 from uavlink.policies.baselines import AoaPolicy
-from uavlink.training import TrainConfig
 
 
 def compose(rule_action: np.ndarray, residual: np.ndarray) -> np.ndarray:

@@ -9,12 +9,12 @@ import numpy as np
 import pytest
 
 from uavlink.cli import main
-from uavlink.config import EnvConfig
+from uavlink.config import EnvConfig, TrainConfig
 from uavlink.imitation import clone_actor, teacher_dataset
 from uavlink.policies.baselines import AoaPolicy, make_baseline
 from uavlink.policies.manifest import read_zip_manifest
 from uavlink.teachers import AoaVariant, make_teacher
-from uavlink.training import TrainConfig, make_model
+from uavlink.training import make_model
 
 CFG = EnvConfig(scenario="hotspot")
 

@@ -15,8 +15,7 @@ import numpy as np
 
 from uavlink.config import PAPER_HYPERPARAMETERS, EnvConfig, TrainConfig
 
-__all__ = ["PAPER_HYPERPARAMETERS", "TrainConfig", "make_model", "time_to_fraction", "train",
-           "training_env_config"]
+__all__ = ["make_model", "time_to_fraction", "train", "training_env_config"]
 
 
 def training_env_config(cfg: EnvConfig, tc: TrainConfig) -> EnvConfig:
