@@ -128,10 +128,10 @@ def test_version():
 def test_results_folder_has_the_tables_and_figures_and_is_reproducible(tmp_path):
     root = Path(__file__).resolve().parents[1]
     runs = []
-    for name in ("a", "b"):
+    for name, extra in (("a", ()), ("b", ("--spatial", str(root / "policies")))):
         out = tmp_path / name
         proc = uavlink("evaluate", "--scenario", "all", "--policy", str(root / "policies"), "--episodes", "3",
-                       "--seed", "0", "--out", str(out))
+                       "--seed", "0", "--out", str(out), *extra)
         assert proc.returncode == 0, proc.stderr[-2000:]
         runs.append(out)
     a, b = runs
@@ -144,31 +144,28 @@ def test_results_folder_has_the_tables_and_figures_and_is_reproducible(tmp_path)
         assert (a / figure).read_bytes()[:8] == b"\x89PNG\r\n\x1a\n", figure
     markdown = (a / "results.md").read_text()
     assert "--episodes 3" in markdown and all(f"]({figure})" in markdown for figure in figures)
-    # seeded: the same command gives the same tables and raw results
+    # seeded: the same command gives the same tables and raw results (the spatial part of b adds to them)
     for name in ("table1.csv", "table2.csv", "results.json"):
         assert (a / name).read_bytes() == (b / name).read_bytes(), name
-
-
-@pytest.mark.slow
-def test_results_folder_with_the_spatial_channel_part(tmp_path):
-    """--spatial adds the spatial Table I, Table II and the transfer table. Given the AR(1) folder as
-    the "spatial" one, the two spatial columns of the transfer table fly the same policies on the same
-    channel and must agree, while the spatial Table I differs from the AR(1) one."""
-    root = Path(__file__).resolve().parents[1]
-    out = tmp_path / "results"
-    proc = uavlink("evaluate", "--scenario", "all", "--policy", str(root / "policies"), "--episodes", "2",
-                   "--seed", "0", "--out", str(out), "--spatial", str(root / "policies"))
-    assert proc.returncode == 0, proc.stderr[-2000:]
-    spatial = (out / "table1_spatial.csv").read_text().splitlines()
-    assert len(spatial) == 1 + len(SCENARIOS) and spatial != (out / "table1.csv").read_text().splitlines()
-    assert len((out / "table2_spatial.csv").read_text().splitlines()) == 1 + 6
-    transfer = list(csv.reader((out / "transfer_spatial.csv").open()))
+    # --spatial: given the AR(1) folder as the "spatial" one, the transfer table's two spatial columns
+    # fly the same policies on the same channel and must agree; the spatial Table I is another channel's.
+    spatial = (b / "table1_spatial.csv").read_text().splitlines()
+    assert len(spatial) == 1 + len(SCENARIOS) and spatial != table1
+    assert len((b / "table2_spatial.csv").read_text().splitlines()) == 1 + 6
+    transfer = list(csv.reader((b / "transfer_spatial.csv").open()))
     assert [row[0] for row in transfer[1:]] == list(SCENARIOS)
     assert all(row[3:5] == row[5:7] for row in transfer[1:])
-    markdown = (out / "results.md").read_text()
-    assert "## On the spatial channel" in markdown and "### What survives" in markdown
+    spatial_markdown = (b / "results.md").read_text()
+    assert "## On the spatial channel" in spatial_markdown and "### What survives" in spatial_markdown
+    assert "## On the spatial channel" not in markdown
+
+
+def test_results_folder_refuses_a_missing_spatial_folder_before_evaluating(tmp_path):
+    root = Path(__file__).resolve().parents[1]
+    out = tmp_path / "results"
     assert_user_error(uavlink("evaluate", "--scenario", "all", "--policy", str(root / "policies"), "--out",
-                              str(tmp_path / "x"), "--spatial", str(tmp_path / "missing")), "--spatial")
+                              str(out), "--spatial", str(tmp_path / "missing")), "--spatial")
+    assert not out.exists()
 
 
 @pytest.mark.slow
