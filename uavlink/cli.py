@@ -11,9 +11,8 @@ import json
 import sys
 from collections.abc import Sequence
 from pathlib import Path
-from typing import Any
 
-from uavlink.config import MIXED, SCENARIOS, EnvConfig, parse_settings
+from uavlink.config import MIXED, SCENARIOS, EnvConfig
 from uavlink.errors import UserError
 from uavlink.policies.contract import (
     BUILT_FOR,
@@ -22,17 +21,6 @@ from uavlink.policies.contract import (
     apply_overrides,
     load_with_env,
 )
-
-
-def env_config(scenario: str, aoa_noise_deg: float | None = None, overrides: dict[str, Any] | None = None,
-               base: EnvConfig | None = None) -> EnvConfig:
-    """``base`` (default: the defaults) with the command line's overrides, validated."""
-    return apply_overrides(base or EnvConfig(), EnvOverrides(scenario, aoa_noise_deg, overrides or {}))
-
-
-def env_overrides(args: argparse.Namespace, scenario: str | None = None) -> EnvOverrides:
-    """The explicit env overrides of a command line (``--scenario``, ``--aoa-noise-deg``, ``--set``)."""
-    return EnvOverrides(scenario, args.aoa_noise_deg, parse_settings(args.overrides))
 
 
 def scenario_list(name: str) -> list[str]:
@@ -65,7 +53,7 @@ def cmd_evaluate(args: argparse.Namespace) -> int:
             raise UserError("--against compares two policies in a table; it does not go with --out")
         return _write_results_folder(args)
     results, comparisons = [], []
-    overrides = env_overrides(args)
+    overrides = EnvOverrides.from_command_line(None, args.aoa_noise_deg, args.overrides)
     specs = [args.policy] if args.against is None else [args.policy, args.against]
     for scenario in scenario_list(args.scenario):
         flown = [evaluate_policy(policy, cfg, args.episodes, args.seed)
@@ -92,7 +80,7 @@ def _write_results_folder(args: argparse.Namespace) -> int:
     folder = Path(args.policy)
     if args.scenario != "all" or not folder.is_dir():
         raise UserError("--out needs --scenario all and --policy FOLDER (one policy file per scenario)")
-    overrides = env_overrides(args)
+    overrides = EnvOverrides.from_command_line(None, args.aoa_noise_deg, args.overrides)
     apply_overrides(EnvConfig(), overrides.on("no_move"))  # a bad --set fails before the long run
     command = "uavlink " + " ".join(sys.argv[1:]) if sys.argv[1:2] == ["evaluate"] else "uavlink evaluate ..."
     markdown = args.markdown or args.out / "results.md"
@@ -137,7 +125,7 @@ def cmd_train(args: argparse.Namespace) -> int:
     from uavlink.config.fields import flag_of, from_options
     from uavlink.training import train
 
-    cfg = env_config(args.scenario, args.aoa_noise_deg, parse_settings(args.overrides))
+    cfg = apply_overrides(EnvConfig(), EnvOverrides.from_command_line(args.scenario, args.aoa_noise_deg, args.overrides))
     tc = from_options(TrainConfig, args).validate(cfg, name=lambda path: flag_of(TrainConfig, path))
     if args.eval_episodes < 0:
         raise UserError(f"--eval-episodes must be >= 0 (0: skip), got {args.eval_episodes}")

@@ -145,30 +145,28 @@ class EnvConfig:
         top: dict[str, Any] = {}
         nested: dict[str, dict[str, Any]] = {"radio": {}, "area": {}}
         for key, value in changes.items():
+            if key not in _field_names(EnvConfig):  # a bare radio or area field reaches its config
+                key = next((f"{head}.{key}" for head, cls in (("radio", RadioConfig), ("area", AreaConfig))
+                            if key in _field_names(cls)), key)
             head, _, tail = key.partition(".")
-            if tail:
-                if head not in nested:
-                    raise ConfigError(f"unknown config key {key!r}")
+            if tail:  # coerce refuses a key no config has, naming it
                 nested[head][tail] = coerce(EnvConfig, key, value, key)
-            elif key in _field_names(EnvConfig):
-                top[key] = value if dataclasses.is_dataclass(value) else coerce(EnvConfig, key, value, key)
-            elif key in _field_names(RadioConfig):
-                nested["radio"][key] = coerce(RadioConfig, key, value, f"radio.{key}")
-            elif key in _field_names(AreaConfig):
-                nested["area"][key] = coerce(AreaConfig, key, value, f"area.{key}")
             else:
-                raise ConfigError(f"unknown config key {key!r}")
+                top[key] = value if dataclasses.is_dataclass(value) else coerce(EnvConfig, key, value, key)
         for head, sub in nested.items():
             if sub:
-                current = top.get(head, getattr(self, head))
-                unknown = set(sub) - _field_names(type(current))
-                if unknown:
-                    raise ConfigError(f"unknown config key {head}.{sorted(unknown)[0]}")
-                top[head] = dataclasses.replace(current, **sub)
+                top[head] = dataclasses.replace(top.get(head, getattr(self, head)), **sub)
         return dataclasses.replace(self, **top)
 
     def to_dict(self) -> dict[str, Any]:
         return dataclasses.asdict(self)
+
+    def to_flat_dict(self) -> dict[str, Any]:
+        """Every field by its ``replace`` key: ``scenario``, ``radio.shadowing``, ``area.half_width_m``."""
+        flat: dict[str, Any] = {}
+        for key, value in self.to_dict().items():
+            flat.update({f"{key}.{k}": v for k, v in value.items()} if isinstance(value, dict) else {key: value})
+        return flat
 
     @classmethod
     def from_dict(cls, data: dict[str, Any]) -> EnvConfig:
@@ -195,14 +193,8 @@ def parse_settings(pairs: Sequence[str]) -> dict[str, Any]:
 def changed_settings(cfg: EnvConfig, base: EnvConfig | None = None) -> list[str]:
     """``cfg``'s fields that differ from ``base`` (default: the defaults) as ``KEY=JSON`` pairs for
     ``--set`` (``radio.x`` / ``area.x`` for nested ones); ``parse_settings`` reads them back exactly."""
-    ref = (base or EnvConfig()).to_dict()
-    pairs = []
-    for key, value in cfg.to_dict().items():
-        nested = value if isinstance(value, dict) else {None: value}
-        was = ref[key] if isinstance(value, dict) else {None: ref[key]}
-        pairs += [f"{key if sub is None else f'{key}.{sub}'}={json.dumps(v)}"
-                  for sub, v in nested.items() if v != was[sub]]
-    return pairs
+    ref = (base or EnvConfig()).to_flat_dict()
+    return [f"{key}={json.dumps(value)}" for key, value in cfg.to_flat_dict().items() if value != ref[key]]
 
 
 def _field_names(cls: type) -> set[str]:

@@ -13,7 +13,7 @@ from pathlib import Path
 
 import numpy as np
 
-from uavlink.config import changed_settings, parse_settings
+from uavlink.config import changed_settings
 from uavlink.errors import UserError
 from uavlink.mavlink.connection import free_udp_port, normalize_connection
 from uavlink.policies.contract import OVERRIDES_HELP, EnvOverrides, load_with_env
@@ -51,7 +51,7 @@ def run_fly(args: argparse.Namespace) -> int:
             normalize_connection(args.connect)
         except ValueError as exc:
             raise UserError(str(exc)) from None
-    overrides = EnvOverrides(args.scenario, args.aoa_noise_deg, parse_settings(args.overrides))
+    overrides = EnvOverrides.from_command_line(args.scenario, args.aoa_noise_deg, args.overrides)
     [(policy, cfg)] = load_with_env([args.policy], overrides)
     if policy.needs_truth:
         raise UserError("the oracle needs UE positions (GPS) and cannot fly; use a policy file, aoa or static")

@@ -23,10 +23,9 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
-from uavlink.config import EnvConfig
-from uavlink.env.actions import ActionMapping
+from uavlink.config import EnvConfig, parse_settings
 from uavlink.env.observation import ObservationLayout
-from uavlink.errors import ConfigError, UserError
+from uavlink.errors import UserError
 from uavlink.policies.base import Policy
 from uavlink.policies.baselines import BASELINES
 from uavlink.policies.loader import load_policy, policy_for_scenario
@@ -53,6 +52,12 @@ class EnvOverrides:
     aoa_noise_deg: float | None = None
     settings: Mapping[str, Any] = field(default_factory=dict)
 
+    @classmethod
+    def from_command_line(cls, scenario: str | None, aoa_noise_deg: float | None,
+                          set_pairs: Sequence[str]) -> EnvOverrides:
+        """``--scenario``, ``--aoa-noise-deg`` and the ``--set KEY=VALUE`` pairs of a command line."""
+        return cls(scenario, aoa_noise_deg, parse_settings(set_pairs))
+
     def on(self, scenario: str) -> EnvOverrides:
         """The same overrides on another scenario."""
         return EnvOverrides(scenario, self.aoa_noise_deg, self.settings)
@@ -76,21 +81,17 @@ def manifest_env(manifest: Mapping[str, Any] | None) -> EnvConfig:
 
 
 def apply_overrides(base: EnvConfig, overrides: EnvOverrides, built_for: str | None = None) -> EnvConfig:
-    """``base`` with ``overrides`` on top, validated. With ``built_for`` (the policy file's name),
-    an override that changes a ``BUILT_FOR`` field is refused naming both values."""
+    """``base`` with ``overrides`` on top, validated (a bad key or value is a one-line
+    ``ConfigError``). With ``built_for`` (the policy file's name), an override that changes a
+    ``BUILT_FOR`` field is refused naming both values."""
     changes = overrides.changes()
-    try:
-        cfg = base.replace(**changes).validate()
-        ActionMapping.for_config(cfg)
-    except ConfigError:
-        raise
-    except (TypeError, ValueError) as exc:  # e.g. a string for a number: validate()'s int() fails
-        raise ConfigError(str(exc)) from None
+    cfg = base.replace(**changes).validate()
     if built_for is not None:
+        ours, theirs = base.to_flat_dict(), cfg.to_flat_dict()
         for path in BUILT_FOR:
-            if _get(cfg, path) != _get(base, path):
+            if theirs[path] != ours[path]:
                 key = next((k for k in changes if k == path or k == path.rpartition(".")[2]), path)
-                raise UserError(f"policy {built_for} was built for {path}={_get(base, path)!r}; "
+                raise UserError(f"policy {built_for} was built for {path}={ours[path]!r}; "
                                 f"--set {key}={changes.get(key)} conflicts (drop the --set)")
     return cfg
 
@@ -138,21 +139,9 @@ def load_with_env(specs: Sequence[str | Path], overrides: EnvOverrides) -> list[
 
 def _check_same_world(first: str | None, world: EnvConfig, spec: str, cfg: EnvConfig) -> None:
     """Compared policies may differ in ``PER_POLICY`` fields only."""
-    ours = _flat(world)
-    theirs = _flat(cfg.replace(**{key: ours[key] for key in PER_POLICY}))
+    ours = world.to_flat_dict()
+    theirs = cfg.replace(**{key: ours[key] for key in PER_POLICY}).to_flat_dict()
     key = next((k for k, v in theirs.items() if ours[k] != v), None)
     if key is not None:
         raise UserError(f"{first} and {spec} were built for different envs ({key}={ours[key]!r} vs "
                         f"{theirs[key]!r}); they cannot be compared on the same episodes")
-
-
-def _flat(cfg: EnvConfig) -> dict[str, Any]:
-    out: dict[str, Any] = {}
-    for key, value in cfg.to_dict().items():
-        out.update({f"{key}.{k}": v for k, v in value.items()} if isinstance(value, dict) else {key: value})
-    return out
-
-
-def _get(cfg: EnvConfig, path: str) -> Any:
-    head, _, tail = path.partition(".")
-    return getattr(getattr(cfg, head), tail) if tail else getattr(cfg, head)
