@@ -6,7 +6,8 @@ order, declared once with their encoding, decoding and bounds (newest frame firs
   sin and cos of the circular-mean AoA; circular std of the AoAs (radians / pi, at most 2).
 Never UE positions. A fleet's UAV (layout v2, ``n_uavs`` > 1) sees the same fields from where it
 is (every UE's uplink reference signal as it hears it) plus what the fleet shares over its own
-links (``FLEET_FIELDS``): the other UAVs' positions and which UAV serves each UE, numbered from the
+links (``FLEET_FIELDS``): the other UAVs' positions, the AoA statistics of the UEs it serves (its
+cell; (0, 0) and the largest std for an empty cell) and which UAV serves each UE, numbered from the
 observing UAV (0 = itself, then the next ones in fleet order), so every UAV has the same layout and
 one policy serves them all. The layout is versioned and saved with every policy; the frame's size,
 the feature names, the bounds, the slices and the decoders all follow from the tables, so adding a
@@ -75,8 +76,7 @@ FIELDS: tuple[Field, ...] = (
           decode=lambda layout, x: x * layout.sinr_scale_db + layout.sinr_offset_db,
           bounds=_sinr_bounds),
     Field("aoa_mean_deg", ("aoa_mean_sin", "aoa_mean_cos"),
-          encode=lambda layout, q: np.stack([np.sin(np.radians(q["aoa_mean_deg"])),
-                                             np.cos(np.radians(q["aoa_mean_deg"]))], axis=1),
+          encode=lambda layout, q: _unit_vector(q["aoa_mean_deg"]),
           decode=lambda layout, x: np.degrees(np.arctan2(x[..., 0], x[..., 1])),
           bounds=lambda layout: (-1.0, 1.0)),
     Field("aoa_std_deg", ("aoa_std",),
@@ -86,11 +86,25 @@ FIELDS: tuple[Field, ...] = (
 )
 
 
+def _unit_vector(angle_deg: np.ndarray) -> np.ndarray:
+    """(sin, cos) of angles (N,) -> (N, 2); an undefined (NaN) angle, an empty cell's, is (0, 0)."""
+    rad = np.radians(angle_deg)
+    return np.nan_to_num(np.stack([np.sin(rad), np.cos(rad)], axis=1))
+
+
 FLEET_FIELDS: tuple[Field, ...] = (
     Field("others_xy_m", ("other_x", "other_y"), per="other_uav",
           encode=lambda layout, q: q["others_xy_m"].reshape(len(q["others_xy_m"]), -1) / layout.half_width_m,
           decode=lambda layout, x: x.reshape(*x.shape[:-1], -1, 2) * layout.half_width_m,
           bounds=lambda layout: (-1.0, 1.0)),
+    Field("cell_aoa_mean_deg", ("cell_aoa_mean_sin", "cell_aoa_mean_cos"),
+          encode=lambda layout, q: _unit_vector(q["cell_aoa_mean_deg"]),
+          decode=lambda layout, x: np.degrees(np.arctan2(x[..., 0], x[..., 1])),
+          bounds=lambda layout: (-1.0, 1.0)),
+    Field("cell_aoa_std_deg", ("cell_aoa_std",),
+          encode=lambda layout, q: np.minimum(np.radians(q["cell_aoa_std_deg"]), layout.aoa_std_max_rad)[:, None] / np.pi,
+          decode=lambda layout, x: np.degrees(x[..., 0] * np.pi),
+          bounds=lambda layout: (0.0, layout.aoa_std_max_rad / np.pi)),
     Field("served_by", ("served_by",), per="ue_uav",
           encode=lambda layout, q: (q["served_by"][..., None] == np.arange(layout.n_uavs)).reshape(
               len(q["served_by"]), -1).astype(np.float32),
@@ -199,6 +213,9 @@ class ObservationLayout:
         aoa_mean_deg, aoa_std_deg = circular_mean_std_deg(aoa_deg)
         quantities = {"uav_xy_m": uav_xy_m, "sinr_db": sinr_db, "aoa_mean_deg": aoa_mean_deg,
                       "aoa_std_deg": aoa_std_deg, **fleet}
+        if fleet:  # the AoA statistics of the UEs this UAV serves (undefined for an empty cell)
+            quantities["cell_aoa_mean_deg"], quantities["cell_aoa_std_deg"] = circular_mean_std_deg(
+                aoa_deg, mask=fleet["served_by"] == 0)
         return np.concatenate([field.encode(self, quantities) for field in self.fields], axis=1)
 
     def frames(self, obs: np.ndarray) -> np.ndarray:
