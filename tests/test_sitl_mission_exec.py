@@ -25,8 +25,10 @@ from sitl_stub.mission_store import FENCE, MISSION, RALLY, MissionItem, MissionS
 from sitl_stub.modes import FlightMode
 from sitl_stub.params import ParamStore
 from sitl_stub.rtl import NAV_RALLY_POINT
+from sitl_stub.telemetry import TelemetrySender
 from sitl_stub.vehicle import Vehicle
 from sitl_stub.vehicle_state import Result
+from uavlink.mavlink.dialect import mavlink
 
 pytestmark = pytest.mark.timeout(120)
 
@@ -284,3 +286,32 @@ def test_gf_action_variants(action, mode, announced):
         assert v.state().fence_breached == (action == 1)
     if action in (4, 5):
         assert v.state().max_abs_xy_m <= 100.0 and v.pos[2] > -15.0  # landing inside the fence
+
+
+def test_sys_status_and_mission_current_report_the_vehicle_state():
+    """SYS_STATUS clears the geofence health bit while breached; MISSION_CURRENT carries the
+    executor's (seq, total, state, mode)."""
+    f = airborne(20.0, GF_ACTION=1)
+    v = f.v
+    square_fence(v, 30.0)
+    v.plans.replace(MISSION, (item(0, NAV_WAYPOINT, 60.0, 0.0, 20.0),))
+    assert v.set_mode(FlightMode.MISSION).ok
+    f.run_until(lambda: v.state().fence_breached, 60.0)
+    sent: list = []
+    parser = mavlink.MAVLink(None)
+
+    class Capture:
+        def write(self, buf: bytes) -> None:
+            sent.extend(parser.parse_buffer(bytes(buf)) or [])
+
+    telemetry = TelemetrySender(mavlink.MAVLink(Capture(), srcSystem=1, srcComponent=1), HOME)
+    s = v.state()
+    telemetry.send("SYS_STATUS", s)
+    telemetry.send("MISSION_CURRENT", s)
+    telemetry.mission_item_reached(7)
+    status, current, reached = sent
+    assert status.onboard_control_sensors_present & mavlink.MAV_SYS_STATUS_GEOFENCE
+    assert not status.onboard_control_sensors_health & mavlink.MAV_SYS_STATUS_GEOFENCE
+    assert (current.seq, current.total, current.mission_state, current.mission_mode) == (
+        0, 1, mavlink.MISSION_STATE_ACTIVE, 1)
+    assert reached.seq == 7
