@@ -88,6 +88,14 @@ def airborne(alt: float = 20.0, **params: float) -> Flight:
     return f
 
 
+def flying_mission(*items: MissionItem, **params: float) -> Flight:
+    """Airborne at 20 m, ``items`` stored as the mission and AUTO.MISSION entered."""
+    f = airborne(20.0, **params)
+    f.v.plans.replace(MISSION, items)
+    assert f.v.set_mode(FlightMode.MISSION).ok
+    return f
+
+
 def test_takeoff_three_waypoints_with_hold_and_land():
     v = vehicle()
     v.plans.replace(MISSION, (
@@ -128,40 +136,32 @@ def test_acceptance_radius_zero_means_nav_acc_rad_and_the_mission_ends_holding()
 
 
 def test_change_speed_sets_the_cruise_speed():
-    f = airborne(20.0)
-    v = f.v
-    v.plans.replace(MISSION, (
+    f = flying_mission(
         item(0, DO_CHANGE_SPEED, p1=1.0, p2=2.0, frame=2),
         item(1, NAV_WAYPOINT, 100.0, 0.0, 20.0, p2=1.0),
-    ))
-    assert v.set_mode(FlightMode.MISSION).ok
+    )
     f.run_until(lambda: 1 in f.seqs, 120.0)
     assert f.seqs == [0, 1]
     assert f.max_speed == pytest.approx(2.0, abs=0.05)
 
 
 def test_jump_repeats_its_target_then_goes_on():
-    f = airborne(20.0)
-    v = f.v
-    v.plans.replace(MISSION, (
+    f = flying_mission(
         item(0, NAV_WAYPOINT, 30.0, 0.0, 20.0, p2=1.0),
         item(1, NAV_WAYPOINT, 30.0, 30.0, 20.0, p2=1.0),
         item(2, DO_JUMP, p1=0.0, p2=2.0, frame=2),  # back to 0, twice
         item(3, NAV_WAYPOINT, 0.0, 0.0, 20.0, p2=1.0),
-    ))
-    assert v.set_mode(FlightMode.MISSION).ok
+    )
     f.run_until(lambda: 3 in f.seqs, 400.0)
     assert f.seqs == [0, 1, 0, 1, 0, 1, 3]  # DO_JUMP itself is never "reached"
 
 
 def test_pause_holds_and_resume_continues_at_the_current_item():
-    f = airborne(20.0)
-    v = f.v
-    v.plans.replace(MISSION, (
+    f = flying_mission(
         item(0, NAV_WAYPOINT, 20.0, 0.0, 20.0, p2=1.0),
         item(1, NAV_WAYPOINT, 150.0, 0.0, 20.0, p2=1.0),
-    ))
-    assert v.set_mode(FlightMode.MISSION).ok
+    )
+    v = f.v
     f.run_until(lambda: v.pos[0] > 60.0, 120.0)
     assert v.set_mode(FlightMode.LOITER).ok  # MAVSDK pause_mission: DO_SET_MODE hold
     for _ in range(150):
