@@ -297,7 +297,7 @@ class Vehicle:
         p = self.params
         xy = p["MPC_XY_VEL_MAX"]
         up, down = p["MPC_Z_VEL_MAX_UP"], p["MPC_Z_VEL_MAX_DN"]
-        leg = self._mission_leg()
+        leg = self._leg if self.mode is FlightMode.MISSION else None
         if self.mode is FlightMode.TAKEOFF or (leg is not None and leg.takeoff):
             up = min(up, p["MPC_TKO_SPEED"])
         if self._landing() and -self.pos[2] <= p["MPC_LAND_ALT2"]:
@@ -308,13 +308,9 @@ class Vehicle:
             xy = min(xy, leg.speed_mps or p["MPC_XY_CRUISE"])
         return xy, up, down
 
-    def _mission_leg(self) -> Leg | None:
-        return self._leg if self.mode is FlightMode.MISSION else None
-
     def _landing(self) -> bool:
-        leg = self._mission_leg()
-        return (self.mode is FlightMode.LAND or (leg is not None and leg.landing)
-                or (self.mode is FlightMode.RTL and self._rtl.landing))
+        return (self.mode is FlightMode.LAND or (self.mode is FlightMode.RTL and self._rtl.landing)
+                or (self.mode is FlightMode.MISSION and self._leg is not None and self._leg.landing))
 
     def _control(self, h: float) -> None:
         limits = self._limits()
