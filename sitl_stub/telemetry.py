@@ -66,6 +66,7 @@ class TelemetrySender:
             "ATTITUDE_QUATERNION": self.attitude_quaternion,
             "VFR_HUD": self.vfr_hud,
             "AUTOPILOT_VERSION": self.autopilot_version,
+            "MISSION_CURRENT": self.mission_current,
         }
 
     def names(self) -> list[str]:
@@ -84,7 +85,8 @@ class TelemetrySender:
                                 base_mode(s), s.mode.custom_mode, status)
 
     def sys_status(self, s: VehicleState) -> None:
-        self.mav.sys_status_send(SENSORS, SENSORS, SENSORS, 200, 16200, -1, 100,
+        health = SENSORS & ~mavlink.MAV_SYS_STATUS_GEOFENCE if s.fence_breached else SENSORS
+        self.mav.sys_status_send(SENSORS, SENSORS, health, 200, 16200, -1, 100,
                                  0, 0, 0, 0, 0, 0)
 
     def extended_sys_state(self, s: VehicleState) -> None:
@@ -132,6 +134,13 @@ class TelemetrySender:
     def autopilot_version(self, s: VehicleState) -> None:
         self.mav.autopilot_version_send(CAPABILITIES, FLIGHT_SW_VERSION, 0, 0, 0,
                                         [0] * 8, [0] * 8, [0] * 8, 0, 0, UID)
+
+    def mission_current(self, s: VehicleState) -> None:
+        """MISSION_CURRENT as PX4 streams it: seq, total, mission_state, mission_mode."""
+        self.mav.mission_current_send(*s.mission_current)
+
+    def mission_item_reached(self, seq: int) -> None:
+        self.mav.mission_item_reached_send(seq)
 
     def statustext(self, severity: int, text: str) -> None:
         self.mav.statustext_send(severity, text[:50].encode("ascii", "replace"))

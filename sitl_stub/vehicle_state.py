@@ -71,6 +71,8 @@ class VehicleState:
     offboard_failsafes: int
     max_abs_xy_m: float = 0.0
     max_offboard_setpoint_age_s: float = 0.0
+    fence_breached: bool = False
+    mission_current: tuple[int, int, int, int] = (0, 0, 1, 0)  # MISSION_CURRENT seq, total, state, mode
 
     @property
     def x_east_m(self) -> float:
