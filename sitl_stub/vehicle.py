@@ -22,6 +22,7 @@ from __future__ import annotations
 import math
 from collections import deque
 
+from sitl_stub.mission_store import MissionStore
 from sitl_stub.modes import FlightMode, LandedState
 from sitl_stub.params import ParamStore
 from sitl_stub.position_control import GROUND_EPS_M, fall, stopping_point, tilt, track, turn, wrap
@@ -45,8 +46,10 @@ MAX_ALTITUDE_M = 500.0  # vertical fence: setpoints above are clamped (= the alt
 class Vehicle:
     """The multicopter. Starts disarmed on the ground at home in AUTO.LOITER."""
 
-    def __init__(self, params: ParamStore | None = None, area: AreaConfig | None = None) -> None:
+    def __init__(self, params: ParamStore | None = None, area: AreaConfig | None = None,
+                 plans: MissionStore | None = None) -> None:
         self.params = params if params is not None else ParamStore()
+        self.plans = plans if plans is not None else MissionStore()
         self.fence_m = (area or AreaConfig()).half_width_m
         self.t = 0.0
         self.pos = [0.0, 0.0, 0.0]
