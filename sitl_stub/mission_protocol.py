@@ -25,9 +25,10 @@ For mission_type MISSION, FENCE and RALLY, one transfer at a time per link:
 Legacy MISSION_ITEM / MISSION_REQUEST (float x/y) are served as PX4 serves them: the vehicle
 switches to the float messages for the rest of the transfer. Differences from PX4: when an upload
 times out the vehicle also sends MISSION_ACK OPERATION_CANCELLED (mavlink.io's advice; PX4 only
-sends the STATUSTEXT), and a download whose items were all sent ends quietly without the GCS's ACK
-(MAVProxy sends none) rather than with "Operation timeout". Replies go out on ``mav``, the link the
-request came on.
+sends the STATUSTEXT); a download whose items were all sent ends quietly without the GCS's ACK
+(MAVProxy sends none) rather than with "Operation timeout", and it blocks no other request (PX4
+lets only a new MISSION_REQUEST_LIST through, so MAVProxy's ``wp list`` then ``fence load`` would
+meet "Busy" for 5 s). Replies go out on ``mav``, the link the request came on.
 """
 
 from __future__ import annotations
@@ -154,6 +155,9 @@ class MissionProtocol:
         if handler is None or getattr(msg, "target_system", None) != self.system_id \
                 or msg.target_component not in self.component_ids:
             return False
+        if (self.state is State.SENDLIST and self.transfer_seq >= self.transfer_count
+                and kind not in ("MISSION_REQUEST", "MISSION_REQUEST_INT", "MISSION_ACK")):
+            self._idle()  # a finished download whose ACK never came (MAVProxy sends none)
         handler(self, msg, (msg.get_srcSystem(), msg.get_srcComponent()), wall)
         return True
 
@@ -265,8 +269,6 @@ class MissionProtocol:
 
     # ---------------------------------------------------------------------------- download
     def _on_request_list(self, msg: Any, src: tuple[int, int], wall: float) -> None:
-        if self.state is State.SENDLIST and self.transfer_seq >= self.transfer_count:
-            self._idle()  # all sent, the ACK never came (a quick reconnect, MAVProxy)
         same = (self.state is State.SENDLIST and msg.mission_type == self.mission_type
                 and src == self.partner)
         if self.state is not State.IDLE and not same:

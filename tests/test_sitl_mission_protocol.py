@@ -252,6 +252,13 @@ def test_download_request_from_another_gcs_while_busy_is_ignored():
     for i in range(2):
         h.send("mission_request_int", 1, 1, i, FENCE)
     assert kinds(h.send("mission_request_list", 1, 1, RALLY, src=(246, 190))) == ["MISSION_COUNT"]
+    h.send("mission_request_list", 1, 1, FENCE)
+    for i in range(2):
+        h.send("mission_request_int", 1, 1, i, FENCE)
+    again = h.send("mission_request_int", 1, 1, 1, FENCE)  # the last item asked for again
+    assert kinds(again) == ["MISSION_ITEM_INT"]
+    # and an upload right after it is served too (MAVProxy's `wp list`, then `fence load`)
+    assert kinds(h.send("mission_count", 1, 1, 1, RALLY)) == ["MISSION_REQUEST_INT"]
 
 
 def test_clear_all_and_set_current():
