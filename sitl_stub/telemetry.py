@@ -32,6 +32,10 @@ CAPABILITIES = (
     mavlink.MAV_PROTOCOL_CAPABILITY_MAVLINK2 | mavlink.MAV_PROTOCOL_CAPABILITY_COMMAND_INT
     | mavlink.MAV_PROTOCOL_CAPABILITY_PARAM_ENCODE_BYTEWISE
     | mavlink.MAV_PROTOCOL_CAPABILITY_SET_POSITION_TARGET_LOCAL_NED
+    # the mission protocol (sitl_stub.mission_protocol): MAVSDK's mission_raw wants MISSION_INT,
+    # QGroundControl downloads fence and rally only when these say so
+    | mavlink.MAV_PROTOCOL_CAPABILITY_MISSION_FLOAT | mavlink.MAV_PROTOCOL_CAPABILITY_MISSION_INT
+    | mavlink.MAV_PROTOCOL_CAPABILITY_MISSION_FENCE | mavlink.MAV_PROTOCOL_CAPABILITY_MISSION_RALLY
 )
 FLIGHT_SW_VERSION = 1 << 24 | 14 << 16 | 0 << 8 | 255  # "v1.14.0 official", PX4's encoding
 UID = int.from_bytes(b"SITLSTUB", "big")
