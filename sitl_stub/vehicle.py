@@ -22,6 +22,8 @@ from __future__ import annotations
 import math
 from collections import deque
 
+from sitl_stub.failures import FailureState
+from sitl_stub.guidance import ControlCommand, Guidance, Motion
 from sitl_stub.modes import FlightMode, LandedState
 from sitl_stub.params import ParamStore
 from sitl_stub.position_control import GROUND_EPS_M, fall, stopping_point, tilt, track, turn, wrap
@@ -73,6 +75,8 @@ class Vehicle:
         self.max_abs_xy_m = 0.0
         self.max_offboard_setpoint_age_s = 0.0
         self._events: deque[tuple[int, str]] = deque(maxlen=32)
+        self.guidance = Guidance()  # velocity setpoints, orbit, reposition and cruise speeds
+        self.failures = FailureState()  # MAV_CMD_INJECT_FAILURE effects
 
     # ----------------------------------------------------------------- requests
     def arm(self) -> Outcome:
@@ -164,11 +168,25 @@ class Vehicle:
             FlightMode.OFFBOARD: self.start_offboard,
         }[mode]()
 
+    def fly_to(self, mode: FlightMode, target: tuple[float, float, float],
+               yaw_rad: float | None = None) -> tuple[float, float, float] | None:
+        """Enter ``mode`` (LOITER: DO_REPOSITION; ORBIT) flying to ``target`` (fenced), heading
+        ``yaw_rad`` (None: keep); the fenced target, or None when landed (PX4 stays down)."""
+        self.mode = mode
+        if self._landed:
+            self._target = self._ground_point()
+            return None
+        self._target = self._clamp((target[0], target[1], max(min(target[2], 0.0), -MAX_ALTITUDE_M)))
+        self._yaw_target = None if yaw_rad is None else wrap(yaw_rad)
+        return self._target
+
     def offer_setpoint(self, north_m: float, east_m: float, down_m: float,
-                       yaw_rad: float | None = None) -> bool:
+                       yaw_rad: float | None = None, motion: Motion | None = None) -> bool:
         """A position setpoint (LOCAL_NED). Non-finite ones are rejected (False); others are
         clamped into the geofence, above the ground and below :data:`MAX_ALTITUDE_M`, and refresh
-        the offboard stream."""
+        the offboard stream. ``motion`` adds a velocity (:class:`~sitl_stub.guidance.Motion`)."""
+        if motion is not None:
+            north_m, east_m, down_m = motion.fill((north_m, east_m, down_m), self.pos)
         if not all(math.isfinite(v) for v in (north_m, east_m, down_m)):
             self.setpoints_rejected += 1
             return False
@@ -179,6 +197,7 @@ class Vehicle:
         self._sp = sp
         self._sp_yaw = wrap(yaw_rad) if yaw_rad is not None and math.isfinite(yaw_rad) else None
         self._sp_time = self.t
+        self.guidance.motion = motion
         self.setpoints_accepted += 1
         if self.mode is FlightMode.OFFBOARD:
             self._target = sp
@@ -217,6 +236,8 @@ class Vehicle:
             setpoints_rejected=self.setpoints_rejected, setpoints_clamped=self.setpoints_clamped,
             offboard_failsafes=self.offboard_failsafes, max_abs_xy_m=self.max_abs_xy_m,
             max_offboard_setpoint_age_s=self.max_offboard_setpoint_age_s,
+            failures=frozenset(self.failures.active),
+            orbit=self.guidance.orbit if self.mode is FlightMode.ORBIT else None,
         )
 
     def _substep(self, h: float) -> None:
@@ -227,7 +248,7 @@ class Vehicle:
                                                        self.t - self._sp_time)
             else:
                 self._offboard_lost()
-        if self.armed:
+        if self.armed and not self.failures.motors_off:
             self._advance_mode()
             self._control(h)
         else:
@@ -266,7 +287,7 @@ class Vehicle:
     def _limits(self) -> tuple[float, float, float]:
         """(horizontal speed, climb rate, descent rate) limits for the current mode, m/s."""
         p = self.params
-        xy = p["MPC_XY_VEL_MAX"]
+        xy = self.guidance.xy_limit_mps(self.mode, self._target, p)
         up, down = p["MPC_Z_VEL_MAX_UP"], p["MPC_Z_VEL_MAX_DN"]
         if self.mode is FlightMode.TAKEOFF:
             up = min(up, p["MPC_TKO_SPEED"])
@@ -274,19 +295,21 @@ class Vehicle:
             self.mode is FlightMode.RTL and self._rtl_phase == "land")
         if landing and -self.pos[2] <= p["MPC_LAND_ALT2"]:
             down = min(down, p["MPC_LAND_SPEED"])
-        if self.mode is FlightMode.RTL:
-            xy = min(xy, p["MPC_XY_CRUISE"])
         return xy, up, down
 
+    def _command(self) -> ControlCommand:
+        return self.guidance.command(self.mode, self.pos, self._target, self._yaw_target, self.yaw,
+                                     self.fence_m, MAX_ALTITUDE_M, self.params["MPC_ACC_HOR_MAX"])
+
     def _control(self, h: float) -> None:
-        limits = self._limits()
-        if self._landed and -self._target[2] <= GROUND_EPS_M:
+        cmd = self._command()
+        if self._landed and not cmd.wants_up:
             self.vel = [0.0, 0.0, 0.0]  # sitting on the ground, nothing to do
             self._acc_ne = (0.0, 0.0)
             return
-        self._acc_ne = track(self.pos, self.vel, self._target, limits,
-                             self.params["MPC_ACC_HOR_MAX"], h)
-        self.yaw, self._yaw_rate = turn(self.yaw, self._yaw_target, h)
+        self._acc_ne = track(self.pos, self.vel, cmd.target, self._limits(),
+                             self.params["MPC_ACC_HOR_MAX"], h, cmd.velocity_ff)
+        self.yaw, self._yaw_rate = turn(self.yaw, cmd.yaw_rad, h, cmd.yaw_rate_radps)
 
     def _fall(self, h: float) -> None:
         self._acc_ne = (0.0, 0.0)
@@ -306,7 +329,7 @@ class Vehicle:
 
     def _update_landed(self) -> None:
         alt = -self.pos[2]
-        wants_up = self.armed and -self._target[2] > GROUND_EPS_M
+        wants_up = self.armed and not self.failures.motors_off and self._command().wants_up
         landed = alt <= GROUND_EPS_M and not wants_up and abs(self.vel[2]) < 0.3
         if landed and not self._landed:
             self._landed_since = self.t

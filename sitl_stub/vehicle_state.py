@@ -12,8 +12,12 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 from enum import IntEnum
+from typing import TYPE_CHECKING
 
 from sitl_stub.modes import FlightMode, LandedState
+
+if TYPE_CHECKING:
+    from sitl_stub.guidance import Orbit
 
 # MAV_SEVERITY values for vehicle events (reported as STATUSTEXT by the server).
 SEVERITY_CRITICAL = 2
@@ -71,6 +75,8 @@ class VehicleState:
     offboard_failsafes: int
     max_abs_xy_m: float = 0.0
     max_offboard_setpoint_age_s: float = 0.0
+    failures: frozenset[str] = frozenset()  # injected failures: "gps", "battery", "motor"
+    orbit: Orbit | None = None  # the orbit flown in ORBIT mode
 
     @property
     def x_east_m(self) -> float:
