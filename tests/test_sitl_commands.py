@@ -9,9 +9,10 @@ import time
 from collections.abc import Iterator
 
 import pytest
-from mavlink_gcs import FAST_CLIMB_PARAMS, Gcs
+from mavlink_gcs import Gcs
+from sitl_hover import LOITER_MODE, hovering
 
-from sitl_stub.mavlink_server import ServerConfig, SitlServer
+from sitl_stub.mavlink_server import SitlServer
 from sitl_stub.params import int_to_param_float
 from uavlink.mavlink.dialect import mavutil
 
@@ -21,26 +22,13 @@ mavlink = mavutil.mavlink
 NAN = math.nan
 A, D, U = mavlink.MAV_RESULT_ACCEPTED, mavlink.MAV_RESULT_DENIED, mavlink.MAV_RESULT_UNSUPPORTED
 ORBIT_MODE = 3 << 16 | 1 << 24  # POSCTL.ORBIT
-LOITER_MODE = 4 << 16 | 3 << 24
-TAKEOFF_ALT_M = 10.0
 
 
 @pytest.fixture
 def flying() -> Iterator[tuple[SitlServer, Gcs]]:
-    """A vehicle hovering at 10 m (speed 10) and a pymavlink ground station."""
-    server = SitlServer(ServerConfig(connect="udpin:127.0.0.1:0", speed=10.0,
-                                     params={**FAST_CLIMB_PARAMS, "MIS_TAKEOFF_ALT": TAKEOFF_ALT_M}))
-    with server:
-        gcs = Gcs(server.address[1])
-        try:
-            gcs.wait(lambda: gcs.mode is not None, 20, "the vehicle's heartbeat")
-            assert gcs.command(mavlink.MAV_CMD_COMPONENT_ARM_DISARM, 1, wait_s=10) == A
-            assert gcs.command(mavlink.MAV_CMD_NAV_TAKEOFF, *[NAN] * 7, wait_s=10) == A
-            gcs.wait(lambda: gcs.mode == (LOITER_MODE, True) and server.state().altitude_m > 9.5,
-                     30, "takeoff to 10 m")
-            yield server, gcs
-        finally:
-            gcs.close()
+    """Hovering at 10 m, speed 10."""
+    with hovering(10.0) as (server, gcs):
+        yield server, gcs
 
 
 def command_int(gcs: Gcs, cmd: int, frame: int, p: tuple[float, float, float, float],

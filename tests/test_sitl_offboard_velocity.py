@@ -9,9 +9,10 @@ import time
 from collections.abc import Callable, Iterator
 
 import pytest
-from mavlink_gcs import FAST_CLIMB_PARAMS, Gcs
+from mavlink_gcs import Gcs
+from sitl_hover import LOITER_MODE, hovering
 
-from sitl_stub.mavlink_server import ServerConfig, SitlServer
+from sitl_stub.mavlink_server import SitlServer
 from uavlink.mavlink.dialect import mavutil
 
 pytestmark = [pytest.mark.slow, pytest.mark.timeout(120)]
@@ -21,7 +22,6 @@ NAN = math.nan
 A, D = mavlink.MAV_RESULT_ACCEPTED, mavlink.MAV_RESULT_DENIED
 VELOCITY_NED, VELOCITY_BODY, POSITION_VELOCITY, POSITION = 0x9C7, 0x5C7, 0x9C0, 0x9F8
 OFFBOARD_MODE = 6 << 16
-LOITER_MODE = 4 << 16 | 3 << 24
 
 
 class Streamer:
@@ -47,20 +47,9 @@ class Streamer:
 
 @pytest.fixture
 def flying() -> Iterator[tuple[SitlServer, Gcs, Streamer]]:
-    """A vehicle hovering at 10 m (speed 4, so 20 Hz wall is 5 setpoints per simulated second)."""
-    server = SitlServer(ServerConfig(connect="udpin:127.0.0.1:0", speed=4.0,
-                                     params={**FAST_CLIMB_PARAMS, "MIS_TAKEOFF_ALT": 10.0}))
-    with server:
-        gcs = Gcs(server.address[1])
-        try:
-            gcs.wait(lambda: gcs.mode is not None, 20, "the vehicle's heartbeat")
-            assert gcs.command(mavlink.MAV_CMD_COMPONENT_ARM_DISARM, 1, wait_s=10) == A
-            assert gcs.command(mavlink.MAV_CMD_NAV_TAKEOFF, *[NAN] * 7, wait_s=10) == A
-            gcs.wait(lambda: gcs.mode == (LOITER_MODE, True) and server.state().altitude_m > 9.5,
-                     30, "takeoff to 10 m")
-            yield server, gcs, Streamer(gcs)
-        finally:
-            gcs.close()
+    """Hovering at 10 m, speed 4 (so MAVSDK's 20 Hz wall is 5 setpoints per simulated second)."""
+    with hovering(4.0) as (server, gcs):
+        yield server, gcs, Streamer(gcs)
 
 
 def local(gcs: Gcs, frame: int, mask: int, pos=(0.0, 0.0, 0.0), vel=(0.0, 0.0, 0.0),
