@@ -163,7 +163,7 @@ def test_evaluation_is_seeded_and_uses_common_random_numbers():
     np.testing.assert_array_equal(s.trajectory.ue_xy_m, a.trajectory.ue_xy_m)
     assert not np.allclose(s.trajectory.uav_xy_m, a.trajectory.uav_xy_m)
     np.testing.assert_array_equal(s.trajectory.uav_xy_m, 0.0)  # static never leaves the centre
-    assert a.trajectory.uav_xy_m.shape == (129, 2) and a.trajectory.rate_mbps.shape == (128,)
+    assert a.trajectory.uav_xy_m.shape == (129, 1, 2) and a.trajectory.rate_mbps.shape == (128,)
     assert a.to_dict()["episode_rate_mbps"] == [round(float(x), 6) for x in a.episode_rate_mbps]
 
 

@@ -23,9 +23,29 @@ from uavlink.seeding import EVAL
 class Trajectory:
     """Positions over one episode (frames + 1 entries, the start included), for plots."""
 
-    uav_xy_m: np.ndarray  # (T+1, 2)
+    uav_xy_m: np.ndarray  # (T+1, D, 2)
     ue_xy_m: np.ndarray  # (T+1, U, 2)
     rate_mbps: np.ndarray  # (T,) mean UE rate per frame
+    serving: np.ndarray  # (T+1, U) each UE's UAV
+
+
+@dataclass
+class _Tally:
+    """Per-episode sums over the frames of one chunk (n envs, U UEs, D UAVs)."""
+
+    rate_mbps: list = field(default_factory=list)
+    fair: list = field(default_factory=list)
+    jain: list = field(default_factory=list)
+    ue_rate_mbps: list = field(default_factory=list)
+    cell_size: list = field(default_factory=list)
+
+    def add(self, result, readings, n_uavs: int) -> None:
+        rate = readings.rate_bps
+        self.rate_mbps.append(result.mean_rate_mbps)
+        self.fair.append(result.fair_rate)
+        self.jain.append(rate.sum(axis=1) ** 2 / (rate.shape[1] * (rate**2).sum(axis=1)))
+        self.ue_rate_mbps.append(rate * 1e-6)
+        self.cell_size.append((readings.serving[:, :, None] == np.arange(n_uavs)).sum(axis=1))
 
 
 @dataclass
@@ -38,6 +58,9 @@ class EvalResult:
     episode_rate_mbps: np.ndarray
     episode_fair_rate: np.ndarray
     trajectory: Trajectory | None = field(default=None, repr=False)
+    episode_jain: np.ndarray | None = None  # (E,) Jain's index of the UE rates, mean over frames
+    ue_rate_mbps: np.ndarray | None = None  # (E, U) each UE's mean rate over its episode
+    episode_ues_per_uav: np.ndarray | None = None  # (E, D) UEs each UAV serves, mean over frames
 
     @property
     def mean_rate_mbps(self) -> float:
@@ -53,36 +76,58 @@ class EvalResult:
     def mean_fair_rate(self) -> float:
         return float(self.episode_fair_rate.mean())
 
+    @property
+    def jain_index(self) -> float:
+        """Jain's fairness index of the UE rates, (sum r)^2 / (U sum r^2), mean over frames and episodes."""
+        return float(self.episode_jain.mean())
+
+    @property
+    def p5_ue_rate_mbps(self) -> float:
+        """5th percentile of the UEs' mean rates over their episodes (the cell-edge rate)."""
+        return float(np.percentile(self.ue_rate_mbps, 5))
+
+    @property
+    def ues_per_uav(self) -> np.ndarray:
+        """(D,) UEs each UAV serves, mean over frames and episodes."""
+        return self.episode_ues_per_uav.mean(axis=0)
+
     def to_dict(self) -> dict[str, Any]:
-        return {
+        out = {
             "scenario": self.scenario, "policy": self.policy, "episodes": self.episodes,
             "seed": self.seed, "aoa_noise_deg": self.aoa_noise_deg,
             "mean_rate_mbps": round(self.mean_rate_mbps, 6), "ci95_mbps": round(self.ci95_mbps, 6),
             "mean_fair_rate": round(self.mean_fair_rate, 6),
             "episode_rate_mbps": [round(float(x), 6) for x in self.episode_rate_mbps],
         }
+        if self.episode_jain is not None:
+            out.update({"jain_index": round(self.jain_index, 6), "p5_ue_rate_mbps": round(self.p5_ue_rate_mbps, 6),
+                        "ues_per_uav": [round(float(x), 4) for x in self.ues_per_uav]})
+        return out
 
 
 def evaluate_policy(policy: Policy, cfg: EnvConfig, episodes: int = 100, seed: int = 0,
                     record_trajectory: bool = False) -> EvalResult:
     """Run ``episodes`` seeded episodes; the trajectory of episode 0 is kept on request."""
-    rates, fairs, trajectory = [], [], None
+    per_chunk, trajectory, d = [], None, cfg.n_uavs
     for chunk in chunks(cfg, EVAL, episodes, seed):
         keep = record_trajectory and chunk.index == 0
-        uav, ue = [chunk.env.uav_xy_m[0].copy()], [chunk.env.mobility.position_m[0].copy()]
-        frame_rates, frame_fair = [], []
+        env = chunk.env
+        uav, ue, serving = [env.uav_xy_m[:d].copy()], [env.mobility.position_m[0].copy()], [env.readings.serving[0].copy()]
+        tally = _Tally()
         for frame in chunk.frames(policy):
-            frame_rates.append(frame.result.mean_rate_mbps)
-            frame_fair.append(frame.result.fair_rate)
+            tally.add(frame.result, env.readings, d)
             if keep:
-                uav.append(frame.env.uav_xy_m[0].copy())
-                ue.append(frame.env.mobility.position_m[0].copy())
-        rates.append(np.mean(frame_rates, axis=0))
-        fairs.append(np.mean(frame_fair, axis=0))
+                uav.append(env.uav_xy_m[:d].copy())
+                ue.append(env.mobility.position_m[0].copy())
+                serving.append(env.readings.serving[0].copy())
+        per_chunk.append({k: np.mean(v, axis=0) for k, v in vars(tally).items()})
         if keep:
-            trajectory = Trajectory(np.array(uav), np.array(ue), np.array(frame_rates)[:, 0])
+            rate = np.array(tally.rate_mbps)[:, 0]
+            trajectory = Trajectory(np.array(uav), np.array(ue), rate, np.array(serving))
+    joined = {k: np.concatenate([c[k] for c in per_chunk]) for k in per_chunk[0]}
     return EvalResult(cfg.scenario, policy.name, episodes, seed, cfg.radio.aoa_noise_deg,
-                      np.concatenate(rates), np.concatenate(fairs), trajectory)
+                      joined["rate_mbps"], joined["fair"], trajectory, joined["jain"],
+                      joined["ue_rate_mbps"], joined["cell_size"])
 
 
 def paired_ratio_ci(num: np.ndarray, den: np.ndarray, n_boot: int = 2000) -> tuple[float, float, float]:

@@ -185,7 +185,7 @@ def plot_trajectories(row: ScenarioRow, half_width_m: float, path: Path) -> None
                 label="UEs" if u == 0 else None)
     for key, color in (("ppo", "tab:red"), ("aoa", "tab:blue"), ("oracle", "tab:green")):
         t = row.results[key].trajectory
-        ax.plot(t.uav_xy_m[:, 0], t.uav_xy_m[:, 1], color=color, lw=1.6,
+        ax.plot(t.uav_xy_m[:, 0, 0], t.uav_xy_m[:, 0, 1], color=color, lw=1.6,
                 label=f"UAV {key} ({row.results[key].episode_rate_mbps[0]:.2f} Mbps)")
     ax.plot(0, 0, "k+", ms=10)
     ax.set_xlim(-half_width_m, half_width_m)
