@@ -7,6 +7,8 @@ Measures, in one run,
       steps per call, with the paper's AR(1) shadowing;
   (c) the same at N = 256 with the spatially consistent channel (``radio.shadowing_model =
       "spatial"``), interleaved with (b) so that the two models' rates form a ratio of one run;
+  (d) a fleet of D = 2 UAVs (full reuse) at N = 256 on the spatial channel, the fleet's channel: an
+      env step is one frame of one env, both UAVs moving (2 agent rows);
 and the single-env overhead beyond the physics, in microseconds per step:
   (time per step of the Gymnasium env) - (time per call of BatchedUavEnv at N = 1).
 Episodes are run back to back (a reset every 128 frames is part of the cost); actions are drawn
@@ -15,7 +17,7 @@ into interleaved rounds and the best round is reported (the median is in the JSO
 on a shared machine the fastest round is the least disturbed one.
 
 Targets: >= 300,000 env steps/s batched at N = 256 with either shadowing model, the spatial one
->= 0.8x the AR(1) rate; single-env overhead <= 20 us per step.
+>= 0.8x the AR(1) rate; D = 2 at N = 256 >= 100,000 env steps/s; single-env overhead <= 20 us per step.
 
     python benchmarks/env_throughput.py               # Markdown table
     python benchmarks/env_throughput.py --json        # one JSON object
@@ -43,6 +45,8 @@ TARGET_BATCHED_N = 256
 TARGET_BATCHED_STEPS_PER_S = 300_000
 TARGET_OVERHEAD_US = 20.0
 TARGET_SPATIAL_OVER_AR1 = 0.8
+TARGET_FLEET_UAVS = 2
+TARGET_FLEET_STEPS_PER_S = 100_000
 ACTION_BANK = 512
 
 
@@ -63,9 +67,9 @@ class Bench:
     """One measured configuration: a step function, its batch size and its timings per round."""
 
     def __init__(self, name: str, n_envs: int, step: Callable[[int], None], chunk: int,
-                 shadowing_model: str) -> None:
+                 shadowing_model: str, n_uavs: int = 1) -> None:
         self.name, self.n_envs, self.step, self.chunk = name, n_envs, step, chunk
-        self.shadowing_model = shadowing_model
+        self.shadowing_model, self.n_uavs = shadowing_model, n_uavs
         self.calls = 0
         self.seconds = 0.0
         self.us_per_call: list[float] = []
@@ -84,6 +88,7 @@ class Bench:
             "env": self.name,
             "n_envs": self.n_envs,
             "shadowing_model": self.shadowing_model,
+            "n_uavs": self.n_uavs,
             "calls": self.calls,
             "seconds": round(self.seconds, 4),
             "env_steps_per_s": round(1e6 * self.n_envs / best, 1),
@@ -112,14 +117,15 @@ def gym_bench(cfg: EnvConfig, seed: int) -> Bench:
 def batched_bench(cfg: EnvConfig, n_envs: int, seed: int) -> Bench:
     env = BatchedUavEnv(cfg, n_envs=n_envs, seed=seed)
     env.reset()
-    bank = max(1, min(ACTION_BANK, 2**20 // n_envs))
-    actions = np.random.default_rng(seed).uniform(-1, 1, (bank, n_envs, 2))
+    bank = max(1, min(ACTION_BANK, 2**20 // env.n_rows))
+    actions = np.random.default_rng(seed).uniform(-1, 1, (bank, env.n_rows, 2))
 
     def step(i: int) -> None:
         if env.step(actions[i % bank]).truncated[0]:
             env.reset()
 
-    return Bench("BatchedUavEnv", n_envs, step, 64 if n_envs <= 16 else 8, cfg.radio.shadowing_model)
+    return Bench("BatchedUavEnv", n_envs, step, 64 if n_envs <= 16 else 8, cfg.radio.shadowing_model,
+                 cfg.n_uavs)
 
 
 def run(seconds: float, sizes: list[int], scenario: str, seed: int, rounds: int) -> dict:
@@ -128,6 +134,7 @@ def run(seconds: float, sizes: list[int], scenario: str, seed: int, rounds: int)
     if TARGET_BATCHED_N in sizes:
         spatial = cfg.replace(**{"radio.shadowing_model": "spatial"}).validate()
         benches.append(batched_bench(spatial, TARGET_BATCHED_N, seed))
+        benches.append(batched_bench(spatial.replace(n_uavs=TARGET_FLEET_UAVS).validate(), TARGET_BATCHED_N, seed))
     for bench in benches:  # warm-up: caches, first episode's allocations
         _timed(bench.step, min(0.1, seconds / rounds), bench.chunk)
     # Interleaved rounds, best round reported: on a shared machine the fastest round is the one
@@ -138,6 +145,8 @@ def run(seconds: float, sizes: list[int], scenario: str, seed: int, rounds: int)
             bench.measure(seconds / rounds)
     rows = [b.row() for b in benches]
     batched = {r["n_envs"]: r for r in rows[1:] if r["shadowing_model"] == "ar1"}
+    spatial_row, fleet_row = (next((r for r in rows[1:] if r["shadowing_model"] == "spatial" and r["n_uavs"] == d), None)
+                              for d in (1, TARGET_FLEET_UAVS))
     report: dict = {
         "benchmark": "env_throughput",
         "scenario": scenario,
@@ -155,6 +164,8 @@ def run(seconds: float, sizes: list[int], scenario: str, seed: int, rounds: int)
         "targets": {"batched_n": TARGET_BATCHED_N,
                     "batched_env_steps_per_s": TARGET_BATCHED_STEPS_PER_S,
                     "spatial_over_ar1": TARGET_SPATIAL_OVER_AR1,
+                    "fleet_n_uavs": TARGET_FLEET_UAVS,
+                    "fleet_env_steps_per_s": TARGET_FLEET_STEPS_PER_S,
                     "single_env_overhead_us": TARGET_OVERHEAD_US},
     }
     if 1 in batched:
@@ -167,14 +178,17 @@ def run(seconds: float, sizes: list[int], scenario: str, seed: int, rounds: int)
     if TARGET_BATCHED_N in batched:
         rate = batched[TARGET_BATCHED_N]["env_steps_per_s"]
         report["meets_batched_target"] = rate >= TARGET_BATCHED_STEPS_PER_S
-        spatial_rate = rows[-1]["env_steps_per_s"]
+        spatial_rate = spatial_row["env_steps_per_s"]
         report["n256_env_steps_per_s_ar1"] = rate
         report["n256_env_steps_per_s_spatial"] = spatial_rate
         report["n256_spatial_over_ar1"] = round(spatial_rate / rate, 4)
-        report["n256_spatial_over_ar1_cpu"] = round(rows[-1]["env_steps_per_cpu_s"]
+        report["n256_spatial_over_ar1_cpu"] = round(spatial_row["env_steps_per_cpu_s"]
                                                     / batched[TARGET_BATCHED_N]["env_steps_per_cpu_s"], 4)
         report["meets_spatial_target"] = (spatial_rate >= TARGET_BATCHED_STEPS_PER_S
                                            and spatial_rate >= TARGET_SPATIAL_OVER_AR1 * rate)
+        report["n256_d2_env_steps_per_s_spatial"] = fleet_row["env_steps_per_s"]
+        report["n256_d2_over_d1_spatial"] = round(fleet_row["env_steps_per_s"] / spatial_rate, 4)
+        report["meets_fleet_target"] = fleet_row["env_steps_per_s"] >= TARGET_FLEET_STEPS_PER_S
     return report
 
 
@@ -187,12 +201,12 @@ def markdown(report: dict) -> str:
         f"rounds, best round ({machine['cpus']} CPUs, Python {machine['python']}, numpy {machine['numpy']}"
         + (f", load average {load[0]:.1f} at the start)" if load else ")"),
         "",
-        "| env | N | shadowing | env steps/s | µs per call (best) | µs per call (median) "
+        "| env | N | UAVs | shadowing | env steps/s | µs per call (best) | µs per call (median) "
         "| µs per env step | env steps per CPU-s |",
-        "|---|---:|---|---:|---:|---:|---:|---:|",
+        "|---|---:|---:|---|---:|---:|---:|---:|---:|",
     ]
     for r in report["results"]:
-        lines.append(f"| {r['env']} | {r['n_envs']} | {r['shadowing_model']} | {r['env_steps_per_s']:,.0f} | "
+        lines.append(f"| {r['env']} | {r['n_envs']} | {r['n_uavs']} | {r['shadowing_model']} | {r['env_steps_per_s']:,.0f} | "
                      f"{r['us_per_call']:.1f} | {r['us_per_call_median']:.1f} | {r['us_per_env_step']:.3f} "
                      f"| {r['env_steps_per_cpu_s']:,.0f} |")
     lines.append("")
@@ -211,6 +225,11 @@ def markdown(report: dict) -> str:
                      f"env steps/s, {report['n256_spatial_over_ar1']:.2f}x the AR(1) rate of this run "
                      f"({report['n256_spatial_over_ar1_cpu']:.2f}x in CPU time; {ok} the targets of "
                      f">= {TARGET_BATCHED_STEPS_PER_S:,} and >= {TARGET_SPATIAL_OVER_AR1}x)")
+        ok = "meets" if report["meets_fleet_target"] else "MISSES"
+        lines.append(f"fleet of {TARGET_FLEET_UAVS} on the spatial channel at N = {TARGET_BATCHED_N}: "
+                     f"{report['n256_d2_env_steps_per_s_spatial']:,.0f} env steps/s, "
+                     f"{report['n256_d2_over_d1_spatial']:.2f}x one UAV's ({ok} the target of "
+                     f">= {TARGET_FLEET_STEPS_PER_S:,})")
     return "\n".join(lines)
 
 
