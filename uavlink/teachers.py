@@ -86,7 +86,13 @@ def make_teacher(cfg: EnvConfig, teacher: str, shadow_gate_db: float | None = No
     another baseline as it is."""
     if teacher not in BASELINES:
         raise UserError(f"unknown teacher {teacher!r}; choose from {', '.join(BASELINES)}")
-    if shadow_gate_db is None and sinr_span_db is None and shadow_estimator is None:
+    variant = not (shadow_gate_db is None and sinr_span_db is None and shadow_estimator is None)
+    if cfg.n_uavs > 1:  # a fleet's teachers are its baselines as they are (uavlink.policies.fleet_baselines)
+        if variant:
+            raise UserError("a shadow gate, a speed span and a shadow estimator are settings of the "
+                            "single-UAV aoa teacher, not of a fleet's")
+        return make_baseline(teacher, cfg)
+    if not variant:
         return TrueAoaTeacher(AoaPolicy(cfg)) if teacher == "aoa" else make_baseline(teacher, cfg)
     if teacher != "aoa":
         raise UserError(f"a shadow gate, a speed span and a shadow estimator are settings of the aoa "
