@@ -71,6 +71,7 @@ class VehicleState:
     offboard_failsafes: int
     max_abs_xy_m: float = 0.0
     max_offboard_setpoint_age_s: float = 0.0
+    fence_breached: bool = False  # a geofence is breached now (SYS_STATUS reports it unhealthy)
 
     @property
     def x_east_m(self) -> float:
