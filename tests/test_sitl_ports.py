@@ -156,14 +156,30 @@ def test_a_taken_port_exits_1_naming_it_with_a_hint() -> None:
     assert "try --instance" in out
 
 
+class FramePayload:
+    """A payload component that publishes its frame time as NAMED_VALUE_FLOAT."""
+
+    component_id = 200
+    frame_s = 1.0
+
+    def heartbeat(self) -> tuple[int, int, int, int, int]:
+        return (mavlink.MAV_TYPE_ONBOARD_CONTROLLER, mavlink.MAV_AUTOPILOT_INVALID, 0, 0,
+                mavlink.MAV_STATE_ACTIVE)
+
+    def on_frame(self, sim_time_s: float, state: Any, mav: Any) -> None:
+        mav.named_value_float_send(int(sim_time_s * 1000), b"frame", sim_time_s)
+
+
 def test_repeated_connect_serves_each_link_and_answers_on_the_asking_one() -> None:
     a, b = Listener(free_udp_port()), Listener(free_udp_port())
     config = ServerConfig(connect=[f"udpout:127.0.0.1:{a.port}", f"udpout:127.0.0.1:{b.port}"],
                           speed=5.0, system_id=7)
     try:
-        with SitlServer(config) as server:
-            _heartbeat_from(a, 7)
-            _heartbeat_from(b, 7)
+        with SitlServer(config, [FramePayload()]) as server:
+            for listener in (a, b):  # the autopilot and the payload on every link
+                _heartbeat_from(listener, 7)
+                listener.wait("HEARTBEAT", lambda m: m.get_srcComponent() == 200)
+                listener.wait("NAMED_VALUE_FLOAT", lambda m: m.get_srcComponent() == 200)
             b.conn.mav.param_request_read_send(7, 1, b"MIS_TAKEOFF_ALT", -1)
             assert b.wait("PARAM_VALUE").param_id == "MIS_TAKEOFF_ALT"
             b.conn.mav.command_long_send(7, 0, mavlink.MAV_CMD_NAV_LAND, 0, 0, 0, 0, 0, 0, 0, 0)
