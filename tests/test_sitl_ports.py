@@ -215,3 +215,41 @@ def test_signing_covers_every_link_with_its_own_link_id() -> None:
     finally:
         a.close()
         b.close()
+
+
+def test_unmodified_mavsdk_app_on_14540_finds_the_no_flags_vehicle() -> None:
+    """MAVSDK's examples listen on udpin://0.0.0.0:14540 (here 127.0.0.1): with no flags the vehicle
+    is discovered, healthy, commandable, and its battery drains in BATTERY_STATUS while armed."""
+    pytest.importorskip("mavsdk.asyncio")
+    _require_free(14540, 14580, 18570)
+    import asyncio
+
+    from mavsdk.asyncio import ComponentType, Configuration, Mavsdk
+    from mavsdk.asyncio.plugins.action import ActionAsync
+    from mavsdk.asyncio.plugins.telemetry import TelemetryAsync
+
+    async def app() -> None:
+        config = Configuration.create_with_component_type(ComponentType.GROUND_STATION)
+        async with Mavsdk(config) as mavsdk:
+            await mavsdk.add_any_connection("udpin://127.0.0.1:14540")
+            drone = await mavsdk.first_autopilot(timeout_s=20.0)
+            assert drone is not None
+            tel, action = TelemetryAsync(drone), ActionAsync(drone)
+            async for health in tel.subscribe_health():
+                if health.is_home_position_ok and health.is_armable:
+                    break
+            async for home in tel.subscribe_home():
+                assert home.latitude_deg == pytest.approx(47.397742, abs=1e-6)
+                break
+            async for battery in tel.subscribe_battery():
+                assert battery.remaining_percent == pytest.approx(100.0)
+                assert battery.voltage_v == pytest.approx(16.2, abs=0.01)
+                break
+            await action.arm()
+            async for battery in tel.subscribe_battery():
+                if battery.remaining_percent < 99.0:
+                    break
+
+    with vehicle_process(None, speed=5.0, extra_args=["--no-payload"]) as v:
+        asyncio.run(asyncio.wait_for(app(), 60.0))
+        assert v.proc.poll() is None
