@@ -174,7 +174,14 @@ class Fanout:
         """The same encoders, always sending on every link (STATUSTEXT, as PX4's mavlink_log)."""
         return Fanout(self.encoders)
 
-    def __getattr__(self, name: str) -> Callable[..., None]:
+    def send(self, msg: Any) -> None:
+        """Send a message built with an ``x_encode`` method (packed anew on each link)."""
+        for i in self.route.targets(len(self.encoders)):
+            self.encoders[i].send(msg)
+
+    def __getattr__(self, name: str) -> Callable[..., Any]:
+        if name.endswith("_encode"):  # builds a message, sends nothing: any encoder will do
+            return getattr(self.encoders[0], name)
         if not name.endswith("_send"):
             raise AttributeError(name)
 

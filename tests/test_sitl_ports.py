@@ -17,13 +17,13 @@ from typing import Any
 import pytest
 
 from sitl_stub.launcher import vehicle_process
-from sitl_stub.links import px4_links, socket_free
+from sitl_stub.links import Fanout, Route, px4_links, socket_free
 from sitl_stub.mavlink_server import ServerConfig, SitlServer
 from uavlink.mavlink.connection import free_udp_port
 from uavlink.mavlink.dialect import mavutil
 from uavlink.mavlink.signing import SigningGuard
 
-pytestmark = [pytest.mark.slow, pytest.mark.timeout(90)]
+pytestmark = pytest.mark.timeout(90)
 
 mavlink = mavutil.mavlink
 GCS_SYS, GCS_COMP = 245, 190
@@ -103,6 +103,7 @@ def test_px4_port_table() -> None:
         px4_links(255)
 
 
+@pytest.mark.slow
 def test_no_flags_serves_px4_instance_0_api_and_gcs_links() -> None:
     _require_free(14540, 14550, 14580, 18570)
     api, gcs = Listener(14540), Listener(14550)
@@ -129,6 +130,7 @@ def test_no_flags_serves_px4_instance_0_api_and_gcs_links() -> None:
         gcs.close()
 
 
+@pytest.mark.slow
 def test_instance_1_is_system_2_on_the_next_ports() -> None:
     _require_free(14541, 14550, 14581, 18571)
     api, gcs = Listener(14541), Listener(14550)
@@ -143,6 +145,7 @@ def test_instance_1_is_system_2_on_the_next_ports() -> None:
         gcs.close()
 
 
+@pytest.mark.slow
 def test_a_taken_port_exits_1_naming_it_with_a_hint() -> None:
     instance = 37  # ports 14617 and 18607: clear of the instances people run
     api, _ = px4_links(instance)
@@ -170,6 +173,7 @@ class FramePayload:
         mav.named_value_float_send(int(sim_time_s * 1000), b"frame", sim_time_s)
 
 
+@pytest.mark.slow
 def test_repeated_connect_serves_each_link_and_answers_on_the_asking_one() -> None:
     a, b = Listener(free_udp_port()), Listener(free_udp_port())
     config = ServerConfig(connect=[f"udpout:127.0.0.1:{a.port}", f"udpout:127.0.0.1:{b.port}"],
@@ -192,6 +196,7 @@ def test_repeated_connect_serves_each_link_and_answers_on_the_asking_one() -> No
         b.close()
 
 
+@pytest.mark.slow
 def test_signing_covers_every_link_with_its_own_link_id() -> None:
     a, b = Listener(free_udp_port(), KEY), Listener(free_udp_port(), KEY)
     config = ServerConfig(connect=[f"udpout:127.0.0.1:{a.port}", f"udpout:127.0.0.1:{b.port}"],
@@ -217,6 +222,7 @@ def test_signing_covers_every_link_with_its_own_link_id() -> None:
         b.close()
 
 
+@pytest.mark.slow
 def test_unmodified_mavsdk_app_on_14540_finds_the_no_flags_vehicle() -> None:
     """MAVSDK's examples listen on udpin://0.0.0.0:14540 (here 127.0.0.1): with no flags the vehicle
     is discovered, healthy, commandable, and its battery drains in BATTERY_STATUS while armed."""
@@ -253,3 +259,25 @@ def test_unmodified_mavsdk_app_on_14540_finds_the_no_flags_vehicle() -> None:
     with vehicle_process(None, speed=5.0, extra_args=["--no-payload"]) as v:
         asyncio.run(asyncio.wait_for(app(), 60.0))
         assert v.proc.poll() is None
+
+
+def test_fanout_sends_on_every_link_or_only_the_one_being_answered() -> None:
+    """Fast: three encoders writing to captures; x_send, encode + send, and the route."""
+
+    class Capture:
+        def __init__(self) -> None:
+            self.parser, self.got = mavlink.MAVLink(None), []
+
+        def write(self, buf: bytes) -> None:
+            self.got += [m.get_type() for m in self.parser.parse_buffer(bytes(buf)) or []]
+
+    captures = [Capture() for _ in range(3)]
+    route = Route()
+    fan = Fanout([mavlink.MAVLink(c, srcSystem=1, srcComponent=1) for c in captures], route)
+    fan.heartbeat_send(2, 12, 0, 0, 3)
+    with route.answering_link(1):
+        fan.send(fan.ping_encode(0, 0, 0, 0))
+        fan.everyone().statustext_send(4, b"to all")
+    assert [c.got for c in captures] == [["HEARTBEAT", "STATUSTEXT"],
+                                         ["HEARTBEAT", "PING", "STATUSTEXT"],
+                                         ["HEARTBEAT", "STATUSTEXT"]]
