@@ -26,6 +26,7 @@ MIN_TAKEOFF_ALT_M = 0.5
 _STATE_CHANGING = frozenset({
     mavlink.MAV_CMD_COMPONENT_ARM_DISARM, mavlink.MAV_CMD_NAV_TAKEOFF, mavlink.MAV_CMD_NAV_LAND,
     mavlink.MAV_CMD_NAV_RETURN_TO_LAUNCH, mavlink.MAV_CMD_DO_SET_MODE,
+    mavlink.MAV_CMD_MISSION_START,
 })
 _RELATIVE_FRAMES = frozenset({mavlink.MAV_FRAME_GLOBAL_RELATIVE_ALT,
                               mavlink.MAV_FRAME_GLOBAL_RELATIVE_ALT_INT})
@@ -94,6 +95,9 @@ class CommandHandler:
             return _reply(v.return_to_launch())
         if c == mavlink.MAV_CMD_DO_SET_MODE:
             return self._set_mode(p)
+        if c == mavlink.MAV_CMD_MISSION_START:  # AUTO.MISSION; param1 >= 0: from that item
+            first = int(p[0]) if math.isfinite(p[0]) and p[0] >= 0 else None
+            return _reply(v.start_mission(first))
         if c == mavlink.MAV_CMD_REQUEST_MESSAGE:
             name = _message_name(p[0])
             if name is None or not self.telemetry.can_send(name):

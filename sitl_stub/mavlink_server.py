@@ -107,7 +107,7 @@ class SitlServer:
             raise ValueError(f"system_id must be in 1..255, got {self.system_id}")
         self.params = ParamStore(c.params)
         self.battery = Battery(self.params)
-        self.vehicle = Vehicle(self.params, c.area)
+        self.vehicle = Vehicle(self.params, c.area, origin=c.home)
         self.streams = StreamScheduler(max_wall_hz=c.max_stream_wall_hz)
         ids = {AUTOPILOT_COMPONENT}
         for p in payloads:
@@ -259,6 +259,8 @@ class SitlServer:
         for severity, text in self.vehicle.drain_events():
             log.info("%s", text)
             self.telemetry.statustext(severity, text)
+        for seq in self.vehicle.mission.drain_reached():
+            self.telemetry.mission_item_reached(seq)
         for text in self._notices:
             self.telemetry.statustext(mavlink.MAV_SEVERITY_WARNING, text)
         self._notices.clear()
@@ -294,7 +296,10 @@ class SitlServer:
             self.telemetry.heartbeat(s)
             for slot in self._slots:
                 slot.mav.heartbeat_send(*slot.payload.heartbeat())
-        for name in self.streams.due(s.time_s, wall):
+        due = self.streams.due(s.time_s, wall)
+        if s.mission_current != self._snapshot.mission_current and "MISSION_CURRENT" not in due:
+            due.append("MISSION_CURRENT")  # on change too, as PX4 does
+        for name in due:
             self.telemetry.send(name, s)
 
     # ------------------------------------------------------------------ input

@@ -20,6 +20,7 @@ from typing import Any
 
 from sitl_stub.commands import CommandHandler, CommandReply, CommandRequest
 from sitl_stub.ftp import ftp_reply
+from sitl_stub.mission_protocol import MissionProtocol
 from sitl_stub.param_protocol import ParamProtocol
 from sitl_stub.payload import PayloadSlot
 from sitl_stub.telemetry import TelemetrySender
@@ -56,11 +57,13 @@ class MessageHandler:
         self.stats = stats
         self.rejects = rejects
         self.signing = signing
+        self.missions = MissionProtocol(vehicle.plans, self.mav, system_id, telemetry.statustext)
 
     def receive(self, wall: float) -> None:
         """Handle what arrived (at most MAX_RX_PER_TICK messages or datagrams)."""
         if self.signing is not None and not self.signing.is_attached(self.conn.mav):
             raise RuntimeError("pymavlink replaced the signed MAVLink parser; refusing to go on")
+        self.missions.tick(wall)
         for _ in range(MAX_RX_PER_TICK):
             try:
                 msg = self.conn.recv_msg()
@@ -122,10 +125,8 @@ class MessageHandler:
             if reply is not None:
                 self.mav.file_transfer_protocol_send(0, msg.get_srcSystem(),
                                                      msg.get_srcComponent(), reply)
-        elif kind == "MISSION_REQUEST_LIST" and self._for_autopilot(msg):
-            # no mission, fence or rally items (MAVProxy asks on connect)
-            self.mav.mission_count_send(msg.get_srcSystem(), msg.get_srcComponent(), 0,
-                                        msg.mission_type)
+        elif kind.startswith("MISSION_"):
+            self.missions.handle(msg, wall)
 
     def _handler_error(self, what: str) -> None:
         """A bug met by some input: counted; the first (and every 100th) traceback is logged."""

@@ -9,30 +9,11 @@ MAVLink I/O here.
 from __future__ import annotations
 
 from collections.abc import Callable
-from dataclasses import dataclass
 
-MISSION = 0  # MAV_MISSION_TYPE_MISSION
-FENCE = 1  # MAV_MISSION_TYPE_FENCE
-RALLY = 2  # MAV_MISSION_TYPE_RALLY
-MISSION_TYPES = (MISSION, FENCE, RALLY)
+# the item and the mission types are the MAVLink package's, shared with the flight side's client
+from uavlink.mavlink.mission import FENCE, MISSION, MISSION_TYPES, RALLY, MissionItem
 
-
-@dataclass(frozen=True)
-class MissionItem:
-    """One MISSION_ITEM_INT as stored: x/y are degrees * 1e7 in global frames, z metres."""
-
-    seq: int
-    frame: int
-    command: int
-    param1: float = 0.0
-    param2: float = 0.0
-    param3: float = 0.0
-    param4: float = 0.0
-    x: int = 0
-    y: int = 0
-    z: float = 0.0
-    autocontinue: int = 1
-    mission_type: int = MISSION
+__all__ = ["FENCE", "MISSION", "MISSION_TYPES", "RALLY", "MissionItem", "MissionStore"]
 
 
 class MissionStore:

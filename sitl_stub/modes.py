@@ -1,7 +1,7 @@
 """The flight modes this vehicle flies and its landed states (no MAVLink import).
 
 PX4's mode encoding lives in ``uavlink.mavlink.px4_modes``. Only the modes this stub flies are
-members; others (MANUAL, POSCTL, MISSION, ...) are refused.
+members; others (MANUAL, POSCTL, ...) are refused.
 """
 
 from __future__ import annotations
@@ -19,6 +19,7 @@ from uavlink.mavlink.px4_modes import (
     PX4_MAIN_STABILIZED,
     PX4_SUB_AUTO_LAND,
     PX4_SUB_AUTO_LOITER,
+    PX4_SUB_AUTO_MISSION,
     PX4_SUB_AUTO_RTL,
     PX4_SUB_AUTO_TAKEOFF,
     encode_custom_mode,
@@ -37,6 +38,7 @@ class FlightMode(Enum):
 
     TAKEOFF = (PX4_MAIN_AUTO, PX4_SUB_AUTO_TAKEOFF)
     LOITER = (PX4_MAIN_AUTO, PX4_SUB_AUTO_LOITER)  # "Hold" in QGC/MAVSDK
+    MISSION = (PX4_MAIN_AUTO, PX4_SUB_AUTO_MISSION)
     RTL = (PX4_MAIN_AUTO, PX4_SUB_AUTO_RTL)
     LAND = (PX4_MAIN_AUTO, PX4_SUB_AUTO_LAND)
     OFFBOARD = (PX4_MAIN_OFFBOARD, 0)

@@ -60,6 +60,11 @@ PARAM_DEFS: tuple[ParamDef, ...] = (
              "Takeoff altitude above home when NAV_TAKEOFF gives none, m."),
     ParamDef("RTL_RETURN_ALT", ParamType.REAL32, 60.0, 0.0, 500.0,
              "RTL climbs to at least this altitude above home before returning, m."),
+    ParamDef("NAV_ACC_RAD", ParamType.REAL32, 10.0, 0.05, 200.0,
+             "Mission waypoint acceptance radius when the item gives none, m (PX4 navigator)."),
+    ParamDef("GF_ACTION", ParamType.INT32, 2, 0, 5,
+             "Geofence breach action: 0 None, 1 Warning, 2 Hold, 3 Return, 4 Terminate (flown "
+             "as Land here), 5 Land."),
 )
 
 

@@ -23,6 +23,7 @@ DEFAULT_RATES_HZ: dict[str, float] = {
     "ATTITUDE": 10.0,
     "ATTITUDE_QUATERNION": 0.0,
     "VFR_HUD": 4.0,
+    "MISSION_CURRENT": 1.0,
 }
 
 HEARTBEAT_SIM_PERIOD_S = 1.0

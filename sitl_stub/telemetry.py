@@ -40,6 +40,10 @@ CAPABILITIES = (
     mavlink.MAV_PROTOCOL_CAPABILITY_MAVLINK2 | mavlink.MAV_PROTOCOL_CAPABILITY_COMMAND_INT
     | mavlink.MAV_PROTOCOL_CAPABILITY_PARAM_ENCODE_BYTEWISE
     | mavlink.MAV_PROTOCOL_CAPABILITY_SET_POSITION_TARGET_LOCAL_NED
+    # the mission protocol (sitl_stub.mission_protocol): MAVSDK's mission_raw wants MISSION_INT,
+    # QGroundControl downloads fence and rally only when these say so
+    | mavlink.MAV_PROTOCOL_CAPABILITY_MISSION_FLOAT | mavlink.MAV_PROTOCOL_CAPABILITY_MISSION_INT
+    | mavlink.MAV_PROTOCOL_CAPABILITY_MISSION_FENCE | mavlink.MAV_PROTOCOL_CAPABILITY_MISSION_RALLY
 )
 FLIGHT_SW_VERSION = 1 << 24 | 14 << 16 | 0 << 8 | 255  # "v1.14.0 official", PX4's encoding
 UID = int.from_bytes(b"SITLSTUB", "big")
@@ -84,6 +88,7 @@ class TelemetrySender:
             "ATTITUDE_QUATERNION": self.attitude_quaternion,
             "VFR_HUD": self.vfr_hud,
             "AUTOPILOT_VERSION": self.autopilot_version,
+            "MISSION_CURRENT": self.mission_current,
         }
 
     def names(self) -> list[str]:
@@ -162,6 +167,13 @@ class TelemetrySender:
     def autopilot_version(self, s: VehicleState) -> None:
         self.mav.autopilot_version_send(CAPABILITIES, FLIGHT_SW_VERSION, 0, 0, 0,
                                         [0] * 8, [0] * 8, [0] * 8, 0, 0, UID)
+
+    def mission_current(self, s: VehicleState) -> None:
+        """MISSION_CURRENT as PX4 streams it: seq, total, mission_state, mission_mode."""
+        self.mav.mission_current_send(*s.mission_current)
+
+    def mission_item_reached(self, seq: int) -> None:
+        self.mav.mission_item_reached_send(seq)
 
     def statustext(self, severity: int, text: str) -> None:
         self.announce.statustext_send(severity, text[:50].encode("ascii", "replace"))

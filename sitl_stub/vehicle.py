@@ -14,7 +14,9 @@ clamped onto it and the position never leaves it; altitude setpoints are clamped
 :data:`MAX_ALTITUDE_M` (a vertical fence, PX4's GF_MAX_VER_DIST).
 
 Its snapshot, request outcomes and safety monitors are in :mod:`sitl_stub.vehicle_state`; the
-position controller is :mod:`sitl_stub.position_control`.
+position controller is :mod:`sitl_stub.position_control`. AUTO.MISSION flies the stored mission
+(:mod:`sitl_stub.mission_executor`); the uploaded geofence is enforced with GF_ACTION
+(:mod:`sitl_stub.fence_failsafe`); RTL returns to the nearest rally point or home (:mod:`sitl_stub.rtl`).
 """
 
 from __future__ import annotations
@@ -22,9 +24,15 @@ from __future__ import annotations
 import math
 from collections import deque
 
+from sitl_stub.fence_failsafe import geofence_failsafe
+from sitl_stub.geo import GeoOrigin
+from sitl_stub.geofence import FenceGuard
+from sitl_stub.mission_executor import Leg, MissionExecutor
+from sitl_stub.mission_store import RALLY, MissionStore
 from sitl_stub.modes import FlightMode, LandedState
 from sitl_stub.params import ParamStore
 from sitl_stub.position_control import GROUND_EPS_M, fall, stopping_point, tilt, track, turn, wrap
+from sitl_stub.rtl import ReturnPhases, rally_points, return_destination
 from sitl_stub.vehicle_state import (
     ACCEPTED,
     SEVERITY_INFO,
@@ -36,8 +44,7 @@ from sitl_stub.vehicle_state import (
 from uavlink.config import AreaConfig
 
 SUBSTEP_S = 0.02  # integration step; step(dt) subdivides
-ALT_ACCEPT_M = 0.5  # takeoff / RTL climb done within this of the target altitude
-XY_ACCEPT_M = 0.5  # RTL return done within this of home
+ALT_ACCEPT_M = 0.5  # takeoff done within this of the target altitude
 TAKEN_OFF_ALT_M = 1.0  # above this the vehicle counts as having flown
 MAX_ALTITUDE_M = 500.0  # vertical fence: setpoints above are clamped (= the altitude params' max)
 
@@ -45,8 +52,14 @@ MAX_ALTITUDE_M = 500.0  # vertical fence: setpoints above are clamped (= the alt
 class Vehicle:
     """The multicopter. Starts disarmed on the ground at home in AUTO.LOITER."""
 
-    def __init__(self, params: ParamStore | None = None, area: AreaConfig | None = None) -> None:
+    def __init__(self, params: ParamStore | None = None, area: AreaConfig | None = None,
+                 plans: MissionStore | None = None, origin: GeoOrigin | None = None) -> None:
         self.params = params if params is not None else ParamStore()
+        self.plans = plans if plans is not None else MissionStore()
+        self.origin = origin or GeoOrigin()
+        self.mission = MissionExecutor(self.plans, self.origin, self.params)
+        self.fence = FenceGuard(self.plans, self.origin)
+        self._leg: Leg | None = None  # what AUTO.MISSION flies now
         self.fence_m = (area or AreaConfig()).half_width_m
         self.t = 0.0
         self.pos = [0.0, 0.0, 0.0]
@@ -58,8 +71,7 @@ class Vehicle:
         self.armed = False
         self.mode = FlightMode.LOITER
         self._target = (0.0, 0.0, 0.0)
-        self._rtl_alt = 0.0
-        self._rtl_phase = "climb"
+        self._rtl = ReturnPhases()
         self._landed = True
         self._landed_since = 0.0
         self._has_flown = False
@@ -116,30 +128,29 @@ class Vehicle:
         self._target = self._clamp((self.pos[0], self.pos[1], -alt))
         return ACCEPTED
 
-    def land(self) -> Outcome:
-        """AUTO.LAND at the current horizontal position."""
+    def land(self, at_ne: tuple[float, float] | None = None) -> Outcome:
+        """AUTO.LAND at the current horizontal position (or at ``at_ne``)."""
         self.mode = FlightMode.LAND
         n, e, _ = self._stopping_point()
-        self._target = (n, e, 1.0)  # 1 m below ground: descend at landing speed to touchdown
+        self._target = (*(at_ne or (n, e)), 1.0)  # 1 m below ground: descend to touchdown
         return ACCEPTED
 
     def return_to_launch(self) -> Outcome:
-        """AUTO.RTL: climb to max(current, RTL_RETURN_ALT), return to home at MPC_XY_CRUISE, land."""
+        """AUTO.RTL: climb to max(current, RTL_RETURN_ALT), return at MPC_XY_CRUISE to the nearest
+        of home and the rally points (PX4 RTL_TYPE 0), land there."""
         self.mode = FlightMode.RTL
-        self._rtl_alt = max(-self.pos[2], self.params["RTL_RETURN_ALT"])
-        n, e, _ = self._stopping_point()
-        if self._landed:  # PX4: RTL on the ground just stays landed
-            self._rtl_phase = "land"
-            self._target = (n, e, 1.0)
-        else:
-            self._rtl_phase = "climb"
-            self._target = (n, e, -self._rtl_alt)
+        rally = rally_points(self.plans.items(RALLY), self.origin)
+        dest = self._clamp((*return_destination(self.pos[0], self.pos[1], rally), 0.0))
+        self._target = self._rtl.start(self._stopping_point(), self._landed,
+                                       self.params["RTL_RETURN_ALT"], dest[:2])
         return ACCEPTED
 
-    def hold(self) -> Outcome:
-        """AUTO.LOITER: brake and hold where the vehicle stops."""
+    def hold(self, at_ne: tuple[float, float] | None = None) -> Outcome:
+        """AUTO.LOITER: brake and hold where the vehicle stops (or at ``at_ne``, this altitude)."""
         self.mode = FlightMode.LOITER
         self._target = self._ground_point() if self._landed else self._stopping_point()
+        if at_ne is not None and not self._landed:
+            self._target = (*at_ne, self.pos[2])
         return ACCEPTED
 
     def start_offboard(self) -> Outcome:
@@ -162,7 +173,19 @@ class Vehicle:
             FlightMode.LAND: self.land,
             FlightMode.RTL: self.return_to_launch,
             FlightMode.OFFBOARD: self.start_offboard,
+            FlightMode.MISSION: self.start_mission,
         }[mode]()
+
+    def start_mission(self, first_seq: int | None = None) -> Outcome:
+        """AUTO.MISSION, resuming at the current item (MISSION_START: from ``first_seq``)."""
+        if first_seq is not None and not self.mission.restart_at(first_seq):
+            return Outcome(Result.DENIED, f"Mission start denied: no item {first_seq}")
+        reason = self.mission.start(self.pos)
+        if reason:
+            return Outcome(Result.DENIED, reason)
+        self.mode = FlightMode.MISSION
+        self._leg = None
+        return ACCEPTED
 
     def offer_setpoint(self, north_m: float, east_m: float, down_m: float,
                        yaw_rad: float | None = None) -> bool:
@@ -217,6 +240,8 @@ class Vehicle:
             setpoints_rejected=self.setpoints_rejected, setpoints_clamped=self.setpoints_clamped,
             offboard_failsafes=self.offboard_failsafes, max_abs_xy_m=self.max_abs_xy_m,
             max_offboard_setpoint_age_s=self.max_offboard_setpoint_age_s,
+            fence_breached=self.fence.breached,
+            mission_current=self.mission.status(self.mode is FlightMode.MISSION),
         )
 
     def _substep(self, h: float) -> None:
@@ -229,6 +254,8 @@ class Vehicle:
                 self._offboard_lost()
         if self.armed:
             self._advance_mode()
+            if not self._landed:
+                geofence_failsafe(self)
             self._control(h)
         else:
             self._fall(h)
@@ -256,27 +283,34 @@ class Vehicle:
             self.mode = FlightMode.LOITER  # target stays the takeoff point
             self._event(SEVERITY_INFO, "Takeoff complete, holding")
         elif self.mode is FlightMode.RTL:
-            if self._rtl_phase == "climb" and alt >= self._rtl_alt - ALT_ACCEPT_M:
-                self._rtl_phase = "return"
-                self._target = (0.0, 0.0, -self._rtl_alt)
-            elif self._rtl_phase == "return" and math.hypot(self.pos[0], self.pos[1]) < XY_ACCEPT_M:
-                self._rtl_phase = "land"
-                self._target = (0.0, 0.0, 1.0)
+            self._target = self._rtl.advance(self.pos) or self._target
+        elif self.mode is FlightMode.MISSION:
+            self._leg = leg = self.mission.update(self.t, self.pos, self._landed)
+            if leg.return_home:
+                self.return_to_launch()
+            else:
+                n, e, d = leg.target_ned
+                self._target = self._clamp((n, e, max(d, -MAX_ALTITUDE_M)))
 
     def _limits(self) -> tuple[float, float, float]:
         """(horizontal speed, climb rate, descent rate) limits for the current mode, m/s."""
         p = self.params
         xy = p["MPC_XY_VEL_MAX"]
         up, down = p["MPC_Z_VEL_MAX_UP"], p["MPC_Z_VEL_MAX_DN"]
-        if self.mode is FlightMode.TAKEOFF:
+        leg = self._leg if self.mode is FlightMode.MISSION else None
+        if self.mode is FlightMode.TAKEOFF or (leg is not None and leg.takeoff):
             up = min(up, p["MPC_TKO_SPEED"])
-        landing = self.mode is FlightMode.LAND or (
-            self.mode is FlightMode.RTL and self._rtl_phase == "land")
-        if landing and -self.pos[2] <= p["MPC_LAND_ALT2"]:
+        if self._landing() and -self.pos[2] <= p["MPC_LAND_ALT2"]:
             down = min(down, p["MPC_LAND_SPEED"])
         if self.mode is FlightMode.RTL:
             xy = min(xy, p["MPC_XY_CRUISE"])
+        if leg is not None:
+            xy = min(xy, leg.speed_mps or p["MPC_XY_CRUISE"])
         return xy, up, down
+
+    def _landing(self) -> bool:
+        return (self.mode is FlightMode.LAND or (self.mode is FlightMode.RTL and self._rtl.landing)
+                or (self.mode is FlightMode.MISSION and self._leg is not None and self._leg.landing))
 
     def _control(self, h: float) -> None:
         limits = self._limits()
@@ -336,8 +370,7 @@ class Vehicle:
             return LandedState.ON_GROUND
         if self.armed and self.mode is FlightMode.TAKEOFF:
             return LandedState.TAKEOFF
-        if self.armed and (self.mode is FlightMode.LAND or (
-                self.mode is FlightMode.RTL and self._rtl_phase == "land")):
+        if self.armed and self._landing():
             return LandedState.LANDING
         return LandedState.IN_AIR
 

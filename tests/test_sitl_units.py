@@ -25,7 +25,7 @@ pytestmark = pytest.mark.timeout(30)
 # ------------------------------------------------------------------ modes
 @pytest.mark.parametrize(("mode", "main", "sub"), [
     (FlightMode.OFFBOARD, 6, 0), (FlightMode.TAKEOFF, 4, 2), (FlightMode.LOITER, 4, 3),
-    (FlightMode.RTL, 4, 5), (FlightMode.LAND, 4, 6)])
+    (FlightMode.RTL, 4, 5), (FlightMode.LAND, 4, 6), (FlightMode.MISSION, 4, 4)])
 def test_px4_custom_mode_encoding(mode, main, sub):
     assert mode.custom_mode == main << 16 | sub << 24
     assert decode_custom_mode(mode.custom_mode) == (main, sub)
@@ -34,7 +34,6 @@ def test_px4_custom_mode_encoding(mode, main, sub):
 
 def test_unflown_modes_are_not_members():
     assert FlightMode.from_main_sub(4, 1) is None  # AUTO.READY
-    assert FlightMode.from_main_sub(4, 4) is None  # AUTO.MISSION
     assert FlightMode.from_main_sub(3, 0) is None  # POSCTL
     assert FlightMode.from_main_sub(6, 9) is FlightMode.OFFBOARD
     assert encode_custom_mode(4, 3) == 50593792

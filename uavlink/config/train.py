@@ -16,7 +16,7 @@ from uavlink.config.fields import Namer, check_fields, coerce, config_fields, ne
 from uavlink.errors import ConfigError
 
 # The rules a warm start can copy; uavlink.policies.baselines implements them by these names.
-BASELINE_NAMES = ("static", "oracle", "aoa")
+BASELINE_NAMES = ("static", "oracle", "aoa", "kmeans")
 _INF = float("inf")
 
 
@@ -100,8 +100,9 @@ class TrainConfig:
                                           "steps", low=1)
 
     def total_timesteps(self, env: EnvConfig) -> int:
-        """The budget in env steps: ``episodes`` of the env's ``episode_frames``."""
-        return self.episodes * env.episode_frames
+        """The budget in agent steps (what SB3 counts): ``episodes`` of the env's ``episode_frames``,
+        times ``n_uavs`` for a fleet, whose UAVs each take a step per frame."""
+        return self.episodes * env.episode_frames * env.n_uavs
 
     def validate(self, env: EnvConfig | None = None, name: Namer = config_name) -> TrainConfig:
         """Every check of a training's settings, each a one-line ConfigError naming the field (as

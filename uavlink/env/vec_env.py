@@ -4,6 +4,8 @@ Follows SB3's contract: on the last frame of an episode the env is reset automat
 observation is the new episode's first, and ``info["terminal_observation"]`` holds the last one,
 with ``TimeLimit.truncated`` so PPO bootstraps the value of the cut-off state. ``info["episode"]``
 carries the episode return and length (as SB3's Monitor would) plus the mean UE throughput.
+A fleet of D UAVs flattens N episodes x D UAVs into N D rows (the core's agent rows), so one
+parameter-shared policy acts for every UAV; each row's return is its env's team return.
 """
 
 from __future__ import annotations
@@ -26,11 +28,11 @@ class UavVecEnv(VecEnv):
         obs_space = gym.spaces.Box(*self.core.layout.bounds(), dtype=np.float32)
         act_space = gym.spaces.Box(-1.0, 1.0, (2,), np.float32)
         self.render_mode = None
-        super().__init__(n_envs, obs_space, act_space)
+        super().__init__(self.core.n_rows, obs_space, act_space)
         self._actions: np.ndarray | None = None
         self._next_seed: int | None = seed
         self._start = time.time()
-        self._returns = np.zeros(n_envs)
+        self._returns = np.zeros(self.core.n_rows)
         self._rate_sums = np.zeros(n_envs)
 
     def reset(self) -> VecEnvObs:
@@ -57,7 +59,7 @@ class UavVecEnv(VecEnv):
                 info["TimeLimit.truncated"] = bool(result.truncated[i] and not result.terminated[i])
                 info["episode"] = {"r": float(self._returns[i]), "l": frames,
                                    "t": round(time.time() - self._start, 6),
-                                   "mean_rate_mbps": float(self._rate_sums[i] / frames)}
+                                   "mean_rate_mbps": float(self._rate_sums[i // self.core.n_uavs] / frames)}
             obs = self.reset()
         return obs, result.reward.astype(np.float32), dones, infos
 

@@ -27,6 +27,7 @@ import math
 import select
 import struct
 import time
+from collections import deque
 from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -34,6 +35,7 @@ from typing import Any
 
 from uavlink.mavlink.connection import normalize_connection
 from uavlink.mavlink.dialect import mavlink, mavutil
+from uavlink.mavlink.mission import MISSION_REPLIES
 from uavlink.mavlink.px4_modes import PX4_MAIN_OFFBOARD, decode_custom_mode
 from uavlink.mavlink.radio_codec import (
     RADIO_COMPONENT_ID,
@@ -79,6 +81,7 @@ class VehicleStatus:
     time_boot_ms: int = 0
     heartbeats: int = 0
     landed_known: bool = False
+    home: Any = None  # the last HOME_POSITION: where the local frame sits on Earth
     # (wall s, vehicle s) of recent LOCAL_POSITION_NED: the vehicle's clock, for the speed factor
     boot_samples: list[tuple[float, float]] = field(default_factory=list)
 
@@ -119,6 +122,7 @@ class VehicleLink:
         self.on_radio: Callable = lambda msg: None
         self.on_score: Callable = lambda score: None
         self._acks: dict[int, int] = {}
+        self._mission_inbox: deque[Any] = deque(maxlen=64)  # for recv_mission
         # Offboard keep-alive: while set, poll() re-sends this NED setpoint every
         # ``stream_period_vehicle_s`` of vehicle time, so waits never starve PX4's offboard stream.
         self.stream_ned: tuple[float, float, float] | None = None
@@ -206,6 +210,8 @@ class VehicleLink:
         self.last_rx_wall = time.monotonic()
         if kind == "COMMAND_ACK":
             self._acks[msg.command] = msg.result
+        elif kind in MISSION_REPLIES:
+            self._mission_inbox.append(msg)
         elif kind == "PARAM_VALUE":
             name = msg.param_id if isinstance(msg.param_id, str) else msg.param_id.decode("ascii", "replace")
             self.params[name.split("\x00", 1)[0]] = msg.param_value
@@ -252,6 +258,8 @@ class VehicleLink:
         elif kind == "EXTENDED_SYS_STATE":
             st.landed_state = msg.landed_state
             st.landed_known = True
+        elif kind == "HOME_POSITION":
+            st.home = msg
 
     def close(self) -> None:
         if self._tlog:
@@ -303,6 +311,12 @@ class VehicleLink:
                 return False
             self.poll(0.02)
         return True
+
+    def recv_mission(self, timeout_s: float) -> Any:
+        """The target's next mission-protocol message within ``timeout_s`` of wall time, or None
+        (a :data:`~uavlink.mavlink.mission.MissionRecv`: everything else is handled meanwhile)."""
+        self.wait_wall(lambda: bool(self._mission_inbox), timeout_s)
+        return self._mission_inbox.popleft() if self._mission_inbox else None
 
     def command(self, command: int, *params: float, ack_wait_s: float = ACK_WAIT_S,
                 tries: int = COMMAND_TRIES, done: Callable[[], bool] | None = None) -> None:

@@ -1,6 +1,6 @@
 """``uavlink fly``: a policy flies the vehicle, one (angle, distance) decision per radio frame.
 
-Connect, wait for a PX4 multicopter, arm, take off to the SPEC altitude, stream setpoints and enter
+Connect, wait for a PX4 multicopter, upload the operating area as its geofence, arm, take off to the SPEC altitude, stream setpoints and enter
 OFFBOARD; then for every radio report: build the observation with the env's own builder, run the
 policy, turn its move into a LOCAL_NED position target clamped to the geofence, send it at once.
 Between reports the current target is re-sent every ``stream_period_vehicle_s`` so PX4's offboard
@@ -27,9 +27,10 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from uavlink.config import EnvConfig
+from uavlink.config import AreaConfig, EnvConfig
 from uavlink.env.actions import ActionMapping
 from uavlink.env.observation import ObservationBuilder, ObservationLayout
+from uavlink.flight.fence import upload_area_fence
 from uavlink.flight.link import STREAM_PERIOD_VEHICLE_S, LinkError, VehicleLink
 from uavlink.flight.radio_source import MavlinkRadioSource, RadioSource
 from uavlink.mavlink.px4_modes import (
@@ -55,6 +56,7 @@ class MissionConfig:
     link_timeout_s: float = 20.0  # wall seconds without any message from the vehicle: give up
     offboard_entry_s: float = 20.0  # wall seconds to get the vehicle into OFFBOARD at the start
     reenter_interval_s: float = 1.0  # wall seconds between attempts to re-enter OFFBOARD
+    fence: bool = True  # upload the operating area as the vehicle's geofence first
 
 
 @dataclass
@@ -154,7 +156,7 @@ def fly_mission(link: VehicleLink, pilot: PolicyPilot, cfg: EnvConfig, mission: 
     link.on_score = lambda s: scores.__setitem__(s.frame, s)
     half = cfg.area.half_width_m
 
-    _take_control(link, mission, cfg.area.uav_altitude_m, result)
+    _take_control(link, mission, cfg.area, result)
     st = link.status
     target = np.array([st.east_m, st.north_m])  # env frame: x east, y north
     down = -cfg.area.uav_altitude_m
@@ -249,10 +251,13 @@ class _FrameTracker:
         return fresh
 
 
-def _take_control(link: VehicleLink, mission: MissionConfig, altitude_m: float, result: MissionResult) -> None:
-    """Wait for the vehicle; arm and take off, or resume a vehicle already flying (not one that is
-    landing or returning: someone else is ending that flight)."""
+def _take_control(link: VehicleLink, mission: MissionConfig, area: AreaConfig, result: MissionResult) -> None:
+    """Wait for the vehicle and give it the operating area as its geofence; arm and take off, or
+    resume a vehicle already flying (not one that is landing or returning: someone else is ending
+    that flight)."""
     link.wait_vehicle()
+    if mission.fence:
+        upload_area_fence(link, area.half_width_m)
     st = link.status
     if st.armed and st.in_air:
         if _ending_mode(st):
@@ -262,7 +267,7 @@ def _take_control(link: VehicleLink, mission: MissionConfig, altitude_m: float, 
                     _mode_name(st), -st.down_m)
     elif mission.takeoff:
         link.arm()
-        link.takeoff(altitude_m)
+        link.takeoff(area.uav_altitude_m)
 
 
 def _reenter_offboard(link: VehicleLink, result: MissionResult) -> None:

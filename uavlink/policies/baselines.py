@@ -15,7 +15,7 @@ from uavlink.radio.rates import fair_rate, rate_bps
 
 
 class StaticPolicy:
-    """Hover where the episode starts (the area centre)."""
+    """Hover where the episode starts (the area centre; a fleet's UAVs on their start circle)."""
 
     name = "static"
     layout = None
@@ -104,12 +104,19 @@ BASELINES = BASELINE_NAMES  # declared in config, where a warm start names its t
 
 
 def make_baseline(name: str, cfg: EnvConfig):
+    """The baseline ``name`` for ``cfg``: a fleet (``n_uavs`` > 1) gets the fleet versions of the
+    rules (``uavlink.policies.fleet_baselines``); ``static`` hovers every UAV at its start."""
+    from uavlink.policies.fleet_baselines import FleetAoaPolicy, FleetOraclePolicy, KMeansPolicy
+
+    fleet = cfg.n_uavs > 1
     if name == "static":
         return StaticPolicy(cfg)
     if name == "aoa":
-        return AoaPolicy(cfg)
+        return FleetAoaPolicy(cfg) if fleet else AoaPolicy(cfg)
     if name == "oracle":
-        return OraclePolicy(cfg)
+        return FleetOraclePolicy(cfg) if fleet else OraclePolicy(cfg)
+    if name == "kmeans":
+        return KMeansPolicy(cfg)
     raise UserError(f"unknown baseline {name!r}; choose from {', '.join(BASELINES)}")
 
 

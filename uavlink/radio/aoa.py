@@ -31,16 +31,23 @@ def measured_aoa_deg(
     return wrap_deg(true_deg)
 
 
-def circular_mean_std_deg(angle_deg: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Circular mean and std over the last axis (degrees).
+def circular_mean_std_deg(angle_deg: np.ndarray, mask: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
+    """Circular mean and std over the last axis (degrees), over the entries ``mask`` keeps when given.
 
     Mean = atan2(mean sin, mean cos); std = sqrt(-2 ln R) with R the mean resultant length (as
-    scipy.stats.circstd). A naive mean of 179 and -179 gives 0; this gives -180.
+    scipy.stats.circstd). A naive mean of 179 and -179 gives 0; this gives -180. With no entry kept
+    the mean is NaN and the std the largest the clip allows.
     """
     rad = np.radians(angle_deg)
-    s = np.sin(rad).mean(axis=-1)
-    c = np.cos(rad).mean(axis=-1)
+    if mask is None:
+        s = np.sin(rad).mean(axis=-1)
+        c = np.cos(rad).mean(axis=-1)
+    else:
+        count = mask.sum(axis=-1)
+        with np.errstate(invalid="ignore", divide="ignore"):
+            s = (np.sin(rad) * mask).sum(axis=-1) / count
+            c = (np.cos(rad) * mask).sum(axis=-1) / count
     mean = wrap_deg(np.degrees(np.arctan2(s, c)))
-    resultant = np.clip(np.hypot(s, c), 1e-12, 1.0)
+    resultant = np.clip(np.nan_to_num(np.hypot(s, c)), 1e-12, 1.0)
     std = np.degrees(np.sqrt(-2.0 * np.log(resultant)))
     return mean, std
