@@ -12,6 +12,7 @@ import math
 from collections.abc import Callable
 from dataclasses import dataclass, field
 
+from sitl_stub import guided_commands as guided
 from sitl_stub.modes import MANUAL_MAIN_MODES, FlightMode
 from sitl_stub.streams import StreamScheduler
 from sitl_stub.telemetry import TelemetrySender
@@ -27,10 +28,9 @@ _STATE_CHANGING = frozenset({
     mavlink.MAV_CMD_COMPONENT_ARM_DISARM, mavlink.MAV_CMD_NAV_TAKEOFF, mavlink.MAV_CMD_NAV_LAND,
     mavlink.MAV_CMD_NAV_RETURN_TO_LAUNCH, mavlink.MAV_CMD_DO_SET_MODE,
     mavlink.MAV_CMD_MISSION_START,
+    mavlink.MAV_CMD_DO_REPOSITION, mavlink.MAV_CMD_DO_ORBIT, mavlink.MAV_CMD_DO_CHANGE_SPEED,
+    mavlink.MAV_CMD_INJECT_FAILURE,
 })
-_RELATIVE_FRAMES = frozenset({mavlink.MAV_FRAME_GLOBAL_RELATIVE_ALT,
-                              mavlink.MAV_FRAME_GLOBAL_RELATIVE_ALT_INT})
-_LOCAL_FRAMES = frozenset({mavlink.MAV_FRAME_LOCAL_NED})
 
 
 @dataclass(frozen=True)
@@ -98,6 +98,14 @@ class CommandHandler:
         if c == mavlink.MAV_CMD_MISSION_START:  # AUTO.MISSION; param1 >= 0: from that item
             first = int(p[0]) if math.isfinite(p[0]) and p[0] >= 0 else None
             return _reply(v.start_mission(first))
+        if c == mavlink.MAV_CMD_DO_REPOSITION:
+            return _reply(guided.reposition(v, self.telemetry.origin, p, req.frame))
+        if c == mavlink.MAV_CMD_DO_CHANGE_SPEED:
+            return _reply(guided.change_speed(v, p))
+        if c == mavlink.MAV_CMD_DO_ORBIT:
+            return _reply(guided.orbit(v, self.telemetry.origin, p, req.frame))
+        if c == mavlink.MAV_CMD_INJECT_FAILURE:
+            return _reply(guided.inject_failure(v, p))
         if c == mavlink.MAV_CMD_REQUEST_MESSAGE:
             name = _message_name(p[0])
             if name is None or not self.telemetry.can_send(name):
@@ -142,16 +150,8 @@ class CommandHandler:
         height, MAV_FRAME_LOCAL_NED a down coordinate. NaN, or a height under 0.5 m, means
         MIS_TAKEOFF_ALT (PX4: "using minimum takeoff altitude").
         """
-        z = req.params[6]
-        if not math.isfinite(z):
-            return None
-        if req.frame in _RELATIVE_FRAMES:
-            alt = z
-        elif req.frame in _LOCAL_FRAMES:
-            alt = -z
-        else:
-            alt = z - self.telemetry.origin.alt_amsl_m
-        return alt if alt >= MIN_TAKEOFF_ALT_M else None
+        alt = guided.height_m(req.params[6], req.frame, self.telemetry.origin)
+        return alt if alt is not None and alt >= MIN_TAKEOFF_ALT_M else None
 
 
 def _reply(outcome: Outcome) -> CommandReply:

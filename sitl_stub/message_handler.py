@@ -23,6 +23,7 @@ from sitl_stub.ftp import ftp_reply
 from sitl_stub.mission_protocol import MissionProtocol
 from sitl_stub.param_protocol import ParamProtocol
 from sitl_stub.payload import PayloadSlot
+from sitl_stub.setpoints import Refusal, read_setpoint
 from sitl_stub.telemetry import TelemetrySender
 from sitl_stub.vehicle import Vehicle
 from sitl_stub.vehicle_state import Result
@@ -34,8 +35,11 @@ from uavlink.mavlink.signing import SigningGuard
 log = logging.getLogger("sitl_stub")
 
 AUTOPILOT_COMPONENT = 1
-POSITION_IGNORE_MASK = 0x7  # SET_POSITION_TARGET type_mask bits x, y, z
-YAW_IGNORE_BIT = 0x400
+_BODY_FRAMES = frozenset({mavlink.MAV_FRAME_BODY_NED, mavlink.MAV_FRAME_BODY_FRD})
+_GLOBAL_FRAMES = frozenset({
+    mavlink.MAV_FRAME_GLOBAL, mavlink.MAV_FRAME_GLOBAL_INT, mavlink.MAV_FRAME_GLOBAL_RELATIVE_ALT,
+    mavlink.MAV_FRAME_GLOBAL_RELATIVE_ALT_INT, mavlink.MAV_FRAME_GLOBAL_TERRAIN_ALT,
+    mavlink.MAV_FRAME_GLOBAL_TERRAIN_ALT_INT})
 MAX_RX_PER_TICK = 2000  # messages/datagrams handled per loop iteration: a flood cannot stall time
 
 
@@ -94,8 +98,12 @@ class MessageHandler:
     def _dispatch(self, msg: Any, kind: str, wall: float) -> None:
         if kind in ("COMMAND_LONG", "COMMAND_INT"):
             self._on_command(msg, kind, wall)
-        elif kind == "SET_POSITION_TARGET_LOCAL_NED":
+        elif kind in ("SET_POSITION_TARGET_LOCAL_NED", "SET_POSITION_TARGET_GLOBAL_INT"):
             self._on_setpoint(msg)
+        elif kind == "SET_ATTITUDE_TARGET" and self._for_autopilot(msg):
+            self.stats["setpoints_ignored"] += 1  # not a stream: OFFBOARD stays refused
+            self.rejects.reject("setpoint_attitude", "SET_ATTITUDE_TARGET refused: attitude and "
+                                "rate setpoints are not flown; use SET_POSITION_TARGET_*")
         elif kind.startswith("PARAM_"):
             if self._for_autopilot(msg):
                 refused = self.param_protocol.rejected_sets
@@ -140,26 +148,47 @@ class MessageHandler:
                 and getattr(msg, "target_component", 0) in (0, AUTOPILOT_COMPONENT))
 
     def _on_setpoint(self, m: Any) -> None:
+        """SET_POSITION_TARGET_LOCAL_NED (LOCAL_NED; BODY_NED/BODY_FRD velocities) or
+        SET_POSITION_TARGET_GLOBAL_INT (lat/lon; altitude AMSL or above home by frame)."""
         if not self._for_autopilot(m):
             self.stats["setpoints_ignored"] += 1  # someone else's: not an error
             return
-        if m.coordinate_frame != mavlink.MAV_FRAME_LOCAL_NED:
-            self.stats["setpoints_ignored"] += 1
-            self.rejects.reject("setpoint_frame",
-                                f"setpoint in frame {m.coordinate_frame}: only MAV_FRAME_LOCAL_NED (1)",
-                                key=f"setpoint_frame_{m.coordinate_frame}")
-            return
-        if m.type_mask & POSITION_IGNORE_MASK:
-            self.stats["setpoints_ignored"] += 1
-            self.rejects.reject("setpoint_type_mask",
-                                f"setpoint type_mask 0x{m.type_mask:x} ignores position: "
-                                "only position setpoints are flown")
-            return
-        yaw = None if m.type_mask & YAW_IGNORE_BIT else m.yaw
-        if not self.vehicle.offer_setpoint(m.x, m.y, m.z, yaw):
+        frame = m.coordinate_frame
+        body_yaw = None
+        if m.get_type() == "SET_POSITION_TARGET_GLOBAL_INT":
+            if frame not in _GLOBAL_FRAMES:
+                return self._refuse_setpoint(Refusal(
+                    "setpoint_frame", f"global setpoint in frame {frame}: only MAV_FRAME_GLOBAL"
+                    "(_INT), GLOBAL_RELATIVE_ALT(_INT) and GLOBAL_TERRAIN_ALT(_INT)"), frame)
+            position = self._global_to_local(m.lat_int, m.lon_int, m.alt, frame)
+        else:
+            if frame in _BODY_FRAMES:
+                body_yaw = self.vehicle.yaw
+            elif frame != mavlink.MAV_FRAME_LOCAL_NED:
+                return self._refuse_setpoint(Refusal(
+                    "setpoint_frame", f"setpoint in frame {frame}: only MAV_FRAME_LOCAL_NED (1), "
+                    "BODY_NED (8) and BODY_FRD (12)"), frame)
+            position = (m.x, m.y, m.z)
+        sp = read_setpoint(m.type_mask, position, (m.vx, m.vy, m.vz), m.yaw, m.yaw_rate, body_yaw)
+        if isinstance(sp, Refusal):
+            return self._refuse_setpoint(sp, frame)
+        if not self.vehicle.offer_setpoint(*sp.position_ned, sp.yaw_rad, sp.motion):
             self.stats["setpoints_rejected"] += 1
             self.rejects.reject("setpoint_not_finite",
-                                f"setpoint with a NaN/infinite position ({m.x}, {m.y}, {m.z})")
+                                f"setpoint with a NaN/infinite position {position}")
+
+    def _refuse_setpoint(self, refusal: Refusal, frame: int) -> None:
+        self.stats["setpoints_ignored"] += 1
+        key = f"setpoint_frame_{frame}" if refusal.kind == "setpoint_frame" else None
+        self.rejects.reject(refusal.kind, refusal.text, key=key)
+
+    def _global_to_local(self, lat_int: int, lon_int: int, alt_m: float,
+                         frame: int) -> tuple[float, float, float]:
+        """LOCAL_NED of a global setpoint; the world is flat at home, so terrain = home."""
+        origin = self.telemetry.origin
+        north, east = origin.to_local(lat_int / 1e7, lon_int / 1e7)
+        amsl = frame in (mavlink.MAV_FRAME_GLOBAL, mavlink.MAV_FRAME_GLOBAL_INT)
+        return north, east, -(alt_m - origin.alt_amsl_m if amsl else alt_m)
 
     def _on_command(self, msg: Any, kind: str, wall: float) -> None:
         if msg.target_system not in (0, self.system_id):

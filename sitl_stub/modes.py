@@ -26,6 +26,9 @@ from uavlink.mavlink.px4_modes import (
     px4_mode_name,
 )
 
+#: PX4's POSCTL sub mode for ORBIT (``px4_custom_mode.h`` PX4_CUSTOM_SUB_MODE_POSCTL_ORBIT).
+PX4_SUB_POSCTL_ORBIT = 1
+
 #: PX4 main modes that need a manual-control (RC) link, which this vehicle never has.
 MANUAL_MAIN_MODES = frozenset(
     {PX4_MAIN_MANUAL, PX4_MAIN_ALTCTL, PX4_MAIN_POSCTL, PX4_MAIN_ACRO, PX4_MAIN_STABILIZED,
@@ -42,6 +45,7 @@ class FlightMode(Enum):
     RTL = (PX4_MAIN_AUTO, PX4_SUB_AUTO_RTL)
     LAND = (PX4_MAIN_AUTO, PX4_SUB_AUTO_LAND)
     OFFBOARD = (PX4_MAIN_OFFBOARD, 0)
+    ORBIT = (PX4_MAIN_POSCTL, PX4_SUB_POSCTL_ORBIT)  # entered by MAV_CMD_DO_ORBIT only
 
     @property
     def main(self) -> int:
@@ -59,6 +63,8 @@ class FlightMode(Enum):
     @property
     def px4_name(self) -> str:
         """PX4's name, e.g. ``AUTO.LOITER``."""
+        if self is FlightMode.ORBIT:
+            return "POSCTL.ORBIT"
         return px4_mode_name(self.main, self.sub)
 
     @classmethod

@@ -58,6 +58,8 @@ PARAM_DEFS: tuple[ParamDef, ...] = (
              "Below this altitude a landing slows to MPC_LAND_SPEED, m."),
     ParamDef("MIS_TAKEOFF_ALT", ParamType.REAL32, 95.0, 0.5, 500.0,
              "Takeoff altitude above home when NAV_TAKEOFF gives none, m."),
+    ParamDef("SYS_FAILURE_EN", ParamType.INT32, 0, 0, 1,
+             "Failure injection (MAV_CMD_INJECT_FAILURE): 0 refused, 1 enabled."),
     ParamDef("RTL_RETURN_ALT", ParamType.REAL32, 60.0, 0.0, 500.0,
              "RTL climbs to at least this altitude above home before returning, m."),
     ParamDef("NAV_ACC_RAD", ParamType.REAL32, 10.0, 0.05, 200.0,

@@ -15,33 +15,41 @@ ACC_Z_MPS2 = 3.0  # PX4 MPC_ACC_DOWN_MAX (and below MPC_ACC_UP_MAX 4)
 POS_GAIN = 1.0  # PX4 MPC_XY_P / MPC_Z_P ~ 1 /s
 YAW_RATE_RADPS = math.radians(45.0)  # PX4 MPC_YAWRAUTO_MAX
 GROUND_EPS_M = 0.05  # "on the ground" below this altitude
+BRAKE_FRACTION = 0.9  # braking curves use 90 % of the acceleration limit
 
 
 def track(pos: list[float], vel: list[float], target: tuple[float, float, float],
-          limits: tuple[float, float, float], acc_xy_mps2: float, h: float) -> tuple[float, float]:
+          limits: tuple[float, float, float], acc_xy_mps2: float, h: float,
+          velocity_ff: tuple[float, float, float] = (0.0, 0.0, 0.0)) -> tuple[float, float]:
     """Fly ``h`` seconds towards ``target`` within ``limits`` (horizontal speed, climb rate,
-    descent rate, m/s); returns the horizontal acceleration (north, east) it used."""
+    descent rate, m/s); returns the horizontal acceleration (north, east) it used.
+
+    As PX4's position controller: the velocity setpoint is ``velocity_ff`` plus the braking-curve
+    P term of the position error; a NaN target axis is flown on ``velocity_ff`` alone (north and
+    east are NaN together)."""
     xy_max, up_max, down_max = limits
     tn, te, td = target
-    # Horizontal: braking-curve P control, acceleration-limited.
-    en, ee = tn - pos[0], te - pos[1]
-    dist = math.hypot(en, ee)
-    speed = min(xy_max, POS_GAIN * dist, math.sqrt(2.0 * 0.9 * acc_xy_mps2 * dist))
-    vdn, vde = (en / dist * speed, ee / dist * speed) if dist > 1e-9 else (0.0, 0.0)
-    dvn, dve = vdn - vel[0], vde - vel[1]
-    dv = math.hypot(dvn, dve)
-    if dv > acc_xy_mps2 * h:
-        dvn, dve = dvn * acc_xy_mps2 * h / dv, dve * acc_xy_mps2 * h / dv
+    # Horizontal: braking-curve P control plus feed-forward, acceleration-limited.
+    vdn, vde = velocity_ff[0], velocity_ff[1]
+    if not (math.isnan(tn) or math.isnan(te)):
+        en, ee = tn - pos[0], te - pos[1]
+        dist = math.hypot(en, ee)
+        speed = min(xy_max, POS_GAIN * dist, math.sqrt(2.0 * BRAKE_FRACTION * acc_xy_mps2 * dist))
+        if dist > 1e-9:
+            vdn, vde = vdn + en / dist * speed, vde + ee / dist * speed
+    vdn, vde = _limit_norm(vdn, vde, xy_max)
+    dvn, dve = _limit_norm(vdn - vel[0], vde - vel[1], acc_xy_mps2 * h)
     vel[0] += dvn
     vel[1] += dve
-    hs = math.hypot(vel[0], vel[1])
-    if hs > xy_max:  # a lowered MPC_XY_VEL_MAX applies at once
-        vel[0] *= xy_max / hs
-        vel[1] *= xy_max / hs
+    vel[0], vel[1] = _limit_norm(vel[0], vel[1], xy_max)  # a lowered MPC_XY_VEL_MAX applies at once
     # Vertical (down positive).
-    ed = td - pos[2]
-    vmax = down_max if ed > 0 else up_max
-    vd_des = math.copysign(min(vmax, POS_GAIN * abs(ed), math.sqrt(2.0 * 0.9 * ACC_Z_MPS2 * abs(ed))), ed)
+    vd_des = velocity_ff[2]
+    if not math.isnan(td):
+        ed = td - pos[2]
+        vmax = down_max if ed > 0 else up_max
+        vd_des += math.copysign(min(vmax, POS_GAIN * abs(ed),
+                                    math.sqrt(2.0 * BRAKE_FRACTION * ACC_Z_MPS2 * abs(ed))), ed)
+    vd_des = max(-up_max, min(down_max, vd_des))
     dvd = max(-ACC_Z_MPS2 * h, min(ACC_Z_MPS2 * h, vd_des - vel[2]))
     vel[2] = max(-up_max, min(down_max, vel[2] + dvd))
     for i in range(3):
@@ -49,8 +57,18 @@ def track(pos: list[float], vel: list[float], target: tuple[float, float, float]
     return dvn / h, dve / h
 
 
-def turn(yaw_rad: float, yaw_target_rad: float | None, h: float) -> tuple[float, float]:
-    """(yaw, yaw rate) after turning ``h`` seconds towards the target at the limited rate."""
+def _limit_norm(a: float, b: float, max_norm: float) -> tuple[float, float]:
+    n = math.hypot(a, b)
+    return (a * max_norm / n, b * max_norm / n) if n > max_norm else (a, b)
+
+
+def turn(yaw_rad: float, yaw_target_rad: float | None, h: float,
+         yaw_rate_radps: float | None = None) -> tuple[float, float]:
+    """(yaw, yaw rate) after turning ``h`` seconds towards the target at the limited rate, or at
+    ``yaw_rate_radps`` (limited the same) when given."""
+    if yaw_rate_radps is not None:
+        rate = max(-YAW_RATE_RADPS, min(YAW_RATE_RADPS, yaw_rate_radps))
+        return wrap(yaw_rad + rate * h), rate
     if yaw_target_rad is None:
         return yaw_rad, 0.0
     err = wrap(yaw_target_rad - yaw_rad)
@@ -70,7 +88,7 @@ def fall(pos: list[float], vel: list[float], h: float) -> None:
 
 def stopping_point(pos: list[float], vel: list[float], acc_xy_mps2: float) -> tuple[float, float, float]:
     """Where braking at 90 % of ``acc_xy_mps2`` from the current velocity ends (not clamped)."""
-    a = 0.9 * acc_xy_mps2
+    a = BRAKE_FRACTION * acc_xy_mps2
     vn, ve = vel[0], vel[1]
     s = math.hypot(vn, ve) / (2.0 * a)
     return (pos[0] + vn * s, pos[1] + ve * s, pos[2])

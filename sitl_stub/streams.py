@@ -24,6 +24,7 @@ DEFAULT_RATES_HZ: dict[str, float] = {
     "ATTITUDE_QUATERNION": 0.0,
     "VFR_HUD": 4.0,
     "MISSION_CURRENT": 1.0,
+    "ORBIT_EXECUTION_STATUS": 2.0,  # sent only while orbiting
 }
 
 HEARTBEAT_SIM_PERIOD_S = 1.0

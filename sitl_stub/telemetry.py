@@ -36,6 +36,11 @@ SENSORS = (
     | mavlink.MAV_SYS_STATUS_SENSOR_BATTERY | mavlink.MAV_SYS_STATUS_PREARM_CHECK
 )
 
+# SYS_STATUS health bits an injected failure (sitl_stub.failures) clears.
+_FAILED_BITS = {"gps": mavlink.MAV_SYS_STATUS_SENSOR_GPS,
+                "battery": mavlink.MAV_SYS_STATUS_SENSOR_BATTERY,
+                "motor": mavlink.MAV_SYS_STATUS_SENSOR_MOTOR_OUTPUTS}
+
 CAPABILITIES = (
     mavlink.MAV_PROTOCOL_CAPABILITY_MAVLINK2 | mavlink.MAV_PROTOCOL_CAPABILITY_COMMAND_INT
     | mavlink.MAV_PROTOCOL_CAPABILITY_PARAM_ENCODE_BYTEWISE
@@ -89,6 +94,8 @@ class TelemetrySender:
             "VFR_HUD": self.vfr_hud,
             "AUTOPILOT_VERSION": self.autopilot_version,
             "MISSION_CURRENT": self.mission_current,
+
+            "ORBIT_EXECUTION_STATUS": self.orbit_execution_status,
         }
 
     def names(self) -> list[str]:
@@ -107,9 +114,11 @@ class TelemetrySender:
                                 base_mode(s), s.mode.custom_mode, status)
 
     def sys_status(self, s: VehicleState) -> None:
-        health = SENSORS & ~mavlink.MAV_SYS_STATUS_GEOFENCE if s.fence_breached else SENSORS
+        healthy = SENSORS & ~sum(_FAILED_BITS[f] for f in s.failures if f in _FAILED_BITS)
+        if s.fence_breached:
+            healthy &= ~mavlink.MAV_SYS_STATUS_GEOFENCE
         b = self.battery.reading()
-        self.mav.sys_status_send(SENSORS, SENSORS, health, 200, _mv(b.voltage_v), -1,
+        self.mav.sys_status_send(SENSORS, SENSORS, healthy, 200, _mv(b.voltage_v), -1,
                                  int(b.remaining_pct), 0, 0, 0, 0, 0, 0)
 
     def battery_status(self, s: VehicleState) -> None:
@@ -135,9 +144,11 @@ class TelemetrySender:
         lat, lon = self.origin.to_global(s.north_m, s.east_m)
         speed = s.ground_speed_mps
         cog = 65535 if speed < 0.5 else _cdeg(math.atan2(s.ve_mps, s.vn_mps))
-        self.mav.gps_raw_int_send(_us(s.time_s), mavlink.GPS_FIX_TYPE_3D_FIX, _e7(lat), _e7(lon),
+        gps_off = "gps" in s.failures  # injected failure: no receiver data
+        fix = mavlink.GPS_FIX_TYPE_NO_GPS if gps_off else mavlink.GPS_FIX_TYPE_3D_FIX
+        self.mav.gps_raw_int_send(_us(s.time_s), fix, _e7(lat), _e7(lon),
                                   _mm(self.origin.alt_amsl_m + s.altitude_m), 70, 110,
-                                  min(int(speed * 100), 65534), cog, 12,
+                                  min(int(speed * 100), 65534), cog, 0 if gps_off else 12,
                                   _mm(self.origin.alt_amsl_m + s.altitude_m), 500, 800, 200, 0, 0)
 
     def global_position_int(self, s: VehicleState) -> None:
@@ -174,6 +185,16 @@ class TelemetrySender:
 
     def mission_item_reached(self, seq: int) -> None:
         self.mav.mission_item_reached_send(seq)
+
+    def orbit_execution_status(self, s: VehicleState) -> None:
+        """Sent only while orbiting (PX4 publishes orbit_status from FlightTaskOrbit)."""
+        o = s.orbit
+        if o is None:
+            return
+        lat, lon = self.origin.to_global(o.center_n, o.center_e)
+        self.mav.orbit_execution_status_send(_us(s.time_s), o.signed_radius_m,
+                                             mavlink.MAV_FRAME_GLOBAL, _e7(lat), _e7(lon),
+                                             self.origin.alt_amsl_m - o.down_m)
 
     def statustext(self, severity: int, text: str) -> None:
         self.announce.statustext_send(severity, text[:50].encode("ascii", "replace"))

@@ -24,12 +24,15 @@ from __future__ import annotations
 import math
 from collections import deque
 
+from sitl_stub.failures import FailureState
 from sitl_stub.fence_failsafe import geofence_failsafe
 from sitl_stub.geo import GeoOrigin
 from sitl_stub.geofence import FenceGuard
+from sitl_stub.guidance import ControlCommand, Guidance, Motion
 from sitl_stub.mission_executor import Leg, MissionExecutor
 from sitl_stub.mission_store import RALLY, MissionStore
 from sitl_stub.modes import FlightMode, LandedState
+from sitl_stub.offboard import OffboardStream
 from sitl_stub.params import ParamStore
 from sitl_stub.position_control import GROUND_EPS_M, fall, stopping_point, tilt, track, turn, wrap
 from sitl_stub.rtl import ReturnPhases, rally_points, return_destination
@@ -75,16 +78,11 @@ class Vehicle:
         self._landed = True
         self._landed_since = 0.0
         self._has_flown = False
-        self._sp: tuple[float, float, float] | None = None
-        self._sp_yaw: float | None = None
-        self._sp_time = -math.inf
-        self.setpoints_accepted = 0
-        self.setpoints_rejected = 0
-        self.setpoints_clamped = 0
-        self.offboard_failsafes = 0
+        self.offboard = OffboardStream()
         self.max_abs_xy_m = 0.0
-        self.max_offboard_setpoint_age_s = 0.0
         self._events: deque[tuple[int, str]] = deque(maxlen=32)
+        self.guidance = Guidance()  # velocity setpoints, orbit, reposition and cruise speeds
+        self.failures = FailureState()  # MAV_CMD_INJECT_FAILURE effects
 
     # ----------------------------------------------------------------- requests
     def arm(self) -> Outcome:
@@ -158,9 +156,7 @@ class Vehicle:
         if not self.offboard_stream_ok():
             return Outcome(Result.DENIED, "Switching to Offboard denied: no setpoint stream")
         self.mode = FlightMode.OFFBOARD
-        assert self._sp is not None
-        self._target = self._sp
-        self._yaw_target = self._sp_yaw
+        self._target, self._yaw_target = self.offboard.setpoint, self.offboard.yaw_rad
         return ACCEPTED
 
     def set_mode(self, mode: FlightMode) -> Outcome:
@@ -187,30 +183,36 @@ class Vehicle:
         self._leg = None
         return ACCEPTED
 
+    def fly_to(self, mode: FlightMode, target: tuple[float, float, float],
+               yaw_rad: float | None = None) -> tuple[float, float, float] | None:
+        """Enter ``mode`` (LOITER: DO_REPOSITION; ORBIT) flying to ``target`` (fenced), heading
+        ``yaw_rad`` (None: keep); the fenced target, or None when landed (PX4 stays down)."""
+        self.mode = mode
+        if self._landed:
+            self._target = self._ground_point()
+            return None
+        self._target = self._fenced(target)
+        self._yaw_target = None if yaw_rad is None else wrap(yaw_rad)
+        return self._target
+
     def offer_setpoint(self, north_m: float, east_m: float, down_m: float,
-                       yaw_rad: float | None = None) -> bool:
+                       yaw_rad: float | None = None, motion: Motion | None = None) -> bool:
         """A position setpoint (LOCAL_NED). Non-finite ones are rejected (False); others are
         clamped into the geofence, above the ground and below :data:`MAX_ALTITUDE_M`, and refresh
-        the offboard stream."""
-        if not all(math.isfinite(v) for v in (north_m, east_m, down_m)):
-            self.setpoints_rejected += 1
+        the offboard stream. ``motion`` adds a velocity (:class:`~sitl_stub.guidance.Motion`)."""
+        if motion is not None:
+            north_m, east_m, down_m = motion.fill((north_m, east_m, down_m), self.pos)
+        sp = self.offboard.offer((north_m, east_m, down_m), yaw_rad, self.t, self._fenced)
+        if sp is None:
             return False
-        sp = self._clamp((float(north_m), float(east_m),
-                          max(min(float(down_m), 0.0), -MAX_ALTITUDE_M)))
-        if sp != (north_m, east_m, down_m):
-            self.setpoints_clamped += 1
-        self._sp = sp
-        self._sp_yaw = wrap(yaw_rad) if yaw_rad is not None and math.isfinite(yaw_rad) else None
-        self._sp_time = self.t
-        self.setpoints_accepted += 1
+        self.guidance.motion = motion
         if self.mode is FlightMode.OFFBOARD:
-            self._target = sp
-            self._yaw_target = self._sp_yaw
+            self._target, self._yaw_target = sp, self.offboard.yaw_rad
         return True
 
     def offboard_stream_ok(self) -> bool:
         """True while the last setpoint is no older than COM_OF_LOSS_T."""
-        return self._sp is not None and self.t - self._sp_time <= self.params["COM_OF_LOSS_T"]
+        return self.offboard.alive(self.t, self.params["COM_OF_LOSS_T"])
 
     def drain_events(self) -> list[tuple[int, str]]:
         """(MAV_SEVERITY, text) events since the last call: failsafes, auto-disarm, ..."""
@@ -236,23 +238,24 @@ class Vehicle:
             vn_mps=self.vel[0], ve_mps=self.vel[1], vd_mps=self.vel[2],
             roll_rad=roll, pitch_rad=pitch, yaw_rad=self.yaw, yaw_rate_radps=self._yaw_rate,
             armed=self.armed, mode=self.mode, landed_state=self._landed_state(),
-            setpoint_ned=self._sp, setpoints_accepted=self.setpoints_accepted,
-            setpoints_rejected=self.setpoints_rejected, setpoints_clamped=self.setpoints_clamped,
-            offboard_failsafes=self.offboard_failsafes, max_abs_xy_m=self.max_abs_xy_m,
-            max_offboard_setpoint_age_s=self.max_offboard_setpoint_age_s,
+            setpoint_ned=self.offboard.setpoint, setpoints_accepted=self.offboard.setpoints_accepted,
+            setpoints_rejected=self.offboard.setpoints_rejected,
+            setpoints_clamped=self.offboard.setpoints_clamped, offboard_failsafes=self.offboard.failsafes,
+            max_abs_xy_m=self.max_abs_xy_m, max_offboard_setpoint_age_s=self.offboard.max_age_s,
             fence_breached=self.fence.breached,
             mission_current=self.mission.status(self.mode is FlightMode.MISSION),
+            failures=frozenset(self.failures.active),
+            orbit=self.guidance.orbit if self.mode is FlightMode.ORBIT else None,
         )
 
     def _substep(self, h: float) -> None:
         self.t += h
         if self.mode is FlightMode.OFFBOARD:
             if self.offboard_stream_ok():
-                self.max_offboard_setpoint_age_s = max(self.max_offboard_setpoint_age_s,
-                                                       self.t - self._sp_time)
+                self.offboard.flown_at(self.t)
             else:
                 self._offboard_lost()
-        if self.armed:
+        if self.armed and not self.failures.motors_off:
             self._advance_mode()
             if not self._landed:
                 geofence_failsafe(self)
@@ -264,17 +267,10 @@ class Vehicle:
         self._update_landed()
 
     def _offboard_lost(self) -> None:
-        self.offboard_failsafes += 1
-        action = int(self.params["COM_OBL_ACT"])
-        if not self.armed or self._landed or action == 1:
-            self.hold()
-            name = "Hold"
-        elif action == 0:
-            self.land()
-            name = "Land"
-        else:
-            self.return_to_launch()
-            name = "Return"
+        self.offboard.failsafes += 1
+        action = 1 if not self.armed or self._landed else int(self.params["COM_OBL_ACT"])
+        name, act = {0: ("Land", self.land), 1: ("Hold", self.hold)}.get(action, ("Return", self.return_to_launch))
+        act()
         self._event(SEVERITY_WARNING, f"Failsafe: offboard lost, activating {name}")
 
     def _advance_mode(self) -> None:
@@ -295,32 +291,34 @@ class Vehicle:
     def _limits(self) -> tuple[float, float, float]:
         """(horizontal speed, climb rate, descent rate) limits for the current mode, m/s."""
         p = self.params
-        xy = p["MPC_XY_VEL_MAX"]
+        xy = self.guidance.xy_limit_mps(self.mode, self._target, p)
         up, down = p["MPC_Z_VEL_MAX_UP"], p["MPC_Z_VEL_MAX_DN"]
         leg = self._leg if self.mode is FlightMode.MISSION else None
         if self.mode is FlightMode.TAKEOFF or (leg is not None and leg.takeoff):
             up = min(up, p["MPC_TKO_SPEED"])
         if self._landing() and -self.pos[2] <= p["MPC_LAND_ALT2"]:
             down = min(down, p["MPC_LAND_SPEED"])
-        if self.mode is FlightMode.RTL:
-            xy = min(xy, p["MPC_XY_CRUISE"])
         if leg is not None:
-            xy = min(xy, leg.speed_mps or p["MPC_XY_CRUISE"])
+            xy = min(xy, leg.speed_mps or self.guidance.cruise_speed_mps(p))
         return xy, up, down
 
     def _landing(self) -> bool:
         return (self.mode is FlightMode.LAND or (self.mode is FlightMode.RTL and self._rtl.landing)
                 or (self.mode is FlightMode.MISSION and self._leg is not None and self._leg.landing))
 
+    def _command(self) -> ControlCommand:
+        return self.guidance.command(self.mode, self.pos, self._target, self._yaw_target, self.yaw,
+                                     self.fence_m, MAX_ALTITUDE_M, self.params["MPC_ACC_HOR_MAX"])
+
     def _control(self, h: float) -> None:
-        limits = self._limits()
-        if self._landed and -self._target[2] <= GROUND_EPS_M:
+        cmd = self._command()
+        if self._landed and not cmd.wants_up:
             self.vel = [0.0, 0.0, 0.0]  # sitting on the ground, nothing to do
             self._acc_ne = (0.0, 0.0)
             return
-        self._acc_ne = track(self.pos, self.vel, self._target, limits,
-                             self.params["MPC_ACC_HOR_MAX"], h)
-        self.yaw, self._yaw_rate = turn(self.yaw, self._yaw_target, h)
+        self._acc_ne = track(self.pos, self.vel, cmd.target, self._limits(),
+                             self.params["MPC_ACC_HOR_MAX"], h, cmd.velocity_ff)
+        self.yaw, self._yaw_rate = turn(self.yaw, cmd.yaw_rad, h, cmd.yaw_rate_radps)
 
     def _fall(self, h: float) -> None:
         self._acc_ne = (0.0, 0.0)
@@ -340,7 +338,7 @@ class Vehicle:
 
     def _update_landed(self) -> None:
         alt = -self.pos[2]
-        wants_up = self.armed and -self._target[2] > GROUND_EPS_M
+        wants_up = self.armed and not self.failures.motors_off and self._command().wants_up
         landed = alt <= GROUND_EPS_M and not wants_up and abs(self.vel[2]) < 0.3
         if landed and not self._landed:
             self._landed_since = self.t
@@ -373,6 +371,10 @@ class Vehicle:
         if self.armed and self._landing():
             return LandedState.LANDING
         return LandedState.IN_AIR
+
+    def _fenced(self, ned: tuple[float, float, float]) -> tuple[float, float, float]:
+        """Inside the area, above the ground and below :data:`MAX_ALTITUDE_M`."""
+        return self._clamp((ned[0], ned[1], max(min(ned[2], 0.0), -MAX_ALTITUDE_M)))
 
     def _clamp(self, ned: tuple[float, float, float]) -> tuple[float, float, float]:
         """Horizontal position clamped into the geofence; ``down`` unchanged."""

@@ -12,8 +12,12 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 from enum import IntEnum
+from typing import TYPE_CHECKING
 
 from sitl_stub.modes import FlightMode, LandedState
+
+if TYPE_CHECKING:
+    from sitl_stub.guidance import Orbit
 
 # MAV_SEVERITY values for vehicle events (reported as STATUSTEXT by the server).
 SEVERITY_CRITICAL = 2
@@ -73,6 +77,8 @@ class VehicleState:
     max_offboard_setpoint_age_s: float = 0.0
     fence_breached: bool = False  # a geofence is breached now (SYS_STATUS reports it unhealthy)
     mission_current: tuple[int, int, int, int] = (0, 0, 1, 0)  # MISSION_CURRENT seq, total, state, mode
+    failures: frozenset[str] = frozenset()  # injected failures: "gps", "battery", "motor"
+    orbit: Orbit | None = None  # the orbit flown in ORBIT mode
 
     @property
     def x_east_m(self) -> float:

@@ -237,7 +237,7 @@ def test_mutated_signed_packets_never_pass_the_signing_check() -> None:
             v.safe()
 
         run()
-        assert not v.server.vehicle.armed and v.server.vehicle.setpoints_accepted == 0
+        assert not v.server.vehicle.armed and v.server.vehicle.offboard.setpoints_accepted == 0
         assert v.acks == []
         signing = v.server.signing.stats()
         assert signing["rejected_bad_signature"] + signing["rejected_unsigned"] > 50

@@ -18,6 +18,7 @@ from pathlib import Path
 import pytest
 
 from sitl_stub.launcher import vehicle_process
+from sitl_stub.params import PARAM_DEFS
 from uavlink.mavlink.connection import free_udp_port
 from uavlink.mavlink.dialect import mavutil
 
@@ -65,7 +66,7 @@ def test_mavproxy_shows_mode_and_position(tmp_path: Path):
             _wait_text(out_path, "Detected vehicle 1:1", 20.0)
             _wait_text(out_path, "Mode LOITER", 10.0)
             _wait_text(out_path, "GPS lock at 488 meters", 10.0)
-            _wait_text(out_path, "Received 13 parameters", 15.0)
+            _wait_text(out_path, f"Received {len(PARAM_DEFS)} parameters", 15.0)
 
             client = mavutil.mavlink_connection(f"udpin:127.0.0.1:{p_out}", source_system=250,
                                                 source_component=190)

@@ -19,6 +19,7 @@ from pathlib import Path
 import pytest
 
 from sitl_stub.launcher import vehicle_process
+from sitl_stub.params import PARAM_DEFS
 from uavlink.mavlink.connection import free_udp_port
 
 pytestmark = [pytest.mark.slow, pytest.mark.timeout(120)]
@@ -74,7 +75,7 @@ def test_mavproxy_round_trips_mission_fence_and_rally(tmp_path: Path):
 
     try:
         with vehicle_process(f"udpout:127.0.0.1:{port}", 1.0, []) as vehicle:
-            at = _wait_text(out_path, "Received 13 parameters", 30.0)
+            at = _wait_text(out_path, f"Received {len(PARAM_DEFS)} parameters", 30.0)
             for module, (file, rows) in PLANS.items():
                 type_in(f"{module} load {file}")
                 at = _wait_text(out_path, "Got MISSION_ACK: TYPE_", 15.0, at)
