@@ -1,7 +1,10 @@
 """``python -m sitl_stub`` / ``sitl-stub``: run the SITL vehicle until SIGINT/SIGTERM.
 
-Example: ``python -m sitl_stub --scenario circular --seed 1 --connect udpout:127.0.0.1:14550
---speed 20``. Bad arguments print one line and exit with status 2; a connection that cannot be
+With no flags it talks as PX4 SITL instance 0 does: system 1, an API link from UDP 14580 to
+127.0.0.1:14540 (MAVSDK's default) and a GCS link from 18570 to 127.0.0.1:14550 (QGroundControl,
+MAVProxy); ``--instance N`` shifts the ports and the system id as PX4's ``-i N``. ``--connect URL``
+(repeatable) replaces those links. Example: ``python -m sitl_stub --scenario circular --seed 1
+--connect udpout:127.0.0.1:14550 --speed 20``. Bad arguments print one line and exit with status 2; a connection that cannot be
 opened exits with status 1. On exit it prints one line ``sitl-stub: stats {json}`` with the
 counters of :meth:`~sitl_stub.mavlink_server.SitlServer.report` (signing, rejected input, ACKs,
 safety monitors).
@@ -17,10 +20,11 @@ import math
 import signal
 import sys
 import threading
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from typing import NoReturn
 
 from sitl_stub.geo import GeoOrigin
+from sitl_stub.links import MAX_INSTANCE
 from sitl_stub.mavlink_server import ServerConfig, SitlServer
 from sitl_stub.params import PARAM_DEFS
 from sitl_stub.payload import (
@@ -91,23 +95,30 @@ def _setting(text: str) -> tuple[str, object]:
     return key, value
 
 
-def _system_id(text: str) -> int:
-    try:
-        v = int(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"not an integer: {text!r}") from None
-    if not 1 <= v <= 255:
-        raise argparse.ArgumentTypeError(f"must be in 1..255, got {text}")
-    return v
+def _int_in(low: int, high: int) -> Callable[[str], int]:
+    def parse(text: str) -> int:
+        try:
+            v = int(text)
+        except ValueError:
+            raise argparse.ArgumentTypeError(f"not an integer: {text!r}") from None
+        if not low <= v <= high:
+            raise argparse.ArgumentTypeError(f"must be in {low}..{high}, got {text}")
+        return v
+    return parse
 
 
 def build_parser() -> argparse.ArgumentParser:
     p = _Parser(prog=PROG, description="A lightweight PX4-style SITL multicopter speaking "
                 "MAVLink 2, with a radio payload component.")
-    p.add_argument("--connect", type=_connection, default="udpout:127.0.0.1:14550",
-                   help="udpout:HOST:PORT sends (default udpout:127.0.0.1:14550, like PX4 SITL's "
-                   "GCS link); udp:HOST:PORT or udp:PORT listens; MAVSDK-style udpin:// and "
-                   "udpout:// URLs work too")
+    p.add_argument("--connect", type=_connection, action="append", default=None, metavar="URL",
+                   help="talk on this connection instead of PX4's ports (repeatable: one link "
+                   "each): udpout:HOST:PORT sends; udp:HOST:PORT or udp:PORT listens; "
+                   "MAVSDK-style udpin:// and udpout:// URLs and tcp:/tcpin: work too. Default: "
+                   "PX4 SITL's links, API from UDP 14580+N to 127.0.0.1:14540+N and GCS from "
+                   "18570+N to 127.0.0.1:14550")
+    p.add_argument("--instance", "-i", type=_int_in(0, MAX_INSTANCE), default=0, metavar="N",
+                   help="PX4 SITL instance number, as PX4's -i N: the ports above and system id "
+                   "N+1 (default 0)")
     p.add_argument("--speed", type=_positive, default=1.0,
                    help="simulated seconds per wall second (default 1)")
     p.add_argument("--scenario", choices=SCENARIOS, default="circular",
@@ -128,9 +139,9 @@ def build_parser() -> argparse.ArgumentParser:
                    help="stop after this many simulated seconds (default: run until signalled)")
     p.add_argument("--param", type=_param, action="append", default=[], metavar="NAME=VALUE",
                    help="override a parameter default, e.g. MIS_TAKEOFF_ALT=10 (repeatable)")
-    p.add_argument("--system-id", type=_system_id, default=1,
+    p.add_argument("--system-id", type=_int_in(1, 255), default=None,
                    help="MAVLink system id of the vehicle and its payloads (PX4's MAV_SYS_ID; "
-                   "default 1)")
+                   "default: instance + 1)")
     p.add_argument("--no-payload", action="store_true", help="run without the radio payload")
     p.add_argument("--signing-key", metavar="FILE", default=None,
                    help="MAVLink 2 signing key (32 raw bytes, e.g. from `uavlink keygen`): sign "
@@ -152,8 +163,8 @@ def main(argv: Sequence[str] | None = None, payload_factory: PayloadFactory | No
             (payload_factory or default_payload_factory)(
                 PayloadOptions(args.scenario, args.seed, args.aoa_noise_deg, tuple(args.settings))))
         key = load_key(args.signing_key) if args.signing_key else None
-        config = ServerConfig(connect=args.connect, speed=args.speed, home=home,
-                              params=dict(args.param), system_id=args.system_id,
+        config = ServerConfig(connect=args.connect, instance=args.instance, speed=args.speed,
+                              home=home, params=dict(args.param), system_id=args.system_id,
                               duration_s=args.duration_s, signing_key=key)
         server = SitlServer(config, payloads)
     except ValueError as exc:
@@ -161,11 +172,12 @@ def main(argv: Sequence[str] | None = None, payload_factory: PayloadFactory | No
     try:
         server.open()
     except OSError as exc:
-        print(f"{PROG}: error: cannot open {server.connection}: {exc}", file=sys.stderr)
+        hint = "" if args.connect else " (another vehicle on these ports? try --instance)"
+        print(f"{PROG}: error: cannot open {exc.strerror or exc}{hint}", file=sys.stderr)
         return 1
     signing = (f"signing on (key {hashlib.sha256(key).hexdigest()[:8]})" if key
                else "signing off")
-    print(f"{PROG}: vehicle {config.system_id} on {server.connection}, {args.speed:g}x real time, "
+    print(f"{PROG}: vehicle {server.system_id} on {server.connection}, {args.speed:g}x real time, "
           f"{len(payloads)} payload(s), {signing}", file=sys.stderr, flush=True)
     stop = threading.Event()
 

@@ -1,7 +1,8 @@
 """Run the SITL vehicle (``python -m sitl_stub``) as a child process: the one launcher behind
 ``uavlink fly``'s embedded vehicle and the tests that fly against a real vehicle process.
 
-The child gets ``--connect CONNECT --speed SPEED`` and then ``extra_args`` (any other sitl-stub
+The child gets ``--connect CONNECT`` (once per URL when CONNECT is a sequence; none when it is
+None: PX4 SITL's ports, see ``--instance``), ``--speed SPEED`` and then ``extra_args`` (any other sitl-stub
 options: ``--scenario``, ``--seed``, ``--signing-key``, ``--param NAME=VALUE``, ...). Its
 stdout/stderr go to ``log_path`` when given (kept), else to a temporary file removed afterwards;
 read them with :meth:`VehicleProcess.output`. It is always stopped (SIGTERM, then SIGKILL) when the
@@ -47,16 +48,19 @@ class VehicleProcess:
         return int(self.proc.returncode)
 
 
-def vehicle_command(connect: str, speed: float, extra_args: Sequence[str] = ()) -> list[str]:
+def vehicle_command(connect: str | Sequence[str] | None, speed: float,
+                    extra_args: Sequence[str] = ()) -> list[str]:
     """The child's command line."""
-    return [sys.executable, "-m", "sitl_stub", "--connect", connect, "--speed", repr(float(speed)),
-            *extra_args]
+    urls = [] if connect is None else [connect] if isinstance(connect, str) else list(connect)
+    links = [arg for url in urls for arg in ("--connect", url)]
+    return [sys.executable, "-m", "sitl_stub", *links, "--speed", repr(float(speed)), *extra_args]
 
 
 @contextmanager
-def vehicle_process(connect: str, speed: float = 5.0, extra_args: Sequence[str] = (),
+def vehicle_process(connect: str | Sequence[str] | None, speed: float = 5.0, extra_args: Sequence[str] = (),
                     log_path: Path | None = None) -> Iterator[VehicleProcess]:
-    """Run the vehicle with ``--connect connect --speed speed extra_args`` for the block."""
+    """Run the vehicle with ``--connect connect --speed speed extra_args`` for the block (no
+    ``--connect`` when ``connect`` is None)."""
     if log_path is None:
         fd, name = tempfile.mkstemp(prefix="sitl_stub_", suffix=".log")
         log_file, path = os.fdopen(fd, "wb"), Path(name)

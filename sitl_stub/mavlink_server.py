@@ -1,11 +1,17 @@
 """The SITL vehicle's MAVLink 2 endpoint: system 1, autopilot component 1, plus payload components.
 
+It talks on one or more links (:mod:`sitl_stub.links`): by default PX4 SITL instance
+``ServerConfig.instance``'s API link (from 14580+N to 127.0.0.1:14540+N) and GCS link (from
+18570+N to 127.0.0.1:14550), or the connections in ``ServerConfig.connect``. Every link gets all
+telemetry; replies go back on the link the request came on; signing covers every link.
+
 One thread does everything: it advances simulated time (:class:`~sitl_stub.clock.SimClock`),
 steps the :class:`~sitl_stub.vehicle.Vehicle` (stopping at payload frame boundaries to tick the
 payloads), handles incoming messages and sends the telemetry that is due. Use it blocking
 (:meth:`SitlServer.run`, as ``python -m sitl_stub`` does) or in the background
 (:meth:`SitlServer.start` / :meth:`SitlServer.stop`, or ``with SitlServer(...)``), e.g. listening
-on ``udpin:127.0.0.1:0`` and reading the chosen port from :attr:`SitlServer.address`.
+on ``udpin:127.0.0.1:0`` and reading the chosen port from :attr:`SitlServer.address` (the first
+link's).
 
 Accepted targets: target_system 0 or the vehicle's id, target_component 0 (broadcast, what
 pymavlink ground stations send) or 1; commands addressed to a payload's component id go to it.
@@ -28,9 +34,11 @@ from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 from typing import Any
 
+from sitl_stub.battery import Battery
 from sitl_stub.clock import SimClock
 from sitl_stub.commands import CommandHandler
 from sitl_stub.geo import GeoOrigin
+from sitl_stub.links import Fanout, Link, LinkSpec, Route, connect_links, open_links, px4_links
 from sitl_stub.message_handler import AUTOPILOT_COMPONENT, MessageHandler
 from sitl_stub.param_protocol import ParamProtocol
 from sitl_stub.params import ParamStore
@@ -40,8 +48,7 @@ from sitl_stub.telemetry import TelemetrySender
 from sitl_stub.vehicle import Vehicle
 from sitl_stub.vehicle_state import VehicleState
 from uavlink.config import AreaConfig
-from uavlink.mavlink.connection import normalize_connection
-from uavlink.mavlink.dialect import mavlink, mavutil
+from uavlink.mavlink.dialect import mavlink
 from uavlink.mavlink.rejects import RejectLog
 from uavlink.mavlink.signing import SigningGuard
 
@@ -52,33 +59,54 @@ LOOP_WAIT_S = 0.005  # longest wait for input between loop iterations (wall)
 
 @dataclass(frozen=True)
 class ServerConfig:
-    """How to run the vehicle. ``speed`` is simulated seconds per wall second; ``duration_s``
-    (simulated) ends :meth:`SitlServer.run`; ``params`` overrides parameter defaults."""
+    """How to run the vehicle. ``connect``: one connection string or several (one link each);
+    None means PX4 SITL instance ``instance``'s API and GCS links. ``system_id`` defaults to
+    ``instance + 1`` (PX4's MAV_SYS_ID in SITL). ``speed`` is simulated seconds per wall second;
+    ``duration_s`` (simulated) ends :meth:`SitlServer.run`; ``params`` overrides parameter
+    defaults."""
 
-    connect: str = "udpout:127.0.0.1:14550"
+    connect: str | Sequence[str] | None = None
+    instance: int = 0
     speed: float = 1.0
     home: GeoOrigin = field(default_factory=GeoOrigin)
     area: AreaConfig = field(default_factory=AreaConfig)
     params: Mapping[str, float] = field(default_factory=dict)
-    system_id: int = 1
+    system_id: int | None = None
     duration_s: float | None = None
     max_stream_wall_hz: float = 50.0
     signing_key: bytes | None = field(default=None, repr=False)
 
+    def link_specs(self) -> tuple[LinkSpec, ...]:
+        """The links to open (ValueError for a bad connection string or instance)."""
+        if self.connect is None:
+            return px4_links(self.instance)
+        urls = [self.connect] if isinstance(self.connect, str) else list(self.connect)
+        if not urls:
+            raise ValueError("connect: give at least one connection, or None for PX4's ports")
+        return connect_links(urls)
+
+    @property
+    def vehicle_id(self) -> int:
+        """The MAVLink system id: ``system_id``, else ``instance + 1``."""
+        return self.instance + 1 if self.system_id is None else self.system_id
+
 
 class SitlServer:
-    """A PX4-style SITL multicopter speaking MAVLink 2 on one connection."""
+    """A PX4-style SITL multicopter speaking MAVLink 2 on one or more links."""
 
     def __init__(self, config: ServerConfig | None = None, payloads: Sequence[Payload] = ()) -> None:
         self.config = config or ServerConfig()
         c = self.config
-        self.connection = normalize_connection(c.connect)
+        self.link_specs = c.link_specs()
+        self.connection = ", ".join(spec.describe() for spec in self.link_specs)
+        self.system_id = c.vehicle_id
         c.home.validate()
         if not (isinstance(c.speed, (int, float)) and math.isfinite(c.speed) and c.speed > 0):
             raise ValueError(f"speed must be a positive number, got {c.speed}")
-        if not 1 <= c.system_id <= 255:
-            raise ValueError(f"system_id must be in 1..255, got {c.system_id}")
+        if not 1 <= self.system_id <= 255:
+            raise ValueError(f"system_id must be in 1..255, got {self.system_id}")
         self.params = ParamStore(c.params)
+        self.battery = Battery(self.params)
         self.vehicle = Vehicle(self.params, c.area, origin=c.home)
         self.streams = StreamScheduler(max_wall_hz=c.max_stream_wall_hz)
         ids = {AUTOPILOT_COMPONENT}
@@ -91,7 +119,8 @@ class SitlServer:
         self.rejects = RejectLog(log)
         self.signing: SigningGuard | None = None
         self._notices: list[str] = []
-        self.conn: Any = None
+        self.links: list[Link] = []
+        self.route = Route()
         self.clock: SimClock | None = None
         self._stop = threading.Event()
         self._thread: threading.Thread | None = None
@@ -100,33 +129,46 @@ class SitlServer:
 
     # --------------------------------------------------------------- lifecycle
     def open(self) -> None:
-        """Open the connection (raises OSError when it cannot) and reset the clock."""
-        if self.conn is not None:
+        """Open every link (raises OSError when one cannot be) and reset the clock.
+
+        ``self.mav`` (and each payload slot's ``mav``) sends on the links :attr:`route` picks:
+        every link, or the one whose input is being handled, so replies go back where the request
+        came from. Each link's encoders sign with the link's index as MAVLink link id."""
+        if self.links:
             return
         c = self.config
-        self.conn = mavutil.mavlink_connection(self.connection, source_system=c.system_id,
-                                               source_component=AUTOPILOT_COMPONENT)
-        self.mav = self.conn.mav
-        self.telemetry = TelemetrySender(self.mav, c.home)
-        self.commands = CommandHandler(self.vehicle, self.streams, self.telemetry)
-        self.param_protocol = ParamProtocol(self.params, self.mav)
-        self._slots = [PayloadSlot(p, mavlink.MAVLink(self.conn, srcSystem=c.system_id,
-                                                srcComponent=int(p.component_id)))
-                       for p in self._payloads]
+        self.links = open_links(self.link_specs, self.system_id, AUTOPILOT_COMPONENT)
+        encoders = [[link.mav, *(link.encoder(int(p.component_id)) for p in self._payloads)]
+                    for link in self.links]
         if c.signing_key is not None:
             self.signing = SigningGuard(c.signing_key, on_first_reject=self._on_signing_reject)
-            for mav in (self.mav, *(slot.mav for slot in self._slots)):
-                self.signing.attach(mav)
-        self.inbox = MessageHandler(c.system_id, self.conn, self.vehicle, self.commands,
-                                    self.telemetry, self.param_protocol, self._slots, self.stats,
-                                    self.rejects, self.signing)
+            for link, mavs in zip(self.links, encoders, strict=True):
+                for mav in mavs:
+                    self.signing.attach(mav).signing.link_id = link.index
+        per_component = list(zip(*encoders, strict=True))  # [autopilot encoders, payload 1's, ...]
+        self.mav = Fanout(per_component[0], self.route)
+        self.telemetry = TelemetrySender(self.mav, c.home, self.battery, self.mav.everyone())
+        self.commands = CommandHandler(self.vehicle, self.streams, self.telemetry)
+        self.param_protocol = ParamProtocol(self.params, self.mav)
+        self._slots = [PayloadSlot(p, Fanout(mavs, self.route))
+                       for p, mavs in zip(self._payloads, per_component[1:], strict=True)]
+        self.inboxes = [MessageHandler(self.system_id, link.conn, self.vehicle, self.commands,
+                                       self.telemetry, self.param_protocol, self._slots,
+                                       self.stats, self.rejects, self.signing)
+                        for link in self.links]
         self.clock = SimClock(c.speed)
-        log.debug("vehicle %d on %s at %gx real time", c.system_id, self.connection, c.speed)
+        log.debug("vehicle %d on %s at %gx real time", self.system_id, self.connection, c.speed)
 
     def close(self) -> None:
-        if self.conn is not None:
-            self.conn.close()
-            self.conn = None
+        for link in self.links:
+            link.close()
+        self.links = []
+
+    @property
+    def conn(self) -> Any:
+        """The first link's pymavlink connection (the only one with a single ``connect``), or
+        None when closed."""
+        return self.links[0].conn if self.links else None
 
     def start(self) -> SitlServer:
         """Open and run in a daemon thread; returns self."""
@@ -152,25 +194,24 @@ class SitlServer:
 
     @property
     def address(self) -> tuple[str, int]:
-        """Local (host, port) of the vehicle's socket: where to send when it listens."""
-        if self.conn is None:
+        """Local (host, port) of the first link's socket: where to send when it listens."""
+        if not self.links:
             raise RuntimeError("server not open")
-        sock = getattr(self.conn, "listen", None) or self.conn.port  # tcpin listens separately
-        host, port = sock.getsockname()[:2]
-        return str(host), int(port)
+        return self.links[0].address()
 
     def state(self) -> VehicleState:
         """Latest vehicle snapshot (safe from any thread)."""
         return self._snapshot
 
     def report(self) -> dict[str, Any]:
-        """Counters for logs and tests: signing, rejected input by kind, ACK results, and the
-        vehicle's safety monitors (geofence, offboard setpoint age, failsafes)."""
+        """Counters for logs and tests: the links, signing, rejected input by kind, ACK results,
+        and the vehicle's safety monitors (geofence, offboard setpoint age, failsafes, battery)."""
         s = self._snapshot
         acks = {k[4:]: v for k, v in sorted(self.stats.items()) if k.startswith("ack_")}
         payloads = {str(p.component_id): p.summary() for p in self._payloads
                     if callable(getattr(p, "summary", None))}
         return {
+            "links": [spec.describe() for spec in self.link_specs],
             "signing": self.signing.stats() if self.signing else None,
             "payloads": payloads,
             "rejected": self.rejects.as_dict(),
@@ -182,6 +223,7 @@ class SitlServer:
                 "max_abs_xy_m": round(s.max_abs_xy_m, 3), "fence_m": self.vehicle.fence_m,
                 "setpoints_accepted": s.setpoints_accepted,
                 "setpoints_clamped": s.setpoints_clamped,
+                "battery_pct": round(self.battery.reading().remaining_pct, 1),
             },
         }
 
@@ -195,7 +237,7 @@ class SitlServer:
             self.iterate()
             if duration is not None and self.vehicle.t >= duration:
                 break
-            select.select([self.conn.fd], [], [], LOOP_WAIT_S)  # fd changes on a TCP accept
+            select.select([link.fd for link in self.links], [], [], LOOP_WAIT_S)
 
     def _run_thread(self) -> None:
         try:
@@ -209,8 +251,11 @@ class SitlServer:
         """Handle input, advance simulated time to the wall clock, send what is due."""
         assert self.clock is not None
         wall = self.clock.wall()
-        self.inbox.receive(wall)
+        for link, inbox in zip(self.links, self.inboxes, strict=True):
+            with self.route.answering_link(link.index):
+                inbox.receive(wall)
         self._advance_to(self.clock.advance())
+        self.battery.update(self.vehicle.t, self.vehicle.armed)
         for severity, text in self.vehicle.drain_events():
             log.info("%s", text)
             self.telemetry.statustext(severity, text)

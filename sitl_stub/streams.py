@@ -14,6 +14,7 @@ import math
 
 DEFAULT_RATES_HZ: dict[str, float] = {
     "SYS_STATUS": 1.0,
+    "BATTERY_STATUS": 0.5,
     "EXTENDED_SYS_STATE": 1.0,
     "HOME_POSITION": 0.5,
     "GPS_RAW_INT": 1.0,

@@ -1,8 +1,14 @@
 """MAVLink telemetry of the vehicle as PX4's mavlink module would send it.
 
-Every message is built from a :class:`~sitl_stub.vehicle_state.VehicleState`; ``time_boot_ms`` and
-``time_usec`` are simulated time since boot. Global positions come from the LOCAL_NED position
-through the configured :class:`~sitl_stub.geo.GeoOrigin` (which is also home).
+Every message is built from a :class:`~sitl_stub.vehicle_state.VehicleState` (and the
+:class:`~sitl_stub.battery.Battery`); ``time_boot_ms`` and ``time_usec`` are simulated time since
+boot. Global positions come from the LOCAL_NED position through the configured
+:class:`~sitl_stub.geo.GeoOrigin` (which is also home). One method per message; a new message is a
+method plus a row in ``_builders`` (and a default rate in :mod:`sitl_stub.streams` to stream it).
+
+``mav`` sends where the server routes it (every link, or the link whose request is being
+answered); ``announce`` (default ``mav``) sends STATUSTEXT, which goes to every link as PX4's
+mavlink_log does.
 """
 
 from __future__ import annotations
@@ -11,12 +17,14 @@ import math
 from collections.abc import Callable
 from typing import Any
 
+from sitl_stub.battery import CELL_COUNT, Battery
 from sitl_stub.geo import GeoOrigin
 from sitl_stub.vehicle_state import VehicleState
 from uavlink.mavlink.dialect import mavlink
 
 # PX4 reports every sensor present, enabled and healthy in SITL; GEOFENCE healthy keeps MAVProxy
-# from announcing "fence breach", PREARM_CHECK and GPS make MAVSDK's health armable / position ok.
+# from announcing "fence breach" (it is unhealthy while VehicleState.fence_breached), PREARM_CHECK
+# and GPS make MAVSDK's health armable / position ok.
 SENSORS = (
     mavlink.MAV_SYS_STATUS_SENSOR_3D_GYRO | mavlink.MAV_SYS_STATUS_SENSOR_3D_ACCEL
     | mavlink.MAV_SYS_STATUS_SENSOR_3D_MAG | mavlink.MAV_SYS_STATUS_SENSOR_ABSOLUTE_PRESSURE
@@ -44,6 +52,12 @@ CAPABILITIES = (
 )
 FLIGHT_SW_VERSION = 1 << 24 | 14 << 16 | 0 << 8 | 255  # "v1.14.0 official", PX4's encoding
 UID = int.from_bytes(b"SITLSTUB", "big")
+UNKNOWN_TEMPERATURE = 32767  # BATTERY_STATUS.temperature INT16_MAX: not measured
+UNUSED_CELL = 65535  # BATTERY_STATUS.voltages UINT16_MAX: no such cell
+# PX4's BAT_LOW_THR, BAT_CRIT_THR, BAT_EMERGEN_THR (remaining fraction) -> charge_state
+_CHARGE_STATES = ((0.05, mavlink.MAV_BATTERY_CHARGE_STATE_EMERGENCY),
+                  (0.07, mavlink.MAV_BATTERY_CHARGE_STATE_CRITICAL),
+                  (0.15, mavlink.MAV_BATTERY_CHARGE_STATE_LOW))
 
 _AUTO_FLAGS = (mavlink.MAV_MODE_FLAG_AUTO_ENABLED | mavlink.MAV_MODE_FLAG_STABILIZE_ENABLED
                | mavlink.MAV_MODE_FLAG_GUIDED_ENABLED)
@@ -60,12 +74,16 @@ def base_mode(state: VehicleState) -> int:
 class TelemetrySender:
     """Sends the autopilot's messages with one pymavlink ``MAVLink`` object (component 1)."""
 
-    def __init__(self, mav: Any, origin: GeoOrigin) -> None:
+    def __init__(self, mav: Any, origin: GeoOrigin, battery: Battery | None = None,
+                 announce: Any = None) -> None:
         self.mav = mav
         self.origin = origin
+        self.battery = battery or Battery()
+        self.announce = mav if announce is None else announce
         self._builders: dict[str, Callable[[VehicleState], None]] = {
             "HEARTBEAT": self.heartbeat,
             "SYS_STATUS": self.sys_status,
+            "BATTERY_STATUS": self.battery_status,
             "EXTENDED_SYS_STATE": self.extended_sys_state,
             "HOME_POSITION": self.home_position,
             "GPS_RAW_INT": self.gps_raw_int,
@@ -99,8 +117,19 @@ class TelemetrySender:
         healthy = SENSORS & ~sum(_FAILED_BITS[f] for f in s.failures if f in _FAILED_BITS)
         if s.fence_breached:
             healthy &= ~mavlink.MAV_SYS_STATUS_GEOFENCE
-        self.mav.sys_status_send(SENSORS, SENSORS, healthy, 200, 16200, -1, 100,
-                                 0, 0, 0, 0, 0, 0)
+        b = self.battery.reading()
+        self.mav.sys_status_send(SENSORS, SENSORS, healthy, 200, _mv(b.voltage_v), -1,
+                                 int(b.remaining_pct), 0, 0, 0, 0, 0, 0)
+
+    def battery_status(self, s: VehicleState) -> None:
+        b = self.battery.reading()
+        cells = [_mv(b.cell_voltage_v)] * CELL_COUNT + [UNUSED_CELL] * (10 - CELL_COUNT)
+        fraction = b.remaining_pct / 100.0
+        charge = next((state for limit, state in _CHARGE_STATES if fraction <= limit),
+                      mavlink.MAV_BATTERY_CHARGE_STATE_OK)
+        self.mav.battery_status_send(0, mavlink.MAV_BATTERY_FUNCTION_ALL,
+                                     mavlink.MAV_BATTERY_TYPE_LIPO, UNKNOWN_TEMPERATURE, cells,
+                                     -1, -1, -1, int(b.remaining_pct), 0, charge)
 
     def extended_sys_state(self, s: VehicleState) -> None:
         self.mav.extended_sys_state_send(mavlink.MAV_VTOL_STATE_UNDEFINED, int(s.landed_state))
@@ -168,7 +197,7 @@ class TelemetrySender:
                                              self.origin.alt_amsl_m - o.down_m)
 
     def statustext(self, severity: int, text: str) -> None:
-        self.mav.statustext_send(severity, text[:50].encode("ascii", "replace"))
+        self.announce.statustext_send(severity, text[:50].encode("ascii", "replace"))
 
 
 def _e7(deg: float) -> int:
@@ -177,6 +206,9 @@ def _e7(deg: float) -> int:
 
 def _mm(m: float) -> int:
     return int(round(m * 1000.0))
+
+
+_mv = _mm  # volts to millivolts: the same scaling
 
 
 def _ms(s: float) -> int:
