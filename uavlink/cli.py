@@ -87,6 +87,8 @@ def _write_results_folder(args: argparse.Namespace) -> int:
 
     if args.spatial is not None and not args.spatial.is_dir():
         raise UserError(f"--spatial {args.spatial}: not a folder of policies")
+    if args.fleet is not None and (args.spatial is None or not args.fleet.is_dir()):
+        raise UserError(f"--fleet {args.fleet}: needs a folder of fleet policies and --spatial (one UAV's, to compare)")
     specs = []
     if args.sweep:  # checked before the long evaluation, which would write the folder
         from uavlink.sweep.aggregate import finished_rows
@@ -96,18 +98,21 @@ def _write_results_folder(args: argparse.Namespace) -> int:
         for spec in specs:
             finished_rows(spec, args.sweep_root / spec.name)
 
-    def sweep_sections(link_prefix: Path, shadowing_model: str) -> list[str]:
+    def kind(spec) -> str:
+        env = spec.jobs()[0].env_config()
+        return "fleet" if env.n_uavs > 1 else env.radio.shadowing_model
+
+    def sweep_sections(link_prefix: Path, wanted: str) -> list[str]:
         from uavlink.sweep.aggregate import results_section
 
-        spatial = shadowing_model == "spatial"
-        return [section for spec in specs if spec.jobs()[0].env_config().radio.shadowing_model == shadowing_model
+        shipped = {"ar1": folder, "spatial": args.spatial, "fleet": args.fleet}[wanted]
+        return [section for spec in specs if kind(spec) == wanted
                 for section in (results_section(spec, args.sweep_root / spec.name, args.out, link_prefix,
-                                                f"{args.spatial}/" if spatial else f"{folder}/",
-                                                "###" if spatial else "##"), "")]
+                                                f"{shipped}/", "##" if wanted == "ar1" else "###"), "")]
 
     path = write_results(folder, args.out, markdown, args.episodes, args.seed, overrides, command,
                          progress=lambda msg: print(f"evaluating {msg}", file=sys.stderr),
-                         sweep_sections=sweep_sections, spatial_folder=args.spatial)
+                         sweep_sections=sweep_sections, spatial_folder=args.spatial, fleet_folder=args.fleet)
     print(path.read_text())
     return 0
 
@@ -260,6 +265,9 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--spatial", type=Path, default=None, metavar="FOLDER",
                    help="with --out: add the spatial-channel tables (radio.shadowing_model=spatial): FOLDER's "
                         "policies, trained on it, and --policy's flown on it (e.g. policies/spatial)")
+    p.add_argument("--fleet", type=Path, default=None, metavar="FOLDER",
+                   help="with --out and --spatial: add the fleet tables (D = 1, 2, 3 UAVs on the spatial channel): "
+                        "FOLDER's fleet policies against the fleet baselines and --spatial's (e.g. policies/fleet)")
     p.add_argument("--sweep-root", type=Path, default=Path("runs"), help="where the sweep's results are (default runs)")
     p.set_defaults(func=cmd_evaluate)
 

@@ -203,11 +203,13 @@ def plot_trajectories(row: ScenarioRow, half_width_m: float, path: Path) -> None
 def write_results(policy_folder: Path, out: Path, markdown: Path, episodes: int, seed: int,
                   overrides: EnvOverrides, command: str, progress: Callable[[str], None] = lambda _: None,
                   sweep_sections: Callable[[Path, str], list[str]] = lambda _, __: [],
-                  spatial_folder: Path | None = None) -> Path:
+                  spatial_folder: Path | None = None, fleet_folder: Path | None = None) -> Path:
     """Evaluate everything, then write the folder (nothing is written if an evaluation fails);
-    returns the Markdown path. ``sweep_sections(link_prefix, shadowing_model)`` gives the
-    across-seed sections of the sweeps on that channel; with ``spatial_folder`` (policies trained on
-    the spatial channel) the report gains its spatial part (``uavlink.report_spatial``)."""
+    returns the Markdown path. ``sweep_sections(link_prefix, kind)`` gives the across-seed sections
+    of the sweeps of that kind (``"ar1"``, ``"spatial"``, ``"fleet"``); with ``spatial_folder``
+    (policies trained on the spatial channel) the report gains its spatial part
+    (``uavlink.report_spatial``), and with ``fleet_folder`` too (fleet policies) its fleet part
+    (``uavlink.report_fleet``)."""
     rows = evaluate_scenarios(policy_folder, episodes, seed, overrides, progress)
     h1, b1 = table_one(rows)
     progress("table II")
@@ -220,6 +222,12 @@ def write_results(policy_folder: Path, out: Path, markdown: Path, episodes: int,
 
         spatial = spatial_sections(policy_folder, spatial_folder, rows, episodes, seed, overrides, out,
                                    sweep_sections(rel, "spatial"), progress)
+    fleet = []
+    if fleet_folder is not None and spatial_folder is not None:
+        from uavlink.report_fleet import fleet_sections
+
+        fleet = fleet_sections(fleet_folder, spatial_folder, episodes, seed, overrides, out, rel,
+                               rows[0].cfg.area.half_width_m, progress) + sweep_sections(rel, "fleet")
     write_csv(out / "table1.csv", h1, b1)
     write_csv(out / "table2.csv", h2, b2)
     plot_throughput_per_episode(rows, out / "throughput_per_episode.png")
@@ -265,6 +273,7 @@ def write_results(policy_folder: Path, out: Path, markdown: Path, episodes: int,
         *[f"![{s}]({rel / f'trajectory_{s}.png'})" for s in SCENARIOS],
         "",
         *spatial,
+        *fleet,
     ]
     markdown.write_text("\n".join(text))
     return markdown
