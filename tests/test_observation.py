@@ -133,3 +133,22 @@ def test_a_new_field_is_one_entry_in_the_table():
     obs = np.tile(frame, (1, extended.memory))
     np.testing.assert_allclose(extended.newest_frame(obs)["sinr_db_mean"], [20.0])
     np.testing.assert_allclose(extended.history(obs, "sinr_db")[:, 0], sinr_db)  # the others unmoved
+
+
+def test_a_fleet_layout_adds_the_shared_fields_and_round_trips_them():
+    from uavlink.env.observation import FLEET_FIELDS, fleet_quantities
+
+    layout = ObservationLayout.for_config(EnvConfig(n_ues=3, n_uavs=3))
+    assert layout.version == 2 and layout.fields == FIELDS + FLEET_FIELDS
+    assert layout.frame_size == (2 + 3 + 2 + 1) + 2 * 2 + 3 * 3
+    assert ObservationLayout.from_dict(layout.to_dict()) == layout
+    assert layout.feature_names()[8:12] == ["t-0:other_x_1", "t-0:other_y_1", "t-0:other_x_2", "t-0:other_y_2"]
+    uav = np.array([[[0.0, 0.0], [50.0, 0.0], [0.0, 50.0]]])
+    serving = np.array([[2, 0, 1]])
+    shared = fleet_quantities(uav, serving)
+    np.testing.assert_array_equal(shared["others_xy_m"][1], [[0.0, 50.0], [0.0, 0.0]])  # UAV 1 sees 2, then 0
+    np.testing.assert_array_equal(shared["served_by"], [[2, 0, 1], [1, 2, 0], [0, 1, 2]])
+    frame = layout.encode_frame(uav[0], np.zeros((3, 3)), np.zeros((3, 3)), **shared)
+    decoded = {f.quantity: f.decode(layout, frame[:, layout.slices[f.quantity]]) for f in layout.fields}
+    np.testing.assert_allclose(decoded["others_xy_m"], shared["others_xy_m"])
+    np.testing.assert_array_equal(decoded["served_by"], shared["served_by"])

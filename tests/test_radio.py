@@ -320,55 +320,6 @@ def test_aoa_without_noise_is_exact_and_channel_honours_noise():
     np.testing.assert_allclose(error.std(axis=0), 5.0, rtol=0.03)
 
 
-# --- several UAVs (interference) ---------------------------------------------------------------
-
-
-def _sinr_db(uav_xy, ue_xy, radio=QUIET):
-    uav = np.asarray(uav_xy, float)[None]
-    ue = np.asarray(ue_xy, float)[None]
-    channel = RadioChannel(radio, AREA, n_ues=ue.shape[1])
-    return channel.reset(rng(15), uav, ue).sinr_db[0]
-
-
-def test_interference_from_a_second_uav_lowers_sinr():
-    ue = [[0.0, 0.0], [20.0, 0.0]]
-    alone = _sinr_db([[0.0, 0.0]], ue)
-    near = _sinr_db([[0.0, 0.0], [100.0, 0.0]], ue)
-    far = _sinr_db([[0.0, 0.0], [50_000.0, 0.0]], ue)
-    assert np.all(near < alone - 10.0)  # a co-channel UAV 100 m away hurts a lot
-    np.testing.assert_allclose(far, alone, atol=1e-3)  # one 50 km away changes nothing
-    # Two UAVs in the same spot: SINR = S / (S + N), just under 0 dB.
-    snr = 10 ** (HOVER_SNR_DB / 10)
-    same = _sinr_db([[0.0, 0.0], [0.0, 0.0]], [[0.0, 0.0]])
-    assert float(same[0]) == pytest.approx(10 * math.log10(snr / (snr + 1)), abs=1e-9)
-
-
-def test_interference_path_matches_single_uav_path_statistically_with_fading():
-    """D = 2 draws fading per RB explicitly, D = 1 draws the RB mean in one go: same statistics.
-
-    (Regression: the D > 1 path once drew one gain per link and broadcast it over the RBs, so the
-    effective SINR had the spread of a single RB.)"""
-    radio = RadioConfig(shadowing=False)
-    n = 5_000  # x 10 UEs
-    ue = np.zeros((n, 10, 2))
-    one = RadioChannel(radio, AREA, 10).reset(rng(16), np.zeros((n, 1, 2)), ue).sinr_db
-    far_uav = np.concatenate([np.zeros((n, 1, 2)), np.full((n, 1, 2), 1e6)], axis=1)
-    two = RadioChannel(radio, AREA, 10).reset(rng(17), far_uav, ue).sinr_db
-    assert two.mean() == pytest.approx(one.mean(), abs=0.02)  # the flat-fading bug was off 0.34 dB
-    assert two.std() == pytest.approx(one.std(), rel=0.03)  # ... and 2.4x too wide
-
-
-def test_each_ue_is_served_by_its_own_uav():
-    ue = [[10.0, 0.0], [290.0, 0.0]]
-    uavs = np.array([[[0.0, 0.0], [300.0, 0.0]]])
-    channel = RadioChannel(QUIET, AREA, n_ues=2, serving=np.array([0, 1]))
-    readings = channel.reset(rng(), uavs, np.asarray(ue, float)[None])
-    # Mirror-symmetric geometry: both UEs see the same SINR; each AoA is seen from its own server.
-    assert readings.sinr_db[0, 0] == pytest.approx(readings.sinr_db[0, 1])
-    assert readings.sinr_db[0, 0] > 15.0
-    np.testing.assert_allclose(readings.aoa_deg[0], [0.0, -180.0], atol=1e-12)
-
-
 def test_channel_step_before_reset_is_an_error():
     channel = RadioChannel(QUIET, AREA, n_ues=1)
     with pytest.raises(RuntimeError, match="reset"):

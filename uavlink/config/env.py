@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import dataclasses
 import json
+import math
 from collections.abc import Sequence
 from dataclasses import dataclass, field
 from typing import Any
@@ -27,6 +28,8 @@ MIXED = "mixed"
 SHADOWING_MODELS = ("ar1", "spatial")
 # How a policy's output becomes a move (uavlink.env.actions.ActionMapping implements them).
 ACTION_MAPPINGS = ("cartesian-v1", "polar-v1")
+# How a fleet shares the band (SPEC "A fleet"): every UAV on every RB, or the band split D ways.
+FLEET_REUSE = ("full", "orthogonal")
 
 
 @dataclass(frozen=True)
@@ -112,6 +115,11 @@ class EnvConfig:
     memory: int = 4
     ue_speed_mps: float = 8.0
     cluster_size_m: float = 10.0
+    # The fleet (SPEC "A fleet"): D UAVs, start spread on a circle, kept apart by a safety filter.
+    n_uavs: int = 1
+    fleet_reuse: str = FLEET_REUSE[0]
+    uav_separation_m: float = 20.0  # horizontal minimum between two UAVs
+    fleet_start_radius_m: float = 100.0  # UAV d starts at this radius, 360 d / D degrees from east
     area: AreaConfig = field(default_factory=AreaConfig)
     radio: RadioConfig = field(default_factory=RadioConfig)
 
@@ -122,7 +130,9 @@ class EnvConfig:
         if self.action_mapping not in ACTION_MAPPINGS:
             raise ConfigError(f"unknown action mapping {self.action_mapping!r}; choose from "
                               f"{', '.join(ACTION_MAPPINGS)}")
-        for name in ("n_ues", "episode_frames", "memory"):
+        if self.fleet_reuse not in FLEET_REUSE:
+            raise ConfigError(f"unknown fleet_reuse {self.fleet_reuse!r}; choose from {', '.join(FLEET_REUSE)}")
+        for name in ("n_ues", "episode_frames", "memory", "n_uavs"):
             value = getattr(self, name)
             if int(value) != value or value < 1:
                 raise ConfigError(f"env.{name} must be a positive integer, got {value}")
@@ -134,6 +144,14 @@ class EnvConfig:
         _non_negative("env.cluster_size_m", self.cluster_size_m)
         if self.cluster_size_m >= 2 * self.area.half_width_m:
             raise ConfigError("env.cluster_size_m must be smaller than the area")
+        _non_negative("env.uav_separation_m", self.uav_separation_m)
+        _non_negative("env.fleet_start_radius_m", self.fleet_start_radius_m)
+        if self.n_uavs > 1:  # the start circle must fit the area and keep the UAVs apart
+            if self.fleet_start_radius_m >= self.area.half_width_m:
+                raise ConfigError("env.fleet_start_radius_m must be smaller than area.half_width_m")
+            if 2 * self.fleet_start_radius_m * math.sin(math.pi / self.n_uavs) < self.uav_separation_m:
+                raise ConfigError(f"{self.n_uavs} UAVs on a {self.fleet_start_radius_m:g} m start circle are "
+                                  f"closer than env.uav_separation_m={self.uav_separation_m:g}")
         self.area.validate()
         self.radio.validate()
         return self

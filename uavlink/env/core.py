@@ -1,7 +1,10 @@
 """The batched environment core: N independent episodes stepped together as numpy arrays.
 
-Per frame: the UAV moves by the mapped action (clipped to the area, its geofence), the UEs move,
-the channel reports SINR/AoA/rates at the new positions, the reward is the normalised R_fair.
+Per frame: each UAV moves by its mapped action (clipped to the area, its geofence, and for a fleet
+shortened by the separation filter), the UEs move, the channel reports SINR/AoA/rates at the new
+positions, the reward is the normalised R_fair of all UEs (one team reward for a fleet). The core
+speaks in agent rows: row i is UAV i % D of env i // D (D = ``n_uavs``), so one UAV gives the
+paper's (N, obs) / (N, 2) and a fleet of D gives N D rows for one parameter-shared policy.
 Episodes have a fixed length, so all N envs start and end together; ``reset`` restarts the batch.
 Mobility, radio and AoA noise draw from separate streams of one seed, so two policies evaluated with
 the same seed see the same UE trajectories (common random numbers).
@@ -15,9 +18,10 @@ import numpy as np
 
 from uavlink.config import EnvConfig
 from uavlink.env.actions import ActionMapping
-from uavlink.env.observation import ObservationBuilder, ObservationLayout
+from uavlink.env.observation import ObservationBuilder, ObservationLayout, fleet_quantities
 from uavlink.env.reward import RewardBounds
 from uavlink.mobility import draw_scenarios, init_mobility, step_mobility
+from uavlink.mobility.fleet import separate, start_positions_m
 from uavlink.radio.channel import RadioChannel, RadioReadings
 from uavlink.radio.rates import fair_rate
 
@@ -26,7 +30,7 @@ from uavlink.radio.rates import fair_rate
 class GroundTruth:
     """What only the simulator knows (for the oracle baseline and plots; never observed)."""
 
-    uav_xy_m: np.ndarray  # (N, 2)
+    uav_xy_m: np.ndarray  # (N D, 2) agent rows
     ue_xy_m: np.ndarray  # (N, U, 2)
     ue_velocity_mps: np.ndarray  # (N, U, 2)
     scenario_ids: np.ndarray  # (N,)
@@ -34,12 +38,12 @@ class GroundTruth:
 
 @dataclass
 class StepResult:
-    observation: np.ndarray  # (N, obs) float32
-    reward: np.ndarray  # (N,)
-    terminated: np.ndarray  # (N,) bool, always False: no terminal states
-    truncated: np.ndarray  # (N,) bool, True at the last frame
-    mean_rate_mbps: np.ndarray  # (N,) mean UE rate of the frame
-    fair_rate: np.ndarray  # (N,)
+    observation: np.ndarray  # (N D, obs) float32, agent rows
+    reward: np.ndarray  # (N D,) the env's (team) reward on each of its rows
+    terminated: np.ndarray  # (N D,) bool, always False: no terminal states
+    truncated: np.ndarray  # (N D,) bool, True at the last frame
+    mean_rate_mbps: np.ndarray  # (N,) mean UE rate of the frame, per env
+    fair_rate: np.ndarray  # (N,) per env
 
 
 class BatchedUavEnv:
@@ -51,14 +55,18 @@ class BatchedUavEnv:
         if int(n_envs) != n_envs or n_envs < 1:
             raise ValueError(f"n_envs must be a positive integer, got {n_envs}")
         self.n_envs = int(n_envs)
+        self.n_uavs = self.cfg.n_uavs
+        self.n_rows = self.n_envs * self.n_uavs
         self.layout = ObservationLayout.for_config(self.cfg)
         self.actions = ActionMapping.for_config(self.cfg)
         self.reward_bounds = RewardBounds.for_config(self.cfg)
-        self.channel = RadioChannel(self.cfg.radio, self.cfg.area, self.cfg.n_ues)
-        self._builder = ObservationBuilder(self.layout, self.n_envs)
+        self.channel = RadioChannel(self.cfg.radio, self.cfg.area, self.cfg.n_ues, self.cfg.fleet_reuse)
+        self._builder = ObservationBuilder(self.layout, self.n_rows)
+        self._start_xy_m = np.tile(start_positions_m(self.n_uavs, self.cfg.fleet_start_radius_m),
+                                   (self.n_envs, 1))
         self._seed(seed)
         self.frame = 0
-        self.uav_xy_m = np.zeros((self.n_envs, 2))
+        self.uav_xy_m = self._start_xy_m.copy()
         self.mobility = None
         self.readings: RadioReadings | None = None
 
@@ -69,49 +77,65 @@ class BatchedUavEnv:
         self.mobility_rng, self.radio_rng = (np.random.default_rng(s) for s in streams)
 
     def reset(self, seed: int | np.random.SeedSequence | None = None) -> np.ndarray:
-        """Start N new episodes (UAV at the centre); returns the observations (N, obs)."""
+        """Start N new episodes (UAVs at their start positions); returns the observations (N D, obs)."""
         if seed is not None:
             self._seed(seed)
         self.frame = 0
         self.scenario_ids = draw_scenarios(self.mobility_rng, self.cfg.scenario, self.n_envs)
         self.mobility = init_mobility(self.mobility_rng, self.scenario_ids, self.cfg)
-        self.uav_xy_m = np.zeros((self.n_envs, 2))
-        self.readings = self.channel.reset(self.radio_rng, self.uav_xy_m[:, None, :],
+        self.uav_xy_m = self._start_xy_m.copy()
+        self.readings = self.channel.reset(self.radio_rng, self._per_env(self.uav_xy_m),
                                            self.mobility.position_m)
-        return self._builder.reset(self.uav_xy_m, self.readings.sinr_db, self.readings.aoa_deg)
+        return self._builder.reset(**self._sensed())
 
     def step(self, action: np.ndarray) -> StepResult:
-        """Advance every env one frame with actions (N, 2) in [-1, 1]."""
+        """Advance every env one frame with actions (N D, 2) in [-1, 1]."""
         if self.mobility is None:
             raise RuntimeError("call reset() before step()")
-        action = self.actions.validate(action, self.n_envs)
-        return self.step_to(self.uav_xy_m + self.actions.to_displacement_m(action))
+        action = self.actions.validate(action, self.n_rows)
+        half = self.cfg.area.half_width_m
+        target = np.clip(self.uav_xy_m + self.actions.to_displacement_m(action), -half, half)
+        if self.n_uavs > 1:
+            target = separate(self._per_env(self.uav_xy_m), self._per_env(target),
+                              self.cfg.uav_separation_m).reshape(self.n_rows, 2)
+        return self.step_to(target)
 
     def step_to(self, uav_xy_m: np.ndarray) -> StepResult:
-        """Advance one frame with the UAVs at the given positions (N, 2), clipped to the area.
+        """Advance one frame with the UAVs at the given positions (N D, 2), clipped to the area.
 
-        ``step`` uses it after mapping actions; the SITL radio payload uses it with the vehicle's
-        actual position, so flight and simulation share one frame update.
+        ``step`` uses it after mapping actions; the SITL radio payload uses it with the vehicles'
+        actual positions, so flight and simulation share one frame update.
         """
         if self.mobility is None:
             raise RuntimeError("call reset() before step_to()")
         half = self.cfg.area.half_width_m
-        self.uav_xy_m = np.clip(np.asarray(uav_xy_m, dtype=float).reshape(self.n_envs, 2), -half, half)
+        self.uav_xy_m = np.clip(np.asarray(uav_xy_m, dtype=float).reshape(self.n_rows, 2), -half, half)
         step_mobility(self.mobility, self.cfg.frame_s, half)
-        self.readings = self.channel.step(self.radio_rng, self.uav_xy_m[:, None, :],
+        self.readings = self.channel.step(self.radio_rng, self._per_env(self.uav_xy_m),
                                           self.mobility.position_m)
         self.frame += 1
-        obs = self._builder.push(self.uav_xy_m, self.readings.sinr_db, self.readings.aoa_deg)
+        obs = self._builder.push(**self._sensed())
         fair = fair_rate(self.readings.rate_bps)
         done = self.frame >= self.cfg.episode_frames
         return StepResult(
             observation=obs,
-            reward=self.reward_bounds.normalise(fair),
-            terminated=np.zeros(self.n_envs, dtype=bool),
-            truncated=np.full(self.n_envs, done),
+            reward=np.repeat(self.reward_bounds.normalise(fair), self.n_uavs),
+            terminated=np.zeros(self.n_rows, dtype=bool),
+            truncated=np.full(self.n_rows, done),
             mean_rate_mbps=self.readings.rate_bps.mean(axis=1) * 1e-6,
             fair_rate=fair,
         )
+
+    def _per_env(self, rows: np.ndarray) -> np.ndarray:
+        """Agent rows (N D, ...) as (N, D, ...)."""
+        return rows.reshape(self.n_envs, self.n_uavs, *rows.shape[1:])
+
+    def _sensed(self) -> dict[str, np.ndarray]:
+        """The observation's inputs per agent row: position, what its UAV hears, fleet fields."""
+        r, rows = self.readings, (self.n_rows, -1)
+        fleet = {} if self.n_uavs == 1 else fleet_quantities(self._per_env(self.uav_xy_m), r.serving)
+        return {"uav_xy_m": self.uav_xy_m, "sinr_db": r.heard_sinr_db.reshape(rows),
+                "aoa_deg": r.heard_aoa_deg.reshape(rows), **fleet}
 
     def ground_truth(self) -> GroundTruth:
         return GroundTruth(self.uav_xy_m.copy(), self.mobility.position_m.copy(),

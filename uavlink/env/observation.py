@@ -4,9 +4,13 @@ One piece of code, shared by the env and the flight loop. A frame is the fields 
 order, declared once with their encoding, decoding and bounds (newest frame first in the vector):
   UAV x, y / half-width; per-UE effective SINR, (dB - offset) / scale, clipped;
   sin and cos of the circular-mean AoA; circular std of the AoAs (radians / pi, at most 2).
-Never UE positions. The layout is versioned and saved with every policy; the frame's size, the
-feature names, the bounds, the slices and the decoders all follow from the table, so adding a field
-is one entry (and a new version).
+Never UE positions. A fleet's UAV (layout v2, ``n_uavs`` > 1) sees the same fields from where it
+is (every UE's uplink reference signal as it hears it) plus what the fleet shares over its own
+links (``FLEET_FIELDS``): the other UAVs' positions and which UAV serves each UE, numbered from the
+observing UAV (0 = itself, then the next ones in fleet order), so every UAV has the same layout and
+one policy serves them all. The layout is versioned and saved with every policy; the frame's size,
+the feature names, the bounds, the slices and the decoders all follow from the tables, so adding a
+field is one entry (and a new version).
 """
 
 from __future__ import annotations
@@ -15,7 +19,7 @@ import dataclasses
 import functools
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass
-from typing import Any, ClassVar
+from typing import Any
 
 import numpy as np
 
@@ -24,12 +28,14 @@ from uavlink.errors import UserError
 from uavlink.radio.aoa import circular_mean_std_deg
 
 OBS_LAYOUT_VERSION = 1
+FLEET_LAYOUT_VERSION = 2
 
 
 @dataclass(frozen=True)
 class Field:
-    """One field of a frame: the physical ``quantity`` it carries, its feature ``labels`` (one per
-    UE, numbered, when ``per_ue``), and how the layout encodes, decodes and bounds it.
+    """One field of a frame: the physical ``quantity`` it carries, its feature ``labels``, and how the
+    layout encodes, decodes and bounds it. ``per`` repeats the labels: ``"frame"`` once, ``"ue"``
+    per UE, ``"other_uav"`` per other UAV, ``"ue_uav"`` per UE and UAV (numbered in the names).
 
     ``encode(layout, quantities)`` gives (N, width) from the frame's quantities (N, ...) by name;
     ``decode(layout, encoded)`` turns encoded values (..., width) back into the quantity (a width-1
@@ -41,13 +47,17 @@ class Field:
     encode: Callable[[ObservationLayout, Mapping[str, np.ndarray]], np.ndarray]
     decode: Callable[[ObservationLayout, np.ndarray], np.ndarray]
     bounds: Callable[[ObservationLayout], tuple[float, float]]
-    per_ue: bool = False
+    per: str = "frame"
 
     def width(self, layout: ObservationLayout) -> int:
-        return layout.n_ues if self.per_ue else len(self.labels)
+        return len(self.names(layout))
 
     def names(self, layout: ObservationLayout) -> list[str]:
-        return [f"{self.labels[0]}_{u}" for u in range(layout.n_ues)] if self.per_ue else list(self.labels)
+        ues, others, uavs = range(layout.n_ues), range(1, layout.n_uavs), range(layout.n_uavs)
+        return {"frame": list(self.labels),
+                "ue": [f"{label}_{u}" for u in ues for label in self.labels],
+                "other_uav": [f"{label}_{j}" for j in others for label in self.labels],
+                "ue_uav": [f"{label}_{u}_{j}" for u in ues for j in uavs for label in self.labels]}[self.per]
 
 
 def _sinr_bounds(layout: ObservationLayout) -> tuple[float, float]:
@@ -60,7 +70,7 @@ FIELDS: tuple[Field, ...] = (
           encode=lambda layout, q: q["uav_xy_m"] / layout.half_width_m,
           decode=lambda layout, x: x * layout.half_width_m,
           bounds=lambda layout: (-1.0, 1.0)),
-    Field("sinr_db", ("sinr",), per_ue=True,
+    Field("sinr_db", ("sinr",), per="ue",
           encode=lambda layout, q: (np.clip(q["sinr_db"], *layout.sinr_clip_db) - layout.sinr_offset_db) / layout.sinr_scale_db,
           decode=lambda layout, x: x * layout.sinr_scale_db + layout.sinr_offset_db,
           bounds=_sinr_bounds),
@@ -76,14 +86,40 @@ FIELDS: tuple[Field, ...] = (
 )
 
 
+FLEET_FIELDS: tuple[Field, ...] = (
+    Field("others_xy_m", ("other_x", "other_y"), per="other_uav",
+          encode=lambda layout, q: q["others_xy_m"].reshape(len(q["others_xy_m"]), -1) / layout.half_width_m,
+          decode=lambda layout, x: x.reshape(*x.shape[:-1], -1, 2) * layout.half_width_m,
+          bounds=lambda layout: (-1.0, 1.0)),
+    Field("served_by", ("served_by",), per="ue_uav",
+          encode=lambda layout, q: (q["served_by"][..., None] == np.arange(layout.n_uavs)).reshape(
+              len(q["served_by"]), -1).astype(np.float32),
+          decode=lambda layout, x: x.reshape(*x.shape[:-1], layout.n_ues, layout.n_uavs).argmax(axis=-1),
+          bounds=lambda layout: (0.0, 1.0)),
+)
+
+
+def fleet_quantities(uav_xy_m: np.ndarray, serving: np.ndarray) -> dict[str, np.ndarray]:
+    """What a fleet shares, as each UAV sees it, rows (N D) in fleet order: ``others_xy_m``
+    (N D, D-1, 2), the other UAVs in the order d+1, d+2, ... (wrapping), and ``served_by``
+    (N D, U), the index of each UE's UAV counted from the observing one. ``uav_xy_m`` (N, D, 2),
+    ``serving`` (N, U)."""
+    n_envs, n_uavs = uav_xy_m.shape[:2]
+    me = np.arange(n_uavs)
+    order = (me[:, None] + np.arange(1, n_uavs)) % n_uavs  # (D, D-1)
+    others = uav_xy_m[:, order]  # (N, D, D-1, 2)
+    served_by = (serving[:, None, :] - me[None, :, None]) % n_uavs  # (N, D, U)
+    return {"others_xy_m": others.reshape(n_envs * n_uavs, n_uavs - 1, 2),
+            "served_by": served_by.reshape(n_envs * n_uavs, -1)}
+
+
 @dataclass(frozen=True)
 class ObservationLayout:
     """Describes the observation vector; a policy file carries it and env and policy must agree."""
 
-    fields: ClassVar[tuple[Field, ...]] = FIELDS
-
     version: int = OBS_LAYOUT_VERSION
     n_ues: int = 10
+    n_uavs: int = 1
     memory: int = 4
     half_width_m: float = 200.0
     sinr_offset_db: float = 10.0
@@ -93,7 +129,13 @@ class ObservationLayout:
 
     @classmethod
     def for_config(cls, cfg: EnvConfig) -> ObservationLayout:
-        return cls(n_ues=cfg.n_ues, memory=cfg.memory, half_width_m=cfg.area.half_width_m)
+        version = OBS_LAYOUT_VERSION if cfg.n_uavs == 1 else FLEET_LAYOUT_VERSION
+        return cls(version=version, n_ues=cfg.n_ues, n_uavs=cfg.n_uavs, memory=cfg.memory,
+                   half_width_m=cfg.area.half_width_m)
+
+    @property
+    def fields(self) -> tuple[Field, ...]:
+        return FIELDS if self.n_uavs == 1 else FIELDS + FLEET_FIELDS
 
     @functools.cached_property
     def slices(self) -> dict[str, slice]:
@@ -128,6 +170,8 @@ class ObservationLayout:
     def to_dict(self) -> dict[str, Any]:
         data = dataclasses.asdict(self)
         data["sinr_clip_db"] = list(self.sinr_clip_db)
+        if self.n_uavs == 1:  # a single UAV's record stays what it has always been
+            del data["n_uavs"]
         return data
 
     @classmethod
@@ -143,14 +187,18 @@ class ObservationLayout:
                              f"env provides {other.describe()}")
 
     def describe(self) -> str:
-        return (f"v{self.version} (n_ues={self.n_ues}, memory={self.memory}, "
+        fleet = f"n_uavs={self.n_uavs}, " if self.n_uavs > 1 else ""
+        return (f"v{self.version} ({fleet}n_ues={self.n_ues}, memory={self.memory}, "
                 f"half_width_m={self.half_width_m:g}, size={self.size})")
 
-    def encode_frame(self, uav_xy_m: np.ndarray, sinr_db: np.ndarray, aoa_deg: np.ndarray) -> np.ndarray:
-        """One frame's features (N, frame_size) from UAV position (N, 2), SINR and AoA (N, U)."""
+    def encode_frame(self, uav_xy_m: np.ndarray, sinr_db: np.ndarray, aoa_deg: np.ndarray,
+                     **fleet: np.ndarray) -> np.ndarray:
+        """One frame's features (rows, frame_size) from UAV position (rows, 2), SINR and AoA
+        (rows, U) as each row's UAV senses them, and for a fleet ``others_xy_m`` (rows, D-1, 2)
+        and ``served_by`` (rows, U) (see :func:`fleet_quantities`)."""
         aoa_mean_deg, aoa_std_deg = circular_mean_std_deg(aoa_deg)
         quantities = {"uav_xy_m": uav_xy_m, "sinr_db": sinr_db, "aoa_mean_deg": aoa_mean_deg,
-                      "aoa_std_deg": aoa_std_deg}
+                      "aoa_std_deg": aoa_std_deg, **fleet}
         return np.concatenate([field.encode(self, quantities) for field in self.fields], axis=1)
 
     def frames(self, obs: np.ndarray) -> np.ndarray:
@@ -188,20 +236,23 @@ class ObservationLayout:
 
 
 class ObservationBuilder:
-    """Keeps the last M frames per env and returns the flattened observation (N, size), float32."""
+    """Keeps the last M frames per row (env, or env and UAV) and returns the flattened observation
+    (rows, size), float32."""
 
-    def __init__(self, layout: ObservationLayout, n_envs: int) -> None:
+    def __init__(self, layout: ObservationLayout, n_rows: int) -> None:
         self.layout = layout
-        self._history = np.zeros((n_envs, layout.memory, layout.frame_size), dtype=np.float32)
+        self._history = np.zeros((n_rows, layout.memory, layout.frame_size), dtype=np.float32)
 
-    def reset(self, uav_xy_m: np.ndarray, sinr_db: np.ndarray, aoa_deg: np.ndarray) -> np.ndarray:
+    def reset(self, uav_xy_m: np.ndarray, sinr_db: np.ndarray, aoa_deg: np.ndarray,
+              **fleet: np.ndarray) -> np.ndarray:
         """Start a new episode: every memory slot holds the first frame."""
-        self._history[:] = self.layout.encode_frame(uav_xy_m, sinr_db, aoa_deg)[:, None, :]
+        self._history[:] = self.layout.encode_frame(uav_xy_m, sinr_db, aoa_deg, **fleet)[:, None, :]
         return self.observation()
 
-    def push(self, uav_xy_m: np.ndarray, sinr_db: np.ndarray, aoa_deg: np.ndarray) -> np.ndarray:
+    def push(self, uav_xy_m: np.ndarray, sinr_db: np.ndarray, aoa_deg: np.ndarray,
+             **fleet: np.ndarray) -> np.ndarray:
         self._history[:, 1:] = self._history[:, :-1]
-        self._history[:, 0] = self.layout.encode_frame(uav_xy_m, sinr_db, aoa_deg)
+        self._history[:, 0] = self.layout.encode_frame(uav_xy_m, sinr_db, aoa_deg, **fleet)
         return self.observation()
 
     def observation(self) -> np.ndarray:

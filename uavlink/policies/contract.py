@@ -32,7 +32,7 @@ from uavlink.policies.loader import load_policy, policy_for_scenario
 from uavlink.policies.manifest import PolicyFileError
 
 # Fields a policy was built for: its action mapping and its observation layout's inputs.
-BUILT_FOR = ("action_mapping", "r_max_m", "memory", "n_ues", "area.half_width_m")
+BUILT_FOR = ("action_mapping", "r_max_m", "memory", "n_ues", "n_uavs", "area.half_width_m")
 OVERRIDES_HELP = (f"A policy file runs in the env its manifest records; --scenario, --aoa-noise-deg and --set "
                   f"override it. Radio physics and the world may be overridden (a robustness study); what "
                   f"the policy was built for ({', '.join(BUILT_FOR)}) may not. Baselines get the env of the "

@@ -1,10 +1,13 @@
 """The downlink channel of D UAV base stations to U ground UEs, batched over N environments.
 
 Shapes: UAV positions (N, D, 2), UE positions (N, U, 2), metres in the env frame (x east, y north).
-Each UE is served by one UAV (``serving``, default UAV 0) and interfered by the others on every RB
-(full frequency reuse). Per frame the channel draws fast fading and advances the shadowing, then
-reports per-UE effective SINR, round-robin rate and measured AoA at the serving UAV. Shadowing
-follows ``RadioConfig.shadowing_model``: per-link AR(1) (the paper's) or a spatial field.
+Per frame the channel advances the shadowing and draws fast fading, then reports per-UE effective
+SINR, round-robin rate and measured AoA. One UAV (the paper's evaluation) serves every UE alone.
+A fleet (SPEC "A fleet") forms cells (``uavlink.radio.cells``: strongest mean power, per-cell round
+robin) and, with ``fleet_reuse = "full"``, every UAV with UEs interferes on every RB (the paper's
+SINR); with ``"orthogonal"`` each UAV has 1/D of the band to itself. Each UAV also senses every
+UE's uplink reference signal (its SNR and AoA), the per-UAV observation. Shadowing follows
+``RadioConfig.shadowing_model``: per-link AR(1) (the paper's) or a spatial field.
 """
 
 from __future__ import annotations
@@ -15,10 +18,11 @@ import numpy as np
 
 from uavlink.config import AreaConfig, RadioConfig
 from uavlink.radio.aoa import measured_aoa_deg, true_aoa_deg
+from uavlink.radio.cells import Cells
 from uavlink.radio.fading import mean_rician_power_gain, rician_power_gain
 from uavlink.radio.noise import noise_power_dbm
 from uavlink.radio.pathloss import distance_3d_m, mean_rx_power_dbm
-from uavlink.radio.rates import rate_bps, round_robin_mask, round_robin_rbs
+from uavlink.radio.rates import rate_bps, round_robin_rbs
 from uavlink.radio.shadowing import initial_shadowing_db, update_shadowing_db
 from uavlink.radio.spatial_shadowing import SpatialShadowField
 
@@ -30,24 +34,25 @@ class RadioReadings:
     ``sinr_db`` and ``aoa_deg`` are what the base station senses; ``rate_bps`` is the scored truth.
     """
 
-    sinr_db: np.ndarray  # (N, U) effective SINR over the UE's RBs
+    sinr_db: np.ndarray  # (N, U) effective downlink SINR over the UE's RBs
     rate_bps: np.ndarray  # (N, U) round-robin Shannon rate
     aoa_deg: np.ndarray  # (N, U) measured AoA at the serving UAV, [-180, 180)
+    heard_sinr_db: np.ndarray  # (N, D, U) each UAV's SNR of each UE's reference signal
+    heard_aoa_deg: np.ndarray  # (N, D, U) each UAV's measured AoA of each UE
+    serving: np.ndarray  # (N, U) each UE's UAV
 
 
 class RadioChannel:
     """Stateful (shadowing) channel; the random generator is passed to every call that draws."""
 
-    def __init__(self, radio: RadioConfig, area: AreaConfig, n_ues: int,
-                 serving: np.ndarray | None = None) -> None:
+    def __init__(self, radio: RadioConfig, area: AreaConfig, n_ues: int, fleet_reuse: str = "full") -> None:
         radio.validate()
         area.validate()
         self.radio = radio
         self.altitude_m = area.uav_altitude_m
         self.n_ues = n_ues
-        self.serving = np.zeros(n_ues, dtype=np.intp) if serving is None else np.asarray(serving)
+        self.fleet_reuse = fleet_reuse
         self.rbs_per_ue = round_robin_rbs(radio.n_resource_blocks, n_ues)
-        self.rb_mask = round_robin_mask(radio.n_resource_blocks, n_ues)
         self.noise_dbm = noise_power_dbm(radio.bandwidth_hz, radio)
         self._shadow_db: np.ndarray | None = None
         self._field: SpatialShadowField | None = None  # the episode's field (spatial model)
@@ -97,29 +102,68 @@ class RadioChannel:
         radio = self.radio
         rx_dbm = mean_rx_power_dbm(distance_3d_m(uav_xy_m, ue_xy_m, self.altitude_m), radio)
         rx_dbm += self._shadow_db  # (N, U, D)
-        if uav_xy_m.shape[1] == 1:
-            sinr = 10.0 ** ((rx_dbm[..., 0] - self.noise_dbm) / 10.0)
-            if radio.fast_fading:
-                sinr *= mean_rician_power_gain(rng, sinr.shape, self.rbs_per_ue, radio.rician_k_db)
-        else:
-            sinr = self._multi_uav_sinr(rng, rx_dbm)
-        sinr_db = 10.0 * np.log10(sinr)
-        true_deg = true_aoa_deg(uav_xy_m[:, self.serving, :], ue_xy_m)  # from each UE's server
-        aoa = measured_aoa_deg(rng, true_deg, self._aoa_std_deg)
-        return RadioReadings(sinr_db=sinr_db, rate_bps=rate_bps(sinr, radio.bandwidth_hz, self.n_ues),
-                             aoa_deg=aoa)
-
-    def _multi_uav_sinr(self, rng: np.random.Generator, rx_dbm: np.ndarray) -> np.ndarray:
-        """Per-RB SINR with co-channel interference, averaged over each UE's round-robin RBs."""
-        radio = self.radio
-        n_rbs = radio.n_resource_blocks
-        rx_rb_mw = np.broadcast_to((10.0 ** (rx_dbm / 10.0) / n_rbs)[..., None],
-                                   (*rx_dbm.shape, n_rbs))  # (N, U, D, K), power split over RBs
+        if uav_xy_m.shape[1] > 1:
+            return self._fleet_readings(rng, uav_xy_m, ue_xy_m, rx_dbm)
+        sinr = 10.0 ** ((rx_dbm[..., 0] - self.noise_dbm) / 10.0)
         if radio.fast_fading:
-            rx_rb_mw = rx_rb_mw * rician_power_gain(rng, rx_rb_mw.shape, radio.rician_k_db)
-        ue_idx = np.arange(self.n_ues)
-        signal = rx_rb_mw[:, ue_idx, self.serving, :]  # (N, U, K)
-        interference = rx_rb_mw.sum(axis=2) - signal
+            sinr *= mean_rician_power_gain(rng, sinr.shape, self.rbs_per_ue, radio.rician_k_db)
+        sinr_db = 10.0 * np.log10(sinr)
+        aoa = measured_aoa_deg(rng, true_aoa_deg(uav_xy_m, ue_xy_m), self._aoa_std_deg)
+        return RadioReadings(sinr_db=sinr_db, rate_bps=rate_bps(sinr, radio.bandwidth_hz, self.n_ues),
+                             aoa_deg=aoa, heard_sinr_db=sinr_db[:, None, :], heard_aoa_deg=aoa[:, None, :],
+                             serving=np.zeros(sinr.shape, dtype=np.intp))
+
+    def _fleet_readings(self, rng: np.random.Generator, uav_xy_m: np.ndarray, ue_xy_m: np.ndarray,
+                        rx_dbm: np.ndarray) -> RadioReadings:
+        radio = self.radio
+        cells = Cells.associate(rx_dbm)
+        if self.fleet_reuse == "orthogonal":
+            sinr, bandwidth_hz = self._orthogonal_sinr(rng, rx_dbm, cells)
+        else:
+            sinr, bandwidth_hz = self._full_reuse_sinr(rng, rx_dbm, cells)
+        # What each UAV senses of every UE's uplink reference signal: SNR over the UE's share of
+        # RBs (no other cell's downlink in the uplink band), and the AoA.
+        heard = 10.0 ** ((rx_dbm - self.noise_dbm) / 10.0)
+        if radio.fast_fading:
+            heard *= mean_rician_power_gain(rng, heard.shape, self.rbs_per_ue[:, None], radio.rician_k_db)
+        std = self._aoa_std_deg if np.ndim(self._aoa_std_deg) == 0 else self._aoa_std_deg[:, :, None]
+        heard_aoa = measured_aoa_deg(rng, true_aoa_deg(uav_xy_m[:, :, None, :], ue_xy_m[:, None, :, :]), std)
+        at_server = np.take_along_axis(heard_aoa, cells.serving[:, None, :], axis=1)[:, 0]
+        return RadioReadings(sinr_db=10.0 * np.log10(sinr), rate_bps=bandwidth_hz * np.log2(1.0 + sinr),
+                             aoa_deg=at_server, heard_sinr_db=10.0 * np.log10(heard.transpose(0, 2, 1)),
+                             heard_aoa_deg=heard_aoa, serving=cells.serving)
+
+    def _full_reuse_sinr(self, rng: np.random.Generator, rx_dbm: np.ndarray,
+                         cells: Cells) -> tuple[np.ndarray, np.ndarray]:
+        """Effective SINR (N, U), the linear mean over the UE's RBs of signal / (interference +
+        noise) with every active UAV on every RB and per-RB fading, and the bandwidth B / U_d.
+
+        Only the RBs each UE is scheduled on are drawn (K per active cell, not K per UE and UAV);
+        a UE of a cell with more UEs than RBs is scored on one RB (its average share stays B / U_d).
+        """
+        radio = self.radio
+        n_envs, n_ues, n_uavs = rx_dbm.shape
+        n_rb = np.maximum(cells.rbs_per_ue(radio.n_resource_blocks), 1).ravel()  # (N U,)
+        rows = np.repeat(np.arange(n_envs * n_ues), n_rb)  # one row per (UE, scheduled RB)
+        rx_rb_mw = (10.0 ** (rx_dbm / 10.0) / radio.n_resource_blocks).reshape(-1, n_uavs)[rows]
+        if radio.fast_fading:
+            rx_rb_mw *= rician_power_gain(rng, rx_rb_mw.shape, radio.rician_k_db)
+        signal = rx_rb_mw[np.arange(len(rows)), cells.serving.ravel()[rows]]
+        interference = (rx_rb_mw * cells.active[rows // n_ues]).sum(axis=1) - signal
         noise_rb_mw = 10.0 ** (noise_power_dbm(radio.rb_bandwidth_hz, radio) / 10.0)
-        sinr_rb = signal / (interference + noise_rb_mw)
-        return (sinr_rb * self.rb_mask).sum(axis=-1) / self.rbs_per_ue
+        sinr_sum = np.bincount(rows, weights=signal / (interference + noise_rb_mw), minlength=len(n_rb))
+        sinr = (sinr_sum / n_rb).reshape(n_envs, n_ues)
+        return sinr, radio.bandwidth_hz / cells.ues_in_cell()
+
+    def _orthogonal_sinr(self, rng: np.random.Generator, rx_dbm: np.ndarray,
+                         cells: Cells) -> tuple[np.ndarray, np.ndarray]:
+        """Each UAV alone on K // D RBs at full power: no interference; the bandwidth B_d / U_d."""
+        radio = self.radio
+        rbs_per_uav = radio.n_resource_blocks // rx_dbm.shape[2]
+        serving_dbm = np.take_along_axis(rx_dbm, cells.serving[:, :, None], axis=2)[..., 0]
+        noise_rb_dbm = noise_power_dbm(radio.rb_bandwidth_hz, radio)
+        sinr = 10.0 ** ((serving_dbm - 10.0 * np.log10(rbs_per_uav) - noise_rb_dbm) / 10.0)
+        if radio.fast_fading:
+            n_rb = np.maximum(cells.rbs_per_ue(rbs_per_uav), 1)
+            sinr *= mean_rician_power_gain(rng, sinr.shape, n_rb, radio.rician_k_db)
+        return sinr, rbs_per_uav * radio.rb_bandwidth_hz / cells.ues_in_cell()

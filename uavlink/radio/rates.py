@@ -12,11 +12,6 @@ def round_robin_rbs(n_rbs: int, n_ues: int) -> np.ndarray:
     return counts
 
 
-def round_robin_mask(n_rbs: int, n_ues: int) -> np.ndarray:
-    """(U, K) boolean allocation mask, RB k to UE k mod U."""
-    return (np.arange(n_rbs)[None, :] % n_ues) == np.arange(n_ues)[:, None]
-
-
 def rate_bps(sinr_eff_linear: np.ndarray, bandwidth_hz: float, n_ues: int) -> np.ndarray:
     """R_u = (B / U) log2(1 + SINR_eff): each UE gets 1/U of the band on average."""
     return (bandwidth_hz / n_ues) * np.log2(1.0 + sinr_eff_linear)

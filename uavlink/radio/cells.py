@@ -1,0 +1,45 @@
+"""A fleet's cells: which UAV serves each UE and how a cell shares its resource blocks (SPEC "A fleet").
+
+Association: each UE attaches to the UAV with the strongest mean received power (path loss and
+shadowing, no fast fading), re-decided every frame (3GPP's RSRP-based cell selection, TS 38.304
+5.2.3 in the small). Scheduling: per-cell round robin, RB k of cell d to its UE of rank k mod U_d
+(ranks by UE index), so a UE of a cell with U_d UEs gets B / U_d on average. A cell without UEs
+sends no data and interferes with nobody (the full-buffer system-level convention).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+
+@dataclass(frozen=True)
+class Cells:
+    """One frame's association, batched over N envs with U UEs and D UAVs."""
+
+    serving: np.ndarray  # (N, U) index of each UE's UAV
+    size: np.ndarray  # (N, D) UEs per cell
+    rank: np.ndarray  # (N, U) each UE's rank in its cell, by UE index
+
+    @classmethod
+    def associate(cls, rx_dbm: np.ndarray) -> Cells:
+        """Cells from the mean received power (N, U, D) in dBm; ties go to the lower UAV index."""
+        serving = rx_dbm.argmax(axis=2)
+        member = serving[:, :, None] == np.arange(rx_dbm.shape[2])  # (N, U, D)
+        rank = (np.cumsum(member, axis=1) - 1)[member].reshape(serving.shape)
+        return cls(serving, member.sum(axis=1), rank)
+
+    @property
+    def active(self) -> np.ndarray:
+        """(N, D) True for a cell with at least one UE (it transmits)."""
+        return self.size > 0
+
+    def ues_in_cell(self) -> np.ndarray:
+        """(N, U) the size of each UE's cell, U_d."""
+        return np.take_along_axis(self.size, self.serving, axis=1)
+
+    def rbs_per_ue(self, n_rbs: int) -> np.ndarray:
+        """(N, U) RBs each UE gets per frame when its cell's ``n_rbs`` go round robin."""
+        cell = self.ues_in_cell()
+        return n_rbs // cell + (self.rank < n_rbs % cell)
