@@ -109,7 +109,7 @@ def test_failure_injection_needs_sys_failure_en(vehicle):
                                                    FailureResult.Result.DENIED)
             # enabled, it works: test_mavsdk3_flight's failure app (MAVSDK reads the parameter
             # when the plugin starts, so an app enables it before it connects or in a new session)
-            health = await first(drone.telemetry.health())
-            assert health.is_global_position_ok, health  # the refused failure did nothing
+            await first(drone.telemetry.health(), lambda h: h.is_global_position_ok, timeout=10.0,
+                        what="GPS still fine: the refused failure did nothing")
 
     run_app(app, vehicle)

@@ -112,7 +112,8 @@ def test_failure_injection_needs_sys_failure_en(vehicle):
             assert denied.value.result in (FailureResult.DISABLED, FailureResult.DENIED)
             # enabled, it works: test_mavsdk4_flight's failure app (MAVSDK reads the parameter
             # once, when the failure plugin is created)
-            health = await first(TelemetryAsync(drone).subscribe_health())
-            assert health.is_global_position_ok, health  # the refused failure did nothing
+            await first(TelemetryAsync(drone).subscribe_health(), lambda h: h.is_global_position_ok,
+                        timeout=10.0,
+                        what="GPS still fine: the refused failure did nothing")
 
     run_app(app, vehicle)
