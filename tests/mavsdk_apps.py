@@ -92,8 +92,17 @@ def _child_env() -> dict[str, str]:
 def run_app(app: Callable[[str], Awaitable[None]], vehicle: Sitl, timeout_s: float = 120.0) -> None:
     """Run ``app(vehicle.address)`` to the end within ``timeout_s`` of wall time; a failure
     carries the vehicle's last log lines. The vehicle must still be running afterwards."""
+    async def app_while_vehicle_runs() -> None:
+        task = asyncio.ensure_future(asyncio.wait_for(app(vehicle.address), timeout_s))
+        while not task.done():  # a vehicle that died fails the app now, not at its timeout
+            if not vehicle.alive():
+                task.cancel()
+                raise AssertionError(f"sitl_stub exited with status {vehicle.process.proc.poll()}")
+            await asyncio.wait([task], timeout=0.5)
+        task.result()
+
     try:
-        asyncio.run(asyncio.wait_for(app(vehicle.address), timeout_s))
+        asyncio.run(app_while_vehicle_runs())
     except BaseException as exc:  # TimeoutError, MAVSDK errors, assertions: all get the log
         tail = "\n".join(vehicle.output().splitlines()[-40:])
         raise AssertionError(f"{type(exc).__name__}: {exc}\n--- sitl_stub log (tail) ---\n"
