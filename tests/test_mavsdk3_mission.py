@@ -24,6 +24,7 @@ from mavsdk_grpc.mission import MissionItem, MissionPlan  # noqa: E402
 pytestmark = [pytest.mark.slow, pytest.mark.timeout(300)]
 
 NAN = float("nan")
+INT_FRAME = {0: 5, 3: 6}  # MAV_FRAME_GLOBAL(_RELATIVE_ALT) -> its _INT twin
 WAYPOINTS_DEG = ((47.398039859999997, 8.5455725400000002), (47.398036222362471, 8.5450146439425509),
                  (47.397825620791885, 8.5450092830163271))  # mission.py's three waypoints
 
@@ -89,8 +90,11 @@ def raw_waypoint(seq: int, lat_deg: float, lon_deg: float, mission_type: int = 0
 
 
 def assert_same_items(got, sent) -> None:
-    assert [(i.seq, i.frame, i.command, i.x, i.y, i.mission_type) for i in got] == \
-        [(i.seq, i.frame, i.command, i.x, i.y, i.mission_type) for i in sent]
+    """Same items; PX4 answers MISSION_ITEM_INT downloads in the _INT frames (0 -> 5, 3 -> 6)."""
+    def key(i):
+        return (i.seq, INT_FRAME.get(i.frame, i.frame), i.command, i.x, i.y, i.mission_type)
+
+    assert [key(i) for i in got] == [key(i) for i in sent]
     for g, s in zip(got, sent, strict=True):
         assert g.z == pytest.approx(s.z) and g.param2 == pytest.approx(s.param2)
 
