@@ -38,6 +38,10 @@ SPEED = 4.0  # simulated seconds per wall second
 PX4_API_ADDRESS = "udpin://0.0.0.0:14540"  # what every MAVSDK-Python example connects to
 HOME_LAT_DEG, HOME_LON_DEG, HOME_ALT_M = 47.397742, 8.545594, 488.0  # sitl_stub's default home
 EARTH_RADIUS_M = 6_371_000.0
+GOTO_LAT_DEG, GOTO_LON_DEG = 47.397606, 8.543060  # goto.py's target, ~190 m west of home
+WAYPOINTS_DEG = ((47.398039859999997, 8.5455725400000002), (47.398036222362471, 8.5450146439425509),
+                 (47.397825620791885, 8.5450092830163271))  # mission.py's three waypoints
+INT_FRAME = {0: 5, 3: 6}  # MAV_FRAME_GLOBAL(_RELATIVE_ALT) -> its _INT twin
 
 
 @functools.cache
@@ -187,3 +191,14 @@ def near_velocity(north_m_s: float, east_m_s: float, down_m_s: float, tol_m_s: f
         return (abs(v.north_m_s - north_m_s) < tol_m_s and abs(v.east_m_s - east_m_s) < tol_m_s
                 and abs(v.down_m_s - down_m_s) < tol_m_s)
     return pred
+
+
+def assert_same_raw_items(got: Sequence[Any], sent: Sequence[Any]) -> None:
+    """Same mission_raw items (either API); PX4 answers MISSION_ITEM_INT downloads in the _INT
+    frames (0 -> 5, 3 -> 6)."""
+    def key(i: Any) -> tuple:
+        return (i.seq, INT_FRAME.get(i.frame, i.frame), i.command, i.x, i.y, i.mission_type)
+
+    assert [key(i) for i in got] == [key(i) for i in sent]
+    for g, s in zip(got, sent, strict=True):
+        assert math.isclose(g.z, s.z, abs_tol=1e-4) and math.isclose(g.param2, s.param2, abs_tol=1e-4)

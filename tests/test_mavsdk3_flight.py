@@ -15,6 +15,8 @@ import pytest
 
 pytest.importorskip("mavsdk_grpc", reason="the 3.x gRPC client: pip install mavsdk-grpc")
 from mavsdk_apps import (  # noqa: E402
+    GOTO_LAT_DEG,
+    GOTO_LON_DEG,
     first,
     ground_distance_m,
     grpc_drone,
@@ -28,9 +30,6 @@ from mavsdk_grpc.offboard import VelocityBodyYawspeed, VelocityNedYaw  # noqa: E
 from mavsdk_grpc.telemetry import FlightMode  # noqa: E402
 
 pytestmark = [pytest.mark.slow, pytest.mark.timeout(300)]
-
-GOTO_LAT_DEG, GOTO_LON_DEG = 47.397606, 8.543060  # goto.py's target, ~190 m west of home
-
 
 @pytest.fixture
 def vehicle():

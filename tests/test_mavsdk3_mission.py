@@ -16,7 +16,14 @@ import math
 import pytest
 
 pytest.importorskip("mavsdk_grpc", reason="the 3.x gRPC client: pip install mavsdk-grpc")
-from mavsdk_apps import first, grpc_drone, run_app, sitl_vehicle  # noqa: E402
+from mavsdk_apps import (  # noqa: E402
+    WAYPOINTS_DEG,
+    assert_same_raw_items,
+    first,
+    grpc_drone,
+    run_app,
+    sitl_vehicle,
+)
 from mavsdk_grpc import mission_raw  # noqa: E402
 from mavsdk_grpc.geofence import Circle, FenceType, GeofenceData, Point, Polygon  # noqa: E402
 from mavsdk_grpc.mission import MissionItem, MissionPlan  # noqa: E402
@@ -24,9 +31,6 @@ from mavsdk_grpc.mission import MissionItem, MissionPlan  # noqa: E402
 pytestmark = [pytest.mark.slow, pytest.mark.timeout(300)]
 
 NAN = float("nan")
-INT_FRAME = {0: 5, 3: 6}  # MAV_FRAME_GLOBAL(_RELATIVE_ALT) -> its _INT twin
-WAYPOINTS_DEG = ((47.398039859999997, 8.5455725400000002), (47.398036222362471, 8.5450146439425509),
-                 (47.397825620791885, 8.5450092830163271))  # mission.py's three waypoints
 
 
 @pytest.fixture
@@ -89,16 +93,6 @@ def raw_waypoint(seq: int, lat_deg: float, lon_deg: float, mission_type: int = 0
                                    int(lat_deg * 10**7), int(lon_deg * 10**7), 30.0, mission_type)
 
 
-def assert_same_items(got, sent) -> None:
-    """Same items; PX4 answers MISSION_ITEM_INT downloads in the _INT frames (0 -> 5, 3 -> 6)."""
-    def key(i):
-        return (i.seq, INT_FRAME.get(i.frame, i.frame), i.command, i.x, i.y, i.mission_type)
-
-    assert [key(i) for i in got] == [key(i) for i in sent]
-    for g, s in zip(got, sent, strict=True):
-        assert g.z == pytest.approx(s.z) and g.param2 == pytest.approx(s.param2)
-
-
 def test_mission_raw_upload_download_clear_mission_fence_rally(vehicle):
     async def app(address: str) -> None:
         async with grpc_drone(address) as drone:
@@ -106,7 +100,7 @@ def test_mission_raw_upload_download_clear_mission_fence_rally(vehicle):
                      raw_waypoint(1, 47.40271757, 8.54361892)]
             print("-- Uploading mission")
             await drone.mission_raw.upload_mission(items)
-            assert_same_items(await drone.mission_raw.download_mission(), items)
+            assert_same_raw_items(await drone.mission_raw.download_mission(), items)
 
             # an inclusion polygon (NAV_FENCE_POLYGON_VERTEX_INCLUSION, param1 = vertex count)
             corners = ((47.3970, 8.5445), (47.3985, 8.5445), (47.3985, 8.5467), (47.3970, 8.5467))

@@ -24,6 +24,8 @@ from mavsdk.asyncio.plugins.offboard import (  # noqa: E402
 from mavsdk.asyncio.plugins.param import ParamAsync  # noqa: E402
 from mavsdk.asyncio.plugins.telemetry import FlightMode, TelemetryAsync  # noqa: E402
 from mavsdk_apps import (  # noqa: E402
+    GOTO_LAT_DEG,
+    GOTO_LON_DEG,
     first,
     ground_distance_m,
     heading_error_deg,
@@ -34,9 +36,6 @@ from mavsdk_apps import (  # noqa: E402
 )
 
 pytestmark = [pytest.mark.slow, pytest.mark.timeout(300)]
-
-GOTO_LAT_DEG, GOTO_LON_DEG = 47.397606, 8.543060  # goto.py's target, ~190 m west of home
-
 
 @pytest.fixture
 def vehicle():
