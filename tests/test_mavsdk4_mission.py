@@ -1,0 +1,175 @@
+"""MAVSDK 4.x (the ``mavsdk`` package's ctypes API) mission apps: mission.py (upload, fly to the end,
+return, download), mission_raw.py (raw items for the mission, fence and rally lists: upload,
+download, clear) and geofence.py (polygon and circle fences: upload, download, clear), against
+``python -m sitl_stub`` with no flags.
+
+The same apps as tests/test_mavsdk3_mission.py, written the 4.x way.
+mission.py differs from the example in two added lines: a 10 m take-off and a 30 m return
+altitude (the stub's defaults are the operating altitude, 95 m and 60 m, which would make the
+flight long). One vehicle per app.
+"""
+
+from __future__ import annotations
+
+import asyncio
+import math
+
+import pytest
+
+pytest.importorskip("mavsdk.asyncio", reason="MAVSDK 4.x: pip install 'mavsdk>=4.1'")
+from mavsdk.asyncio.plugins import mission_raw  # noqa: E402
+from mavsdk.asyncio.plugins.action import ActionAsync  # noqa: E402
+from mavsdk.asyncio.plugins.geofence import (  # noqa: E402
+    Circle,
+    FenceType,
+    GeofenceAsync,
+    GeofenceData,
+    Point,
+    Polygon,
+)
+from mavsdk.asyncio.plugins.mission import MissionAsync, MissionItem, MissionPlan  # noqa: E402
+from mavsdk.asyncio.plugins.telemetry import TelemetryAsync  # noqa: E402
+from mavsdk_apps import (  # noqa: E402
+    WAYPOINTS_DEG,
+    assert_same_raw_items,
+    first,
+    mavsdk4_drone,
+    run_app,
+    sitl_vehicle,
+)
+
+pytestmark = [pytest.mark.slow, pytest.mark.timeout(300)]
+
+NAN = float("nan")
+
+
+@pytest.fixture
+def vehicle():
+    with sitl_vehicle() as v:
+        yield v
+
+
+def mission_item(lat_deg: float, lon_deg: float) -> MissionItem:
+    return MissionItem(lat_deg, lon_deg, 25, 10, True, NAN, NAN, MissionItem.CameraAction.NONE,
+                       NAN, NAN, NAN, NAN, NAN, MissionItem.VehicleAction.NONE)
+
+
+def test_mission_upload_fly_to_the_end_and_download(vehicle):
+    async def app(address: str) -> None:
+        async with mavsdk4_drone(address) as drone:
+            tel, action, mission = TelemetryAsync(drone), ActionAsync(drone), MissionAsync(drone)
+            progress: list[tuple[int, int]] = []
+
+            async def print_mission_progress() -> None:
+                async for mission_progress in mission.subscribe_mission_progress():
+                    print(f"Mission progress: {mission_progress.current}/{mission_progress.total}")
+                    progress.append((mission_progress.current, mission_progress.total))
+
+            progress_task = asyncio.ensure_future(print_mission_progress())
+            mission_plan = MissionPlan([mission_item(*wp) for wp in WAYPOINTS_DEG])
+            await mission.set_return_to_launch_after_mission(True)
+            await action.set_takeoff_altitude(10.0)
+            await action.set_return_to_launch_altitude(30.0)
+            print("-- Uploading mission")
+            await mission.upload_mission(mission_plan)
+            await first(tel.subscribe_health(), lambda h: h.is_global_position_ok
+                        and h.is_home_position_ok)
+            print("-- Arming")
+            await action.arm()
+            print("-- Starting mission")
+            await mission.start_mission()
+            await first(tel.subscribe_in_air(), bool, what="take-off")
+            await first(tel.subscribe_in_air(), lambda a: not a, timeout=150.0,
+                        what="landing after the mission and its return")
+            progress_task.cancel()
+            assert (3, 3) in progress, progress
+            assert await mission.is_mission_finished()
+
+            downloaded = await mission.download_mission()
+            assert len(downloaded.mission_items) == 3, downloaded
+            for item, (lat_deg, lon_deg) in zip(downloaded.mission_items, WAYPOINTS_DEG, strict=True):
+                assert item.latitude_deg == pytest.approx(lat_deg, abs=1e-7)
+                assert item.longitude_deg == pytest.approx(lon_deg, abs=1e-7)
+                assert item.relative_altitude_m == pytest.approx(25.0)
+                assert item.speed_m_s == pytest.approx(10.0) and item.is_fly_through
+            assert await mission.get_return_to_launch_after_mission()
+
+    run_app(app, vehicle, timeout_s=240.0)
+
+
+def raw_waypoint(seq: int, lat_deg: float, lon_deg: float, mission_type: int = 0,
+                 command: int = 16) -> mission_raw.MissionItem:
+    """mission_raw.py's item: frame 3 (global, relative altitude), acceptance radius 10 m."""
+    return mission_raw.MissionItem(seq, 3, command, int(seq == 0), 1, 0, 10, 0, NAN,
+                                   int(lat_deg * 10**7), int(lon_deg * 10**7), 30.0, mission_type)
+
+
+def test_mission_raw_upload_download_clear_mission_fence_rally(vehicle):
+    async def app(address: str) -> None:
+        async with mavsdk4_drone(address) as drone:
+            raw = mission_raw.MissionRawAsync(drone)
+            items = [raw_waypoint(0, 47.40271757, 8.54285027),
+                     raw_waypoint(1, 47.40271757, 8.54361892)]
+            print("-- Uploading mission")
+            await raw.upload_mission(items)
+            assert_same_raw_items(await raw.download_mission(), items)
+
+            # an inclusion polygon (NAV_FENCE_POLYGON_VERTEX_INCLUSION, param1 = vertex count)
+            corners = ((47.3970, 8.5445), (47.3985, 8.5445), (47.3985, 8.5467), (47.3970, 8.5467))
+            fence = [mission_raw.MissionItem(i, 0, 5001, 0, 1, 4, 0, 0, 0, int(la * 1e7),
+                                             int(lo * 1e7), 0, 1)
+                     for i, (la, lo) in enumerate(corners)]
+            await raw.upload_geofence(fence)
+            got_fence = await raw.download_geofence()
+            assert [(i.command, i.x, i.y, i.mission_type) for i in got_fence] == \
+                [(i.command, i.x, i.y, 1) for i in fence]
+            rally = [raw_waypoint(0, 47.3979, 8.5458, mission_type=2, command=5100)]
+            await raw.upload_rally_points(rally)
+            got_rally = await raw.download_rallypoints()
+            assert [(i.command, i.x, i.y, i.mission_type) for i in got_rally] == [(5100, *(
+                (rally[0].x, rally[0].y)), 2)]
+
+            await raw.clear_mission()
+            assert list(await raw.download_mission()) == []
+            # clearing the mission leaves the fence and the rally points (their own lists)
+            assert len(await raw.download_geofence()) == 4
+
+    run_app(app, vehicle)
+
+
+def test_geofence_upload_download_clear(vehicle):
+    async def app(address: str) -> None:
+        async with mavsdk4_drone(address) as drone:
+            tel, geofence = TelemetryAsync(drone), GeofenceAsync(drone)
+            print("Fetching home location coordinates...")
+            terrain_info = await first(tel.subscribe_home())
+            latitude, longitude = terrain_info.latitude_deg, terrain_info.longitude_deg
+            await asyncio.sleep(1)
+            p1 = Point(latitude - 0.0001, longitude - 0.0001)
+            p2 = Point(latitude + 0.0001, longitude - 0.0001)
+            p3 = Point(latitude + 0.0001, longitude + 0.0001)
+            p4 = Point(latitude - 0.0001, longitude + 0.0001)
+            polygon = Polygon([p1, p2, p3, p4], FenceType.INCLUSION)
+            circle = Circle(Point(0, 0), 0, FenceType.INCLUSION)  # the example's "no circle"
+            print("Uploading geofence...")
+            await geofence.upload_geofence(GeofenceData([polygon], [circle]))
+            print("Geofence uploaded!")
+
+            keep_out = Circle(Point(latitude + 0.0005, longitude), 20.0, FenceType.EXCLUSION)
+            await geofence.upload_geofence(GeofenceData([polygon], [keep_out]))
+            got = await geofence.download_geofence()
+            assert len(got.polygons) == 1 and got.polygons[0].fence_type == FenceType.INCLUSION
+            for sent, back in zip(polygon.points, got.polygons[0].points, strict=True):
+                assert back.latitude_deg == pytest.approx(sent.latitude_deg, abs=1e-7)
+                assert back.longitude_deg == pytest.approx(sent.longitude_deg, abs=1e-7)
+            assert len(got.circles) == 1, got
+            assert got.circles[0].fence_type == FenceType.EXCLUSION
+            assert got.circles[0].radius == pytest.approx(20.0)
+            assert math.isclose(got.circles[0].point.latitude_deg, latitude + 0.0005,
+                                abs_tol=1e-7)
+
+            await geofence.clear_geofence()
+            cleared = await geofence.download_geofence()
+            assert not cleared.polygons and not cleared.circles, cleared
+
+    run_app(app, vehicle)
