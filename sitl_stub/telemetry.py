@@ -176,8 +176,10 @@ class TelemetrySender:
                               self.origin.alt_amsl_m + s.altitude_m, -s.vd_mps)
 
     def autopilot_version(self, s: VehicleState) -> None:
+        # uid2 (MAVLink 2 extension, 18 bytes) as well as uid: MAVSDK 4 reads its hardware uid from uid2
+        uid2 = list(UID.to_bytes(8, "big") + bytes([self.mav.srcSystem]) + bytes(9))
         self.mav.autopilot_version_send(CAPABILITIES, FLIGHT_SW_VERSION, 0, 0, 0,
-                                        [0] * 8, [0] * 8, [0] * 8, 0, 0, UID)
+                                        [0] * 8, [0] * 8, [0] * 8, 0, 0, UID, uid2)
 
     def mission_current(self, s: VehicleState) -> None:
         """MISSION_CURRENT as PX4 streams it: seq, total, mission_state, mission_mode."""
