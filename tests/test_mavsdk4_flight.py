@@ -178,8 +178,10 @@ def test_failure_injection_in_flight(vehicle):
             tel, action = TelemetryAsync(drone), ActionAsync(drone)
             await wait_healthy(drone)
             print("-- Enabling failure injection")
-            param, failure = ParamAsync(drone), FailureAsync(drone)
+            param = ParamAsync(drone)
             await param.set_param_int("SYS_FAILURE_EN", 1)
+            # MAVSDK 4.1's failure plugin reads SYS_FAILURE_EN once, when it is created: after the set
+            failure = FailureAsync(drone)
             await action.set_takeoff_altitude(10.0)
             await action.arm()
             await action.takeoff()

@@ -17,9 +17,12 @@ from typing import Any, Protocol
 import numpy as np
 
 from uavlink.config import EnvConfig
+from uavlink.config.train import TEACHER_NAMES
+from uavlink.env.actions import ActionMapping
 from uavlink.env.core import GroundTruth
 from uavlink.errors import UserError
-from uavlink.policies.baselines import BASELINES, AoaPolicy, make_baseline
+from uavlink.policies.baselines import AoaPolicy, make_baseline
+from uavlink.policies.fleet_baselines import moves_to
 from uavlink.radio.aoa import circular_mean_std_deg, true_aoa_deg
 
 
@@ -84,14 +87,16 @@ def make_teacher(cfg: EnvConfig, teacher: str, shadow_gate_db: float | None = No
     """The warm start's teacher named ``teacher``: the aoa rule (or its variant, when
     ``shadow_gate_db``, ``sinr_span_db`` or ``shadow_estimator`` is set) on the true AoAs, or
     another baseline as it is."""
-    if teacher not in BASELINES:
-        raise UserError(f"unknown teacher {teacher!r}; choose from {', '.join(BASELINES)}")
+    if teacher not in TEACHER_NAMES:
+        raise UserError(f"unknown teacher {teacher!r}; choose from {', '.join(TEACHER_NAMES)}")
     variant = not (shadow_gate_db is None and sinr_span_db is None and shadow_estimator is None)
-    if cfg.n_uavs > 1:  # a fleet's teachers are its baselines as they are (uavlink.policies.fleet_baselines)
+    if teacher == "solo" and cfg.n_uavs == 1:
+        raise UserError("the solo teacher is a fleet's (n_uavs > 1)")
+    if cfg.n_uavs > 1:  # a fleet's teachers: its baselines as they are, or solo
         if variant:
             raise UserError("a shadow gate, a speed span and a shadow estimator are settings of the "
                             "single-UAV aoa teacher, not of a fleet's")
-        return make_baseline(teacher, cfg)
+        return SoloTeacher(cfg) if teacher == "solo" else make_baseline(teacher, cfg)
     if not variant:
         return TrueAoaTeacher(AoaPolicy(cfg)) if teacher == "aoa" else make_baseline(teacher, cfg)
     if teacher != "aoa":
@@ -99,3 +104,31 @@ def make_teacher(cfg: EnvConfig, teacher: str, shadow_gate_db: float | None = No
                          f"teacher, not of {teacher!r}")
     span = {} if sinr_span_db is None else {"sinr_span_db": sinr_span_db}
     return TrueAoaTeacher(AoaVariant(cfg, shadow_gate_db=shadow_gate_db, shadow_estimator=shadow_estimator, **span))
+
+
+class SoloTeacher:
+    """A fleet's warm-start teacher for UEs that stay together (GPS, privileged; training only):
+    the UAV nearest the UEs' centroid flies to it, every other UAV flies straight away from it.
+    With one group, a second cell only takes UEs and interferes (SPEC "A fleet": the greedy
+    oracle loses 3-15 % there); a UAV that keeps its distance has an empty cell and is silent."""
+
+    name = "solo"
+    layout = None
+    needs_truth = True
+
+    def __init__(self, cfg: EnvConfig) -> None:
+        self.cfg = cfg
+        self.mapping = ActionMapping.for_config(cfg)
+
+    def act(self, obs: np.ndarray, truth: GroundTruth | None = None) -> np.ndarray:
+        if truth is None:
+            raise ValueError("the solo teacher needs ground truth")
+        n_uavs, half = self.cfg.n_uavs, self.cfg.area.half_width_m
+        uav = truth.uav_xy_m.reshape(-1, n_uavs, 2)
+        centroid = truth.ue_xy_m.mean(axis=1)[:, None, :]  # (N, 1, 2)
+        gap = uav - centroid
+        dist = np.linalg.norm(gap, axis=2, keepdims=True)
+        away = np.clip(uav + self.cfg.r_max_m * gap / np.maximum(dist, 1e-9), -half, half)
+        leader = dist[..., 0].argmin(axis=1)[:, None] == np.arange(n_uavs)  # (N, D)
+        target = np.where(leader[..., None], centroid, away)
+        return moves_to(self.cfg, truth.uav_xy_m, target.reshape(-1, 2), self.mapping)

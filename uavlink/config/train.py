@@ -17,6 +17,8 @@ from uavlink.errors import ConfigError
 
 # The rules a warm start can copy; uavlink.policies.baselines implements them by these names.
 BASELINE_NAMES = ("static", "oracle", "aoa", "kmeans")
+# What a warm start may imitate: a baseline, or a fleet-only teacher of uavlink.teachers.
+TEACHER_NAMES = (*BASELINE_NAMES, "solo")
 _INF = float("inf")
 
 
@@ -33,7 +35,7 @@ class WarmStartConfig:
 
     teacher: str = setting("", "first fit the actor to this rule's actions (behaviour cloning), then run "
                            "PPO (ours; e.g. aoa, as the shipped policies; default: off, the paper's PPO "
-                           "from scratch)", flag="--warm-start", metavar="RULE", choices=("", *BASELINE_NAMES))
+                           "from scratch)", flag="--warm-start", metavar="RULE", choices=("", *TEACHER_NAMES))
     episodes: int = setting(256, "episodes the rule flies to make the cloning data", low=1)
     epochs: int | None = setting(None, "passes of the actor over the cloning data (default 20, "
                                  "imitation.CLONE_EPOCHS)", low=1, metavar="N")
