@@ -20,6 +20,7 @@ from uavlink.config import EnvConfig
 from uavlink.config.train import TEACHER_NAMES
 from uavlink.env.actions import ActionMapping
 from uavlink.env.core import GroundTruth
+from uavlink.env.observation import ObservationLayout
 from uavlink.errors import UserError
 from uavlink.policies.baselines import AoaPolicy, make_baseline
 from uavlink.policies.fleet_baselines import moves_to
@@ -108,27 +109,35 @@ def make_teacher(cfg: EnvConfig, teacher: str, shadow_gate_db: float | None = No
 
 class SoloTeacher:
     """A fleet's warm-start teacher for UEs that stay together (GPS, privileged; training only):
-    the UAV nearest the UEs' centroid flies to it, every other UAV flies straight away from it.
-    With one group, a second cell only takes UEs and interferes (SPEC "A fleet": the greedy
-    oracle loses 3-15 % there); a UAV that keeps its distance has an empty cell and is silent."""
+    the UAV nearest the UEs' centroid flies to it; every other UAV heads for the corner of the
+    area farthest from the centroid and, while its cell still holds a UE (shadowing can favour a
+    far UAV), moves on along the wall to the next far corner, holding once its cell is empty. With
+    one group a second active cell only takes UEs and interferes with all the others (SPEC "A
+    fleet": the greedy oracle loses 3-15 % there); an empty cell is silent."""
 
     name = "solo"
-    layout = None
     needs_truth = True
 
     def __init__(self, cfg: EnvConfig) -> None:
         self.cfg = cfg
         self.mapping = ActionMapping.for_config(cfg)
+        self.layout = ObservationLayout.for_config(cfg)
+        h = cfg.area.half_width_m
+        self.corners = np.array([[h, h], [-h, h], [-h, -h], [h, -h]])
 
     def act(self, obs: np.ndarray, truth: GroundTruth | None = None) -> np.ndarray:
         if truth is None:
             raise ValueError("the solo teacher needs ground truth")
-        n_uavs, half = self.cfg.n_uavs, self.cfg.area.half_width_m
+        n_uavs = self.cfg.n_uavs
         uav = truth.uav_xy_m.reshape(-1, n_uavs, 2)
         centroid = truth.ue_xy_m.mean(axis=1)[:, None, :]  # (N, 1, 2)
-        gap = uav - centroid
-        dist = np.linalg.norm(gap, axis=2, keepdims=True)
-        away = np.clip(uav + self.cfg.r_max_m * gap / np.maximum(dist, 1e-9), -half, half)
-        leader = dist[..., 0].argmin(axis=1)[:, None] == np.arange(n_uavs)  # (N, D)
-        target = np.where(leader[..., None], centroid, away)
+        dist = np.linalg.norm(uav - centroid, axis=2)
+        leader = dist.argmin(axis=1)[:, None] == np.arange(n_uavs)  # (N, D)
+        serving = (self.layout.newest_frame(obs)["served_by"] == 0).any(axis=1).reshape(uav.shape[:2])
+        to_corner = np.linalg.norm(self.corners[None] - centroid, axis=2)  # (N, 4)
+        far = np.argsort(-to_corner, axis=1)  # corners, farthest from the UEs first
+        first, second = self.corners[far[:, 0]][:, None], self.corners[far[:, 1]][:, None]
+        at_first = np.linalg.norm(uav - first, axis=2) < 1.0
+        away = np.where((at_first & serving)[..., None], second, first)
+        target = np.where(leader[..., None], centroid, np.where(serving[..., None] | ~at_first[..., None], away, uav))
         return moves_to(self.cfg, truth.uav_xy_m, target.reshape(-1, 2), self.mapping)
