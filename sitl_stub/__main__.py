@@ -3,7 +3,8 @@
 With no flags it talks as PX4 SITL instance 0 does: system 1, an API link from UDP 14580 to
 127.0.0.1:14540 (MAVSDK's default) and a GCS link from 18570 to 127.0.0.1:14550 (QGroundControl,
 MAVProxy); ``--instance N`` shifts the ports and the system id as PX4's ``-i N``. ``--connect URL``
-(repeatable) replaces those links. Example: ``python -m sitl_stub --scenario circular --seed 1
+(repeatable) replaces those links. ``--fleet D`` runs D vehicles (instances N .. N+D-1) around one
+shared radio world (:mod:`sitl_stub.fleet`); with ``--connect`` it takes D URLs, one per vehicle. Example: ``python -m sitl_stub --scenario circular --seed 1
 --connect udpout:127.0.0.1:14550 --speed 20``. Bad arguments print one line and exit with status 2; a connection that cannot be
 opened exits with status 1. On exit it prints one line ``sitl-stub: stats {json}`` with the
 counters of :meth:`~sitl_stub.mavlink_server.SitlServer.report` (signing, rejected input, ACKs,
@@ -119,6 +120,11 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--instance", "-i", type=_int_in(0, MAX_INSTANCE), default=0, metavar="N",
                    help="PX4 SITL instance number, as PX4's -i N: the ports above and system id "
                    "N+1 (default 0)")
+    p.add_argument("--fleet", type=_int_in(1, 16), default=None, metavar="D",
+                   help="run D vehicles in this process around one shared radio world (n_uavs = D), "
+                   "as PX4's multi-vehicle SITL: vehicle i is instance N+i, system N+i+1, on that "
+                   "instance's ports (all GCS links to 14550), spawning at the fleet's start "
+                   "position i (its home); with --connect, give D URLs, vehicle i on the i-th")
     p.add_argument("--speed", type=_positive, default=1.0,
                    help="simulated seconds per wall second (default 1)")
     p.add_argument("--scenario", choices=SCENARIOS, default="circular",
@@ -159,14 +165,16 @@ def main(argv: Sequence[str] | None = None, payload_factory: PayloadFactory | No
     home = GeoOrigin(args.home_lat, args.home_lon, args.home_alt)
     try:
         home.validate()
-        payloads = [] if args.no_payload else as_payload_list(
+        payloads = [] if args.no_payload or args.fleet else as_payload_list(
             (payload_factory or default_payload_factory)(
                 PayloadOptions(args.scenario, args.seed, args.aoa_noise_deg, tuple(args.settings))))
         key = load_key(args.signing_key) if args.signing_key else None
         config = ServerConfig(connect=args.connect, instance=args.instance, speed=args.speed,
                               home=home, params=dict(args.param), system_id=args.system_id,
                               duration_s=args.duration_s, signing_key=key)
-        server = SitlServer(config, payloads)
+        server = (SitlServer(config, payloads) if args.fleet is None
+                  else _fleet(args, config, PayloadOptions(args.scenario, args.seed, args.aoa_noise_deg,
+                                                           tuple(args.settings))))
     except ValueError as exc:
         parser.error(str(exc))
     try:
@@ -177,8 +185,11 @@ def main(argv: Sequence[str] | None = None, payload_factory: PayloadFactory | No
         return 1
     signing = (f"signing on (key {hashlib.sha256(key).hexdigest()[:8]})" if key
                else "signing off")
-    print(f"{PROG}: vehicle {server.system_id} on {server.connection}, {args.speed:g}x real time, "
-          f"{len(payloads)} payload(s), {signing}", file=sys.stderr, flush=True)
+    who = (f"vehicle {server.system_id}" if args.fleet is None
+           else f"fleet of {args.fleet} vehicles ({'no' if args.no_payload else 'one shared'} radio world)")
+    count = len(payloads) if args.fleet is None else len(server.world.views) if server.world else 0
+    print(f"{PROG}: {who} on {server.connection}, {args.speed:g}x real time, "
+          f"{count} payload(s), {signing}", file=sys.stderr, flush=True)
     stop = threading.Event()
 
     def _on_signal(signum: int, _frame: object) -> None:
@@ -194,6 +205,18 @@ def main(argv: Sequence[str] | None = None, payload_factory: PayloadFactory | No
         print(f"{PROG}: stats {json.dumps(server.report(), sort_keys=True)}", file=sys.stderr,
               flush=True)
     return 0
+
+
+def _fleet(args: argparse.Namespace, base: ServerConfig, options: PayloadOptions):
+    """``--fleet D``: D vehicles around one radio world (:mod:`sitl_stub.fleet`)."""
+    from sitl_stub.fleet import FleetServer, FleetWorld, fleet_configs, fleet_env, spawn_points_ne
+
+    if args.instance + args.fleet - 1 > MAX_INSTANCE:
+        raise ValueError(f"--instance {args.instance} --fleet {args.fleet} needs instances up to "
+                         f"{args.instance + args.fleet - 1}, more than {MAX_INSTANCE}")
+    cfg = fleet_env(options, args.fleet)
+    world = None if args.no_payload else FleetWorld(cfg, args.seed)
+    return FleetServer(fleet_configs(base, args.fleet, spawn_points_ne(cfg)), world)
 
 
 if __name__ == "__main__":

@@ -74,6 +74,7 @@ class ServerConfig:
     system_id: int | None = None
     duration_s: float | None = None
     max_stream_wall_hz: float = 50.0
+    home_ne: tuple[float, float] = (0.0, 0.0)  # spawn point = home, LOCAL_NED (a fleet's vehicles)
     signing_key: bytes | None = field(default=None, repr=False)
 
     def link_specs(self) -> tuple[LinkSpec, ...]:
@@ -107,7 +108,7 @@ class SitlServer:
             raise ValueError(f"system_id must be in 1..255, got {self.system_id}")
         self.params = ParamStore(c.params)
         self.battery = Battery(self.params)
-        self.vehicle = Vehicle(self.params, c.area, origin=c.home)
+        self.vehicle = Vehicle(self.params, c.area, origin=c.home, home_ne=c.home_ne)
         self.streams = StreamScheduler(max_wall_hz=c.max_stream_wall_hz)
         ids = {AUTOPILOT_COMPONENT}
         for p in payloads:
@@ -147,7 +148,7 @@ class SitlServer:
                     self.signing.attach(mav).signing.link_id = link.index
         per_component = list(zip(*encoders, strict=True))  # [autopilot encoders, payload 1's, ...]
         self.mav = Fanout(per_component[0], self.route)
-        self.telemetry = TelemetrySender(self.mav, c.home, self.battery, self.mav.everyone())
+        self.telemetry = TelemetrySender(self.mav, c.home, self.battery, self.mav.everyone(), c.home_ne)
         self.commands = CommandHandler(self.vehicle, self.streams, self.telemetry)
         self.param_protocol = ParamProtocol(self.params, self.mav)
         self._slots = [PayloadSlot(p, Fanout(mavs, self.route))
@@ -251,10 +252,19 @@ class SitlServer:
         """Handle input, advance simulated time to the wall clock, send what is due."""
         assert self.clock is not None
         wall = self.clock.wall()
+        self.receive(wall)
+        self._advance_to(self.clock.advance())
+        self.after_step(wall)
+
+    def receive(self, wall: float) -> None:
+        """Handle the input of every link (the first phase of :meth:`iterate`)."""
         for link, inbox in zip(self.links, self.inboxes, strict=True):
             with self.route.answering_link(link.index):
                 inbox.receive(wall)
-        self._advance_to(self.clock.advance())
+
+    def after_step(self, wall: float) -> None:
+        """Events, battery and the telemetry that is due, once simulated time has advanced (the
+        last phase of :meth:`iterate`; a fleet steps its vehicles in lockstep in between)."""
         self.battery.update(self.vehicle.t, self.vehicle.armed)
         for severity, text in self.vehicle.drain_events():
             log.info("%s", text)

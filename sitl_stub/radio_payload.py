@@ -44,6 +44,9 @@ class RadioPayload:
     def __init__(self, options: PayloadOptions, cfg: EnvConfig | None = None) -> None:
         base = cfg or EnvConfig().replace(**dict(options.settings))
         self.cfg = base.replace(scenario=options.scenario, aoa_noise_deg=options.aoa_noise_deg).validate()
+        if self.cfg.n_uavs != 1:
+            raise ValueError(f"n_uavs={self.cfg.n_uavs} needs a fleet of vehicles: use --fleet "
+                             f"{self.cfg.n_uavs} (one vehicle serves one UAV)")
         self.frame_s = self.cfg.frame_s
         self.world = RadioWorld(self.cfg, options.seed)
         self.started = False

@@ -27,10 +27,10 @@ def rally_points(items: Sequence[MissionItem], origin: GeoOrigin) -> list[tuple[
     return [origin.to_local(i.x / 1e7, i.y / 1e7) for i in items if i.command == NAV_RALLY_POINT]
 
 
-def return_destination(north_m: float, east_m: float,
-                       rally: Sequence[tuple[float, float]]) -> tuple[float, float]:
+def return_destination(north_m: float, east_m: float, rally: Sequence[tuple[float, float]],
+                       home_ne: tuple[float, float] = HOME_NE) -> tuple[float, float]:
     """The safe point nearest (north_m, east_m): home or a rally point (home wins a tie)."""
-    return min((HOME_NE, *rally), key=lambda p: math.hypot(p[0] - north_m, p[1] - east_m))
+    return min((home_ne, *rally), key=lambda p: math.hypot(p[0] - north_m, p[1] - east_m))
 
 
 class ReturnPhases:

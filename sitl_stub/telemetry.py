@@ -75,9 +75,10 @@ class TelemetrySender:
     """Sends the autopilot's messages with one pymavlink ``MAVLink`` object (component 1)."""
 
     def __init__(self, mav: Any, origin: GeoOrigin, battery: Battery | None = None,
-                 announce: Any = None) -> None:
+                 announce: Any = None, home_ne: tuple[float, float] = (0.0, 0.0)) -> None:
         self.mav = mav
         self.origin = origin
+        self.home_ne = home_ne
         self.battery = battery or Battery()
         self.announce = mav if announce is None else announce
         self._builders: dict[str, Callable[[VehicleState], None]] = {
@@ -135,9 +136,11 @@ class TelemetrySender:
         self.mav.extended_sys_state_send(mavlink.MAV_VTOL_STATE_UNDEFINED, int(s.landed_state))
 
     def home_position(self, s: VehicleState) -> None:
-        o = self.origin
-        self.mav.home_position_send(_e7(o.lat_deg), _e7(o.lon_deg), _mm(o.alt_amsl_m),
-                                    0.0, 0.0, 0.0, [1.0, 0.0, 0.0, 0.0], 0.0, 0.0, 0.0,
+        """Home (the spawn point: LOCAL_NED ``home_ne``, the origin itself for one vehicle)."""
+        o, (north, east) = self.origin, self.home_ne
+        lat, lon = o.to_global(north, east)
+        self.mav.home_position_send(_e7(lat), _e7(lon), _mm(o.alt_amsl_m),
+                                    north, east, 0.0, [1.0, 0.0, 0.0, 0.0], 0.0, 0.0, 0.0,
                                     _us(s.time_s))
 
     def gps_raw_int(self, s: VehicleState) -> None:

@@ -56,7 +56,8 @@ class Vehicle:
     """The multicopter. Starts disarmed on the ground at home in AUTO.LOITER."""
 
     def __init__(self, params: ParamStore | None = None, area: AreaConfig | None = None,
-                 plans: MissionStore | None = None, origin: GeoOrigin | None = None) -> None:
+                 plans: MissionStore | None = None, origin: GeoOrigin | None = None,
+                 home_ne: tuple[float, float] = (0.0, 0.0)) -> None:  # spawn point = home (a fleet's)
         self.params = params if params is not None else ParamStore()
         self.plans = plans if plans is not None else MissionStore()
         self.origin = origin or GeoOrigin()
@@ -64,8 +65,8 @@ class Vehicle:
         self.fence = FenceGuard(self.plans, self.origin)
         self._leg: Leg | None = None  # what AUTO.MISSION flies now
         self.fence_m = (area or AreaConfig()).half_width_m
-        self.t = 0.0
-        self.pos = [0.0, 0.0, 0.0]
+        self.t, self.home_ne = 0.0, (float(home_ne[0]), float(home_ne[1]))
+        self.pos = [*self.home_ne, 0.0]
         self.vel = [0.0, 0.0, 0.0]
         self._acc_ne = (0.0, 0.0)
         self.yaw = 0.0
@@ -138,7 +139,7 @@ class Vehicle:
         of home and the rally points (PX4 RTL_TYPE 0), land there."""
         self.mode = FlightMode.RTL
         rally = rally_points(self.plans.items(RALLY), self.origin)
-        dest = self._clamp((*return_destination(self.pos[0], self.pos[1], rally), 0.0))
+        dest = self._clamp((*return_destination(self.pos[0], self.pos[1], rally, self.home_ne), 0.0))
         self._target = self._rtl.start(self._stopping_point(), self._landed,
                                        self.params["RTL_RETURN_ALT"], dest[:2])
         return ACCEPTED

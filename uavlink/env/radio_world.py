@@ -4,8 +4,9 @@ positions the vehicle actually reaches instead of at positions mapped from actio
 The SITL's radio payload is its user: it asks for the readings the base station senses and, once a
 frame, advances the world with the vehicle's position. Episode 0 of the evaluation stream
 (``uavlink.seeding.EVAL``) with seed S: a flight with ``--seed S`` meets the UEs of
-``uavlink evaluate --episodes 1 --seed S``. The world holds one UAV today; positions and readings
-are indexed per UAV so a fleet can share one world later without changing the callers' shape.
+``uavlink evaluate --episodes 1 --seed S``. It holds the config's ``n_uavs`` UAVs: a fleet of SITL
+vehicles shares one world (``sitl_stub.fleet``), each vehicle's payload reporting its UAV's readings,
+and the world advances once per frame with every vehicle's position.
 """
 
 from __future__ import annotations
@@ -25,6 +26,7 @@ class UavReadings:
 
     sinr_db: np.ndarray  # (U,) effective SINR per UE
     aoa_deg: np.ndarray  # (U,) measured angle of arrival per UE, deg from east
+    serves: np.ndarray  # (U,) bool: the UEs attached to this UAV (its cell; every UE for one UAV)
 
 
 @dataclass(frozen=True)
@@ -39,10 +41,9 @@ class FrameScore:
 class RadioWorld:
     """UEs and channel of one episode, advanced one frame at a time at given UAV positions."""
 
-    n_uavs = 1
-
     def __init__(self, cfg: EnvConfig, seed: int) -> None:
         self.cfg = cfg.validate()
+        self.n_uavs = self.cfg.n_uavs
         self._env = BatchedUavEnv(self.cfg, n_envs=1, seed=EVAL.seed(seed, 0))
         self._env.reset()
 
@@ -54,7 +55,7 @@ class RadioWorld:
     def readings(self, uav: int = 0) -> UavReadings:
         """The current frame's readings at UAV ``uav`` (index into the world's UAVs)."""
         r = self._env.readings
-        return UavReadings(r.sinr_db[uav], r.aoa_deg[uav])
+        return UavReadings(r.heard_sinr_db[0, uav], r.heard_aoa_deg[0, uav], r.serving[0] == uav)
 
     def advance(self, uav_xy_m: np.ndarray) -> FrameScore:
         """Move the UEs one frame with the UAVs at ``uav_xy_m`` ((n_uavs, 2) or (2,), metres east

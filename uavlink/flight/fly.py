@@ -15,7 +15,8 @@ import numpy as np
 
 from uavlink.config import changed_settings
 from uavlink.errors import UserError
-from uavlink.mavlink.connection import free_udp_port, normalize_connection
+from uavlink.flight.fly_fleet import run_fleet_fly, split_urls
+from uavlink.mavlink.connection import free_udp_port
 from uavlink.policies.contract import OVERRIDES_HELP, EnvOverrides, load_with_env
 
 log = logging.getLogger("uavlink.fly")
@@ -47,21 +48,22 @@ def run_fly(args: argparse.Namespace) -> int:
                         format="%(levelname)s %(name)s: %(message)s")
     key = load_key(args.signing_key) if args.signing_key else None  # before anything flies
     if args.connect is not None:
-        try:
-            normalize_connection(args.connect)
-        except ValueError as exc:
-            raise UserError(str(exc)) from None
+        split_urls(args.connect)  # every URL checked before anything else
     overrides = EnvOverrides.from_command_line(args.scenario, args.aoa_noise_deg, args.overrides)
     [(policy, cfg)] = load_with_env([args.policy], overrides)
     if policy.needs_truth:
-        raise UserError("the oracle needs UE positions (GPS) and cannot fly; use a policy file, aoa or static")
+        raise UserError(f"{policy.name} needs UE positions (GPS) and cannot fly; use a policy file, aoa or static")
+    live = not (args.quiet or args.json) and sys.stderr.isatty()
+    if cfg.n_uavs > 1:
+        return run_fleet_fly(args, policy, cfg, key, live)
+    if args.connect and "," in args.connect:
+        raise UserError("--connect with several URLs is for a fleet (a policy with n_uavs > 1, or "
+                        "--set n_uavs=D); give one URL for one vehicle")
     pilot = PolicyPilot(policy, cfg)  # layout checks happen here, before anything is armed
     out_dir = args.out
     out_dir.mkdir(parents=True, exist_ok=True)
     tlog = out_dir / "flight.tlog"
 
-    # The live line is for a person at a terminal; piped or logged output gets none of its \r frames.
-    live = not (args.quiet or args.json) and sys.stderr.isatty()
 
     def status(frame: int, target: np.ndarray, rate: float | None) -> None:
         if not live:
@@ -108,11 +110,15 @@ def add_fly_parser(sub) -> None:
     p = sub.add_parser("fly", help="fly a policy over MAVLink (embedded SITL without --connect)",
                        description="Fly a policy: each radio frame becomes a MAVLink position setpoint. "
                                    "Without --connect, an embedded sitl_stub vehicle is started on a free "
-                                   "port, simulating the policy's env. " + OVERRIDES_HELP)
+                                   "port, simulating the policy's env; a fleet policy (n_uavs > 1 in its "
+                                   "manifest, or --set n_uavs=D for a baseline) flies D vehicles "
+                                   "(sitl_stub --fleet D). " + OVERRIDES_HELP)
     p.add_argument("--policy", default="policies/circular.zip", help="FILE.zip | FILE.onnx | aoa | static")
     p.add_argument("--connect", default=None,
                    help="vehicle link: udp:14550 (listen), udp:HOST:PORT, udpout:HOST:PORT, tcp:HOST:PORT, "
-                        "udpin://0.0.0.0:14550, udpout://HOST:PORT")
+                        "udpin://0.0.0.0:14550, udpout://HOST:PORT; a fleet (n_uavs = D > 1): D URLs "
+                        "URL1,URL2,... (vehicle i flies UAV i), or one URL carrying every system "
+                        "(e.g. udp:14550: systems in ascending id order)")
     p.add_argument("--scenario", default="circular", help="scenario of the embedded SITL (and the policy's env)")
     p.add_argument("--seed", type=int, default=0, help="seed of the embedded SITL's scenario")
     p.add_argument("--aoa-noise-deg", type=float, default=None,

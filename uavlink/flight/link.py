@@ -31,7 +31,7 @@ from collections import deque
 from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any
+from typing import Any, BinaryIO
 
 from uavlink.mavlink.connection import normalize_connection
 from uavlink.mavlink.dialect import mavlink, mavutil
@@ -101,15 +101,18 @@ class VehicleLink:
     def __init__(self, url: str, tlog: Path | None = None, system_id: int = 255,
                  component_id: int = MAV.MAV_COMP_ID_ONBOARD_COMPUTER,
                  signing_key: bytes | None = None, target_system: int | None = None,
-                 target_component: int | None = None) -> None:
+                 target_component: int | None = None, connection: Any = None,
+                 tlog_file: BinaryIO | None = None) -> None:
         for name, value in (("target_system", target_system), ("target_component", target_component)):
             if value is not None and not 1 <= value <= 255:
                 raise ValueError(f"{name} must be in 1..255, got {value}")
         self.url = normalize_connection(url)
-        self.conn = mavutil.mavlink_connection(self.url, source_system=system_id,
-                                               source_component=component_id, dialect="common")
+        # ``connection``: another link's (one URL carrying several systems; see link_group)
+        self.conn = connection or mavutil.mavlink_connection(self.url, source_system=system_id,
+                                                             source_component=component_id, dialect="common")
+        self._owns_conn, self.group = connection is None, None
         self.signing: SigningGuard | None = None
-        if signing_key is not None:
+        if signing_key is not None and connection is None:
             self.signing = SigningGuard(signing_key)
             self.signing.attach(self.conn.mav)
         self.rejects = RejectLog(log)
@@ -129,7 +132,8 @@ class VehicleLink:
         self.stream_period_vehicle_s = STREAM_PERIOD_VEHICLE_S
         self._last_stream = 0.0
         self._speed = 1.0
-        self._tlog = open(tlog, "wb") if tlog else None  # noqa: SIM115 - closed in close()
+        self._owns_tlog = tlog_file is None
+        self._tlog = tlog_file or (open(tlog, "wb") if tlog else None)  # noqa: SIM115 - closed in close()
         if self._tlog:
             self.conn.mav.set_send_callback(self._log)
 
@@ -154,20 +158,10 @@ class VehicleLink:
         self._tlog.write(struct.pack(">Q", int(time.time() * 1e6)) + msg.get_msgbuf())
 
     def poll(self, timeout_s: float) -> None:
-        """Handle the messages that arrive within ``timeout_s`` of wall time; keep the stream alive."""
-        now = time.monotonic()
-        if now - self._last_heartbeat_sent >= HEARTBEAT_PERIOD_S:
-            self._last_heartbeat_sent = now
-            self.conn.mav.heartbeat_send(MAV.MAV_TYPE_ONBOARD_CONTROLLER, MAV.MAV_AUTOPILOT_INVALID,
-                                         0, 0, MAV.MAV_STATE_ACTIVE)
-        if self.stream_ned is not None:
-            period = self.stream_period_vehicle_s / self.speed_factor()
-            due = self._last_stream + period - now
-            if due <= 0:
-                self.send_setpoint(*self.stream_ned)
-                due = period
-            timeout_s = min(timeout_s, due)
-        timeout_s = min(timeout_s, HEARTBEAT_PERIOD_S)
+        """Handle what arrives within ``timeout_s`` (wall); keep the stream(s) of its group alive."""
+        if self.group is not None:
+            return self.group.poll(timeout_s)
+        timeout_s = min(timeout_s, self.keep_alive(time.monotonic()))
         msg = self._recv(blocking=True, timeout=timeout_s) if timeout_s > 0 else None
         for _ in range(MAX_RX_PER_POLL):
             if msg is not None:
@@ -175,6 +169,22 @@ class VehicleLink:
             elif not self._readable():  # nothing waiting (a None can also be a garbage datagram)
                 return
             msg = self._recv(blocking=False)
+
+    def keep_alive(self, now: float) -> float:
+        """Send our HEARTBEAT and the offboard keep-alive setpoint when due; wall seconds until
+        the next is due."""
+        if now - self._last_heartbeat_sent >= HEARTBEAT_PERIOD_S:
+            self._last_heartbeat_sent = now
+            self.conn.mav.heartbeat_send(MAV.MAV_TYPE_ONBOARD_CONTROLLER, MAV.MAV_AUTOPILOT_INVALID,
+                                         0, 0, MAV.MAV_STATE_ACTIVE)
+        if self.stream_ned is None:
+            return HEARTBEAT_PERIOD_S
+        period = self.stream_period_vehicle_s / self.speed_factor()
+        due = self._last_stream + period - now
+        if due <= 0:
+            self.send_setpoint(*self.stream_ned)
+            due = period
+        return min(due, HEARTBEAT_PERIOD_S)
 
     def _readable(self) -> bool:
         try:
@@ -192,12 +202,15 @@ class VehicleLink:
             self.conn.mav.buf, self.conn.mav.buf_index = bytearray(), 0
             return None
 
-    def _handle(self, msg) -> None:
+    def _handle(self, msg, first: bool = True) -> None:
+        """One received message; ``first``: this link is the first of those sharing the
+        connection to see it (it rescans bad frames and writes the tlog record)."""
         kind = msg.get_type()
-        rescan_bad_frame(self.conn.mav, msg)
+        if first:
+            rescan_bad_frame(self.conn.mav, msg)
         if not self.rejects.screen(msg):
             return
-        if self._tlog:
+        if self._tlog and first:
             self._log(msg)
         src_sys, src_comp = msg.get_srcSystem(), msg.get_srcComponent()
         if self.target_system is None and kind == "HEARTBEAT" and msg.autopilot != MAV.MAV_AUTOPILOT_INVALID:
@@ -262,10 +275,11 @@ class VehicleLink:
             st.home = msg
 
     def close(self) -> None:
-        if self._tlog:
+        if self._tlog and self._owns_tlog:
             self._tlog.close()
-            self._tlog = None
-        self.conn.close()
+        self._tlog = None
+        if self._owns_conn:
+            self.conn.close()
 
     # -- time ----------------------------------------------------------------------------------
     def speed_factor(self) -> float:

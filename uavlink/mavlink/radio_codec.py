@@ -8,7 +8,9 @@ starts) and ``time_usec`` the simulated time.
 ``UL_RADIO`` (what the base station senses; the policy's input):
     data[0] = U (number of UEs), data[1 : 1+U] = effective SINR (dB),
     data[1+U : 1+2U] = measured AoA (deg from east, [-180, 180)),
-    data[1+2U] = 1 while the episode runs, 0 while it waits for the mission to start.
+    data[1+2U] = 1 while the episode runs, 0 while it waits for the mission to start,
+    data[2+2U : 2+3U] (a fleet's UAV only) = +1 for each UE this UAV serves, -1 for the others
+    (all 0, the padding, when not reported: one UAV serves every UE).
 ``UL_SCORE`` (the simulator's truth, for scoring and logs only; never fed to the policy):
     data[0] = U, data[1] = mean UE rate (Mbps), data[2] = R_fair, data[3 : 3+U] = rates (Mbps).
 """
@@ -37,6 +39,7 @@ class RadioReport:
     sinr_db: np.ndarray  # (U,)
     aoa_deg: np.ndarray  # (U,)
     running: bool = True
+    serves: np.ndarray | None = None  # (U,) bool: the UEs in this UAV's cell (a fleet's); None: not reported
 
 
 @dataclass(frozen=True)
@@ -50,11 +53,14 @@ def _pad(values: list[float]) -> list[float]:
     return values + [0.0] * (DATA_LEN - len(values))
 
 
-def encode_readings(sinr_db: np.ndarray, aoa_deg: np.ndarray, running: bool) -> list[float]:
+def encode_readings(sinr_db: np.ndarray, aoa_deg: np.ndarray, running: bool,
+                    serves: np.ndarray | None = None) -> list[float]:
     n = len(sinr_db)
-    if n > MAX_UES or len(aoa_deg) != n:
-        raise ValueError(f"cannot encode {n} UEs in one DEBUG_FLOAT_ARRAY (max {MAX_UES})")
-    return _pad([float(n), *map(float, sinr_db), *map(float, aoa_deg), float(running)])
+    cell = [] if serves is None else [1.0 if s else -1.0 for s in serves]
+    if 2 + 2 * n + len(cell) > DATA_LEN or len(aoa_deg) != n or len(cell) not in (0, n):
+        raise ValueError(f"cannot encode {n} UEs in one DEBUG_FLOAT_ARRAY (max {MAX_UES}, "
+                         f"{(DATA_LEN - 2) // 3} with a fleet's cell flags)")
+    return _pad([float(n), *map(float, sinr_db), *map(float, aoa_deg), float(running), *cell])
 
 
 def encode_score(rate_bps: np.ndarray, fair_rate: float) -> list[float]:
@@ -80,8 +86,10 @@ def decode_readings(msg, expected_ues: int) -> RadioReport:
         raise RadioReportError("radio report contains NaN or infinite values")
     if (np.abs(aoa) > 180.0).any() or (np.abs(sinr) > 200.0).any():
         raise RadioReportError("radio report values out of range")
+    flags = np.asarray(data[2 + 2 * expected_ues:2 + 3 * expected_ues], dtype=float)
+    serves = flags > 0 if len(flags) == expected_ues and (flags != 0).any() else None
     return RadioReport(int(msg.array_id), msg.time_usec * 1e-6, sinr, aoa,
-                       running=data[1 + 2 * expected_ues] == 1.0)
+                       running=data[1 + 2 * expected_ues] == 1.0, serves=serves)
 
 
 def decode_score(msg) -> ScoreReport:

@@ -1,0 +1,235 @@
+"""A fleet of SITL vehicles in one process around one shared radio world (``--fleet D``).
+
+PX4's multi-vehicle SITL (Tools/simulation/sitl_multiple_run.sh) starts one ``px4 -i N`` per
+vehicle, N = 0 .. D-1: instance N is MAVLink system N+1 (MAV_SYS_ID) with the API link from
+14580+N to 14540+N and the GCS link from 18570+N to 14550, so a ground station on 14550 hears every
+system on one port. Here each vehicle is one :class:`~sitl_stub.mavlink_server.SitlServer` with
+exactly those links (instance ``first_instance + i``), and :class:`FleetServer` runs them in
+lockstep on one simulated clock: every vehicle steps to each radio frame boundary, the world
+advances once with every vehicle's actual position, then each vehicle's radio payload
+(:class:`FleetRadioView`, its own component 158 on its own system) publishes its UAV's readings.
+
+Frames and homes: every vehicle's LOCAL_NED origin is the area centre (the env's frame, one origin
+for the fleet, so the flight loop and the separation filter compare positions directly); vehicle i
+spawns at the fleet's start position i (SPEC: radius ``fleet_start_radius_m``, 360 i / D degrees
+from east) and that spawn point is its home: HOME_POSITION carries its latitude/longitude and its
+local x/y, and RTL returns there. (PX4 gives each vehicle its own EKF origin at its spawn point;
+one shared origin is this simulator's choice, stated in HOME_POSITION's x/y.)
+
+The episode starts at the first frame tick that finds every vehicle in OFFBOARD, so no vehicle
+misses a frame while the others are still taking off; until then frame 0's readings are repeated,
+flagged as waiting, as the single vehicle's payload does.
+"""
+
+from __future__ import annotations
+
+import logging
+import math
+import select
+import threading
+from collections.abc import Sequence
+from dataclasses import replace
+from typing import Any
+
+from sitl_stub.clock import SimClock
+from sitl_stub.mavlink_server import LOOP_WAIT_S, ServerConfig, SitlServer
+from sitl_stub.modes import FlightMode
+from sitl_stub.payload import MAV_AUTOPILOT_INVALID, PayloadOptions
+from sitl_stub.vehicle_state import VehicleState
+from uavlink.config import EnvConfig
+from uavlink.env.radio_world import RadioWorld
+from uavlink.mavlink.radio_codec import (
+    RADIO_COMPONENT_ID,
+    READINGS_NAME,
+    SCORE_NAME,
+    encode_readings,
+    encode_score,
+)
+from uavlink.mobility.fleet import start_positions_m
+
+log = logging.getLogger("sitl_stub.fleet")
+
+MAV_TYPE_ONBOARD_CONTROLLER = 18
+MAV_STATE_ACTIVE = 4
+READINGS_COPIES = 2  # as the single vehicle's payload: a copy against packet loss
+
+
+def fleet_env(options: PayloadOptions, n_uavs: int) -> EnvConfig:
+    """The shared world's env: the payload options' settings with ``n_uavs`` UAVs."""
+    cfg = EnvConfig().replace(**dict(options.settings))
+    if cfg.n_uavs not in (1, n_uavs):
+        raise ValueError(f"--set n_uavs={cfg.n_uavs} disagrees with --fleet {n_uavs}; drop one")
+    return cfg.replace(scenario=options.scenario, aoa_noise_deg=options.aoa_noise_deg,
+                       n_uavs=n_uavs).validate()
+
+
+def spawn_points_ne(cfg: EnvConfig) -> list[tuple[float, float]]:
+    """Each vehicle's spawn point and home (LOCAL_NED north, east): the env's start positions."""
+    xy = start_positions_m(cfg.n_uavs, cfg.fleet_start_radius_m)
+    return [(float(y), float(x)) for x, y in xy]
+
+
+class FleetWorld:
+    """One radio world with ``cfg.n_uavs`` UAVs; one :class:`FleetRadioView` per vehicle."""
+
+    def __init__(self, cfg: EnvConfig, seed: int) -> None:
+        self.cfg = cfg
+        self.frame_s = self.cfg.frame_s
+        self.world = RadioWorld(self.cfg, seed)
+        self.started = False
+        self.next_frame = 0
+        self.score: list[float] | None = None  # this frame's encoded score (None before the start)
+        self.frame_rates_mbps: list[float] = []
+        self.views = [FleetRadioView(self, d) for d in range(cfg.n_uavs)]
+
+    def tick(self, states: Sequence[VehicleState]) -> None:
+        """One frame: advance with every vehicle's position once the episode runs, or start it
+        when every vehicle is in OFFBOARD."""
+        if self.started:
+            result = self.world.advance([[s.x_east_m, s.y_north_m] for s in states])
+            self.frame_rates_mbps.append(result.mean_rate_mbps)
+            self.score = encode_score(result.rate_bps, result.fair_rate)
+        elif all(s.mode is FlightMode.OFFBOARD for s in states):
+            self.started = True
+        self.next_frame += 1
+
+    def summary(self) -> dict[str, Any]:
+        rates = self.frame_rates_mbps[: self.cfg.episode_frames]
+        return {"frames": len(rates), "frames_total": len(self.frame_rates_mbps),
+                "mean_rate_mbps": round(sum(rates) / len(rates), 6) if rates else None}
+
+
+class FleetRadioView:
+    """Vehicle ``uav``'s radio payload: publishes what its UAV's base station senses in the shared
+    world (SINR, AoA and its cell's UEs), and the team's score."""
+
+    component_id = RADIO_COMPONENT_ID
+
+    def __init__(self, fleet: FleetWorld, uav: int) -> None:
+        self.fleet, self.uav = fleet, uav
+        self.frame_s = fleet.frame_s
+
+    def heartbeat(self) -> tuple[int, int, int, int, int]:
+        return (MAV_TYPE_ONBOARD_CONTROLLER, MAV_AUTOPILOT_INVALID, 0, 0, MAV_STATE_ACTIVE)
+
+    def on_frame(self, sim_time_s: float, state: VehicleState, mav: Any) -> None:
+        fleet = self.fleet
+        frame, usec = fleet.world.frame, int(sim_time_s * 1e6)
+        if fleet.score is not None:
+            mav.debug_float_array_send(usec, SCORE_NAME.encode(), frame, fleet.score)
+        r = fleet.world.readings(self.uav)
+        data = encode_readings(r.sinr_db, r.aoa_deg, fleet.started, r.serves)
+        for _ in range(READINGS_COPIES):
+            mav.debug_float_array_send(usec, READINGS_NAME.encode(), frame, data)
+
+    def summary(self) -> dict[str, Any]:
+        return {"uav": self.uav, **self.fleet.summary()}
+
+
+def fleet_configs(base: ServerConfig, n_vehicles: int,
+                  homes_ne: Sequence[tuple[float, float]]) -> list[ServerConfig]:
+    """Vehicle i: PX4 instance ``base.instance + i`` (system id + 1), or ``base.connect[i]`` when
+    connections are given (exactly one per vehicle), spawning at ``homes_ne[i]``."""
+    urls = None if base.connect is None else (
+        [base.connect] if isinstance(base.connect, str) else list(base.connect))
+    if urls is not None and len(urls) != n_vehicles:
+        raise ValueError(f"--fleet {n_vehicles} with --connect needs {n_vehicles} --connect URLs, "
+                         f"one per vehicle in order (got {len(urls)}); or drop --connect for PX4's "
+                         "ports")
+    if base.system_id is not None:
+        raise ValueError("--system-id does not go with --fleet: vehicle i is system instance + i + 1")
+    return [replace(base, instance=base.instance + i, connect=None if urls is None else urls[i],
+                    home_ne=homes_ne[i]) for i in range(n_vehicles)]
+
+
+class FleetServer:
+    """D :class:`SitlServer` vehicles on one simulated clock, around one :class:`FleetWorld`."""
+
+    def __init__(self, configs: Sequence[ServerConfig], world: FleetWorld | None) -> None:
+        if world is not None and len(world.views) != len(configs):
+            raise ValueError("one radio view per vehicle")
+        self.world = world
+        self.servers = [SitlServer(c, [world.views[i]] if world else []) for i, c in enumerate(configs)]
+        self.speed = configs[0].speed
+        self.duration_s = configs[0].duration_s
+        self.clock: SimClock | None = None
+        self._stop = threading.Event()
+        self._thread: threading.Thread | None = None
+
+    @property
+    def connection(self) -> str:
+        return "; ".join(f"system {s.system_id}: {s.connection}" for s in self.servers)
+
+    def open(self) -> None:
+        """Open every vehicle's links (OSError when one cannot be; those opened are closed)."""
+        if self.clock is not None:
+            return
+        try:
+            for server in self.servers:
+                server.open()
+        except OSError:
+            self.close()
+            raise
+        self.clock = SimClock(self.speed)
+
+    def close(self) -> None:
+        for server in self.servers:
+            server.close()
+
+    def iterate(self) -> None:
+        """Every vehicle's input, then simulated time in lockstep, then every vehicle's output."""
+        assert self.clock is not None
+        wall = self.clock.wall()
+        for server in self.servers:
+            server.receive(wall)
+        self._advance_to(self.clock.advance())
+        for server in self.servers:
+            server.after_step(wall)
+
+    def _advance_to(self, target_s: float) -> None:
+        vehicles = [s.vehicle for s in self.servers]
+        world = self.world
+        while True:
+            t = vehicles[0].t
+            boundary = world.next_frame * world.frame_s if world else math.inf
+            if boundary <= t + 1e-6:
+                world.tick([v.state() for v in vehicles])
+                for server in self.servers:
+                    server._tick(server._slots[0], boundary)
+                continue
+            end = min(target_s, boundary)
+            if end <= t + 1e-9:
+                return
+            for v in vehicles:
+                v.step(end - v.t)
+
+    def run(self, stop: threading.Event | None = None) -> None:
+        """Run until ``stop`` is set or ``duration_s`` simulated seconds pass."""
+        self.open()
+        stop = stop or self._stop
+        fds = [link.fd for s in self.servers for link in s.links]
+        while not stop.is_set() and not self._stop.is_set():
+            self.iterate()
+            if self.duration_s is not None and self.servers[0].vehicle.t >= self.duration_s:
+                break
+            select.select(fds, [], [], LOOP_WAIT_S)
+
+    def start(self) -> FleetServer:
+        """Open and run in a daemon thread (for tests); returns self."""
+        self.open()
+        self._stop.clear()
+        self._thread = threading.Thread(target=self.run, name="sitl_stub_fleet", daemon=True)
+        self._thread.start()
+        return self
+
+    def stop(self, timeout_s: float = 5.0) -> None:
+        self._stop.set()
+        if self._thread is not None:
+            self._thread.join(timeout_s)
+            self._thread = None
+        self.close()
+
+    def report(self) -> dict[str, Any]:
+        """Each vehicle's :meth:`SitlServer.report`, and the shared world's episode."""
+        return {"vehicles": {str(s.system_id): s.report() for s in self.servers},
+                "world": self.world.summary() if self.world else None}

@@ -1,0 +1,300 @@
+"""``uavlink fly`` with a fleet: D vehicles, one policy acting on D agent rows per radio frame.
+
+Each vehicle is its own MAVLink system with its own link state and offboard stream (a
+:class:`~uavlink.flight.link_group.LinkGroup` keeps every stream alive while the loop waits on one
+vehicle). Take-off is one vehicle after the other (each holds when up), then each enters OFFBOARD;
+the world's episode starts once all are in OFFBOARD. Per frame: the newest report of every vehicle
+makes the D observation rows (as the env's: own readings, the others' positions, who serves each
+UE), the policy acts on them, and :func:`fleet_setpoints` turns the moves into setpoints with the
+env's own separation filter, so what was trained is what flies.
+
+A vehicle whose link is lost falls back to hold on its own (PX4's offboard-loss failsafe); the
+others fly on (the loop does not wait for a vehicle not heard for :data:`LIVE_S`, and moves of a
+vehicle that cannot be told are not made, its last setpoint staying where the filter keeps the
+others away from). When its link returns, the loop asks it to re-enter OFFBOARD (one DO_SET_MODE
+about once a second, without waiting, so the others' decisions are not held up) and it flies the
+policy again.
+"""
+
+from __future__ import annotations
+
+import logging
+import math
+import time
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from uavlink.config import EnvConfig
+from uavlink.env.actions import ActionMapping
+from uavlink.env.observation import ObservationBuilder, ObservationLayout, fleet_quantities
+from uavlink.flight.link import LinkError, VehicleLink
+from uavlink.flight.mission import (
+    MissionConfig,
+    MissionResult,
+    _ending_mode,
+    _enter_offboard,
+    _land,
+    _mode_name,
+    _take_control,
+)
+from uavlink.flight.radio_source import MavlinkRadioSource
+from uavlink.mavlink.dialect import mavlink
+from uavlink.mavlink.px4_modes import PX4_MAIN_OFFBOARD
+from uavlink.mavlink.radio_codec import RadioReport, ScoreReport
+from uavlink.mobility.fleet import min_separation_m, separate
+from uavlink.policies.base import Policy
+
+log = logging.getLogger(__name__)
+
+LIVE_S = 0.5  # wall seconds: a vehicle not heard for longer is not waited for
+GATHER_FRAMES = 0.3  # of a frame's wall time: the longest wait for the other vehicles' reports
+
+
+def fleet_setpoints(current_xy_m: np.ndarray, moves_m: np.ndarray, cfg: EnvConfig,
+                    movable: np.ndarray | None = None) -> np.ndarray:
+    """Next setpoints (D, 2) east/north from the current ones and the policy's moves, as the env
+    moves its UAVs: clipped to the area, then the separation filter. ``movable`` (D,) bool: a
+    vehicle that cannot be told this frame keeps its setpoint (its move is not made)."""
+    half = cfg.area.half_width_m
+    moves = np.where(movable[:, None], moves_m, 0.0) if movable is not None else moves_m
+    target = np.clip(current_xy_m + moves, -half, half)
+    return separate(current_xy_m[None], target[None], cfg.uav_separation_m)[0]
+
+
+class FleetPilot:
+    """The policy on a fleet's D agent rows: observation rows as the env builds them."""
+
+    def __init__(self, policy: Policy, cfg: EnvConfig) -> None:
+        self.policy, self.cfg, self.n_uavs = policy, cfg, cfg.n_uavs
+        self.layout = ObservationLayout.for_config(cfg)
+        if policy.layout is not None:
+            policy.layout.check_matches(self.layout, what=f"policy {policy.name!r}")
+        self.mapping = ActionMapping.for_config(cfg)
+        self.builder = ObservationBuilder(self.layout, cfg.n_uavs)
+        self.guarded = 0
+        self.inference_s: list[float] = []
+
+    def decide(self, reports: Sequence[RadioReport], uav_xy_m: np.ndarray, first: bool) -> np.ndarray:
+        """East/north moves (D, 2), m; holds (zero moves) if the policy misbehaves."""
+        sinr = np.stack([r.sinr_db for r in reports])
+        serving = sinr.argmax(axis=0)  # the strongest, where no cell flags came
+        for d, r in enumerate(reports):
+            if r.serves is not None:
+                serving = np.where(r.serves, d, serving)
+        fleet = fleet_quantities(uav_xy_m[None], serving[None])
+        step = self.builder.reset if first else self.builder.push
+        obs = step(uav_xy_m, sinr, np.stack([r.aoa_deg for r in reports]), **fleet)
+        started = time.perf_counter()
+        action = np.asarray(self.policy.act(obs), dtype=float)
+        self.inference_s.append(time.perf_counter() - started)
+        if action.shape != (self.n_uavs, 2) or not np.isfinite(action).all() or (
+                np.abs(action) > 1.0 + 1e-6).any():
+            self.guarded += 1
+            log.warning("policy output guard: frame %d: unusable action %s: holding every UAV",
+                        reports[0].frame, action.tolist())
+            return np.zeros((self.n_uavs, 2))
+        return self.mapping.to_displacement_m(action)
+
+
+@dataclass
+class VehicleRecord:
+    """One vehicle's part of the flight, for the summary."""
+
+    system_id: int | None
+    decisions: int = 0
+    holds: int = 0  # times it left OFFBOARD during the episode (a failsafe hold, say)
+    offboard_reentries: int = 0
+    reentry_requests: int = 0
+    released: str = ""  # why the loop stopped commanding it ("" while it flies)
+    max_silence_s: float = 0.0
+
+    def summary(self, link: VehicleLink) -> dict:
+        st = link.status
+        return {"system_id": self.system_id, "url": link.url, "decisions": self.decisions,
+                "holds": self.holds, "offboard_reentries": self.offboard_reentries,
+                "max_link_silence_s": round(self.max_silence_s, 2), "mode": _mode_name(st),
+                "released": self.released or None,
+                "last_position_en_m": [round(st.east_m, 2), round(st.north_m, 2)]}
+
+
+@dataclass
+class FleetResult(MissionResult):
+    vehicles: list[VehicleRecord] = field(default_factory=list)
+    min_separation_flown_m: float = math.inf
+    setpoint_min_separation_m: float = math.inf
+
+    def fleet_summary(self, links: Sequence[VehicleLink]) -> dict:
+        return {**self.summary(), "n_uavs": len(links),
+                "min_separation_flown_m": round(self.min_separation_flown_m, 2),
+                "min_separation_setpoints_m": round(self.setpoint_min_separation_m, 2),
+                "vehicles": [v.summary(link) for v, link in zip(self.vehicles, links, strict=True)]}
+
+
+def fly_fleet(links: Sequence[VehicleLink], pilot: FleetPilot, cfg: EnvConfig, mission: MissionConfig,
+              status: Callable[[int, np.ndarray, float | None], None] | None = None) -> FleetResult:
+    """Fly one episode with every vehicle (links in UAV order); land them at the end."""
+    result = FleetResult()
+    sources = [MavlinkRadioSource(cfg.n_ues) for _ in links]
+    scores: dict[int, ScoreReport] = {}
+    for link, source in zip(links, sources, strict=True):
+        link.on_radio = source.feed
+        link.on_score = lambda s: scores.setdefault(s.frame, s)
+    for link in links:
+        _take_control(link, mission, cfg.area, result)
+    result.vehicles = [VehicleRecord(link.target_system) for link in links]
+    targets = np.array([[link.status.east_m, link.status.north_m] for link in links])
+    down = -cfg.area.uav_altitude_m
+
+    def send(i: int) -> None:
+        links[i].stream_ned = (float(targets[i, 1]), float(targets[i, 0]), down)
+        links[i].send_setpoint(*links[i].stream_ned)
+
+    for i, link in enumerate(links):
+        link.stream_period_vehicle_s = mission.stream_period_vehicle_s
+        send(i)
+    for _ in range(5):
+        links[0].poll(mission.stream_period_vehicle_s / links[0].speed_factor())
+    for link in links:
+        _enter_offboard(link, mission.offboard_entry_s)
+    _Loop(links, pilot, cfg, mission, result, sources, scores, targets, send, status).run()
+    return result
+
+
+class _Loop:
+    """The per-frame loop of :func:`fly_fleet` (state shared by its steps)."""
+
+    def __init__(self, links, pilot, cfg, mission, result, sources, scores, targets, send, status):
+        self.links, self.pilot, self.cfg, self.mission, self.result = links, pilot, cfg, mission, result
+        self.sources, self.scores, self.targets, self.send, self.status = sources, scores, targets, send, status
+        self.newest: list[RadioReport | None] = [None] * len(links)
+        self.decided = -1  # the last frame decided
+        self.seen_at: dict[int, float] = {}
+        self.last_request = [-math.inf] * len(links)
+        self.was_offboard = [True] * len(links)
+
+    def run(self) -> None:
+        links, result, mission = self.links, self.result, self.mission
+        started = None
+        try:
+            while True:
+                links[0].poll(0.01)
+                now = time.monotonic()
+                self._take_reports(now)
+                frame = self._frame_to_decide(now)
+                if frame is not None:
+                    started = started or now
+                    self._decide(frame, now)
+                if self._episode_done():
+                    result.ended_by = "episode done"
+                    break
+                if all(v.released for v in result.vehicles):
+                    result.ended_by = "every vehicle released"
+                    break
+                self._watch(now, started is not None)
+                if min(now - link.last_rx_wall for link in links) > mission.link_timeout_s:
+                    result.ended_by = "link lost"
+                    raise LinkError(f"no message from any vehicle for {mission.link_timeout_s:g} s")
+        except KeyboardInterrupt:
+            result.interrupted, result.ended_by = True, "interrupted"
+        finally:
+            result.episode_wall_s = time.monotonic() - started if started else 0.0
+            frames = sorted(k for k in self.scores if 1 <= k <= mission.frames)
+            result.frame_rates_mbps = [self.scores[k].mean_rate_mbps for k in frames]
+            result.frames = len(frames)
+            result.guarded_actions, result.inference_s = self.pilot.guarded, self.pilot.inference_s
+            result.rejected_reports = sum(s.rejected for s in self.sources)
+            for link, record in zip(links, result.vehicles, strict=True):
+                st = link.status
+                if mission.land and st.armed and not _ending_mode(st) and not record.released \
+                        and time.monotonic() - link.last_rx_wall < LIVE_S * 4:
+                    _land(link)
+                link.stream_ned = None
+
+    def _take_reports(self, now: float) -> None:
+        for i, source in enumerate(self.sources):
+            for r in source.take_reports():
+                if not r.running or (self.newest[i] is not None and r.frame <= self.newest[i].frame):
+                    continue
+                if self.newest[i] is not None and self.decided >= 0:
+                    self.result.frames_missed += max(0, r.frame - self.newest[i].frame - 1) if i == 0 else 0
+                self.newest[i] = r
+                self.seen_at.setdefault(r.frame, now)
+                if self.result.first_frame is None:
+                    self.result.first_frame = r.frame
+
+    def _frame_to_decide(self, now: float) -> int | None:
+        """The newest frame, once every live vehicle has reported it (or waiting is over)."""
+        if any(r is None for r in self.newest):
+            return None  # every UAV's readings are needed once, for the first observation
+        frame = max(r.frame for r in self.newest)
+        if frame <= self.decided or frame >= self.mission.frames:
+            return None
+        live = [now - link.last_rx_wall < LIVE_S for link in self.links]
+        have = [r.frame == frame for r in self.newest]
+        frame_wall_s = self.cfg.frame_s / self.links[0].speed_factor()
+        if all(h or not alive for h, alive in zip(have, live, strict=True)) or \
+                now - self.seen_at[frame] > GATHER_FRAMES * frame_wall_s:
+            return frame
+        return None
+
+    def _decide(self, frame: int, arrived: float) -> None:
+        links, result = self.links, self.result
+        positions = np.array([[link.status.east_m, link.status.north_m] for link in links])
+        moves = self.pilot.decide(self.newest, positions, self.decided < 0)
+        movable = np.array([self.newest[i].frame == frame and not result.vehicles[i].released
+                            and links[i].status.offboard for i in range(len(links))])
+        self.targets[:] = fleet_setpoints(self.targets, moves, self.cfg, movable)
+        result.setpoint_min_separation_m = min(result.setpoint_min_separation_m,
+                                               float(min_separation_m(self.targets[None])[0]))
+        for i in np.flatnonzero(movable):
+            self.send(int(i))
+            result.vehicles[i].decisions += 1
+        self.decided = frame
+        result.decisions += 1
+        result.latencies_s.append(time.monotonic() - arrived)
+        if self.status:
+            score = self.scores.get(frame)
+            self.status(frame, self.targets[0], score.mean_rate_mbps if score else None)
+
+    def _episode_done(self) -> bool:
+        last = max((r.frame for r in self.newest if r is not None), default=-1)
+        return self.mission.frames in self.scores or last >= self.mission.frames + 2 or (
+            last >= self.mission.frames and len(self.scores) >= self.mission.frames)
+
+    def _watch(self, now: float, flying: bool) -> None:
+        """Per vehicle: its mode (hold, rejoin, released), its silence; the separation flown."""
+        links, result = self.links, self.result
+        if flying:
+            xy = np.array([[link.status.east_m, link.status.north_m] for link in links])
+            result.min_separation_flown_m = min(result.min_separation_flown_m,
+                                                float(min_separation_m(xy[None])[0]))
+        for i, (link, record) in enumerate(zip(links, result.vehicles, strict=True)):
+            st = link.status
+            record.max_silence_s = max(record.max_silence_s, now - link.last_rx_wall)
+            if record.released:
+                continue
+            if not st.armed or _ending_mode(st):
+                record.released = f"vehicle in {_mode_name(st)}"
+                link.stream_ned = None
+                log.warning("system %s is now %s (operator or failsafe): leaving it alone",
+                            link.target_system, _mode_name(st))
+                continue
+            if st.offboard != self.was_offboard[i]:
+                if st.offboard:
+                    record.offboard_reentries += 1
+                    log.warning("system %s is back in OFFBOARD: flying the policy again", link.target_system)
+                else:
+                    record.holds += 1
+                    log.warning("system %s left OFFBOARD (now %s): asking it back", link.target_system,
+                                _mode_name(st))
+                self.was_offboard[i] = st.offboard
+            if not st.offboard and now - self.last_request[i] >= self.mission.reenter_interval_s:
+                self.last_request[i] = now
+                record.reentry_requests += 1
+                base = mavlink.MAV_MODE_FLAG_CUSTOM_MODE_ENABLED | mavlink.MAV_MODE_FLAG_SAFETY_ARMED
+                link.conn.mav.command_long_send(link.target_system, link.target_component,
+                                                mavlink.MAV_CMD_DO_SET_MODE, 0, base, PX4_MAIN_OFFBOARD,
+                                                0, 0, 0, 0, 0)
+        result.offboard_reentries = sum(v.offboard_reentries for v in result.vehicles)

@@ -1,0 +1,88 @@
+"""``uavlink fly`` for a fleet (the policy's env has ``n_uavs`` > 1): the embedded
+``sitl_stub --fleet D`` (one vehicle per free loopback port) or ``--connect URL1,URL2,...`` (one
+URL per vehicle, or one URL carrying every system); :mod:`uavlink.flight.fleet_mission` flies it."""
+
+from __future__ import annotations
+
+import argparse
+import contextlib
+import json
+import time
+from collections.abc import Iterator, Sequence
+from pathlib import Path
+
+from uavlink.config import EnvConfig, changed_settings
+from uavlink.errors import UserError
+from uavlink.mavlink.connection import free_udp_port, normalize_connection
+from uavlink.policies.base import Policy
+
+
+def split_urls(connect: str) -> list[str]:
+    """``URL1,URL2,...`` -> the URLs, each checked (UserError naming a bad one)."""
+    urls = [u.strip() for u in connect.split(",")]
+    for url in urls:
+        try:
+            normalize_connection(url)
+        except ValueError as exc:
+            raise UserError(f"--connect {url!r}: {exc}") from None
+    return urls
+
+
+@contextlib.contextmanager
+def embedded_fleet(cfg: EnvConfig, seed: int, speed: float, log_path: Path | None,
+                   signing_key_file: Path | None = None) -> Iterator[list[str]]:
+    """``sitl_stub --fleet D`` with vehicle i sending to free loopback port i; yields the URLs to
+    listen on, in vehicle (UAV) order."""
+    from sitl_stub.launcher import vehicle_process
+
+    ports = [free_udp_port() for _ in range(cfg.n_uavs)]
+    args = ["--fleet", str(cfg.n_uavs), "--scenario", cfg.scenario, "--seed", str(seed),
+            "--aoa-noise-deg", repr(float(cfg.radio.aoa_noise_deg))]
+    for pair in changed_settings(cfg):
+        if not pair.startswith(("n_uavs=", "scenario=")):
+            args += ["--set", pair]
+    if signing_key_file is not None:
+        args += ["--signing-key", str(signing_key_file)]
+    with vehicle_process([f"udpout:127.0.0.1:{p}" for p in ports], speed, args, log_path=log_path):
+        yield [f"udpin:127.0.0.1:{p}" for p in ports]
+
+
+def run_fleet_fly(args: argparse.Namespace, policy: Policy, cfg: EnvConfig, key: bytes | None,
+                  live: bool) -> int:
+    from uavlink.flight.fleet_mission import FleetPilot, fly_fleet
+    from uavlink.flight.link_group import open_fleet_links
+    from uavlink.flight.mission import MissionConfig
+
+    pilot = FleetPilot(policy, cfg)  # layout checks before anything is armed
+    urls: Sequence[str] | None = split_urls(args.connect) if args.connect else None
+    out_dir = args.out
+    out_dir.mkdir(parents=True, exist_ok=True)
+    tlog = out_dir / "flight.tlog"
+    sitl = (embedded_fleet(cfg, args.seed, args.speed, out_dir / "sitl.log",
+                           Path(args.signing_key) if key else None)
+            if urls is None else contextlib.nullcontext(urls))
+    start = time.monotonic()
+    with sitl as vehicle_urls:
+        group, tlog_file = open_fleet_links(vehicle_urls, cfg.n_uavs, tlog, key)
+        try:
+            result = fly_fleet(group.links, pilot, cfg, MissionConfig(frames=args.frames))
+            speed = group.links[0].speed_factor()
+            fleet = result.fleet_summary(group.links)
+        finally:
+            group.close()
+            if tlog_file:
+                tlog_file.close()
+    summary = {"scenario": args.scenario, "policy": str(args.policy), "seed": args.seed,
+               "connect": args.connect or "embedded sitl_stub --fleet", "speed_factor": round(speed, 2),
+               **fleet, "wall_s": round(time.monotonic() - start, 2), "tlog": str(tlog)}
+    (out_dir / "summary.json").write_text(json.dumps(summary, indent=2) + "\n")
+    if args.json:
+        print(json.dumps(summary, indent=2))
+    else:
+        per = "; ".join(f"system {v['system_id']}: {v['decisions']} decisions, {v['holds']} holds"
+                        for v in summary["vehicles"])
+        print(f"flew {summary['frames']} frames of {args.scenario!r} with {args.policy} and "
+              f"{cfg.n_uavs} vehicles: mean UE throughput {summary['mean_rate_mbps']} Mbps; "
+              f"min separation flown {summary['min_separation_flown_m']} m; {per}; "
+              f"log {tlog}, summary {out_dir / 'summary.json'}")
+    return 130 if result.interrupted else 0
