@@ -16,6 +16,7 @@ import time
 from pathlib import Path
 
 import pytest
+from conftest import stop_process
 
 from sitl_stub.launcher import vehicle_process
 from sitl_stub.params import PARAM_DEFS
@@ -88,12 +89,7 @@ def test_mavproxy_shows_mode_and_position(tmp_path: Path):
     finally:
         if client is not None:
             client.close()
-        mp.terminate()
-        try:
-            mp.wait(10)
-        except subprocess.TimeoutExpired:
-            mp.kill()
-            mp.wait(10)
+        stop_process(mp)
     text = out_path.read_text(errors="replace")
     assert "fence breach" not in text
     assert "UNKNOWN" not in text

@@ -17,6 +17,7 @@ import time
 from pathlib import Path
 
 import pytest
+from conftest import stop_process
 
 from sitl_stub.launcher import vehicle_process
 from sitl_stub.params import PARAM_DEFS
@@ -87,12 +88,7 @@ def test_mavproxy_round_trips_mission_fence_and_rally(tmp_path: Path):
     finally:
         if mp.stdin is not None:
             mp.stdin.close()
-        mp.terminate()
-        try:
-            mp.wait(10)
-        except subprocess.TimeoutExpired:
-            mp.kill()
-            mp.wait(10)
+        stop_process(mp)
     text = out_path.read_text(errors="replace")
     assert "Busy" not in text and "ERROR" not in text
     for module, (file, _) in PLANS.items():
