@@ -20,15 +20,13 @@ from __future__ import annotations
 import asyncio
 import json
 import math
-import os
-import shutil
 import subprocess
-import sys
 import time
 from pathlib import Path
 
 import pytest
 from conftest import ROOT, UAVLINK
+from mavproxy_console import MAVPROXY, mavproxy
 from mavsdk_apps import first, run_app, sitl_vehicle, stub_has_px4_ports
 
 from sitl_stub.links import socket_free
@@ -37,8 +35,6 @@ from uavlink.mavlink.dialect import mavutil
 pytestmark = [pytest.mark.slow, pytest.mark.timeout(300)]
 
 VEHICLE_PORTS = (14580, 14581, 18570, 18571)  # what the two vehicles bind (PX4 instances 0, 1)
-MAVPROXY = shutil.which("mavproxy.py", path=str(Path(sys.executable).parent)) or shutil.which(
-    "mavproxy.py")
 ARMED = mavutil.mavlink.MAV_MODE_FLAG_SAFETY_ARMED
 
 
@@ -111,16 +107,6 @@ def _tlog_by_system(path: Path) -> dict[int, dict[str, float]]:
 def test_mavproxy_sees_two_vehicles_and_commands_each(tmp_path: Path) -> None:
     _require_free(14550)
     out_path, tlog = tmp_path / "mavproxy.out", tmp_path / "mav.tlog"
-    env = dict(os.environ, PYTHONUNBUFFERED="1")
-    with out_path.open("wb") as out:
-        mp = subprocess.Popen([sys.executable, MAVPROXY, "--master=udp:127.0.0.1:14550"],
-                              stdin=subprocess.PIPE, stdout=out, stderr=subprocess.STDOUT,
-                              cwd=tmp_path, env=env)
-
-    def type_in(command: str) -> None:
-        assert mp.stdin is not None
-        mp.stdin.write(f"{command}\n".encode())
-        mp.stdin.flush()
 
     def wait(what: str, pred, timeout: float = 30.0) -> dict[int, dict[str, float]]:
         deadline = time.monotonic() + timeout
@@ -132,30 +118,21 @@ def test_mavproxy_sees_two_vehicles_and_commands_each(tmp_path: Path) -> None:
             assert time.monotonic() < deadline, f"waited {timeout} s for {what}:\n{text[-3000:]}"
             time.sleep(0.2)
 
-    try:
-        with sitl_vehicle(["--fleet", "2"], speed=5.0) as vehicle:
-            wait("both vehicles", lambda t, _: "Detected vehicle 1:1" in t and "Detected vehicle 2:1" in t)
-            type_in("vehicle 2")
-            wait("vehicle 2 selected", lambda t, _: "Set vehicle 2" in t)
-            type_in("arm throttle")
-            wait("vehicle 2 armed", lambda _, s: s.get(2, {}).get("armed"))
-            type_in("takeoff 10")
-            got = wait("vehicle 2 climbing", lambda _, s: s.get(2, {}).get("alt_m", 0) > 5.0, 60.0)
-            assert not got[1]["armed"] and got[1]["alt_m"] < 0.5, got  # vehicle 1 stayed down
-            type_in("vehicle 1")
-            wait("vehicle 1 selected", lambda t, _: "Set vehicle 1" in t)
-            type_in("arm throttle")
-            wait("vehicle 1 armed", lambda _, s: s.get(1, {}).get("armed"))
-            assert vehicle.alive(), vehicle.output()
-    finally:
-        if mp.stdin is not None:
-            mp.stdin.close()
-        mp.terminate()
-        try:
-            mp.wait(10)
-        except subprocess.TimeoutExpired:
-            mp.kill()
-            mp.wait(10)
+    with mavproxy(["--master=udp:127.0.0.1:14550"], tmp_path, out_path) as type_in, \
+            sitl_vehicle(["--fleet", "2"], speed=5.0) as vehicle:
+        wait("both vehicles", lambda t, _: "Detected vehicle 1:1" in t and "Detected vehicle 2:1" in t)
+        type_in("vehicle 2")
+        wait("vehicle 2 selected", lambda t, _: "Set vehicle 2" in t)
+        type_in("arm throttle")
+        wait("vehicle 2 armed", lambda _, s: s.get(2, {}).get("armed"))
+        type_in("takeoff 10")
+        got = wait("vehicle 2 climbing", lambda _, s: s.get(2, {}).get("alt_m", 0) > 5.0, 60.0)
+        assert not got[1]["armed"] and got[1]["alt_m"] < 0.5, got  # vehicle 1 stayed down
+        type_in("vehicle 1")
+        wait("vehicle 1 selected", lambda t, _: "Set vehicle 1" in t)
+        type_in("arm throttle")
+        wait("vehicle 1 armed", lambda _, s: s.get(1, {}).get("armed"))
+        assert vehicle.alive(), vehicle.output()
 
 
 def test_fly_one_url_carrying_both_systems(tmp_path: Path) -> None:

@@ -19,8 +19,6 @@ may only move apart. Vehicles number a handful, so plain Python on the segments 
 
 from __future__ import annotations
 
-import math
-
 import numpy as np
 
 SWEEP_STEPS = 64  # samples of a move before bisection: 12 m / 64 < 0.2 m, far below a 20 m disk
@@ -85,13 +83,3 @@ def guard_transit(actual_m: np.ndarray, current_m: np.ndarray, new_m: np.ndarray
         out[d] = current[d] + last_ok * (out[d] - current[d])
     return out
 
-
-def transit_gap_m(actual_m: np.ndarray, current_m: np.ndarray, new_m: np.ndarray) -> float:
-    """The smallest distance between two vehicles' swept triangles (P, S, S'), for tests."""
-    tri = [[(actual_m[j], current_m[j]), (current_m[j], new_m[j]), (actual_m[j], new_m[j])]
-           for j in range(len(new_m))]
-    best = math.inf
-    for i in range(len(tri)):
-        for j in range(i + 1, len(tri)):
-            best = min(best, min(segment_distance_m(a, b, c, e) for a, b in tri[i] for c, e in tri[j]))
-    return best
