@@ -21,8 +21,8 @@ from __future__ import annotations
 
 import numpy as np
 
-SWEEP_STEPS = 64  # samples of a move before bisection: 12 m / 64 < 0.2 m, far below a 20 m disk
-BISECT_STEPS = 24
+SWEEP_STEPS = 32  # samples of a move before bisection: 12 m / 32 < 0.4 m, far below a 20 m disk
+BISECT_STEPS = 16  # then to 12 m / 32 / 2^16 < 0.01 mm
 
 
 def _point_segment_m(p: np.ndarray, a: np.ndarray, b: np.ndarray) -> float:
