@@ -1,9 +1,12 @@
 """A fleet of SITL vehicles in one process around one shared radio world (``--fleet D``).
 
-PX4's multi-vehicle SITL (Tools/simulation/sitl_multiple_run.sh) starts one ``px4 -i N`` per
-vehicle, N = 0 .. D-1: instance N is MAVLink system N+1 (MAV_SYS_ID) with the API link from
-14580+N to 14540+N and the GCS link from 18570+N to 14550, so a ground station on 14550 hears every
-system on one port. Here each vehicle is one :class:`~sitl_stub.mavlink_server.SitlServer` with
+PX4's multi-vehicle SITL (Tools/simulation/sitl_multiple_run.sh: ``$build_path/bin/px4 -i $n``
+for n = 0 .. N-1) starts one ``px4 -i N`` per vehicle: instance N is MAVLink system N+1
+(ROMFS/px4fmu_common/init.d-posix/rcS: ``param set MAV_SYS_ID $((px4_instance+1))``) with the API
+link from 14580+N to 14540+N and the GCS link from 18570+N to 14550 (init.d-posix/px4-rc.mavlink;
+:mod:`sitl_stub.links`), so a ground station on 14550 hears every system on one port (PX4 guide,
+"Multi-Vehicle Simulation with JMAVSim": "all GCS traffic is sent to PX4's remote UDP port: 14550
+from all instances"; APIs such as MAVSDK listen on 14540 + instance). Here each vehicle is one :class:`~sitl_stub.mavlink_server.SitlServer` with
 exactly those links (instance ``first_instance + i``), and :class:`FleetServer` runs them in
 lockstep on one simulated clock: every vehicle steps to each radio frame boundary, the world
 advances once with every vehicle's actual position, then each vehicle's radio payload

@@ -61,7 +61,8 @@ LOOP_WAIT_S = 0.005  # longest wait for input between loop iterations (wall)
 class ServerConfig:
     """How to run the vehicle. ``connect``: one connection string or several (one link each);
     None means PX4 SITL instance ``instance``'s API and GCS links. ``system_id`` defaults to
-    ``instance + 1`` (PX4's MAV_SYS_ID in SITL). ``speed`` is simulated seconds per wall second;
+    ``instance + 1`` (PX4's MAV_SYS_ID in SITL: ROMFS/px4fmu_common/init.d-posix/rcS,
+    ``param set MAV_SYS_ID $((px4_instance+1))``). ``speed`` is simulated seconds per wall second;
     ``duration_s`` (simulated) ends :meth:`SitlServer.run`; ``params`` overrides parameter
     defaults."""
 

@@ -40,16 +40,6 @@ def assert_user_error(proc: subprocess.CompletedProcess, *fragments: str) -> Non
         assert fragment in lines[0]
 
 
-def stop_process(proc: subprocess.Popen, timeout: float = 10) -> None:
-    """Terminate a child process, killing it if it does not exit within ``timeout`` seconds."""
-    proc.terminate()
-    try:
-        proc.wait(timeout)
-    except subprocess.TimeoutExpired:
-        proc.kill()
-        proc.wait(timeout)
-
-
 TINY_TRAINING = {"episodes": 96, "n_envs": 16, "batch_size": 512, "n_epochs": 10}  # tiny_policy_zip's
 
 

@@ -8,15 +8,11 @@ MAVProxy. The test reads MAVProxy's console output and its telemetry log.
 from __future__ import annotations
 
 import math
-import os
-import shutil
-import subprocess
-import sys
 import time
 from pathlib import Path
 
 import pytest
-from conftest import stop_process
+from mavproxy_console import MAVPROXY, mavproxy
 
 from sitl_stub.launcher import vehicle_process
 from sitl_stub.params import PARAM_DEFS
@@ -26,8 +22,6 @@ from uavlink.mavlink.dialect import mavutil
 pytestmark = [pytest.mark.slow, pytest.mark.timeout(90)]
 
 mavlink = mavutil.mavlink
-MAVPROXY = shutil.which("mavproxy.py", path=str(Path(sys.executable).parent)) or shutil.which(
-    "mavproxy.py")
 
 
 def _wait_text(path: Path, text: str, timeout: float) -> None:
@@ -54,16 +48,12 @@ def _logged_altitudes(tlog_path: Path) -> list[float]:
 def test_mavproxy_shows_mode_and_position(tmp_path: Path):
     p_master, p_out = free_udp_port(), free_udp_port()
     out_path = tmp_path / "mavproxy.out"
-    env = dict(os.environ, PYTHONUNBUFFERED="1")
-    with out_path.open("wb") as out:
-        mp = subprocess.Popen(
-            [sys.executable, MAVPROXY, f"--master=udp:127.0.0.1:{p_master}",
-             f"--out=udpout:127.0.0.1:{p_out}", "--non-interactive"],
-            stdout=out, stderr=subprocess.STDOUT, stdin=subprocess.DEVNULL, cwd=tmp_path, env=env)
     client = None
     try:
-        with vehicle_process(f"udpout:127.0.0.1:{p_master}", 5.0,
-                             ["--param", "MIS_TAKEOFF_ALT=10"]) as vehicle:
+        with mavproxy([f"--master=udp:127.0.0.1:{p_master}", f"--out=udpout:127.0.0.1:{p_out}",
+                       "--non-interactive"], tmp_path, out_path, typed=False), \
+                vehicle_process(f"udpout:127.0.0.1:{p_master}", 5.0,
+                                ["--param", "MIS_TAKEOFF_ALT=10"]) as vehicle:
             _wait_text(out_path, "Detected vehicle 1:1", 20.0)
             _wait_text(out_path, "Mode LOITER", 10.0)
             _wait_text(out_path, "GPS lock at 488 meters", 10.0)
@@ -89,7 +79,6 @@ def test_mavproxy_shows_mode_and_position(tmp_path: Path):
     finally:
         if client is not None:
             client.close()
-        stop_process(mp)
     text = out_path.read_text(errors="replace")
     assert "fence breach" not in text
     assert "UNKNOWN" not in text

@@ -9,15 +9,11 @@ GLOBAL -> GLOBAL_INT, GLOBAL_RELATIVE_ALT -> GLOBAL_RELATIVE_ALT_INT).
 
 from __future__ import annotations
 
-import os
-import shutil
-import subprocess
-import sys
 import time
 from pathlib import Path
 
 import pytest
-from conftest import stop_process
+from mavproxy_console import MAVPROXY, mavproxy
 
 from sitl_stub.launcher import vehicle_process
 from sitl_stub.params import PARAM_DEFS
@@ -25,8 +21,6 @@ from uavlink.mavlink.connection import free_udp_port
 
 pytestmark = [pytest.mark.slow, pytest.mark.timeout(120)]
 
-MAVPROXY = shutil.which("mavproxy.py", path=str(Path(sys.executable).parent)) or shutil.which(
-    "mavproxy.py")
 HOME = "47.3977420\t8.5455940"
 PLANS = {  # module: (file to load, rows: seq current frame command p1-p4 lat lon alt autocontinue)
     "wp": ("mission.txt", [f"0\t0\t0\t16\t0\t0\t0\t0\t{HOME}\t488.0\t1",
@@ -63,32 +57,17 @@ def test_mavproxy_round_trips_mission_fence_and_rally(tmp_path: Path):
         (tmp_path / file).write_text("QGC WPL 110\n" + "\n".join(rows) + "\n")
     port = free_udp_port()
     out_path = tmp_path / "mavproxy.out"
-    env = dict(os.environ, PYTHONUNBUFFERED="1")
-    with out_path.open("wb") as out:
-        mp = subprocess.Popen([sys.executable, MAVPROXY, f"--master=udp:127.0.0.1:{port}"],
-                              stdin=subprocess.PIPE, stdout=out, stderr=subprocess.STDOUT,
-                              cwd=tmp_path, env=env)
-
-    def type_in(command: str) -> None:
-        assert mp.stdin is not None
-        mp.stdin.write(f"{command}\n".encode())
-        mp.stdin.flush()
-
-    try:
-        with vehicle_process(f"udpout:127.0.0.1:{port}", 1.0, []) as vehicle:
-            at = _wait_text(out_path, f"Received {len(PARAM_DEFS)} parameters", 30.0)
-            for module, (file, rows) in PLANS.items():
-                type_in(f"{module} load {file}")
-                at = _wait_text(out_path, "Got MISSION_ACK: TYPE_", 15.0, at)
-                assert out_path.read_text(errors="replace")[at:].startswith(
-                    f"{'MISSION' if module == 'wp' else module.upper()}: ACCEPTED")
-                type_in(f"{module} list")
-                at = _wait_text(out_path, f"Saved {len(rows)} ", 15.0, at)
-            assert vehicle.proc.poll() is None, vehicle.output()
-    finally:
-        if mp.stdin is not None:
-            mp.stdin.close()
-        stop_process(mp)
+    with mavproxy([f"--master=udp:127.0.0.1:{port}"], tmp_path, out_path) as type_in, \
+            vehicle_process(f"udpout:127.0.0.1:{port}", 1.0, []) as vehicle:
+        at = _wait_text(out_path, f"Received {len(PARAM_DEFS)} parameters", 30.0)
+        for module, (file, rows) in PLANS.items():
+            type_in(f"{module} load {file}")
+            at = _wait_text(out_path, "Got MISSION_ACK: TYPE_", 15.0, at)
+            assert out_path.read_text(errors="replace")[at:].startswith(
+                f"{'MISSION' if module == 'wp' else module.upper()}: ACCEPTED")
+            type_in(f"{module} list")
+            at = _wait_text(out_path, f"Saved {len(rows)} ", 15.0, at)
+        assert vehicle.proc.poll() is None, vehicle.output()
     text = out_path.read_text(errors="replace")
     assert "Busy" not in text and "ERROR" not in text
     for module, (file, _) in PLANS.items():

@@ -6,7 +6,8 @@ vehicle). Take-off is one vehicle after the other (each holds when up), then eac
 the world's episode starts once all are in OFFBOARD. Per frame: the newest report of every vehicle
 makes the D observation rows (as the env's: own readings, the others' positions, who serves each
 UE), the policy acts on them, and :func:`fleet_setpoints` turns the moves into setpoints with the
-env's own separation filter, so what was trained is what flies.
+env's own separation filter, so what was trained is what flies, then cuts any move whose transit
+(the vehicles lag their setpoints) would bring two vehicles closer (:mod:`uavlink.flight.transit`).
 
 A vehicle whose link is lost falls back to hold on its own (PX4's offboard-loss failsafe); the
 others fly on (the loop does not wait for a vehicle not heard for :data:`LIVE_S`, and moves of a
@@ -40,6 +41,7 @@ from uavlink.flight.mission import (
     _take_control,
 )
 from uavlink.flight.radio_source import MavlinkRadioSource
+from uavlink.flight.transit import guard_transit
 from uavlink.mavlink.dialect import mavlink
 from uavlink.mavlink.px4_modes import PX4_MAIN_OFFBOARD
 from uavlink.mavlink.radio_codec import RadioReport, ScoreReport
@@ -53,14 +55,21 @@ GATHER_FRAMES = 0.3  # of a frame's wall time: the longest wait for the other ve
 
 
 def fleet_setpoints(current_xy_m: np.ndarray, moves_m: np.ndarray, cfg: EnvConfig,
-                    movable: np.ndarray | None = None) -> np.ndarray:
+                    movable: np.ndarray | None = None, actual_xy_m: np.ndarray | None = None,
+                    ) -> np.ndarray:
     """Next setpoints (D, 2) east/north from the current ones and the policy's moves, as the env
     moves its UAVs: clipped to the area, then the separation filter. ``movable`` (D,) bool: a
-    vehicle that cannot be told this frame keeps its setpoint (its move is not made)."""
+    vehicle that cannot be told this frame keeps its setpoint (its move is not made). With the
+    vehicles' ``actual_xy_m`` positions, moves are also cut where what they sweep until the next
+    setpoint would bring two within ``uav_separation_m``
+    (:func:`~uavlink.flight.transit.guard_transit`)."""
     half = cfg.area.half_width_m
     moves = np.where(movable[:, None], moves_m, 0.0) if movable is not None else moves_m
     target = np.clip(current_xy_m + moves, -half, half)
-    return separate(current_xy_m[None], target[None], cfg.uav_separation_m)[0]
+    target = separate(current_xy_m[None], target[None], cfg.uav_separation_m)[0]
+    if actual_xy_m is None:
+        return target
+    return guard_transit(actual_xy_m, current_xy_m, target, cfg.uav_separation_m)
 
 
 class FleetPilot:
@@ -127,7 +136,7 @@ class FleetResult(MissionResult):
 
     def fleet_summary(self, links: Sequence[VehicleLink]) -> dict:
         return {**self.summary(), "n_uavs": len(links),
-                "min_separation_flown_m": round(self.min_separation_flown_m, 2),
+                "min_separation_flown_m": round(self.min_separation_flown_m, 5),
                 "min_separation_setpoints_m": round(self.setpoint_min_separation_m, 2),
                 "vehicles": [v.summary(link) for v, link in zip(self.vehicles, links, strict=True)]}
 
@@ -245,7 +254,7 @@ class _Loop:
         moves = self.pilot.decide(self.newest, positions, self.decided < 0)
         movable = np.array([self.newest[i].frame == frame and not result.vehicles[i].released
                             and links[i].status.offboard for i in range(len(links))])
-        self.targets[:] = fleet_setpoints(self.targets, moves, self.cfg, movable)
+        self.targets[:] = fleet_setpoints(self.targets, moves, self.cfg, movable, positions)
         result.setpoint_min_separation_m = min(result.setpoint_min_separation_m,
                                                float(min_separation_m(self.targets[None])[0]))
         for i in np.flatnonzero(movable):

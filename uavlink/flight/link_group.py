@@ -5,13 +5,16 @@ keep-alive). While the loop waits on one vehicle (an ACK, a take-off), every oth
 offboard stream must keep going, or PX4's offboard-loss failsafe (COM_OF_LOSS_T) would put it in
 hold: a :class:`LinkGroup` makes any member's ``poll`` serve every member.
 
-Connections: one URL per vehicle (``--connect URL1,URL2``; the embedded fleet), or one URL carrying
-several systems (a GCS port such as 14550, where PX4 multi-vehicle SITL sends every instance, or a
+Connections: one URL per vehicle (``--connect URL1,URL2``; the embedded fleet; as MAVSDK's
+examples/multiple_drones/multiple_drones.cpp adds one connection per instance, ``udp://:14540
+udp://:14541``, and takes every system it discovers), or one URL carrying several systems (a GCS
+port such as 14550, where PX4 multi-vehicle SITL sends every instance, as MAVProxy listens there
+and picks the target with ``vehicle N``, MAVProxy docs "Multiple Vehicles with MAVProxy"; or a
 MAVLink router): then the links share one connection, each message read once and handed to every
 link (each keeps the state of every system and acts on its own target's). The systems on a shared
-URL are taken in ascending system id order (PX4 SITL instance i is MAV_SYS_ID i+1). A pymavlink
-listening socket (``udpin``) sends to every peer it has heard, and each vehicle ignores what is
-addressed to another system, so commands reach the right vehicle.
+URL are taken in ascending system id order (PX4 SITL instance i is MAV_SYS_ID i+1, rcS). A
+pymavlink listening socket (``udpin``) sends to every peer it has heard (``mavutil.mavudp.write``),
+and each vehicle ignores what is addressed to another system, so commands reach the right vehicle.
 """
 
 from __future__ import annotations
