@@ -343,3 +343,17 @@ def _changed_train_fields(tc: TrainConfig) -> list[tuple[str, object]]:
 def test_t_quantiles() -> None:
     assert t975(1) == pytest.approx(12.706) and t975(2) == pytest.approx(4.303)
     assert t975(40) == pytest.approx(2.021, abs=2e-3) and t975(1000) == pytest.approx(1.962, abs=2e-3)
+
+
+def test_fleet_fields_at_their_neutral_defaults_leave_job_keys_alone():
+    """Fields added with a default that reproduces every old figure (the fleet's, at n_uavs = 1)
+    stay out of a job's key at that default, so finished sweeps keep their keys; set, they count."""
+    from uavlink.config import EnvConfig, TrainConfig
+    from uavlink.sweep.spec import NEUTRAL_ENV_DEFAULTS, Job
+
+    one = Job("s", "straight", 0, {}, EnvConfig(scenario="straight"), TrainConfig(), {"episodes": 5, "seed": 0})
+    assert not set(NEUTRAL_ENV_DEFAULTS) & set(one.settings()["env"])
+    assert set(NEUTRAL_ENV_DEFAULTS) <= set(EnvConfig().to_dict())  # each is a real field ...
+    assert all(getattr(EnvConfig(), k) == v for k, v in NEUTRAL_ENV_DEFAULTS.items())  # ... at its default
+    two = Job("s", "straight", 0, {}, EnvConfig(scenario="straight", n_uavs=2), TrainConfig(), {"episodes": 5, "seed": 0})
+    assert two.settings()["env"]["n_uavs"] == 2 and two.key != one.key

@@ -56,6 +56,11 @@ else:  # pragma: no cover - the sweep extra installs tomli on 3.10
 # Version of Job.settings(); 2: the full validated configs (1 hashed TrainConfig's flat fields with
 # the warm start's and the optional ones left out when off, to keep older keys).
 KEY_VERSION = 2
+# Env fields added after KEY_VERSION 2 whose default reproduces every figure of before (the fleet's,
+# at n_uavs = 1 bit for bit the single-UAV env): left out of a job's key while at that default, so
+# existing results keep their keys. A new field whose default changes figures bumps KEY_VERSION.
+NEUTRAL_ENV_DEFAULTS: dict[str, Any] = {"n_uavs": 1, "fleet_reuse": "full", "uav_separation_m": 20.0,
+                                        "fleet_start_radius_m": 100.0}
 TOP_KEYS = ("name", "description", "scenarios", "seeds", "train", "scenario_train", "env", "eval", "grid")
 EVAL_DEFAULTS: dict[str, int] = {"episodes": 100, "seed": 0}
 BASELINE_COLUMNS = ("static", "oracle", "aoa")
@@ -107,7 +112,9 @@ class Job:
 
     def settings(self) -> dict[str, Any]:
         """Everything that determines the job's figures; the key is its hash."""
-        return {"key_version": KEY_VERSION, "env": self.env.to_dict(), "train": self.train.to_dict(),
+        env = {k: v for k, v in self.env.to_dict().items()
+               if k not in NEUTRAL_ENV_DEFAULTS or v != NEUTRAL_ENV_DEFAULTS[k]}
+        return {"key_version": KEY_VERSION, "env": env, "train": self.train.to_dict(),
                 "eval": {**self.eval, "policies": ["ppo", *BASELINE_COLUMNS]}}
 
     def to_dict(self) -> dict[str, Any]:
