@@ -72,7 +72,7 @@ def run_fly(args: argparse.Namespace) -> int:
         print(f"\rframe {frame + 1:4d}/{args.frames}  target E {target[0]:7.1f} N {target[1]:7.1f} m  "
               f"{rate_text}", end="", file=sys.stderr, flush=True)
 
-    sitl = (embedded_sitl(args.scenario, args.seed, args.speed, cfg.radio.aoa_noise_deg, out_dir / "sitl.log",
+    sitl = (embedded_sitl(cfg.scenario, args.seed, args.speed, cfg.radio.aoa_noise_deg, out_dir / "sitl.log",
                           Path(args.signing_key) if key else None, changed_settings(cfg))
             if args.connect is None else contextlib.nullcontext(args.connect))
     start = time.monotonic()
@@ -89,7 +89,7 @@ def run_fly(args: argparse.Namespace) -> int:
     if live:
         print(file=sys.stderr)
     summary = {
-        "scenario": args.scenario, "policy": str(args.policy), "seed": args.seed,
+        "scenario": cfg.scenario, "policy": str(args.policy), "seed": args.seed,
         "connect": args.connect or "embedded sitl_stub", "speed_factor": round(speed, 2),
         **result.summary(), "wall_s": round(time.monotonic() - start, 2), "tlog": str(tlog),
         "signing": link.signing.stats() if link.signing else None,
@@ -99,7 +99,7 @@ def run_fly(args: argparse.Namespace) -> int:
     if args.json:
         print(json.dumps(summary, indent=2))
     else:
-        print(f"flew {summary['frames']} frames of {args.scenario!r} with {args.policy}: "
+        print(f"flew {summary['frames']} frames of {cfg.scenario!r} with {args.policy}: "
               f"mean UE throughput {summary['mean_rate_mbps']} Mbps; decision latency p50 "
               f"{summary['latency_ms_p50']} ms, p99 {summary['latency_ms_p99']} ms; "
               f"log {tlog}, summary {out_dir / 'summary.json'}")
@@ -119,7 +119,8 @@ def add_fly_parser(sub) -> None:
                         "udpin://0.0.0.0:14550, udpout://HOST:PORT; a fleet (n_uavs = D > 1): D URLs "
                         "URL1,URL2,... (vehicle i flies UAV i), or one URL carrying every system "
                         "(e.g. udp:14550: systems in ascending id order)")
-    p.add_argument("--scenario", default="circular", help="scenario of the embedded SITL (and the policy's env)")
+    p.add_argument("--scenario", default=None, help="scenario of the embedded SITL and the policy's env "
+                   "(default: the policy's own; circular for a baseline)")
     p.add_argument("--seed", type=int, default=0, help="seed of the embedded SITL's scenario")
     p.add_argument("--aoa-noise-deg", type=float, default=None,
                    help="std of the AoA estimate noise (deg) (default: the policy's, 0)")

@@ -72,7 +72,7 @@ def run_fleet_fly(args: argparse.Namespace, policy: Policy, cfg: EnvConfig, key:
             group.close()
             if tlog_file:
                 tlog_file.close()
-    summary = {"scenario": args.scenario, "policy": str(args.policy), "seed": args.seed,
+    summary = {"scenario": cfg.scenario, "policy": str(args.policy), "seed": args.seed,
                "connect": args.connect or "embedded sitl_stub --fleet", "speed_factor": round(speed, 2),
                **fleet, "wall_s": round(time.monotonic() - start, 2), "tlog": str(tlog)}
     (out_dir / "summary.json").write_text(json.dumps(summary, indent=2) + "\n")
@@ -81,7 +81,7 @@ def run_fleet_fly(args: argparse.Namespace, policy: Policy, cfg: EnvConfig, key:
     else:
         per = "; ".join(f"system {v['system_id']}: {v['decisions']} decisions, {v['holds']} holds"
                         for v in summary["vehicles"])
-        print(f"flew {summary['frames']} frames of {args.scenario!r} with {args.policy} and "
+        print(f"flew {summary['frames']} frames of {cfg.scenario!r} with {args.policy} and "
               f"{cfg.n_uavs} vehicles: mean UE throughput {summary['mean_rate_mbps']} Mbps; "
               f"min separation flown {summary['min_separation_flown_m']} m; {per}; "
               f"log {tlog}, summary {out_dir / 'summary.json'}")
