@@ -40,6 +40,11 @@ def assert_user_error(proc: subprocess.CompletedProcess, *fragments: str) -> Non
         assert fragment in lines[0]
 
 
+# Tests whose vehicles use PX4's fixed ports (14540+, 14550, 14580+, 18570+): `make test` runs them
+# one after another, after the rest has run on a pytest-xdist worker per core.
+PX4_PORTS = pytest.mark.px4_ports
+
+
 TINY_TRAINING = {"episodes": 96, "n_envs": 16, "batch_size": 512, "n_epochs": 10}  # tiny_policy_zip's
 
 

@@ -25,14 +25,14 @@ import time
 from pathlib import Path
 
 import pytest
-from conftest import ROOT, UAVLINK
+from conftest import PX4_PORTS, ROOT, UAVLINK
 from mavproxy_console import MAVPROXY, mavproxy
 from mavsdk_apps import first, run_app, sitl_vehicle, stub_has_px4_ports
 
 from sitl_stub.links import socket_free
 from uavlink.mavlink.dialect import mavutil
 
-pytestmark = [pytest.mark.slow, pytest.mark.timeout(300)]
+pytestmark = [pytest.mark.slow, pytest.mark.timeout(300), PX4_PORTS]
 
 VEHICLE_PORTS = (14580, 14581, 18570, 18571)  # what the two vehicles bind (PX4 instances 0, 1)
 ARMED = mavutil.mavlink.MAV_MODE_FLAG_SAFETY_ARMED

@@ -14,6 +14,7 @@ import math
 import pytest
 
 pytest.importorskip("mavsdk_grpc", reason="the 3.x gRPC client: pip install mavsdk-grpc")
+from conftest import PX4_PORTS
 from mavsdk_apps import (  # noqa: E402
     GOTO_LAT_DEG,
     GOTO_LON_DEG,
@@ -29,7 +30,7 @@ from mavsdk_grpc.failure import FailureType, FailureUnit  # noqa: E402
 from mavsdk_grpc.offboard import VelocityBodyYawspeed, VelocityNedYaw  # noqa: E402
 from mavsdk_grpc.telemetry import FlightMode  # noqa: E402
 
-pytestmark = [pytest.mark.slow, pytest.mark.timeout(300)]
+pytestmark = [pytest.mark.slow, pytest.mark.timeout(300), PX4_PORTS]
 
 @pytest.fixture
 def vehicle():

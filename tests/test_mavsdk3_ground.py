@@ -11,6 +11,7 @@ from __future__ import annotations
 import pytest
 
 pytest.importorskip("mavsdk_grpc", reason="the 3.x gRPC client: pip install mavsdk-grpc")
+from conftest import PX4_PORTS
 from mavsdk_apps import (  # noqa: E402
     HOME_ALT_M,
     HOME_LAT_DEG,
@@ -24,7 +25,7 @@ from mavsdk_grpc.failure import FailureError, FailureResult, FailureType, Failur
 from mavsdk_grpc.param import ParamError  # noqa: E402
 from mavsdk_grpc.telemetry import FixType, FlightMode  # noqa: E402
 
-pytestmark = [pytest.mark.slow, pytest.mark.timeout(300)]
+pytestmark = [pytest.mark.slow, pytest.mark.timeout(300), PX4_PORTS]
 
 
 @pytest.fixture(scope="module")

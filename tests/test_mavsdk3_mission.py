@@ -16,6 +16,7 @@ import math
 import pytest
 
 pytest.importorskip("mavsdk_grpc", reason="the 3.x gRPC client: pip install mavsdk-grpc")
+from conftest import PX4_PORTS
 from mavsdk_apps import (  # noqa: E402
     WAYPOINTS_DEG,
     assert_same_raw_items,
@@ -28,7 +29,7 @@ from mavsdk_grpc import mission_raw  # noqa: E402
 from mavsdk_grpc.geofence import Circle, FenceType, GeofenceData, Point, Polygon  # noqa: E402
 from mavsdk_grpc.mission import MissionItem, MissionPlan  # noqa: E402
 
-pytestmark = [pytest.mark.slow, pytest.mark.timeout(300)]
+pytestmark = [pytest.mark.slow, pytest.mark.timeout(300), PX4_PORTS]
 
 NAN = float("nan")
 

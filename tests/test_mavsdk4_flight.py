@@ -14,6 +14,7 @@ import math
 import pytest
 
 pytest.importorskip("mavsdk.asyncio", reason="MAVSDK 4.x: pip install 'mavsdk>=4.1'")
+from conftest import PX4_PORTS  # noqa: E402
 from mavsdk.asyncio.plugins.action import ActionAsync  # noqa: E402
 from mavsdk.asyncio.plugins.failure import FailureAsync, FailureType, FailureUnit  # noqa: E402
 from mavsdk.asyncio.plugins.offboard import (  # noqa: E402
@@ -35,7 +36,7 @@ from mavsdk_apps import (  # noqa: E402
     sitl_vehicle,
 )
 
-pytestmark = [pytest.mark.slow, pytest.mark.timeout(300)]
+pytestmark = [pytest.mark.slow, pytest.mark.timeout(300), PX4_PORTS]
 
 @pytest.fixture
 def vehicle():

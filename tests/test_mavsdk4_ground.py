@@ -11,6 +11,7 @@ from __future__ import annotations
 import pytest
 
 pytest.importorskip("mavsdk.asyncio", reason="MAVSDK 4.x: pip install 'mavsdk>=4.1'")
+from conftest import PX4_PORTS  # noqa: E402
 from mavsdk.asyncio.plugins.failure import (  # noqa: E402
     FailureAsync,
     FailureError,
@@ -31,7 +32,7 @@ from mavsdk_apps import (  # noqa: E402
     sitl_vehicle,
 )
 
-pytestmark = [pytest.mark.slow, pytest.mark.timeout(300)]
+pytestmark = [pytest.mark.slow, pytest.mark.timeout(300), PX4_PORTS]
 
 
 @pytest.fixture(scope="module")

@@ -17,6 +17,7 @@ import math
 import pytest
 
 pytest.importorskip("mavsdk.asyncio", reason="MAVSDK 4.x: pip install 'mavsdk>=4.1'")
+from conftest import PX4_PORTS  # noqa: E402
 from mavsdk.asyncio.plugins import mission_raw  # noqa: E402
 from mavsdk.asyncio.plugins.action import ActionAsync  # noqa: E402
 from mavsdk.asyncio.plugins.geofence import (  # noqa: E402
@@ -38,7 +39,7 @@ from mavsdk_apps import (  # noqa: E402
     sitl_vehicle,
 )
 
-pytestmark = [pytest.mark.slow, pytest.mark.timeout(300)]
+pytestmark = [pytest.mark.slow, pytest.mark.timeout(300), PX4_PORTS]
 
 NAN = float("nan")
 

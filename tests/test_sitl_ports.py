@@ -15,6 +15,7 @@ from collections.abc import Iterator
 from typing import Any
 
 import pytest
+from conftest import PX4_PORTS
 
 from sitl_stub.launcher import vehicle_process
 from sitl_stub.links import Fanout, Route, px4_links, socket_free
@@ -23,7 +24,7 @@ from uavlink.mavlink.connection import free_udp_port
 from uavlink.mavlink.dialect import mavutil
 from uavlink.mavlink.signing import SigningGuard
 
-pytestmark = pytest.mark.timeout(90)
+pytestmark = [pytest.mark.timeout(90), PX4_PORTS]
 
 mavlink = mavutil.mavlink
 GCS_SYS, GCS_COMP = 245, 190
