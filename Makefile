@@ -21,8 +21,7 @@ demo: $(STAMP)
 
 test: $(STAMP)
 	$(BIN)/ruff check uavlink sitl_stub tests benchmarks
-	$(BIN)/python -m pytest -q -n auto -m "not px4_ports"
-	$(BIN)/python -m pytest -q -m px4_ports
+	$(BIN)/python -m pytest -q
 
 lint: $(STAMP)
 	$(BIN)/ruff check uavlink sitl_stub tests benchmarks

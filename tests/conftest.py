@@ -40,8 +40,8 @@ def assert_user_error(proc: subprocess.CompletedProcess, *fragments: str) -> Non
         assert fragment in lines[0]
 
 
-# Tests whose vehicles use PX4's fixed ports (14540+, 14550, 14580+, 18570+): `make test` runs them
-# one after another, after the rest has run on a pytest-xdist worker per core.
+# Tests whose vehicles use PX4's fixed ports (14540+, 14550, 14580+, 18570+): never two at once, so
+# under pytest-xdist run them apart (`pytest -n auto -m "not px4_ports"`, then `pytest -m px4_ports`).
 PX4_PORTS = pytest.mark.px4_ports
 
 
