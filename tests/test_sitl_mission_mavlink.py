@@ -84,7 +84,8 @@ def test_mission_by_mode_switch_reports_progress_pauses_and_resumes(link):
     assert gcs.set_mode(*HOLD_MODE) == mavlink.MAV_RESULT_ACCEPTED  # MAVSDK's pause_mission
     gcs.wait(lambda: gcs.currents[-1][2] == mavlink.MISSION_STATE_PAUSED, 5.0, "paused")
     assert gcs.currents[-1][0] == 2
-    assert server.state().mode.px4_name == "AUTO.LOITER"
+    # the server's snapshot is refreshed after its loop iteration, which can trail the message
+    gcs.wait(lambda: server.state().mode.px4_name == "AUTO.LOITER", 5.0, "AUTO.LOITER (hold)")
     assert gcs.set_mode(*MISSION_MODE) == mavlink.MAV_RESULT_ACCEPTED  # resume
     gcs.wait(lambda: gcs.currents[-1][2] == mavlink.MISSION_STATE_ACTIVE, 5.0, "active again")
     gcs.wait(lambda: 3 in gcs.reached, 120.0, "the landing reached")
