@@ -24,8 +24,10 @@ from uavlink.radio import (
     noise_power_dbm,
     path_loss_db,
     rate_bps,
+    rician_gain_table,
     rician_power_gain,
     round_robin_rbs,
+    tabulated_rician_power_gain,
     true_aoa_deg,
     wrap_deg,
 )
@@ -163,6 +165,26 @@ def test_mean_of_n_draw_matches_n_per_rb_draws(n_rbs):
     cdf_explicit = np.searchsorted(np.sort(explicit), grid) / samples
     assert np.abs(cdf_exact - cdf_explicit).max() < 0.01  # KS critical value at 1e-3: ~0.006
 
+
+
+@pytest.mark.parametrize("k_db", [10.0, 0.0, -300.0, 25.0])
+def test_tabulated_gain_has_the_rician_law(k_db):
+    """The table (equiprobable strata, built by integrating the density) has the exact mean and
+    variance of the unit-mean Rician power gain, and its draws the distribution of the exact ones."""
+    k = 10.0 ** (k_db / 10.0)
+    table = rician_gain_table(k_db).astype(float)
+    assert table.mean() == pytest.approx(1.0, abs=1e-6)
+    assert table.var() == pytest.approx((1 + 2 * k) / (k + 1) ** 2, rel=1e-4)
+    assert np.all(np.diff(table) >= 0.0) and table[0] >= 0.0
+    samples = 400_000
+    drawn = tabulated_rician_power_gain(rng(7), (samples,), k_db)
+    exact = rician_power_gain(rng(8), (samples,), k_db)
+    assert drawn.dtype == np.float32 and drawn.mean() == pytest.approx(1.0, abs=0.005)
+    grid = np.quantile(exact, np.linspace(0.001, 0.999, 400))
+    cdf_drawn = np.searchsorted(np.sort(drawn), grid) / samples
+    cdf_exact = np.searchsorted(np.sort(exact), grid) / samples
+    assert np.abs(cdf_drawn - cdf_exact).max() < 0.006  # two-sample KS critical value at 1e-3
+    np.testing.assert_array_equal(drawn, tabulated_rician_power_gain(rng(7), (samples,), k_db))
 
 def test_mean_of_n_draw_broadcasts_rb_counts():
     counts = round_robin_rbs(50, 7)  # 8, 7, 7, ... RBs per UE

@@ -26,7 +26,7 @@ import numpy as np
 
 from uavlink.config import EnvConfig
 from uavlink.errors import UserError
-from uavlink.radio.aoa import circular_mean_std_deg
+from uavlink.radio.aoa import circular_stats_deg
 
 OBS_LAYOUT_VERSION = 1
 FLEET_LAYOUT_VERSION = 2
@@ -66,6 +66,29 @@ def _sinr_bounds(layout: ObservationLayout) -> tuple[float, float]:
     return ((lo_db - layout.sinr_offset_db) / layout.sinr_scale_db, (hi_db - layout.sinr_offset_db) / layout.sinr_scale_db)
 
 
+def _aoa_fields(prefix: str) -> tuple[Field, Field]:
+    """The circular mean (its sin and cos) and the circular std of a set of AoAs, as fields
+    ``<prefix>_mean_deg`` and ``<prefix>_std_deg``: every UE's (``aoa``) or one cell's (``cell_aoa``)."""
+    mean, std = f"{prefix}_mean_deg", f"{prefix}_std_deg"
+    return (
+        Field(mean, (f"{prefix}_mean_sin", f"{prefix}_mean_cos"),
+              encode=lambda layout, q: _unit_vector(q[mean]),
+              decode=lambda layout, x: np.degrees(np.arctan2(x[..., 0], x[..., 1])),
+              bounds=lambda layout: (-1.0, 1.0)),
+        Field(std, (f"{prefix}_std",),
+              encode=lambda layout, q: np.minimum(np.radians(q[std]), layout.aoa_std_max_rad)[:, None] / np.pi,
+              decode=lambda layout, x: np.degrees(x[..., 0] * np.pi),
+              bounds=lambda layout: (0.0, layout.aoa_std_max_rad / np.pi)),
+    )
+
+
+def _unit_vector(angle_deg: np.ndarray) -> np.ndarray:
+    """(sin, cos) of angles (N,) -> (N, 2); an undefined (NaN) angle, an empty cell's, is (0, 0)."""
+    rad = np.radians(angle_deg)
+    unit = np.stack([np.sin(rad), np.cos(rad)], axis=1)
+    return np.where(np.isnan(unit), 0.0, unit)
+
+
 FIELDS: tuple[Field, ...] = (
     Field("uav_xy_m", ("uav_x", "uav_y"),
           encode=lambda layout, q: q["uav_xy_m"] / layout.half_width_m,
@@ -75,21 +98,8 @@ FIELDS: tuple[Field, ...] = (
           encode=lambda layout, q: (np.clip(q["sinr_db"], *layout.sinr_clip_db) - layout.sinr_offset_db) / layout.sinr_scale_db,
           decode=lambda layout, x: x * layout.sinr_scale_db + layout.sinr_offset_db,
           bounds=_sinr_bounds),
-    Field("aoa_mean_deg", ("aoa_mean_sin", "aoa_mean_cos"),
-          encode=lambda layout, q: _unit_vector(q["aoa_mean_deg"]),
-          decode=lambda layout, x: np.degrees(np.arctan2(x[..., 0], x[..., 1])),
-          bounds=lambda layout: (-1.0, 1.0)),
-    Field("aoa_std_deg", ("aoa_std",),
-          encode=lambda layout, q: np.minimum(np.radians(q["aoa_std_deg"]), layout.aoa_std_max_rad)[:, None] / np.pi,
-          decode=lambda layout, x: np.degrees(x[..., 0] * np.pi),
-          bounds=lambda layout: (0.0, layout.aoa_std_max_rad / np.pi)),
+    *_aoa_fields("aoa"),
 )
-
-
-def _unit_vector(angle_deg: np.ndarray) -> np.ndarray:
-    """(sin, cos) of angles (N,) -> (N, 2); an undefined (NaN) angle, an empty cell's, is (0, 0)."""
-    rad = np.radians(angle_deg)
-    return np.nan_to_num(np.stack([np.sin(rad), np.cos(rad)], axis=1))
 
 
 FLEET_FIELDS: tuple[Field, ...] = (
@@ -97,14 +107,7 @@ FLEET_FIELDS: tuple[Field, ...] = (
           encode=lambda layout, q: q["others_xy_m"].reshape(len(q["others_xy_m"]), -1) / layout.half_width_m,
           decode=lambda layout, x: x.reshape(*x.shape[:-1], -1, 2) * layout.half_width_m,
           bounds=lambda layout: (-1.0, 1.0)),
-    Field("cell_aoa_mean_deg", ("cell_aoa_mean_sin", "cell_aoa_mean_cos"),
-          encode=lambda layout, q: _unit_vector(q["cell_aoa_mean_deg"]),
-          decode=lambda layout, x: np.degrees(np.arctan2(x[..., 0], x[..., 1])),
-          bounds=lambda layout: (-1.0, 1.0)),
-    Field("cell_aoa_std_deg", ("cell_aoa_std",),
-          encode=lambda layout, q: np.minimum(np.radians(q["cell_aoa_std_deg"]), layout.aoa_std_max_rad)[:, None] / np.pi,
-          decode=lambda layout, x: np.degrees(x[..., 0] * np.pi),
-          bounds=lambda layout: (0.0, layout.aoa_std_max_rad / np.pi)),
+    *_aoa_fields("cell_aoa"),
     Field("served_by", ("served_by",), per="ue_uav",
           encode=lambda layout, q: (q["served_by"][..., None] == np.arange(layout.n_uavs)).reshape(
               len(q["served_by"]), -1).astype(np.float32),
@@ -210,12 +213,14 @@ class ObservationLayout:
         """One frame's features (rows, frame_size) from UAV position (rows, 2), SINR and AoA
         (rows, U) as each row's UAV senses them, and for a fleet ``others_xy_m`` (rows, D-1, 2)
         and ``served_by`` (rows, U) (see :func:`fleet_quantities`)."""
-        aoa_mean_deg, aoa_std_deg = circular_mean_std_deg(aoa_deg)
+        rad = np.radians(aoa_deg)
+        sin, cos = np.sin(rad), np.cos(rad)  # shared by every AoA statistic below
+        aoa_mean_deg, aoa_std_deg = circular_stats_deg(sin, cos)
         quantities = {"uav_xy_m": uav_xy_m, "sinr_db": sinr_db, "aoa_mean_deg": aoa_mean_deg,
                       "aoa_std_deg": aoa_std_deg, **fleet}
         if fleet:  # the AoA statistics of the UEs this UAV serves (undefined for an empty cell)
-            quantities["cell_aoa_mean_deg"], quantities["cell_aoa_std_deg"] = circular_mean_std_deg(
-                aoa_deg, mask=fleet["served_by"] == 0)
+            quantities["cell_aoa_mean_deg"], quantities["cell_aoa_std_deg"] = circular_stats_deg(
+                sin, cos, mask=fleet["served_by"] == 0)
         return np.concatenate([field.encode(self, quantities) for field in self.fields], axis=1)
 
     def frames(self, obs: np.ndarray) -> np.ndarray:

@@ -39,15 +39,22 @@ def circular_mean_std_deg(angle_deg: np.ndarray, mask: np.ndarray | None = None)
     the mean is NaN and the std the largest the clip allows.
     """
     rad = np.radians(angle_deg)
+    return circular_stats_deg(np.sin(rad), np.cos(rad), mask)
+
+
+def circular_stats_deg(sin: np.ndarray, cos: np.ndarray,
+                       mask: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
+    """``circular_mean_std_deg`` from the angles' sines and cosines, so that several statistics of
+    one set of angles (all UEs', one cell's) share one evaluation of the trigonometry."""
     if mask is None:
-        s = np.sin(rad).mean(axis=-1)
-        c = np.cos(rad).mean(axis=-1)
+        s = sin.mean(axis=-1)
+        c = cos.mean(axis=-1)
     else:
         count = mask.sum(axis=-1)
         with np.errstate(invalid="ignore", divide="ignore"):
-            s = (np.sin(rad) * mask).sum(axis=-1) / count
-            c = (np.cos(rad) * mask).sum(axis=-1) / count
+            s = (sin * mask).sum(axis=-1) / count
+            c = (cos * mask).sum(axis=-1) / count
     mean = wrap_deg(np.degrees(np.arctan2(s, c)))
-    resultant = np.clip(np.nan_to_num(np.hypot(s, c)), 1e-12, 1.0)
+    resultant = np.minimum(np.fmax(np.hypot(s, c), 1e-12), 1.0)  # fmax: an empty set's NaN -> 1e-12
     std = np.degrees(np.sqrt(-2.0 * np.log(resultant)))
     return mean, std

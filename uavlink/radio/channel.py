@@ -19,7 +19,7 @@ import numpy as np
 from uavlink.config import AreaConfig, RadioConfig
 from uavlink.radio.aoa import measured_aoa_deg, true_aoa_deg
 from uavlink.radio.cells import Cells
-from uavlink.radio.fading import mean_rician_power_gain, rician_power_gain
+from uavlink.radio.fading import mean_rician_power_gain, tabulated_rician_power_gain
 from uavlink.radio.noise import noise_power_dbm
 from uavlink.radio.pathloss import distance_3d_m, mean_rx_power_dbm
 from uavlink.radio.rates import rate_bps, round_robin_rbs
@@ -138,21 +138,27 @@ class RadioChannel:
         """Effective SINR (N, U), the linear mean over the UE's RBs of signal / (interference +
         noise) with every active UAV on every RB and per-RB fading, and the bandwidth B / U_d.
 
-        Only the RBs each UE is scheduled on are drawn (K per active cell, not K per UE and UAV);
-        a UE of a cell with more UEs than RBs is scored on one RB (its average share stays B / U_d).
+        Only the RBs each UE is scheduled on are drawn (K per active cell, not K per UE and UAV),
+        one gain per RB and UAV from the tabulated Rician law (``tabulated_rician_power_gain``):
+        column 0 for the serving UAV, the rest for the others (silent cells at zero power). A UE of
+        a cell with more UEs than RBs is scored on one RB (its average share stays B / U_d).
         """
         radio = self.radio
         n_envs, n_ues, n_uavs = rx_dbm.shape
         n_rb = np.maximum(cells.rbs_per_ue(radio.n_resource_blocks), 1).ravel()  # (N U,)
-        rows = np.repeat(np.arange(n_envs * n_ues), n_rb)  # one row per (UE, scheduled RB)
-        rx_rb_mw = (10.0 ** (rx_dbm / 10.0) / radio.n_resource_blocks).reshape(-1, n_uavs)[rows]
+        rx_rb_mw = (10.0 ** (rx_dbm / 10.0) / radio.n_resource_blocks).reshape(-1, n_uavs)
+        serving = cells.serving.ravel()[:, None] == np.arange(n_uavs)  # (N U, D)
+        signal_mw = np.repeat(rx_rb_mw[serving], n_rb)  # one entry per (UE, scheduled RB)
+        active = np.repeat(cells.active, n_ues, axis=0)  # (N U, D): each UE's view of the cells
+        others_mw = np.repeat((rx_rb_mw * active)[~serving].reshape(-1, n_uavs - 1), n_rb, axis=0)
         if radio.fast_fading:
-            rx_rb_mw *= rician_power_gain(rng, rx_rb_mw.shape, radio.rician_k_db)
-        signal = rx_rb_mw[np.arange(len(rows)), cells.serving.ravel()[rows]]
-        interference = (rx_rb_mw * cells.active[rows // n_ues]).sum(axis=1) - signal
+            gain = tabulated_rician_power_gain(rng, (len(signal_mw), n_uavs), radio.rician_k_db)
+            signal_mw = signal_mw * gain[:, 0]
+            others_mw = others_mw * gain[:, 1:]
         noise_rb_mw = 10.0 ** (noise_power_dbm(radio.rb_bandwidth_hz, radio) / 10.0)
-        sinr_sum = np.bincount(rows, weights=signal / (interference + noise_rb_mw), minlength=len(n_rb))
-        sinr = (sinr_sum / n_rb).reshape(n_envs, n_ues)
+        sinr_rb = signal_mw / (others_mw.sum(axis=1) + noise_rb_mw)
+        first_rb = np.cumsum(n_rb) - n_rb  # every UE has at least one row
+        sinr = (np.add.reduceat(sinr_rb, first_rb) / n_rb).reshape(n_envs, n_ues)
         return sinr, radio.bandwidth_hz / cells.ues_in_cell()
 
     def _orthogonal_sinr(self, rng: np.random.Generator, rx_dbm: np.ndarray,
