@@ -16,6 +16,7 @@ from uavlink.env.actions import ActionMapping
 from uavlink.env.core import GroundTruth
 from uavlink.env.observation import ObservationLayout
 from uavlink.mobility.fleet import separate
+from uavlink.radio.cells import Cells
 from uavlink.radio.noise import noise_power_dbm
 from uavlink.radio.pathloss import distance_3d_m, mean_rx_power_dbm
 from uavlink.radio.rates import fair_rate
@@ -55,23 +56,21 @@ def moves_to(cfg: EnvConfig, truth_xy_m: np.ndarray, target_xy_m: np.ndarray, ma
 def mean_fleet_fair_rate(cfg: EnvConfig, uav_xy_m: np.ndarray, ue_xy_m: np.ndarray) -> np.ndarray:
     """R_fair of all UEs on the mean channel (path loss only) for UAVs (..., D, 2) and UEs
     (..., U, 2): strongest-UAV association, per-cell B / U_d, interference from every active cell
-    (``fleet_reuse = "full"``) or none (``"orthogonal"``)."""
+    (``fleet_reuse = "full"``) or none (``"orthogonal"``): the cells of ``uavlink.radio.cells``."""
     radio, n_uavs = cfg.radio, uav_xy_m.shape[-2]
-    rx_mw = 10.0 ** (mean_rx_power_dbm(distance_3d_m(uav_xy_m, ue_xy_m, cfg.area.uav_altitude_m), radio) / 10.0)
-    serving = rx_mw.argmax(axis=-1)  # (..., U)
-    member = serving[..., None] == np.arange(n_uavs)  # (..., U, D)
-    size = member.sum(axis=-2)  # (..., D)
-    signal = (rx_mw * member).sum(axis=-1)
-    cell = np.take_along_axis(size, serving, axis=-1)
+    rx_dbm = mean_rx_power_dbm(distance_3d_m(uav_xy_m, ue_xy_m, cfg.area.uav_altitude_m), radio)
+    cells = Cells.associate(rx_dbm)
+    rx_mw = 10.0 ** (rx_dbm / 10.0)
+    signal = np.take_along_axis(rx_mw, cells.serving[..., None], axis=-1)[..., 0]
+    noise_mw = 10.0 ** (noise_power_dbm(radio.bandwidth_hz, radio) / 10.0)
     if cfg.fleet_reuse == "orthogonal":
         share = (radio.n_resource_blocks // n_uavs) / radio.n_resource_blocks
-        sinr = signal / share / 10.0 ** (noise_power_dbm(radio.bandwidth_hz, radio) / 10.0)
-        bandwidth = share * radio.bandwidth_hz / cell
+        sinr = signal / share / noise_mw
+        bandwidth = share * radio.bandwidth_hz / cells.ues_in_cell()
     else:
-        active = size > 0
-        interference = (rx_mw * active[..., None, :]).sum(axis=-1) - signal
-        sinr = signal / (interference + 10.0 ** (noise_power_dbm(radio.bandwidth_hz, radio) / 10.0))
-        bandwidth = radio.bandwidth_hz / cell
+        interference = (rx_mw * cells.active[..., None, :]).sum(axis=-1) - signal
+        sinr = signal / (interference + noise_mw)
+        bandwidth = radio.bandwidth_hz / cells.ues_in_cell()
     return fair_rate(bandwidth * np.log2(1.0 + sinr))
 
 

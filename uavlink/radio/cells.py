@@ -16,7 +16,7 @@ import numpy as np
 
 @dataclass(frozen=True)
 class Cells:
-    """One frame's association, batched over N envs with U UEs and D UAVs."""
+    """One frame's association, batched over N envs (or any leading axes) with U UEs and D UAVs."""
 
     serving: np.ndarray  # (N, U) index of each UE's UAV
     size: np.ndarray  # (N, D) UEs per cell
@@ -25,10 +25,10 @@ class Cells:
     @classmethod
     def associate(cls, rx_dbm: np.ndarray) -> Cells:
         """Cells from the mean received power (N, U, D) in dBm; ties go to the lower UAV index."""
-        serving = rx_dbm.argmax(axis=2)
-        member = serving[:, :, None] == np.arange(rx_dbm.shape[2])  # (N, U, D)
-        rank = (np.cumsum(member, axis=1) - 1)[member].reshape(serving.shape)
-        return cls(serving, member.sum(axis=1), rank)
+        serving = rx_dbm.argmax(axis=-1)
+        member = serving[..., None] == np.arange(rx_dbm.shape[-1])  # (N, U, D)
+        rank = (np.cumsum(member, axis=-2) - 1)[member].reshape(serving.shape)
+        return cls(serving, member.sum(axis=-2), rank)
 
     @property
     def active(self) -> np.ndarray:
@@ -37,7 +37,7 @@ class Cells:
 
     def ues_in_cell(self) -> np.ndarray:
         """(N, U) the size of each UE's cell, U_d."""
-        return np.take_along_axis(self.size, self.serving, axis=1)
+        return np.take_along_axis(self.size, self.serving, axis=-1)
 
     def rbs_per_ue(self, n_rbs: int) -> np.ndarray:
         """(N, U) RBs each UE gets per frame when its cell's ``n_rbs`` go round robin."""
