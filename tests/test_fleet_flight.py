@@ -12,7 +12,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from conftest import ROOT, TINY_TRAINING, UAVLINK
+from conftest import ROOT, TINY_TRAINING, UAVLINK, cli_json
 from hypothesis import given, settings
 from hypothesis import strategies as st
 from mavlink_gcs import parse_vehicle_stats
@@ -91,7 +91,7 @@ def test_embedded_fleet_flight_matches_its_evaluation(tmp_path: Path, fleet_poli
     throughput lands within 5 % of the policy's one-episode evaluation at the same seed; the tlog
     holds both systems; every setpoint pair kept 20 m; each vehicle decided every frame."""
     common = ["--policy", str(fleet_policy), "--scenario", "straight_180", "--seed", "2"]
-    simulated = _json(["evaluate", *common, "--episodes", "1", "--json"])["mean_rate_mbps"]
+    simulated = cli_json("evaluate", *common, "--episodes", "1", "--json")["mean_rate_mbps"]
     flown = _json(["fly", *common, "--out", str(tmp_path), "--json", "--speed", "20"])
     assert flown["n_uavs"] == 2 and flown["frames"] == 128, flown
     assert abs(flown["mean_rate_mbps"] - simulated) <= 0.05 * simulated, (flown["mean_rate_mbps"], simulated)

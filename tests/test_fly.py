@@ -9,7 +9,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from conftest import ROOT, UAVLINK
+from conftest import ROOT, UAVLINK, cli_json
 
 from uavlink.config import EnvConfig
 from uavlink.flight.mission import PolicyPilot
@@ -28,10 +28,8 @@ def fly_json(tmp_path: Path, *extra: str) -> dict:
 
 
 def evaluate_one(policy: str, scenario: str, seed: int) -> float:
-    proc = run([*UAVLINK, "evaluate", "--policy", policy, "--scenario", scenario, "--episodes", "1",
-                "--seed", str(seed), "--json"])
-    assert proc.returncode == 0, proc.stderr
-    return json.loads(proc.stdout)["mean_rate_mbps"]
+    return cli_json("evaluate", "--policy", str(ROOT / policy), "--scenario", scenario, "--episodes", "1",
+                    "--seed", str(seed), "--json")["mean_rate_mbps"]
 
 
 @pytest.mark.slow
