@@ -15,7 +15,7 @@ import pytest
 from conftest import ROOT, TINY_TRAINING, UAVLINK, cli_json
 from hypothesis import given, settings
 from hypothesis import strategies as st
-from mavlink_gcs import parse_vehicle_stats
+from mavlink_gcs import FAST_TAKEOFF, parse_vehicle_stats
 from relay_flight import ModeWatch
 from udp_relay import BLACKOUT, CLEAN, UdpRelay
 
@@ -111,7 +111,8 @@ def test_cut_vehicle_holds_while_the_other_flies_on_then_rejoins(tmp_path: Path)
     watch = ModeWatch()  # vehicle 2's heartbeats and radio frames, as they pass the relay
     relay = UdpRelay(("127.0.0.1", ports[1]), CLEAN, max_duration_s=240, tap=watch).start()
     speed, frames = 5.0, 60
-    sitl_args = ["--fleet", "2", "--scenario", "straight_180", "--set", "radio.shadowing_model=\"spatial\""]
+    sitl_args = ["--fleet", "2", "--scenario", "straight_180", "--set", "radio.shadowing_model=\"spatial\"",
+                 *FAST_TAKEOFF]  # fly takes off one vehicle after the other: 95 m at 5 m/s, not 1.5
     fly = [*UAVLINK, "fly", "--policy", "aoa", "--set", "n_uavs=2", *SPATIAL, "--scenario", "straight_180",
            "--connect", f"udpin:127.0.0.1:{ports[0]},udpin:127.0.0.1:{ports[1]}", "--frames", str(frames),
            "--out", str(tmp_path), "--json"]
