@@ -16,6 +16,7 @@ import pytest
 pytest.importorskip("mavsdk_grpc", reason="the 3.x gRPC client: pip install mavsdk-grpc")
 from conftest import PX4_PORTS
 from mavsdk_apps import (  # noqa: E402
+    AUTO_SPEED,
     GOTO_LAT_DEG,
     GOTO_LON_DEG,
     first,
@@ -31,9 +32,6 @@ from mavsdk_grpc.offboard import VelocityBodyYawspeed, VelocityNedYaw  # noqa: E
 from mavsdk_grpc.telemetry import FlightMode  # noqa: E402
 
 pytestmark = [pytest.mark.slow, pytest.mark.timeout(300), PX4_PORTS]
-
-GOTO_SPEED = 10.0
-
 
 @pytest.fixture
 def vehicle():
@@ -53,9 +51,7 @@ async def land_and_disarm(drone) -> None:
 
 
 def test_action_arm_takeoff_goto_location_return_to_launch():
-    """goto.py then RTL. Nothing here is an offboard stream or a wall-time pace (MAVSDK's command
-    timeouts are wall time and only get looser), so the vehicle runs at GOTO_SPEED (~115 s of
-    flight: 29 s of wall time at the default 4x, 12 s at 10x)."""
+    """goto.py then RTL at AUTO_SPEED (~115 s of flight: 29 s of wall time at 4x, 12 s at 10x)."""
     async def app(address: str) -> None:
         async with grpc_drone(address) as drone:
             await wait_healthy(drone)
@@ -83,7 +79,7 @@ def test_action_arm_takeoff_goto_location_return_to_launch():
             assert ground_distance_m(p.latitude_deg, p.longitude_deg, home.latitude_deg,
                                      home.longitude_deg) < 2.0, p
 
-    with sitl_vehicle(speed=GOTO_SPEED) as vehicle:
+    with sitl_vehicle(speed=AUTO_SPEED) as vehicle:
         run_app(app, vehicle, timeout_s=200.0)
 
 

@@ -25,6 +25,7 @@ from mavsdk.asyncio.plugins.offboard import (  # noqa: E402
 from mavsdk.asyncio.plugins.param import ParamAsync  # noqa: E402
 from mavsdk.asyncio.plugins.telemetry import FlightMode, TelemetryAsync  # noqa: E402
 from mavsdk_apps import (  # noqa: E402
+    AUTO_SPEED,
     GOTO_LAT_DEG,
     GOTO_LON_DEG,
     first,
@@ -37,9 +38,6 @@ from mavsdk_apps import (  # noqa: E402
 )
 
 pytestmark = [pytest.mark.slow, pytest.mark.timeout(300), PX4_PORTS]
-
-GOTO_SPEED = 10.0
-
 
 @pytest.fixture
 def vehicle():
@@ -60,9 +58,7 @@ async def land_and_disarm(drone) -> None:
 
 
 def test_action_arm_takeoff_goto_location_return_to_launch():
-    """goto.py then RTL. Nothing here is an offboard stream or a wall-time pace (MAVSDK's command
-    timeouts are wall time and only get looser), so the vehicle runs at GOTO_SPEED (~115 s of
-    flight: 29 s of wall time at the default 4x, 12 s at 10x)."""
+    """goto.py then RTL at AUTO_SPEED (~115 s of flight: 29 s of wall time at 4x, 12 s at 10x)."""
     async def app(address: str) -> None:
         async with mavsdk4_drone(address) as drone:
             tel, action = TelemetryAsync(drone), ActionAsync(drone)
@@ -91,7 +87,7 @@ def test_action_arm_takeoff_goto_location_return_to_launch():
             assert ground_distance_m(p.latitude_deg, p.longitude_deg, home.latitude_deg,
                                      home.longitude_deg) < 2.0, p
 
-    with sitl_vehicle(speed=GOTO_SPEED) as vehicle:
+    with sitl_vehicle(speed=AUTO_SPEED) as vehicle:
         run_app(app, vehicle, timeout_s=200.0)
 
 
