@@ -176,7 +176,8 @@ def test_offboard_velocity_body(vehicle):
     run_app(app, vehicle, timeout_s=200.0)
 
 
-def test_failure_injection_in_flight(vehicle):
+def test_failure_injection_in_flight():
+    """failure_injection.py: take off, climb, GPS off and on, land, at AUTO_SPEED."""
     async def app(address: str) -> None:
         async with mavsdk4_drone(address) as drone:
             tel, action = TelemetryAsync(drone), ActionAsync(drone)
@@ -204,4 +205,5 @@ def test_failure_injection_in_flight(vehicle):
             await param.set_param_int("SYS_FAILURE_EN", 0)
             await land_and_disarm(drone)
 
-    run_app(app, vehicle, timeout_s=200.0)
+    with sitl_vehicle(speed=AUTO_SPEED) as vehicle:
+        run_app(app, vehicle, timeout_s=200.0)
