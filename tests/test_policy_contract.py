@@ -11,6 +11,7 @@ from pathlib import Path
 from types import SimpleNamespace
 
 import pytest
+from conftest import cli_json
 
 from uavlink.cli import main
 from uavlink.config import EnvConfig, changed_settings, parse_settings
@@ -171,10 +172,9 @@ def test_training_randomisation_is_not_carried_into_evaluation(polar_zip: Path, 
 @pytest.mark.slow
 @pytest.mark.timeout(240)
 def test_fly_and_the_embedded_sitl_run_the_policy_env(polar_zip: Path, tmp_path: Path, capsys) -> None:
-    proc = uavlink("fly", "--policy", str(polar_zip), "--scenario", "straight", "--seed", "5", "--json",
-                   "--quiet", "--out", str(tmp_path))
-    assert proc.returncode == 0, proc.stderr
-    flown = json.loads(proc.stdout)
+    # fly's loop in this process (its vehicle is a child as always): no second torch import
+    flown = cli_json("fly", "--policy", str(polar_zip), "--scenario", "straight", "--seed", "5", "--json",
+                     "--quiet", "--out", str(tmp_path))
     simulated = evaluate(polar_zip, episodes=1)["mean_rate_mbps"]
     print(f"\npolar-v1 r_max 8 policy, straight seed 5: flown {flown['mean_rate_mbps']:.3f} Mbps, "
           f"evaluated {simulated:.3f} Mbps")
