@@ -72,9 +72,12 @@ def fleet_policy(tmp_path_factory: pytest.TempPathFactory) -> Path:
 def _systems_in_tlog(path: Path) -> set[int]:
     log = mavutil.mavlink_connection(str(path))
     systems = set()
-    while (msg := log.recv_match()) is not None:
-        if msg.get_type() == "HEARTBEAT" and msg.autopilot != 8:
-            systems.add(msg.get_srcSystem())
+    try:
+        while (msg := log.recv_match()) is not None:
+            if msg.get_type() == "HEARTBEAT" and msg.autopilot != 8:
+                systems.add(msg.get_srcSystem())
+    finally:
+        log.close()
     return systems
 
 
