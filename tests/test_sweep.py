@@ -184,7 +184,9 @@ def test_sweep_on_scheduler_and_two_workers(tmp_path: Path, cluster_factory, cap
 def test_worker_killed_mid_job_is_retried_elsewhere(tmp_path: Path, cluster_factory) -> None:
     sweep_file = tmp_path / "tiny4.toml"
     sweep_file.write_text(TINY)
-    cluster = cluster_factory(n_workers=2, env={"UAVLINK_SWEEP_DELAY_S": "2"})
+    # 1 s after each start line, then the job imports torch (seconds, in a fresh worker) and trains:
+    # a kill within the second after the start line lands mid-job; the survivor runs every job
+    cluster = cluster_factory(n_workers=2, env={"UAVLINK_SWEEP_DELAY_S": "1"})
     out = tmp_path / "runs"
     sweep = subprocess.Popen(
         [sys.executable, "-m", "uavlink.cli", "sweep", str(sweep_file), "--scheduler", cluster.address,
@@ -198,7 +200,7 @@ def test_worker_killed_mid_job_is_retried_elsewhere(tmp_path: Path, cluster_fact
             started = [pid for pid, event, _ in cluster.events() if event == "start"]
             victim = next((w for w in cluster.workers if w.pid in started), None)
             time.sleep(0.05)
-        victim.send_signal(signal.SIGKILL)  # inside the job's 2 s delay: mid-job
+        victim.send_signal(signal.SIGKILL)  # inside the job's 1 s delay: mid-job
         stdout, stderr = sweep.communicate(timeout=90)
     finally:
         if sweep.poll() is None:
