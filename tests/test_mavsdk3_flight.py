@@ -51,7 +51,7 @@ async def land_and_disarm(drone) -> None:
 
 
 def test_action_arm_takeoff_goto_location_return_to_launch():
-    """goto.py then RTL at AUTO_SPEED (~115 s of flight: 29 s of wall time at 4x, 12 s at 10x)."""
+    """goto.py then RTL at AUTO_SPEED (~115 s of flight: 29 s of wall time at 4x, 6 s at 20x)."""
     async def app(address: str) -> None:
         async with grpc_drone(address) as drone:
             await wait_healthy(drone)
