@@ -28,6 +28,22 @@ def run_uavlink(*args: str, timeout: float = 120, cwd: Path | None = ROOT) -> su
     return subprocess.run([*UAVLINK, *args], capture_output=True, text=True, timeout=timeout, cwd=cwd)
 
 
+def cli_json(*args: str) -> dict:
+    """``uavlink ARGS`` (a command with ``--json``) in this process: the CLI's own code path and
+    output, without a child process's torch and SB3 import (7-8 s each on a loaded 2-core machine)."""
+    import contextlib
+    import io
+    import json
+
+    from uavlink.cli import main
+
+    out = io.StringIO()
+    with contextlib.redirect_stdout(out):
+        rc = main(list(args))
+    assert rc == 0, f"uavlink {' '.join(args)} exited {rc}"
+    return json.loads(out.getvalue())
+
+
 def assert_user_error(proc: subprocess.CompletedProcess, *fragments: str) -> None:
     """Exit status 2 and exactly one line on stderr, ``uavlink COMMAND: error: ...`` naming the
     problem (each of ``fragments``), no traceback: what the CLI does with a UserError."""

@@ -35,6 +35,10 @@ from sitl_stub.launcher import PACKAGE_ROOT, VehicleProcess
 from uavlink.mavlink.connection import free_udp_port
 
 SPEED = 4.0  # simulated seconds per wall second
+# For apps that only command AUTO modes (goto, RTL, missions): no offboard stream at a wall-time
+# rate and no wall-time pacing, and MAVSDK's and the mission protocol's timeouts are wall time,
+# which a faster vehicle only loosens. Their long flights then take a fifth of the wall time.
+AUTO_SPEED = 20.0
 PX4_API_ADDRESS = "udpin://0.0.0.0:14540"  # what every MAVSDK-Python example connects to
 HOME_LAT_DEG, HOME_LON_DEG, HOME_ALT_M = 47.397742, 8.545594, 488.0  # sitl_stub's default home
 EARTH_RADIUS_M = 6_371_000.0

@@ -26,6 +26,7 @@ from pathlib import Path
 
 import pytest
 from conftest import PX4_PORTS, ROOT, UAVLINK
+from mavlink_gcs import FAST_TAKEOFF
 from mavproxy_console import MAVPROXY, mavproxy
 from mavsdk_apps import first, run_app, sitl_vehicle, stub_has_px4_ports
 
@@ -140,7 +141,8 @@ def test_fly_one_url_carrying_both_systems(tmp_path: Path) -> None:
     the one GCS port in system id order, fly the fleet aoa rule to the end."""
     _require_free(14550)
     frames = 40
-    with sitl_vehicle(["--fleet", "2", "--scenario", "straight_180"], speed=10.0) as vehicle:
+    # FAST_TAKEOFF: fly takes off one vehicle after the other (95 m at 1.5 m/s each: 13 s of wall time)
+    with sitl_vehicle(["--fleet", "2", "--scenario", "straight_180", *FAST_TAKEOFF], speed=10.0) as vehicle:
         proc = subprocess.run(
             [*UAVLINK, "fly", "--policy", "aoa", "--set", "n_uavs=2", "--scenario", "straight_180",
              "--connect", "udp:14550", "--frames", str(frames), "--out", str(tmp_path), "--json"],

@@ -12,10 +12,10 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from conftest import ROOT, TINY_TRAINING, UAVLINK
+from conftest import ROOT, TINY_TRAINING, UAVLINK, cli_json
 from hypothesis import given, settings
 from hypothesis import strategies as st
-from mavlink_gcs import parse_vehicle_stats
+from mavlink_gcs import FAST_TAKEOFF, parse_vehicle_stats
 from relay_flight import ModeWatch
 from udp_relay import BLACKOUT, CLEAN, UdpRelay
 
@@ -69,18 +69,15 @@ def fleet_policy(tmp_path_factory: pytest.TempPathFactory) -> Path:
     return out
 
 
-def _json(args: list[str], timeout: float = 240) -> dict:
-    proc = subprocess.run([*UAVLINK, *args], capture_output=True, text=True, timeout=timeout, cwd=ROOT)
-    assert proc.returncode == 0, proc.stderr[-3000:]
-    return json.loads(proc.stdout)
-
-
 def _systems_in_tlog(path: Path) -> set[int]:
     log = mavutil.mavlink_connection(str(path))
     systems = set()
-    while (msg := log.recv_match()) is not None:
-        if msg.get_type() == "HEARTBEAT" and msg.autopilot != 8:
-            systems.add(msg.get_srcSystem())
+    try:
+        while (msg := log.recv_match()) is not None:
+            if msg.get_type() == "HEARTBEAT" and msg.autopilot != 8:
+                systems.add(msg.get_srcSystem())
+    finally:
+        log.close()
     return systems
 
 
@@ -91,8 +88,10 @@ def test_embedded_fleet_flight_matches_its_evaluation(tmp_path: Path, fleet_poli
     throughput lands within 5 % of the policy's one-episode evaluation at the same seed; the tlog
     holds both systems; every setpoint pair kept 20 m; each vehicle decided every frame."""
     common = ["--policy", str(fleet_policy), "--scenario", "straight_180", "--seed", "2"]
-    simulated = _json(["evaluate", *common, "--episodes", "1", "--json"])["mean_rate_mbps"]
-    flown = _json(["fly", *common, "--out", str(tmp_path), "--json", "--speed", "20"])
+    # fly's loop and the evaluation in this process (the fleet vehicle is a child as always): the
+    # policy's torch and SB3 are imported once, not in two children (~8 s each under load)
+    simulated = cli_json("evaluate", *common, "--episodes", "1", "--json")["mean_rate_mbps"]
+    flown = cli_json("fly", *common, "--out", str(tmp_path), "--json", "--speed", "20")
     assert flown["n_uavs"] == 2 and flown["frames"] == 128, flown
     assert abs(flown["mean_rate_mbps"] - simulated) <= 0.05 * simulated, (flown["mean_rate_mbps"], simulated)
     assert flown["min_separation_setpoints_m"] >= 20.0 - 1e-6
@@ -111,7 +110,8 @@ def test_cut_vehicle_holds_while_the_other_flies_on_then_rejoins(tmp_path: Path)
     watch = ModeWatch()  # vehicle 2's heartbeats and radio frames, as they pass the relay
     relay = UdpRelay(("127.0.0.1", ports[1]), CLEAN, max_duration_s=240, tap=watch).start()
     speed, frames = 5.0, 60
-    sitl_args = ["--fleet", "2", "--scenario", "straight_180", "--set", "radio.shadowing_model=\"spatial\""]
+    sitl_args = ["--fleet", "2", "--scenario", "straight_180", "--set", "radio.shadowing_model=\"spatial\"",
+                 *FAST_TAKEOFF]  # fly takes off one vehicle after the other: 95 m at 5 m/s, not 1.5
     fly = [*UAVLINK, "fly", "--policy", "aoa", "--set", "n_uavs=2", *SPATIAL, "--scenario", "straight_180",
            "--connect", f"udpin:127.0.0.1:{ports[0]},udpin:127.0.0.1:{ports[1]}", "--frames", str(frames),
            "--out", str(tmp_path), "--json"]

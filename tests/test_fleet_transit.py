@@ -13,11 +13,14 @@ import pytest
 from conftest import ROOT, UAVLINK
 from hypothesis import given, settings
 from hypothesis import strategies as st
+from mavlink_gcs import FAST_TAKEOFF
 
+from sitl_stub.launcher import vehicle_process
 from uavlink.config import EnvConfig
 from uavlink.env.actions import ActionMapping
 from uavlink.flight.fleet_mission import fleet_setpoints
 from uavlink.flight.transit import guard_transit, segment_distance_m
+from uavlink.mavlink.connection import free_udp_port
 from uavlink.mobility.fleet import min_separation_m, separate, start_positions_m
 
 
@@ -86,12 +89,18 @@ def test_fleet_aoa_flight_keeps_20_m_in_transit(tmp_path: Path) -> None:
     """The fleet aoa rule from a tight start (24 m apart) on circular: without the transit guard
     its vehicles came to 14.8-19.7 m between setpoints (3 flights); flown now, the minimum
     separation flown is 20 m as well as the setpoints'."""
-    proc = subprocess.run(
-        [*UAVLINK, "fly", "--policy", "aoa", "--set", "n_uavs=2", "--set", "radio.shadowing_model=spatial",
-         "--set", "fleet_start_radius_m=12", "--scenario", "circular", "--seed", "0", "--frames", "80",
-         "--speed", "20", "--out", str(tmp_path), "--json"],
-        capture_output=True, text=True, timeout=240, cwd=ROOT)
-    assert proc.returncode == 0, proc.stderr[-3000:]
+    settings = ["--set", "radio.shadowing_model=spatial", "--set", "fleet_start_radius_m=12"]
+    ports = [free_udp_port(), free_udp_port()]
+    # the fleet vehicle as fly's embedded one would be, plus FAST_TAKEOFF: fly takes the vehicles
+    # off one after the other (95 m at 1.5 m/s each: 6 s of wall time at 20x)
+    sitl_args = ["--fleet", "2", "--scenario", "circular", "--seed", "0", *settings, *FAST_TAKEOFF]
+    with vehicle_process([f"udpout:127.0.0.1:{p}" for p in ports], 20.0, sitl_args) as vehicle:
+        proc = subprocess.run(
+            [*UAVLINK, "fly", "--policy", "aoa", "--set", "n_uavs=2", *settings, "--scenario", "circular",
+             "--seed", "0", "--frames", "80", "--connect", ",".join(f"udpin:127.0.0.1:{p}" for p in ports),
+             "--out", str(tmp_path), "--json"],
+            capture_output=True, text=True, timeout=240, cwd=ROOT)
+        assert proc.returncode == 0, proc.stderr[-3000:] + vehicle.output()[-2000:]
     flown = json.loads(proc.stdout)
     assert flown["frames"] == 80 and all(v["decisions"] >= 75 for v in flown["vehicles"]), flown
     assert flown["min_separation_setpoints_m"] >= 20.0

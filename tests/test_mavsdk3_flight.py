@@ -16,6 +16,7 @@ import pytest
 pytest.importorskip("mavsdk_grpc", reason="the 3.x gRPC client: pip install mavsdk-grpc")
 from conftest import PX4_PORTS
 from mavsdk_apps import (  # noqa: E402
+    AUTO_SPEED,
     GOTO_LAT_DEG,
     GOTO_LON_DEG,
     first,
@@ -49,7 +50,8 @@ async def land_and_disarm(drone) -> None:
     await first(drone.telemetry.armed(), lambda a: not a, timeout=20.0, what="auto-disarm")
 
 
-def test_action_arm_takeoff_goto_location_return_to_launch(vehicle):
+def test_action_arm_takeoff_goto_location_return_to_launch():
+    """goto.py then RTL at AUTO_SPEED (~115 s of flight: 29 s of wall time at 4x, 6 s at 20x)."""
     async def app(address: str) -> None:
         async with grpc_drone(address) as drone:
             await wait_healthy(drone)
@@ -77,7 +79,8 @@ def test_action_arm_takeoff_goto_location_return_to_launch(vehicle):
             assert ground_distance_m(p.latitude_deg, p.longitude_deg, home.latitude_deg,
                                      home.longitude_deg) < 2.0, p
 
-    run_app(app, vehicle, timeout_s=200.0)
+    with sitl_vehicle(speed=AUTO_SPEED) as vehicle:
+        run_app(app, vehicle, timeout_s=200.0)
 
 
 def test_offboard_velocity_ned(vehicle):
@@ -165,7 +168,8 @@ def test_offboard_velocity_body(vehicle):
     run_app(app, vehicle, timeout_s=200.0)
 
 
-def test_failure_injection_in_flight(vehicle):
+def test_failure_injection_in_flight():
+    """failure_injection.py: take off, climb, GPS off and on, land, at AUTO_SPEED."""
     async def app(address: str) -> None:
         async with grpc_drone(address) as drone:
             await wait_healthy(drone)
@@ -189,4 +193,5 @@ def test_failure_injection_in_flight(vehicle):
             await drone.param.set_param_int("SYS_FAILURE_EN", 0)
             await land_and_disarm(drone)
 
-    run_app(app, vehicle, timeout_s=200.0)
+    with sitl_vehicle(speed=AUTO_SPEED) as vehicle:
+        run_app(app, vehicle, timeout_s=200.0)

@@ -18,6 +18,7 @@ import pytest
 pytest.importorskip("mavsdk_grpc", reason="the 3.x gRPC client: pip install mavsdk-grpc")
 from conftest import PX4_PORTS
 from mavsdk_apps import (  # noqa: E402
+    AUTO_SPEED,
     WAYPOINTS_DEG,
     assert_same_raw_items,
     first,
@@ -45,7 +46,8 @@ def mission_item(lat_deg: float, lon_deg: float) -> MissionItem:
                        NAN, NAN, NAN, NAN, NAN, MissionItem.VehicleAction.NONE)
 
 
-def test_mission_upload_fly_to_the_end_and_download(vehicle):
+def test_mission_upload_fly_to_the_end_and_download():
+    """mission.py: upload, fly it and its return at AUTO_SPEED, download."""
     async def app(address: str) -> None:
         async with grpc_drone(address) as drone:
             progress: list[tuple[int, int]] = []
@@ -84,7 +86,8 @@ def test_mission_upload_fly_to_the_end_and_download(vehicle):
                 assert item.speed_m_s == pytest.approx(10.0) and item.is_fly_through
             assert await drone.mission.get_return_to_launch_after_mission()
 
-    run_app(app, vehicle, timeout_s=240.0)
+    with sitl_vehicle(speed=AUTO_SPEED) as vehicle:
+        run_app(app, vehicle, timeout_s=240.0)
 
 
 def raw_waypoint(seq: int, lat_deg: float, lon_deg: float, mission_type: int = 0,

@@ -25,6 +25,7 @@ from mavsdk.asyncio.plugins.offboard import (  # noqa: E402
 from mavsdk.asyncio.plugins.param import ParamAsync  # noqa: E402
 from mavsdk.asyncio.plugins.telemetry import FlightMode, TelemetryAsync  # noqa: E402
 from mavsdk_apps import (  # noqa: E402
+    AUTO_SPEED,
     GOTO_LAT_DEG,
     GOTO_LON_DEG,
     first,
@@ -56,7 +57,8 @@ async def land_and_disarm(drone) -> None:
     await first(tel.subscribe_armed(), lambda a: not a, timeout=20.0, what="auto-disarm")
 
 
-def test_action_arm_takeoff_goto_location_return_to_launch(vehicle):
+def test_action_arm_takeoff_goto_location_return_to_launch():
+    """goto.py then RTL at AUTO_SPEED (~115 s of flight: 29 s of wall time at 4x, 6 s at 20x)."""
     async def app(address: str) -> None:
         async with mavsdk4_drone(address) as drone:
             tel, action = TelemetryAsync(drone), ActionAsync(drone)
@@ -85,7 +87,8 @@ def test_action_arm_takeoff_goto_location_return_to_launch(vehicle):
             assert ground_distance_m(p.latitude_deg, p.longitude_deg, home.latitude_deg,
                                      home.longitude_deg) < 2.0, p
 
-    run_app(app, vehicle, timeout_s=200.0)
+    with sitl_vehicle(speed=AUTO_SPEED) as vehicle:
+        run_app(app, vehicle, timeout_s=200.0)
 
 
 def test_offboard_velocity_ned(vehicle):
@@ -173,7 +176,8 @@ def test_offboard_velocity_body(vehicle):
     run_app(app, vehicle, timeout_s=200.0)
 
 
-def test_failure_injection_in_flight(vehicle):
+def test_failure_injection_in_flight():
+    """failure_injection.py: take off, climb, GPS off and on, land, at AUTO_SPEED."""
     async def app(address: str) -> None:
         async with mavsdk4_drone(address) as drone:
             tel, action = TelemetryAsync(drone), ActionAsync(drone)
@@ -201,4 +205,5 @@ def test_failure_injection_in_flight(vehicle):
             await param.set_param_int("SYS_FAILURE_EN", 0)
             await land_and_disarm(drone)
 
-    run_app(app, vehicle, timeout_s=200.0)
+    with sitl_vehicle(speed=AUTO_SPEED) as vehicle:
+        run_app(app, vehicle, timeout_s=200.0)

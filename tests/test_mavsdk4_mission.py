@@ -31,6 +31,7 @@ from mavsdk.asyncio.plugins.geofence import (  # noqa: E402
 from mavsdk.asyncio.plugins.mission import MissionAsync, MissionItem, MissionPlan  # noqa: E402
 from mavsdk.asyncio.plugins.telemetry import TelemetryAsync  # noqa: E402
 from mavsdk_apps import (  # noqa: E402
+    AUTO_SPEED,
     WAYPOINTS_DEG,
     assert_same_raw_items,
     first,
@@ -55,7 +56,8 @@ def mission_item(lat_deg: float, lon_deg: float) -> MissionItem:
                        NAN, NAN, NAN, NAN, NAN, MissionItem.VehicleAction.NONE)
 
 
-def test_mission_upload_fly_to_the_end_and_download(vehicle):
+def test_mission_upload_fly_to_the_end_and_download():
+    """mission.py: upload, fly it and its return at AUTO_SPEED, download."""
     async def app(address: str) -> None:
         async with mavsdk4_drone(address) as drone:
             tel, action, mission = TelemetryAsync(drone), ActionAsync(drone), MissionAsync(drone)
@@ -95,7 +97,8 @@ def test_mission_upload_fly_to_the_end_and_download(vehicle):
                 assert item.speed_m_s == pytest.approx(10.0) and item.is_fly_through
             assert await mission.get_return_to_launch_after_mission()
 
-    run_app(app, vehicle, timeout_s=240.0)
+    with sitl_vehicle(speed=AUTO_SPEED) as vehicle:
+        run_app(app, vehicle, timeout_s=240.0)
 
 
 def raw_waypoint(seq: int, lat_deg: float, lon_deg: float, mission_type: int = 0,

@@ -104,18 +104,17 @@ def test_time_to_fraction() -> None:
 def test_train_cli_resumes_from_checkpoint(tmp_path: Path) -> None:
     run = tmp_path / "run"
     out = tmp_path / "p.zip"
-    base = [sys.executable, "-m", "uavlink.cli", "train", "--scenario", "no_move", "--out", str(out),
-            "--n-envs", "4", "--batch-size", "256", "--n-epochs", "1", "--run-dir", str(run),
-            "--eval-episodes", "2"]
-    first = subprocess.run([*base, "--episodes", "8", "--no-progress"], capture_output=True, text=True,
-                           timeout=120)
-    assert first.returncode == 0, first.stderr
+    args = ["train", "--scenario", "no_move", "--out", str(out), "--n-envs", "4", "--batch-size", "256",
+            "--n-epochs", "1", "--run-dir", str(run), "--eval-episodes", "2"]
+    # the first run in this process (no child's torch import), the resumed one as users run it
+    assert main([*args, "--episodes", "8", "--no-progress"]) == 0
     assert (run / "ppo_1").is_dir(), "TensorBoard logs"
     manifest = read_zip_manifest(out)
     assert set(manifest["evaluation"]) == {"no_move"}
     checkpoint = run / "checkpoint.zip"
     out.replace(checkpoint)  # a policy zip is a valid SB3 checkpoint
-    second = subprocess.run([*base, "--episodes", "16", "--resume", str(checkpoint)],
+    second = subprocess.run([sys.executable, "-m", "uavlink.cli", *args, "--episodes", "16", "--resume",
+                             str(checkpoint)],
                             capture_output=True, text=True, timeout=120)
     assert second.returncode == 0, second.stderr
     assert "\r" not in second.stderr, "no progress bar when stderr is not a terminal"
