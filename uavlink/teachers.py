@@ -22,6 +22,7 @@ from uavlink.env.actions import ActionMapping
 from uavlink.env.core import GroundTruth
 from uavlink.env.observation import ObservationLayout
 from uavlink.errors import UserError
+from uavlink.lead_teacher import make_lead_teacher
 from uavlink.policies.baselines import AoaPolicy, make_baseline
 from uavlink.policies.fleet_baselines import moves_to
 from uavlink.radio.aoa import circular_mean_std_deg, true_aoa_deg
@@ -84,15 +85,21 @@ class TrueAoaTeacher:
 
 
 def make_teacher(cfg: EnvConfig, teacher: str, shadow_gate_db: float | None = None,
-                 sinr_span_db: float | None = None, shadow_estimator: ShadowEstimate | None = None) -> Any:
+                 sinr_span_db: float | None = None, shadow_estimator: ShadowEstimate | None = None,
+                 leader_policy: str = "") -> Any:
     """The warm start's teacher named ``teacher``: the aoa rule (or its variant, when
-    ``shadow_gate_db``, ``sinr_span_db`` or ``shadow_estimator`` is set) on the true AoAs, or
-    another baseline as it is."""
+    ``shadow_gate_db``, ``sinr_span_db`` or ``shadow_estimator`` is set) on the true AoAs, a
+    fleet's ``solo`` or ``lead`` teacher (the latter's leader flies ``leader_policy``, a single-UAV
+    policy file, or the single-UAV aoa rule), or another baseline as it is."""
     if teacher not in TEACHER_NAMES:
         raise UserError(f"unknown teacher {teacher!r}; choose from {', '.join(TEACHER_NAMES)}")
     variant = not (shadow_gate_db is None and sinr_span_db is None and shadow_estimator is None)
-    if teacher == "solo" and cfg.n_uavs == 1:
-        raise UserError("the solo teacher is a fleet's (n_uavs > 1)")
+    if teacher in ("solo", "lead") and cfg.n_uavs == 1:
+        raise UserError(f"the {teacher} teacher is a fleet's (n_uavs > 1)")
+    if leader_policy and teacher != "lead":
+        raise UserError(f"a leader policy is a setting of the lead teacher, not of {teacher!r}")
+    if teacher == "lead" and not variant:
+        return make_lead_teacher(cfg, leader_policy)
     if cfg.n_uavs > 1:  # a fleet's teachers: its baselines as they are, or solo
         if variant:
             raise UserError("a shadow gate, a speed span and a shadow estimator are settings of the "

@@ -17,8 +17,9 @@ from uavlink.errors import ConfigError
 
 # The rules a warm start can copy; uavlink.policies.baselines implements them by these names.
 BASELINE_NAMES = ("static", "oracle", "aoa", "kmeans")
-# What a warm start may imitate: a baseline, or a fleet-only teacher of uavlink.teachers.
-TEACHER_NAMES = (*BASELINE_NAMES, "solo")
+# What a warm start may imitate: a baseline, or a fleet-only teacher (uavlink.teachers: solo;
+# uavlink.lead_teacher: lead).
+TEACHER_NAMES = (*BASELINE_NAMES, "solo", "lead")
 _INF = float("inf")
 
 
@@ -41,6 +42,9 @@ class WarmStartConfig:
                                  "imitation.CLONE_EPOCHS)", low=1, metavar="N")
     log_std: float = setting(-1.0, "exploration log std PPO starts from after the cloning")
     critic_rollouts: int = setting(10, "PPO updates with the actor frozen, fitting the critic", low=0)
+    leader_policy: str = setting(
+        "", "lead teacher only: the single-UAV policy file (.zip) the leading UAV flies (e.g. "
+        "policies/spatial/no_move.zip; default: the single-UAV aoa rule)", metavar="FILE")
     shadow_gate_db: float | None = setting(
         None, "aoa teacher only: hover when the newest frame's mean SINR beats the older frames' by "
         "more than DB (ours; default: off, the SPEC's rule)", metavar="DB")
@@ -57,6 +61,8 @@ class WarmStartConfig:
         for knob in ("shadow_gate_db", "sinr_span_db", "shadow_estimator_episodes"):
             if getattr(self, knob) is not None and self.teacher != "aoa":
                 raise ConfigError(f"{name('warm_start.' + knob)} needs {name('warm_start.teacher')} aoa")
+        if self.leader_policy and self.teacher != "lead":
+            raise ConfigError(f"{name('warm_start.leader_policy')} needs {name('warm_start.teacher')} lead")
         if self.shadow_estimator_episodes is not None and self.shadow_gate_db is None:
             raise ConfigError(f"{name('warm_start.shadow_estimator_episodes')} needs "
                               f"{name('warm_start.shadow_gate_db')} (the gate's threshold)")

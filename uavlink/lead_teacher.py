@@ -1,0 +1,116 @@
+"""A fleet's warm-start teacher whose roles the observation shows: one UAV leads, the others keep away.
+
+With one group of UEs a second active cell only takes UEs and interferes with all the others (SPEC
+"A fleet"), so the best a fleet of D can do is one UAV's policy with the other cells empty, hence
+silent. ``SoloTeacher`` (uavlink.teachers) picks its leader by GPS (nearest the UEs' centroid), which
+no UAV can read from its observation: cloned, the actor averaged the roles and both UAVs fled
+(docs/experiments.md, no_move 4.7 Mbps). Here the roles are a function of what every UAV observes:
+the leader is the UAV serving the most UEs (``served_by``; ties go to the UAV farthest east, then
+north, positions every UAV sees), so a clone can learn them, and the split reinforces itself (the
+others leave, the leader's cell grows; the counts are summed over the frames in memory, so a UE
+that shadowing hands over for a frame does not swap the roles). The leader flies a single-UAV
+policy (the single-UAV spatial policy of the scenario: it exploits the good shadowing spots) on its
+single-UAV view, the v1 fields of its own fleet frames (``single_view``); the others head for the
+corner farthest from the leader and, while their cell still holds a UE, on along the wall to the
+next farthest, holding once their cell is empty (as ``SoloTeacher`` does around the UEs' centroid).
+GPS-free: it reads nothing but the observation.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from uavlink.config import EnvConfig
+from uavlink.env.actions import ActionMapping
+from uavlink.env.core import GroundTruth
+from uavlink.env.observation import FIELDS, OBS_LAYOUT_VERSION, ObservationLayout
+from uavlink.errors import UserError
+from uavlink.rollout import Actor
+
+
+def single_layout(fleet: ObservationLayout) -> ObservationLayout:
+    """The single-UAV layout (v1) with a fleet layout's UEs, memory and area."""
+    return ObservationLayout(version=OBS_LAYOUT_VERSION, n_ues=fleet.n_ues, n_uavs=1, memory=fleet.memory,
+                             half_width_m=fleet.half_width_m, sinr_offset_db=fleet.sinr_offset_db,
+                             sinr_scale_db=fleet.sinr_scale_db, sinr_clip_db=fleet.sinr_clip_db,
+                             aoa_std_max_rad=fleet.aoa_std_max_rad)
+
+
+def single_view(fleet: ObservationLayout, obs: np.ndarray) -> np.ndarray:
+    """What one UAV of a fleet would observe alone: the single-UAV fields of each of its frames,
+    (rows, v1 size) float32 from fleet observations (rows, v2 size)."""
+    frames = fleet.encoded_history(obs, *(field.quantity for field in FIELDS))  # (rows, memory, v1 frame)
+    return frames.reshape(len(obs), -1).astype(np.float32)
+
+
+def leader_index(layout: ObservationLayout, obs: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Which UAV leads, as each observing row numbers them (0 = itself, then the next ones in
+    fleet order): the one serving the most UEs, ties to the UAV farthest east, then north (every
+    UAV of an env picks the same). Returns the index (rows,) and the UAVs' positions (rows, D, 2)."""
+    frame = layout.newest_frame(obs)
+    n_uavs = layout.n_uavs
+    # UEs served over the frames in memory, (rows, D) numbered me, next, ...: a UE that shadowing
+    # hands over for a frame does not swap the roles.
+    cells = (layout.history(obs, "served_by")[..., None] == np.arange(n_uavs)).sum(axis=(1, 2))
+    xy = np.concatenate([frame["uav_xy_m"][:, None], frame["others_xy_m"]], axis=1)  # (rows, D, 2)
+    # Lexicographic (cell size, x, y), positions rounded so both UAVs of an env rank alike.
+    key = np.round(xy, 3)
+    return np.lexsort((key[..., 1], key[..., 0], cells), axis=1)[:, -1], xy
+
+
+class LeadTeacher:
+    """The leader flies ``leader`` (a single-UAV policy: its layout is v1) on its single-UAV view;
+    every other UAV keeps to the far corners (``away``). Fleet only (n_uavs > 1)."""
+
+    name = "lead"
+    needs_truth = False
+
+    def __init__(self, cfg: EnvConfig, leader: Actor) -> None:
+        if cfg.n_uavs < 2:
+            raise UserError("the lead teacher is a fleet's (n_uavs > 1)")
+        self.layout = ObservationLayout.for_config(cfg)
+        self.single = single_layout(self.layout)
+        own = getattr(leader, "layout", None)
+        if own is not None:
+            own.check_matches(self.single, what=f"the lead teacher's leader {getattr(leader, 'name', leader)!r}")
+        self.leader = leader
+        self.mapping = ActionMapping.for_config(cfg)
+        h = cfg.area.half_width_m
+        self.corners = np.array([[h, h], [-h, h], [-h, -h], [h, -h]])
+
+    def act(self, obs: np.ndarray, truth: GroundTruth | None = None) -> np.ndarray:
+        obs = np.asarray(obs, dtype=np.float32)
+        index, xy = leader_index(self.layout, obs)
+        lead = index == 0
+        action = np.empty((len(obs), 2), dtype=np.float32)
+        if lead.any():
+            action[lead] = self.leader.act(single_view(self.layout, obs[lead]))
+        if (~lead).any():
+            away = ~lead
+            action[away] = self.away(obs[away], xy[away, index[away]])
+        return action
+
+    def away(self, obs: np.ndarray, leader_xy_m: np.ndarray) -> np.ndarray:
+        """Towards the corner farthest from the leader (it is with the UEs); once there, on along
+        the wall to the next farthest while its cell still holds a UE; else hold."""
+        frame = self.layout.newest_frame(obs)
+        me = frame["uav_xy_m"]
+        serving = (frame["served_by"] == 0).any(axis=1)
+        far = np.argsort(-np.linalg.norm(self.corners[None] - leader_xy_m[:, None], axis=2), axis=1)
+        first, second = self.corners[far[:, 0]], self.corners[far[:, 1]]
+        at_first = np.linalg.norm(me - first, axis=1) < 1.0
+        target = np.where((at_first & serving)[:, None], second, first)
+        target = np.where((at_first & ~serving)[:, None], me, target)
+        move = target - me
+        return self.mapping.from_polar(np.degrees(np.arctan2(move[:, 1], move[:, 0])),
+                                       np.hypot(move[:, 0], move[:, 1])).astype(np.float32)
+
+
+def make_lead_teacher(cfg: EnvConfig, leader_policy: str = "") -> LeadTeacher:
+    """The lead teacher for fleet ``cfg``; its leader flies ``leader_policy`` (a single-UAV policy
+    file, e.g. policies/spatial/<scenario>.zip) or, without one, the single-UAV aoa rule."""
+    from uavlink.policies.baselines import AoaPolicy
+    from uavlink.policies.loader import load_policy
+
+    single = cfg.replace(n_uavs=1).validate()
+    return LeadTeacher(cfg, load_policy(leader_policy, single) if leader_policy else AoaPolicy(single))
