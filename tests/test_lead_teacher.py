@@ -60,7 +60,15 @@ def test_leader_flies_its_single_policy_the_other_heads_for_a_far_corner() -> No
     teacher, obs = _fleet_obs()
     lead = leader_index(teacher.layout, obs)[0] == 0
     action = teacher.act(obs)
-    np.testing.assert_allclose(action[lead], teacher.leader.act(single_view(teacher.layout, obs[lead])), rtol=1e-6)
+    frame = teacher.layout.newest_frame(obs)
+    near = (frame["aoa_std_deg"] >= teacher.close_spread_deg) | (frame["sinr_db"].mean(axis=1) >= teacher.hover_sinr_db)
+    assert (lead & near).any()
+    np.testing.assert_allclose(action[lead & near], teacher.leader.act(single_view(teacher.layout, obs[lead & near])),
+                               rtol=1e-6)
+    far = lead & ~near  # a leader still far from the UEs closes in at full speed
+    assert far.any()
+    np.testing.assert_allclose(np.linalg.norm(teacher.mapping.to_displacement_m(action[far]), axis=1),
+                               teacher.mapping.r_max_m, rtol=1e-5)
     xy = teacher.layout.newest_frame(obs)["uav_xy_m"]
     step = teacher.mapping.to_displacement_m(action[~lead])
     leader_xy = xy.reshape(-1, 2, 2)[lead.reshape(-1, 2)]  # the away row's env's leader, env order
