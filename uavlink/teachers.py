@@ -24,7 +24,7 @@ from uavlink.env.observation import ObservationLayout
 from uavlink.errors import UserError
 from uavlink.lead_teacher import make_lead_teacher
 from uavlink.policies.baselines import AoaPolicy, make_baseline
-from uavlink.policies.fleet_baselines import moves_to
+from uavlink.policies.fleet_baselines import FleetAoaPolicy, moves_to
 from uavlink.radio.aoa import circular_mean_std_deg, true_aoa_deg
 
 
@@ -100,10 +100,12 @@ def make_teacher(cfg: EnvConfig, teacher: str, shadow_gate_db: float | None = No
         raise UserError(f"a leader policy is a setting of the lead teacher, not of {teacher!r}")
     if teacher == "lead" and not variant:
         return make_lead_teacher(cfg, leader_policy)
-    if cfg.n_uavs > 1:  # a fleet's teachers: its baselines as they are, or solo
+    if cfg.n_uavs > 1:  # a fleet's teachers: its baselines as they are (the aoa rule's span aside), or solo
+        if teacher == "aoa" and sinr_span_db is not None and shadow_gate_db is None and shadow_estimator is None:
+            return FleetAoaPolicy(cfg, sinr_span_db=sinr_span_db)
         if variant:
-            raise UserError("a shadow gate, a speed span and a shadow estimator are settings of the "
-                            "single-UAV aoa teacher, not of a fleet's")
+            raise UserError("a shadow gate and a shadow estimator are settings of the single-UAV aoa "
+                            "teacher, a speed span of an aoa teacher, not of a fleet's others")
         return SoloTeacher(cfg) if teacher == "solo" else make_baseline(teacher, cfg)
     if not variant:
         return TrueAoaTeacher(AoaPolicy(cfg)) if teacher == "aoa" else make_baseline(teacher, cfg)
