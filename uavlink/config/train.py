@@ -42,9 +42,6 @@ class WarmStartConfig:
                                  "imitation.CLONE_EPOCHS)", low=1, metavar="N")
     log_std: float = setting(-1.0, "exploration log std PPO starts from after the cloning")
     critic_rollouts: int = setting(10, "PPO updates with the actor frozen, fitting the critic", low=0)
-    leader_policy: str = setting(
-        "", "lead teacher only: the single-UAV policy file (.zip) the leading UAV flies (e.g. "
-        "policies/spatial/no_move.zip; default: the single-UAV aoa rule)", metavar="FILE")
     shadow_gate_db: float | None = setting(
         None, "aoa teacher only: hover when the newest frame's mean SINR beats the older frames' by "
         "more than DB (ours; default: off, the SPEC's rule)", metavar="DB")
@@ -55,6 +52,9 @@ class WarmStartConfig:
         None, "aoa teacher only: gate on a shadowing estimate (uavlink/shadow_estimation.py) fitted on "
         "N simulated episodes (hover while the estimated mean shadowing is above "
         "--warm-start-shadow-gate-db) instead of on the SINR jump (ours)", low=1, metavar="N")
+    leader_policy: str = setting(
+        "", "lead teacher only: the single-UAV policy file (.zip) the leading UAV flies (e.g. "
+        "policies/spatial/no_move.zip; default: the single-UAV aoa rule)", metavar="FILE")
 
     def validate(self, name: Namer = config_name) -> WarmStartConfig:
         check_fields(self, lambda path: name(f"warm_start.{path}"))
