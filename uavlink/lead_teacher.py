@@ -80,8 +80,7 @@ class LeadTeacher:
         self.leader = leader
         self.mapping = ActionMapping.for_config(cfg)
         self.hover_sinr_db = FleetAoaPolicy(cfg).hover_sinr_db
-        h = cfg.area.half_width_m
-        self.corners = np.array([[h, h], [-h, h], [-h, -h], [h, -h]])
+        self.corners = area_corners_m(cfg)
 
     def act(self, obs: np.ndarray, truth: GroundTruth | None = None) -> np.ndarray:
         obs = np.asarray(obs, dtype=np.float32)
@@ -106,20 +105,31 @@ class LeadTeacher:
         return np.where(far[:, None], dash, self.leader.act(single_view(self.layout, obs))).astype(np.float32)
 
     def away(self, obs: np.ndarray, leader_xy_m: np.ndarray) -> np.ndarray:
-        """Towards the corner farthest from the leader (it is with the UEs); once there, on along
-        the wall to the next farthest while its cell still holds a UE; else hold."""
+        """Out of the way: the far corners from the leader (it is with the UEs), ``away_target_m``."""
         frame = self.layout.newest_frame(obs)
         me = frame["uav_xy_m"]
-        serving = (frame["served_by"] == 0).any(axis=1)
-        far = np.argsort(-np.linalg.norm(self.corners[None] - leader_xy_m[:, None], axis=2), axis=1)
-        first, second = self.corners[far[:, 0]], self.corners[far[:, 1]]
-        at_first = np.linalg.norm(me - first, axis=1) < 1.0
-        target = np.where((at_first & serving)[:, None], second, first)
-        target = np.where((at_first & ~serving)[:, None], me, target)
+        target = away_target_m(self.corners, me, leader_xy_m, (frame["served_by"] == 0).any(axis=1))
         move = target - me
         return self.mapping.from_polar(np.degrees(np.arctan2(move[:, 1], move[:, 0])),
                                        np.hypot(move[:, 0], move[:, 1])).astype(np.float32)
 
+
+def area_corners_m(cfg: EnvConfig) -> np.ndarray:
+    """The area's four corners (4, 2), m."""
+    h = cfg.area.half_width_m
+    return np.array([[h, h], [-h, h], [-h, -h], [h, -h]])
+
+
+def away_target_m(corners_m: np.ndarray, xy_m: np.ndarray, from_xy_m: np.ndarray, serving: np.ndarray) -> np.ndarray:
+    """Where UAVs at ``xy_m`` (rows, 2) keeping out of the way head (rows, 2): the corner (of
+    ``corners_m``, (4, 2)) farthest from ``from_xy_m`` (rows, 2); once there, on to the next farthest
+    while their cell still holds a UE (``serving``, (rows,); shadowing can favour a far UAV), else
+    where they are: an empty cell is silent."""
+    far = np.argsort(-np.linalg.norm(corners_m[None] - from_xy_m[:, None], axis=2), axis=1)
+    first, second = corners_m[far[:, 0]], corners_m[far[:, 1]]
+    at_first = np.linalg.norm(xy_m - first, axis=1) < 1.0
+    target = np.where((at_first & serving)[:, None], second, first)
+    return np.where((at_first & ~serving)[:, None], xy_m, target)
 
 def make_lead_teacher(cfg: EnvConfig, leader_policy: str = "") -> LeadTeacher:
     """The lead teacher for fleet ``cfg``; its leader flies ``leader_policy`` (a single-UAV policy

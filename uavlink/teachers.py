@@ -22,7 +22,7 @@ from uavlink.env.actions import ActionMapping
 from uavlink.env.core import GroundTruth
 from uavlink.env.observation import ObservationLayout
 from uavlink.errors import UserError
-from uavlink.lead_teacher import make_lead_teacher
+from uavlink.lead_teacher import area_corners_m, away_target_m, make_lead_teacher
 from uavlink.policies.baselines import AoaPolicy, make_baseline
 from uavlink.policies.fleet_baselines import FleetAoaPolicy, moves_to
 from uavlink.radio.aoa import circular_mean_std_deg, true_aoa_deg
@@ -131,8 +131,7 @@ class SoloTeacher:
         self.cfg = cfg
         self.mapping = ActionMapping.for_config(cfg)
         self.layout = ObservationLayout.for_config(cfg)
-        h = cfg.area.half_width_m
-        self.corners = np.array([[h, h], [-h, h], [-h, -h], [h, -h]])
+        self.corners = area_corners_m(cfg)
 
     def act(self, obs: np.ndarray, truth: GroundTruth | None = None) -> np.ndarray:
         if truth is None:
@@ -142,11 +141,8 @@ class SoloTeacher:
         centroid = truth.ue_xy_m.mean(axis=1)[:, None, :]  # (N, 1, 2)
         dist = np.linalg.norm(uav - centroid, axis=2)
         leader = dist.argmin(axis=1)[:, None] == np.arange(n_uavs)  # (N, D)
-        serving = (self.layout.newest_frame(obs)["served_by"] == 0).any(axis=1).reshape(uav.shape[:2])
-        to_corner = np.linalg.norm(self.corners[None] - centroid, axis=2)  # (N, 4)
-        far = np.argsort(-to_corner, axis=1)  # corners, farthest from the UEs first
-        first, second = self.corners[far[:, 0]][:, None], self.corners[far[:, 1]][:, None]
-        at_first = np.linalg.norm(uav - first, axis=2) < 1.0
-        away = np.where((at_first & serving)[..., None], second, first)
-        target = np.where(leader[..., None], centroid, np.where(serving[..., None] | ~at_first[..., None], away, uav))
-        return moves_to(self.cfg, truth.uav_xy_m, target.reshape(-1, 2), self.mapping)
+        serving = (self.layout.newest_frame(obs)["served_by"] == 0).any(axis=1)
+        centroids = np.repeat(centroid[:, 0], n_uavs, axis=0)  # agent rows
+        away = away_target_m(self.corners, truth.uav_xy_m, centroids, serving)
+        target = np.where(leader.reshape(-1, 1), centroids, away)
+        return moves_to(self.cfg, truth.uav_xy_m, target, self.mapping)
