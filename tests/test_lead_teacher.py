@@ -61,7 +61,8 @@ def test_leader_flies_its_single_policy_the_other_heads_for_a_far_corner() -> No
     lead = leader_index(teacher.layout, obs)[0] == 0
     action = teacher.act(obs)
     frame = teacher.layout.newest_frame(obs)
-    near = (frame["aoa_std_deg"] >= teacher.close_spread_deg) | (frame["sinr_db"].mean(axis=1) >= teacher.hover_sinr_db)
+    near = ((frame["aoa_std_deg"] >= teacher.close_spread_deg)
+            | (frame["sinr_db"].mean(axis=1) >= teacher.hover_sinr_db + teacher.far_sinr_margin_db))
     assert (lead & near).any()
     np.testing.assert_allclose(action[lead & near], teacher.leader.act(single_view(teacher.layout, obs[lead & near])),
                                rtol=1e-6)
