@@ -103,3 +103,18 @@ def test_make_teacher_builds_what_train_config_names() -> None:
             make_teacher(cfg, "static", **setting)
     with pytest.raises(ValueError, match="unknown teacher 'gps'"):
         make_teacher(cfg, "gps")
+
+
+def test_a_fleets_aoa_teacher_takes_a_speed_span_only() -> None:
+    """The fleet aoa rule with a shorter span reaches full speed nearer the hover SINR: it moves at
+    least as far as the rule, farther where a cell sits between the two spans (ours: hotspot's teacher)."""
+    from uavlink.policies.fleet_baselines import FleetAoaPolicy
+
+    cfg = EnvConfig(scenario="hotspot", n_uavs=2)
+    short, rule = make_teacher(cfg, "aoa", sinr_span_db=5.0), make_baseline("aoa", cfg)
+    assert isinstance(short, FleetAoaPolicy) and short.sinr_span_db == 5.0
+    obs = BatchedUavEnv(cfg, n_envs=32, seed=2).reset()
+    far_short, far_rule = short.mapping.to_polar(short.act(obs))[1], rule.mapping.to_polar(rule.act(obs))[1]
+    assert (far_short >= far_rule - 1e-9).all() and (far_short > far_rule + 0.1).any()
+    with pytest.raises(ValueError, match="shadow gate"):
+        make_teacher(cfg, "aoa", shadow_gate_db=1.0)

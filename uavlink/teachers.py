@@ -22,8 +22,9 @@ from uavlink.env.actions import ActionMapping
 from uavlink.env.core import GroundTruth
 from uavlink.env.observation import ObservationLayout
 from uavlink.errors import UserError
+from uavlink.lead_teacher import area_corners_m, away_target_m, make_lead_teacher
 from uavlink.policies.baselines import AoaPolicy, make_baseline
-from uavlink.policies.fleet_baselines import moves_to
+from uavlink.policies.fleet_baselines import FleetAoaPolicy, moves_to
 from uavlink.radio.aoa import circular_mean_std_deg, true_aoa_deg
 
 
@@ -84,19 +85,27 @@ class TrueAoaTeacher:
 
 
 def make_teacher(cfg: EnvConfig, teacher: str, shadow_gate_db: float | None = None,
-                 sinr_span_db: float | None = None, shadow_estimator: ShadowEstimate | None = None) -> Any:
+                 sinr_span_db: float | None = None, shadow_estimator: ShadowEstimate | None = None,
+                 leader_policy: str = "") -> Any:
     """The warm start's teacher named ``teacher``: the aoa rule (or its variant, when
-    ``shadow_gate_db``, ``sinr_span_db`` or ``shadow_estimator`` is set) on the true AoAs, or
-    another baseline as it is."""
+    ``shadow_gate_db``, ``sinr_span_db`` or ``shadow_estimator`` is set) on the true AoAs, a
+    fleet's ``solo`` or ``lead`` teacher (the latter's leader flies ``leader_policy``, a single-UAV
+    policy file, or the single-UAV aoa rule), or another baseline as it is."""
     if teacher not in TEACHER_NAMES:
         raise UserError(f"unknown teacher {teacher!r}; choose from {', '.join(TEACHER_NAMES)}")
     variant = not (shadow_gate_db is None and sinr_span_db is None and shadow_estimator is None)
-    if teacher == "solo" and cfg.n_uavs == 1:
-        raise UserError("the solo teacher is a fleet's (n_uavs > 1)")
-    if cfg.n_uavs > 1:  # a fleet's teachers: its baselines as they are, or solo
+    if teacher in ("solo", "lead") and cfg.n_uavs == 1:
+        raise UserError(f"the {teacher} teacher is a fleet's (n_uavs > 1)")
+    if leader_policy and teacher != "lead":
+        raise UserError(f"a leader policy is a setting of the lead teacher, not of {teacher!r}")
+    if teacher == "lead" and not variant:
+        return make_lead_teacher(cfg, leader_policy)
+    if cfg.n_uavs > 1:  # a fleet's teachers: its baselines as they are (the aoa rule's span aside), or solo
+        if teacher == "aoa" and sinr_span_db is not None and shadow_gate_db is None and shadow_estimator is None:
+            return FleetAoaPolicy(cfg, sinr_span_db=sinr_span_db)
         if variant:
-            raise UserError("a shadow gate, a speed span and a shadow estimator are settings of the "
-                            "single-UAV aoa teacher, not of a fleet's")
+            raise UserError("a shadow gate and a shadow estimator are settings of the single-UAV aoa "
+                            "teacher, a speed span of an aoa teacher, not of a fleet's others")
         return SoloTeacher(cfg) if teacher == "solo" else make_baseline(teacher, cfg)
     if not variant:
         return TrueAoaTeacher(AoaPolicy(cfg)) if teacher == "aoa" else make_baseline(teacher, cfg)
@@ -122,8 +131,7 @@ class SoloTeacher:
         self.cfg = cfg
         self.mapping = ActionMapping.for_config(cfg)
         self.layout = ObservationLayout.for_config(cfg)
-        h = cfg.area.half_width_m
-        self.corners = np.array([[h, h], [-h, h], [-h, -h], [h, -h]])
+        self.corners = area_corners_m(cfg)
 
     def act(self, obs: np.ndarray, truth: GroundTruth | None = None) -> np.ndarray:
         if truth is None:
@@ -133,11 +141,8 @@ class SoloTeacher:
         centroid = truth.ue_xy_m.mean(axis=1)[:, None, :]  # (N, 1, 2)
         dist = np.linalg.norm(uav - centroid, axis=2)
         leader = dist.argmin(axis=1)[:, None] == np.arange(n_uavs)  # (N, D)
-        serving = (self.layout.newest_frame(obs)["served_by"] == 0).any(axis=1).reshape(uav.shape[:2])
-        to_corner = np.linalg.norm(self.corners[None] - centroid, axis=2)  # (N, 4)
-        far = np.argsort(-to_corner, axis=1)  # corners, farthest from the UEs first
-        first, second = self.corners[far[:, 0]][:, None], self.corners[far[:, 1]][:, None]
-        at_first = np.linalg.norm(uav - first, axis=2) < 1.0
-        away = np.where((at_first & serving)[..., None], second, first)
-        target = np.where(leader[..., None], centroid, np.where(serving[..., None] | ~at_first[..., None], away, uav))
-        return moves_to(self.cfg, truth.uav_xy_m, target.reshape(-1, 2), self.mapping)
+        serving = (self.layout.newest_frame(obs)["served_by"] == 0).any(axis=1)
+        centroids = np.repeat(centroid[:, 0], n_uavs, axis=0)  # agent rows
+        away = away_target_m(self.corners, truth.uav_xy_m, centroids, serving)
+        target = np.where(leader.reshape(-1, 1), centroids, away)
+        return moves_to(self.cfg, truth.uav_xy_m, target, self.mapping)

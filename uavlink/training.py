@@ -112,7 +112,7 @@ def _warm_start(sb3_policy: Any, cfg: EnvConfig, tc: TrainConfig) -> dict[str, A
         from uavlink.shadow_estimation import fit_shadow_estimator
 
         estimator = fit_shadow_estimator(cfg, ws.shadow_estimator_episodes, tc.seed)
-    teacher = make_teacher(cfg, ws.teacher, ws.shadow_gate_db, ws.sinr_span_db, estimator)
+    teacher = make_teacher(cfg, ws.teacher, ws.shadow_gate_db, ws.sinr_span_db, estimator, ws.leader_policy)
     epochs = CLONE_EPOCHS if ws.epochs is None else ws.epochs
     report = warm_start(sb3_policy, cfg, teacher, ws.episodes, tc.seed, epochs=epochs,
                         log_std=ws.log_std).to_dict()

@@ -17,8 +17,9 @@ from uavlink.errors import ConfigError
 
 # The rules a warm start can copy; uavlink.policies.baselines implements them by these names.
 BASELINE_NAMES = ("static", "oracle", "aoa", "kmeans")
-# What a warm start may imitate: a baseline, or a fleet-only teacher of uavlink.teachers.
-TEACHER_NAMES = (*BASELINE_NAMES, "solo")
+# What a warm start may imitate: a baseline, or a fleet-only teacher (uavlink.teachers: solo;
+# uavlink.lead_teacher: lead).
+TEACHER_NAMES = (*BASELINE_NAMES, "solo", "lead")
 _INF = float("inf")
 
 
@@ -51,12 +52,17 @@ class WarmStartConfig:
         None, "aoa teacher only: gate on a shadowing estimate (uavlink/shadow_estimation.py) fitted on "
         "N simulated episodes (hover while the estimated mean shadowing is above "
         "--warm-start-shadow-gate-db) instead of on the SINR jump (ours)", low=1, metavar="N")
+    leader_policy: str = setting(
+        "", "lead teacher only: the single-UAV policy file (.zip) the leading UAV flies (e.g. "
+        "policies/spatial/no_move.zip; default: the single-UAV aoa rule)", metavar="FILE")
 
     def validate(self, name: Namer = config_name) -> WarmStartConfig:
         check_fields(self, lambda path: name(f"warm_start.{path}"))
         for knob in ("shadow_gate_db", "sinr_span_db", "shadow_estimator_episodes"):
             if getattr(self, knob) is not None and self.teacher != "aoa":
                 raise ConfigError(f"{name('warm_start.' + knob)} needs {name('warm_start.teacher')} aoa")
+        if self.leader_policy and self.teacher != "lead":
+            raise ConfigError(f"{name('warm_start.leader_policy')} needs {name('warm_start.teacher')} lead")
         if self.shadow_estimator_episodes is not None and self.shadow_gate_db is None:
             raise ConfigError(f"{name('warm_start.shadow_estimator_episodes')} needs "
                               f"{name('warm_start.shadow_gate_db')} (the gate's threshold)")

@@ -30,7 +30,8 @@ class FleetAoaPolicy:
     needs_truth = False
     sinr_span_db = 10.0  # as the single-UAV rule (uavlink.policies.baselines.AoaPolicy)
 
-    def __init__(self, cfg: EnvConfig) -> None:
+    def __init__(self, cfg: EnvConfig, sinr_span_db: float = sinr_span_db) -> None:
+        self.sinr_span_db = sinr_span_db  # a warm start's teacher may change it (uavlink.teachers)
         self.layout = ObservationLayout.for_config(cfg)
         self.mapping = ActionMapping.for_config(cfg)
         self.hover_sinr_db = float(mean_rx_power_dbm(cfg.area.uav_altitude_m, cfg.radio)

@@ -61,6 +61,8 @@ KEY_VERSION = 2
 # existing results keep their keys. A new field whose default changes figures bumps KEY_VERSION.
 NEUTRAL_ENV_DEFAULTS: dict[str, Any] = {"n_uavs": 1, "fleet_reuse": "full", "uav_separation_m": 20.0,
                                         "fleet_start_radius_m": 100.0}
+# The same for the training's (nested) warm-start fields.
+NEUTRAL_WARM_START_DEFAULTS: dict[str, Any] = {"leader_policy": ""}
 TOP_KEYS = ("name", "description", "scenarios", "seeds", "train", "scenario_train", "env", "eval", "grid")
 EVAL_DEFAULTS: dict[str, int] = {"episodes": 100, "seed": 0}
 BASELINE_COLUMNS = ("static", "oracle", "aoa")
@@ -114,7 +116,10 @@ class Job:
         """Everything that determines the job's figures; the key is its hash."""
         env = {k: v for k, v in self.env.to_dict().items()
                if k not in NEUTRAL_ENV_DEFAULTS or v != NEUTRAL_ENV_DEFAULTS[k]}
-        return {"key_version": KEY_VERSION, "env": env, "train": self.train.to_dict(),
+        train = self.train.to_dict()
+        train["warm_start"] = {k: v for k, v in train["warm_start"].items()
+                               if k not in NEUTRAL_WARM_START_DEFAULTS or v != NEUTRAL_WARM_START_DEFAULTS[k]}
+        return {"key_version": KEY_VERSION, "env": env, "train": train,
                 "eval": {**self.eval, "policies": ["ppo", *BASELINE_COLUMNS]}}
 
     def to_dict(self) -> dict[str, Any]:

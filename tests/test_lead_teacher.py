@@ -1,0 +1,100 @@
+"""The fleet's lead teacher (uavlink/lead_teacher.py): roles read from the observation, the leader's
+single-UAV view, and what it is for: one UAV serving, the other silent, beating the fleet aoa rule."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from uavlink.config import EnvConfig, TrainConfig
+from uavlink.env.core import BatchedUavEnv
+from uavlink.env.observation import FIELDS, ObservationLayout
+from uavlink.errors import UserError
+from uavlink.evaluation import evaluate_policy
+from uavlink.lead_teacher import (
+    LeadTeacher,
+    leader_index,
+    make_lead_teacher,
+    single_layout,
+    single_view,
+)
+from uavlink.policies.baselines import AoaPolicy, make_baseline
+from uavlink.teachers import make_teacher
+
+FLEET = EnvConfig().replace(scenario="no_move", n_uavs=2, **{"radio.shadowing_model": "spatial"}).validate()
+SINGLE_POLICY = Path(__file__).resolve().parents[1] / "policies" / "spatial" / "no_move.zip"
+
+
+def _fleet_obs(steps: int = 5) -> tuple[LeadTeacher, np.ndarray]:
+    teacher = make_lead_teacher(FLEET)
+    env = BatchedUavEnv(FLEET, n_envs=32, seed=3)
+    obs = env.reset()
+    for _ in range(steps):
+        obs = env.step(teacher.act(obs)).observation
+    return teacher, obs
+
+
+def test_single_view_is_the_v1_fields_of_every_frame() -> None:
+    teacher, obs = _fleet_obs()
+    fleet, single = teacher.layout, single_layout(teacher.layout)
+    view = single_view(fleet, obs)
+    assert single == ObservationLayout.for_config(FLEET.replace(n_uavs=1)) and view.shape == (len(obs), single.size)
+    for field in FIELDS:
+        np.testing.assert_array_equal(single.history(view, field.quantity), fleet.history(obs, field.quantity))
+
+
+def test_every_uav_of_an_env_picks_the_same_leader_the_one_serving_most() -> None:
+    teacher, obs = _fleet_obs()
+    index, _ = leader_index(teacher.layout, obs)
+    lead = (index == 0).reshape(-1, 2)
+    assert (lead.sum(axis=1) == 1).all()  # one leader per env, as both UAVs see it
+    other = np.where(index == 0, 1, 0)  # D = 2: the other UAV, as the row numbers it
+    served = (teacher.layout.history(obs, "served_by")[..., None] == np.arange(2)).sum(axis=(1, 2))
+    rows = np.arange(len(obs))
+    assert (served[rows, index] >= served[rows, other]).all()
+
+
+def test_leader_flies_its_single_policy_the_other_heads_for_a_far_corner() -> None:
+    teacher, obs = _fleet_obs()
+    lead = leader_index(teacher.layout, obs)[0] == 0
+    action = teacher.act(obs)
+    frame = teacher.layout.newest_frame(obs)
+    near = ((frame["aoa_std_deg"] >= teacher.close_spread_deg)
+            | (frame["sinr_db"].mean(axis=1) >= teacher.hover_sinr_db + teacher.far_sinr_margin_db))
+    assert (lead & near).any()
+    np.testing.assert_allclose(action[lead & near], teacher.leader.act(single_view(teacher.layout, obs[lead & near])),
+                               rtol=1e-6)
+    far = lead & ~near  # a leader still far from the UEs closes in at full speed
+    assert far.any()
+    np.testing.assert_allclose(np.linalg.norm(teacher.mapping.to_displacement_m(action[far]), axis=1),
+                               teacher.mapping.r_max_m, rtol=1e-5)
+    xy = teacher.layout.newest_frame(obs)["uav_xy_m"]
+    step = teacher.mapping.to_displacement_m(action[~lead])
+    leader_xy = xy.reshape(-1, 2, 2)[lead.reshape(-1, 2)]  # the away row's env's leader, env order
+    assert (np.linalg.norm(xy[~lead] + step - leader_xy, axis=1) > np.linalg.norm(xy[~lead] - leader_xy, axis=1)).all()
+
+
+@pytest.mark.slow
+def test_one_uav_serves_and_the_fleet_beats_its_aoa_rule() -> None:
+    """The point of the teacher: with one group the away cell empties and the fleet outdoes the
+    fleet aoa rule (whose two active cells interfere)."""
+    teacher = make_lead_teacher(FLEET, str(SINGLE_POLICY))
+    ours = evaluate_policy(teacher, FLEET, episodes=32, seed=1)
+    rule = evaluate_policy(make_baseline("aoa", FLEET), FLEET, episodes=32, seed=1)
+    assert ours.mean_rate_mbps > 1.05 * rule.mean_rate_mbps
+
+
+def test_make_teacher_and_config_name_the_lead_teacher() -> None:
+    assert isinstance(make_teacher(FLEET, "lead"), LeadTeacher)
+    assert isinstance(make_teacher(FLEET, "lead").leader, AoaPolicy)
+    assert make_teacher(FLEET, "lead", leader_policy=str(SINGLE_POLICY)).leader.name == "no_move"
+    with pytest.raises(UserError, match="fleet"):
+        make_teacher(FLEET.replace(n_uavs=1), "lead")
+    with pytest.raises(UserError, match="lead teacher"):
+        make_teacher(FLEET, "solo", leader_policy=str(SINGLE_POLICY))
+    with pytest.raises(UserError, match="leader_policy"):
+        TrainConfig.from_dict({"warm_start": {"teacher": "aoa", "leader_policy": "x.zip"}}).validate()
+    with pytest.raises(UserError, match="layout mismatch"):  # a fleet policy cannot lead: v2, not v1
+        LeadTeacher(FLEET, make_baseline("aoa", FLEET))
