@@ -25,7 +25,8 @@ from uavlink.env.actions import ActionMapping
 from uavlink.env.core import GroundTruth
 from uavlink.env.observation import FIELDS, OBS_LAYOUT_VERSION, ObservationLayout
 from uavlink.errors import UserError
-from uavlink.policies.fleet_baselines import FleetAoaPolicy
+from uavlink.policies.baselines import hover_sinr_db
+from uavlink.policies.fleet_baselines import moves_to
 from uavlink.rollout import Actor
 
 
@@ -81,8 +82,9 @@ class LeadTeacher:
         if own is not None:
             own.check_matches(self.single, what=f"the lead teacher's leader {getattr(leader, 'name', leader)!r}")
         self.leader = leader
+        self.cfg = cfg
         self.mapping = ActionMapping.for_config(cfg)
-        self.hover_sinr_db = FleetAoaPolicy(cfg).hover_sinr_db
+        self.hover_sinr_db = hover_sinr_db(cfg)
         self.corners = area_corners_m(cfg)
 
     def act(self, obs: np.ndarray, truth: GroundTruth | None = None) -> np.ndarray:
@@ -113,9 +115,7 @@ class LeadTeacher:
         frame = self.layout.newest_frame(obs)
         me = frame["uav_xy_m"]
         target = away_target_m(self.corners, me, leader_xy_m, (frame["served_by"] == 0).any(axis=1))
-        move = target - me
-        return self.mapping.from_polar(np.degrees(np.arctan2(move[:, 1], move[:, 0])),
-                                       np.hypot(move[:, 0], move[:, 1])).astype(np.float32)
+        return moves_to(self.cfg, me, target, self.mapping).astype(np.float32)
 
 
 def area_corners_m(cfg: EnvConfig) -> np.ndarray:
@@ -134,6 +134,7 @@ def away_target_m(corners_m: np.ndarray, xy_m: np.ndarray, from_xy_m: np.ndarray
     at_first = np.linalg.norm(xy_m - first, axis=1) < 1.0
     target = np.where((at_first & serving)[:, None], second, first)
     return np.where((at_first & ~serving)[:, None], xy_m, target)
+
 
 def make_lead_teacher(cfg: EnvConfig, leader_policy: str = "") -> LeadTeacher:
     """The lead teacher for fleet ``cfg``; its leader flies ``leader_policy`` (a single-UAV policy

@@ -14,6 +14,12 @@ from uavlink.radio.pathloss import mean_rx_power_dbm
 from uavlink.radio.rates import fair_rate, rate_bps
 
 
+def hover_sinr_db(cfg: EnvConfig) -> float:
+    """The aoa rule's hover level: the SINR of a UE straight below its UAV on the mean channel (the
+    link budget overhead, no shadowing or fading), dB."""
+    return float(mean_rx_power_dbm(cfg.area.uav_altitude_m, cfg.radio) - noise_power_dbm(cfg.radio.bandwidth_hz, cfg.radio))
+
+
 class StaticPolicy:
     """Hover where the episode starts (the area centre; a fleet's UAVs on their start circle)."""
 
@@ -46,8 +52,7 @@ class AoaPolicy:
     def __init__(self, cfg: EnvConfig) -> None:
         self.layout = ObservationLayout.for_config(cfg)
         self.mapping = ActionMapping.for_config(cfg)
-        self.hover_sinr_db = float(mean_rx_power_dbm(cfg.area.uav_altitude_m, cfg.radio)
-                                   - noise_power_dbm(cfg.radio.bandwidth_hz, cfg.radio))
+        self.hover_sinr_db = hover_sinr_db(cfg)
         self.hover = self.mapping.from_polar(0.0, 0.0)
 
     def act(self, obs: np.ndarray, truth: GroundTruth | None = None) -> np.ndarray:

@@ -16,6 +16,7 @@ from uavlink.env.actions import ActionMapping
 from uavlink.env.core import GroundTruth
 from uavlink.env.observation import ObservationLayout
 from uavlink.mobility.fleet import separate
+from uavlink.policies.baselines import hover_sinr_db
 from uavlink.radio.cells import Cells
 from uavlink.radio.noise import noise_power_dbm
 from uavlink.radio.pathloss import distance_3d_m, mean_rx_power_dbm
@@ -34,8 +35,7 @@ class FleetAoaPolicy:
         self.sinr_span_db = sinr_span_db  # a warm start's teacher may change it (uavlink.teachers)
         self.layout = ObservationLayout.for_config(cfg)
         self.mapping = ActionMapping.for_config(cfg)
-        self.hover_sinr_db = float(mean_rx_power_dbm(cfg.area.uav_altitude_m, cfg.radio)
-                                   - noise_power_dbm(cfg.radio.bandwidth_hz, cfg.radio))
+        self.hover_sinr_db = hover_sinr_db(cfg)
 
     def act(self, obs: np.ndarray, truth: GroundTruth | None = None) -> np.ndarray:
         frame = self.layout.newest_frame(obs)
