@@ -28,20 +28,28 @@ def run_uavlink(*args: str, timeout: float = 120, cwd: Path | None = ROOT) -> su
     return subprocess.run([*UAVLINK, *args], capture_output=True, text=True, timeout=timeout, cwd=cwd)
 
 
-def cli_json(*args: str) -> dict:
-    """``uavlink ARGS`` (a command with ``--json``) in this process: the CLI's own code path and
-    output, without a child process's torch and SB3 import (7-8 s each on a loaded 2-core machine)."""
+def run_uavlink_in_process(*args: str) -> subprocess.CompletedProcess:
+    """``uavlink ARGS`` through the CLI's main in this process, as a CompletedProcess: the CLI's own
+    code path and output, without a child process's torch and SB3 import (7-8 s each on a loaded
+    2-core machine)."""
     import contextlib
     import io
-    import json
 
     from uavlink.cli import main
 
-    out = io.StringIO()
-    with contextlib.redirect_stdout(out):
+    out, err = io.StringIO(), io.StringIO()
+    with contextlib.redirect_stdout(out), contextlib.redirect_stderr(err):
         rc = main(list(args))
-    assert rc == 0, f"uavlink {' '.join(args)} exited {rc}"
-    return json.loads(out.getvalue())
+    return subprocess.CompletedProcess(["uavlink", *args], rc, out.getvalue(), err.getvalue())
+
+
+def cli_json(*args: str) -> dict:
+    """``uavlink ARGS`` (a command with ``--json``) in this process, its JSON output."""
+    import json
+
+    proc = run_uavlink_in_process(*args)
+    assert proc.returncode == 0, f"uavlink {' '.join(args)} exited {proc.returncode}: {proc.stderr[-2000:]}"
+    return json.loads(proc.stdout)
 
 
 def assert_user_error(proc: subprocess.CompletedProcess, *fragments: str) -> None:

@@ -11,7 +11,7 @@ from pathlib import Path
 from types import SimpleNamespace
 
 import pytest
-from conftest import cli_json
+from conftest import cli_json, run_uavlink_in_process
 
 from uavlink.cli import main
 from uavlink.config import EnvConfig, changed_settings, parse_settings
@@ -46,15 +46,6 @@ def assert_refused(proc: subprocess.CompletedProcess, *fragments: str) -> None:
     assert proc.returncode == 2, proc.stderr
     assert "Traceback" not in proc.stderr and len(proc.stderr.strip().splitlines()) == 1, proc.stderr
     assert all(fragment in proc.stderr for fragment in fragments), proc.stderr
-
-
-def refused_in_process(capsys: pytest.CaptureFixture, *args: str) -> subprocess.CompletedProcess:
-    """``uavlink ARGS`` through the CLI's main in this process (no child's torch import), as a
-    CompletedProcess for :func:`assert_refused`."""
-    capsys.readouterr()
-    rc = main(list(args))
-    captured = capsys.readouterr()
-    return subprocess.CompletedProcess(["uavlink", *args], rc, captured.out, captured.err)
 
 
 def fake_policy(cfg: EnvConfig) -> SimpleNamespace:
@@ -137,12 +128,12 @@ def evaluate(policy: Path | str, *args: str, episodes: int = 8, seed: int = 5) -
 
 
 @pytest.mark.slow
-def test_evaluate_runs_the_policy_in_its_own_env(polar_zip: Path, capsys) -> None:
+def test_evaluate_runs_the_policy_in_its_own_env(polar_zip: Path) -> None:
     implicit, spelled = evaluate(polar_zip), evaluate(polar_zip, *SPELLED_OUT)
     print(f"\npolar-v1 r_max 8 policy, 8 episodes seed 5: {implicit['mean_rate_mbps']:.3f} Mbps without "
           f"--set, {spelled['mean_rate_mbps']:.3f} Mbps with its settings spelled out")
     assert implicit["episode_rate_mbps"] == spelled["episode_rate_mbps"]
-    assert_refused(refused_in_process(capsys, "evaluate", "--policy", str(polar_zip), "--episodes", "2",
+    assert_refused(run_uavlink_in_process("evaluate", "--policy", str(polar_zip), "--episodes", "2",
                                       "--set", "action_mapping=cartesian-v1"),
                    f"policy {polar_zip} was built for action_mapping='polar-v1'",
                    "--set action_mapping=cartesian-v1 conflicts")
@@ -171,7 +162,7 @@ def test_training_randomisation_is_not_carried_into_evaluation(polar_zip: Path, 
 
 @pytest.mark.slow
 @pytest.mark.timeout(240)
-def test_fly_and_the_embedded_sitl_run_the_policy_env(polar_zip: Path, tmp_path: Path, capsys) -> None:
+def test_fly_and_the_embedded_sitl_run_the_policy_env(polar_zip: Path, tmp_path: Path) -> None:
     # fly's loop in this process (its vehicle is a child as always): no second torch import
     flown = cli_json("fly", "--policy", str(polar_zip), "--scenario", "straight", "--seed", "5", "--json",
                      "--quiet", "--out", str(tmp_path))
@@ -180,7 +171,7 @@ def test_fly_and_the_embedded_sitl_run_the_policy_env(polar_zip: Path, tmp_path:
           f"evaluated {simulated:.3f} Mbps")
     assert flown["frames"] == 128 and flown["guarded_actions"] == 0
     assert abs(flown["mean_rate_mbps"] - simulated) <= 0.05 * simulated
-    assert_refused(refused_in_process(capsys, "fly", "--policy", str(polar_zip), "--set", "r_max_m=12", "--out",
+    assert_refused(run_uavlink_in_process("fly", "--policy", str(polar_zip), "--set", "r_max_m=12", "--out",
                                       str(tmp_path)),
                    "was built for r_max_m=8", "--set r_max_m=12 conflicts")
 
