@@ -9,7 +9,7 @@ import sys
 from pathlib import Path
 
 import pytest
-from conftest import assert_user_error
+from conftest import assert_user_error, cli_json, run_uavlink_in_process
 from conftest import run_uavlink as uavlink
 
 from uavlink.cli import main
@@ -199,3 +199,19 @@ def test_evaluate_against_refuses_the_results_folder(tmp_path: Path):
     assert_user_error(uavlink("evaluate", "--scenario", "all", "--policy", "policies", "--against", "aoa",
                               "--out", str(tmp_path / "out")), "--against")
     assert not (tmp_path / "out").exists()
+
+
+def test_evaluate_against_pairs_a_fleet_with_one_uav_on_the_same_episodes():
+    """A fleet policy against a single-UAV policy: the same UEs and channel with one UAV more (the
+    fleet's "a second UAV never hurts" ratio); the single-UAV policy's episodes are those it flies
+    alone. Policies built for another world (here the AR(1) channel) are still refused."""
+    fleet, single = "policies/fleet/straight.zip", "policies/spatial/straight.zip"
+    args = ("evaluate", "--scenario", "straight", "--episodes", "3", "--seed", "5", "--json")
+    payload = cli_json(*args, "--policy", fleet, "--against", single)
+    (comparison,) = payload["comparisons"]
+    alone = cli_json(*args, "--policy", single)
+    assert payload["results"][1]["episode_rate_mbps"] == alone["episode_rate_mbps"]
+    assert comparison["throughput_ratio"] == pytest.approx(
+        payload["results"][0]["mean_rate_mbps"] / alone["mean_rate_mbps"], rel=1e-5)
+    assert_user_error(run_uavlink_in_process(*args, "--policy", fleet, "--against", "policies/straight.zip"),
+                      "radio.shadowing_model")

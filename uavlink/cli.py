@@ -251,7 +251,8 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--policy", default="static", help="static | aoa | oracle | FILE.zip | FILE.onnx | FOLDER")
     p.add_argument("--against", default=None, metavar="POLICY",
                    help="also fly this policy (same forms) on the same episodes and print the paired "
-                        "throughput ratio with its 95 %% interval, the R_fair difference and the episodes won")
+                        "throughput ratio with its 95 %% interval, the R_fair difference and the episodes won "
+                        "(a fleet policy may face a single-UAV one: the same UEs and channel)")
     p.add_argument("--episodes", type=int, default=100)
     p.add_argument("--seed", type=int, default=0)
     p.add_argument("--json", action="store_true", help="print JSON instead of a table")

@@ -37,8 +37,10 @@ OVERRIDES_HELP = (f"A policy file runs in the env its manifest records; --scenar
                   f"override it. Radio physics and the world may be overridden (a robustness study); what "
                   f"the policy was built for ({', '.join(BUILT_FOR)}) may not. Baselines get the env of the "
                   f"policy they are compared with.")
-# What compared policies may differ in: each flies with its own action mapping and memory.
-PER_POLICY = ("action_mapping", "r_max_m", "memory")
+# What compared policies may differ in: each flies with its own action mapping and memory, and with
+# its own number of UAVs over the same UEs and channel (a fleet against one UAV: the per-episode
+# world streams do not depend on n_uavs, so the episodes pair as in docs/results.md's fleet ratios).
+PER_POLICY = ("action_mapping", "r_max_m", "memory", "n_uavs")
 # Training-time randomisation: off in a policy's env unless an override turns it on.
 TRAINING_ONLY = "radio.aoa_noise_max_deg"
 
