@@ -33,7 +33,11 @@ def mean_rician_power_gain(
     against the trailing axes of ``shape``.
     """
     k = 10.0 ** (k_db / 10.0)
-    n = np.broadcast_to(np.asarray(n_rbs, dtype=float), shape)
+    n = np.asarray(n_rbs, dtype=float)
+    if n.size and not np.ptp(n):
+        # Every link on the same RB count (one UAV, U dividing K): numpy's scalar-shape gamma draws
+        # the same stream as the array form, about 1.5x faster.
+        n = float(n.flat[0])
     z = rng.standard_normal(shape) + np.sqrt(2.0 * n * k)
     chi2 = 2.0 * rng.standard_gamma(n - 0.5, size=shape)
     return (z * z + chi2) / (2.0 * n * (k + 1.0))
