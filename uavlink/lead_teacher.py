@@ -115,7 +115,7 @@ class LeadTeacher:
         frame = self.layout.newest_frame(obs)
         me = frame["uav_xy_m"]
         target = away_target_m(self.corners, me, leader_xy_m, (frame["served_by"] == 0).any(axis=1))
-        return moves_to(self.cfg, me, target, self.mapping).astype(np.float32)
+        return moves_to(me, target, self.mapping).astype(np.float32)
 
 
 def area_corners_m(cfg: EnvConfig) -> np.ndarray:

@@ -145,4 +145,4 @@ class SoloTeacher:
         centroids = np.repeat(centroid[:, 0], n_uavs, axis=0)  # agent rows
         away = away_target_m(self.corners, truth.uav_xy_m, centroids, serving)
         target = np.where(leader.reshape(-1, 1), centroids, away)
-        return moves_to(self.cfg, truth.uav_xy_m, target, self.mapping)
+        return moves_to(truth.uav_xy_m, target, self.mapping)

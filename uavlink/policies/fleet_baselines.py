@@ -48,7 +48,7 @@ class FleetAoaPolicy:
         return self.mapping.from_polar(frame["cell_aoa_mean_deg"], distance)
 
 
-def moves_to(cfg: EnvConfig, truth_xy_m: np.ndarray, target_xy_m: np.ndarray, mapping: ActionMapping) -> np.ndarray:
+def moves_to(truth_xy_m: np.ndarray, target_xy_m: np.ndarray, mapping: ActionMapping) -> np.ndarray:
     """Actions (rows, 2) that move agent rows from ``truth_xy_m`` towards ``target_xy_m`` (r_max at most)."""
     move = target_xy_m - truth_xy_m
     return mapping.from_polar(np.degrees(np.arctan2(move[:, 1], move[:, 0])), np.hypot(move[:, 0], move[:, 1]))
@@ -109,7 +109,7 @@ class FleetOraclePolicy:
             cand = flat.reshape(n_envs, n_cand, n_uavs, 2)
             score = mean_fleet_fair_rate(cfg, cand, ue_next[:, None])
             plan[:, d] = cand[np.arange(n_envs), score.argmax(axis=1), d]
-        return moves_to(cfg, truth.uav_xy_m, plan.reshape(-1, 2), self.mapping)
+        return moves_to(truth.uav_xy_m, plan.reshape(-1, 2), self.mapping)
 
 
 class KMeansPolicy:
@@ -143,4 +143,4 @@ class KMeansPolicy:
         gap = np.linalg.norm(uav[:, :, None] - centroid[:, None], axis=-1)  # (N, UAV, group)
         cost = gap[:, np.arange(n_uavs), self.matchings].sum(axis=2)  # (N, D!)
         target = centroid[np.arange(len(uav))[:, None], self.matchings[cost.argmin(axis=1)]]
-        return moves_to(self.cfg, truth.uav_xy_m, target.reshape(-1, 2), self.mapping)
+        return moves_to(truth.uav_xy_m, target.reshape(-1, 2), self.mapping)
