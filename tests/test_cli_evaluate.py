@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import csv
 import json
+import shutil
 import sys
 from pathlib import Path
 
@@ -100,10 +101,15 @@ def test_unusable_policy_files_exit_2(tmp_path):
 
 
 def test_results_folder_with_an_unfinished_sweep_fails_before_evaluating(tmp_path):
-    """The across-seed table needs the finished sweep: refused at once, and nothing is written."""
+    """The across-seed table needs the finished sweep (its runs, or the record shipped beside the
+    policies): refused at once, and nothing is written."""
     root = Path(__file__).resolve().parents[1]
+    policies = tmp_path / "policies"  # the shipped policies without a sweep record
+    policies.mkdir()
+    for zip_file in (root / "policies").glob("*.zip"):
+        shutil.copyfile(zip_file, policies / zip_file.name)
     out = tmp_path / "results"
-    proc = uavlink("evaluate", "--scenario", "all", "--policy", str(root / "policies"), "--episodes", "2",
+    proc = uavlink("evaluate", "--scenario", "all", "--policy", str(policies), "--episodes", "2",
                    "--out", str(out), "--sweep", str(root / "sweeps" / "table1.toml"),
                    "--sweep-root", str(tmp_path / "runs"))
     assert_user_error(proc, "sweep 'table1'", "not finished", "hotspot")

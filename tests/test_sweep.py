@@ -25,7 +25,17 @@ pytest.importorskip("stable_baselines3")
 from uavlink.cli import main  # noqa: E402
 from uavlink.config import EnvConfig, TrainConfig, WarmStartConfig  # noqa: E402
 from uavlink.config.fields import config_fields, with_changes  # noqa: E402
-from uavlink.sweep.aggregate import t975  # noqa: E402
+from uavlink.errors import UserError  # noqa: E402
+from uavlink.sweep.aggregate import (  # noqa: E402
+    collect,
+    export_median_policies,
+    finished_rows,
+    read_record,
+    record_path,
+    results_section,
+    summary_table,
+    t975,
+)
 from uavlink.sweep.jobs import figures  # noqa: E402
 from uavlink.sweep.runner import run_sweep  # noqa: E402
 from uavlink.sweep.spec import KEY_VERSION, Job, load_spec, parse_spec  # noqa: E402
@@ -371,3 +381,68 @@ def test_a_new_warm_start_field_at_its_default_keeps_the_old_keys() -> None:
     led = parse_spec({"seeds": [0], "env": {"n_uavs": 2}, "train": {"warm_start": {
         "teacher": "lead", "leader_policy": "policies/spatial/no_move.zip"}}}).jobs()[0]
     assert lead.key != led.key
+
+
+@pytest.mark.slow
+def test_shipped_record_rebuilds_the_results_section_without_runs(tmp_path: Path) -> None:
+    """--policies-out keeps the sweep's record beside the median seeds; where runs/ is gone (a fresh
+    clone) docs/results.md's across-seed section is rebuilt from it, the same text and figures, and
+    a recipe changed since the record finds no figures there."""
+
+    (tmp_path / "tiny4.toml").write_text(TINY)
+    (tmp_path / "changed.toml").write_text(TINY.replace("episodes = 4", "episodes = 5", 1))
+    spec, changed = load_spec(tmp_path / "tiny4.toml"), load_spec(tmp_path / "changed.toml")
+    run_sweep(spec, tmp_path / "runs", workers=0, progress=False, log=lambda _: None)
+    sweep_dir, shipped = tmp_path / "runs" / "tiny4", tmp_path / "policies"
+    export_median_policies(spec, sweep_dir, shipped)
+    record = read_record(record_path(shipped, spec))
+    assert set(record) == {job.key for job in spec.jobs()}
+    for entry in record.values():
+        assert "policy_zip" not in entry and "worker" not in entry
+        assert not any(isinstance(v, list) for figures in entry["evaluation"].values() for v in figures.values())
+    assert (summary_table(collect(spec, tmp_path / "gone", record), [])
+            == summary_table(collect(spec, sweep_dir), []))
+
+    sections = {}
+    for name, source in (("runs", sweep_dir), ("record", tmp_path / "gone")):
+        assets = tmp_path / f"assets_{name}"
+        sections[name] = results_section(spec, source, assets, Path("results"), shipped)
+        assert sorted(p.name for p in assets.iterdir()) == ["sweep_tiny4_learning_curves.png",
+                                                             "sweep_tiny4_throughput.png"]
+    assert sections["runs"] == sections["record"]
+    assert "| straight | 2/2 |" in sections["record"] and "(results/sweep_tiny4_throughput.png)" in sections["record"]
+
+    with pytest.raises(UserError, match="not finished"):
+        finished_rows(changed, tmp_path / "gone", record)
+
+
+@pytest.mark.slow
+def test_sweep_reruns_only_what_its_shipped_record_lacks(tmp_path: Path, capsys) -> None:
+    """On a fresh clone (no runs/) `uavlink sweep FILE --policies-out DIR` counts the jobs of DIR's
+    record as done: nothing runs and nothing shipped changes; a recipe changed for one scenario
+    runs and re-ships that scenario only, and the record follows."""
+    sweep_file, shipped = tmp_path / "tiny4.toml", tmp_path / "policies"
+    sweep_file.write_text(TINY)
+
+    def sweep(out_root: str, *extra: str) -> str:
+        capsys.readouterr()
+        assert main(["sweep", str(sweep_file), "--out-root", str(tmp_path / out_root), "--workers", "0",
+                     "--no-progress", "--policies-out", str(shipped), *extra]) == 0
+        return capsys.readouterr().err
+
+    sweep("runs")
+    before = {p.name: p.read_bytes() for p in shipped.iterdir()}
+    assert "4 already done, 0 to run" in sweep("fresh")
+    assert {p.name: p.read_bytes() for p in shipped.iterdir()} == before
+    assert main(["sweep", str(sweep_file), "--out-root", str(tmp_path / "fresh2"), "--dry-run",
+                 "--policies-out", str(shipped)]) == 0
+    assert capsys.readouterr().out.count("done (record)") == 4
+
+    sweep_file.write_text(TINY + "[scenario_train.straight]\nepisodes = 5\n")
+    changed = load_spec(sweep_file)
+    assert "2 already done, 2 to run" in sweep("fresh3")
+    after = {p.name: p.read_bytes() for p in shipped.iterdir()}
+    assert after["circular.zip"] == before["circular.zip"] and after["straight.zip"] != before["straight.zip"]
+    assert set(read_record(record_path(shipped, changed))) == {job.key for job in changed.jobs()}
+    straight = json.loads((shipped / "straight.json").read_text())["selection"]["key"]
+    assert straight in {job.key for job in changed.jobs() if job.scenario == "straight"}

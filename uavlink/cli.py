@@ -89,26 +89,30 @@ def _write_results_folder(args: argparse.Namespace) -> int:
         raise UserError(f"--spatial {args.spatial}: not a folder of policies")
     if args.fleet is not None and (args.spatial is None or not args.fleet.is_dir()):
         raise UserError(f"--fleet {args.fleet}: needs a folder of fleet policies and --spatial (one UAV's, to compare)")
-    specs = []
-    if args.sweep:  # checked before the long evaluation, which would write the folder
-        from uavlink.sweep.aggregate import finished_rows
-        from uavlink.sweep.spec import load_spec
-
-        specs = [load_spec(path) for path in args.sweep]
-        for spec in specs:
-            finished_rows(spec, args.sweep_root / spec.name)
 
     def kind(spec) -> str:
         env = spec.jobs()[0].env_config()
         return "fleet" if env.n_uavs > 1 else env.radio.shadowing_model
 
+    def shipped(spec) -> Path:
+        """The folder a sweep's median seeds were shipped to: its record lies beside them."""
+        return Path({"ar1": folder, "spatial": args.spatial, "fleet": args.fleet}[kind(spec)] or folder)
+
+    specs = []
+    if args.sweep:  # checked before the long evaluation, which would write the folder
+        from uavlink.sweep.aggregate import finished_rows, read_record, record_path
+        from uavlink.sweep.spec import load_spec
+
+        specs = [load_spec(path) for path in args.sweep]
+        for spec in specs:
+            finished_rows(spec, args.sweep_root / spec.name, read_record(record_path(shipped(spec), spec)))
+
     def sweep_sections(link_prefix: Path, wanted: str) -> list[str]:
         from uavlink.sweep.aggregate import results_section
 
-        shipped = {"ar1": folder, "spatial": args.spatial, "fleet": args.fleet}[wanted]
         return [section for spec in specs if kind(spec) == wanted
                 for section in (results_section(spec, args.sweep_root / spec.name, args.out, link_prefix,
-                                                f"{shipped}/", "##" if wanted == "ar1" else "###"), "")]
+                                                shipped(spec), "##" if wanted == "ar1" else "###"), "")]
 
     path = write_results(folder, args.out, markdown, args.episodes, args.seed, overrides, command,
                          progress=lambda msg: print(f"evaluating {msg}", file=sys.stderr),
@@ -178,7 +182,13 @@ def cmd_export(args: argparse.Namespace) -> int:
 
 
 def cmd_sweep(args: argparse.Namespace) -> int:
-    from uavlink.sweep.aggregate import export_median_policies, jobs_table, write_summary
+    from uavlink.sweep.aggregate import (
+        export_median_policies,
+        jobs_table,
+        read_record,
+        record_path,
+        write_summary,
+    )
     from uavlink.sweep.spec import load_spec
 
     spec = load_spec(args.file)  # SweepSpecError (a UserError): one line, exit 2, before any job
@@ -189,18 +199,20 @@ def cmd_sweep(args: argparse.Namespace) -> int:
     if args.policies_out is not None and len(spec.points()) > 1:
         raise UserError(f"--policies-out needs one setting per scenario; {args.file} has a grid of "
                         f"{len(spec.points())} points")
+    # Jobs in the record shipped with the policies are done: only a changed recipe's jobs run again.
+    record = read_record(record_path(args.policies_out, spec)) if args.policies_out is not None else {}
     if args.dry_run:
-        print(jobs_table(spec.jobs(), args.out_root / spec.name))
+        print(jobs_table(spec.jobs(), args.out_root / spec.name, record.keys()))
         return 0
     from uavlink.sweep.runner import EngineError, run_sweep
 
     try:
         outcome = run_sweep(spec, args.out_root, scheduler=args.scheduler, workers=args.workers,
-                            retries=args.retries, progress=not args.no_progress)
+                            retries=args.retries, progress=not args.no_progress, done_keys=record.keys())
     except EngineError as exc:
         raise UserError(str(exc)) from None
     command = "uavlink " + " ".join(sys.argv[1:]) if sys.argv[1:2] == ["sweep"] else f"uavlink sweep {args.file}"
-    markdown, table = write_summary(spec, outcome.sweep_dir, command)
+    markdown, table = write_summary(spec, outcome.sweep_dir, command, record)
     print(table)
     done = outcome.skipped + outcome.finished
     print(f"{done}/{outcome.jobs} jobs done ({outcome.finished} run now in {outcome.wall_s:.0f} s, "
@@ -313,7 +325,8 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--retries", type=int, default=2, help="retries of a job that raises (worker deaths are "
                                                           "rescheduled by Dask anyway)")
     p.add_argument("--policies-out", type=Path, default=None, metavar="DIR",
-                   help="copy each scenario's median-seed policy to DIR/<scenario>.zip")
+                   help="copy each scenario's median-seed policy to DIR/<scenario>.zip and the sweep's record "
+                        "to DIR/<name>.sweep.json; jobs in that record count as done")
     p.add_argument("--dry-run", action="store_true", help="list the jobs and whether each is done, run nothing")
     p.add_argument("--no-progress", action="store_true", help="no progress bar")
     p.set_defaults(func=cmd_sweep)

@@ -1,5 +1,7 @@
 """Per-setting summary of a sweep: mean across seeds with a t interval, gain over static, share of
-oracle, wall time; Markdown, CSV and plots in ``runs/<sweep>/``; the median seed's policies.
+oracle, wall time; Markdown, CSV and plots in ``runs/<sweep>/``; the median seed's policies and,
+beside them, the sweep's record (every job's figures) from which docs/results.md's across-seed table
+is rebuilt where ``runs/`` is gone (a fresh clone).
 
 A setting is a scenario x grid point; its seeds are independent training runs evaluated on the same
 episodes (same evaluation seed), so the interval is across seeds: mean +- t(0.975, n-1) s / sqrt(n).
@@ -10,13 +12,14 @@ from __future__ import annotations
 import json
 import math
 import shutil
+from collections.abc import Collection
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
 from uavlink.errors import UserError
 from uavlink.report import markdown_table, write_csv
-from uavlink.sweep.jobs import read_result
+from uavlink.sweep.jobs import RUN_FIELDS, read_result
 from uavlink.sweep.spec import BASELINE_COLUMNS, Job, SweepSpec, describe_point
 
 # Two-sided 95 % Student t quantiles, t(0.975, df), df = 1..30.
@@ -92,12 +95,54 @@ class SettingRow:
         }
 
 
-def collect(spec: SweepSpec, sweep_dir: Path) -> list[SettingRow]:
-    """Settings in the sweep file's order, each with the finished results of its jobs."""
+RECORD_FORMAT = "uavlink-sweep-record-v1"
+
+
+def record_path(policies_dir: Path, spec: SweepSpec) -> Path:
+    """Where ``--policies-out DIR`` keeps the sweep's record: ``DIR/<sweep name>.sweep.json``."""
+    return policies_dir / f"{spec.name}.sweep.json"
+
+
+def _record_entry(result: dict[str, Any]) -> dict[str, Any]:
+    """A job's figures as the across-seed table and its plots use them: no policy bytes, no
+    per-episode lists, of the run fields only the wall time."""
+    entry = {k: v for k, v in result.items() if k not in (*RUN_FIELDS, "policy_zip", "evaluation")}
+    entry["evaluation"] = {policy: {k: v for k, v in figures.items() if not isinstance(v, list)}
+                           for policy, figures in result["evaluation"].items()}
+    entry["timing"] = {"job_s": result["timing"]["job_s"]}
+    return entry
+
+
+def write_record(rows: list[SettingRow], spec: SweepSpec, path: Path) -> None:
+    """Write the record of a sweep's finished jobs, atomically."""
+    payload = {"format": RECORD_FORMAT, "sweep": spec.name,
+               "jobs": [_record_entry(result) for row in rows for result in row.results]}
+    tmp = path.with_name(f".{path.name}.partial")
+    tmp.write_text(json.dumps(payload, indent=1, sort_keys=True) + "\n")
+    tmp.replace(path)
+
+
+def read_record(path: Path) -> dict[str, dict[str, Any]]:
+    """A sweep record's jobs by job key; empty when there is no record."""
+    try:
+        payload = json.loads(path.read_text())
+    except FileNotFoundError:
+        return {}
+    except (OSError, json.JSONDecodeError) as exc:
+        raise UserError(f"{path}: not a readable sweep record ({exc})") from None
+    if payload.get("format") != RECORD_FORMAT:
+        raise UserError(f"{path}: not a sweep record (format {payload.get('format')!r}, expected {RECORD_FORMAT!r})")
+    return {job["key"]: job for job in payload["jobs"]}
+
+
+def collect(spec: SweepSpec, sweep_dir: Path, record: dict[str, dict[str, Any]] | None = None) -> list[SettingRow]:
+    """Settings in the sweep file's order, each with the finished results of its jobs: from
+    ``sweep_dir``, else from ``record`` (``read_record``; a job's key names its settings, so a
+    recipe changed since the record was written finds no figures there)."""
     rows: dict[Any, SettingRow] = {}
     for job in spec.jobs():
         row = rows.setdefault(job.setting, SettingRow(job.scenario, job.point, len(spec.seeds)))
-        result = read_result(sweep_dir, job)
+        result = read_result(sweep_dir, job) or (record or {}).get(job.key)
         if result is not None:
             row.results.append(result)
     return list(rows.values())
@@ -129,9 +174,11 @@ def summary_table(rows: list[SettingRow], grid_keys: list[str]) -> tuple[list[st
     return header, body
 
 
-def write_summary(spec: SweepSpec, sweep_dir: Path, command: str = "") -> tuple[Path, str]:
-    """Write summary.md, summary.csv, throughput.png and learning_curves.png; returns (md, table)."""
-    rows = collect(spec, sweep_dir)
+def write_summary(spec: SweepSpec, sweep_dir: Path, command: str = "",
+                  record: dict[str, dict[str, Any]] | None = None) -> tuple[Path, str]:
+    """Write summary.md, summary.csv, throughput.png and learning_curves.png of the jobs in
+    ``sweep_dir`` and ``record`` (see ``collect``); returns (md, table)."""
+    rows = collect(spec, sweep_dir, record)
     grid_keys = list(spec.grid)
     header, body = summary_table(rows, grid_keys)
     finished = [r for r in rows if r.n]
@@ -168,9 +215,9 @@ def write_summary(spec: SweepSpec, sweep_dir: Path, command: str = "") -> tuple[
     return path, table
 
 
-def finished_rows(spec: SweepSpec, sweep_dir: Path) -> list[SettingRow]:
-    """The sweep's rows; a ValueError naming the unfinished scenarios if any job is missing."""
-    rows = collect(spec, sweep_dir)
+def finished_rows(spec: SweepSpec, sweep_dir: Path, record: dict[str, dict[str, Any]] | None = None) -> list[SettingRow]:
+    """The sweep's rows (see ``collect``); a UserError naming the unfinished scenarios if any job is missing."""
+    rows = collect(spec, sweep_dir, record)
     missing = [r.scenario for r in rows if r.n < r.expected_seeds]
     if missing:
         raise UserError(f"sweep {spec.name!r} in {sweep_dir} is not finished ({', '.join(missing)}): "
@@ -179,18 +226,19 @@ def finished_rows(spec: SweepSpec, sweep_dir: Path) -> list[SettingRow]:
 
 
 def results_section(spec: SweepSpec, sweep_dir: Path, assets: Path, link_prefix: Path,
-                    shipped_to: str = "policies/", level: str = "##") -> str:
+                    shipped_to: Path = Path("policies"), level: str = "##") -> str:
     """Markdown for docs/results.md: the across-seed table of a finished sweep and its figures,
-    copied to ``assets`` as ``sweep_<sweep name>_<figure>`` (linked as ``link_prefix/<file>``, so several
-    sweeps share one folder); its median seeds are shipped to ``shipped_to``."""
-    header, body = summary_table(finished_rows(spec, sweep_dir), list(spec.grid))
+    drawn into ``assets`` as ``sweep_<sweep name>_<figure>`` (linked as ``link_prefix/<file>``, so
+    several sweeps share one folder). Its median seeds are shipped to ``shipped_to``; the figures
+    come from ``sweep_dir``, else from the record shipped beside them."""
+    rows = finished_rows(spec, sweep_dir, read_record(record_path(shipped_to, spec)))
+    header, body = summary_table(rows, list(spec.grid))
     assets.mkdir(parents=True, exist_ok=True)
-    figures = []
     prefix = f"sweep_{spec.name}_"
-    for name in ("throughput.png", "learning_curves.png"):
-        if (sweep_dir / name).is_file():
-            shutil.copyfile(sweep_dir / name, assets / f"{prefix}{name}")
-            figures += [f"![{name[:-4]}]({link_prefix / f'{prefix}{name}'})", ""]
+    plot_throughput(rows, list(spec.grid), assets / f"{prefix}throughput.png")
+    plot_learning_curves(rows, list(spec.grid), assets / f"{prefix}learning_curves.png")
+    figures = [line for name in ("throughput", "learning_curves")
+               for line in (f"![{name}]({link_prefix / f'{prefix}{name}.png'})", "")]
     first = spec.jobs()[0].train_config()
     return "\n".join([
         f"{level} Table I across training seeds (sweep `{spec.name}`)",
@@ -198,7 +246,7 @@ def results_section(spec: SweepSpec, sweep_dir: Path, assets: Path, link_prefix:
         f"`uavlink sweep` of `{spec.name}` ({len(spec.seeds)} seeds per scenario, {first.episodes:,} "
         f"training episodes each, evaluation on {spec.eval['episodes']} episodes, seed {spec.eval['seed']}). "
         "PPO is the mean over training seeds ± the 95 % Student-t interval across seeds. The policies "
-        f"in `{shipped_to}` (the single-policy table above) are each scenario's median seed.",
+        f"in `{shipped_to}/` (the single-policy table above) are each scenario's median seed.",
         "",
         markdown_table(header, body),
         "",
@@ -268,16 +316,19 @@ def plot_learning_curves(rows: list[SettingRow], grid_keys: list[str], path: Pat
 
 
 def export_median_policies(spec: SweepSpec, sweep_dir: Path, dest: Path) -> list[tuple[str, Path, int]]:
-    """Copy each scenario's median-seed policy to ``dest/<scenario>.zip`` (manifest records the choice).
+    """Copy each scenario's median-seed policy to ``dest/<scenario>.zip`` (manifest records the
+    choice) and write the sweep's record beside them; returns the policies copied.
 
-    Needs one setting per scenario (no grid with several points) and every seed finished.
+    Needs one setting per scenario (no grid with several points) and every seed finished, in
+    ``sweep_dir`` or in the record already in ``dest``. A scenario whose median job is only in that
+    record keeps the policy shipped from it.
     """
     from uavlink.policies.manifest import read_zip_manifest, write_zip_manifest
 
     if len(spec.points()) > 1:
         raise UserError("--policies-out needs one setting per scenario: this sweep has a grid "
                          f"of {len(spec.points())} points")
-    rows = collect(spec, sweep_dir)
+    rows = collect(spec, sweep_dir, read_record(record_path(dest, spec)))
     missing = [r.scenario for r in rows if r.n < r.expected_seeds]
     if missing:
         raise UserError(f"--policies-out: not every seed finished for {', '.join(missing)}; rerun the sweep")
@@ -286,6 +337,12 @@ def export_median_policies(spec: SweepSpec, sweep_dir: Path, dest: Path) -> list
     for row in rows:
         chosen = row.median_result()
         out = dest / f"{row.scenario}.zip"
+        if not (sweep_dir / chosen["name"] / "policy.zip").is_file():
+            shipped_key = (read_zip_manifest(out).get("selection", {}).get("key") if out.is_file() else None)
+            if shipped_key != chosen["key"]:
+                raise UserError(f"--policies-out: {row.scenario}'s median job {chosen['name']} is in the record "
+                                f"but {out} is not its policy; rerun that job (delete {record_path(dest, spec)})")
+            continue
         tmp = dest / f".{row.scenario}.zip.partial"
         shutil.copyfile(sweep_dir / chosen["name"] / "policy.zip", tmp)
         manifest = read_zip_manifest(tmp)
@@ -300,14 +357,19 @@ def export_median_policies(spec: SweepSpec, sweep_dir: Path, dest: Path) -> list
         tmp.replace(out)
         tmp.with_suffix(".json").replace(out.with_suffix(".json"))
         written.append((row.scenario, out, chosen["seed"]))
+    write_record(rows, spec, record_path(dest, spec))
     return written
 
 
-def jobs_table(jobs: list[Job], sweep_dir: Path) -> str:
-    """One line per job with its status, for --dry-run."""
+def jobs_table(jobs: list[Job], sweep_dir: Path, recorded: Collection[str] = ()) -> str:
+    """One line per job with its status (``recorded``: keys of a shipped record's jobs), for --dry-run."""
+    def status(job: Job) -> str:
+        if (sweep_dir / job.name / "result.json").is_file():
+            return "done"
+        return "done (record)" if job.key in recorded else "to run"
+
     header = ["job", "scenario", "seed", "point", "status"]
-    body = [[j.name, j.scenario, str(j.seed), describe_point(j.point),
-             "done" if (sweep_dir / j.name / "result.json").is_file() else "to run"] for j in jobs]
+    body = [[j.name, j.scenario, str(j.seed), describe_point(j.point), status(j)] for j in jobs]
     return markdown_table(header, body)
 
 

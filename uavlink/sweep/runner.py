@@ -22,7 +22,7 @@ import signal
 import sys
 import time
 import traceback
-from collections.abc import Callable
+from collections.abc import Callable, Collection
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -62,8 +62,9 @@ class SweepOutcome:
         return self.skipped + self.finished == self.jobs
 
 
-def prepare(spec: SweepSpec, out_root: Path) -> tuple[Path, list[Job], list[Job]]:
-    """(sweep folder, all jobs, jobs without a result.json); records the sweep file and job list."""
+def prepare(spec: SweepSpec, out_root: Path, done_keys: Collection[str] = ()) -> tuple[Path, list[Job], list[Job]]:
+    """(sweep folder, all jobs, jobs without a result.json whose key is not in ``done_keys``);
+    records the sweep file and job list."""
     sweep_dir = out_root / spec.name
     sweep_dir.mkdir(parents=True, exist_ok=True)
     jobs = spec.jobs()
@@ -72,16 +73,18 @@ def prepare(spec: SweepSpec, out_root: Path) -> tuple[Path, list[Job], list[Job]
     listing = [{"key": j.key, "name": j.name, "scenario": j.scenario, "seed": j.seed, "point": j.point}
                for j in jobs]
     (sweep_dir / "jobs.json").write_text(json.dumps(listing, indent=1) + "\n")
-    pending = [j for j in jobs if not (sweep_dir / j.name / "result.json").is_file()]
+    pending = [j for j in jobs if j.key not in done_keys and not (sweep_dir / j.name / "result.json").is_file()]
     return sweep_dir, jobs, pending
 
 
 def run_sweep(spec: SweepSpec, out_root: Path, scheduler: str | None = None, workers: int | None = None,
               retries: int = 2, progress: bool = True,
-              log: Callable[[str], None] = lambda msg: print(msg, file=sys.stderr)) -> SweepOutcome:
-    """Run every job of ``spec`` that has no result yet; returns what happened."""
+              log: Callable[[str], None] = lambda msg: print(msg, file=sys.stderr),
+              done_keys: Collection[str] = ()) -> SweepOutcome:
+    """Run every job of ``spec`` that has no result yet (in ``out_root`` or, by key, in ``done_keys``:
+    a shipped sweep record's jobs); returns what happened."""
     start = time.perf_counter()
-    sweep_dir, jobs, pending = prepare(spec, out_root)
+    sweep_dir, jobs, pending = prepare(spec, out_root, done_keys)
     outcome = SweepOutcome(sweep_dir, len(jobs), len(jobs) - len(pending))
     log(f"sweep {spec.name}: {len(jobs)} jobs, {outcome.skipped} already done, {len(pending)} to run "
         f"-> {sweep_dir}")
