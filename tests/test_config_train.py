@@ -148,8 +148,8 @@ def test_cli_refuses_bad_values_in_one_line(tmp_path: Path, capsys) -> None:
 
 
 def test_old_and_new_manifests_load() -> None:
-    for path in sorted((ROOT / "policies").glob("*.json")):
-        hyper = json.loads(path.read_text())["training"]["hyperparameters"]
+    for policy in sorted((ROOT / "policies").glob("*.zip")):  # each manifest, not a sweep record
+        hyper = json.loads(policy.with_suffix(".json").read_text())["training"]["hyperparameters"]
         tc = TrainConfig.from_dict(hyper).validate()  # flat warm_start_* keys, or none (mixed.json)
         assert tc.warm_start.teacher == hyper.get("warm_start_teacher", "") and tc.episodes == hyper["episodes"]
         assert TrainConfig.from_dict(tc.to_dict()) == tc
