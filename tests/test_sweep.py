@@ -346,8 +346,9 @@ def _changed_train_fields(tc: TrainConfig) -> list[tuple[str, object]]:
     out = []
     for f, _ in config_fields(TrainConfig):
         if f.name == "warm_start":
-            out += [(f"warm_start.{w.name}", other[type(getattr(tc.warm_start, w.name))](
-                getattr(tc.warm_start, w.name))) for w, _ in config_fields(WarmStartConfig)]
+            out += [(f"warm_start.{w.name}", "policies/spatial/no_move.zip" if w.name == "leader_policy"  # a file
+                     else other[type(getattr(tc.warm_start, w.name))](getattr(tc.warm_start, w.name)))
+                    for w, _ in config_fields(WarmStartConfig)]
         else:
             out.append((f.name, other[type(getattr(tc, f.name))](getattr(tc, f.name))))
     return out
@@ -381,6 +382,29 @@ def test_a_new_warm_start_field_at_its_default_keeps_the_old_keys() -> None:
     led = parse_spec({"seeds": [0], "env": {"n_uavs": 2}, "train": {"warm_start": {
         "teacher": "lead", "leader_policy": "policies/spatial/no_move.zip"}}}).jobs()[0]
     assert lead.key != led.key
+
+
+def test_a_lead_jobs_key_names_its_leaders_bytes(tmp_path: Path, monkeypatch) -> None:
+    """The lead teacher's leader is a file: the key hashes its bytes, so a re-shipped leader makes
+    new jobs (a sweep record's figures of the old ones no longer count), and a job carries the hash
+    to its worker unchanged. A leader that is not there fails at load time, naming the path."""
+    monkeypatch.chdir(tmp_path)
+    leader = tmp_path / "leader.zip"
+    data = {"seeds": [0], "env": {"n_uavs": 2}, "train": {"warm_start": {"teacher": "lead", "leader_policy": "leader.zip"}}}
+
+    def key() -> str:
+        return parse_spec(data).jobs()[0].key
+
+    leader.write_bytes(b"one")
+    first = key()
+    assert key() == first
+    job = parse_spec(data).jobs()[0]
+    leader.write_bytes(b"two")
+    assert key() != first
+    assert Job.from_dict(job.to_dict()).key == first  # the worker keeps the hash the job was made with
+    leader.unlink()
+    with pytest.raises(UserError, match="leader.zip: cannot read it"):
+        key()
 
 
 @pytest.mark.slow

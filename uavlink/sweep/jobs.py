@@ -12,6 +12,7 @@ Two environment variables, read on the worker, exist for tests and debugging and
 
 from __future__ import annotations
 
+import hashlib
 import json
 import os
 import shutil
@@ -45,6 +46,9 @@ def run_job(job_data: dict[str, Any]) -> dict[str, Any]:
     from uavlink.training import train
 
     cfg, tc = job.env_config(), job.train_config()
+    leader = tc.warm_start.leader_policy
+    if leader and hashlib.sha256(Path(leader).read_bytes()).hexdigest() != job.leader_sha256:
+        raise RuntimeError(f"job {job.key}: {leader} on this worker is not the leader policy the job was made with")
     with tempfile.TemporaryDirectory(prefix=f"uavlink-{job.key}-") as tmp:
         path = Path(tmp) / "policy.zip"
         t0 = time.perf_counter()

@@ -91,9 +91,17 @@ class Job:
     env: EnvConfig
     train: TrainConfig
     eval: dict[str, int]
+    leader_sha256: str = ""  # the lead teacher's leader policy file, hashed where the job is made
     key: str = field(default="", init=False)
 
     def __post_init__(self) -> None:
+        leader = self.train.warm_start.leader_policy
+        if leader and not self.leader_sha256:
+            try:
+                self.leader_sha256 = hashlib.sha256(Path(leader).read_bytes()).hexdigest()
+            except OSError as exc:
+                raise SweepSpecError(f"{self.sweep}: warm_start.leader_policy {leader}: cannot read it "
+                                     f"({exc.strerror}); paths are relative to where the sweep runs") from None
         self.key = hashlib.sha256(json.dumps(self.settings(), sort_keys=True).encode()).hexdigest()[:12]
 
     @property
@@ -119,17 +127,23 @@ class Job:
         train = self.train.to_dict()
         train["warm_start"] = {k: v for k, v in train["warm_start"].items()
                                if k not in NEUTRAL_WARM_START_DEFAULTS or v != NEUTRAL_WARM_START_DEFAULTS[k]}
+        if self.leader_sha256:
+            # The leader's bytes, not only its path: a re-shipped leader makes the job (and a sweep
+            # record's figures of it) another one.
+            train["warm_start"]["leader_policy_sha256"] = self.leader_sha256
         return {"key_version": KEY_VERSION, "env": env, "train": train,
                 "eval": {**self.eval, "policies": ["ppo", *BASELINE_COLUMNS]}}
 
     def to_dict(self) -> dict[str, Any]:
         return {"sweep": self.sweep, "scenario": self.scenario, "seed": self.seed, "point": self.point,
-                "env": self.env.to_dict(), "train": self.train.to_dict(), "eval": self.eval, "key": self.key}
+                "env": self.env.to_dict(), "train": self.train.to_dict(), "eval": self.eval,
+                "leader_sha256": self.leader_sha256, "key": self.key}
 
     @classmethod
     def from_dict(cls, data: dict[str, Any]) -> Job:
         job = cls(data["sweep"], data["scenario"], data["seed"], dict(data["point"]),
-                  EnvConfig.from_dict(data["env"]), TrainConfig.from_dict(data["train"]), dict(data["eval"]))
+                  EnvConfig.from_dict(data["env"]), TrainConfig.from_dict(data["train"]), dict(data["eval"]),
+                  data.get("leader_sha256", ""))
         if data.get("key", job.key) != job.key:
             raise ValueError(f"job {data['key']}: settings hash to {job.key} here (another uavlink version?)")
         return job
