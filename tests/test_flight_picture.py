@@ -153,7 +153,9 @@ def test_fleet_picture_one_colour_per_vehicle_ues_by_serving_uav(tmp_path: Path)
     assert set(np.unique(serving)) == {0, 1}  # both cells hold UEs
     start = [np.hypot(v.east_m[0], v.north_m[0]) for v in data.vehicles]
     assert all(abs(r - EnvConfig().fleet_start_radius_m) < 5.0 for r in start)  # their spawn points
-    assert png_pixels(tmp_path / "flight.png").shape == (PICTURE_PX[1], PICTURE_PX[0], 3)
+    drawn = plot_json(str(tmp_path / "flight.tlog"), "--out", str(tmp_path / "again.png"))
+    assert drawn["tracks"] == 2 and drawn["ue_tracks"] == 10
+    assert np.array_equal(png_pixels(tmp_path / "flight.png"), png_pixels(tmp_path / "again.png"))
 
 
 class _SpySource(MavlinkRadioSource):

@@ -8,12 +8,16 @@ Any .tlog works (8-byte big-endian microsecond timestamp + raw packet per record
 - radio frames: each vehicle's UL_RADIO readings (:mod:`uavlink.mavlink.radio_codec`) of the running
   episode (SINR and sensed AoA per UE, its cell in a fleet), the vehicle's position at each frame
   interpolated at the frame's simulated time; the team's UL_SCORE (mean UE rate) per frame;
-- decision frames: the frames a vehicle spent in OFFBOARD (the policy steering it). When there are
+- decision frames: the frames a vehicle flew in OFFBOARD (the policy steering it), from the frame's
+  readings to the next frame's. When there are
   any, the picture keeps the frames from the first to the last decision (take-off and landing
   leave the radio payload counting frames that no policy decided); without, every running frame;
 - UEs: the simulation's truth (ADSB_VEHICLE, :mod:`uavlink.mavlink.ue_truth`), each fix tagged with
   the frame of its sender's latest readings, placed through the local origin (HOME_POSITION);
 - the fence: the inclusion polygon uploaded over the mission protocol (MISSION_ITEM_INT, FENCE).
+
+A log of several flights (a ground station's session with a vehicle that starts a new radio episode
+per flight) gives the radio frames of the last one; the tracks are the whole log's.
 
 A log that is empty, or where no MAVLink message or no vehicle position can be read, raises
 :class:`~uavlink.errors.UserError`. A log cut short (a flight killed while writing) reads up to the
@@ -38,6 +42,7 @@ from uavlink.mavlink.ue_truth import decode_ue_fix
 
 WANTED = ["HEARTBEAT", "LOCAL_POSITION_NED", "GLOBAL_POSITION_INT", "HOME_POSITION",
           "DEBUG_FLOAT_ARRAY", "ADSB_VEHICLE", "MISSION_ITEM_INT"]
+RESTART_FRAMES = 3  # a running frame this far below the newest: a new episode, not a late copy
 FENCE_MISSION_TYPE = mavlink.MAV_MISSION_TYPE_FENCE
 FENCE_VERTEX = mavlink.MAV_CMD_NAV_FENCE_POLYGON_VERTEX_INCLUSION
 
@@ -57,7 +62,7 @@ class VehicleTrack:
     sinr_db: np.ndarray  # (F, U) what its base station sensed
     aoa_deg: np.ndarray  # (F, U) sensed angle of arrival, deg from east
     serves: np.ndarray | None  # (F, U) bool: its cell (a fleet's), None when not reported
-    decided: np.ndarray  # (F,) bool: in OFFBOARD at that frame (a decision frame)
+    decided: np.ndarray  # (F,) bool: flew that frame in OFFBOARD (a decision frame)
 
 
 @dataclass
@@ -79,7 +84,8 @@ class FlightData:
 
     @property
     def decision_frames(self) -> int:
-        return int(max((v.decided.sum() for v in self.vehicles), default=0))
+        """Frames in which some UAV decided (was in OFFBOARD)."""
+        return len(set().union(*(v.frames[v.decided].tolist() for v in self.vehicles)))
 
     def serving_uav(self) -> np.ndarray:
         """(K, U) index into ``vehicles`` of each UE's serving UAV per frame (-1: unknown);
@@ -138,11 +144,14 @@ class _Reader:
             if which == "readings":
                 self.last_frame[sys_id] = msg.array_id
                 n = int(data[0])
-                if 0 < n <= MAX_UES and data[1 + 2 * n] == 1.0 and msg.array_id not in self.readings.get(sys_id, {}):
-                    self.readings.setdefault(sys_id, {})[msg.array_id] = (
-                        msg.time_usec * 1e-6, tuple(data[:2 + 3 * n]), self.offboard.get(sys_id, False))
+                if 0 < n <= MAX_UES and data[1 + 2 * n] == 1.0:
+                    got = self.readings.setdefault(sys_id, {})
+                    if got and msg.array_id < max(got) - RESTART_FRAMES:
+                        got.clear()  # the payload started a new episode: draw the latest flight
+                    got.setdefault(msg.array_id, (msg.time_usec * 1e-6, tuple(data[:2 + 3 * n]),
+                                                  self.offboard.get(sys_id, False)))
             elif which == "score":
-                self.scores.setdefault(msg.array_id, float(data[1]))
+                self.scores[msg.array_id] = float(data[1])
         elif kind == "ADSB_VEHICLE":
             fix = decode_ue_fix(msg)
             if fix is not None and sys_id in self.last_frame:
@@ -273,6 +282,10 @@ def _track(system: int, r: _Reader, origin: GeoOrigin | None, n_ues: int) -> Veh
         sinr[row, :n], aoa[row, :n] = data[1:1 + n], data[1 + n:1 + 2 * n]
         flags[row, :n] = data[2 + 2 * n:2 + 3 * n]
         decided[row], frame_t[row] = offboard, time_s
+    # A decision frame: flown under OFFBOARD from its readings to the next frame's (the frame
+    # after the last decision arrives in OFFBOARD too, but then the loop hands the vehicle back).
+    then = np.append(decided[1:], r.offboard.get(system, False))
+    decided &= then
     serves = flags > 0 if (flags != 0).any() else None
     fe = np.interp(frame_t, t, east) if len(t) else np.full(len(frames), np.nan)
     fn = np.interp(frame_t, t, north) if len(t) else np.full(len(frames), np.nan)

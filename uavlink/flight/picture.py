@@ -96,6 +96,10 @@ def draw_map(ax, data: FlightData, upto: int | None = None, bearings: bool = Tru
     ax.set_xlim(-half, half)
     ax.set_ylim(-half, half)
     ax.set_aspect("equal")
+    from matplotlib.ticker import MaxNLocator
+
+    for axis in (ax.xaxis, ax.yaxis):  # few ticks: each is text to lay out and draw
+        axis.set_major_locator(MaxNLocator(6, steps=[1, 2, 5, 10]))
     ax.set_xlabel("east (m)")
     ax.set_ylabel("north (m)")
     ax.grid(True, lw=0.4, alpha=0.4)
@@ -104,7 +108,7 @@ def draw_map(ax, data: FlightData, upto: int | None = None, bearings: bool = Tru
         ax.plot(poly[:, 0], poly[:, 1], "k--", lw=1.2, label="fence")
     serving = data.serving_uav()
     ue_colour = ue_colours(max(data.ue_east_m.shape[1], data.n_ues))
-    ue_tracks = 0
+    ue_tracks, segments, colours, ends = 0, [], [], []
     for ue in range(data.ue_east_m.shape[1]):
         e, n = data.ue_east_m[:rows, ue], data.ue_north_m[:rows, ue]
         ok = np.isfinite(e)
@@ -112,15 +116,21 @@ def draw_map(ax, data: FlightData, upto: int | None = None, bearings: bool = Tru
             continue
         ue_tracks += 1
         cell = serving[:rows, ue] if ue < serving.shape[1] else np.full(rows, -1)
+        # one piece per stretch under one serving UAV (a handover changes the colour)
         starts = [i for i in range(rows) if ok[i] and (i == 0 or cell[i] != cell[i - 1] or not ok[i - 1])]
         for s, end in zip(starts, [*starts[1:], rows], strict=True):
-            colour = uav_colour(cell[s]) if cell[s] >= 0 else "0.55"
-            ax.plot(e[s:min(end + 1, rows)], n[s:min(end + 1, rows)], "-", color=colour, lw=1.0, alpha=0.45)
+            segments.append(np.column_stack([e[s:end + 1], n[s:end + 1]]))
+            colours.append(uav_colour(cell[s]) if cell[s] >= 0 else "0.55")
         last = np.flatnonzero(ok)[-1]
-        colour = uav_colour(cell[last]) if cell[last] >= 0 else "0.55"
-        ax.plot(e[last], n[last], "o", ms=6, mfc=colour, mec="white", mew=0.8, zorder=4)
+        ends.append((e[last], n[last], uav_colour(cell[last]) if cell[last] >= 0 else "0.55"))
         ax.annotate(str(ue), (e[last], n[last]), xytext=(4, 3), textcoords="offset points",
                     fontsize=7, color=ue_colour[ue], fontweight="bold", zorder=5)
+    if segments:
+        from matplotlib.collections import LineCollection
+
+        ax.add_collection(LineCollection(segments, colors=colours, linewidths=1.0, alpha=0.45))
+        east, north, face = zip(*ends, strict=True)
+        ax.scatter(east, north, s=36, c=list(face), edgecolors="white", linewidths=0.8, zorder=4)
     n_bearings = 0
     for d, v in enumerate(data.vehicles):
         colour = uav_colour(d)
@@ -185,6 +195,7 @@ def draw_flight(data: FlightData, out: Path, title: str | None = None) -> Pictur
     ax_sinr = fig.add_subplot(grid[2], sharex=ax_rate)
     _draw_rate(ax_rate, data)
     _draw_sinr(ax_sinr, data)
+    ax_rate.tick_params(labelbottom=False)  # the SINR panel below labels the shared frame axis
     frame_s = _frame_s(data)
     ax_sinr.set_xlabel("radio frame" + (f" ({frame_s:.3g} s each)" if frame_s else ""))
     mean = np.nanmean(data.mean_rate_mbps) if np.isfinite(data.mean_rate_mbps).any() else None
@@ -253,8 +264,10 @@ def _draw_sinr(ax, data: FlightData) -> None:
         rows = np.searchsorted(data.frames, v.frames)
         mine = serving[rows] == d
         sinr[rows] = np.where(mine, v.sinr_db, sinr[rows])
-    colours = ue_colours(data.n_ues)
-    for ue in range(data.n_ues):
-        ax.plot(data.frames, sinr[:, ue], "-", color=colours[ue], lw=0.9, alpha=0.85)
+    from matplotlib.collections import LineCollection
+
+    lines = [np.column_stack([data.frames, sinr[:, ue]]) for ue in range(data.n_ues)]
+    ax.add_collection(LineCollection(lines, colors=ue_colours(data.n_ues), linewidths=0.9, alpha=0.85))
+    ax.autoscale_view()
     ax.text(1.0, 1.02, "one line per UE (colour: UE number on the map)", transform=ax.transAxes,
             ha="right", fontsize=7.5, color="0.35")
