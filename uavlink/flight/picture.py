@@ -186,7 +186,7 @@ def _legend_handles(data: FlightData):
 def draw_flight(data: FlightData, out: Path, title: str | None = None) -> PictureInfo:
     """The flight picture as a PNG at ``out``; PlotUnavailable without matplotlib."""
     fig = new_figure(7.6, 10.4, 100)
-    grid = fig.add_gridspec(3, 1, height_ratios=[3.4, 1.0, 1.2], hspace=0.3,
+    grid = fig.add_gridspec(3, 1, height_ratios=[3.5, 1.0, 1.25], hspace=0.2,
                             left=0.12, right=0.97, top=0.935, bottom=0.055)
     ax_map = fig.add_subplot(grid[0])
     drawn = draw_map(ax_map, data)
