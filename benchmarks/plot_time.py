@@ -11,7 +11,8 @@ what the drawing itself costs, the wall time it takes on an idle core (it runs o
 Target (issue 25): under 2 s for a 128-frame flight on 2 cores. With --gif, the animation's time,
 frames and size too.
 
-    python benchmarks/plot_time.py [--tlog FLIGHT.tlog] [--frames 128] [--repeats 3] [--gif] [--json]
+    python benchmarks/plot_time.py [--tlog FLIGHT.tlog] [--frames 128] [--speed 20] [--repeats 3]
+                                   [--gif] [--json]
 """
 
 from __future__ import annotations
@@ -63,8 +64,9 @@ def _child(tlog: Path, out: Path, gif: bool) -> dict:
     return json.loads(proc.stdout)
 
 
-def _fly(frames: int, out: Path) -> dict:
+def _fly(frames: int, speed: float, out: Path) -> dict:
     cmd = [sys.executable, "-m", "uavlink.cli", "fly", "--policy", "aoa", "--frames", str(frames),
+           "--speed", f"{speed:g}",
            "--out", str(out), "--no-picture", "--json", "--quiet"]
     proc = subprocess.run(cmd, capture_output=True, text=True, cwd=ROOT, timeout=600)
     if proc.returncode != 0:
@@ -76,6 +78,8 @@ def main(argv: Sequence[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--tlog", type=Path, default=None, help="a flight's tlog (default: fly one)")
     parser.add_argument("--frames", type=int, default=128, help="frames to fly without --tlog")
+    parser.add_argument("--speed", type=float, default=20.0,
+                        help="the flight's speed factor (lower it on a loaded machine)")
     parser.add_argument("--repeats", type=int, default=3, help="pictures drawn, each in a new process")
     parser.add_argument("--gif", action="store_true", help="time the animation too (once)")
     parser.add_argument("--json", action="store_true")
@@ -84,7 +88,7 @@ def main(argv: Sequence[str] | None = None) -> int:
         flight = None
         tlog = args.tlog
         if tlog is None:
-            flight = _fly(args.frames, Path(tmp) / "fly")
+            flight = _fly(args.frames, args.speed, Path(tmp) / "fly")
             tlog = Path(flight["tlog"])
         tlog_bytes = tlog.stat().st_size
         load_before = os.getloadavg()[0]
