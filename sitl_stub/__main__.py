@@ -149,6 +149,10 @@ def build_parser() -> argparse.ArgumentParser:
                    help="MAVLink system id of the vehicle and its payloads (PX4's MAV_SYS_ID; "
                    "default: instance + 1)")
     p.add_argument("--no-payload", action="store_true", help="run without the radio payload")
+    p.add_argument("--no-ue-truth", action="store_true",
+                   help="do not send the simulated UE positions (one ADSB_VEHICLE per UE per frame "
+                   "from the radio payload, the simulation's truth that ground stations draw as "
+                   "traffic and `uavlink plot` draws as UE tracks)")
     p.add_argument("--signing-key", metavar="FILE", default=None,
                    help="MAVLink 2 signing key (32 raw bytes, e.g. from `uavlink keygen`): sign "
                    "everything sent, drop every unsigned, wrongly signed or replayed packet")
@@ -165,16 +169,16 @@ def main(argv: Sequence[str] | None = None, payload_factory: PayloadFactory | No
     home = GeoOrigin(args.home_lat, args.home_lon, args.home_alt)
     try:
         home.validate()
+        options = PayloadOptions(args.scenario, args.seed, args.aoa_noise_deg, tuple(args.settings),
+                                 home, not args.no_ue_truth)
         payloads = [] if args.no_payload or args.fleet else as_payload_list(
-            (payload_factory or default_payload_factory)(
-                PayloadOptions(args.scenario, args.seed, args.aoa_noise_deg, tuple(args.settings))))
+            (payload_factory or default_payload_factory)(options))
         key = load_key(args.signing_key) if args.signing_key else None
         config = ServerConfig(connect=args.connect, instance=args.instance, speed=args.speed,
                               home=home, params=dict(args.param), system_id=args.system_id,
                               duration_s=args.duration_s, signing_key=key)
         server = (SitlServer(config, payloads) if args.fleet is None
-                  else _fleet(args, config, PayloadOptions(args.scenario, args.seed, args.aoa_noise_deg,
-                                                           tuple(args.settings))))
+                  else _fleet(args, config, options))
     except ValueError as exc:
         parser.error(str(exc))
     try:
@@ -215,7 +219,8 @@ def _fleet(args: argparse.Namespace, base: ServerConfig, options: PayloadOptions
         raise ValueError(f"--instance {args.instance} --fleet {args.fleet} needs instances up to "
                          f"{args.instance + args.fleet - 1}, more than {MAX_INSTANCE}")
     cfg = fleet_env(options, args.fleet)
-    world = None if args.no_payload else FleetWorld(cfg, args.seed)
+    world = None if args.no_payload else FleetWorld(
+        cfg, args.seed, options.home if options.ue_truth else None)
     return FleetServer(fleet_configs(base, args.fleet, spawn_points_ne(cfg)), world)
 
 

@@ -38,9 +38,11 @@ from sitl_stub.clock import SimClock
 from sitl_stub.mavlink_server import LOOP_WAIT_S, ServerConfig, SitlServer
 from sitl_stub.modes import FlightMode
 from sitl_stub.payload import MAV_AUTOPILOT_INVALID, PayloadOptions
+from sitl_stub.ue_truth import send_ue_truth
 from sitl_stub.vehicle_state import VehicleState
 from uavlink.config import EnvConfig
 from uavlink.env.radio_world import RadioWorld
+from uavlink.mavlink.geo import GeoOrigin
 from uavlink.mavlink.radio_codec import (
     RADIO_COMPONENT_ID,
     READINGS_NAME,
@@ -73,10 +75,13 @@ def spawn_points_ne(cfg: EnvConfig) -> list[tuple[float, float]]:
 
 
 class FleetWorld:
-    """One radio world with ``cfg.n_uavs`` UAVs; one :class:`FleetRadioView` per vehicle."""
+    """One radio world with ``cfg.n_uavs`` UAVs; one :class:`FleetRadioView` per vehicle.
+    ``truth_origin``: the fleet's LOCAL_NED origin, where the first vehicle's payload places the
+    UEs it sends as ADSB_VEHICLE (:mod:`sitl_stub.ue_truth`; once for the fleet); None: not sent."""
 
-    def __init__(self, cfg: EnvConfig, seed: int) -> None:
+    def __init__(self, cfg: EnvConfig, seed: int, truth_origin: GeoOrigin | None = None) -> None:
         self.cfg = cfg
+        self.truth_origin = truth_origin
         self.frame_s = self.cfg.frame_s
         self.world = RadioWorld(self.cfg, seed)
         self.started = False
@@ -124,6 +129,8 @@ class FleetRadioView:
         data = encode_readings(r.sinr_db, r.aoa_deg, fleet.started, r.serves)
         for _ in range(READINGS_COPIES):
             mav.debug_float_array_send(usec, READINGS_NAME.encode(), frame, data)
+        if self.uav == 0 and fleet.truth_origin is not None:
+            send_ue_truth(mav, fleet.world, fleet.truth_origin)
 
     def summary(self) -> dict[str, Any]:
         return {"uav": self.uav, **self.fleet.summary()}

@@ -32,6 +32,7 @@ from dataclasses import dataclass
 from typing import Any, Protocol, runtime_checkable
 
 from sitl_stub.vehicle_state import VehicleState
+from uavlink.mavlink.geo import GeoOrigin
 
 log = logging.getLogger(__name__)
 
@@ -63,6 +64,8 @@ class PayloadOptions:
     seed: int = 0
     aoa_noise_deg: float = 0.0
     settings: tuple[tuple[str, object], ...] = ()  # --set KEY=VALUE: the radio payload's env fields
+    home: GeoOrigin = GeoOrigin()  # the LOCAL_NED origin: where the UE truth is placed on Earth
+    ue_truth: bool = True  # send the simulated UEs as ADSB_VEHICLE (sitl_stub.ue_truth)
 
 
 @dataclass

@@ -13,7 +13,9 @@ frames from the episode and draw nothing from its random streams.
 Each frame's readings go out ``READINGS_COPIES`` times (the flight loop drops the repeats by frame
 number): over a link that loses packets independently, a frame's decision is lost only when every
 copy is (30 % loss: 9 % of frames with two copies instead of 30 %). Bursts that eat both copies
-still cost that frame's decision. The score (truth, for logs) goes once.
+still cost that frame's decision. The score (truth, for logs) goes once, and so does each UE's
+position (truth, for ground pictures: ADSB_VEHICLE, :mod:`sitl_stub.ue_truth`) unless
+``PayloadOptions.ue_truth`` is off.
 """
 
 from __future__ import annotations
@@ -22,6 +24,7 @@ from typing import Any
 
 from sitl_stub.modes import FlightMode
 from sitl_stub.payload import MAV_AUTOPILOT_INVALID, PayloadOptions
+from sitl_stub.ue_truth import send_ue_truth
 from sitl_stub.vehicle_state import VehicleState
 from uavlink.config import EnvConfig
 from uavlink.env.radio_world import RadioWorld
@@ -49,6 +52,7 @@ class RadioPayload:
                              f"{self.cfg.n_uavs} (one vehicle serves one UAV)")
         self.frame_s = self.cfg.frame_s
         self.world = RadioWorld(self.cfg, options.seed)
+        self.truth_origin = options.home if options.ue_truth else None
         self.started = False
         self.frame_rates_mbps: list[float] = []  # the truth per scored frame 1, 2, ...
 
@@ -66,6 +70,8 @@ class RadioPayload:
         data = encode_readings(readings.sinr_db, readings.aoa_deg, self.started)
         for _ in range(self.READINGS_COPIES):
             self._send(mav, sim_time_s, READINGS_NAME, data)
+        if self.truth_origin is not None:
+            send_ue_truth(mav, self.world, self.truth_origin)
 
     def summary(self) -> dict[str, Any]:
         """Vehicle-side truth of the episode (whatever the link lost): mean UE rate over its

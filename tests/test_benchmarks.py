@@ -77,3 +77,12 @@ def test_teacher_search_compares_variants_with_the_rule_and_picks_one_that_loses
     assert set(row["true_shadow_gate_mbps_r_fair"]) == {"0", "1.5", "3", "4.5"}
     (clone,) = row["clones_of_pick"]
     assert (clone["teacher_episodes"], clone["epochs"]) == (4, 2) and np.isfinite(clone["mbps"])
+
+
+def test_plot_time_draws_a_flown_flight_and_times_its_parts() -> None:
+    result = run_json("plot_time.py", "--frames", "8", "--speed", "10", "--repeats", "1")
+    assert result["frames"] >= 8 and result["decision_frames"] >= 6 and result["flight_wall_s"] > 0
+    parts = result["parts_s_median"]
+    assert result["picture_s_median"] == parts["total_s"] > 0
+    assert parts["total_s"] >= parts["read_s"] + parts["import_s"] + parts["draw_s"] - 1e-3
+    assert parts["total_cpu_s"] > 0 and result["target_s"] == 2.0

@@ -1,4 +1,4 @@
-"""The ``uavlink`` command line: train | evaluate | fly | export | sweep.
+"""The ``uavlink`` command line: train | evaluate | fly | plot | export | sweep | keygen.
 
 User errors (bad arguments, unknown scenarios, unusable policy files) print one line on stderr and
 exit with status 2, without a traceback. Heavy modules are imported only by the command that needs them.
@@ -338,8 +338,10 @@ def build_parser() -> argparse.ArgumentParser:
     p.set_defaults(func=cmd_keygen)
 
     from uavlink.flight.fly import add_fly_parser
+    from uavlink.flight.plot_command import add_plot_parser
 
     add_fly_parser(sub)
+    add_plot_parser(sub)
     return parser
 
 

@@ -57,6 +57,14 @@ class RadioWorld:
         r = self._env.readings
         return UavReadings(r.heard_sinr_db[0, uav], r.heard_aoa_deg[0, uav], r.serving[0] == uav)
 
+    def ue_xy_m(self) -> np.ndarray:
+        """(U, 2) the UEs' true positions now, metres east and north (truth: for pictures only)."""
+        return self._env.mobility.position_m[0].copy()
+
+    def ue_velocity_mps(self) -> np.ndarray:
+        """(U, 2) the UEs' true velocities now, m/s east and north (truth: for pictures only)."""
+        return self._env.mobility.velocity_mps[0].copy()
+
     def advance(self, uav_xy_m: np.ndarray) -> FrameScore:
         """Move the UEs one frame with the UAVs at ``uav_xy_m`` ((n_uavs, 2) or (2,), metres east
         and north, clipped to the area) and score the new frame."""

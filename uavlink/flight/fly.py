@@ -16,6 +16,7 @@ import numpy as np
 from uavlink.config import changed_settings
 from uavlink.errors import UserError
 from uavlink.flight.fly_fleet import run_fleet_fly, split_urls
+from uavlink.flight.plot_command import picture_after_flight
 from uavlink.mavlink.connection import free_udp_port
 from uavlink.policies.contract import OVERRIDES_HELP, EnvOverrides, load_with_env
 
@@ -95,6 +96,8 @@ def run_fly(args: argparse.Namespace) -> int:
         "signing": link.signing.stats() if link.signing else None,
         "link_rejected": link.rejects.as_dict(),
     }
+    if not getattr(args, "no_picture", False):
+        summary.update(picture_after_flight(tlog, out_dir / "flight.png"))
     (out_dir / "summary.json").write_text(json.dumps(summary, indent=2) + "\n")
     if args.json:
         print(json.dumps(summary, indent=2))
@@ -102,7 +105,8 @@ def run_fly(args: argparse.Namespace) -> int:
         print(f"flew {summary['frames']} frames of {cfg.scenario!r} with {args.policy}: "
               f"mean UE throughput {summary['mean_rate_mbps']} Mbps; decision latency p50 "
               f"{summary['latency_ms_p50']} ms, p99 {summary['latency_ms_p99']} ms; "
-              f"log {tlog}, summary {out_dir / 'summary.json'}")
+              f"log {tlog}, summary {out_dir / 'summary.json'}"
+              + (f", picture {summary['picture']}" if summary.get("picture") else ""))
     return 130 if result.interrupted else 0
 
 
@@ -129,7 +133,10 @@ def add_fly_parser(sub) -> None:
                         "e.g. --set radio.shadowing=false")
     p.add_argument("--speed", type=float, default=20.0, help="embedded SITL speed factor")
     p.add_argument("--frames", type=int, default=128, help="decision frames to fly (one episode: 128)")
-    p.add_argument("--out", type=Path, default=Path("runs/fly"), help="folder for flight.tlog and summary.json")
+    p.add_argument("--out", type=Path, default=Path("runs/fly"),
+                   help="folder for flight.tlog, summary.json and flight.png (the flight's picture, "
+                        "as `uavlink plot` draws it; needs pip install 'uavlink[plot]')")
+    p.add_argument("--no-picture", action="store_true", help="do not draw flight.png")
     p.add_argument("--json", action="store_true", help="print the summary as JSON")
     p.add_argument("--quiet", action="store_true", help="no live status line")
     p.add_argument("--signing-key", metavar="FILE", default=None,

@@ -13,6 +13,7 @@ from pathlib import Path
 
 from uavlink.config import EnvConfig, changed_settings
 from uavlink.errors import UserError
+from uavlink.flight.plot_command import picture_after_flight
 from uavlink.mavlink.connection import free_udp_port, normalize_connection
 from uavlink.policies.base import Policy
 
@@ -75,6 +76,8 @@ def run_fleet_fly(args: argparse.Namespace, policy: Policy, cfg: EnvConfig, key:
     summary = {"scenario": cfg.scenario, "policy": str(args.policy), "seed": args.seed,
                "connect": args.connect or "embedded sitl_stub --fleet", "speed_factor": round(speed, 2),
                **fleet, "wall_s": round(time.monotonic() - start, 2), "tlog": str(tlog)}
+    if not getattr(args, "no_picture", False):
+        summary.update(picture_after_flight(tlog, out_dir / "flight.png"))
     (out_dir / "summary.json").write_text(json.dumps(summary, indent=2) + "\n")
     if args.json:
         print(json.dumps(summary, indent=2))
@@ -84,5 +87,6 @@ def run_fleet_fly(args: argparse.Namespace, policy: Policy, cfg: EnvConfig, key:
         print(f"flew {summary['frames']} frames of {cfg.scenario!r} with {args.policy} and "
               f"{cfg.n_uavs} vehicles: mean UE throughput {summary['mean_rate_mbps']} Mbps; "
               f"min separation flown {summary['min_separation_flown_m']} m; {per}; "
-              f"log {tlog}, summary {out_dir / 'summary.json'}")
+              f"log {tlog}, summary {out_dir / 'summary.json'}"
+              + (f", picture {summary['picture']}" if summary.get("picture") else ""))
     return 130 if result.interrupted else 0

@@ -1,0 +1,266 @@
+"""Flight pictures: flight.png after `uavlink fly`, `uavlink plot FLIGHT.tlog [--gif]` on logs written
+by fly, by MAVProxy, without radio messages and damaged; the UE truth (ADSB_VEHICLE) reaches the
+ground but never the flight loop."""
+
+from __future__ import annotations
+
+import io
+import json
+import threading
+import time
+from pathlib import Path
+
+import numpy as np
+import pytest
+from conftest import assert_user_error, cli_json, run_uavlink_in_process
+from mavlink_gcs import FAST_CLIMB_PARAMS
+from mavproxy_console import MAVPROXY, mavproxy
+
+from sitl_stub.__main__ import build_parser
+from sitl_stub.launcher import vehicle_process
+from sitl_stub.mavlink_server import ServerConfig, SitlServer
+from sitl_stub.payload import PayloadOptions
+from sitl_stub.radio_payload import RadioPayload
+from uavlink.config import EnvConfig
+from uavlink.flight.flight_log import read_flight
+from uavlink.flight.link import VehicleLink
+from uavlink.flight.mission import MissionConfig, PolicyPilot, fly_mission
+from uavlink.flight.radio_source import MavlinkRadioSource
+from uavlink.mavlink.connection import free_udp_port
+from uavlink.mavlink.dialect import mavlink, mavutil
+from uavlink.mavlink.geo import GeoOrigin
+from uavlink.mavlink.radio_codec import RADIO_COMPONENT_ID
+from uavlink.mavlink.ue_truth import decode_ue_fix
+from uavlink.policies.baselines import make_baseline
+
+PICTURE_PX = (760, 1040)
+
+
+def png_pixels(path: Path) -> np.ndarray:
+    from PIL import Image
+
+    with Image.open(path) as im:
+        assert im.format == "PNG"
+        return np.asarray(im.convert("RGB"))
+
+
+def plot_json(*args: str) -> dict:
+    proc = run_uavlink_in_process("plot", *args, "--json")
+    assert proc.returncode == 0, proc.stderr
+    return json.loads(proc.stdout)
+
+
+# ------------------------------------------------------------------ the truth's encoding (fast)
+class _Recorder:
+    """The payload's MAVLink sender, as real pymavlink encoders into one byte stream."""
+
+    def __init__(self) -> None:
+        self.buf = io.BytesIO()
+        self.mav = mavlink.MAVLink(self.buf, srcSystem=1, srcComponent=RADIO_COMPONENT_ID)
+
+    def __getattr__(self, name: str):
+        return getattr(self.mav, name)
+
+    def messages(self) -> list:
+        parser = mavlink.MAVLink(None)
+        return parser.parse_buffer(self.buf.getvalue()) or []
+
+
+@pytest.mark.parametrize("truth", [True, False])
+def test_radio_payload_sends_each_ue_as_adsb_vehicle_unless_switched_off(truth: bool) -> None:
+    home = GeoOrigin(47.4, 8.5, 400.0)
+    payload = RadioPayload(PayloadOptions("circular", 3, home=home, ue_truth=truth))
+    state = SitlServer(ServerConfig(connect="udpin:127.0.0.1:0")).vehicle.state()
+    out = _Recorder()
+    payload.on_frame(0.0, state, out)
+    fixes = [decode_ue_fix(m) for m in out.messages() if m.get_type() == "ADSB_VEHICLE"]
+    if not truth:
+        assert fixes == []
+        return
+    ue_xy = payload.world.ue_xy_m()
+    assert [f.ue for f in fixes] == list(range(len(ue_xy))) == list(range(10))
+    for fix, (east, north) in zip(fixes, ue_xy, strict=True):
+        got_n, got_e = home.to_local(fix.lat_deg, fix.lon_deg)
+        assert abs(got_e - east) < 0.02 and abs(got_n - north) < 0.02  # 1e-7 deg: about 1 cm
+
+
+def test_sitl_stub_no_ue_truth_option_reaches_the_payload() -> None:
+    assert build_parser().parse_args(["--no-ue-truth"]).no_ue_truth
+    assert not build_parser().parse_args([]).no_ue_truth
+    seen: list[PayloadOptions] = []
+    from sitl_stub.__main__ import main
+
+    for argv in (["--no-ue-truth"], []):
+        main([*argv, "--connect", f"udpout:127.0.0.1:{free_udp_port()}", "--duration-s", "0.01",
+              "--speed", "100"], payload_factory=lambda o: seen.append(o))
+    assert [o.ue_truth for o in seen] == [False, True]
+
+
+def test_other_adsb_traffic_is_not_a_ue() -> None:
+    plane = mavlink.MAVLink_adsb_vehicle_message(0xABCDEF, 473977420, 85455940, 1, 500000, 0, 0, 0,
+                                                 b"SWR123", 3, 0, 1 | 64, 0)  # an airliner
+    assert decode_ue_fix(plane) is None
+
+
+# ------------------------------------------------------------------ damaged, empty (fast)
+def test_plot_refuses_empty_damaged_and_missing_logs(tmp_path: Path) -> None:
+    empty = tmp_path / "empty.tlog"
+    empty.write_bytes(b"")
+    garbage = tmp_path / "garbage.tlog"
+    garbage.write_bytes(np.random.default_rng(0).bytes(50_000))
+    for path, fragment in ((empty, "empty file"), (garbage, "no MAVLink message could be read"),
+                           (tmp_path / "none.tlog", "no such file")):
+        proc = run_uavlink_in_process("plot", str(path), "--out", str(tmp_path / "x.png"))
+        assert_user_error(proc, str(path), fragment)
+    assert not list(tmp_path.glob("*.png")) and not list(tmp_path.glob(".*"))  # nothing half-written
+
+
+# ------------------------------------------------------------------ real flights (slow)
+@pytest.mark.slow
+@pytest.mark.timeout(240)
+def test_fly_draws_its_picture_and_plot_draws_the_same(tmp_path: Path) -> None:
+    summary = cli_json("fly", "--policy", "aoa", "--frames", "16", "--out", str(tmp_path), "--json")
+    tlog, png = tmp_path / "flight.tlog", tmp_path / "flight.png"
+    assert summary["picture"] == str(png) and summary["picture_s"] > 0
+    drawn = plot_json(str(tlog), "--out", str(tmp_path / "again.png"))
+    assert (drawn["width_px"], drawn["height_px"]) == PICTURE_PX
+    assert drawn["tracks"] == 1 and drawn["ue_tracks"] == 10 and drawn["bearings"] == 10
+    assert summary["decisions"] <= drawn["decision_frames"] <= 16 + 1
+    assert drawn["frames"] >= drawn["decision_frames"] and drawn["notes"] == []
+    first, again = png_pixels(png), png_pixels(tmp_path / "again.png")
+    assert first.shape == (PICTURE_PX[1], PICTURE_PX[0], 3) and np.array_equal(first, again)
+    data = read_flight(tlog)  # what was drawn: the UEs in the area, the fence around it
+    assert np.nanmax(np.abs(data.ue_east_m)) <= 200.0 and np.isfinite(data.ue_east_m).mean() > 0.9
+    assert np.allclose(np.abs(data.fence_en_m), 202.0, atol=0.1)
+    gif = plot_json(str(tlog), "--gif")
+    assert gif["frames"] == drawn["decision_frames"] and gif["bytes"] < 400_000
+    from PIL import Image
+
+    with Image.open(tmp_path / "flight.gif") as im:
+        assert im.format == "GIF" and im.n_frames == gif["frames"]
+
+
+@pytest.mark.slow
+@pytest.mark.timeout(240)
+def test_fleet_picture_one_colour_per_vehicle_ues_by_serving_uav(tmp_path: Path) -> None:
+    # --speed 10: on a loaded machine two vehicles at 20x can miss their offboard streams
+    summary = cli_json("fly", "--policy", "aoa", "--set", "n_uavs=2", "--frames", "12", "--speed", "10",
+                       "--out", str(tmp_path), "--json")
+    assert summary["picture"] == str(tmp_path / "flight.png")
+    data = read_flight(tmp_path / "flight.tlog")
+    assert [v.system_id for v in data.vehicles] == [1, 2] and data.n_ues == 10
+    serving = data.serving_uav()
+    assert set(np.unique(serving)) <= {0, 1} and (serving >= 0).all()
+    assert set(np.unique(serving)) == {0, 1}  # both cells hold UEs
+    start = [np.hypot(v.east_m[0], v.north_m[0]) for v in data.vehicles]
+    assert all(abs(r - EnvConfig().fleet_start_radius_m) < 5.0 for r in start)  # their spawn points
+    drawn = plot_json(str(tmp_path / "flight.tlog"), "--out", str(tmp_path / "again.png"))
+    assert drawn["tracks"] == 2 and drawn["ue_tracks"] == 10
+    assert np.array_equal(png_pixels(tmp_path / "flight.png"), png_pixels(tmp_path / "again.png"))
+
+
+class _SpySource(MavlinkRadioSource):
+    """The flight loop's radio source, recording every message the link hands it."""
+
+    def __init__(self, n_ues: int) -> None:
+        super().__init__(n_ues)
+        self.fed: list[str] = []
+
+    def feed(self, msg) -> None:
+        self.fed.append(f"{msg.get_type()}:{msg.name}" if msg.get_type() == "DEBUG_FLOAT_ARRAY"
+                        else msg.get_type())
+        super().feed(msg)
+
+
+@pytest.mark.slow
+@pytest.mark.timeout(90)
+def test_flight_loop_never_receives_the_ue_truth(tmp_path: Path) -> None:
+    """Over a real flight, the vehicle sends every UE as ADSB_VEHICLE from the radio payload's own
+    component, and the observation builder still only ever gets UL_RADIO readings."""
+    cfg = EnvConfig().replace(scenario="straight").validate()
+    server = SitlServer(ServerConfig(connect="udpin:127.0.0.1:0", speed=20.0, params=FAST_CLIMB_PARAMS),
+                        [RadioPayload(PayloadOptions("straight", 0))]).start()
+    pilot = PolicyPilot(make_baseline("aoa", cfg), cfg)
+    observed: list[tuple] = []
+    observe = pilot.observe
+    pilot.observe = lambda report, *a: observed.append(type(report).__name__) or observe(report, *a)
+    source = _SpySource(cfg.n_ues)
+    link = None
+    try:
+        host, port = server.address
+        link = VehicleLink(f"udpout:{host}:{port}", tlog=tmp_path / "flight.tlog")
+        done: dict = {}
+        t = threading.Thread(target=lambda: done.setdefault(
+            "r", fly_mission(link, pilot, cfg, MissionConfig(frames=8, land=False), radio=source)),
+            daemon=True)
+        t.start()
+        t.join(60)
+        assert "r" in done, "the flight did not finish"
+    finally:
+        if link is not None:
+            link.close()
+        server.stop()
+    log = mavutil.mavlogfile(str(tmp_path / "flight.tlog"))
+    truth = 0
+    while (m := log.recv_match(type="ADSB_VEHICLE")) is not None:
+        truth += m.get_srcComponent() == RADIO_COMPONENT_ID and decode_ue_fix(m) is not None
+    log.close()
+    assert truth >= 8 * cfg.n_ues  # the link heard the truth, every frame
+    assert source.fed and set(source.fed) == {"DEBUG_FLOAT_ARRAY:UL_RADIO"}
+    assert observed and set(observed) == {"RadioReport"}
+
+
+@pytest.mark.slow
+@pytest.mark.timeout(90)
+def test_plot_a_log_without_radio_messages_gives_the_tracks(tmp_path: Path, monkeypatch) -> None:
+    """A vehicle without the radio payload, armed and taken off over a real link: tracks only; the
+    same log cut mid-record still plots; without matplotlib fly would say how to get pictures."""
+    server = SitlServer(ServerConfig(connect="udpin:127.0.0.1:0", speed=20.0, params=FAST_CLIMB_PARAMS)).start()
+    tlog = tmp_path / "flight.tlog"
+    link = None
+    try:
+        host, port = server.address
+        link = VehicleLink(f"udpout:{host}:{port}", tlog=tlog)
+        link.wait_vehicle()
+        link.arm()
+        link.takeoff(10.0)
+        link.wait_wall(lambda: False, 1.0)
+    finally:
+        if link is not None:
+            link.close()
+        server.stop()
+    drawn = plot_json(str(tlog))
+    assert drawn["tracks"] == 1 and drawn["ue_tracks"] == 0 and drawn["frames"] == 0
+    assert any("no radio messages" in n for n in drawn["notes"])
+    assert png_pixels(tmp_path / "flight.png").shape == (PICTURE_PX[1], PICTURE_PX[0], 3)
+    cut = tmp_path / "cut.tlog"
+    blob = tlog.read_bytes()
+    cut.write_bytes(blob[: len(blob) // 2 + 7])  # a flight killed while writing
+    assert plot_json(str(cut))["tracks"] == 1
+    from uavlink.flight.plot_command import picture_after_flight
+
+    for name in ("matplotlib.figure", "matplotlib.backends.backend_agg"):
+        monkeypatch.setitem(__import__("sys").modules, name, None)
+    skipped = picture_after_flight(tlog, tmp_path / "none.png")
+    assert skipped["picture"] is None and "pip install 'uavlink[plot]'" in skipped["picture_skipped"]
+
+
+@pytest.mark.slow
+@pytest.mark.timeout(240)
+@pytest.mark.skipif(MAVPROXY is None, reason="mavproxy.py not installed")
+def test_plot_a_mavproxy_session_log(tmp_path: Path) -> None:
+    """The vehicle talks to MAVProxy, `uavlink fly` flies through MAVProxy's output; MAVProxy's own
+    mav.tlog gives the picture: track, UEs, readings, fence."""
+    p_master, p_out = free_udp_port(), free_udp_port()
+    with mavproxy([f"--master=udp:127.0.0.1:{p_master}", f"--out=udpout:127.0.0.1:{p_out}",
+                   "--non-interactive"], tmp_path, tmp_path / "mavproxy.out", typed=False), \
+            vehicle_process(f"udpout:127.0.0.1:{p_master}", 10.0,
+                            ["--param", "MPC_TKO_SPEED=5", "--param", "MPC_Z_VEL_MAX_UP=5"]):
+        flown = cli_json("fly", "--connect", f"udpin:127.0.0.1:{p_out}", "--policy", "aoa",
+                         "--frames", "12", "--out", str(tmp_path / "fly"), "--no-picture", "--json")
+        time.sleep(1.0)  # MAVProxy writes its log behind the link
+    assert flown["frames"] >= 10
+    drawn = plot_json(str(tmp_path / "mav.tlog"), "--out", str(tmp_path / "mavproxy.png"))
+    assert drawn["tracks"] == 1 and drawn["ue_tracks"] == 10 and drawn["frames"] >= 10
+    assert drawn["decision_frames"] >= 6  # (a failsafe hold on a loaded machine costs a few)
+    assert png_pixels(tmp_path / "mavproxy.png").shape == (PICTURE_PX[1], PICTURE_PX[0], 3)
