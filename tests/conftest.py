@@ -14,6 +14,12 @@ import sys
 from pathlib import Path
 
 import pytest
+from hypothesis import settings
+
+# Property tests check behaviour, not speed: hypothesis's 200 ms per-example deadline fails them on a
+# loaded 2-core machine (a geofence example took 275 ms at load 19), so the suite has none.
+settings.register_profile("uavlink", deadline=None)
+settings.load_profile("uavlink")
 
 ROOT = Path(__file__).resolve().parents[1]
 
