@@ -6,6 +6,7 @@ packages' docstrings), no module over 400 lines and no folder with more than 12 
 from __future__ import annotations
 
 import ast
+from functools import cache
 from pathlib import Path
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -49,6 +50,7 @@ MAY_IMPORT: dict[str, set[str]] = {
 MAY_IMPORT["uavlink.cli"] = {u for u in MAY_IMPORT if u.startswith("uavlink")}
 
 
+@cache
 def _modules() -> dict[str, tuple[Path, bool]]:
     """Dotted module name -> (path, is a package's __init__)."""
     found = {}
@@ -70,6 +72,12 @@ def _type_checking_nodes(tree: ast.AST) -> set[int]:
 
 def _imports(modules: dict[str, tuple[Path, bool]]) -> dict[str, set[str]]:
     """Module -> the project modules it imports, anywhere in its body (functions too)."""
+    return _graph(tuple(modules.items()))
+
+
+@cache
+def _graph(items: tuple[tuple[str, tuple[Path, bool]], ...]) -> dict[str, set[str]]:
+    modules = dict(items)
 
     def owner(name: str) -> str | None:  # the project module that ``name`` is or lies in
         while name and name not in modules:
