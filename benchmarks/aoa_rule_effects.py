@@ -23,7 +23,7 @@ import numpy as np
 from uavlink.config import EnvConfig
 from uavlink.env.core import GroundTruth
 from uavlink.evaluation import evaluate_policy
-from uavlink.policies.baselines import make_baseline
+from uavlink.policies.registry import make_baseline
 
 SHADOWING_SCENARIOS = ("no_move", "straight_180")
 CLONE_SCENARIOS = ("no_move", "straight_180", "hotspot")
@@ -63,8 +63,8 @@ class ClonedActor:
 
 def clone_of_the_rule(cfg: EnvConfig) -> ClonedActor:
     from uavlink.config import TrainConfig, WarmStartConfig
-    from uavlink.imitation import warm_start
-    from uavlink.training import make_model, training_env_config
+    from uavlink.learn.imitation import warm_start
+    from uavlink.learn.training import make_model, training_env_config
 
     tc = TrainConfig(warm_start=WarmStartConfig(teacher="aoa"), aoa_noise_max_deg=TRAIN_AOA_NOISE_MAX_DEG)
     model = make_model(cfg, tc, None)

@@ -4,7 +4,7 @@ of sweeps/table1.toml's ``[scenario_train.*]`` tables.
 The grid: the rule's speed span (``sinr_span_db``: full speed that many dB below the hover SINR; 10 dB
 in the baseline) x its shadow gate (ours; off in the baseline), which hovers either after a frame
 whose mean SINR beats the older frames' by ``shadow_gate_db`` ("jump" gates) or while the links' mean
-shadowing, as estimated from the observation by ``uavlink.shadow_estimation`` (fitted on
+shadowing, as estimated from the observation by ``uavlink.learn.shadow_estimation`` (fitted on
 ``--estimator-episodes`` simulated episodes of training seed 0), is above it ("estimate" gates).
 Every variant flies the same validation
 episodes (``--seed 1``; docs/results.md evaluates on seed 0) as the baseline rule, and is compared
@@ -38,11 +38,11 @@ import numpy as np
 from uavlink.config import SHADOWING_MODELS, EnvConfig
 from uavlink.env.core import BatchedUavEnv, GroundTruth
 from uavlink.evaluation import EvalResult, evaluate_policy
+from uavlink.learn.shadow_estimation import ShadowEstimator, fit_shadow_estimator
+from uavlink.learn.teachers import AoaVariant, TrueAoaTeacher
 from uavlink.policies.baselines import AoaPolicy
 from uavlink.rollout import chunks
 from uavlink.seeding import EVAL
-from uavlink.shadow_estimation import ShadowEstimator, fit_shadow_estimator
-from uavlink.teachers import AoaVariant, TrueAoaTeacher
 
 SCENARIOS = ("straight_90", "straight_180", "hotspot")
 SPANS_DB = (2.0, 3.0, 4.0, 6.0, 8.0, 10.0)
@@ -122,14 +122,14 @@ def true_shadow_gate(cfg: EnvConfig, threshold_db: float, episodes: int, seed: i
 
 def clone_of(cfg: EnvConfig, pick: dict[str, Any], estimator_episodes: int, teacher_episodes: int, epochs: int,
              episodes: int, seed: int) -> dict[str, Any]:
-    """The pick copied into a fresh PPO actor (``uavlink.imitation.warm_start``), flown on the
+    """The pick copied into a fresh PPO actor (``uavlink.learn.imitation.warm_start``), flown on the
     validation episodes: Mbps, R_fair and the cloning's final mean squared error."""
     # aoa_rule_effects is a sibling script: benchmarks/ is on the path when this one runs
     from aoa_rule_effects import ClonedActor
 
     from uavlink.config import TrainConfig, WarmStartConfig
-    from uavlink.imitation import warm_start
-    from uavlink.training import make_model
+    from uavlink.learn.imitation import warm_start
+    from uavlink.learn.training import make_model
 
     model = make_model(cfg, TrainConfig(warm_start=WarmStartConfig(teacher="aoa")), None)
     estimator = fit_shadow_estimator(cfg, estimator_episodes, seed=0) if pick["gate_on"] == "estimate" else None

@@ -41,7 +41,7 @@ BLOCK_WARMUP = 20  # untimed calls when a path resumes: in flight only one path 
 def tiny_policy(folder: Path) -> Path:
     """A quickly trained stand-in policy (same network shape as a real one: 3 x 128)."""
     from uavlink.config import EnvConfig, TrainConfig
-    from uavlink.training import train
+    from uavlink.learn.training import train
 
     out = folder / "tiny.zip"
     train(EnvConfig(scenario="no_move"), TrainConfig(episodes=40, n_envs=8, batch_size=256), out, None,

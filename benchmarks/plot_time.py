@@ -33,7 +33,7 @@ CHILD = """
 import json, sys, time
 from pathlib import Path
 import uavlink.flight.fly, uavlink.flight.link  # what fly has imported when it draws
-from uavlink.flight.flight_log import read_flight
+from uavlink.plot.tlog import read_flight
 tlog, out, gif = Path(sys.argv[1]), Path(sys.argv[2]), sys.argv[3] == "1"
 c0, t0 = time.process_time(), time.perf_counter()
 data = read_flight(tlog)
@@ -41,11 +41,11 @@ c1, t1 = time.process_time(), time.perf_counter()
 import matplotlib.figure, matplotlib.backends.backend_agg
 c2, t2 = time.process_time(), time.perf_counter()
 if gif:
-    from uavlink.flight.animation import animate_flight
+    from uavlink.plot.animation import animate_flight
     info = animate_flight(data, out)
     extra = {"gif_frames": info.frames, "gif_bytes": info.bytes}
 else:
-    from uavlink.flight.picture import draw_flight
+    from uavlink.plot.picture import draw_flight
     info = draw_flight(data, out)
     extra = {"frames": info.frames, "decision_frames": info.decision_frames}
 c3, t3 = time.process_time(), time.perf_counter()

@@ -77,7 +77,7 @@ def measure(scenarios: list[str], train_episodes: int, episodes: int, seed: int,
     import torch
     from stable_baselines3.common.logger import Logger
 
-    from uavlink.training import make_model
+    from uavlink.learn.training import make_model
 
     def score(policy: Any, cfg: EnvConfig) -> dict[str, float]:
         result = evaluate_policy(policy, cfg, episodes=episodes, seed=seed)

@@ -7,7 +7,7 @@ MAVProxy); ``--instance N`` shifts the ports and the system id as PX4's ``-i N``
 shared radio world (:mod:`sitl_stub.fleet`); with ``--connect`` it takes D URLs, one per vehicle. Example: ``python -m sitl_stub --scenario circular --seed 1
 --connect udpout:127.0.0.1:14550 --speed 20``. Bad arguments print one line and exit with status 2; a connection that cannot be
 opened exits with status 1. On exit it prints one line ``sitl-stub: stats {json}`` with the
-counters of :meth:`~sitl_stub.mavlink_server.SitlServer.report` (signing, rejected input, ACKs,
+counters of :meth:`~sitl_stub.mavlink.server.SitlServer.report` (signing, rejected input, ACKs,
 safety monitors).
 """
 
@@ -24,11 +24,11 @@ import threading
 from collections.abc import Callable, Sequence
 from typing import NoReturn
 
-from sitl_stub.geo import GeoOrigin
-from sitl_stub.links import MAX_INSTANCE
-from sitl_stub.mavlink_server import ServerConfig, SitlServer
-from sitl_stub.params import PARAM_DEFS
-from sitl_stub.payload import (
+from sitl_stub.core.geo import GeoOrigin
+from sitl_stub.core.params import PARAM_DEFS
+from sitl_stub.mavlink.links import MAX_INSTANCE
+from sitl_stub.mavlink.server import ServerConfig, SitlServer
+from sitl_stub.sim.payload import (
     PayloadFactory,
     PayloadOptions,
     as_payload_list,

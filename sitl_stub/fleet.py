@@ -4,9 +4,9 @@ PX4's multi-vehicle SITL (Tools/simulation/sitl_multiple_run.sh: ``$build_path/b
 for n = 0 .. N-1) starts one ``px4 -i N`` per vehicle: instance N is MAVLink system N+1
 (ROMFS/px4fmu_common/init.d-posix/rcS: ``param set MAV_SYS_ID $((px4_instance+1))``) with the API
 link from 14580+N to 14540+N and the GCS link from 18570+N to 14550 (init.d-posix/px4-rc.mavlink;
-:mod:`sitl_stub.links`), so a ground station on 14550 hears every system on one port (PX4 guide,
+:mod:`sitl_stub.mavlink.links`), so a ground station on 14550 hears every system on one port (PX4 guide,
 "Multi-Vehicle Simulation with JMAVSim": "all GCS traffic is sent to PX4's remote UDP port: 14550
-from all instances"; APIs such as MAVSDK listen on 14540 + instance). Here each vehicle is one :class:`~sitl_stub.mavlink_server.SitlServer` with
+from all instances"; APIs such as MAVSDK listen on 14540 + instance). Here each vehicle is one :class:`~sitl_stub.mavlink.server.SitlServer` with
 exactly those links (instance ``first_instance + i``), and :class:`FleetServer` runs them in
 lockstep on one simulated clock: every vehicle steps to each radio frame boundary, the world
 advances once with every vehicle's actual position, then each vehicle's radio payload
@@ -34,12 +34,12 @@ from collections.abc import Sequence
 from dataclasses import replace
 from typing import Any
 
-from sitl_stub.clock import SimClock
-from sitl_stub.mavlink_server import LOOP_WAIT_S, ServerConfig, SitlServer
-from sitl_stub.modes import FlightMode
-from sitl_stub.payload import MAV_AUTOPILOT_INVALID, PayloadOptions
-from sitl_stub.ue_truth import send_ue_truth
-from sitl_stub.vehicle_state import VehicleState
+from sitl_stub.core.modes import FlightMode
+from sitl_stub.core.vehicle_state import VehicleState
+from sitl_stub.mavlink.server import LOOP_WAIT_S, ServerConfig, SitlServer
+from sitl_stub.sim.clock import SimClock
+from sitl_stub.sim.payload import MAV_AUTOPILOT_INVALID, PayloadOptions
+from sitl_stub.sim.ue_truth import send_ue_truth
 from uavlink.config import EnvConfig
 from uavlink.env.radio_world import RadioWorld
 from uavlink.mavlink.geo import GeoOrigin
@@ -77,7 +77,7 @@ def spawn_points_ne(cfg: EnvConfig) -> list[tuple[float, float]]:
 class FleetWorld:
     """One radio world with ``cfg.n_uavs`` UAVs; one :class:`FleetRadioView` per vehicle.
     ``truth_origin``: the fleet's LOCAL_NED origin, where the first vehicle's payload places the
-    UEs it sends as ADSB_VEHICLE (:mod:`sitl_stub.ue_truth`; once for the fleet); None: not sent."""
+    UEs it sends as ADSB_VEHICLE (:mod:`sitl_stub.sim.ue_truth`; once for the fleet); None: not sent."""
 
     def __init__(self, cfg: EnvConfig, seed: int, truth_origin: GeoOrigin | None = None) -> None:
         self.cfg = cfg

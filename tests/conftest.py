@@ -83,7 +83,7 @@ def tiny_policy_zip(tmp_path_factory: pytest.TempPathFactory) -> Path:
     """PPO on `straight` for 96 episodes (12k env steps, default env): long enough to learn to follow
     the UEs. Shared by the whole session, so treat it as read-only (copy it before changing it)."""
     from uavlink.config import EnvConfig, TrainConfig
-    from uavlink.training import train
+    from uavlink.learn.training import train
 
     out = tmp_path_factory.mktemp("tiny_policy") / "straight.zip"
     train(EnvConfig(scenario="straight"), TrainConfig(**TINY_TRAINING), out, None, progress=False)

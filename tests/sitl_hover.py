@@ -9,7 +9,7 @@ from contextlib import contextmanager
 
 from mavlink_gcs import FAST_CLIMB_PARAMS, Gcs
 
-from sitl_stub.mavlink_server import ServerConfig, SitlServer
+from sitl_stub.mavlink.server import ServerConfig, SitlServer
 from uavlink.mavlink.dialect import mavutil
 
 mavlink = mavutil.mavlink

@@ -14,7 +14,8 @@ import pytest
 from uavlink.config import EnvConfig
 from uavlink.evaluation import EvalResult, evaluate_policy
 from uavlink.mobility import SCENARIOS
-from uavlink.policies.baselines import BASELINES, AoaPolicy, make_baseline
+from uavlink.policies.baselines import AoaPolicy
+from uavlink.policies.registry import BASELINES, make_baseline
 
 # Table I of the paper, "static" column (Mbps).
 PAPER_STATIC = {"no_move": 7.95, "straight": 4.59, "circular": 3.59, "straight_90": 5.33,
@@ -133,7 +134,7 @@ def test_aoa_moves_while_shadowed_and_beats_static_on_no_move():
 
 def test_aoa_rule_is_the_specs_rule_without_teacher_knobs():
     """The SPEC's rule has no shadow gate, speed-span setting or privileged method (the warm start's
-    variants are uavlink.teachers)."""
+    variants are uavlink.learn.teachers)."""
     cfg = EnvConfig(scenario="straight_180")
     rule = AoaPolicy(cfg)
     assert not rule.needs_truth and not hasattr(rule, "act_on_true_aoa") and not hasattr(rule, "shadow_gate_db")

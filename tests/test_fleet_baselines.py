@@ -10,8 +10,8 @@ from conftest import ROOT, cli_json
 from uavlink.config import EnvConfig
 from uavlink.env.core import BatchedUavEnv
 from uavlink.evaluation import evaluate_policy
-from uavlink.policies.baselines import make_baseline
 from uavlink.policies.fleet_baselines import FleetAoaPolicy, KMeansPolicy, mean_fleet_fair_rate
+from uavlink.policies.registry import make_baseline
 
 
 @pytest.mark.slow

@@ -30,7 +30,7 @@ from mavlink_gcs import FAST_TAKEOFF
 from mavproxy_console import MAVPROXY, mavproxy
 from mavsdk_apps import first, run_app, sitl_vehicle, stub_has_px4_ports
 
-from sitl_stub.links import socket_free
+from sitl_stub.mavlink.links import socket_free
 from uavlink.mavlink.dialect import mavutil
 
 pytestmark = [pytest.mark.slow, pytest.mark.timeout(300), PX4_PORTS]

@@ -61,7 +61,7 @@ def fleet_policy(tmp_path_factory: pytest.TempPathFactory) -> Path:
     if SHIPPED.exists():
         return SHIPPED
     from uavlink.config import TrainConfig
-    from uavlink.training import train
+    from uavlink.learn.training import train
 
     out = tmp_path_factory.mktemp("fleet_policy") / "straight_180.zip"
     cfg = EnvConfig(scenario="straight_180", n_uavs=2).replace(**{"radio.shadowing_model": "spatial"})

@@ -18,11 +18,10 @@ from mavproxy_console import MAVPROXY, mavproxy
 
 from sitl_stub.__main__ import build_parser
 from sitl_stub.launcher import vehicle_process
-from sitl_stub.mavlink_server import ServerConfig, SitlServer
-from sitl_stub.payload import PayloadOptions
-from sitl_stub.radio_payload import RadioPayload
+from sitl_stub.mavlink.server import ServerConfig, SitlServer
+from sitl_stub.sim.payload import PayloadOptions
+from sitl_stub.sim.radio_payload import RadioPayload
 from uavlink.config import EnvConfig
-from uavlink.flight.flight_log import read_flight
 from uavlink.flight.link import VehicleLink
 from uavlink.flight.mission import MissionConfig, PolicyPilot, fly_mission
 from uavlink.flight.radio_source import MavlinkRadioSource
@@ -31,7 +30,8 @@ from uavlink.mavlink.dialect import mavlink, mavutil
 from uavlink.mavlink.geo import GeoOrigin
 from uavlink.mavlink.radio_codec import RADIO_COMPONENT_ID
 from uavlink.mavlink.ue_truth import decode_ue_fix
-from uavlink.policies.baselines import make_baseline
+from uavlink.plot.tlog import read_flight
+from uavlink.policies.registry import make_baseline
 
 PICTURE_PX = (760, 1040)
 
@@ -237,7 +237,7 @@ def test_plot_a_log_without_radio_messages_gives_the_tracks(tmp_path: Path, monk
     blob = tlog.read_bytes()
     cut.write_bytes(blob[: len(blob) // 2 + 7])  # a flight killed while writing
     assert plot_json(str(cut))["tracks"] == 1
-    from uavlink.flight.plot_command import picture_after_flight
+    from uavlink.plot.command import picture_after_flight
 
     for name in ("matplotlib.figure", "matplotlib.backends.backend_agg"):
         monkeypatch.setitem(__import__("sys").modules, name, None)

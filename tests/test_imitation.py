@@ -1,4 +1,4 @@
-"""Behaviour-cloning warm start (uavlink/imitation.py) and its use by `uavlink train`."""
+"""Behaviour-cloning warm start (uavlink/learn/imitation.py) and its use by `uavlink train`."""
 
 from __future__ import annotations
 
@@ -10,11 +10,12 @@ import pytest
 
 from uavlink.cli import main
 from uavlink.config import EnvConfig, TrainConfig
-from uavlink.imitation import clone_actor, teacher_dataset
-from uavlink.policies.baselines import AoaPolicy, make_baseline
+from uavlink.learn.imitation import clone_actor, teacher_dataset
+from uavlink.learn.teachers import AoaVariant, make_teacher
+from uavlink.learn.training import make_model
+from uavlink.policies.baselines import AoaPolicy
 from uavlink.policies.manifest import read_zip_manifest
-from uavlink.teachers import AoaVariant, make_teacher
-from uavlink.training import make_model
+from uavlink.policies.registry import make_baseline
 
 CFG = EnvConfig(scenario="hotspot")
 

@@ -11,7 +11,8 @@ HEAVY = ("torch", "stable_baselines3", "pymavlink", "onnxruntime", "matplotlib",
 def test_core_imports_no_heavy_modules() -> None:
     code = (
         "import sys, uavlink, uavlink.cli, uavlink.env, uavlink.radio, uavlink.mobility, "
-        "uavlink.policies, uavlink.evaluation, uavlink.policies.loader\n"
+        "uavlink.policies, uavlink.evaluation, uavlink.evaluation.report, uavlink.policies.loader, "
+        "uavlink.policies.registry, uavlink.learn\n"
         f"print(','.join(m for m in {HEAVY!r} if m in sys.modules))"
     )
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=60, check=True)

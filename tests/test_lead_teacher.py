@@ -1,4 +1,4 @@
-"""The fleet's lead teacher (uavlink/lead_teacher.py): roles read from the observation, the leader's
+"""The fleet's lead teacher (uavlink/learn/lead_teacher.py): roles read from the observation, the leader's
 single-UAV view, and what it is for: one UAV serving, the other silent, beating the fleet aoa rule."""
 
 from __future__ import annotations
@@ -13,15 +13,16 @@ from uavlink.env.core import BatchedUavEnv
 from uavlink.env.observation import FIELDS, ObservationLayout
 from uavlink.errors import UserError
 from uavlink.evaluation import evaluate_policy
-from uavlink.lead_teacher import (
+from uavlink.learn.lead_teacher import (
     LeadTeacher,
     leader_index,
     make_lead_teacher,
     single_layout,
     single_view,
 )
-from uavlink.policies.baselines import AoaPolicy, make_baseline
-from uavlink.teachers import make_teacher
+from uavlink.learn.teachers import make_teacher
+from uavlink.policies.baselines import AoaPolicy
+from uavlink.policies.registry import make_baseline
 
 FLEET = EnvConfig().replace(scenario="no_move", n_uavs=2, **{"radio.shadowing_model": "spatial"}).validate()
 SINGLE_POLICY = Path(__file__).resolve().parents[1] / "policies" / "spatial" / "no_move.zip"

@@ -24,12 +24,12 @@ def _run(code: str) -> str:
 def test_sitl_stub_imports_no_flight_or_evaluation_module() -> None:
     code = (
         "import importlib, pkgutil, sys, sitl_stub\n"
-        "for m in pkgutil.iter_modules(sitl_stub.__path__):\n"
-        "    importlib.import_module('sitl_stub.' + m.name)\n"
+        "for m in pkgutil.walk_packages(sitl_stub.__path__, 'sitl_stub.'):\n"
+        "    importlib.import_module(m.name)\n"
         f"print(','.join(sorted(m for m in sys.modules if m.startswith({FORBIDDEN!r}))))"
     )
     assert _run(code) == ""
-    for path in sorted((ROOT / "sitl_stub").glob("*.py")):  # not even lazily, in a function
+    for path in sorted((ROOT / "sitl_stub").rglob("*.py")):  # not even lazily, in a function
         text = path.read_text()
         assert not [name for name in FORBIDDEN if name in text], path
 

@@ -178,8 +178,8 @@ def test_fly_and_the_embedded_sitl_run_the_policy_env(polar_zip: Path, tmp_path:
 
 def test_the_sitl_radio_payload_simulates_the_set_pairs_fly_passes() -> None:
     from sitl_stub.__main__ import build_parser
-    from sitl_stub.payload import PayloadOptions
-    from sitl_stub.radio_payload import RadioPayload
+    from sitl_stub.sim.payload import PayloadOptions
+    from sitl_stub.sim.radio_payload import RadioPayload
 
     for changes in ({"radio.shadowing": False, "radio.tx_power_dbm": 25.0},
                     {"radio.shadowing_model": "spatial"}):  # a spatial-channel policy's embedded SITL

@@ -15,8 +15,8 @@ import time
 
 import pytest
 
-from sitl_stub.mavlink_server import ServerConfig, SitlServer
-from sitl_stub.mission_store import FENCE, MISSION, RALLY, MissionItem
+from sitl_stub.core.mission_store import FENCE, MISSION, RALLY, MissionItem
+from sitl_stub.mavlink.server import ServerConfig, SitlServer
 from uavlink.mavlink.dialect import mavlink, mavutil
 from uavlink.mavlink.mission import MissionClient, pymavlink_recv
 

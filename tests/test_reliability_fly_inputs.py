@@ -21,9 +21,9 @@ from hypothesis import strategies as st
 from mavlink_fuzz import FUZZ, corrupt, mutation
 from mavlink_gcs import FAST_CLIMB_PARAMS
 
-from sitl_stub.mavlink_server import ServerConfig, SitlServer
-from sitl_stub.payload import PayloadOptions
-from sitl_stub.radio_payload import RadioPayload
+from sitl_stub.mavlink.server import ServerConfig, SitlServer
+from sitl_stub.sim.payload import PayloadOptions
+from sitl_stub.sim.radio_payload import RadioPayload
 from uavlink.config import EnvConfig
 from uavlink.flight.link import VehicleLink
 from uavlink.flight.mission import MissionConfig, PolicyPilot, fly_mission

@@ -25,11 +25,11 @@ from hypothesis import strategies as st
 from mavlink_fuzz import FUZZ, corrupt, mutation
 from mavlink_gcs import FAST_CLIMB_PARAMS
 
-from sitl_stub.mavlink_server import ServerConfig, SitlServer
-from sitl_stub.params import PARAM_DEFS
-from sitl_stub.payload import PayloadOptions
-from sitl_stub.radio_payload import RadioPayload
-from sitl_stub.vehicle import MAX_ALTITUDE_M
+from sitl_stub.core.params import PARAM_DEFS
+from sitl_stub.flight.vehicle import MAX_ALTITUDE_M
+from sitl_stub.mavlink.server import ServerConfig, SitlServer
+from sitl_stub.sim.payload import PayloadOptions
+from sitl_stub.sim.radio_payload import RadioPayload
 from uavlink.mavlink.dialect import mavlink
 from uavlink.mavlink.radio_codec import RADIO_COMPONENT_ID
 from uavlink.mavlink.rejects import rescan_bad_frame

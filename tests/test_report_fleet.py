@@ -6,8 +6,7 @@ import pytest
 
 from uavlink.config import EnvConfig
 from uavlink.evaluation import evaluate_policy
-from uavlink.policies.baselines import make_baseline
-from uavlink.report_fleet import (
+from uavlink.evaluation.report_fleet import (
     FLEET_BASELINES,
     FLEET_SIZES,
     metrics_table,
@@ -15,6 +14,7 @@ from uavlink.report_fleet import (
     ratio_table,
     throughput_table,
 )
+from uavlink.policies.registry import make_baseline
 
 
 @pytest.fixture(scope="module")

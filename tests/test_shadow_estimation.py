@@ -1,4 +1,4 @@
-"""The GPS-free shadowing estimate (uavlink/shadow_estimation.py); the aoa teacher's gate on it is
+"""The GPS-free shadowing estimate (uavlink/learn/shadow_estimation.py); the aoa teacher's gate on it is
 tested in test_teachers.py."""
 
 from __future__ import annotations
@@ -8,8 +8,8 @@ import pytest
 
 from uavlink.config import EnvConfig
 from uavlink.env.core import BatchedUavEnv
-from uavlink.shadow_estimation import fit_shadow_estimator, shadow_dataset, shadow_features
-from uavlink.teachers import AoaVariant
+from uavlink.learn.shadow_estimation import fit_shadow_estimator, shadow_dataset, shadow_features
+from uavlink.learn.teachers import AoaVariant
 
 CFG = EnvConfig(scenario="hotspot")
 

@@ -12,8 +12,8 @@ import pytest
 from mavlink_gcs import Gcs
 from sitl_hover import LOITER_MODE, hovering
 
-from sitl_stub.mavlink_server import SitlServer
-from sitl_stub.params import int_to_param_float
+from sitl_stub.core.params import int_to_param_float
+from sitl_stub.mavlink.server import SitlServer
 from uavlink.mavlink.dialect import mavutil
 
 pytestmark = [pytest.mark.slow, pytest.mark.timeout(120)]

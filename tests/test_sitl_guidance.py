@@ -8,9 +8,11 @@ import math
 
 import pytest
 
-from sitl_stub import guided_commands as guided
-from sitl_stub.geo import GeoOrigin
-from sitl_stub.guidance import (
+from sitl_stub.core.geo import GeoOrigin
+from sitl_stub.core.modes import FlightMode
+from sitl_stub.core.params import ParamStore
+from sitl_stub.core.vehicle_state import Result
+from sitl_stub.flight.guidance import (
     YAW_FRONT_TANGENT,
     Motion,
     Orbit,
@@ -18,11 +20,9 @@ from sitl_stub.guidance import (
     brake_before,
     sanitize_orbit,
 )
-from sitl_stub.modes import FlightMode
-from sitl_stub.params import ParamStore
-from sitl_stub.setpoints import Refusal, Setpoint, read_setpoint
-from sitl_stub.vehicle import Vehicle
-from sitl_stub.vehicle_state import Result
+from sitl_stub.flight.vehicle import Vehicle
+from sitl_stub.mavlink import guided_commands as guided
+from sitl_stub.mavlink.setpoints import Refusal, Setpoint, read_setpoint
 
 NAN = math.nan
 # MAVSDK offboard_impl.cpp's type masks

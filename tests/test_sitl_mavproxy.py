@@ -14,8 +14,8 @@ from pathlib import Path
 import pytest
 from mavproxy_console import MAVPROXY, mavproxy
 
+from sitl_stub.core.params import PARAM_DEFS
 from sitl_stub.launcher import vehicle_process
-from sitl_stub.params import PARAM_DEFS
 from uavlink.mavlink.connection import free_udp_port
 from uavlink.mavlink.dialect import mavutil
 

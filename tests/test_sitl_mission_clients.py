@@ -12,7 +12,7 @@ from pathlib import Path
 import pytest
 from conftest import run_uavlink
 
-from sitl_stub.mavlink_server import ServerConfig, SitlServer
+from sitl_stub.mavlink.server import ServerConfig, SitlServer
 from uavlink.mavlink.connection import free_udp_port
 from uavlink.mavlink.dialect import mavlink, mavutil
 from uavlink.mavlink.geo import GeoOrigin

@@ -7,9 +7,13 @@ import math
 
 import pytest
 
-from sitl_stub.geo import GeoOrigin
-from sitl_stub.geofence import CIRCLE_EXCLUSION, POLYGON_INCLUSION
-from sitl_stub.mission_executor import (
+from sitl_stub.core.geo import GeoOrigin
+from sitl_stub.core.mission_store import FENCE, MISSION, RALLY, MissionItem, MissionStore
+from sitl_stub.core.modes import FlightMode
+from sitl_stub.core.params import ParamStore
+from sitl_stub.core.vehicle_state import Result
+from sitl_stub.flight.geofence import CIRCLE_EXCLUSION, POLYGON_INCLUSION
+from sitl_stub.flight.mission_executor import (
     ACTIVE,
     COMPLETE,
     DO_CHANGE_SPEED,
@@ -21,13 +25,9 @@ from sitl_stub.mission_executor import (
     NOT_STARTED,
     PAUSED,
 )
-from sitl_stub.mission_store import FENCE, MISSION, RALLY, MissionItem, MissionStore
-from sitl_stub.modes import FlightMode
-from sitl_stub.params import ParamStore
-from sitl_stub.rtl import NAV_RALLY_POINT
-from sitl_stub.telemetry import TelemetrySender
-from sitl_stub.vehicle import Vehicle
-from sitl_stub.vehicle_state import Result
+from sitl_stub.flight.rtl import NAV_RALLY_POINT
+from sitl_stub.flight.vehicle import Vehicle
+from sitl_stub.mavlink.telemetry import TelemetrySender
 from uavlink.mavlink.dialect import mavlink
 
 pytestmark = pytest.mark.timeout(120)

@@ -9,10 +9,10 @@ from typing import Any
 
 import pytest
 
-from sitl_stub.geofence import POLYGON_INCLUSION
-from sitl_stub.mavlink_server import ServerConfig, SitlServer
-from sitl_stub.mission_executor import NAV_LAND, NAV_TAKEOFF, NAV_WAYPOINT
-from sitl_stub.mission_store import FENCE, MISSION, MissionItem
+from sitl_stub.core.mission_store import FENCE, MISSION, MissionItem
+from sitl_stub.flight.geofence import POLYGON_INCLUSION
+from sitl_stub.flight.mission_executor import NAV_LAND, NAV_TAKEOFF, NAV_WAYPOINT
+from sitl_stub.mavlink.server import ServerConfig, SitlServer
 from tests.mavlink_gcs import FAST_CLIMB_PARAMS, Gcs
 from uavlink.mavlink.dialect import mavlink
 

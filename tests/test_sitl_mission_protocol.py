@@ -1,4 +1,4 @@
-"""The vehicle's mission microservice (:mod:`sitl_stub.mission_protocol`) message by message, as
+"""The vehicle's mission microservice (:mod:`sitl_stub.mavlink.mission_protocol`) message by message, as
 PX4's MavlinkMissionManager answers: real MAVLink bytes both ways, wall time given by the test so
 PX4's re-request (0.25 s) and protocol (5 s) timeouts are checked exactly and at once."""
 
@@ -8,13 +8,13 @@ from typing import Any
 
 import pytest
 
-from sitl_stub.mission_protocol import (
+from sitl_stub.core.mission_store import FENCE, MISSION, RALLY, MissionItem, MissionStore
+from sitl_stub.mavlink.mission_protocol import (
     PROTOCOL_TIMEOUT_S,
     RETRY_TIMEOUT_S,
     MissionProtocol,
     check_item,
 )
-from sitl_stub.mission_store import FENCE, MISSION, RALLY, MissionItem, MissionStore
 from uavlink.mavlink.dialect import mavlink
 from uavlink.mavlink.mission import send_item
 

@@ -7,9 +7,9 @@ from typing import Any
 
 import pytest
 
-from sitl_stub.mavlink_server import ServerConfig, SitlServer
-from sitl_stub.payload import MAV_AUTOPILOT_INVALID
-from sitl_stub.vehicle_state import VehicleState
+from sitl_stub.core.vehicle_state import VehicleState
+from sitl_stub.mavlink.server import ServerConfig, SitlServer
+from sitl_stub.sim.payload import MAV_AUTOPILOT_INVALID
 from uavlink.mavlink.dialect import mavutil
 
 pytestmark = pytest.mark.timeout(60)

@@ -18,8 +18,8 @@ import pytest
 from conftest import PX4_PORTS
 
 from sitl_stub.launcher import vehicle_process
-from sitl_stub.links import Fanout, Route, px4_links, socket_free
-from sitl_stub.mavlink_server import ServerConfig, SitlServer
+from sitl_stub.mavlink.links import Fanout, Route, px4_links, socket_free
+from sitl_stub.mavlink.server import ServerConfig, SitlServer
 from uavlink.mavlink.connection import free_udp_port
 from uavlink.mavlink.dialect import mavutil
 from uavlink.mavlink.signing import SigningGuard

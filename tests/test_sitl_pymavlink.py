@@ -14,8 +14,8 @@ from collections.abc import Callable, Iterator
 
 import pytest
 
+from sitl_stub.core.params import int_to_param_float, param_float_to_int
 from sitl_stub.launcher import vehicle_process
-from sitl_stub.params import int_to_param_float, param_float_to_int
 from uavlink.mavlink.connection import free_udp_port
 from uavlink.mavlink.dialect import mavutil
 

@@ -11,11 +11,11 @@ from typing import Any
 
 import pytest
 
-from sitl_stub.battery import CELL_COUNT, CELL_EMPTY_V, CELL_FULL_V, Battery
-from sitl_stub.geo import GeoOrigin
-from sitl_stub.mavlink_server import ServerConfig, SitlServer
-from sitl_stub.telemetry import TelemetrySender
-from sitl_stub.vehicle import Vehicle
+from sitl_stub.core.geo import GeoOrigin
+from sitl_stub.flight.vehicle import Vehicle
+from sitl_stub.mavlink.server import ServerConfig, SitlServer
+from sitl_stub.mavlink.telemetry import TelemetrySender
+from sitl_stub.sim.battery import CELL_COUNT, CELL_EMPTY_V, CELL_FULL_V, Battery
 from uavlink.mavlink.dialect import mavutil
 
 pytestmark = pytest.mark.timeout(90)

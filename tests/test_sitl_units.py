@@ -9,13 +9,13 @@ import pytest
 from hypothesis import given
 from hypothesis import strategies as st
 
-from sitl_stub.clock import SimClock
-from sitl_stub.ftp import ERR_FILE_NOT_FOUND, OP_ACK, OP_NAK, ftp_reply
-from sitl_stub.geo import GeoOrigin
-from sitl_stub.modes import FlightMode
-from sitl_stub.params import ParamStore, ParamType, int_to_param_float, param_float_to_int
-from sitl_stub.payload import check_payload
-from sitl_stub.streams import StreamScheduler
+from sitl_stub.core.geo import GeoOrigin
+from sitl_stub.core.modes import FlightMode
+from sitl_stub.core.params import ParamStore, ParamType, int_to_param_float, param_float_to_int
+from sitl_stub.mavlink.ftp import ERR_FILE_NOT_FOUND, OP_ACK, OP_NAK, ftp_reply
+from sitl_stub.mavlink.streams import StreamScheduler
+from sitl_stub.sim.clock import SimClock
+from sitl_stub.sim.payload import check_payload
 from uavlink.mavlink.connection import is_listening, normalize_connection
 from uavlink.mavlink.px4_modes import decode_custom_mode, encode_custom_mode, px4_mode_name
 

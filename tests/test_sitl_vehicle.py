@@ -1,4 +1,4 @@
-"""Kinematics and mode logic of the SITL vehicle (sitl_stub.vehicle), in simulated time only."""
+"""Kinematics and mode logic of the SITL vehicle (sitl_stub.flight.vehicle), in simulated time only."""
 
 from __future__ import annotations
 
@@ -8,10 +8,10 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from sitl_stub.modes import FlightMode, LandedState
-from sitl_stub.params import ParamStore
-from sitl_stub.vehicle import Vehicle
-from sitl_stub.vehicle_state import Result
+from sitl_stub.core.modes import FlightMode, LandedState
+from sitl_stub.core.params import ParamStore
+from sitl_stub.core.vehicle_state import Result
+from sitl_stub.flight.vehicle import Vehicle
 
 pytestmark = pytest.mark.timeout(60)
 

@@ -1,4 +1,4 @@
-"""The warm start's teachers (uavlink/teachers.py): the aoa rule's variants (speed span, shadow gate
+"""The warm start's teachers (uavlink/learn/teachers.py): the aoa rule's variants (speed span, shadow gate
 on the SINR jump or on an estimate) and the privileged teacher that flies a rule on the true AoAs."""
 
 from __future__ import annotations
@@ -9,9 +9,10 @@ import pytest
 from uavlink.config import EnvConfig
 from uavlink.env.core import BatchedUavEnv
 from uavlink.evaluation import evaluate_policy
-from uavlink.policies.baselines import AoaPolicy, StaticPolicy, make_baseline
+from uavlink.learn.teachers import AoaVariant, TrueAoaTeacher, make_teacher
+from uavlink.policies.baselines import AoaPolicy, StaticPolicy
+from uavlink.policies.registry import make_baseline
 from uavlink.radio.aoa import circular_mean_std_deg, true_aoa_deg
-from uavlink.teachers import AoaVariant, TrueAoaTeacher, make_teacher
 
 CFG = EnvConfig(scenario="hotspot")
 

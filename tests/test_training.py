@@ -15,9 +15,9 @@ from conftest import TINY_TRAINING
 from uavlink.cli import main
 from uavlink.config import EnvConfig, TrainConfig
 from uavlink.evaluation import evaluate_policy
+from uavlink.learn.training import time_to_fraction, train
 from uavlink.policies.manifest import MANIFEST_NAME, PolicyFileError, read_zip_manifest
 from uavlink.policies.sb3_policy import SB3Policy
-from uavlink.training import time_to_fraction, train
 
 pytestmark = pytest.mark.slow  # trains PPO
 

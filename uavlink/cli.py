@@ -75,7 +75,7 @@ def cmd_evaluate(args: argparse.Namespace) -> int:
 
 
 def _write_results_folder(args: argparse.Namespace) -> int:
-    from uavlink.report import write_results
+    from uavlink.evaluation.report import write_results
 
     folder = Path(args.policy)
     if args.scenario != "all" or not folder.is_dir():
@@ -132,7 +132,7 @@ def format_table(results) -> str:
 def cmd_train(args: argparse.Namespace) -> int:
     from uavlink.config import TrainConfig
     from uavlink.config.fields import flag_of, from_options
-    from uavlink.training import train
+    from uavlink.learn.training import train
 
     cfg = apply_overrides(EnvConfig(), EnvOverrides.from_command_line(args.scenario, args.aoa_noise_deg, args.overrides))
     tc = from_options(TrainConfig, args).validate(cfg, name=lambda path: flag_of(TrainConfig, path))
@@ -338,7 +338,7 @@ def build_parser() -> argparse.ArgumentParser:
     p.set_defaults(func=cmd_keygen)
 
     from uavlink.flight.fly import add_fly_parser
-    from uavlink.flight.plot_command import add_plot_parser
+    from uavlink.plot.command import add_plot_parser
 
     add_fly_parser(sub)
     add_plot_parser(sub)

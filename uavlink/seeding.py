@@ -34,9 +34,9 @@ class Stream:
 
 # Evaluation (uavlink evaluate, reports, sweeps) and the SITL's radio payload (episode 0 of seed S).
 EVAL = Stream("eval", (), 128)
-# A rule's flying that the warm start clones (uavlink/imitation.py).
+# A rule's flying that the warm start clones (uavlink/learn/imitation.py).
 TEACHER = Stream("teacher", (0xB0,), 64)
-# The shadowing estimator's fitting data, and its held-out check (uavlink/shadow_estimation.py);
+# The shadowing estimator's fitting data, and its held-out check (uavlink/learn/shadow_estimation.py);
 # the data's rule hovers at random, drawn per chunk from the *_HOVERS siblings.
 SHADOW = Stream("shadow", (0x5AD, 0), 64)
 SHADOW_HELD_OUT = Stream("shadow-held-out", (0x5AD, 1), 64)

@@ -1,5 +1,8 @@
 """Typed configuration, one dataclass per thing: the env (area, radio, learning problem) and the
-training (PPO, budget, warm start). Imports nothing heavy and nothing from the layers above."""
+training (PPO, budget, warm start). Imports nothing heavy and nothing from the layers above.
+
+May import: ``errors``.
+"""
 
 from uavlink.config.env import (
     MIXED,

@@ -73,7 +73,7 @@ class RadioConfig:
     # Per-episode AoA noise: when above aoa_noise_deg, every episode draws its AoA noise std
     # uniformly from [aoa_noise_deg, aoa_noise_max_deg]; 0 (default) keeps the std fixed. The env
     # core reads it; it is training-time randomisation, set from TrainConfig.aoa_noise_max_deg by
-    # uavlink.training.training_env_config and never part of a policy's own env config.
+    # uavlink.learn.training.training_env_config and never part of a policy's own env config.
     aoa_noise_max_deg: float = 0.0
 
     def validate(self) -> None:

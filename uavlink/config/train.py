@@ -17,8 +17,8 @@ from uavlink.errors import ConfigError
 
 # The rules a warm start can copy; uavlink.policies.baselines implements them by these names.
 BASELINE_NAMES = ("static", "oracle", "aoa", "kmeans")
-# What a warm start may imitate: a baseline, or a fleet-only teacher (uavlink.teachers: solo;
-# uavlink.lead_teacher: lead).
+# What a warm start may imitate: a baseline, or a fleet-only teacher (uavlink.learn.teachers: solo;
+# uavlink.learn.lead_teacher: lead).
 TEACHER_NAMES = (*BASELINE_NAMES, "solo", "lead")
 _INF = float("inf")
 
@@ -30,7 +30,7 @@ def config_name(path: str) -> str:
 
 @dataclass(frozen=True)
 class WarmStartConfig:
-    """Behaviour-cloning warm start (ours; uavlink/imitation.py): the actor is first fitted to a rule's
+    """Behaviour-cloning warm start (ours; uavlink/learn/imitation.py): the actor is first fitted to a rule's
     actions over ``episodes`` of its own flying, its exploration std set to exp(``log_std``); PPO then
     fits only the critic for ``critic_rollouts`` rollouts (the actor frozen) and trains as usual."""
 
@@ -49,7 +49,7 @@ class WarmStartConfig:
         None, "aoa teacher only: its speed span, full speed DB below the hover SINR (default: the "
         "baseline's 10 dB)", low=0, low_open=True, metavar="DB")
     shadow_estimator_episodes: int | None = setting(
-        None, "aoa teacher only: gate on a shadowing estimate (uavlink/shadow_estimation.py) fitted on "
+        None, "aoa teacher only: gate on a shadowing estimate (uavlink/learn/shadow_estimation.py) fitted on "
         "N simulated episodes (hover while the estimated mean shadowing is above "
         "--warm-start-shadow-gate-db) instead of on the SINR jump (ours)", low=1, metavar="N")
     leader_policy: str = setting(

@@ -3,6 +3,8 @@
 The Gymnasium face lives in ``uavlink.env.gym_env`` and the SB3 VecEnv in ``uavlink.env.vec_env``
 (it imports stable-baselines3). Names are resolved on first use, so ``import uavlink`` (which only
 registers the Gymnasium id) loads neither the core nor the radio and mobility layers below it.
+
+May import: ``config``, ``errors``, ``seeding``, ``radio``, ``mobility``.
 """
 
 from __future__ import annotations

@@ -4,6 +4,8 @@
 agents ``uav_0`` ... ``uav_{D-1}`` over the batched core. PettingZoo is an optional dependency
 (``pip install 'uavlink[fleet]'``): it is imported only when ``parallel_env`` is called or
 ``uavlink.fleet.parallel`` is imported, so ``import uavlink.fleet`` stays light.
+
+May import: ``config``, ``errors``, ``env``.
 """
 
 from __future__ import annotations

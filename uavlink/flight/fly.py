@@ -16,8 +16,8 @@ import numpy as np
 from uavlink.config import changed_settings
 from uavlink.errors import UserError
 from uavlink.flight.fly_fleet import run_fleet_fly, split_urls
-from uavlink.flight.plot_command import picture_after_flight
 from uavlink.mavlink.connection import free_udp_port
+from uavlink.plot.command import picture_after_flight
 from uavlink.policies.contract import OVERRIDES_HELP, EnvOverrides, load_with_env
 
 log = logging.getLogger("uavlink.fly")

@@ -13,8 +13,8 @@ from pathlib import Path
 
 from uavlink.config import EnvConfig, changed_settings
 from uavlink.errors import UserError
-from uavlink.flight.plot_command import picture_after_flight
 from uavlink.mavlink.connection import free_udp_port, normalize_connection
+from uavlink.plot.command import picture_after_flight
 from uavlink.policies.base import Policy
 
 

@@ -9,4 +9,6 @@
 
 Nothing here imports the flight loop, the vehicle or the trainer; importing this package imports
 no pymavlink (only :mod:`~uavlink.mavlink.dialect` does).
+
+May import: ``errors``.
 """

@@ -2,7 +2,7 @@
 the item codec both ends share.
 
 :class:`MissionItem` is one item as a vehicle stores it (the SITL vehicle's
-:mod:`sitl_stub.mission_store` keeps these); :func:`item_from_message` and :func:`send_item` turn it
+:mod:`sitl_stub.core.mission_store` keeps these); :func:`item_from_message` and :func:`send_item` turn it
 into and out of MISSION_ITEM_INT (or the legacy float MISSION_ITEM). :class:`MissionClient` uploads,
 downloads and clears a mission, fence or rally list and sets the current mission item over any
 pymavlink ``mav``, with a ground station's timeouts and retries (QGroundControl's PlanManager: 1.5 s

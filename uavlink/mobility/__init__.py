@@ -1,4 +1,8 @@
-"""UE mobility scenarios, batched numpy with the random generator passed in."""
+"""UE mobility scenarios, batched numpy with the random generator passed in; a fleet's start
+positions and separation filter (``fleet``).
+
+May import: ``config``, ``errors``.
+"""
 
 from uavlink.mobility.scenarios import (
     MIXED,

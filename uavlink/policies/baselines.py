@@ -4,11 +4,10 @@ from __future__ import annotations
 
 import numpy as np
 
-from uavlink.config import BASELINE_NAMES, EnvConfig
+from uavlink.config import EnvConfig
 from uavlink.env.actions import ActionMapping
 from uavlink.env.core import GroundTruth
 from uavlink.env.observation import ObservationLayout
-from uavlink.errors import UserError
 from uavlink.radio.noise import noise_power_dbm
 from uavlink.radio.pathloss import mean_rx_power_dbm
 from uavlink.radio.rates import fair_rate, rate_bps
@@ -42,7 +41,7 @@ class AoaPolicy:
     the link budget straight overhead (no shadowing or fading). Because a shadowed frame also lowers
     the SINRs, the rule keeps moving while its UEs are shadowed and stops when they are not, which
     under the SPEC's shadowing model (no memory of place) buys throughput even when the UEs stay put
-    (docs/design.md). The warm start's variants of it: ``uavlink.teachers``.
+    (docs/design.md). The warm start's variants of it: ``uavlink.learn.teachers``.
     """
 
     name = "aoa"
@@ -60,7 +59,7 @@ class AoaPolicy:
 
     def act_towards(self, obs: np.ndarray, aoa_mean_deg: np.ndarray) -> np.ndarray:
         """The rule's actions (N, 2) with the circular-mean AoA (N,) in deg given, rather than read
-        from the observations (N, size): the seam a privileged teacher uses (``uavlink.teachers``)."""
+        from the observations (N, size): the seam a privileged teacher uses (``uavlink.learn.teachers``)."""
         gap = (self.hover_sinr_db - self.layout.newest_frame(obs)["sinr_db"].mean(axis=1)) / self.sinr_span_db
         distance = self.mapping.r_max_m * np.clip(gap, 0.0, 1.0)
         return self.mapping.from_polar(aoa_mean_deg, distance)
@@ -103,25 +102,3 @@ class OraclePolicy:
         move = uav_cand[np.arange(len(best)), best] - truth.uav_xy_m
         angle = np.degrees(np.arctan2(move[:, 1], move[:, 0]))
         return self.mapping.from_polar(angle, np.hypot(move[:, 0], move[:, 1]))
-
-
-BASELINES = BASELINE_NAMES  # declared in config, where a warm start names its teacher
-
-
-def make_baseline(name: str, cfg: EnvConfig):
-    """The baseline ``name`` for ``cfg``: a fleet (``n_uavs`` > 1) gets the fleet versions of the
-    rules (``uavlink.policies.fleet_baselines``); ``static`` hovers every UAV at its start."""
-    from uavlink.policies.fleet_baselines import FleetAoaPolicy, FleetOraclePolicy, KMeansPolicy
-
-    fleet = cfg.n_uavs > 1
-    if name == "static":
-        return StaticPolicy(cfg)
-    if name == "aoa":
-        return FleetAoaPolicy(cfg) if fleet else AoaPolicy(cfg)
-    if name == "oracle":
-        return FleetOraclePolicy(cfg) if fleet else OraclePolicy(cfg)
-    if name == "kmeans":
-        return KMeansPolicy(cfg)
-    raise UserError(f"unknown baseline {name!r}; choose from {', '.join(BASELINES)}")
-
-

@@ -27,9 +27,9 @@ from uavlink.config import EnvConfig, parse_settings
 from uavlink.env.observation import ObservationLayout
 from uavlink.errors import UserError
 from uavlink.policies.base import Policy
-from uavlink.policies.baselines import BASELINES
 from uavlink.policies.loader import load_policy, policy_for_scenario
 from uavlink.policies.manifest import PolicyFileError
+from uavlink.policies.registry import BASELINES
 
 # Fields a policy was built for: its action mapping and its observation layout's inputs.
 BUILT_FOR = ("action_mapping", "r_max_m", "memory", "n_ues", "n_uavs", "area.half_width_m")

@@ -32,7 +32,7 @@ class FleetAoaPolicy:
     sinr_span_db = 10.0  # as the single-UAV rule (uavlink.policies.baselines.AoaPolicy)
 
     def __init__(self, cfg: EnvConfig, sinr_span_db: float = sinr_span_db) -> None:
-        self.sinr_span_db = sinr_span_db  # a warm start's teacher may change it (uavlink.teachers)
+        self.sinr_span_db = sinr_span_db  # a warm start's teacher may change it (uavlink.learn.teachers)
         self.layout = ObservationLayout.for_config(cfg)
         self.mapping = ActionMapping.for_config(cfg)
         self.hover_sinr_db = hover_sinr_db(cfg)

@@ -6,8 +6,8 @@ from pathlib import Path
 
 from uavlink.config import EnvConfig
 from uavlink.policies.base import Policy
-from uavlink.policies.baselines import BASELINES, make_baseline
 from uavlink.policies.manifest import PolicyFileError
+from uavlink.policies.registry import BASELINES, make_baseline
 
 
 def load_policy(spec: str | Path, cfg: EnvConfig) -> Policy:

@@ -1,4 +1,7 @@
-"""Radio model: TR 25.814 urban-macro channel, SINR, round-robin rates and AoA. Pure numpy."""
+"""Radio model: TR 25.814 urban-macro channel, SINR, round-robin rates and AoA. Pure numpy.
+
+May import: ``config``, ``errors``.
+"""
 
 from uavlink.radio.aoa import circular_mean_std_deg, measured_aoa_deg, true_aoa_deg, wrap_deg
 from uavlink.radio.channel import RadioChannel, RadioReadings

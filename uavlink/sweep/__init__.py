@@ -4,6 +4,8 @@
 ``jobs`` is the job function a worker runs; ``runner`` is the client side (embedded LocalCluster or
 ``--scheduler``); ``aggregate`` writes the per-setting tables and plots. Only ``runner`` imports
 dask, so the core and flight installs never need it.
+
+May import: ``config``, ``errors``, ``seeding``, ``env``, ``rollout``, ``policies``, ``learn``, ``evaluation``.
 """
 
 from uavlink.sweep.spec import Job, SweepSpec, SweepSpecError, load_spec

@@ -18,7 +18,7 @@ from pathlib import Path
 from typing import Any
 
 from uavlink.errors import UserError
-from uavlink.report import markdown_table, write_csv
+from uavlink.evaluation.tables import markdown_table, write_csv
 from uavlink.sweep.jobs import RUN_FIELDS, read_result
 from uavlink.sweep.spec import BASELINE_COLUMNS, Job, SweepSpec, describe_point
 

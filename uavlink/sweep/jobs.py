@@ -41,9 +41,9 @@ def run_job(job_data: dict[str, Any]) -> dict[str, Any]:
 
     torch.set_num_threads(1)
     from uavlink.evaluation import evaluate_policy
+    from uavlink.learn.training import train
     from uavlink.policies.contract import EnvOverrides, load_with_env
     from uavlink.policies.manifest import read_zip_manifest
-    from uavlink.training import train
 
     cfg, tc = job.env_config(), job.train_config()
     leader = tc.warm_start.leader_policy

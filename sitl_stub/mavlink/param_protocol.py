@@ -1,0 +1,55 @@
+"""MAVLink parameter protocol (v1) over a :class:`~sitl_stub.core.params.ParamStore`, as PX4 answers it.
+
+PARAM_REQUEST_LIST sends every PARAM_VALUE; PARAM_REQUEST_READ answers by index (>= 0) or by name;
+PARAM_SET answers with the PARAM_VALUE now in force (the old value when the new one is refused:
+out of range, not finite, or not whole for an INT32). Unknown names get no answer, as in PX4.
+INT32 values travel bytewise-encoded in the float field (PX4, MAV_PROTOCOL_CAPABILITY_PARAM_ENCODE_BYTEWISE).
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+from sitl_stub.core.params import ParamStore
+
+
+class ParamProtocol:
+    """Answers parameter messages with ``mav`` (the autopilot component's MAVLink object)."""
+
+    def __init__(self, store: ParamStore, mav: Any) -> None:
+        self.store = store
+        self.mav = mav
+        self.rejected_sets = 0
+
+    def handle(self, msg: Any) -> bool:
+        """Handle a PARAM_* message; False when it is not one (or not a v1 parameter message)."""
+        kind = msg.get_type()
+        if kind == "PARAM_REQUEST_LIST":
+            for name in self.store:
+                self.send_value(name)
+        elif kind == "PARAM_REQUEST_READ":
+            name = self.store.name_at(msg.param_index) if msg.param_index >= 0 else _name(msg)
+            if name in self.store:
+                self.send_value(name)
+        elif kind == "PARAM_SET":
+            name = _name(msg)
+            if name not in self.store:
+                return True
+            if not self.store.set_from_wire(name, msg.param_value):
+                self.rejected_sets += 1
+            self.send_value(name)
+        else:
+            return False
+        return True
+
+    def send_value(self, name: str) -> None:
+        value, ptype = self.store.encode(name)
+        self.mav.param_value_send(name.encode("ascii"), value, int(ptype), len(self.store),
+                                  self.store.index_of(name))
+
+
+def _name(msg: Any) -> str:
+    raw = msg.param_id
+    if isinstance(raw, bytes):
+        raw = raw.decode("ascii", "replace")
+    return raw.split("\x00", 1)[0]

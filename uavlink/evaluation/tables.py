@@ -1,0 +1,124 @@
+"""The results report's tables, below its parts (``report``, ``report_spatial``, ``report_fleet``):
+the paper's Table I and II figures, one row of evaluations per scenario, Table I and II from them, the
+Markdown and CSV writers, and the command line's overrides on the spatial channel. A leaf of the
+package: it imports no report module, so the parts import it and not each other."""
+
+from __future__ import annotations
+
+import csv
+from collections.abc import Callable
+from dataclasses import dataclass
+from pathlib import Path
+
+from uavlink.config import EnvConfig
+from uavlink.evaluation.core import EvalResult, evaluate_policy, paired_ratio_ci
+from uavlink.mobility import SCENARIOS
+from uavlink.policies.contract import EnvOverrides, load_with_env
+
+# The paper's Table I (PPO, static) and Table II (straight under AoA noise), Mbps (SPEC).
+PAPER_TABLE_ONE = {
+    "no_move": (8.00, 7.95), "straight": (7.87, 4.59), "circular": (7.08, 3.59),
+    "straight_90": (6.27, 5.33), "straight_180": (5.91, 5.31), "hotspot": (5.19, 4.77),
+}
+PAPER_TABLE_TWO = {0: 7.87, 1: 7.84, 5: 7.82, 10: 7.80, 50: 7.70, 100: 7.16}
+
+
+@dataclass
+class ScenarioRow:
+    scenario: str
+    results: dict[str, EvalResult]  # by column: ppo, static, oracle, aoa (+ ppo_mixed)
+    cfg: EnvConfig  # the env of the scenario's policy, which the baselines flew too
+
+    def target_mbps(self) -> tuple[float, str]:
+        """The SPEC's per-scenario target for PPO and which rule set it."""
+        paper_ppo, paper_static = PAPER_TABLE_ONE[self.scenario]
+        static = self.results["static"].mean_rate_mbps
+        oracle = self.results["oracle"].mean_rate_mbps
+        by_gain = static * paper_ppo / paper_static
+        if by_gain <= oracle:
+            return max(by_gain, 0.9 * oracle), "paper gain"
+        return max(min(paper_ppo, 0.95 * oracle), 0.9 * oracle), "min(paper PPO, 95% oracle)"
+
+
+def evaluate_scenarios(policy_folder: Path, episodes: int, seed: int, overrides: EnvOverrides,
+                       progress: Callable[[str], None] = lambda _: None) -> list[ScenarioRow]:
+    """Per scenario: its policy, the baselines in that policy's env, and the mixed policy if any."""
+    rows = []
+    mixed = next((p for p in (policy_folder / "mixed.zip", policy_folder / "mixed.onnx") if p.is_file()), None)
+    columns = {"ppo": policy_folder, "static": "static", "oracle": "oracle", "aoa": "aoa",
+               **({"ppo_mixed": mixed} if mixed is not None else {})}
+    for scenario in SCENARIOS:
+        loaded = load_with_env(list(columns.values()), overrides.on(scenario))
+        results = {}
+        for column, (policy, cfg) in zip(columns, loaded, strict=True):
+            progress(f"{scenario}: {column}")
+            results[column] = evaluate_policy(policy, cfg, episodes, seed, record_trajectory=column != "ppo_mixed")
+        rows.append(ScenarioRow(scenario, results, loaded[0][1]))
+    return rows
+
+
+def table_one(rows: list[ScenarioRow]) -> tuple[list[str], list[list[str]]]:
+    has_mixed = "ppo_mixed" in rows[0].results
+    header = ["scenario", "PPO", "static", "oracle", "aoa", *(["PPO mixed"] if has_mixed else []),
+              "gain over static", "paper gain", "PPO / oracle", "PPO vs aoa",
+              "R_fair PPO / static / oracle / aoa", "target", "met"]
+    body = []
+    for row in rows:
+        r = row.results
+        ppo, static, oracle = (r[k].episode_rate_mbps for k in ("ppo", "static", "oracle"))
+        gain, glo, ghi = paired_ratio_ci(ppo, static)
+        share, slo, shi = paired_ratio_ci(ppo, oracle)
+        vs_aoa, alo, ahi = paired_ratio_ci(ppo, r["aoa"].episode_rate_mbps)
+        paper_ppo, paper_static = PAPER_TABLE_ONE[row.scenario]
+        target, rule = row.target_mbps()
+
+        def cell(key: str, r: dict[str, EvalResult] = r) -> str:
+            return f"{r[key].mean_rate_mbps:.2f} ± {r[key].ci95_mbps:.2f}"
+
+        body.append([
+            row.scenario, cell("ppo"), cell("static"), cell("oracle"), cell("aoa"),
+            *([cell("ppo_mixed")] if has_mixed else []),
+            f"{100 * (gain - 1):+.1f} % [{100 * (glo - 1):+.1f}, {100 * (ghi - 1):+.1f}]",
+            f"{100 * (paper_ppo / paper_static - 1):+.1f} %",
+            f"{100 * share:.1f} % [{100 * slo:.1f}, {100 * shi:.1f}]",
+            f"{100 * (vs_aoa - 1):+.1f} % [{100 * (alo - 1):+.1f}, {100 * (ahi - 1):+.1f}]",
+            " / ".join(f"{r[k].mean_fair_rate:.2f}" for k in ("ppo", "static", "oracle", "aoa")),
+            f"{target:.2f} ({rule})",
+            "yes" if r["ppo"].mean_rate_mbps >= target else "no",
+        ])
+    return header, body
+
+
+def table_two(policy_folder: Path, episodes: int, seed: int,
+              overrides: EnvOverrides) -> tuple[list[str], list[list[str]]]:
+    header = ["AoA noise std (deg)", "PPO (Mbps)", "drop from 0 deg", "paper (Mbps)", "paper drop"]
+    body, clean = [], None
+    for std, paper in PAPER_TABLE_TWO.items():
+        noisy = EnvOverrides("straight", float(std), overrides.settings)
+        [(policy, cfg)] = load_with_env([policy_folder], noisy)
+        result = evaluate_policy(policy, cfg, episodes, seed)
+        clean = result.mean_rate_mbps if clean is None else clean
+        body.append([str(std), f"{result.mean_rate_mbps:.2f} ± {result.ci95_mbps:.2f}",
+                     f"{clean - result.mean_rate_mbps:.2f}", f"{paper:.2f}", f"{7.87 - paper:.2f}"])
+    return header, body
+
+
+def markdown_table(header: list[str], body: list[list[str]]) -> str:
+    lines = ["| " + " | ".join(header) + " |", "|" + "---|" * len(header)]
+    lines += ["| " + " | ".join(row) + " |" for row in body]
+    return "\n".join(lines)
+
+
+def write_csv(path: Path, header: list[str], body: list[list[str]]) -> None:
+    with path.open("w", newline="") as handle:
+        writer = csv.writer(handle)
+        writer.writerow(header)
+        writer.writerows(body)
+
+
+SPATIAL = {"radio.shadowing_model": "spatial"}
+
+
+def spatial_overrides(overrides: EnvOverrides) -> EnvOverrides:
+    """The command line's overrides on the spatial channel (a radio override: allowed for any policy)."""
+    return EnvOverrides(overrides.scenario, overrides.aoa_noise_deg, {**overrides.settings, **SPATIAL})

@@ -1,0 +1,10 @@
+"""Flying a policy over MAVLink (``uavlink fly``): ``link`` (the vehicle link: modes, arming,
+offboard setpoints, missions), ``link_group`` (one link per UAV of a fleet), ``radio_source`` (the
+payload's radio readings), ``mission`` and ``fleet_mission`` (the fly loop for one UAV and a fleet),
+``fence``, ``transit``, and ``fly`` / ``fly_fleet`` (the command: an embedded SITL vehicle or a given
+connection). Layer: the top, below only the CLI.
+
+May import: ``config``, ``errors``, ``mobility``, ``env``, ``mavlink``, ``policies``, ``plot`` (the
+flight picture) and
+``sitl_stub.launcher`` (the vehicle as a child process); never ``learn``, ``evaluation`` or ``sweep``.
+"""

@@ -1,0 +1,123 @@
+"""Behaviour-cloning warm start (ours, not the paper's): fit PPO's actor to a rule before PPO runs.
+
+PPO from scratch finds the moves that follow the team, but not the subtler habit of the ``aoa`` rule:
+keep moving while the SINRs sit below the hover level (shadowed) and stop when they do not, which
+under the SPEC's shadowing model is worth up to 4 % on ``no_move`` (docs/design.md). Starting PPO
+from a copy of the rule lets it keep that habit and improve on the rest. The teacher
+(``uavlink.learn.teachers``; the aoa rule reads the true AoAs where the student sees noisy ones) flies its
+own seeded rollouts of the training env on the ``TEACHER`` stream; the student's actor (MLP +
+action head) is fitted to the teacher's actions by mean squared error, and its exploration std is
+reset. The critic knows nothing yet, and PPO's first updates with its random advantages would undo
+the copy, so the actor stays frozen for the first few rollouts while the critic learns the cloned
+policy's values (``critic_warmup_callback``). Imports torch.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+
+from uavlink.config import EnvConfig
+from uavlink.learn.teachers import make_teacher
+from uavlink.rollout import Actor, rollout
+from uavlink.seeding import TEACHER
+
+CLONE_EPOCHS = 20  # passes over the cloning data unless TrainConfig.warm_start.epochs says otherwise
+
+
+@dataclass(frozen=True)
+class CloneReport:
+    teacher: str
+    samples: int
+    epochs: int
+    final_mse: float
+
+    def to_dict(self) -> dict[str, Any]:
+        return {"teacher": self.teacher, "samples": self.samples, "epochs": self.epochs,
+                "final_mse": round(self.final_mse, 6)}
+
+
+def teacher_dataset(cfg: EnvConfig, teacher: str | Actor, episodes: int, seed: int) -> tuple[np.ndarray, np.ndarray]:
+    """(observations, actions) float32 from ``episodes`` seeded episodes flown by ``teacher`` (a rule's
+    name, or a teacher from ``uavlink.learn.teachers.make_teacher``)."""
+    policy = make_teacher(cfg, teacher) if isinstance(teacher, str) else teacher
+    observations, actions = [], []
+    for frame in rollout(policy, cfg, TEACHER, episodes, seed):
+        observations.append(frame.observation)
+        actions.append(frame.action)
+    return np.concatenate(observations).astype(np.float32), np.concatenate(actions).astype(np.float32)
+
+
+def clone_actor(sb3_policy: Any, observations: np.ndarray, actions: np.ndarray, epochs: int = CLONE_EPOCHS,
+                batch_size: int = 1024, learning_rate: float = 1e-3, log_std: float = -1.0,
+                seed: int = 0) -> float:
+    """Fit the SB3 policy's actor mean to ``actions`` (MSE, Adam) and set its log std; returns the
+    final epoch's mean squared error."""
+    import torch
+
+    generator = torch.Generator().manual_seed(seed)
+    obs_t, act_t = torch.as_tensor(observations), torch.as_tensor(actions)
+    params = [*sb3_policy.mlp_extractor.policy_net.parameters(), *sb3_policy.action_net.parameters()]
+    optimizer = torch.optim.Adam(params, lr=learning_rate)
+    loss_sum = 0.0
+    for _ in range(epochs):
+        loss_sum, order = 0.0, torch.randperm(len(obs_t), generator=generator)
+        for start in range(0, len(order), batch_size):
+            idx = order[start:start + batch_size]
+            latent = sb3_policy.mlp_extractor.forward_actor(obs_t[idx])
+            loss = torch.nn.functional.mse_loss(sb3_policy.action_net(latent), act_t[idx])
+            optimizer.zero_grad()
+            loss.backward()
+            optimizer.step()
+            loss_sum += float(loss.detach()) * len(idx)
+    with torch.no_grad():
+        sb3_policy.log_std.fill_(log_std)
+    return loss_sum / len(obs_t)
+
+
+def warm_start(sb3_policy: Any, cfg: EnvConfig, teacher: str | Actor, episodes: int, seed: int,
+               epochs: int = CLONE_EPOCHS, log_std: float = -1.0) -> CloneReport:
+    """Clone ``teacher`` (a rule's name, or a policy from ``make_teacher``) into the policy's actor
+    from ``episodes`` of its own flying."""
+    policy = make_teacher(cfg, teacher) if isinstance(teacher, str) else teacher
+    observations, actions = teacher_dataset(cfg, policy, episodes, seed)
+    mse = clone_actor(sb3_policy, observations, actions, epochs=epochs, log_std=log_std, seed=seed)
+    return CloneReport(policy.name, len(observations), epochs, mse)
+
+
+def critic_warmup_callback(rollouts: int):
+    """An SB3 callback that freezes the actor (MLP, action head, log std) for the first ``rollouts``
+    rollouts, so PPO's first updates fit only the critic."""
+    from stable_baselines3.common.callbacks import BaseCallback
+
+    class CriticWarmup(BaseCallback):
+        def __init__(self) -> None:
+            super().__init__()
+            self.rollouts_done = 0
+
+        def _actor_parameters(self):
+            policy = self.model.policy
+            return [*policy.mlp_extractor.policy_net.parameters(), *policy.action_net.parameters(),
+                    policy.log_std]
+
+        def _set_frozen(self, frozen: bool) -> None:
+            for param in self._actor_parameters():
+                param.requires_grad_(not frozen)
+
+        def _on_training_start(self) -> None:
+            self._set_frozen(rollouts > 0)
+
+        def _on_rollout_end(self) -> None:
+            self.rollouts_done += 1
+            if self.rollouts_done == rollouts + 1:  # the updates after this rollout move the actor
+                self._set_frozen(False)
+
+        def _on_step(self) -> bool:
+            return True
+
+        def _on_training_end(self) -> None:
+            self._set_frozen(False)
+
+    return CriticWarmup()

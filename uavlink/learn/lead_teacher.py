@@ -1,0 +1,146 @@
+"""A fleet's warm-start teacher whose roles the observation shows: one UAV leads, the others keep away.
+
+With one group of UEs a second active cell only takes UEs and interferes with all the others (SPEC
+"A fleet"), so the best a fleet of D can do is one UAV's policy with the other cells empty, hence
+silent. ``SoloTeacher`` (uavlink.learn.teachers) picks its leader by GPS (nearest the UEs' centroid), which
+no UAV can read from its observation: cloned, the actor averaged the roles and both UAVs fled
+(docs/experiments.md, no_move 4.7 Mbps). Here the roles are a function of what every UAV observes:
+the leader is the UAV serving the most UEs (``served_by``; ties go to the UAV farthest east, then
+north, positions every UAV sees), so a clone can learn them, and the split reinforces itself (the
+others leave, the leader's cell grows; the counts are summed over the frames in memory, so a UE
+that shadowing hands over for a frame does not swap the roles). The leader flies a single-UAV
+policy (the single-UAV spatial policy of the scenario: it exploits the good shadowing spots) on its
+single-UAV view, the v1 fields of its own fleet frames (``single_view``); the others head for the
+corner farthest from the leader and, while their cell still holds a UE, on along the wall to the
+next farthest, holding once their cell is empty (as ``SoloTeacher`` does around the UEs' centroid).
+GPS-free: it reads nothing but the observation.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from uavlink.config import EnvConfig
+from uavlink.env.actions import ActionMapping
+from uavlink.env.core import GroundTruth
+from uavlink.env.observation import FIELDS, OBS_LAYOUT_VERSION, ObservationLayout
+from uavlink.errors import UserError
+from uavlink.policies.baselines import hover_sinr_db
+from uavlink.policies.fleet_baselines import moves_to
+from uavlink.rollout import Actor
+
+
+def single_layout(fleet: ObservationLayout) -> ObservationLayout:
+    """The single-UAV layout (v1) with a fleet layout's UEs, memory and area."""
+    return ObservationLayout(version=OBS_LAYOUT_VERSION, n_ues=fleet.n_ues, n_uavs=1, memory=fleet.memory,
+                             half_width_m=fleet.half_width_m, sinr_offset_db=fleet.sinr_offset_db,
+                             sinr_scale_db=fleet.sinr_scale_db, sinr_clip_db=fleet.sinr_clip_db,
+                             aoa_std_max_rad=fleet.aoa_std_max_rad)
+
+
+def single_view(fleet: ObservationLayout, obs: np.ndarray) -> np.ndarray:
+    """What one UAV of a fleet would observe alone: the single-UAV fields of each of its frames,
+    (rows, v1 size) float32 from fleet observations (rows, v2 size)."""
+    frames = fleet.encoded_history(obs, *(field.quantity for field in FIELDS))  # (rows, memory, v1 frame)
+    return frames.reshape(len(obs), -1).astype(np.float32)
+
+
+def leader_index(layout: ObservationLayout, obs: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Which UAV leads, as each observing row numbers them (0 = itself, then the next ones in
+    fleet order): the one serving the most UEs, ties to the UAV farthest east, then north (every
+    UAV of an env picks the same). Returns the index (rows,) and the UAVs' positions (rows, D, 2)."""
+    frame = layout.newest_frame(obs)
+    n_uavs = layout.n_uavs
+    # UEs served over the frames in memory, (rows, D) numbered me, next, ...: a UE that shadowing
+    # hands over for a frame does not swap the roles.
+    cells = (layout.history(obs, "served_by")[..., None] == np.arange(n_uavs)).sum(axis=(1, 2))
+    xy = np.concatenate([frame["uav_xy_m"][:, None], frame["others_xy_m"]], axis=1)  # (rows, D, 2)
+    # Lexicographic (cell size, x, y), positions rounded so both UAVs of an env rank alike.
+    key = np.round(xy, 3)
+    return np.lexsort((key[..., 1], key[..., 0], cells), axis=1)[:, -1], xy
+
+
+class LeadTeacher:
+    """The leader flies ``leader`` (a single-UAV policy: its layout is v1) on its single-UAV view;
+    every other UAV keeps to the far corners (``away``). Fleet only (n_uavs > 1)."""
+
+    name = "lead"
+    needs_truth = False
+    # The UEs look far while their AoAs spread less than close_spread_deg (a 10 m cluster: ~20 deg
+    # from 30 m off) and their mean SINR is below hover + far_sinr_margin_db. Validation (seed 1),
+    # teacher / one UAV's policy: straight 98.6 % (seed 2: 98.2 %) with the dash, 96.6 % without,
+    # 97.5 % at (10 deg, 0 dB), 97.1 % on the spread alone; no_move 106.1 %, 101 % without.
+    close_spread_deg = 20.0
+    far_sinr_margin_db = 6.0
+
+    def __init__(self, cfg: EnvConfig, leader: Actor) -> None:
+        if cfg.n_uavs < 2:
+            raise UserError("the lead teacher is a fleet's (n_uavs > 1)")
+        self.layout = ObservationLayout.for_config(cfg)
+        self.single = single_layout(self.layout)
+        own = getattr(leader, "layout", None)
+        if own is not None:
+            own.check_matches(self.single, what=f"the lead teacher's leader {getattr(leader, 'name', leader)!r}")
+        self.leader = leader
+        self.cfg = cfg
+        self.mapping = ActionMapping.for_config(cfg)
+        self.hover_sinr_db = hover_sinr_db(cfg)
+        self.corners = area_corners_m(cfg)
+
+    def act(self, obs: np.ndarray, truth: GroundTruth | None = None) -> np.ndarray:
+        obs = np.asarray(obs, dtype=np.float32)
+        index, xy = leader_index(self.layout, obs)
+        lead = index == 0
+        action = np.empty((len(obs), 2), dtype=np.float32)
+        if lead.any():
+            action[lead] = self.lead(obs[lead])
+        if (~lead).any():
+            away = ~lead
+            action[away] = self.away(obs[away], xy[away, index[away]])
+        return action
+
+    def lead(self, obs: np.ndarray) -> np.ndarray:
+        """The leader policy's move on the single-UAV view; but full speed towards the UEs while they
+        look far: AoAs spread less than ``close_spread_deg`` and the mean SINR below the hover level
+        plus ``far_sinr_margin_db`` (a single UAV starts on top of the UEs: its policy never learned
+        to close in from a fleet's start 100 m off, nor to leave a badly shadowed spot far from them)."""
+        frame = self.layout.newest_frame(obs)
+        far = ((frame["aoa_std_deg"] < self.close_spread_deg)
+               & (frame["sinr_db"].mean(axis=1) < self.hover_sinr_db + self.far_sinr_margin_db))
+        dash = self.mapping.from_polar(frame["aoa_mean_deg"], np.full(len(obs), self.mapping.r_max_m))
+        return np.where(far[:, None], dash, self.leader.act(single_view(self.layout, obs))).astype(np.float32)
+
+    def away(self, obs: np.ndarray, leader_xy_m: np.ndarray) -> np.ndarray:
+        """Out of the way: the far corners from the leader (it is with the UEs), ``away_target_m``."""
+        frame = self.layout.newest_frame(obs)
+        me = frame["uav_xy_m"]
+        target = away_target_m(self.corners, me, leader_xy_m, (frame["served_by"] == 0).any(axis=1))
+        return moves_to(me, target, self.mapping).astype(np.float32)
+
+
+def area_corners_m(cfg: EnvConfig) -> np.ndarray:
+    """The area's four corners (4, 2), m."""
+    h = cfg.area.half_width_m
+    return np.array([[h, h], [-h, h], [-h, -h], [h, -h]])
+
+
+def away_target_m(corners_m: np.ndarray, xy_m: np.ndarray, from_xy_m: np.ndarray, serving: np.ndarray) -> np.ndarray:
+    """Where UAVs at ``xy_m`` (rows, 2) keeping out of the way head (rows, 2): the corner (of
+    ``corners_m``, (4, 2)) farthest from ``from_xy_m`` (rows, 2); once there, on to the next farthest
+    while their cell still holds a UE (``serving``, (rows,); shadowing can favour a far UAV), else
+    where they are: an empty cell is silent."""
+    far = np.argsort(-np.linalg.norm(corners_m[None] - from_xy_m[:, None], axis=2), axis=1)
+    first, second = corners_m[far[:, 0]], corners_m[far[:, 1]]
+    at_first = np.linalg.norm(xy_m - first, axis=1) < 1.0
+    target = np.where((at_first & serving)[:, None], second, first)
+    return np.where((at_first & ~serving)[:, None], xy_m, target)
+
+
+def make_lead_teacher(cfg: EnvConfig, leader_policy: str = "") -> LeadTeacher:
+    """The lead teacher for fleet ``cfg``; its leader flies ``leader_policy`` (a single-UAV policy
+    file, e.g. policies/spatial/<scenario>.zip) or, without one, the single-UAV aoa rule."""
+    from uavlink.policies.baselines import AoaPolicy
+    from uavlink.policies.loader import load_policy
+
+    single = cfg.replace(n_uavs=1).validate()
+    return LeadTeacher(cfg, load_policy(leader_policy, single) if leader_policy else AoaPolicy(single))

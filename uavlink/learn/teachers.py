@@ -1,0 +1,149 @@
+"""The rules the warm start clones (ours, not the SPEC's): variants of the aoa rule and the privileged
+teacher that flies them on the UEs' true AoAs.
+
+``AoaVariant`` is the aoa rule with another speed span and/or a shadow gate that hovers where the
+links look favourably shadowed, a draw that moving would throw away (docs/design.md); it stays
+GPS-free, so benchmarks evaluate it like any policy. ``TrueAoaTeacher`` flies a rule on the true
+AoAs instead of the observation's estimates and says so with ``needs_truth``: under heavy AoA noise
+the student then learns what the noisy observation implies about the clean rule's move, not to copy
+a rule that flies wherever the noise points. ``make_teacher`` builds what ``TrainConfig`` names.
+The shadowing estimator a gate can read lives in ``uavlink.learn.shadow_estimation``.
+"""
+
+from __future__ import annotations
+
+from typing import Any, Protocol
+
+import numpy as np
+
+from uavlink.config import EnvConfig
+from uavlink.config.train import TEACHER_NAMES
+from uavlink.env.actions import ActionMapping
+from uavlink.env.core import GroundTruth
+from uavlink.env.observation import ObservationLayout
+from uavlink.errors import UserError
+from uavlink.learn.lead_teacher import area_corners_m, away_target_m, make_lead_teacher
+from uavlink.policies.baselines import AoaPolicy
+from uavlink.policies.fleet_baselines import FleetAoaPolicy, moves_to
+from uavlink.policies.registry import make_baseline
+from uavlink.radio.aoa import circular_mean_std_deg, true_aoa_deg
+
+
+class ShadowEstimate(Protocol):
+    """Anything that estimates the links' mean shadowing (dB) from observations (N, size), such as
+    ``uavlink.learn.shadow_estimation.ShadowEstimator``."""
+
+    def predict_db(self, obs: np.ndarray) -> np.ndarray: ...
+
+
+class AoaVariant(AoaPolicy):
+    """The aoa rule with its speed span replaced and an optional shadow gate; GPS-free.
+
+    With ``shadow_gate_db`` set it hovers instead wherever the links look favourably shadowed.
+    Without an estimator: where the newest frame's mean SINR beats the mean of the older frames in
+    memory by more than the gate (path loss changes little from frame to frame, so such a jump is
+    mostly a good shadowing draw). With one: where the estimated mean shadowing is above the gate.
+    """
+
+    def __init__(self, cfg: EnvConfig, sinr_span_db: float = AoaPolicy.sinr_span_db,
+                 shadow_gate_db: float | None = None, shadow_estimator: ShadowEstimate | None = None) -> None:
+        super().__init__(cfg)
+        if shadow_gate_db is not None and cfg.memory < 2:
+            raise UserError("the aoa rule's shadow gate compares frames: it needs memory >= 2")
+        if shadow_estimator is not None and shadow_gate_db is None:
+            raise UserError("a shadow estimator needs the gate's threshold (shadow_gate_db)")
+        self.sinr_span_db = sinr_span_db
+        self.shadow_gate_db = shadow_gate_db
+        self.shadow_estimator = shadow_estimator
+
+    def act_towards(self, obs: np.ndarray, aoa_mean_deg: np.ndarray) -> np.ndarray:
+        action = super().act_towards(obs, aoa_mean_deg)
+        if self.shadow_gate_db is None:
+            return action
+        if self.shadow_estimator is not None:
+            lucky = self.shadow_estimator.predict_db(obs) > self.shadow_gate_db
+        else:
+            mean_sinr_db = self.layout.sinr_db_history(obs).mean(axis=2)  # (N, memory), newest first
+            lucky = mean_sinr_db[:, 0] > mean_sinr_db[:, 1:].mean(axis=1) + self.shadow_gate_db
+        return np.where(lucky[:, None], self.hover, action)
+
+
+class TrueAoaTeacher:
+    """``rule`` flown on the UEs' true AoAs (privileged: reads ground truth, never flies for real)."""
+
+    needs_truth = True
+
+    def __init__(self, rule: AoaPolicy) -> None:
+        self.rule = rule
+        self.name = rule.name
+        self.layout = rule.layout
+
+    def act(self, obs: np.ndarray, truth: GroundTruth | None = None) -> np.ndarray:
+        if truth is None:
+            raise ValueError("the true-AoA teacher needs ground truth; it cannot fly from MAVLink data")
+        aoa_mean_deg, _ = circular_mean_std_deg(true_aoa_deg(truth.uav_xy_m[:, None, :], truth.ue_xy_m))
+        return self.rule.act_towards(obs, aoa_mean_deg)
+
+
+def make_teacher(cfg: EnvConfig, teacher: str, shadow_gate_db: float | None = None,
+                 sinr_span_db: float | None = None, shadow_estimator: ShadowEstimate | None = None,
+                 leader_policy: str = "") -> Any:
+    """The warm start's teacher named ``teacher``: the aoa rule (or its variant, when
+    ``shadow_gate_db``, ``sinr_span_db`` or ``shadow_estimator`` is set) on the true AoAs, a
+    fleet's ``solo`` or ``lead`` teacher (the latter's leader flies ``leader_policy``, a single-UAV
+    policy file, or the single-UAV aoa rule), or another baseline as it is."""
+    if teacher not in TEACHER_NAMES:
+        raise UserError(f"unknown teacher {teacher!r}; choose from {', '.join(TEACHER_NAMES)}")
+    variant = not (shadow_gate_db is None and sinr_span_db is None and shadow_estimator is None)
+    if teacher in ("solo", "lead") and cfg.n_uavs == 1:
+        raise UserError(f"the {teacher} teacher is a fleet's (n_uavs > 1)")
+    if leader_policy and teacher != "lead":
+        raise UserError(f"a leader policy is a setting of the lead teacher, not of {teacher!r}")
+    if teacher == "lead" and not variant:
+        return make_lead_teacher(cfg, leader_policy)
+    if cfg.n_uavs > 1:  # a fleet's teachers: its baselines as they are (the aoa rule's span aside), or solo
+        if teacher == "aoa" and sinr_span_db is not None and shadow_gate_db is None and shadow_estimator is None:
+            return FleetAoaPolicy(cfg, sinr_span_db=sinr_span_db)
+        if variant:
+            raise UserError("a shadow gate and a shadow estimator are settings of the single-UAV aoa "
+                            "teacher, a speed span of an aoa teacher, not of a fleet's others")
+        return SoloTeacher(cfg) if teacher == "solo" else make_baseline(teacher, cfg)
+    if not variant:
+        return TrueAoaTeacher(AoaPolicy(cfg)) if teacher == "aoa" else make_baseline(teacher, cfg)
+    if teacher != "aoa":
+        raise UserError(f"a shadow gate, a speed span and a shadow estimator are settings of the aoa "
+                         f"teacher, not of {teacher!r}")
+    span = {} if sinr_span_db is None else {"sinr_span_db": sinr_span_db}
+    return TrueAoaTeacher(AoaVariant(cfg, shadow_gate_db=shadow_gate_db, shadow_estimator=shadow_estimator, **span))
+
+
+class SoloTeacher:
+    """A fleet's warm-start teacher for UEs that stay together (GPS, privileged; training only):
+    the UAV nearest the UEs' centroid flies to it; every other UAV heads for the corner of the
+    area farthest from the centroid and, while its cell still holds a UE (shadowing can favour a
+    far UAV), moves on along the wall to the next far corner, holding once its cell is empty. With
+    one group a second active cell only takes UEs and interferes with all the others (SPEC "A
+    fleet": the greedy oracle loses 3-15 % there); an empty cell is silent."""
+
+    name = "solo"
+    needs_truth = True
+
+    def __init__(self, cfg: EnvConfig) -> None:
+        self.cfg = cfg
+        self.mapping = ActionMapping.for_config(cfg)
+        self.layout = ObservationLayout.for_config(cfg)
+        self.corners = area_corners_m(cfg)
+
+    def act(self, obs: np.ndarray, truth: GroundTruth | None = None) -> np.ndarray:
+        if truth is None:
+            raise ValueError("the solo teacher needs ground truth")
+        n_uavs = self.cfg.n_uavs
+        uav = truth.uav_xy_m.reshape(-1, n_uavs, 2)
+        centroid = truth.ue_xy_m.mean(axis=1)[:, None, :]  # (N, 1, 2)
+        dist = np.linalg.norm(uav - centroid, axis=2)
+        leader = dist.argmin(axis=1)[:, None] == np.arange(n_uavs)  # (N, D)
+        serving = (self.layout.newest_frame(obs)["served_by"] == 0).any(axis=1)
+        centroids = np.repeat(centroid[:, 0], n_uavs, axis=0)  # agent rows
+        away = away_target_m(self.corners, truth.uav_xy_m, centroids, serving)
+        target = np.where(leader.reshape(-1, 1), centroids, away)
+        return moves_to(truth.uav_xy_m, target, self.mapping)

@@ -1,0 +1,177 @@
+"""PPO training on the batched VecEnv, as the paper configures it (SPEC "What the paper reports").
+
+``TrainConfig`` (uavlink.config) holds the paper's hyper-parameters and, marked as such, the choices
+the paper does not state. Imports torch and stable-baselines3 (inside the functions that need them).
+"""
+
+from __future__ import annotations
+
+import json
+import time
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from uavlink.config import PAPER_HYPERPARAMETERS, EnvConfig, TrainConfig
+
+__all__ = ["make_model", "time_to_fraction", "train", "training_env_config"]
+
+
+def training_env_config(cfg: EnvConfig, tc: TrainConfig) -> EnvConfig:
+    """The env PPO trains in: the policy's env ``cfg`` plus the training's AoA noise randomisation
+    (``tc.aoa_noise_max_deg`` into ``RadioConfig.aoa_noise_max_deg``, which the env core reads). The
+    manifest keeps ``cfg``: the randomisation is the training's, not the policy's env."""
+    return cfg.replace(aoa_noise_max_deg=tc.aoa_noise_max_deg).validate() if tc.aoa_noise_max_deg else cfg
+
+
+def make_model(cfg: EnvConfig, tc: TrainConfig, run_dir: Path | None):
+    import torch
+    from stable_baselines3 import PPO
+
+    from uavlink.env.vec_env import UavVecEnv
+
+    torch.set_num_threads(tc.torch_threads)
+    env = UavVecEnv(training_env_config(cfg, tc), n_envs=tc.n_envs, seed=tc.seed)
+    if tc.normalize_reward:
+        from stable_baselines3.common.vec_env import VecNormalize
+
+        env = VecNormalize(env, norm_obs=False, norm_reward=True, gamma=tc.gamma)
+    arch = list(tc.net_arch)
+    return PPO(
+        "MlpPolicy", env, learning_rate=tc.learning_rate, n_steps=tc.n_steps, batch_size=tc.batch_size,
+        n_epochs=tc.n_epochs, gamma=tc.gamma, gae_lambda=tc.gae_lambda, clip_range=tc.clip_range,
+        ent_coef=tc.ent_coef, vf_coef=tc.vf_coef, max_grad_norm=tc.max_grad_norm,
+        policy_kwargs={"net_arch": {"pi": arch, "vf": arch}}, seed=tc.seed, device="cpu",
+        tensorboard_log=str(run_dir) if run_dir else None, verbose=0,
+    )
+
+
+def _callback(total: int, run_dir: Path | None, checkpoint_every: int, progress: bool):
+    from stable_baselines3.common.callbacks import BaseCallback
+
+    class TrainingMonitor(BaseCallback):
+        """Progress bar with the mean episode throughput, learning curve, periodic checkpoint."""
+
+        def __init__(self) -> None:
+            super().__init__()
+            self.curve: list[tuple[int, float]] = []
+            self._bar = None
+            self._next_checkpoint = checkpoint_every
+
+        def _on_training_start(self) -> None:
+            if progress:
+                from tqdm.auto import tqdm
+
+                # disable=None: no bar when stderr is not a terminal (logs, pipes, CI)
+                self._bar = tqdm(total=total, initial=self.num_timesteps, unit="step", dynamic_ncols=True,
+                                 disable=None)
+
+        def _on_step(self) -> bool:
+            rates = [i["episode"]["mean_rate_mbps"] for i in self.locals["infos"] if "episode" in i]
+            if rates:
+                mean = float(np.mean(rates))
+                self.curve.append((int(self.num_timesteps), round(mean, 4)))
+                self.logger.record("rollout/mean_rate_mbps", mean)
+                if self._bar is not None:
+                    self._bar.set_postfix_str(f"{mean:.2f} Mbps")
+            if self._bar is not None:
+                self._bar.n = min(self.num_timesteps, total)
+                self._bar.refresh() if self.num_timesteps % 4096 < self.training_env.num_envs else None
+            if run_dir is not None and self.num_timesteps >= self._next_checkpoint:
+                self.model.save(run_dir / "checkpoint.zip")
+                self._next_checkpoint += checkpoint_every
+            return True
+
+        def _on_training_end(self) -> None:
+            if self._bar is not None:
+                self._bar.n = min(self.num_timesteps, total)
+                self._bar.close()
+
+    return TrainingMonitor()
+
+
+def time_to_fraction(curve: list[tuple[int, float]], fraction: float = 0.95, window: int = 10) -> int | None:
+    """First step at which the moving average of episode throughput reaches ``fraction`` of its final value."""
+    if len(curve) < window:
+        return None
+    steps = np.array([s for s, _ in curve])
+    smooth = np.convolve([r for _, r in curve], np.ones(window) / window, mode="valid")
+    reached = np.flatnonzero(smooth >= fraction * smooth[-1])
+    return int(steps[window - 1 + reached[0]]) if len(reached) else None
+
+
+def _warm_start(sb3_policy: Any, cfg: EnvConfig, tc: TrainConfig) -> dict[str, Any]:
+    """Clone the teacher TrainConfig names into the actor (uavlink/learn/imitation.py); the report."""
+    from uavlink.learn.imitation import CLONE_EPOCHS, warm_start
+    from uavlink.learn.teachers import make_teacher
+
+    estimator = None
+    ws = tc.warm_start
+    if ws.shadow_estimator_episodes is not None:
+        from uavlink.learn.shadow_estimation import fit_shadow_estimator
+
+        estimator = fit_shadow_estimator(cfg, ws.shadow_estimator_episodes, tc.seed)
+    teacher = make_teacher(cfg, ws.teacher, ws.shadow_gate_db, ws.sinr_span_db, estimator, ws.leader_policy)
+    epochs = CLONE_EPOCHS if ws.epochs is None else ws.epochs
+    report = warm_start(sb3_policy, cfg, teacher, ws.episodes, tc.seed, epochs=epochs,
+                        log_std=ws.log_std).to_dict()
+    if estimator is not None:
+        report["shadow_estimator_r2"] = round(estimator.r2, 4)
+    return report
+
+
+def train(cfg: EnvConfig, tc: TrainConfig, out: Path, run_dir: Path | None = None,
+          resume: Path | None = None, progress: bool = True) -> dict[str, Any]:
+    """Train, save ``out`` (SB3 zip with manifest) and return the manifest's training section.
+    ``tc`` is validated against ``cfg`` here, so a bad setting fails before any work."""
+    from stable_baselines3 import PPO
+
+    from uavlink.policies.manifest import build_manifest, write_zip_manifest
+
+    tc.validate(cfg)
+    if run_dir is not None:
+        run_dir.mkdir(parents=True, exist_ok=True)
+    model = make_model(cfg, tc, run_dir)
+    if resume is not None:
+        model = PPO.load(resume, env=model.get_env(), device="cpu", tensorboard_log=str(run_dir) if run_dir else None)
+    start = time.perf_counter()  # the wall time counts the warm start too
+    cloned = None
+    if tc.warm_start.teacher and resume is None:
+        cloned = _warm_start(model.policy, training_env_config(cfg, tc), tc)
+    if run_dir is None:
+        # Without a run folder SB3 would make an empty one under the temp dir for every run.
+        from stable_baselines3.common.logger import Logger
+
+        model.set_logger(Logger(folder=None, output_formats=[]))
+    total_timesteps = tc.total_timesteps(cfg)
+    monitor = _callback(total_timesteps, run_dir, tc.checkpoint_every_steps, progress)
+    callbacks = [monitor]
+    if cloned is not None:
+        from uavlink.learn.imitation import critic_warmup_callback
+
+        callbacks.append(critic_warmup_callback(tc.warm_start.critic_rollouts))
+    model.learn(total_timesteps=total_timesteps - model.num_timesteps, callback=callbacks,
+                reset_num_timesteps=resume is None, tb_log_name="ppo")
+    wall_s = time.perf_counter() - start
+    out.parent.mkdir(parents=True, exist_ok=True)
+    tmp = out.with_name(out.stem + ".partial.zip")
+    model.save(tmp)
+    t95 = time_to_fraction(monitor.curve)
+    training = {
+        "algo": "PPO (stable-baselines3)",
+        "hyperparameters": tc.to_dict(),
+        "paper_hyperparameters": list(PAPER_HYPERPARAMETERS),
+        "total_timesteps": int(model.num_timesteps),
+        "wall_time_s": round(wall_s, 1),
+        "steps_to_95pct_final": t95,
+        "resumed_from": str(resume) if resume else None,
+        "warm_start": cloned,
+        "learning_curve": monitor.curve[:: max(1, len(monitor.curve) // 200)],
+    }
+    write_zip_manifest(tmp, build_manifest(cfg, training))
+    tmp.replace(out)
+    tmp.with_suffix(".json").replace(out.with_suffix(".json"))
+    if run_dir is not None:
+        (run_dir / "training.json").write_text(json.dumps(training, indent=2))
+    return training

@@ -1,0 +1,102 @@
+"""``uavlink plot FLIGHT.tlog``: the flight picture (or its animation) from a telemetry log alone,
+and the picture ``uavlink fly`` draws after every flight. Both read the log with
+:func:`~uavlink.plot.tlog.read_flight` and draw with
+:func:`~uavlink.plot.picture.draw_flight`, so they draw the same picture.
+
+pymavlink and matplotlib are imported when a picture is drawn, not when the CLI is built.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import sys
+import time
+from dataclasses import asdict
+from pathlib import Path
+
+from uavlink.errors import UserError
+
+
+def render(tlog: Path, out: Path, gif: bool = False, title: str | None = None) -> dict:
+    """Read ``tlog`` and write its picture (or animation) to ``out`` through a temporary file (an
+    error leaves nothing half-written); what was drawn, as a dict. UserError for an unusable log,
+    a missing matplotlib or an unwritable ``out``."""
+    from uavlink.plot.picture import PlotUnavailable
+    from uavlink.plot.tlog import read_flight
+
+    data = read_flight(tlog)
+    out.parent.mkdir(parents=True, exist_ok=True)
+    partial = out.with_name(f".{out.name}.partial{out.suffix}")
+    try:
+        if gif:
+            from uavlink.plot.animation import animate_flight
+
+            info = animate_flight(data, partial, title)
+        else:
+            from uavlink.plot.picture import draw_flight
+
+            info = draw_flight(data, partial, title)
+        os.replace(partial, out)
+    except PlotUnavailable as exc:
+        raise UserError(str(exc)) from None
+    except OSError as exc:
+        raise UserError(f"cannot write {out}: {exc.strerror or exc}") from None
+    finally:
+        partial.unlink(missing_ok=True)
+    drawn = {k: (str(out) if k == "path" else v) for k, v in asdict(info).items()}
+    return {**drawn, "notes": data.notes}
+
+
+def picture_after_flight(tlog: Path, out: Path) -> dict:
+    """``uavlink fly``'s picture: ``{"picture": path, "picture_s": seconds}``, or
+    ``{"picture": None, "picture_skipped": why}`` (one line on stderr) when it cannot be drawn; a
+    flight never fails for its picture."""
+    started = time.perf_counter()
+    try:
+        render(tlog, out)
+    except UserError as exc:
+        print(f"uavlink fly: no flight picture: {exc}", file=sys.stderr)
+        return {"picture": None, "picture_skipped": str(exc)}
+    return {"picture": str(out), "picture_s": round(time.perf_counter() - started, 3)}
+
+
+def run_plot(args: argparse.Namespace) -> int:
+    tlog: Path = args.tlog
+    if not tlog.is_file():
+        raise UserError(f"{tlog}: no such file")
+    out = args.out or tlog.with_suffix(".gif" if args.gif else ".png")
+    drawn = render(tlog, out, args.gif, args.title)
+    if args.json:
+        print(json.dumps(drawn, indent=2))
+    elif args.gif:
+        print(f"wrote {out} ({drawn['width_px']}x{drawn['height_px']} px, {drawn['frames']} frames, "
+              f"{drawn['bytes'] / 1024:.0f} KiB)")
+    else:
+        print(f"wrote {out} ({drawn['width_px']}x{drawn['height_px']} px): {drawn['tracks']} UAV "
+              f"track(s), {drawn['ue_tracks']} UE track(s), {drawn['frames']} radio frames, "
+              f"{drawn['decision_frames']} decision frames"
+              + (f"; {'; '.join(drawn['notes'])}" if drawn["notes"] else ""))
+    return 0
+
+
+def add_plot_parser(sub) -> None:
+    p = sub.add_parser("plot", help="draw a flight from its telemetry log (.tlog): PNG, or --gif",
+                       description="Draw the picture `uavlink fly` draws (flight.png) from any MAVLink "
+                                   "telemetry log: one written by `uavlink fly`, or by MAVProxy or "
+                                   "QGroundControl while a vehicle with the radio payload flew. The "
+                                   "map shows the fence, every UAV's track, the UEs' tracks (the "
+                                   "simulation's truth, ADSB_VEHICLE) coloured by serving UAV and "
+                                   "the bearings sensed; below, the mean UE throughput and each UE's "
+                                   "SINR per radio frame, decision frames marked. A log without radio "
+                                   "messages gives the tracks. Needs matplotlib: "
+                                   "pip install 'uavlink[plot]'.")
+    p.add_argument("tlog", type=Path, metavar="FLIGHT.tlog", help="the telemetry log")
+    p.add_argument("--out", type=Path, default=None,
+                   help="file to write (default: the log's name with .png, or .gif with --gif)")
+    p.add_argument("--gif", action="store_true",
+                   help="an animation instead: one GIF frame per decision frame (a few hundred KB)")
+    p.add_argument("--title", default=None, help="title above the picture (default: the log's name)")
+    p.add_argument("--json", action="store_true", help="print what was drawn as JSON")
+    p.set_defaults(func=run_plot)

@@ -1,0 +1,30 @@
+"""The baselines by name: one UAV's rules (``uavlink.policies.baselines``) and a fleet's
+(``uavlink.policies.fleet_baselines``). This module imports both families so that neither imports the
+other's; callers that pick a baseline by name (the CLI, the loader, the teachers, the reports) import
+it from here or from ``uavlink.policies``."""
+
+from __future__ import annotations
+
+from uavlink.config import BASELINE_NAMES, EnvConfig
+from uavlink.errors import UserError
+from uavlink.policies.baselines import AoaPolicy, OraclePolicy, StaticPolicy
+from uavlink.policies.fleet_baselines import FleetAoaPolicy, FleetOraclePolicy, KMeansPolicy
+
+BASELINES = BASELINE_NAMES  # declared in config, where a warm start names its teacher
+
+
+def make_baseline(name: str, cfg: EnvConfig):
+    """The baseline ``name`` for ``cfg``: a fleet (``n_uavs`` > 1) gets the fleet versions of the
+    rules (``uavlink.policies.fleet_baselines``); ``static`` hovers every UAV at its start."""
+    fleet = cfg.n_uavs > 1
+    if name == "static":
+        return StaticPolicy(cfg)
+    if name == "aoa":
+        return FleetAoaPolicy(cfg) if fleet else AoaPolicy(cfg)
+    if name == "oracle":
+        return FleetOraclePolicy(cfg) if fleet else OraclePolicy(cfg)
+    if name == "kmeans":
+        return KMeansPolicy(cfg)
+    raise UserError(f"unknown baseline {name!r}; choose from {', '.join(BASELINES)}")
+
+
