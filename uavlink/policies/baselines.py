@@ -105,13 +105,17 @@ class OraclePolicy:
         return self.mapping.from_polar(angle, np.hypot(move[:, 0], move[:, 1]))
 
 
-BASELINES = BASELINE_NAMES  # declared in config, where a warm start names its teacher
+# The warm start's teachers are declared in config; the genie is for evaluation only (it plans on the
+# episode's future: uavlink.policies.genie), so no policy learns from it by accident.
+BASELINES = (*BASELINE_NAMES, "genie")
 
 
 def make_baseline(name: str, cfg: EnvConfig):
     """The baseline ``name`` for ``cfg``: a fleet (``n_uavs`` > 1) gets the fleet versions of the
-    rules (``uavlink.policies.fleet_baselines``); ``static`` hovers every UAV at its start."""
+    rules (``uavlink.policies.fleet_baselines``); ``static`` hovers every UAV at its start;
+    ``genie`` plans on the episode's future, for any D."""
     from uavlink.policies.fleet_baselines import FleetAoaPolicy, FleetOraclePolicy, KMeansPolicy
+    from uavlink.policies.genie import GeniePolicy
 
     fleet = cfg.n_uavs > 1
     if name == "static":
@@ -122,6 +126,8 @@ def make_baseline(name: str, cfg: EnvConfig):
         return FleetOraclePolicy(cfg) if fleet else OraclePolicy(cfg)
     if name == "kmeans":
         return KMeansPolicy(cfg)
+    if name == "genie":
+        return GeniePolicy(cfg)
     raise UserError(f"unknown baseline {name!r}; choose from {', '.join(BASELINES)}")
 
 
