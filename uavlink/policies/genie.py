@@ -239,7 +239,7 @@ class GeniePolicy:
     name = "genie"
     layout = None
     needs_truth = True
-    privilege = "knows the episode's future (the UEs' paths and the shadowing field): evaluation only"
+    privilege = "knows the episode's future (the UEs' paths and the shadowing field), is for evaluation only"
 
     def __init__(self, cfg: EnvConfig, grid_m: float = 4.0, tolerance: float = 1e-3, max_rounds: int = 6) -> None:
         from uavlink.policies.baselines import make_baseline
