@@ -80,26 +80,23 @@ def fleet_cell_rates_bps(mine_mw: np.ndarray, others_mw: np.ndarray, radio: Radi
     fleet plan's reward costs a few passes over (T, U, G) (exact ties of power aside, which go to
     the moving UAV here and to the lower index there)."""
     noise_mw = np.float32(10.0 ** (noise_power_dbm(radio.bandwidth_hz, radio) / 10.0))
-    n_ues, n_others = others_mw.shape[-2:]
+    n_others = others_mw.shape[-1]
     their = others_mw.argmax(axis=-1)  # (T, U) the strongest other UAV of each UE
     strongest = others_mw.max(axis=-1)[..., None]
     mine = mine_mw > strongest  # (T, U, G) served by the moving UAV
     n_mine = mine.sum(axis=1, dtype=np.int32)  # (T, G)
-    if n_others == 1:  # two UAVs, the common case: no per-UE gather
-        n_their = (n_ues - n_mine)[..., None]
-        their_size, signal_theirs = n_their[:, None, :, 0], others_mw
-    else:
-        n_their = np.stack([(their == j).sum(axis=1)[:, None] - (mine & (their == j)[..., None]).sum(axis=1)
-                            for j in range(n_others)], axis=-1)  # (T, G, D-1) UEs left in each other cell
-        their_size = np.take_along_axis(n_their[:, None], their[:, :, None, None], axis=-1)[..., 0]  # (T, U, G)
-        signal_theirs = np.take_along_axis(others_mw, their[..., None], axis=-1)  # (T, U, 1)
+    is_their = [(their == j)[..., None] for j in range(n_others)]  # (T, U, 1) each
+    # UEs left in each other cell (T, G), and each UE's other cell's size (T, U, G), per other UAV:
+    # D - 1 passes over (T, U, G) rather than gathers along a UAV axis.
+    n_their = [j_ues.sum(axis=1) - (mine & j_ues).sum(axis=1) for j_ues in is_their]
+    their_size = sum(j_ues * n[:, None, :] for j_ues, n in zip(is_their, n_their, strict=True))
+    signal_theirs = np.take_along_axis(others_mw, their[..., None], axis=-1)  # (T, U, 1)
     if fleet_reuse == "orthogonal":
         share = np.float32((radio.n_resource_blocks // (n_others + 1)) / radio.n_resource_blocks)
         sinr = np.where(mine, mine_mw, signal_theirs) / (share * noise_mw)
         bandwidth = share * np.float32(radio.bandwidth_hz)
-    else:
-        active = (n_their > 0).astype(np.float32)  # (T, G, D-1)
-        from_others = np.einsum("tuj,tgj->tug", others_mw, active)  # every active other cell's power
+    else:  # every active other cell's power, less the UE's own for a UE of another cell
+        from_others = sum(others_mw[:, :, j, None] * (n > 0)[:, None, :] for j, n in enumerate(n_their))
         interference = np.where(mine, from_others,
                                 from_others - signal_theirs + (n_mine > 0)[:, None, :] * mine_mw)
         sinr = np.where(mine, mine_mw, signal_theirs) / (interference + noise_mw)
