@@ -132,9 +132,14 @@ class EpisodePlanner:
         values = [self.rate_mbps(p) for p in references]
         path, value = references[int(np.argmax(values))].copy(), max(values)
         n_uavs = path.shape[1]
+        changes = np.zeros(n_uavs, dtype=int)  # how often each UAV's path changed
+        seen: dict[int, np.ndarray] = {}  # the others' changes when a UAV was last planned
         for _ in range(max_rounds if n_uavs > 1 else 1):
             gained = False
             for d in range(n_uavs):
+                if d in seen and (seen[d] == changes).all():
+                    continue  # nothing moved since its last plan: the DP would return the same path
+                seen[d] = changes.copy()
                 own = self.plan_uav(d, path)
                 if own is None:
                     continue
@@ -144,6 +149,8 @@ class EpisodePlanner:
                 if new > value:
                     gained |= new > value * (1.0 + tolerance)
                     path, value = candidate, new
+                    changes[d] += 1
+                    seen[d] = changes.copy()
             if not gained:
                 break
         return path, value
@@ -238,7 +245,7 @@ class GeniePolicy:
     needs_truth = True
     privilege = "knows the episode's future (the UEs' paths and the shadowing field), is for evaluation only"
 
-    def __init__(self, cfg: EnvConfig, grid_m: float = 4.0, tolerance: float = 1e-3, max_rounds: int = 6) -> None:
+    def __init__(self, cfg: EnvConfig, grid_m: float = 4.0, tolerance: float = 1e-3, max_rounds: int = 4) -> None:
         from uavlink.policies.baselines import make_baseline
 
         self.cfg = cfg.validate()
