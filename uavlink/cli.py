@@ -174,6 +174,11 @@ def cmd_export(args: argparse.Namespace) -> int:
         raise UserError(f"--out {out}: an exported policy must end in .onnx")
     if args.n_verify < 1:
         raise UserError("--n-verify must be a positive integer")
+    from uavlink.policies.registry import BASELINES
+
+    if str(args.policy) in BASELINES and not args.policy.exists():
+        raise UserError(f"{args.policy} is a baseline, not a trained policy: nothing to export"
+                        + (" (it plans on the episode's future: evaluation only)" if str(args.policy) == "genie" else ""))
     if args.policy.suffix != ".zip" and args.policy.is_file():
         raise UserError(f"{args.policy}: expected an SB3 policy zip (FILE.zip)")
     report = export_onnx(args.policy, out, verify=not args.no_verify, n_verify=args.n_verify, seed=args.seed)
@@ -258,9 +263,11 @@ def build_parser() -> argparse.ArgumentParser:
 
     p = sub.add_parser("evaluate", help="evaluate a policy or baseline, print a table",
                        description="Evaluate a policy file, a folder of them, or a baseline (static, aoa, "
-                                   "oracle). " + OVERRIDES_HELP)
+                                   "oracle, kmeans, genie). " + OVERRIDES_HELP)
     _add_env_options(p, scenario_default="circular", for_policy=True)
-    p.add_argument("--policy", default="static", help="static | aoa | oracle | FILE.zip | FILE.onnx | FOLDER")
+    p.add_argument("--policy", default="static",
+                   help="static | aoa | oracle | kmeans | genie (evaluation only: plans on the episode's "
+                        "future) | FILE.zip | FILE.onnx | FOLDER")
     p.add_argument("--against", default=None, metavar="POLICY",
                    help="also fly this policy (same forms) on the same episodes and print the paired "
                         "throughput ratio with its 95 %% interval, the R_fair difference and the episodes won "

@@ -20,20 +20,28 @@ from uavlink.config import EnvConfig
 from uavlink.env.actions import ActionMapping
 from uavlink.env.observation import ObservationBuilder, ObservationLayout, fleet_quantities
 from uavlink.env.reward import RewardBounds
-from uavlink.mobility import draw_scenarios, init_mobility, step_mobility
+from uavlink.mobility import MobilityState, draw_scenarios, init_mobility, step_mobility
 from uavlink.mobility.fleet import separate, start_positions_m
 from uavlink.radio.channel import RadioChannel, RadioReadings
 from uavlink.radio.rates import fair_rate
+from uavlink.radio.spatial_shadowing import SpatialShadowField
 
 
 @dataclass
 class GroundTruth:
-    """What only the simulator knows (for the oracle baseline and plots; never observed)."""
+    """What only the simulator knows (for the privileged baselines and plots; never observed).
+
+    The GPS baselines read positions and velocities; the genie (``uavlink.policies.genie``) also
+    reads the episode's future: the UEs' kinematic state (their motion is deterministic from it)
+    and the spatial shadowing field."""
 
     uav_xy_m: np.ndarray  # (N D, 2) agent rows
     ue_xy_m: np.ndarray  # (N, U, 2)
     ue_velocity_mps: np.ndarray  # (N, U, 2)
     scenario_ids: np.ndarray  # (N,)
+    frame: int = 0  # frames stepped since reset
+    mobility: MobilityState | None = None  # a copy of the UEs' state
+    shadow_field: SpatialShadowField | None = None  # the episode's field; None on AR(1) or no shadowing
 
 
 @dataclass
@@ -138,5 +146,6 @@ class BatchedUavEnv:
                 "aoa_deg": r.heard_aoa_deg.reshape(rows), **fleet}
 
     def ground_truth(self) -> GroundTruth:
-        return GroundTruth(self.uav_xy_m.copy(), self.mobility.position_m.copy(),
-                           self.mobility.velocity_mps.copy(), self.scenario_ids.copy())
+        mobility = MobilityState(**{k: v.copy() for k, v in vars(self.mobility).items()})
+        return GroundTruth(self.uav_xy_m.copy(), mobility.position_m.copy(), mobility.velocity_mps.copy(),
+                           self.scenario_ids.copy(), self.frame, mobility, self.channel.field)

@@ -47,7 +47,8 @@ def spatial_sections(ar1_folder: Path, spatial_folder: Path, ar1_rows: list[Scen
                      progress: Callable[[str], None] = lambda _: None) -> list[str]:
     """Evaluate, write the CSVs into ``out`` and return the Markdown of the spatial part."""
     on_spatial = spatial_overrides(overrides)
-    spatial = evaluate_scenarios(spatial_folder, episodes, seed, on_spatial, lambda m: progress(f"spatial {m}"))
+    spatial = evaluate_scenarios(spatial_folder, episodes, seed, on_spatial, lambda m: progress(f"spatial {m}"),
+                                 extra=("genie",))
     transferred = evaluate_scenarios(ar1_folder, episodes, seed, on_spatial,
                                      lambda m: progress(f"AR(1) policies on spatial {m}"))
     progress("spatial table II")
@@ -67,6 +68,10 @@ def spatial_sections(ar1_folder: Path, spatial_folder: Path, ar1_rows: list[Scen
         f"### Table I on the spatial channel (policies trained on it: `{spatial_folder}`)",
         "",
         markdown_table(h1, b1),
+        "",
+        "`genie` is the full-knowledge yardstick (SPEC \"The limit, and a memory of place\"): it knows the",
+        "episode's UE paths and shadowing field and flies the best path under the motion limits (dynamic",
+        "programming over a 4 m grid, docs/design.md); PPO / genie is how far from that limit each policy flies.",
         "",
         *sweep_sections,
         "### What survives: PPO's gain over the aoa rule and its share of the oracle, per channel",

@@ -10,6 +10,8 @@ from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
 
+import numpy as np
+
 from uavlink.config import EnvConfig
 from uavlink.evaluation.core import EvalResult, evaluate_policy, paired_ratio_ci
 from uavlink.mobility import SCENARIOS
@@ -41,26 +43,30 @@ class ScenarioRow:
 
 
 def evaluate_scenarios(policy_folder: Path, episodes: int, seed: int, overrides: EnvOverrides,
-                       progress: Callable[[str], None] = lambda _: None) -> list[ScenarioRow]:
-    """Per scenario: its policy, the baselines in that policy's env, and the mixed policy if any."""
+                       progress: Callable[[str], None] = lambda _: None,
+                       extra: tuple[str, ...] = ()) -> list[ScenarioRow]:
+    """Per scenario: its policy, the baselines in that policy's env (and the ``extra`` ones, e.g. the
+    genie on the spatial channel), and the mixed policy if any."""
     rows = []
     mixed = next((p for p in (policy_folder / "mixed.zip", policy_folder / "mixed.onnx") if p.is_file()), None)
     columns = {"ppo": policy_folder, "static": "static", "oracle": "oracle", "aoa": "aoa",
-               **({"ppo_mixed": mixed} if mixed is not None else {})}
+               **{name: name for name in extra}, **({"ppo_mixed": mixed} if mixed is not None else {})}
     for scenario in SCENARIOS:
         loaded = load_with_env(list(columns.values()), overrides.on(scenario))
         results = {}
         for column, (policy, cfg) in zip(columns, loaded, strict=True):
             progress(f"{scenario}: {column}")
-            results[column] = evaluate_policy(policy, cfg, episodes, seed, record_trajectory=column != "ppo_mixed")
+            keep = column not in ("ppo_mixed", *extra)
+            results[column] = evaluate_policy(policy, cfg, episodes, seed, record_trajectory=keep)
         rows.append(ScenarioRow(scenario, results, loaded[0][1]))
     return rows
 
 
 def table_one(rows: list[ScenarioRow]) -> tuple[list[str], list[list[str]]]:
-    has_mixed = "ppo_mixed" in rows[0].results
-    header = ["scenario", "PPO", "static", "oracle", "aoa", *(["PPO mixed"] if has_mixed else []),
-              "gain over static", "paper gain", "PPO / oracle", "PPO vs aoa",
+    has_mixed, has_genie = "ppo_mixed" in rows[0].results, "genie" in rows[0].results
+    header = ["scenario", "PPO", "static", "oracle", "aoa", *(["genie"] if has_genie else []),
+              *(["PPO mixed"] if has_mixed else []), "gain over static", "paper gain", "PPO / oracle",
+              *(["PPO / genie"] if has_genie else []), "PPO vs aoa",
               "R_fair PPO / static / oracle / aoa", "target", "met"]
     body = []
     for row in rows:
@@ -77,16 +83,22 @@ def table_one(rows: list[ScenarioRow]) -> tuple[list[str], list[list[str]]]:
 
         body.append([
             row.scenario, cell("ppo"), cell("static"), cell("oracle"), cell("aoa"),
-            *([cell("ppo_mixed")] if has_mixed else []),
+            *([cell("genie")] if has_genie else []), *([cell("ppo_mixed")] if has_mixed else []),
             f"{100 * (gain - 1):+.1f} % [{100 * (glo - 1):+.1f}, {100 * (ghi - 1):+.1f}]",
             f"{100 * (paper_ppo / paper_static - 1):+.1f} %",
             f"{100 * share:.1f} % [{100 * slo:.1f}, {100 * shi:.1f}]",
+            *([_share(ppo, r["genie"].episode_rate_mbps)] if has_genie else []),
             f"{100 * (vs_aoa - 1):+.1f} % [{100 * (alo - 1):+.1f}, {100 * (ahi - 1):+.1f}]",
             " / ".join(f"{r[k].mean_fair_rate:.2f}" for k in ("ppo", "static", "oracle", "aoa")),
             f"{target:.2f} ({rule})",
             "yes" if r["ppo"].mean_rate_mbps >= target else "no",
         ])
     return header, body
+
+
+def _share(num: np.ndarray, den: np.ndarray) -> str:
+    share, lo, hi = paired_ratio_ci(num, den)
+    return f"{100 * share:.1f} % [{100 * lo:.1f}, {100 * hi:.1f}]"
 
 
 def table_two(policy_folder: Path, episodes: int, seed: int,

@@ -53,7 +53,8 @@ def run_fly(args: argparse.Namespace) -> int:
     overrides = EnvOverrides.from_command_line(args.scenario, args.aoa_noise_deg, args.overrides)
     [(policy, cfg)] = load_with_env([args.policy], overrides)
     if policy.needs_truth:
-        raise UserError(f"{policy.name} needs UE positions (GPS) and cannot fly; use a policy file, aoa or static")
+        privilege = getattr(policy, "privilege", "needs UE positions (GPS)")
+        raise UserError(f"{policy.name} {privilege} and cannot fly; use a policy file, aoa or static")
     live = not (args.quiet or args.json) and sys.stderr.isatty()
     if cfg.n_uavs > 1:
         return run_fleet_fly(args, policy, cfg, key, live)

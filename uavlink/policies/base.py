@@ -15,7 +15,8 @@ class Policy(Protocol):
     """Maps observations (N, obs) to actions (N, 2) in [-1, 1].
 
     ``layout`` is the observation layout the policy was built for (None: any layout is fine).
-    Only the oracle sets ``needs_truth`` and reads ``truth``; the flight loop never supplies it.
+    Only the privileged baselines (oracle, kmeans, genie) set ``needs_truth`` and read ``truth``; the
+    flight loop never supplies it.
     """
 
     name: str

@@ -17,8 +17,7 @@ from uavlink.env.core import GroundTruth
 from uavlink.env.observation import ObservationLayout
 from uavlink.mobility.fleet import separate
 from uavlink.policies.baselines import hover_sinr_db
-from uavlink.radio.cells import Cells
-from uavlink.radio.noise import noise_power_dbm
+from uavlink.radio.cells import mean_channel_rate_bps
 from uavlink.radio.pathloss import distance_3d_m, mean_rx_power_dbm
 from uavlink.radio.rates import fair_rate
 
@@ -57,22 +56,9 @@ def moves_to(truth_xy_m: np.ndarray, target_xy_m: np.ndarray, mapping: ActionMap
 def mean_fleet_fair_rate(cfg: EnvConfig, uav_xy_m: np.ndarray, ue_xy_m: np.ndarray) -> np.ndarray:
     """R_fair of all UEs on the mean channel (path loss only) for UAVs (..., D, 2) and UEs
     (..., U, 2): strongest-UAV association, per-cell B / U_d, interference from every active cell
-    (``fleet_reuse = "full"``) or none (``"orthogonal"``): the cells of ``uavlink.radio.cells``."""
-    radio, n_uavs = cfg.radio, uav_xy_m.shape[-2]
-    rx_dbm = mean_rx_power_dbm(distance_3d_m(uav_xy_m, ue_xy_m, cfg.area.uav_altitude_m), radio)
-    cells = Cells.associate(rx_dbm)
-    rx_mw = 10.0 ** (rx_dbm / 10.0)
-    signal = np.take_along_axis(rx_mw, cells.serving[..., None], axis=-1)[..., 0]
-    noise_mw = 10.0 ** (noise_power_dbm(radio.bandwidth_hz, radio) / 10.0)
-    if cfg.fleet_reuse == "orthogonal":
-        share = (radio.n_resource_blocks // n_uavs) / radio.n_resource_blocks
-        sinr = signal / share / noise_mw
-        bandwidth = share * radio.bandwidth_hz / cells.ues_in_cell()
-    else:
-        interference = (rx_mw * cells.active[..., None, :]).sum(axis=-1) - signal
-        sinr = signal / (interference + noise_mw)
-        bandwidth = radio.bandwidth_hz / cells.ues_in_cell()
-    return fair_rate(bandwidth * np.log2(1.0 + sinr))
+    (``fleet_reuse = "full"``) or none (``"orthogonal"``): ``uavlink.radio.cells.mean_channel_rate_bps``."""
+    rx_dbm = mean_rx_power_dbm(distance_3d_m(uav_xy_m, ue_xy_m, cfg.area.uav_altitude_m), cfg.radio)
+    return fair_rate(mean_channel_rate_bps(rx_dbm, cfg.radio, cfg.fleet_reuse))
 
 
 class FleetOraclePolicy:

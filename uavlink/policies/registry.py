@@ -9,13 +9,17 @@ from uavlink.config import BASELINE_NAMES, EnvConfig
 from uavlink.errors import UserError
 from uavlink.policies.baselines import AoaPolicy, OraclePolicy, StaticPolicy
 from uavlink.policies.fleet_baselines import FleetAoaPolicy, FleetOraclePolicy, KMeansPolicy
+from uavlink.policies.genie import REFERENCES, GeniePolicy
 
-BASELINES = BASELINE_NAMES  # declared in config, where a warm start names its teacher
+# The warm start's teachers are declared in config; the genie is for evaluation only (it plans on the
+# episode's future: uavlink.policies.genie), so no policy learns from it by accident.
+BASELINES = (*BASELINE_NAMES, "genie")
 
 
 def make_baseline(name: str, cfg: EnvConfig):
     """The baseline ``name`` for ``cfg``: a fleet (``n_uavs`` > 1) gets the fleet versions of the
-    rules (``uavlink.policies.fleet_baselines``); ``static`` hovers every UAV at its start."""
+    rules (``uavlink.policies.fleet_baselines``); ``static`` hovers every UAV at its start;
+    ``genie`` plans on the episode's future, for any D, a fleet from the best of its references."""
     fleet = cfg.n_uavs > 1
     if name == "static":
         return StaticPolicy(cfg)
@@ -25,6 +29,8 @@ def make_baseline(name: str, cfg: EnvConfig):
         return FleetOraclePolicy(cfg) if fleet else OraclePolicy(cfg)
     if name == "kmeans":
         return KMeansPolicy(cfg)
+    if name == "genie":
+        return GeniePolicy(cfg, [make_baseline(reference, cfg) for reference in REFERENCES])
     raise UserError(f"unknown baseline {name!r}; choose from {', '.join(BASELINES)}")
 
 

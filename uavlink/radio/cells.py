@@ -13,6 +13,9 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from uavlink.config import RadioConfig
+from uavlink.radio.noise import noise_power_dbm
+
 
 @dataclass(frozen=True)
 class Cells:
@@ -43,3 +46,24 @@ class Cells:
         """(N, U) RBs each UE gets per frame when its cell's ``n_rbs`` go round robin."""
         cell = self.ues_in_cell()
         return n_rbs // cell + (self.rank < n_rbs % cell)
+
+
+def mean_channel_rate_bps(rx_dbm: np.ndarray, radio: RadioConfig, fleet_reuse: str = "full") -> np.ndarray:
+    """Each UE's Shannon rate (..., U) at the mean-fading SINR, for mean received powers (..., U, D)
+    in dBm (path loss and shadowing): strongest-UAV cells, per-cell B / U_d, interference from every
+    active cell (``"full"`` reuse) or none (``"orthogonal"``: 1/D of the band each). With one UAV it
+    is the SPEC's (B / U) log2(1 + SNR). What the GPS baselines and the genie plan on; the env's
+    rate averages the fading over RBs instead, which this equals when fast fading is off."""
+    n_uavs = rx_dbm.shape[-1]
+    serving = rx_dbm.argmax(axis=-1)  # as Cells.associate, without the ranks a scheduler needs
+    member = serving[..., None] == np.arange(n_uavs)
+    size = member.sum(axis=-2)  # (..., D)
+    ues_in_cell = np.take_along_axis(size, serving, axis=-1)
+    rx_mw = 10.0 ** (rx_dbm / 10.0)
+    signal = np.take_along_axis(rx_mw, serving[..., None], axis=-1)[..., 0]
+    noise_mw = 10.0 ** (noise_power_dbm(radio.bandwidth_hz, radio) / 10.0)
+    if fleet_reuse == "orthogonal":
+        share = (radio.n_resource_blocks // n_uavs) / radio.n_resource_blocks
+        return share * radio.bandwidth_hz / ues_in_cell * np.log2(1.0 + signal / share / noise_mw)
+    interference = (rx_mw * (size > 0)[..., None, :]).sum(axis=-1) - signal if n_uavs > 1 else 0.0
+    return radio.bandwidth_hz / ues_in_cell * np.log2(1.0 + signal / (interference + noise_mw))

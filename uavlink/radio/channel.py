@@ -67,6 +67,12 @@ class RadioChannel:
             raise RuntimeError("RadioChannel.shadow_db read before reset()")
         return self._shadow_db.copy()
 
+    @property
+    def field(self) -> SpatialShadowField | None:
+        """The episode's shadowing field (spatial model; None otherwise): for privileged baselines
+        only (the genie), never part of an observation. Immutable, so shared, not copied."""
+        return self._field
+
     def reset(self, rng: np.random.Generator, uav_xy_m: np.ndarray, ue_xy_m: np.ndarray) -> RadioReadings:
         """Draw fresh shadowing for every link and return the readings of the first frame."""
         n_envs, n_uavs = uav_xy_m.shape[0], uav_xy_m.shape[1]

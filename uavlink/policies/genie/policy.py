@@ -1,0 +1,299 @@
+"""``genie``, the full-knowledge yardstick (SPEC "The limit, and a memory of place"): evaluation only.
+
+It knows the episode's whole future, the UEs' trajectories (their motion is deterministic from the
+mobility state) and the spatial shadowing field, and flies the path that maximises the episode's
+mean expected UE throughput (per-UE Shannon rate at the mean-fading SINR: ``mean_channel_rate_bps``)
+under the motion limits (|move| <= r_max per frame, inside the area, from the start position).
+
+One UAV: dynamic programming over a grid of positions (``uavlink.policies.genie.grid``), exact over
+grid paths. A fleet: the same per UAV given the others' paths (interference, association), UAV after
+UAV, from the best of the GPS baselines' paths (static, oracle, kmeans, replayed exactly: they read
+nothing random), until no UAV's re-plan gains more than ``tolerance``. Separation: a UAV's plan
+keeps every move clear of the env's separation filter (``uavlink.mobility.fleet.separate``: UAVs
+before it at their new positions, after it at their current ones), so the realised path is the
+planned one. On AR(1) (or without shadowing) it plans on the mean channel: a reference, not a bound.
+It plans when an episode starts (or whenever it meets a state its plan did not expect) and then
+steers to the plan's next point through the env's action mapping; ``fly`` and ``export`` refuse it.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+
+import numpy as np
+
+from uavlink.config import EnvConfig, RadioConfig
+from uavlink.env.actions import ActionMapping
+from uavlink.env.core import GroundTruth
+from uavlink.mobility import MobilityState, step_mobility
+from uavlink.mobility.fleet import separate
+from uavlink.policies.fleet_baselines import moves_to
+from uavlink.policies.genie.grid import Grid, best_grid_path, grid_rx_dbm
+from uavlink.radio.cells import mean_channel_rate_bps
+from uavlink.radio.noise import noise_power_dbm
+from uavlink.radio.pathloss import distance_3d_m, mean_rx_power_dbm
+from uavlink.radio.spatial_shadowing import SpatialShadowField
+
+SEPARATION_SLACK_M = 1e-6  # planned moves keep this much more than the minimum: the filter never cuts
+REFERENCES = ("static", "oracle", "kmeans")  # the baselines whose paths a fleet plan starts from
+
+
+def future_ues(mobility: MobilityState, frames: int, frame_s: float, half_width_m: float) -> tuple[np.ndarray, np.ndarray]:
+    """UE positions and velocities (frames + 1, N, U, 2) from now (entry 0) to the episode's end,
+    stepping a copy of the state as the env does."""
+    state = MobilityState(**{k: np.array(v, copy=True) for k, v in vars(mobility).items()})
+    pos, vel = [state.position_m.copy()], [state.velocity_mps.copy()]
+    for _ in range(frames):
+        step_mobility(state, frame_s, half_width_m)
+        pos.append(state.position_m.copy())
+        vel.append(state.velocity_mps.copy())
+    return np.array(pos), np.array(vel)
+
+
+def env_field(field: SpatialShadowField | None, env: int, frames: int) -> SpatialShadowField | None:
+    """Env ``env``'s field with its arrays repeated over ``frames`` leading rows (no copy), so that
+    ``shadow_db`` reads a path's frames as its batch."""
+    if field is None:
+        return None
+    def rows(a: np.ndarray) -> np.ndarray:  # noqa: E306
+        return np.broadcast_to(a[env:env + 1], (frames, *a.shape[1:]))
+    return dataclasses.replace(field, ue_wave_per_m=rows(field.ue_wave_per_m),
+                               uav_wave_per_m=rows(field.uav_wave_per_m), phase_rad=rows(field.phase_rad))
+
+
+def segment_clear(a: np.ndarray, b: np.ndarray, c: np.ndarray, distance_m: float) -> np.ndarray:
+    """Whether points ``c`` lie at least ``distance_m`` from segments [a, b] (all (..., 2), broadcasting)."""
+    abx, aby = b[..., 0] - a[..., 0], b[..., 1] - a[..., 1]
+    acx, acy = c[..., 0] - a[..., 0], c[..., 1] - a[..., 1]
+    length2 = abx * abx + aby * aby
+    with np.errstate(divide="ignore", invalid="ignore"):
+        t = np.clip(np.where(length2 > 0.0, (acx * abx + acy * aby) / length2, 0.0), 0.0, 1.0)
+    dx, dy = acx - t * abx, acy - t * aby
+    return dx * dx + dy * dy >= distance_m * distance_m
+
+
+def fleet_cell_rates_bps(mine_mw: np.ndarray, others_mw: np.ndarray, radio: RadioConfig,
+                         fleet_reuse: str) -> np.ndarray:
+    """``mean_channel_rate_bps`` (T, U, G) with one UAV at each of G places and the others fixed:
+    received powers mW, (T, U, G) from the moving UAV, (T, U, D - 1) from the others. The same
+    cells, shares and interference, written per UE and place rather than over a UAV axis, so a
+    fleet plan's reward costs a few passes over (T, U, G) (exact ties of power aside, which go to
+    the moving UAV here and to the lower index there)."""
+    noise_mw = np.float32(10.0 ** (noise_power_dbm(radio.bandwidth_hz, radio) / 10.0))
+    n_others = others_mw.shape[-1]
+    their = others_mw.argmax(axis=-1)  # (T, U) the strongest other UAV of each UE
+    strongest = others_mw.max(axis=-1)[..., None]
+    mine = mine_mw > strongest  # (T, U, G) served by the moving UAV
+    n_mine = mine.sum(axis=1, dtype=np.int32)  # (T, G)
+    is_their = [(their == j)[..., None] for j in range(n_others)]  # (T, U, 1) each
+    # UEs left in each other cell (T, G), and each UE's other cell's size (T, U, G), per other UAV:
+    # D - 1 passes over (T, U, G) rather than gathers along a UAV axis.
+    n_their = [j_ues.sum(axis=1) - (mine & j_ues).sum(axis=1) for j_ues in is_their]
+    their_size = sum(j_ues * n[:, None, :] for j_ues, n in zip(is_their, n_their, strict=True))
+    signal_theirs = np.take_along_axis(others_mw, their[..., None], axis=-1)  # (T, U, 1)
+    if fleet_reuse == "orthogonal":
+        share = np.float32((radio.n_resource_blocks // (n_others + 1)) / radio.n_resource_blocks)
+        sinr = np.where(mine, mine_mw, signal_theirs) / (share * noise_mw)
+        bandwidth = share * np.float32(radio.bandwidth_hz)
+    else:  # every active other cell's power, less the UE's own for a UE of another cell
+        from_others = sum(others_mw[:, :, j, None] * (n > 0)[:, None, :] for j, n in enumerate(n_their))
+        interference = np.where(mine, from_others,
+                                from_others - signal_theirs + (n_mine > 0)[:, None, :] * mine_mw)
+        sinr = np.where(mine, mine_mw, signal_theirs) / (interference + noise_mw)
+        bandwidth = np.float32(radio.bandwidth_hz)
+    size = np.where(mine, n_mine[:, None, :], their_size)
+    return bandwidth / size * np.log2(1.0 + sinr)
+
+
+class EpisodePlanner:
+    """One episode's plan: UEs (T + 1, U, 2) from now, the field (or None), the UAVs' start (D, 2)."""
+
+    def __init__(self, cfg: EnvConfig, grid: Grid, ue_xy_m: np.ndarray, field: SpatialShadowField | None,
+                 start_m: np.ndarray) -> None:
+        self.cfg, self.grid, self.ue_xy_m, self.start_m = cfg, grid, ue_xy_m, start_m
+        self.frames = len(ue_xy_m) - 1
+        self.field = env_field(field, 0, self.frames) if field is not None else None
+        self.rx_grid = grid_rx_dbm(grid, ue_xy_m[1:], field, cfg.radio, cfg.area.uav_altitude_m)
+        self.separation_m = cfg.uav_separation_m + SEPARATION_SLACK_M
+
+    def rx_dbm(self, path_m: np.ndarray) -> np.ndarray:
+        """Mean received power (T, U, D) for a path (T + 1, D, 2), as the env computes it."""
+        uav, ue = path_m[1:], self.ue_xy_m[1:]
+        rx = mean_rx_power_dbm(distance_3d_m(uav, ue, self.cfg.area.uav_altitude_m), self.cfg.radio)
+        return rx + self.field.shadow_db(uav, ue) if self.field is not None else rx
+
+    def rate_mbps(self, path_m: np.ndarray) -> float:
+        """The episode's mean expected UE throughput on ``path_m`` (T + 1, D, 2), Mbps."""
+        return float(mean_channel_rate_bps(self.rx_dbm(path_m), self.cfg.radio, self.cfg.fleet_reuse).mean()) * 1e-6
+
+    def plan(self, references: list[np.ndarray], tolerance: float, max_rounds: int) -> tuple[np.ndarray, float]:
+        """From the best of ``references`` (paths (T + 1, D, 2)), re-plan UAV after UAV given the others
+        until a round gains no UAV more than ``tolerance`` (relative); the best path and its rate."""
+        values = [self.rate_mbps(p) for p in references]
+        path, value = references[int(np.argmax(values))].copy(), max(values)
+        n_uavs = path.shape[1]
+        changes = np.zeros(n_uavs, dtype=int)  # how often each UAV's path changed
+        seen: dict[int, np.ndarray] = {}  # the others' changes when a UAV was last planned
+        for _ in range(max_rounds if n_uavs > 1 else 1):
+            gained = False
+            for d in range(n_uavs):
+                if d in seen and (seen[d] == changes).all():
+                    continue  # nothing moved since its last plan: the DP would return the same path
+                seen[d] = changes.copy()
+                own = self.plan_uav(d, path)
+                if own is None:
+                    continue
+                candidate = path.copy()
+                candidate[:, d] = own
+                new = self.rate_mbps(candidate)
+                if new > value:
+                    gained |= new > value * (1.0 + tolerance)
+                    path, value = candidate, new
+                    changes[d] += 1
+                    seen[d] = changes.copy()
+            if not gained:
+                break
+        return path, value
+
+    def plan_uav(self, d: int, path_m: np.ndarray) -> np.ndarray | None:
+        """UAV ``d``'s best grid path (T + 1, 2) from its start, the others flying ``path_m``."""
+        grid, n_uavs = self.grid, path_m.shape[1]
+        reward = self._reward(d, path_m)
+        first = grid.cells_within(path_m[0, d], grid.r_max_m)
+        if n_uavs > 1:
+            reward[~self._cells_clear(d, path_m)] = -np.inf
+            first &= self._first_moves_clear(self._blockers(d, path_m, 0), path_m[0, d])
+        cells, _ = best_grid_path(reward, grid, first, self._offsets_clear(d, path_m) if n_uavs > 1 else None)
+        if cells is None:
+            return None
+        return np.concatenate([path_m[:1, d], grid.points_m(cells)])
+
+    def _reward(self, d: int, path_m: np.ndarray, block: int = 8) -> np.ndarray:
+        """Mean UE rate (T, n, n), Mbps, with UAV ``d`` at each cell and the others on ``path_m``."""
+        radio, n = self.cfg.radio, self.grid.n
+        n_ues, n_uavs = self.rx_grid.shape[1], path_m.shape[1]
+        if n_uavs == 1:
+            # (B / U) log2(1 + SNR) in float32, 10^(x/10) as exp: the hot path of one UAV's plan.
+            snr = np.exp((self.rx_grid - np.float32(noise_power_dbm(radio.bandwidth_hz, radio)))
+                         * np.float32(np.log(10.0) / 10.0))
+            snr += np.float32(1.0)
+            return (radio.bandwidth_hz / n_ues * 1e-6) * np.log2(snr, out=snr).mean(axis=1, dtype=float)
+        others = [j for j in range(n_uavs) if j != d]
+        others_mw = (10.0 ** (self.rx_dbm(path_m)[..., others] / 10.0)).astype(np.float32)  # (T, U, D-1)
+        reward = np.empty((self.frames, n, n))
+        for t0 in range(0, self.frames, block):
+            rx_mw = np.exp(self.rx_grid[t0:t0 + block].reshape(-1, n_ues, n * n) * np.float32(np.log(10.0) / 10.0))
+            rate = fleet_cell_rates_bps(rx_mw, others_mw[t0:t0 + block], radio, self.cfg.fleet_reuse)
+            reward[t0:t0 + block] = rate.mean(axis=1, dtype=float).reshape(-1, n, n) * 1e-6
+        return reward
+
+    def _cells_clear(self, d: int, path_m: np.ndarray) -> np.ndarray:
+        """(T, n, n): cells where UAV d may be at frame t + 1 without cutting another's move: clear of
+        a later UAV's move into that frame and of an earlier UAV's move out of it."""
+        points = np.stack(np.meshgrid(self.grid.x_m, self.grid.x_m, indexing="ij"), axis=-1)  # (n, n, 2)
+        clear = np.ones((self.frames, self.grid.n, self.grid.n), dtype=bool)
+        for j in range(path_m.shape[1]):
+            if j > d:
+                a, b, frames = path_m[:-1, j], path_m[1:, j], slice(None)
+            elif j < d:
+                a, b, frames = path_m[1:-1, j], path_m[2:, j], slice(0, self.frames - 1)
+            else:
+                continue
+            clear[frames] &= segment_clear(a[:, None, None], b[:, None, None], points, self.separation_m)
+        return clear
+
+    @staticmethod
+    def _blockers(d: int, path_m: np.ndarray, t: int) -> np.ndarray:
+        """Where the others stand while UAV d moves from frame t to t + 1, as the separation filter
+        sees them: UAVs before d at frame t + 1, after d at frame t."""
+        return np.array([path_m[t + 1, j] if j < d else path_m[t, j] for j in range(path_m.shape[1]) if j != d])
+
+    def _first_moves_clear(self, blockers: np.ndarray, source_m: np.ndarray) -> np.ndarray:
+        """(n, n): grid cells a straight move from ``source_m`` reaches clear of every blocker."""
+        points = np.stack(np.meshgrid(self.grid.x_m, self.grid.x_m, indexing="ij"), axis=-1)
+        clear = np.ones(points.shape[:2], dtype=bool)
+        for c in blockers:
+            clear &= segment_clear(source_m, points, c, self.separation_m)
+        return clear
+
+    def _offsets_clear(self, d: int, path_m: np.ndarray) -> np.ndarray:
+        """(T - 1, K, n, n): the grid moves (offset, source cell) of UAV d from frame t + 1 to t + 2
+        that stay clear of every other UAV as the filter sees it. Only cells near another UAV can
+        come close, so each is checked on a window of w x w cells around it, all frames at once."""
+        grid, x, frames = self.grid, self.grid.x_m, self.frames
+        clear = np.ones((frames - 1, len(grid.offsets), grid.n, grid.n), dtype=bool)
+        step = grid.offsets * grid.spacing_m  # (K, 2)
+        w = min(grid.n, 2 * int(np.ceil((self.separation_m + grid.r_max_m) / grid.spacing_m)) + 3)
+        blockers = np.stack([self._blockers(d, path_m, t) for t in range(1, frames)])  # (T - 1, D - 1, 2)
+        rows = np.arange(frames - 1)[:, None, None]
+        for c in blockers.transpose(1, 0, 2):  # (T - 1, 2): one other UAV over the frames
+            origin = np.clip(np.rint((c + x[-1]) / grid.spacing_m).astype(int) - w // 2, 0, grid.n - w)
+            ix, iy = origin[:, :1] + np.arange(w), origin[:, 1:] + np.arange(w)  # (T - 1, w)
+            source = np.stack(np.broadcast_arrays(x[ix][:, :, None], x[iy][:, None, :]), axis=-1)  # (T-1, w, w, 2)
+            far = segment_clear(source[:, None], source[:, None] + step[None, :, None, None],
+                                c[:, None, None, None], self.separation_m)  # (T - 1, K, w, w)
+            view = clear.transpose(0, 2, 3, 1)[rows, ix[:, :, None], iy[:, None, :]]  # (T - 1, w, w, K)
+            clear.transpose(0, 2, 3, 1)[rows, ix[:, :, None], iy[:, None, :]] = view & far.transpose(0, 2, 3, 1)
+        return clear
+
+
+class GeniePolicy:
+    """The genie as a policy: needs ground truth (``GroundTruth.mobility``, ``shadow_field``)."""
+
+    name = "genie"
+    layout = None
+    needs_truth = True
+    privilege = "knows the episode's future (the UEs' paths and the shadowing field), is for evaluation only"
+
+    def __init__(self, cfg: EnvConfig, references: list, grid_m: float = 4.0, tolerance: float = 1e-3,
+                 max_rounds: int = 4) -> None:
+        """``references``: the baselines of ``REFERENCES`` for ``cfg`` (a fleet's plan starts from the
+        best of their paths); ``uavlink.policies.registry.make_baseline("genie", cfg)`` passes them."""
+        self.cfg = cfg.validate()
+        self.mapping = ActionMapping.for_config(cfg)
+        self.grid = Grid.over_area(cfg.area.half_width_m, grid_m, cfg.r_max_m)
+        self.tolerance, self.max_rounds = tolerance, max_rounds
+        self.references = references
+        self.path_m: np.ndarray | None = None  # (T + 1, N, D, 2) the plan, entry 0 at frame ``planned_at``
+        self.planned_rate_mbps: np.ndarray | None = None  # (N,) its mean expected throughput
+        self.planned_at = 0
+
+    def act(self, obs: np.ndarray, truth: GroundTruth | None = None) -> np.ndarray:
+        if truth is None or truth.mobility is None:
+            raise ValueError("the genie needs the episode's ground truth; it cannot fly from MAVLink data")
+        now = truth.uav_xy_m.reshape(-1, self.cfg.n_uavs, 2)
+        step = truth.frame - self.planned_at
+        if (self.path_m is None or not 0 <= step < len(self.path_m) - 1 or self.path_m.shape[1] != len(now)
+                or not np.allclose(self.path_m[step], now, atol=1e-6)):
+            self.plan(truth)
+            step = 0
+        return moves_to(truth.uav_xy_m, self.path_m[step + 1].reshape(-1, 2), self.mapping)
+
+    def plan(self, truth: GroundTruth) -> None:
+        """Plan every env of the batch from its present state to the episode's end."""
+        cfg, n_uavs = self.cfg, self.cfg.n_uavs
+        frames = cfg.episode_frames - truth.frame
+        ue, velocity = future_ues(truth.mobility, frames, cfg.frame_s, cfg.area.half_width_m)
+        start = truth.uav_xy_m.reshape(-1, n_uavs, 2)
+        references = [self._replay(p, start, ue, velocity, truth.scenario_ids) for p in self.references]
+        paths, rates = [], []
+        for env in range(len(start)):
+            planner = EpisodePlanner(cfg, self.grid, ue[:, env], env_field(truth.shadow_field, env, 1), start[env])
+            path, rate = planner.plan([r[:, env] for r in references], self.tolerance, self.max_rounds)
+            paths.append(path)
+            rates.append(rate)
+        self.path_m, self.planned_rate_mbps, self.planned_at = np.stack(paths, axis=1), np.array(rates), truth.frame
+
+    def _replay(self, policy, start: np.ndarray, ue: np.ndarray, velocity: np.ndarray,
+                scenario_ids: np.ndarray) -> np.ndarray:
+        """The path (T + 1, N, D, 2) a GPS baseline flies, stepped as ``BatchedUavEnv.step`` does."""
+        n_envs, n_uavs = start.shape[:2]
+        half, rows = self.cfg.area.half_width_m, n_envs * n_uavs
+        path = [start.copy()]
+        for t in range(len(ue) - 1):
+            now = path[-1].reshape(rows, 2)
+            truth = GroundTruth(now, ue[t], velocity[t], scenario_ids)
+            action = self.mapping.validate(policy.act(np.zeros((rows, 0), np.float32), truth), rows)
+            target = np.clip(now + self.mapping.to_displacement_m(action), -half, half).reshape(n_envs, n_uavs, 2)
+            path.append(separate(path[-1], target, self.cfg.uav_separation_m) if n_uavs > 1 else target)
+        return np.array(path)
