@@ -257,10 +257,10 @@ def build_parser() -> argparse.ArgumentParser:
     sub = parser.add_subparsers(dest="command", required=True, metavar="COMMAND")
 
     p = sub.add_parser("evaluate", help="evaluate a policy or baseline, print a table",
-                       description="Evaluate a policy file, a folder of them, or a baseline (static, aoa, "
+                       description="Evaluate a policy file, a folder of them, or a baseline (static, aoa, explore, "
                                    "oracle). " + OVERRIDES_HELP)
     _add_env_options(p, scenario_default="circular", for_policy=True)
-    p.add_argument("--policy", default="static", help="static | aoa | oracle | FILE.zip | FILE.onnx | FOLDER")
+    p.add_argument("--policy", default="static", help="static | aoa | oracle | explore | FILE.zip | FILE.onnx | FOLDER")
     p.add_argument("--against", default=None, metavar="POLICY",
                    help="also fly this policy (same forms) on the same episodes and print the paired "
                         "throughput ratio with its 95 %% interval, the R_fair difference and the episodes won "

@@ -108,12 +108,24 @@ class OraclePolicy:
 BASELINES = BASELINE_NAMES  # declared in config, where a warm start names its teacher
 
 
+def baseline_env(name: str, cfg: EnvConfig) -> EnvConfig:
+    """The env the baseline ``name`` flies in ``cfg``'s world: ``cfg``, except that ``explore``
+    gets a memory of place when ``cfg`` has none (``uavlink.policies.explore.explore_env``)."""
+    from uavlink.policies.explore import explore_env
+
+    return explore_env(cfg) if name == "explore" else cfg
+
+
 def make_baseline(name: str, cfg: EnvConfig):
     """The baseline ``name`` for ``cfg``: a fleet (``n_uavs`` > 1) gets the fleet versions of the
-    rules (``uavlink.policies.fleet_baselines``); ``static`` hovers every UAV at its start."""
+    rules (``uavlink.policies.fleet_baselines``); ``static`` hovers every UAV at its start;
+    ``explore`` is built for ``baseline_env(name, cfg)``, and flies in that env."""
+    from uavlink.policies.explore import ExplorePolicy
     from uavlink.policies.fleet_baselines import FleetAoaPolicy, FleetOraclePolicy, KMeansPolicy
 
     fleet = cfg.n_uavs > 1
+    if name == "explore":
+        return ExplorePolicy(baseline_env(name, cfg))
     if name == "static":
         return StaticPolicy(cfg)
     if name == "aoa":
