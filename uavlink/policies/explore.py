@@ -7,8 +7,10 @@ any policy file, and a policy that sees the same observation can clone it. Per U
 
 1. search: the first ``search_frames`` frames fly a line through the start along east-west
    (a quarter of it east, half west, a quarter back east), sensing a new spot every frame;
-2. then fly to the best remembered spot (ranked with its age, so stale spots lose) whenever it beats
-   what the UAV senses now by more than ``margin_bits``, and hover otherwise; a spot that fell below
+2. then fly towards the best remembered spot (ranked with its age, so stale spots lose) whenever it
+   beats what the UAV senses now by more than ``margin_bits``, and hover otherwise; each frame it
+   closes ``approach_gain`` of the distance (r_max at most): a vehicle trails its target, and a
+   full step towards a spot measured from where the vehicle is overshoots and swings in flight; a spot that fell below
    what was remembered is overwritten when the UAV senses it there, so the next-best spot wins;
 3. search again: when the team has left (the mean SINR more than ``follow_gap_db`` below the hover
    level, as the aoa rule measures it), follow the aoa rule (per cell for a fleet), sensing new
@@ -41,7 +43,7 @@ class ExplorePolicy:
     needs_truth = False
 
     def __init__(self, cfg: EnvConfig, search_frames: int = 20, margin_bits: float = 0.05,
-                 follow_gap_db: float = 10.0) -> None:
+                 follow_gap_db: float = 10.0, approach_gain: float = 0.5) -> None:
         from uavlink.policies.baselines import make_baseline
 
         if cfg.place_cell_m <= 0:
@@ -52,6 +54,7 @@ class ExplorePolicy:
         self.search_frames = int(search_frames)
         self.margin_bits = margin_bits
         self.follow_gap_db = follow_gap_db
+        self.approach_gain = approach_gain
 
     def _sinr_gap_db(self, frame: dict[str, np.ndarray]) -> np.ndarray:
         """How far the mean SINR (of the row's own cell, in a fleet) is below the hover level, dB."""
@@ -73,7 +76,7 @@ class ExplorePolicy:
         search = self.mapping.from_polar(np.where(east, 0.0, 180.0), np.full(len(index), r_max))
         # 2. the best remembered spot, when it is worth going to.
         offset = frame["place_best_offset_m"]
-        distance = np.minimum(np.hypot(offset[:, 0], offset[:, 1]), r_max)
+        distance = np.minimum(self.approach_gain * np.hypot(offset[:, 0], offset[:, 1]), r_max)
         go = frame["place_best_gain_bits"] > self.margin_bits
         to_best = self.mapping.from_polar(np.degrees(np.arctan2(offset[:, 1], offset[:, 0])),
                                           np.where(go, distance, 0.0))
