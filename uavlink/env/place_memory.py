@@ -10,8 +10,9 @@ mean over UEs of log2(1 + SINR) (bits/s/Hz, what the round-robin throughput foll
 the UAV was in it, and that frame. The team moves, so an entry goes stale: cells are ranked by
 value - ``STALE_BITS_PER_FRAME`` x age, so a spot sensed long ago must have been much better to win.
 Ranking by value + stale x frame_seen is the same order at every frame, which keeps the best cell
-incremental (one write per row and frame; a full search only for the rows whose best was
-overwritten with less).
+incremental: one write per row and frame, and a full search only for the rows whose best reads
+``HYSTERESIS_BITS`` less than when it became best (so the best is within that of the top-ranked cell;
+the fast fading's frame-to-frame wobble neither moves it nor costs a search).
 
 What a policy sees (``PLACE_FIELDS`` of ``uavlink.env.observation``): the best remembered cell's
 offset from the UAV (m), its value minus what the UAV senses now, its age (frames), how many frames
@@ -26,12 +27,14 @@ import math
 import numpy as np
 
 STALE_BITS_PER_FRAME = 0.01  # a spot sensed 100 frames ago must have been 1 bit/s/Hz better than now
+HYSTERESIS_BITS = 0.1  # the best cell stays best until it reads this much less than when it won
 NEIGHBOURS = np.array([[1, 0], [0, 1], [-1, 0], [0, -1]])  # east, north, west, south, in cells
 
 
 def sensed_value_bits(sinr_db: np.ndarray) -> np.ndarray:
     """The value a spot is remembered by: mean over UEs of log2(1 + SINR), rows (N, U) dB -> (N,)."""
-    return np.log2(1.0 + 10.0 ** (np.asarray(sinr_db, dtype=float) / 10.0)).mean(axis=1)
+    linear = np.exp(np.asarray(sinr_db, dtype=float) * (np.log(10.0) / 10.0))  # exp: far cheaper than 10.0 ** x
+    return np.log1p(linear).mean(axis=1) / np.log(2.0)
 
 
 class PlaceMemory:
@@ -47,10 +50,12 @@ class PlaceMemory:
         self.score = np.full((n_rows, n_cells), -np.inf)  # value + stale x frame seen; -inf: never
         self.seen = np.zeros((n_rows, n_cells), dtype=np.int64)
         self.best = np.zeros(n_rows, dtype=np.int64)
+        self.best_score = np.full(n_rows, -np.inf)  # the best cell's score when it won (or last rose)
         self.frames = 0
 
     def reset(self) -> None:
         self.score[:] = -np.inf
+        self.best_score[:] = -np.inf
         self.frames = 0
 
     def _cell_xy(self, uav_xy_m: np.ndarray) -> np.ndarray:
@@ -72,14 +77,17 @@ class PlaceMemory:
         ij = self._cell_xy(uav_xy_m)
         cell = ij[:, 0] * self.n_side + ij[:, 1]
         new_score = now + STALE_BITS_PER_FRAME * t
-        old_best_score = self.score[rows, self.best]
         self.value[rows, cell] = now
         self.seen[rows, cell] = t
         self.score[rows, cell] = new_score
-        lost = (cell == self.best) & (new_score < old_best_score)  # the best was overwritten with less
-        self.best = np.where(new_score >= old_best_score, cell, self.best)
+        won = new_score >= self.best_score
+        lost = (cell == self.best) & (new_score < self.best_score - HYSTERESIS_BITS)  # the best read less
+        self.best = np.where(won, cell, self.best)
+        self.best_score = np.where(won, new_score, self.best_score)
         if lost.any():
-            self.best[lost] = self.score[lost].argmax(axis=1)
+            best = self.score[lost].argmax(axis=1)
+            self.best[lost] = best
+            self.best_score[lost] = self.score[np.flatnonzero(lost), best]
         self.frames = t + 1
         best = self.best
         nbr = ij[:, None, :] + NEIGHBOURS[None]  # (rows, 4, 2)
