@@ -163,3 +163,17 @@ def test_shipped_policies_keep_their_layouts() -> None:
             assert ObservationLayout.for_config(cfg) == layout, manifest
             if cfg.place_cell_m == 0:
                 assert layout.version in (1, 2) and "place_cell_m" not in data["observation_layout"]
+
+
+def test_map_report_refuses_without_spatial_and_skips_untrained_scenarios(tmp_path: Path) -> None:
+    from conftest import run_uavlink_in_process
+
+    from uavlink.policies.contract import EnvOverrides
+    from uavlink.report_map import map_table
+
+    proc = run_uavlink_in_process("evaluate", "--scenario", "all", "--policy", str(ROOT / "policies"),
+                                  "--out", str(tmp_path / "out"), "--map", str(tmp_path))
+    assert proc.returncode == 2 and "--map" in proc.stderr and "--spatial" in proc.stderr
+    assert not (tmp_path / "out").exists()
+    header, body = map_table(tmp_path, ROOT / "policies" / "spatial", 1, 0, EnvOverrides())
+    assert body == [] and header[:3] == ["scenario", "map PPO", "spatial PPO"]
