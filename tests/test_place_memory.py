@@ -117,18 +117,20 @@ def test_explore_is_a_baseline_with_its_own_memory_env() -> None:
     assert policy.layout == ObservationLayout.for_config(PLACE) and not policy.needs_truth
 
 
-def test_explore_searches_a_line_then_returns_to_the_best_spot() -> None:
+def test_explore_searches_a_cross_then_returns_to_the_best_spot() -> None:
     policy = make_baseline("explore", SPATIAL)
     env = BatchedUavEnv(PLACE, n_envs=6, seed=2)
     obs = env.reset()
     path = []
-    for _ in range(40):
+    for _ in range(60):
         obs = env.step(policy.act(obs)).observation
         path.append(env.uav_xy_m.copy())
-    xs = np.array(path)[..., 0]
-    assert np.allclose(xs[4], 60.0, atol=1e-3) and np.allclose(xs[14], -60.0, atol=1e-3)
-    assert np.allclose(xs[19], 0.0, atol=1e-3)
-    assert np.allclose(np.array(path)[:20, :, 1], 0.0, atol=1e-3)  # the line is east-west
+    path = np.array(path)
+    xs = path[..., 0]
+    assert np.allclose(path[3], [48.0, 0.0], atol=1e-3) and np.allclose(path[11], [-48.0, 0.0], atol=1e-3)
+    assert np.allclose(path[19], [0.0, 48.0], atol=1e-3) and np.allclose(path[27], [0.0, -48.0], atol=1e-3)
+    assert np.allclose(path[31], 0.0, atol=1e-3)
+    assert np.allclose(path[:16, :, 1], 0.0, atol=1e-3) and np.allclose(path[16:32, :, 0], 0.0, atol=1e-3)
     # after the search most hover at the best spot they sensed (the no_move team stays put; a spot
     # that reads less on return than remembered sends the UAV on to the next best)
     hovering = np.isclose(xs[-1], xs[-2], atol=1e-3)

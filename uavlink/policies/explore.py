@@ -5,8 +5,9 @@ It reads only the observation with a memory of place (layout v3, v4 for a fleet:
 position and what it sensed where, ``uavlink.env.place_memory``), so it flies from MAVLink data like
 any policy file, and a policy that sees the same observation can clone it. Per UAV row:
 
-1. search: the first ``search_frames`` frames fly a line through the start along east-west
-   (a quarter of it east, half west, a quarter back east), sensing a new spot every frame;
+1. search: the first 8 ``search_leg_frames`` frames fly a cross through the start at full speed,
+   sensing a new spot every frame: a leg east, two west, one back east, then the same north-south
+   (4 frames a leg: 48 m either side, 32 frames);
 2. then fly towards the best remembered spot (ranked with its age, so stale spots lose) whenever it
    beats what the UAV senses now by more than ``margin_bits``, and hover otherwise; each frame it
    closes ``approach_gain`` of the distance (r_max at most): a vehicle trails its target, and a
@@ -42,7 +43,7 @@ class ExplorePolicy:
     name = "explore"
     needs_truth = False
 
-    def __init__(self, cfg: EnvConfig, search_frames: int = 20, margin_bits: float = 0.05,
+    def __init__(self, cfg: EnvConfig, search_leg_frames: int = 4, margin_bits: float = 0.05,
                  follow_gap_db: float = 10.0, approach_gain: float = 0.5) -> None:
         from uavlink.policies.baselines import make_baseline
 
@@ -51,7 +52,8 @@ class ExplorePolicy:
         self.layout = ObservationLayout.for_config(cfg)
         self.mapping = ActionMapping.for_config(cfg)
         self.follow = make_baseline("aoa", cfg)  # the aoa rule, per cell for a fleet
-        self.search_frames = int(search_frames)
+        self.search_leg_frames = int(search_leg_frames)
+        self.search_frames = 8 * self.search_leg_frames
         self.margin_bits = margin_bits
         self.follow_gap_db = follow_gap_db
         self.approach_gain = approach_gain
@@ -70,10 +72,11 @@ class ExplorePolicy:
         frame = self.layout.newest_frame(obs)
         index = np.rint(frame["place_frames"]).astype(int) - 1  # frames flown this episode
         r_max = self.mapping.r_max_m
-        # 1. the search line: east for a quarter, west for half, east for the last quarter.
-        quarter = self.search_frames / 4
-        east = (index < quarter) | (index >= 3 * quarter)
-        search = self.mapping.from_polar(np.where(east, 0.0, 180.0), np.full(len(index), r_max))
+        # 1. the search cross: out one leg, back two, out one; east-west, then north-south.
+        leg = self.search_leg_frames
+        out = (index % (4 * leg) < leg) | (index % (4 * leg) >= 3 * leg)
+        heading = np.where(index < 4 * leg, np.where(out, 0.0, 180.0), np.where(out, 90.0, -90.0))
+        search = self.mapping.from_polar(heading, np.full(len(index), r_max))
         # 2. the best remembered spot, when it is worth going to.
         offset = frame["place_best_offset_m"]
         distance = np.minimum(self.approach_gain * np.hypot(offset[:, 0], offset[:, 1]), r_max)
