@@ -70,7 +70,7 @@ def map_sections(map_folder: Path, spatial_folder: Path, episodes: int, seed: in
         "Policies whose observation holds a memory of place (layout v3: the best spot the UAV sensed,",
         "relative to it, its value against now and its age; docs/design.md), trained on the spatial",
         "channel (`sweeps/map.toml`), against the spatial policies above and the GPS-free `explore`",
-        "rule (search a line, return to the best spot sensed, follow the team when it leaves). Same",
+        "rule (search a cross, return to the best spot sensed, follow the team when it leaves). Same",
         "episodes; paired ratios with 95 % bootstrap intervals. Scenarios without a map policy yet are",
         "left out.",
         "",
