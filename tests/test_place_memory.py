@@ -139,6 +139,7 @@ def test_explore_searches_a_cross_then_returns_to_the_best_spot() -> None:
     assert (np.abs(frame["place_best_offset_m"][hovering]) <= 6.0 + 1e-6).all()
 
 
+@pytest.mark.slow
 def test_explore_beats_hovering_on_no_move_and_flies_a_fleet() -> None:
     explore = evaluate_policy(make_baseline("explore", SPATIAL), PLACE, 8, 0).mean_rate_mbps
     static = evaluate_policy(make_baseline("static", SPATIAL), SPATIAL, 8, 0).mean_rate_mbps
