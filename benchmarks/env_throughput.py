@@ -9,6 +9,8 @@ Measures, in one run,
       "spatial"``), interleaved with (b) so that the two models' rates form a ratio of one run;
   (d) a fleet of D = 2 UAVs (full reuse) at N = 256 on the spatial channel, the fleet's channel: an
       env step is one frame of one env, both UAVs moving (2 agent rows);
+  (e) the spatial channel at N = 256 with a memory of place in the observation (``place_cell_m``,
+      layout v3), interleaved with (c) so that the memory's cost is a ratio of one run;
 and the single-env overhead beyond the physics, in microseconds per step:
   (time per step of the Gymnasium env) - (time per call of BatchedUavEnv at N = 1).
 Episodes are run back to back (a reset every 128 frames is part of the cost); actions are drawn
@@ -17,7 +19,8 @@ into interleaved rounds and the best round is reported (the median is in the JSO
 on a shared machine the fastest round is the least disturbed one.
 
 Targets: >= 300,000 env steps/s batched at N = 256 with either shadowing model, the spatial one
->= 0.8x the AR(1) rate; D = 2 at N = 256 >= 100,000 env steps/s; single-env overhead <= 20 us per step.
+>= 0.8x the AR(1) rate; D = 2 at N = 256 >= 100,000 env steps/s; the memory of place >= 0.8x the
+spatial rate without it; single-env overhead <= 20 us per step.
 
     python benchmarks/env_throughput.py               # Markdown table
     python benchmarks/env_throughput.py --json        # one JSON object
@@ -47,6 +50,8 @@ TARGET_OVERHEAD_US = 20.0
 TARGET_SPATIAL_OVER_AR1 = 0.8
 TARGET_FLEET_UAVS = 2
 TARGET_FLEET_STEPS_PER_S = 100_000
+TARGET_PLACE_OVER_SPATIAL = 0.8
+PLACE_CELL_M = 12.0  # sweeps/map.toml's grid
 ACTION_BANK = 512
 
 
@@ -67,9 +72,9 @@ class Bench:
     """One measured configuration: a step function, its batch size and its timings per round."""
 
     def __init__(self, name: str, n_envs: int, step: Callable[[int], None], chunk: int,
-                 shadowing_model: str, n_uavs: int = 1) -> None:
+                 shadowing_model: str, n_uavs: int = 1, place_cell_m: float = 0.0) -> None:
         self.name, self.n_envs, self.step, self.chunk = name, n_envs, step, chunk
-        self.shadowing_model, self.n_uavs = shadowing_model, n_uavs
+        self.shadowing_model, self.n_uavs, self.place_cell_m = shadowing_model, n_uavs, place_cell_m
         self.calls = 0
         self.seconds = 0.0
         self.us_per_call: list[float] = []
@@ -89,6 +94,7 @@ class Bench:
             "n_envs": self.n_envs,
             "shadowing_model": self.shadowing_model,
             "n_uavs": self.n_uavs,
+            "place_cell_m": self.place_cell_m,
             "calls": self.calls,
             "seconds": round(self.seconds, 4),
             "env_steps_per_s": round(1e6 * self.n_envs / best, 1),
@@ -125,7 +131,7 @@ def batched_bench(cfg: EnvConfig, n_envs: int, seed: int) -> Bench:
             env.reset()
 
     return Bench("BatchedUavEnv", n_envs, step, 64 if n_envs <= 16 else 8, cfg.radio.shadowing_model,
-                 cfg.n_uavs)
+                 cfg.n_uavs, cfg.place_cell_m)
 
 
 def run(seconds: float, sizes: list[int], scenario: str, seed: int, rounds: int) -> dict:
@@ -135,6 +141,7 @@ def run(seconds: float, sizes: list[int], scenario: str, seed: int, rounds: int)
         spatial = cfg.replace(**{"radio.shadowing_model": "spatial"}).validate()
         benches.append(batched_bench(spatial, TARGET_BATCHED_N, seed))
         benches.append(batched_bench(spatial.replace(n_uavs=TARGET_FLEET_UAVS).validate(), TARGET_BATCHED_N, seed))
+        benches.append(batched_bench(spatial.replace(place_cell_m=PLACE_CELL_M).validate(), TARGET_BATCHED_N, seed))
     for bench in benches:  # warm-up: caches, first episode's allocations
         _timed(bench.step, min(0.1, seconds / rounds), bench.chunk)
     # Interleaved rounds, best round reported: on a shared machine the fastest round is the one
@@ -145,8 +152,10 @@ def run(seconds: float, sizes: list[int], scenario: str, seed: int, rounds: int)
             bench.measure(seconds / rounds)
     rows = [b.row() for b in benches]
     batched = {r["n_envs"]: r for r in rows[1:] if r["shadowing_model"] == "ar1"}
-    spatial_row, fleet_row = (next((r for r in rows[1:] if r["shadowing_model"] == "spatial" and r["n_uavs"] == d), None)
-                              for d in (1, TARGET_FLEET_UAVS))
+    spatial_row, fleet_row, place_row = (
+        next((r for r in rows[1:] if r["shadowing_model"] == "spatial" and r["n_uavs"] == d
+              and r["place_cell_m"] == cell), None)
+        for d, cell in ((1, 0.0), (TARGET_FLEET_UAVS, 0.0), (1, PLACE_CELL_M)))
     report: dict = {
         "benchmark": "env_throughput",
         "scenario": scenario,
@@ -166,6 +175,7 @@ def run(seconds: float, sizes: list[int], scenario: str, seed: int, rounds: int)
                     "spatial_over_ar1": TARGET_SPATIAL_OVER_AR1,
                     "fleet_n_uavs": TARGET_FLEET_UAVS,
                     "fleet_env_steps_per_s": TARGET_FLEET_STEPS_PER_S,
+                    "place_over_spatial": TARGET_PLACE_OVER_SPATIAL,
                     "single_env_overhead_us": TARGET_OVERHEAD_US},
     }
     if 1 in batched:
@@ -189,6 +199,11 @@ def run(seconds: float, sizes: list[int], scenario: str, seed: int, rounds: int)
         report["n256_d2_env_steps_per_s_spatial"] = fleet_row["env_steps_per_s"]
         report["n256_d2_over_d1_spatial"] = round(fleet_row["env_steps_per_s"] / spatial_rate, 4)
         report["meets_fleet_target"] = fleet_row["env_steps_per_s"] >= TARGET_FLEET_STEPS_PER_S
+        report["n256_env_steps_per_s_place"] = place_row["env_steps_per_s"]
+        report["n256_place_over_spatial"] = round(place_row["env_steps_per_s"] / spatial_rate, 4)
+        report["n256_place_over_spatial_cpu"] = round(place_row["env_steps_per_cpu_s"]
+                                                      / spatial_row["env_steps_per_cpu_s"], 4)
+        report["meets_place_target"] = report["n256_place_over_spatial"] >= TARGET_PLACE_OVER_SPATIAL
     return report
 
 
@@ -201,12 +216,12 @@ def markdown(report: dict) -> str:
         f"rounds, best round ({machine['cpus']} CPUs, Python {machine['python']}, numpy {machine['numpy']}"
         + (f", load average {load[0]:.1f} at the start)" if load else ")"),
         "",
-        "| env | N | UAVs | shadowing | env steps/s | µs per call (best) | µs per call (median) "
+        "| env | N | UAVs | place cell m | shadowing | env steps/s | µs per call (best) | µs per call (median) "
         "| µs per env step | env steps per CPU-s |",
-        "|---|---:|---:|---|---:|---:|---:|---:|---:|",
+        "|---|---:|---:|---:|---|---:|---:|---:|---:|---:|",
     ]
     for r in report["results"]:
-        lines.append(f"| {r['env']} | {r['n_envs']} | {r['n_uavs']} | {r['shadowing_model']} | {r['env_steps_per_s']:,.0f} | "
+        lines.append(f"| {r['env']} | {r['n_envs']} | {r['n_uavs']} | {r['place_cell_m']:g} | {r['shadowing_model']} | {r['env_steps_per_s']:,.0f} | "
                      f"{r['us_per_call']:.1f} | {r['us_per_call_median']:.1f} | {r['us_per_env_step']:.3f} "
                      f"| {r['env_steps_per_cpu_s']:,.0f} |")
     lines.append("")
@@ -230,6 +245,11 @@ def markdown(report: dict) -> str:
                      f"{report['n256_d2_env_steps_per_s_spatial']:,.0f} env steps/s, "
                      f"{report['n256_d2_over_d1_spatial']:.2f}x one UAV's ({ok} the target of "
                      f">= {TARGET_FLEET_STEPS_PER_S:,})")
+        ok = "meets" if report["meets_place_target"] else "MISSES"
+        lines.append(f"memory of place ({PLACE_CELL_M:g} m cells) on the spatial channel at N = {TARGET_BATCHED_N}: "
+                     f"{report['n256_env_steps_per_s_place']:,.0f} env steps/s, {report['n256_place_over_spatial']:.2f}x "
+                     f"the spatial rate without it ({report['n256_place_over_spatial_cpu']:.2f}x in CPU time; {ok} "
+                     f"the target of >= {TARGET_PLACE_OVER_SPATIAL}x)")
     return "\n".join(lines)
 
 

@@ -89,14 +89,17 @@ def _write_results_folder(args: argparse.Namespace) -> int:
         raise UserError(f"--spatial {args.spatial}: not a folder of policies")
     if args.fleet is not None and (args.spatial is None or not args.fleet.is_dir()):
         raise UserError(f"--fleet {args.fleet}: needs a folder of fleet policies and --spatial (one UAV's, to compare)")
+    if args.map is not None and (args.spatial is None or not args.map.is_dir()):
+        raise UserError(f"--map {args.map}: needs a folder of map policies and --spatial (today's, to compare)")
 
     def kind(spec) -> str:
         env = spec.jobs()[0].env_config()
-        return "fleet" if env.n_uavs > 1 else env.radio.shadowing_model
+        return "fleet" if env.n_uavs > 1 else "map" if env.place_cell_m > 0 else env.radio.shadowing_model
 
     def shipped(spec) -> Path:
         """The folder a sweep's median seeds were shipped to: its record lies beside them."""
-        return Path({"ar1": folder, "spatial": args.spatial, "fleet": args.fleet}[kind(spec)] or folder)
+        return Path({"ar1": folder, "spatial": args.spatial, "fleet": args.fleet, "map": args.map}[kind(spec)]
+                    or folder)
 
     specs = []
     if args.sweep:  # checked before the long evaluation, which would write the folder
@@ -116,7 +119,8 @@ def _write_results_folder(args: argparse.Namespace) -> int:
 
     path = write_results(folder, args.out, markdown, args.episodes, args.seed, overrides, command,
                          progress=lambda msg: print(f"evaluating {msg}", file=sys.stderr),
-                         sweep_sections=sweep_sections, spatial_folder=args.spatial, fleet_folder=args.fleet)
+                         sweep_sections=sweep_sections, spatial_folder=args.spatial, fleet_folder=args.fleet,
+                         map_folder=args.map)
     print(path.read_text())
     return 0
 
@@ -263,10 +267,10 @@ def build_parser() -> argparse.ArgumentParser:
 
     p = sub.add_parser("evaluate", help="evaluate a policy or baseline, print a table",
                        description="Evaluate a policy file, a folder of them, or a baseline (static, aoa, "
-                                   "oracle, kmeans, genie). " + OVERRIDES_HELP)
+                                   "explore, oracle, kmeans, genie). " + OVERRIDES_HELP)
     _add_env_options(p, scenario_default="circular", for_policy=True)
     p.add_argument("--policy", default="static",
-                   help="static | aoa | oracle | kmeans | genie (evaluation only: plans on the episode's "
+                   help="static | aoa | explore | oracle | kmeans | genie (evaluation only: plans on the episode's "
                         "future) | FILE.zip | FILE.onnx | FOLDER")
     p.add_argument("--against", default=None, metavar="POLICY",
                    help="also fly this policy (same forms) on the same episodes and print the paired "
@@ -285,6 +289,9 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--spatial", type=Path, default=None, metavar="FOLDER",
                    help="with --out: add the spatial-channel tables (radio.shadowing_model=spatial): FOLDER's "
                         "policies, trained on it, and --policy's flown on it (e.g. policies/spatial)")
+    p.add_argument("--map", type=Path, default=None, metavar="FOLDER",
+                   help="with --out and --spatial: add the memory-of-place table: FOLDER's map policies "
+                        "(e.g. policies/map) against --spatial's, explore, aoa and static on the spatial channel")
     p.add_argument("--fleet", type=Path, default=None, metavar="FOLDER",
                    help="with --out and --spatial: add the fleet tables (D = 1, 2, 3 UAVs on the spatial channel): "
                         "FOLDER's fleet policies against the fleet baselines and --spatial's (e.g. policies/fleet)")

@@ -113,6 +113,10 @@ class EnvConfig:
     r_max_m: float = 12.0  # PX4 MPC_XY_VEL_MAX default, 12 m/s x 1 s frame
     action_mapping: str = ACTION_MAPPINGS[0]  # see uavlink.env.actions.ActionMapping
     memory: int = 4
+    # A memory of place (SPEC "The limit, and a memory of place"): what the UAV sensed where, on a
+    # grid of cells this wide (m) over the area; 0 (default) is off, the layouts of before.
+    # uavlink/env/place_memory.py; it makes the observation layout v3 (v4 for a fleet).
+    place_cell_m: float = 0.0
     ue_speed_mps: float = 8.0
     cluster_size_m: float = 10.0
     # The fleet (SPEC "A fleet"): D UAVs, start spread on a circle, kept apart by a safety filter.
@@ -140,6 +144,9 @@ class EnvConfig:
             raise ConfigError(f"scenario {self.scenario!r} needs at least 2 UEs, got n_ues={self.n_ues}")
         _positive("env.frame_s", self.frame_s)
         _positive("env.r_max_m", self.r_max_m)
+        _non_negative("env.place_cell_m", self.place_cell_m)
+        if self.place_cell_m > self.area.half_width_m:
+            raise ConfigError("env.place_cell_m must be 0 (off) or at most area.half_width_m")
         _non_negative("env.ue_speed_mps", self.ue_speed_mps)
         _non_negative("env.cluster_size_m", self.cluster_size_m)
         if self.cluster_size_m >= 2 * self.area.half_width_m:

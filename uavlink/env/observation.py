@@ -11,7 +11,9 @@ cell; (0, 0) and the largest std for an empty cell) and which UAV serves each UE
 observing UAV (0 = itself, then the next ones in fleet order), so every UAV has the same layout and
 one policy serves them all. The layout is versioned and saved with every policy; the frame's size,
 the feature names, the bounds, the slices and the decoders all follow from the tables, so adding a
-field is one entry (and a new version).
+field is one entry (and a new version). With a memory of place (``place_cell_m`` > 0; layout v3,
+v4 for a fleet) every frame also carries ``PLACE_FIELDS``: a summary of what the UAV sensed where
+(``uavlink.env.place_memory``), kept by the builder, so env and flight build it with the same code.
 """
 
 from __future__ import annotations
@@ -25,11 +27,16 @@ from typing import Any
 import numpy as np
 
 from uavlink.config import EnvConfig
+from uavlink.env.place_memory import PlaceMemory
 from uavlink.errors import UserError
 from uavlink.radio.aoa import circular_stats_deg
 
 OBS_LAYOUT_VERSION = 1
 FLEET_LAYOUT_VERSION = 2
+PLACE_LAYOUT_VERSION = 3  # v1 + the memory of place
+FLEET_PLACE_LAYOUT_VERSION = 4  # v2 + the memory of place
+PLACE_GAIN_CLIP_BITS = 4.0  # a remembered spot's value minus now, bits/s/Hz, clipped
+PLACE_AGE_SCALE_FRAMES = 128.0  # ages and the memory's length in episodes of 128 frames, at most 2
 
 
 @dataclass(frozen=True)
@@ -116,6 +123,41 @@ FLEET_FIELDS: tuple[Field, ...] = (
 )
 
 
+def _scaled_frames(quantity: str, label: str) -> Field:
+    return Field(quantity, (label,),
+                 encode=lambda layout, q: np.minimum(q[quantity], 2 * PLACE_AGE_SCALE_FRAMES)[:, None] / PLACE_AGE_SCALE_FRAMES,
+                 decode=lambda layout, x: x[..., 0] * PLACE_AGE_SCALE_FRAMES,
+                 bounds=lambda layout: (0.0, 2.0))
+
+
+def _gain_bits(quantity: str, labels: tuple[str, ...]) -> Field:
+    def encode(layout: ObservationLayout, q: Mapping[str, np.ndarray]) -> np.ndarray:
+        value = np.clip(q[quantity], -PLACE_GAIN_CLIP_BITS, PLACE_GAIN_CLIP_BITS)
+        return value.reshape(len(value), -1)
+
+    return Field(quantity, labels, encode=encode,
+                 decode=lambda layout, x: x[..., 0] if len(labels) == 1 else x,
+                 bounds=lambda layout: (-PLACE_GAIN_CLIP_BITS, PLACE_GAIN_CLIP_BITS))
+
+
+PLACE_FIELDS: tuple[Field, ...] = (
+    Field("place_best_offset_m", ("place_best_dx", "place_best_dy"),
+          encode=lambda layout, q: q["place_best_offset_m"] / layout.half_width_m,
+          decode=lambda layout, x: x * layout.half_width_m,
+          bounds=lambda layout: (-2.0, 2.0)),
+    _gain_bits("place_best_gain_bits", ("place_best_gain",)),
+    _scaled_frames("place_best_age_frames", "place_best_age"),
+    _scaled_frames("place_frames", "place_frames"),
+    _gain_bits("place_neighbour_gain_bits", ("place_east_gain", "place_north_gain", "place_west_gain",
+                                             "place_south_gain")),
+    Field("place_neighbour_known", ("place_east_known", "place_north_known", "place_west_known",
+                                    "place_south_known"),
+          encode=lambda layout, q: q["place_neighbour_known"],
+          decode=lambda layout, x: x,
+          bounds=lambda layout: (0.0, 1.0)),
+)
+
+
 def fleet_quantities(uav_xy_m: np.ndarray, serving: np.ndarray) -> dict[str, np.ndarray]:
     """What a fleet shares, as each UAV sees it, rows (N D) in fleet order: ``others_xy_m``
     (N D, D-1, 2), the other UAVs in the order d+1, d+2, ... (wrapping), and ``served_by``
@@ -143,16 +185,20 @@ class ObservationLayout:
     sinr_scale_db: float = 20.0
     sinr_clip_db: tuple[float, float] = (-30.0, 50.0)
     aoa_std_max_rad: float = 2 * np.pi
+    place_cell_m: float = 0.0  # the memory of place's grid (0: none; layouts v1 and v2)
 
     @classmethod
     def for_config(cls, cfg: EnvConfig) -> ObservationLayout:
-        version = OBS_LAYOUT_VERSION if cfg.n_uavs == 1 else FLEET_LAYOUT_VERSION
+        fleet, place = cfg.n_uavs > 1, cfg.place_cell_m > 0
+        version = {(False, False): OBS_LAYOUT_VERSION, (True, False): FLEET_LAYOUT_VERSION,
+                   (False, True): PLACE_LAYOUT_VERSION, (True, True): FLEET_PLACE_LAYOUT_VERSION}[fleet, place]
         return cls(version=version, n_ues=cfg.n_ues, n_uavs=cfg.n_uavs, memory=cfg.memory,
-                   half_width_m=cfg.area.half_width_m)
+                   half_width_m=cfg.area.half_width_m, place_cell_m=float(cfg.place_cell_m))
 
     @property
     def fields(self) -> tuple[Field, ...]:
-        return FIELDS if self.n_uavs == 1 else FIELDS + FLEET_FIELDS
+        fields = FIELDS if self.n_uavs == 1 else FIELDS + FLEET_FIELDS
+        return fields + PLACE_FIELDS if self.place_cell_m > 0 else fields
 
     @functools.cached_property
     def slices(self) -> dict[str, slice]:
@@ -189,6 +235,8 @@ class ObservationLayout:
         data["sinr_clip_db"] = list(self.sinr_clip_db)
         if self.n_uavs == 1:  # a single UAV's record stays what it has always been
             del data["n_uavs"]
+        if self.place_cell_m == 0:  # so does a record without a memory of place
+            del data["place_cell_m"]
         return data
 
     @classmethod
@@ -205,22 +253,24 @@ class ObservationLayout:
 
     def describe(self) -> str:
         fleet = f"n_uavs={self.n_uavs}, " if self.n_uavs > 1 else ""
+        fleet += f"place_cell_m={self.place_cell_m:g}, " if self.place_cell_m > 0 else ""
         return (f"v{self.version} ({fleet}n_ues={self.n_ues}, memory={self.memory}, "
                 f"half_width_m={self.half_width_m:g}, size={self.size})")
 
     def encode_frame(self, uav_xy_m: np.ndarray, sinr_db: np.ndarray, aoa_deg: np.ndarray,
-                     **fleet: np.ndarray) -> np.ndarray:
+                     **extra: np.ndarray) -> np.ndarray:
         """One frame's features (rows, frame_size) from UAV position (rows, 2), SINR and AoA
-        (rows, U) as each row's UAV senses them, and for a fleet ``others_xy_m`` (rows, D-1, 2)
-        and ``served_by`` (rows, U) (see :func:`fleet_quantities`)."""
+        (rows, U) as each row's UAV senses them, for a fleet ``others_xy_m`` (rows, D-1, 2)
+        and ``served_by`` (rows, U) (see :func:`fleet_quantities`), and with a memory of place
+        its quantities (``PlaceMemory.update``)."""
         rad = np.radians(aoa_deg)
         sin, cos = np.sin(rad), np.cos(rad)  # shared by every AoA statistic below
         aoa_mean_deg, aoa_std_deg = circular_stats_deg(sin, cos)
         quantities = {"uav_xy_m": uav_xy_m, "sinr_db": sinr_db, "aoa_mean_deg": aoa_mean_deg,
-                      "aoa_std_deg": aoa_std_deg, **fleet}
-        if fleet:  # the AoA statistics of the UEs this UAV serves (undefined for an empty cell)
+                      "aoa_std_deg": aoa_std_deg, **extra}
+        if "served_by" in extra:  # the AoA statistics of the UEs this UAV serves (undefined for an empty cell)
             quantities["cell_aoa_mean_deg"], quantities["cell_aoa_std_deg"] = circular_stats_deg(
-                sin, cos, mask=fleet["served_by"] == 0)
+                sin, cos, mask=extra["served_by"] == 0)
         return np.concatenate([field.encode(self, quantities) for field in self.fields], axis=1)
 
     def frames(self, obs: np.ndarray) -> np.ndarray:
@@ -258,23 +308,33 @@ class ObservationLayout:
 
 
 class ObservationBuilder:
-    """Keeps the last M frames per row (env, or env and UAV) and returns the flattened observation
-    (rows, size), float32."""
+    """Keeps the last M frames per row (env, or env and UAV), and the memory of place when the
+    layout has one, and returns the flattened observation (rows, size), float32."""
 
     def __init__(self, layout: ObservationLayout, n_rows: int) -> None:
         self.layout = layout
         self._history = np.zeros((n_rows, layout.memory, layout.frame_size), dtype=np.float32)
+        self.place = (PlaceMemory(layout.place_cell_m, layout.half_width_m, n_rows)
+                      if layout.place_cell_m > 0 else None)
+
+    def _encode(self, uav_xy_m: np.ndarray, sinr_db: np.ndarray, aoa_deg: np.ndarray,
+                **fleet: np.ndarray) -> np.ndarray:
+        place = self.place.update(uav_xy_m, sinr_db) if self.place is not None else {}
+        return self.layout.encode_frame(uav_xy_m, sinr_db, aoa_deg, **fleet, **place)
 
     def reset(self, uav_xy_m: np.ndarray, sinr_db: np.ndarray, aoa_deg: np.ndarray,
               **fleet: np.ndarray) -> np.ndarray:
-        """Start a new episode: every memory slot holds the first frame."""
-        self._history[:] = self.layout.encode_frame(uav_xy_m, sinr_db, aoa_deg, **fleet)[:, None, :]
+        """Start a new episode: every memory slot holds the first frame; the place memory is empty
+        before it."""
+        if self.place is not None:
+            self.place.reset()
+        self._history[:] = self._encode(uav_xy_m, sinr_db, aoa_deg, **fleet)[:, None, :]
         return self.observation()
 
     def push(self, uav_xy_m: np.ndarray, sinr_db: np.ndarray, aoa_deg: np.ndarray,
              **fleet: np.ndarray) -> np.ndarray:
         self._history[:, 1:] = self._history[:, :-1]
-        self._history[:, 0] = self.layout.encode_frame(uav_xy_m, sinr_db, aoa_deg, **fleet)
+        self._history[:, 0] = self._encode(uav_xy_m, sinr_db, aoa_deg, **fleet)
         return self.observation()
 
     def observation(self) -> np.ndarray:

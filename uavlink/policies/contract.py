@@ -13,7 +13,8 @@ the scenario, the AoA noise and ``--set`` pairs. Two kinds of change are treated
 
 Training-time randomisation (``radio.aoa_noise_max_deg``) belongs to the training, not to the
 policy's env: it is 0 here unless an override asks for it. Baselines have no manifest: they take
-the env of the policy they are compared with, or the defaults plus the overrides when alone.
+the env of the policy they are compared with, or the defaults plus the overrides when alone
+(``explore`` with a memory of place added when that env has none).
 """
 
 from __future__ import annotations
@@ -29,18 +30,18 @@ from uavlink.errors import UserError
 from uavlink.policies.base import Policy
 from uavlink.policies.loader import load_policy, policy_for_scenario
 from uavlink.policies.manifest import PolicyFileError
-from uavlink.policies.registry import BASELINES
+from uavlink.policies.registry import BASELINES, baseline_env
 
 # Fields a policy was built for: its action mapping and its observation layout's inputs.
-BUILT_FOR = ("action_mapping", "r_max_m", "memory", "n_ues", "n_uavs", "area.half_width_m")
+BUILT_FOR = ("action_mapping", "r_max_m", "memory", "place_cell_m", "n_ues", "n_uavs", "area.half_width_m")
 OVERRIDES_HELP = (f"A policy file runs in the env its manifest records; --scenario, --aoa-noise-deg and --set "
                   f"override it. Radio physics and the world may be overridden (a robustness study); what "
                   f"the policy was built for ({', '.join(BUILT_FOR)}) may not. Baselines get the env of the "
                   f"policy they are compared with.")
 # What compared policies may differ in: each flies with its own action mapping and memory, and with
-# its own number of UAVs over the same UEs and channel (a fleet against one UAV: the per-episode
+# its own number of UAVs and its own memory of place over the same UEs and channel (a fleet against one UAV: the per-episode
 # world streams do not depend on n_uavs, so the episodes pair as in docs/results.md's fleet ratios).
-PER_POLICY = ("action_mapping", "r_max_m", "memory", "n_uavs")
+PER_POLICY = ("action_mapping", "r_max_m", "memory", "place_cell_m", "n_uavs")
 # Training-time randomisation: off in a policy's env unless an override turns it on.
 TRAINING_ONLY = "radio.aoa_noise_max_deg"
 
@@ -135,7 +136,7 @@ def load_with_env(specs: Sequence[str | Path], overrides: EnvOverrides) -> list[
     world = envs[first] if first is not None else defaults
     for spec, cfg in envs.items():
         _check_same_world(first, world, spec, cfg)
-    return [(files[spec], envs[spec]) if spec in files else (load_policy(spec, world), world)
+    return [(files[spec], envs[spec]) if spec in files else (load_policy(spec, world), baseline_env(spec, world))
             for spec in resolved]
 
 

@@ -8,6 +8,7 @@ from __future__ import annotations
 from uavlink.config import BASELINE_NAMES, EnvConfig
 from uavlink.errors import UserError
 from uavlink.policies.baselines import AoaPolicy, OraclePolicy, StaticPolicy
+from uavlink.policies.explore import ExplorePolicy, explore_env
 from uavlink.policies.fleet_baselines import FleetAoaPolicy, FleetOraclePolicy, KMeansPolicy
 from uavlink.policies.genie import REFERENCES, GeniePolicy
 
@@ -16,11 +17,20 @@ from uavlink.policies.genie import REFERENCES, GeniePolicy
 BASELINES = (*BASELINE_NAMES, "genie")
 
 
+def baseline_env(name: str, cfg: EnvConfig) -> EnvConfig:
+    """The env the baseline ``name`` flies in ``cfg``'s world: ``cfg``, except that ``explore``
+    gets a memory of place when ``cfg`` has none (``uavlink.policies.explore.explore_env``)."""
+    return explore_env(cfg) if name == "explore" else cfg
+
+
 def make_baseline(name: str, cfg: EnvConfig):
     """The baseline ``name`` for ``cfg``: a fleet (``n_uavs`` > 1) gets the fleet versions of the
     rules (``uavlink.policies.fleet_baselines``); ``static`` hovers every UAV at its start;
-    ``genie`` plans on the episode's future, for any D, a fleet from the best of its references."""
+    ``genie`` plans on the episode's future, for any D, a fleet from the best of its references;
+    ``explore`` is built for ``baseline_env(name, cfg)``, and flies in that env."""
     fleet = cfg.n_uavs > 1
+    if name == "explore":
+        return ExplorePolicy(baseline_env(name, cfg))
     if name == "static":
         return StaticPolicy(cfg)
     if name == "aoa":

@@ -1,0 +1,79 @@
+"""The results report's memory-of-place part (issue 23): the map policies (trained with a memory of
+place, ``sweeps/map.toml``) against today's spatial policies and the GPS-free ``explore`` rule.
+
+Per scenario that has a map policy: the map policy, the spatial policy of the scenario, explore,
+aoa and static, all on the spatial channel on the same seeded episodes, with paired ratios: the map
+policy over the spatial policy, over explore and over its warm start's rule (explore on no_move,
+aoa elsewhere, as sweeps/map.toml), and explore over the spatial policy.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from pathlib import Path
+
+from uavlink.evaluation import EvalResult, evaluate_policy, paired_ratio_ci
+from uavlink.evaluation.tables import markdown_table, spatial_overrides, write_csv
+from uavlink.mobility import SCENARIOS
+from uavlink.policies.contract import EnvOverrides, load_with_env
+from uavlink.policies.loader import policy_for_scenario
+from uavlink.policies.manifest import PolicyFileError
+
+COLUMNS = ("map", "spatial", "explore", "aoa", "static")
+
+
+def _ratio(results: dict[str, EvalResult], a: str, b: str) -> str:
+    ratio, lo, hi = paired_ratio_ci(results[a].episode_rate_mbps, results[b].episode_rate_mbps)
+    return f"{100 * (ratio - 1):+.1f} % [{100 * (lo - 1):+.1f}, {100 * (hi - 1):+.1f}]"
+
+
+def _teacher(map_policy) -> str:
+    """The rule the map policy's warm start copied, from its manifest (aoa when unknown)."""
+    manifest = getattr(map_policy, "manifest", None) or {}
+    teacher = manifest.get("training", {}).get("warm_start", {}).get("teacher", "")
+    return teacher if teacher in ("explore", "aoa") else "aoa"
+
+
+def map_table(map_folder: Path, spatial_folder: Path, episodes: int, seed: int, overrides: EnvOverrides,
+              progress: Callable[[str], None] = lambda _: None) -> tuple[list[str], list[list[str]]]:
+    header = ["scenario", "map PPO", "spatial PPO", "explore", "aoa", "static", "map vs spatial PPO",
+              "map vs explore", "map vs its teacher", "explore vs spatial PPO"]
+    body = []
+    on_spatial = spatial_overrides(overrides)
+    for scenario in SCENARIOS:
+        try:
+            map_file = policy_for_scenario(map_folder, scenario)
+        except PolicyFileError:
+            continue  # not trained yet: the table shows the scenarios that are
+        specs = [map_file, policy_for_scenario(spatial_folder, scenario), "explore", "aoa", "static"]
+        loaded = load_with_env(specs, on_spatial.on(scenario))
+        results = {}
+        for column, (policy, cfg) in zip(COLUMNS, loaded, strict=True):
+            progress(f"map {scenario}: {column}")
+            results[column] = evaluate_policy(policy, cfg, episodes, seed)
+        teacher = _teacher(loaded[0][0])
+        body.append([scenario, *(f"{results[c].mean_rate_mbps:.2f} ± {results[c].ci95_mbps:.2f}" for c in COLUMNS),
+                     _ratio(results, "map", "spatial"), _ratio(results, "map", "explore"),
+                     f"{teacher}: {_ratio(results, 'map', teacher)}", _ratio(results, "explore", "spatial")])
+    return header, body
+
+
+def map_sections(map_folder: Path, spatial_folder: Path, episodes: int, seed: int, overrides: EnvOverrides,
+                 out: Path, sweep_sections: list[str], progress: Callable[[str], None] = lambda _: None) -> list[str]:
+    """Evaluate, write ``map.csv`` into ``out`` and return the Markdown of the part."""
+    header, body = map_table(map_folder, spatial_folder, episodes, seed, overrides, progress)
+    write_csv(out / "map.csv", header, body)
+    return [
+        f"### A memory of place: map policies (`{map_folder}`) and the explore rule",
+        "",
+        "Policies whose observation holds a memory of place (layout v3: the best spot the UAV sensed,",
+        "relative to it, its value against now and its age; docs/design.md), trained on the spatial",
+        "channel (`sweeps/map.toml`), against the spatial policies above and the GPS-free `explore`",
+        "rule (search a cross, return to the best spot sensed, follow the team when it leaves). Same",
+        "episodes; paired ratios with 95 % bootstrap intervals. Scenarios without a map policy yet are",
+        "left out.",
+        "",
+        markdown_table(header, body),
+        "",
+        *sweep_sections,
+    ]
