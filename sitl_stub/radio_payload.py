@@ -2,13 +2,10 @@
 
 It runs the simulator's UE mobility and radio model (``uavlink.env.radio_world.RadioWorld``,
 advanced at the vehicle's actual position) and publishes each frame's readings as
-``uavlink.mavlink.radio_codec`` describes. The world is episode 0 of the evaluation stream, so a
-flight with ``--seed S`` meets the UEs of ``uavlink evaluate --episodes 1 --seed S``.
-
-The episode starts at the first frame tick that finds the vehicle in OFFBOARD (the mission): that
-tick publishes frame 0, and each later tick moves the UEs one frame. Until then the UEs wait at
-their start and frame 0's readings are repeated, flagged as waiting, so arming and take-off take no
-frames from the episode and draw nothing from its random streams.
+``uavlink.mavlink.radio_codec`` describes. Each flight (an arming) meets a fresh episode
+(:mod:`sitl_stub.radio_episodes`): a vehicle started with ``--seed S`` serves episode 0 of seed S
+first, so its first flight meets the UEs of ``uavlink evaluate --episodes 1 --seed S``, and its
+k-th those of ``--seed S+k``; the episode starts at the first frame tick in OFFBOARD.
 
 Each frame's readings go out ``READINGS_COPIES`` times (the flight loop drops the repeats by frame
 number): over a link that loses packets independently, a frame's decision is lost only when every
@@ -20,11 +17,10 @@ from __future__ import annotations
 
 from typing import Any
 
-from sitl_stub.modes import FlightMode
 from sitl_stub.payload import MAV_AUTOPILOT_INVALID, PayloadOptions
+from sitl_stub.radio_episodes import RadioEpisodes
 from sitl_stub.vehicle_state import VehicleState
 from uavlink.config import EnvConfig
-from uavlink.env.radio_world import RadioWorld
 from uavlink.mavlink.radio_codec import (
     RADIO_COMPONENT_ID,
     READINGS_NAME,
@@ -48,31 +44,24 @@ class RadioPayload:
             raise ValueError(f"n_uavs={self.cfg.n_uavs} needs a fleet of vehicles: use --fleet "
                              f"{self.cfg.n_uavs} (one vehicle serves one UAV)")
         self.frame_s = self.cfg.frame_s
-        self.world = RadioWorld(self.cfg, options.seed)
-        self.started = False
-        self.frame_rates_mbps: list[float] = []  # the truth per scored frame 1, 2, ...
+        self.episodes = RadioEpisodes(self.cfg, options.seed)
 
     def heartbeat(self) -> tuple[int, int, int, int, int]:
         return (MAV_TYPE_ONBOARD_CONTROLLER, MAV_AUTOPILOT_INVALID, 0, 0, MAV_STATE_ACTIVE)
 
     def on_frame(self, sim_time_s: float, state: VehicleState, mav: Any) -> None:
-        if self.started:
-            score = self.world.advance([state.x_east_m, state.y_north_m])
-            self.frame_rates_mbps.append(score.mean_rate_mbps)
+        episodes = self.episodes
+        score = episodes.tick([state])
+        if score is not None:
             self._send(mav, sim_time_s, SCORE_NAME, encode_score(score.rate_bps, score.fair_rate))
-        elif state.mode is FlightMode.OFFBOARD:
-            self.started = True
-        readings = self.world.readings()
-        data = encode_readings(readings.sinr_db, readings.aoa_deg, self.started)
+        episodes.send_episode(mav, sim_time_s)
+        readings = episodes.world.readings()
+        data = encode_readings(readings.sinr_db, readings.aoa_deg, episodes.started)
         for _ in range(self.READINGS_COPIES):
             self._send(mav, sim_time_s, READINGS_NAME, data)
 
     def summary(self) -> dict[str, Any]:
-        """Vehicle-side truth of the episode (whatever the link lost): mean UE rate over its
-        first ``episode_frames`` frames."""
-        rates = self.frame_rates_mbps[: self.cfg.episode_frames]
-        return {"frames": len(rates), "frames_total": len(self.frame_rates_mbps),
-                "mean_rate_mbps": round(sum(rates) / len(rates), 6) if rates else None}
+        return self.episodes.summary()
 
     def _send(self, mav: Any, sim_time_s: float, name: str, data: list[float]) -> None:
-        mav.debug_float_array_send(int(sim_time_s * 1e6), name.encode(), self.world.frame, data)
+        mav.debug_float_array_send(int(sim_time_s * 1e6), name.encode(), self.episodes.world.frame, data)

@@ -40,6 +40,7 @@ from uavlink.mavlink.px4_modes import PX4_MAIN_OFFBOARD, decode_custom_mode
 from uavlink.mavlink.radio_codec import (
     RADIO_COMPONENT_ID,
     RadioReportError,
+    decode_episode,
     decode_score,
     message_kind,
 )
@@ -124,6 +125,7 @@ class VehicleLink:
         self._target_component = target_component
         self.on_radio: Callable = lambda msg: None
         self.on_score: Callable = lambda score: None
+        self.radio_episode: dict[str, int] = {}  # the payload's UL_EP_SEED / UL_EPISODE: seed, count
         self._acks: dict[int, int] = {}
         self._mission_inbox: deque[Any] = deque(maxlen=64)  # for recv_mission
         # Offboard keep-alive: while set, poll() re-sends this NED setpoint every
@@ -232,6 +234,8 @@ class VehicleLink:
             which = message_kind(msg)
             if which == "readings":
                 self.on_radio(msg)
+            elif kind == "NAMED_VALUE_INT" and (episode := decode_episode(msg)) is not None:
+                self.radio_episode[episode[0]] = episode[1]
             elif which == "score":
                 try:
                     score = decode_score(msg)
@@ -366,11 +370,12 @@ class VehicleLink:
                 raise LinkError(f"vehicle refused {name}={value:g} (keeps {self.params[name]:g})")
         raise LinkError(f"no PARAM_VALUE for {name} after {tries} tries")
 
-    def arm(self) -> None:
+    def arm(self, armed: bool = True) -> None:
+        """Arm (or, with ``armed=False``, disarm) and wait for a heartbeat that shows it."""
         beats = self.status.heartbeats
-        self.command(MAV.MAV_CMD_COMPONENT_ARM_DISARM, 1.0,
-                     done=lambda: self.status.armed and self.status.heartbeats > beats)
-        self.wait_until(lambda: self.status.armed, 3.0, "armed heartbeat")
+        self.command(MAV.MAV_CMD_COMPONENT_ARM_DISARM, float(armed),
+                     done=lambda: self.status.armed == armed and self.status.heartbeats > beats)
+        self.wait_until(lambda: self.status.armed == armed, 3.0, f"{'' if armed else 'dis'}armed heartbeat")
 
     def takeoff(self, altitude_m: float) -> None:
         self.set_param("MIS_TAKEOFF_ALT", altitude_m)
