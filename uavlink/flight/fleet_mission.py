@@ -43,14 +43,15 @@ from uavlink.flight.mission import (
     _mode_name,
     _take_off_or_resume,
     _wait_ready,
-    judge,
 )
+from uavlink.flight.outcome import judge
 from uavlink.flight.radio_source import MavlinkRadioSource
+from uavlink.flight.start_point import fly_to_starts
 from uavlink.flight.transit import guard_transit
 from uavlink.mavlink.dialect import mavlink
 from uavlink.mavlink.px4_modes import PX4_MAIN_OFFBOARD
 from uavlink.mavlink.radio_codec import RadioReport, ScoreReport
-from uavlink.mobility.fleet import min_separation_m, separate
+from uavlink.mobility.fleet import min_separation_m, separate, start_positions_m
 from uavlink.policies.base import Policy
 
 log = logging.getLogger(__name__)
@@ -176,6 +177,7 @@ def _fly_fleet(links, pilot, cfg, mission, status, result: FleetResult) -> None:
     for link in links:
         _take_off_or_resume(link, mission, cfg.area, result)
     if not result.resumed:  # what came before (an earlier episode, the wait) is not this flight's
+        fly_to_starts(links, start_positions_m(cfg.n_uavs, cfg.fleet_start_radius_m))
         befores = [source.take_reports() for source in sources]
         result.met_start = all(before and not before[-1].running for before in befores)
         scores.clear()

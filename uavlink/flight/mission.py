@@ -7,7 +7,9 @@ Between reports the current target is re-sent every ``stream_period_vehicle_s`` 
 loss timeout (COM_OF_LOSS_T, 1 s) never fires. At the end (or on Ctrl-C) it lands.
 
 Faults: a vehicle that is already armed and in the air (``uavlink fly`` restarted after a crash) is
-resumed without a take-off, from whatever frame its radio payload has reached. A vehicle still
+resumed without a take-off, from whatever frame its radio payload has reached; one that took off
+away from its start position (an earlier flight landed elsewhere) flies there first
+(:mod:`uavlink.flight.start_point`). A vehicle still
 landing from an earlier flight is waited for until it has landed and disarmed; one landed but still
 armed is disarmed first: every flight begins with an arming, which gives it a fresh radio episode
 (``sitl_stub.radio_episodes``). When the vehicle
@@ -20,7 +22,7 @@ history; lost scores do not stall the end of the episode. Without any message fr
 ``link_timeout_s`` of wall time, or without a fresh radio frame for ``radio_timeout_s`` in
 OFFBOARD, the mission gives up.
 
-The result says whether the flight flew the frames it set out to (:func:`judge`): every frame of a
+The result says whether the flight flew the frames it set out to (:func:`~uavlink.flight.outcome.judge`): every frame of a
 fresh episode from its start (a flight that took off), or the rest of the running one (a resumed
 flight). Anything else (no radio reports, an episode already running or over, a vehicle that never
 reached OFFBOARD, a lost link, an operator or failsafe ending the flight, Ctrl-C) is
@@ -42,7 +44,9 @@ from uavlink.env.actions import ActionMapping
 from uavlink.env.observation import ObservationBuilder, ObservationLayout
 from uavlink.flight.fence import upload_area_fence
 from uavlink.flight.link import STREAM_PERIOD_VEHICLE_S, LinkError, VehicleLink
+from uavlink.flight.outcome import judge
 from uavlink.flight.radio_source import MavlinkRadioSource, RadioSource
+from uavlink.flight.start_point import fly_to_starts
 from uavlink.mavlink.dialect import mavlink
 from uavlink.mavlink.px4_modes import (
     PX4_MAIN_AUTO,
@@ -53,6 +57,7 @@ from uavlink.mavlink.px4_modes import (
     px4_mode_name,
 )
 from uavlink.mavlink.radio_codec import RadioReport, ScoreReport
+from uavlink.mobility.fleet import start_positions_m
 from uavlink.policies.base import Policy
 
 log = logging.getLogger(__name__)
@@ -192,6 +197,7 @@ def _fly(link, pilot, cfg, mission, radio, status, result: MissionResult) -> Non
 
     _take_control(link, mission, cfg.area, result)
     if not result.resumed:  # what came before (an earlier episode, the wait) is not this flight's
+        fly_to_starts([link], start_positions_m(1, cfg.fleet_start_radius_m))
         before = source.take_reports()
         result.met_start = bool(before) and not before[-1].running
         scores.clear()
@@ -270,32 +276,6 @@ def _fly(link, pilot, cfg, mission, radio, status, result: MissionResult) -> Non
         if mission.land and st.armed and not _ending_mode(st) and result.ended_by != "link lost":
             _land(link)
         link.stream_ned = None
-
-
-def judge(result: MissionResult, frames: int) -> None:
-    """Set ``completed`` and ``reason``: did the flight fly the frames it set out to (all
-    ``frames`` of a fresh episode, or the rest of the one it resumed)?"""
-    first, last = result.first_frame, result.last_frame
-    if result.interrupted:
-        why = "interrupted (Ctrl-C); the vehicle was told to land"
-    elif result.failure:
-        why = f"{result.failure}; check the vehicle is running and reachable (--connect), then fly again"
-    elif result.ended_by == "no radio reports" or first is None:
-        where = "no" if first is None else f"no more (after frame {last})"
-        why = (f"{where} radio reports from the vehicle's radio payload (component 158) in OFFBOARD: "
-               "run the vehicle with its radio payload (sitl_stub without --no-payload) and fly again")
-    elif first >= frames:
-        why = (f"the vehicle's radio episode was already at frame {first}, past the {frames} frames "
-               "to fly: restart the vehicle (a current sitl_stub begins an episode per arming)")
-    elif not result.resumed and not result.met_start:
-        why = (f"the vehicle's radio episode was already running (frame {first}) before this flight "
-               "took off, so its start was not flown: restart the vehicle and fly again")
-    elif result.ended_by != "episode done":
-        why = (f"the flight ended early, after frame {last}: {result.ended_by} (operator or "
-               "failsafe); see the vehicle's log, then fly again")
-    else:
-        why = ""
-    result.completed, result.reason = not why, why
 
 
 class _FrameTracker:

@@ -16,10 +16,40 @@ import json
 import shlex
 import sys
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 from uavlink.config import EnvConfig
 
+if TYPE_CHECKING:
+    from uavlink.flight.mission import MissionResult
+
 EXIT_COMPLETE, EXIT_INCOMPLETE, EXIT_INTERRUPTED = 0, 1, 130
+
+
+def judge(result: MissionResult, frames: int) -> None:
+    """Set ``completed`` and ``reason``: did the flight fly the frames it set out to (all
+    ``frames`` of a fresh episode, or the rest of the one it resumed)?"""
+    first, last = result.first_frame, result.last_frame
+    if result.interrupted:
+        why = "interrupted (Ctrl-C); the vehicle was told to land"
+    elif result.failure:
+        why = f"{result.failure}; check the vehicle is running and reachable (--connect), then fly again"
+    elif result.ended_by == "no radio reports" or first is None:
+        where = "no" if first is None else f"no more (after frame {last})"
+        why = (f"{where} radio reports from the vehicle's radio payload (component 158) in OFFBOARD: "
+               "run the vehicle with its radio payload (sitl_stub without --no-payload) and fly again")
+    elif first >= frames:
+        why = (f"the vehicle's radio episode was already at frame {first}, past the {frames} frames "
+               "to fly: restart the vehicle (a current sitl_stub begins an episode per arming)")
+    elif not result.resumed and not result.met_start:
+        why = (f"the vehicle's radio episode was already running (frame {first}) before this flight "
+               "took off, so its start was not flown: restart the vehicle and fly again")
+    elif result.ended_by != "episode done":
+        why = (f"the flight ended early, after frame {last}: {result.ended_by} (operator or "
+               "failsafe); see the vehicle's log, then fly again")
+    else:
+        why = ""
+    result.completed, result.reason = not why, why
 
 
 def episode_fields(args: argparse.Namespace, cfg: EnvConfig, episode: dict[str, int]) -> dict:
