@@ -77,3 +77,14 @@ def test_teacher_search_compares_variants_with_the_rule_and_picks_one_that_loses
     assert set(row["true_shadow_gate_mbps_r_fair"]) == {"0", "1.5", "3", "4.5"}
     (clone,) = row["clones_of_pick"]
     assert (clone["teacher_episodes"], clone["epochs"]) == (4, 2) and np.isfinite(clone["mbps"])
+
+
+@pytest.mark.timeout(600)
+def test_soak_serves_consecutive_flights_from_one_vehicle_process() -> None:
+    """benchmarks/soak.py with 2 flights per vehicle (one UAV, a fleet of 2): every flight complete,
+    each a new episode, the vehicle's memory and file descriptors measured after each."""
+    result = run_json("soak.py", "--flights", "2")
+    for run in result["runs"]:
+        assert [r["episode_seed"] for r in run["rows"]] == [0, 1]
+        assert run["checks"]["every_flight_complete"] and run["checks"]["fds_constant"], run["rows"]
+        assert all(r["vehicle_rss_kib"] > 10_000 and r["evaluated_mbps"] > 0 for r in run["rows"])
