@@ -9,11 +9,10 @@ loss timeout (COM_OF_LOSS_T, 1 s) never fires. At the end (or on Ctrl-C) it land
 Faults: a vehicle that is already armed and in the air (``uavlink fly`` restarted after a crash) is
 resumed without a take-off, from whatever frame its radio payload has reached; one that took off
 away from its start position (an earlier flight landed elsewhere) flies there first
-(:mod:`uavlink.flight.start_point`). A vehicle still
-landing from an earlier flight is waited for until it has landed and disarmed; one landed but still
-armed is disarmed first: every flight begins with an arming, which gives it a fresh radio episode
-(``sitl_stub.radio_episodes``). When the vehicle
-falls back to hold (offboard-loss failsafe after lost setpoints), the loop re-enters OFFBOARD,
+(:mod:`uavlink.flight.start_point`). A vehicle still landing from an earlier flight is waited for
+until it has landed and disarmed; one landed but still armed is disarmed first: every flight begins
+with an arming, which gives it a fresh radio episode (``sitl_stub.radio_episodes``). When the
+vehicle falls back to hold (offboard-loss failsafe after lost setpoints), the loop re-enters OFFBOARD,
 trying again about once a second until the vehicle takes it. If the vehicle goes to AUTO.LAND or
 AUTO.RTL, or disarms (an operator with the key, or a failsafe meant to end the flight), the mission
 ends and leaves it alone. Lost radio reports cost their frame's decision only; a backlog of reports
@@ -22,9 +21,9 @@ history; lost scores do not stall the end of the episode. Without any message fr
 ``link_timeout_s`` of wall time, or without a fresh radio frame for ``radio_timeout_s`` in
 OFFBOARD, the mission gives up.
 
-The result says whether the flight flew the frames it set out to (:func:`~uavlink.flight.outcome.judge`): every frame of a
-fresh episode from its start (a flight that took off), or the rest of the running one (a resumed
-flight). Anything else (no radio reports, an episode already running or over, a vehicle that never
+The result says whether the flight flew the frames it set out to
+(:func:`~uavlink.flight.outcome.judge`): every frame of a fresh episode from its start (a flight
+that took off), or the rest of the running one (a resumed flight). Anything else (no radio reports, an episode already running or over, a vehicle that never
 reached OFFBOARD, a lost link, an operator or failsafe ending the flight, Ctrl-C) is
 ``completed = False`` with the reason, one line that says what happened and what to do.
 """

@@ -25,11 +25,11 @@ TRANSIT_VEHICLE_S = 300.0  # vehicle seconds allowed for the transit
 
 
 def fly_to_starts(links: Sequence[VehicleLink], starts_en_m: Sequence[Sequence[float]]) -> None:
-    """Send every vehicle that is further than :data:`AT_START_M` from its start (east, north in
-    the local frame) there, then wait until all are within it (LinkError after
+    """Send every vehicle in the air that is further than :data:`AT_START_M` from its start (east,
+    north in the local frame) there, then wait until all are within it (LinkError after
     :data:`TRANSIT_VEHICLE_S` of vehicle time)."""
-    away = [(link, start) for link, start in zip(links, starts_en_m, strict=True)
-            if math.hypot(link.status.east_m - start[0], link.status.north_m - start[1]) > AT_START_M]
+    away = [(link, start) for link, start in zip(links, starts_en_m, strict=True) if link.status.in_air
+            and math.hypot(link.status.east_m - start[0], link.status.north_m - start[1]) > AT_START_M]
     for link, (east, north) in away:
         origin = local_origin(link)
         if origin is None:
