@@ -4,8 +4,8 @@ A flight begins when the vehicle arms, as in PX4 (its logger's default SDLOG_MOD
 from arming to disarming; the battery simulator starts draining at arming). An arming that finds
 the current episode started (its frames already flown) begins the next episode; one that finds it
 still waiting keeps it, so a flight that armed but never reached OFFBOARD costs no episode. A fleet
-begins a new episode when one of its vehicles arms while all the others were disarmed: the first
-vehicle of a new team flight, never one re-armed while the rest fly on.
+begins a new episode when one of its vehicles arms while all the others are disarmed (or arm in
+the same frame): the first vehicle of a new team flight, never one re-armed while the rest fly on.
 
 Order: the vehicle started with ``--seed S`` serves episode 0 of seed S first (what
 ``uavlink evaluate --seed S --episodes 1`` flies), then episode 0 of seeds S+1, S+2, ...: the k-th
@@ -45,7 +45,6 @@ class RadioEpisodes:
         self.started = False
         self.frame_rates_mbps: list[float] = []  # this episode's truth per scored frame 1, 2, ...
         self._armings: list[int] | None = None
-        self._armed: list[bool] = []
 
     @property
     def seed(self) -> int:
@@ -67,12 +66,12 @@ class RadioEpisodes:
         return None
 
     def _flight_begins(self, states: Sequence[VehicleState]) -> bool:
-        """A vehicle armed since the last tick while every other vehicle was disarmed."""
+        """A vehicle armed since the last tick, and every vehicle armed now armed since then: the
+        first arming(s) of a flight, never a vehicle re-armed while others fly on."""
         armings = [s.armings for s in states]
-        before, was_armed = self._armings or armings, self._armed or [False] * len(states)
-        self._armings, self._armed = armings, [s.armed for s in states]
-        return any(now > then and not any(was_armed[:i] + was_armed[i + 1:])
-                   for i, (now, then) in enumerate(zip(armings, before, strict=True)))
+        before, self._armings = self._armings or armings, armings
+        rose = [now > then for now, then in zip(armings, before, strict=True)]
+        return any(rose) and all(r or not s.armed for r, s in zip(rose, states, strict=True))
 
     def send_episode(self, mav: Any, sim_time_s: float) -> None:
         """The episode's two NAMED_VALUE_INT (``uavlink.mavlink.radio_codec``)."""

@@ -72,6 +72,22 @@ def test_a_fleet_begins_an_episode_with_its_first_arming_only() -> None:
     assert (episodes.seed, episodes.started) == (1, False)
     episodes.tick([_state(2, True), _state(3, True)])  # vehicle 2 arms: no second new episode
     assert episodes.seed == 1
+    episodes.tick([_state(2, True, FlightMode.OFFBOARD), _state(3, True, FlightMode.OFFBOARD)])
+    assert episodes.started  # seed 1's episode runs
+    episodes.tick([_state(2, False), _state(3, True)])  # vehicle 1 landed and disarmed, 2 landing
+    assert episodes.seed == 1
+    # vehicle 2 disarms and vehicle 1 arms within one frame (the ground saw the disarm, then armed)
+    episodes.tick([_state(3, True), _state(3, False)])
+    assert (episodes.seed, episodes.started) == (2, False)
+
+
+def test_a_fleet_arming_together_begins_one_episode() -> None:
+    episodes = RadioEpisodes(CFG.replace(n_uavs=2).validate(), 0)
+    offboard = _state(1, True, FlightMode.OFFBOARD)
+    episodes.tick([offboard, offboard])
+    episodes.tick([_state(1, False), _state(1, False)])
+    episodes.tick([_state(2, True), _state(2, True)])
+    assert (episodes.seed, episodes.count) == (1, 1)
 
 
 def test_seeds_travel_as_int32() -> None:
