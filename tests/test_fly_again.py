@@ -6,11 +6,13 @@ from __future__ import annotations
 
 import json
 import shlex
+import signal
+import subprocess
 import time
 from pathlib import Path
 
 import pytest
-from conftest import ROOT, cli_json, run_uavlink
+from conftest import ROOT, UAVLINK, cli_json, run_uavlink
 
 from sitl_stub.launcher import vehicle_process
 from uavlink.flight.fly_fleet import vehicle_args
@@ -146,3 +148,23 @@ def test_fly_against_a_silent_payload_fails_with_one_line(tmp_path: Path) -> Non
     assert proc.stdout == ""  # no "flew ..." line for a flight that did not happen
     summary = json.loads((tmp_path / "summary.json").read_text())
     assert summary["completed"] is False and summary["frames"] == 0 and "no radio reports" in summary["reason"]
+
+
+@pytest.mark.slow
+@pytest.mark.timeout(120)
+def test_ctrl_c_lands_writes_the_summary_and_exits_130(tmp_path: Path) -> None:
+    """SIGINT mid-episode (the embedded vehicle): one line on stderr, exit 130, summary.json with
+    `completed: false`, `interrupted: true`."""
+    proc = subprocess.Popen([*UAVLINK, "fly", "--policy", "aoa", "--out", str(tmp_path), "--quiet"],
+                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, cwd=ROOT)
+    deadline = time.monotonic() + 60
+    while time.monotonic() < deadline and proc.poll() is None and not (tmp_path / "flight.tlog").exists():
+        time.sleep(0.1)
+    time.sleep(3.0)  # into the flight (take-off is ~1.6 s of wall time at --speed 20)
+    proc.send_signal(signal.SIGINT)
+    out, err = proc.communicate(timeout=60)
+    assert proc.returncode == 130, err
+    lines = err.strip().splitlines()
+    assert len(lines) == 1 and "interrupted (Ctrl-C)" in lines[0] and out == "", err
+    summary = json.loads((tmp_path / "summary.json").read_text())
+    assert summary["completed"] is False and summary["interrupted"] is True
