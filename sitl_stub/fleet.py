@@ -19,9 +19,10 @@ from east) and that spawn point is its home: HOME_POSITION carries its latitude/
 local x/y, and RTL returns there. (PX4 gives each vehicle its own EKF origin at its spawn point;
 one shared origin is this simulator's choice, stated in HOME_POSITION's x/y.)
 
-The episode starts at the first frame tick that finds every vehicle in OFFBOARD, so no vehicle
-misses a frame while the others are still taking off; until then frame 0's readings are repeated,
-flagged as waiting, as the single vehicle's payload does.
+The world's episodes are :mod:`sitl_stub.sim.radio_episodes`' (as the single vehicle's): a new one for
+each flight of the team (a vehicle arming while the others are disarmed), started at the first
+frame tick that finds every vehicle in OFFBOARD, so no vehicle misses a frame while the others are
+still taking off; until then frame 0's readings are repeated, flagged as waiting.
 """
 
 from __future__ import annotations
@@ -34,14 +35,13 @@ from collections.abc import Sequence
 from dataclasses import replace
 from typing import Any
 
-from sitl_stub.core.modes import FlightMode
 from sitl_stub.core.vehicle_state import VehicleState
 from sitl_stub.mavlink.server import LOOP_WAIT_S, ServerConfig, SitlServer
 from sitl_stub.sim.clock import SimClock
 from sitl_stub.sim.payload import MAV_AUTOPILOT_INVALID, PayloadOptions
+from sitl_stub.sim.radio_episodes import RadioEpisodes
 from sitl_stub.sim.ue_truth import send_ue_truth
 from uavlink.config import EnvConfig
-from uavlink.env.radio_world import RadioWorld
 from uavlink.mavlink.geo import GeoOrigin
 from uavlink.mavlink.radio_codec import (
     RADIO_COMPONENT_ID,
@@ -83,28 +83,19 @@ class FleetWorld:
         self.cfg = cfg
         self.truth_origin = truth_origin
         self.frame_s = self.cfg.frame_s
-        self.world = RadioWorld(self.cfg, seed)
-        self.started = False
+        self.episodes = RadioEpisodes(cfg, seed)
         self.next_frame = 0
         self.score: list[float] | None = None  # this frame's encoded score (None before the start)
-        self.frame_rates_mbps: list[float] = []
         self.views = [FleetRadioView(self, d) for d in range(cfg.n_uavs)]
 
     def tick(self, states: Sequence[VehicleState]) -> None:
-        """One frame: advance with every vehicle's position once the episode runs, or start it
-        when every vehicle is in OFFBOARD."""
-        if self.started:
-            result = self.world.advance([[s.x_east_m, s.y_north_m] for s in states])
-            self.frame_rates_mbps.append(result.mean_rate_mbps)
-            self.score = encode_score(result.rate_bps, result.fair_rate)
-        elif all(s.mode is FlightMode.OFFBOARD for s in states):
-            self.started = True
+        """One frame with every vehicle's state (:meth:`RadioEpisodes.tick`)."""
+        result = self.episodes.tick(states)
+        self.score = None if result is None else encode_score(result.rate_bps, result.fair_rate)
         self.next_frame += 1
 
     def summary(self) -> dict[str, Any]:
-        rates = self.frame_rates_mbps[: self.cfg.episode_frames]
-        return {"frames": len(rates), "frames_total": len(self.frame_rates_mbps),
-                "mean_rate_mbps": round(sum(rates) / len(rates), 6) if rates else None}
+        return self.episodes.summary()
 
 
 class FleetRadioView:
@@ -121,16 +112,17 @@ class FleetRadioView:
         return (MAV_TYPE_ONBOARD_CONTROLLER, MAV_AUTOPILOT_INVALID, 0, 0, MAV_STATE_ACTIVE)
 
     def on_frame(self, sim_time_s: float, state: VehicleState, mav: Any) -> None:
-        fleet = self.fleet
-        frame, usec = fleet.world.frame, int(sim_time_s * 1e6)
-        if fleet.score is not None:
-            mav.debug_float_array_send(usec, SCORE_NAME.encode(), frame, fleet.score)
-        r = fleet.world.readings(self.uav)
-        data = encode_readings(r.sinr_db, r.aoa_deg, fleet.started, r.serves)
+        episodes = self.fleet.episodes
+        frame, usec = episodes.world.frame, int(sim_time_s * 1e6)
+        if self.fleet.score is not None:
+            mav.debug_float_array_send(usec, SCORE_NAME.encode(), frame, self.fleet.score)
+        episodes.send_episode(mav, sim_time_s)
+        r = episodes.world.readings(self.uav)
+        data = encode_readings(r.sinr_db, r.aoa_deg, episodes.started, r.serves)
         for _ in range(READINGS_COPIES):
             mav.debug_float_array_send(usec, READINGS_NAME.encode(), frame, data)
-        if self.uav == 0 and fleet.truth_origin is not None:
-            send_ue_truth(mav, fleet.world, fleet.truth_origin)
+        if self.uav == 0 and self.fleet.truth_origin is not None:
+            send_ue_truth(mav, episodes.world, self.fleet.truth_origin)
 
     def summary(self) -> dict[str, Any]:
         return {"uav": self.uav, **self.fleet.summary()}

@@ -86,3 +86,14 @@ def test_plot_time_draws_a_flown_flight_and_times_its_parts() -> None:
     assert result["picture_s_median"] == parts["total_s"] > 0
     assert parts["total_s"] >= parts["read_s"] + parts["import_s"] + parts["draw_s"] - 1e-3
     assert parts["total_cpu_s"] > 0 and result["target_s"] == 2.0
+
+
+@pytest.mark.timeout(600)
+def test_soak_serves_consecutive_flights_from_one_vehicle_process() -> None:
+    """benchmarks/soak.py with 2 flights per vehicle (one UAV, a fleet of 2): every flight complete,
+    each a new episode, the vehicle's memory and file descriptors measured after each."""
+    result = run_json("soak.py", "--flights", "2")
+    for run in result["runs"]:
+        assert [r["episode_seed"] for r in run["rows"]] == [0, 1]
+        assert run["checks"]["every_flight_complete"] and run["checks"]["fds_constant"], run["rows"]
+        assert all(r["vehicle_rss_kib"] > 10_000 and r["evaluated_mbps"] > 0 for r in run["rows"])

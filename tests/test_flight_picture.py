@@ -77,7 +77,7 @@ def test_radio_payload_sends_each_ue_as_adsb_vehicle_unless_switched_off(truth: 
     if not truth:
         assert fixes == []
         return
-    ue_xy = payload.world.ue_xy_m()
+    ue_xy = payload.episodes.world.ue_xy_m()
     assert [f.ue for f in fixes] == list(range(len(ue_xy))) == list(range(10))
     for fix, (east, north) in zip(fixes, ue_xy, strict=True):
         got_n, got_e = home.to_local(fix.lat_deg, fix.lon_deg)

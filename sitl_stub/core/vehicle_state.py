@@ -79,6 +79,7 @@ class VehicleState:
     mission_current: tuple[int, int, int, int] = (0, 0, 1, 0)  # MISSION_CURRENT seq, total, state, mode
     failures: frozenset[str] = frozenset()  # injected failures: "gps", "battery", "motor"
     orbit: Orbit | None = None  # the orbit flown in ORBIT mode
+    armings: int = 0  # times armed since boot: each begins a flight (the radio payload's episode)
 
     @property
     def x_east_m(self) -> float:

@@ -72,7 +72,7 @@ class Vehicle:
         self.yaw = 0.0
         self._yaw_rate = 0.0
         self._yaw_target: float | None = None
-        self.armed = False
+        self.armed, self.armings = False, 0  # armings: flights begun (PX4 logs one per arming)
         self.mode = FlightMode.LOITER
         self._target = (0.0, 0.0, 0.0)
         self._rtl = ReturnPhases()
@@ -96,7 +96,7 @@ class Vehicle:
             return Outcome(Result.DENIED, f"Arming denied: not allowed in {self.mode.px4_name}")
         if self.mode is FlightMode.OFFBOARD and not self.offboard_stream_ok():
             return Outcome(Result.DENIED, "Arming denied: no offboard setpoints")
-        self.armed = True
+        self.armed, self.armings = True, self.armings + 1
         self._has_flown = False
         self._landed_since = self.t
         if self.mode is FlightMode.LOITER:
@@ -245,7 +245,7 @@ class Vehicle:
             max_abs_xy_m=self.max_abs_xy_m, max_offboard_setpoint_age_s=self.offboard.max_age_s,
             fence_breached=self.fence.breached,
             mission_current=self.mission.status(self.mode is FlightMode.MISSION),
-            failures=frozenset(self.failures.active),
+            failures=frozenset(self.failures.active), armings=self.armings,
             orbit=self.guidance.orbit if self.mode is FlightMode.ORBIT else None,
         )
 

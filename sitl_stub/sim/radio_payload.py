@@ -2,13 +2,10 @@
 
 It runs the simulator's UE mobility and radio model (``uavlink.env.radio_world.RadioWorld``,
 advanced at the vehicle's actual position) and publishes each frame's readings as
-``uavlink.mavlink.radio_codec`` describes. The world is episode 0 of the evaluation stream, so a
-flight with ``--seed S`` meets the UEs of ``uavlink evaluate --episodes 1 --seed S``.
-
-The episode starts at the first frame tick that finds the vehicle in OFFBOARD (the mission): that
-tick publishes frame 0, and each later tick moves the UEs one frame. Until then the UEs wait at
-their start and frame 0's readings are repeated, flagged as waiting, so arming and take-off take no
-frames from the episode and draw nothing from its random streams.
+``uavlink.mavlink.radio_codec`` describes. Each flight (an arming) meets a fresh episode
+(:mod:`sitl_stub.sim.radio_episodes`): a vehicle started with ``--seed S`` serves episode 0 of seed S
+first, so its first flight meets the UEs of ``uavlink evaluate --episodes 1 --seed S``, and its
+k-th those of ``--seed S+k``; the episode starts at the first frame tick in OFFBOARD.
 
 Each frame's readings go out ``READINGS_COPIES`` times (the flight loop drops the repeats by frame
 number): over a link that loses packets independently, a frame's decision is lost only when every
@@ -22,12 +19,11 @@ from __future__ import annotations
 
 from typing import Any
 
-from sitl_stub.core.modes import FlightMode
 from sitl_stub.core.vehicle_state import VehicleState
 from sitl_stub.sim.payload import MAV_AUTOPILOT_INVALID, PayloadOptions
+from sitl_stub.sim.radio_episodes import RadioEpisodes
 from sitl_stub.sim.ue_truth import send_ue_truth
 from uavlink.config import EnvConfig
-from uavlink.env.radio_world import RadioWorld
 from uavlink.mavlink.radio_codec import (
     RADIO_COMPONENT_ID,
     READINGS_NAME,
@@ -51,34 +47,27 @@ class RadioPayload:
             raise ValueError(f"n_uavs={self.cfg.n_uavs} needs a fleet of vehicles: use --fleet "
                              f"{self.cfg.n_uavs} (one vehicle serves one UAV)")
         self.frame_s = self.cfg.frame_s
-        self.world = RadioWorld(self.cfg, options.seed)
+        self.episodes = RadioEpisodes(self.cfg, options.seed)
         self.truth_origin = options.home if options.ue_truth else None
-        self.started = False
-        self.frame_rates_mbps: list[float] = []  # the truth per scored frame 1, 2, ...
 
     def heartbeat(self) -> tuple[int, int, int, int, int]:
         return (MAV_TYPE_ONBOARD_CONTROLLER, MAV_AUTOPILOT_INVALID, 0, 0, MAV_STATE_ACTIVE)
 
     def on_frame(self, sim_time_s: float, state: VehicleState, mav: Any) -> None:
-        if self.started:
-            score = self.world.advance([state.x_east_m, state.y_north_m])
-            self.frame_rates_mbps.append(score.mean_rate_mbps)
+        episodes = self.episodes
+        score = episodes.tick([state])
+        if score is not None:
             self._send(mav, sim_time_s, SCORE_NAME, encode_score(score.rate_bps, score.fair_rate))
-        elif state.mode is FlightMode.OFFBOARD:
-            self.started = True
-        readings = self.world.readings()
-        data = encode_readings(readings.sinr_db, readings.aoa_deg, self.started)
+        episodes.send_episode(mav, sim_time_s)
+        readings = episodes.world.readings()
+        data = encode_readings(readings.sinr_db, readings.aoa_deg, episodes.started)
         for _ in range(self.READINGS_COPIES):
             self._send(mav, sim_time_s, READINGS_NAME, data)
         if self.truth_origin is not None:
-            send_ue_truth(mav, self.world, self.truth_origin)
+            send_ue_truth(mav, episodes.world, self.truth_origin)
 
     def summary(self) -> dict[str, Any]:
-        """Vehicle-side truth of the episode (whatever the link lost): mean UE rate over its
-        first ``episode_frames`` frames."""
-        rates = self.frame_rates_mbps[: self.cfg.episode_frames]
-        return {"frames": len(rates), "frames_total": len(self.frame_rates_mbps),
-                "mean_rate_mbps": round(sum(rates) / len(rates), 6) if rates else None}
+        return self.episodes.summary()
 
     def _send(self, mav: Any, sim_time_s: float, name: str, data: list[float]) -> None:
-        mav.debug_float_array_send(int(sim_time_s * 1e6), name.encode(), self.world.frame, data)
+        mav.debug_float_array_send(int(sim_time_s * 1e6), name.encode(), self.episodes.world.frame, data)

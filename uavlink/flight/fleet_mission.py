@@ -15,6 +15,9 @@ vehicle that cannot be told are not made, its last setpoint staying where the fi
 others away from). When its link returns, the loop asks it to re-enter OFFBOARD (one DO_SET_MODE
 about once a second, without waiting, so the others' decisions are not held up) and it flies the
 policy again.
+
+As for one vehicle (:func:`~uavlink.flight.mission.judge`), the result says whether the flight flew
+the frames it set out to, and if not, why.
 """
 
 from __future__ import annotations
@@ -38,14 +41,17 @@ from uavlink.flight.mission import (
     _enter_offboard,
     _land,
     _mode_name,
-    _take_control,
+    _take_off_or_resume,
+    _wait_ready,
 )
+from uavlink.flight.outcome import judge
 from uavlink.flight.radio_source import MavlinkRadioSource
+from uavlink.flight.start_point import fly_to_starts
 from uavlink.flight.transit import guard_transit
 from uavlink.mavlink.dialect import mavlink
 from uavlink.mavlink.px4_modes import PX4_MAIN_OFFBOARD
 from uavlink.mavlink.radio_codec import RadioReport, ScoreReport
-from uavlink.mobility.fleet import min_separation_m, separate
+from uavlink.mobility.fleet import min_separation_m, separate, start_positions_m
 from uavlink.policies.base import Policy
 
 log = logging.getLogger(__name__)
@@ -135,23 +141,46 @@ class FleetResult(MissionResult):
     setpoint_min_separation_m: float = math.inf
 
     def fleet_summary(self, links: Sequence[VehicleLink]) -> dict:
+        vehicles = self.vehicles or [VehicleRecord(link.target_system) for link in links]
         return {**self.summary(), "n_uavs": len(links),
                 "min_separation_flown_m": round(self.min_separation_flown_m, 5),
                 "min_separation_setpoints_m": round(self.setpoint_min_separation_m, 2),
-                "vehicles": [v.summary(link) for v, link in zip(self.vehicles, links, strict=True)]}
+                "vehicles": [v.summary(link) for v, link in zip(vehicles, links, strict=True)]}
 
 
 def fly_fleet(links: Sequence[VehicleLink], pilot: FleetPilot, cfg: EnvConfig, mission: MissionConfig,
               status: Callable[[int, np.ndarray, float | None], None] | None = None) -> FleetResult:
-    """Fly one episode with every vehicle (links in UAV order); land them at the end."""
+    """Fly one episode with every vehicle (links in UAV order); land them at the end. Never
+    raises LinkError: the result says what went wrong."""
     result = FleetResult()
+    try:
+        _fly_fleet(links, pilot, cfg, mission, status, result)
+    except LinkError as exc:
+        result.failure = str(exc)
+    except KeyboardInterrupt:  # before the episode's loop (which lands by itself)
+        result.interrupted, result.ended_by = True, "interrupted"
+        for link in links:
+            if mission.land and link.status.armed and not _ending_mode(link.status):
+                _land(link)
+    judge(result, mission.frames)
+    return result
+
+
+def _fly_fleet(links, pilot, cfg, mission, status, result: FleetResult) -> None:
     sources = [MavlinkRadioSource(cfg.n_ues) for _ in links]
     scores: dict[int, ScoreReport] = {}
     for link, source in zip(links, sources, strict=True):
         link.on_radio = source.feed
         link.on_score = lambda s: scores.setdefault(s.frame, s)
+    for link in links:  # every vehicle ready before any arms: the first arming begins the episode
+        _wait_ready(link, mission)
     for link in links:
-        _take_control(link, mission, cfg.area, result)
+        _take_off_or_resume(link, mission, cfg.area, result)
+    if not result.resumed:  # what came before (an earlier episode, the wait) is not this flight's
+        fly_to_starts(links, start_positions_m(cfg.n_uavs, cfg.fleet_start_radius_m))
+        befores = [source.take_reports() for source in sources]
+        result.met_start = all(before and not before[-1].running for before in befores)
+        scores.clear()
     result.vehicles = [VehicleRecord(link.target_system) for link in links]
     targets = np.array([[link.status.east_m, link.status.north_m] for link in links])
     down = -cfg.area.uav_altitude_m
@@ -168,7 +197,6 @@ def fly_fleet(links: Sequence[VehicleLink], pilot: FleetPilot, cfg: EnvConfig, m
     for link in links:
         _enter_offboard(link, mission.offboard_entry_s)
     _Loop(links, pilot, cfg, mission, result, sources, scores, targets, send, status).run()
-    return result
 
 
 class _Loop:
@@ -182,6 +210,7 @@ class _Loop:
         self.seen_at: dict[int, float] = {}
         self.last_request = [-math.inf] * len(links)
         self.was_offboard = [True] * len(links)
+        self.last_radio = time.monotonic()
 
     def run(self) -> None:
         links, result, mission = self.links, self.result, self.mission
@@ -200,6 +229,9 @@ class _Loop:
                     break
                 if all(v.released for v in result.vehicles):
                     result.ended_by = "every vehicle released"
+                    break
+                if now - self.last_radio > mission.radio_timeout_s:
+                    result.ended_by = "no radio reports"
                     break
                 self._watch(now, started is not None)
                 if min(now - link.last_rx_wall for link in links) > mission.link_timeout_s:
@@ -230,8 +262,11 @@ class _Loop:
                     self.result.frames_missed += max(0, r.frame - self.newest[i].frame - 1) if i == 0 else 0
                 self.newest[i] = r
                 self.seen_at.setdefault(r.frame, now)
+                self.last_radio = now
+                self.result.last_frame = max(r.frame, self.result.last_frame or 0)
                 if self.result.first_frame is None:
                     self.result.first_frame = r.frame
+                    self.result.episode = dict(self.links[i].radio_episode)
 
     def _frame_to_decide(self, now: float) -> int | None:
         """The newest frame, once every live vehicle has reported it (or waiting is over)."""

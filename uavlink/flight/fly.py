@@ -4,18 +4,17 @@ from __future__ import annotations
 
 import argparse
 import contextlib
-import json
 import logging
 import sys
 import time
-from collections.abc import Sequence
 from pathlib import Path
 
 import numpy as np
 
-from uavlink.config import changed_settings
+from uavlink.config import EnvConfig
 from uavlink.errors import UserError
-from uavlink.flight.fly_fleet import run_fleet_fly, split_urls
+from uavlink.flight.fly_fleet import run_fleet_fly, split_urls, vehicle_args
+from uavlink.flight.outcome import episode_fields, finish
 from uavlink.mavlink.connection import free_udp_port
 from uavlink.plot.command import picture_after_flight
 from uavlink.policies.contract import OVERRIDES_HELP, EnvOverrides, load_with_env
@@ -24,16 +23,14 @@ log = logging.getLogger("uavlink.fly")
 
 
 @contextlib.contextmanager
-def embedded_sitl(scenario: str, seed: int, speed: float, aoa_noise_deg: float, log_path: Path | None,
-                  signing_key_file: Path | None = None, settings: Sequence[str] = ()):
-    """Start the SITL vehicle (:mod:`sitl_stub.launcher`) on a free loopback port; yields the URL
-    to listen on. ``settings`` (``KEY=VALUE``) go to its radio payload's env as ``--set`` pairs."""
+def embedded_sitl(cfg: EnvConfig, seed: int, speed: float, log_path: Path | None,
+                  signing_key_file: Path | None = None):
+    """Start the SITL vehicle (:mod:`sitl_stub.launcher`) on a free loopback port, its radio
+    payload simulating ``cfg`` (:func:`vehicle_args`); yields the URL to listen on."""
     from sitl_stub.launcher import vehicle_process
 
     port = free_udp_port()
-    args = ["--scenario", scenario, "--seed", str(seed), "--aoa-noise-deg", repr(float(aoa_noise_deg))]
-    for pair in settings:
-        args += ["--set", pair]
+    args = vehicle_args(cfg, seed)
     if signing_key_file is not None:
         args += ["--signing-key", str(signing_key_file)]
     with vehicle_process(f"udpout:127.0.0.1:{port}", speed, args, log_path=log_path):
@@ -74,8 +71,7 @@ def run_fly(args: argparse.Namespace) -> int:
         print(f"\rframe {frame + 1:4d}/{args.frames}  target E {target[0]:7.1f} N {target[1]:7.1f} m  "
               f"{rate_text}", end="", file=sys.stderr, flush=True)
 
-    sitl = (embedded_sitl(cfg.scenario, args.seed, args.speed, cfg.radio.aoa_noise_deg, out_dir / "sitl.log",
-                          Path(args.signing_key) if key else None, changed_settings(cfg))
+    sitl = (embedded_sitl(cfg, args.seed, args.speed, out_dir / "sitl.log", Path(args.signing_key) if key else None)
             if args.connect is None else contextlib.nullcontext(args.connect))
     start = time.monotonic()
     with sitl as url:
@@ -91,7 +87,7 @@ def run_fly(args: argparse.Namespace) -> int:
     if live:
         print(file=sys.stderr)
     summary = {
-        "scenario": cfg.scenario, "policy": str(args.policy), "seed": args.seed,
+        "scenario": cfg.scenario, "policy": str(args.policy), **episode_fields(args, cfg, result.episode),
         "connect": args.connect or "embedded sitl_stub", "speed_factor": round(speed, 2),
         **result.summary(), "wall_s": round(time.monotonic() - start, 2), "tlog": str(tlog),
         "signing": link.signing.stats() if link.signing else None,
@@ -99,16 +95,12 @@ def run_fly(args: argparse.Namespace) -> int:
     }
     if not getattr(args, "no_picture", False):
         summary.update(picture_after_flight(tlog, out_dir / "flight.png"))
-    (out_dir / "summary.json").write_text(json.dumps(summary, indent=2) + "\n")
-    if args.json:
-        print(json.dumps(summary, indent=2))
-    else:
-        print(f"flew {summary['frames']} frames of {cfg.scenario!r} with {args.policy}: "
-              f"mean UE throughput {summary['mean_rate_mbps']} Mbps; decision latency p50 "
-              f"{summary['latency_ms_p50']} ms, p99 {summary['latency_ms_p99']} ms; "
-              f"log {tlog}, summary {out_dir / 'summary.json'}"
-              + (f", picture {summary['picture']}" if summary.get("picture") else ""))
-    return 130 if result.interrupted else 0
+    return finish(summary, out_dir, args.json,
+                  f"flew {summary['frames']} frames of {cfg.scenario!r} with {args.policy}: "
+                  f"mean UE throughput {summary['mean_rate_mbps']} Mbps; decision latency p50 "
+                  f"{summary['latency_ms_p50']} ms, p99 {summary['latency_ms_p99']} ms; "
+                  f"log {tlog}, summary {out_dir / 'summary.json'}"
+                  + (f", picture {summary['picture']}" if summary.get("picture") else ""))
 
 
 def add_fly_parser(sub) -> None:
@@ -117,7 +109,10 @@ def add_fly_parser(sub) -> None:
                                    "Without --connect, an embedded sitl_stub vehicle is started on a free "
                                    "port, simulating the policy's env; a fleet policy (n_uavs > 1 in its "
                                    "manifest, or --set n_uavs=D for a baseline) flies D vehicles "
-                                   "(sitl_stub --fleet D). " + OVERRIDES_HELP)
+                                   "(sitl_stub --fleet D). Exit status: 0 when every frame set out "
+                                   "to was flown; 1 when not (one line says why; summary.json has "
+                                   "completed: false and the reason); 130 after Ctrl-C (the vehicle "
+                                   "lands); 2 for bad input. " + OVERRIDES_HELP)
     p.add_argument("--policy", default="policies/circular.zip", help="FILE.zip | FILE.onnx | aoa | static")
     p.add_argument("--connect", default=None,
                    help="vehicle link: udp:14550 (listen), udp:HOST:PORT, udpout:HOST:PORT, tcp:HOST:PORT, "
@@ -126,7 +121,9 @@ def add_fly_parser(sub) -> None:
                         "(e.g. udp:14550: systems in ascending id order)")
     p.add_argument("--scenario", default=None, help="scenario of the embedded SITL and the policy's env "
                    "(default: the policy's own; circular for a baseline)")
-    p.add_argument("--seed", type=int, default=0, help="seed of the embedded SITL's scenario")
+    p.add_argument("--seed", type=int, default=0,
+                   help="seed of the embedded SITL's radio episode (episode 0 of `uavlink evaluate "
+                        "--seed`); with --connect the vehicle's own episode is flown and reported")
     p.add_argument("--aoa-noise-deg", type=float, default=None,
                    help="std of the AoA estimate noise (deg) (default: the policy's, 0)")
     p.add_argument("--set", dest="overrides", action="append", default=[], metavar="KEY=VALUE",

@@ -6,13 +6,13 @@ from __future__ import annotations
 
 import argparse
 import contextlib
-import json
 import time
 from collections.abc import Iterator, Sequence
 from pathlib import Path
 
 from uavlink.config import EnvConfig, changed_settings
 from uavlink.errors import UserError
+from uavlink.flight.outcome import episode_fields, finish
 from uavlink.mavlink.connection import free_udp_port, normalize_connection
 from uavlink.plot.command import picture_after_flight
 from uavlink.policies.base import Policy
@@ -29,6 +29,19 @@ def split_urls(connect: str) -> list[str]:
     return urls
 
 
+def vehicle_args(cfg: EnvConfig, seed: int) -> list[str]:
+    """The ``sitl_stub`` options whose radio payload simulates ``cfg`` from episode 0 of ``seed``
+    (``--fleet D`` for ``n_uavs`` = D > 1): the embedded vehicle's, and what a vehicle started by
+    hand needs to serve a policy of ``cfg`` (benchmarks/soak.py, the tests)."""
+    args = [] if cfg.n_uavs == 1 else ["--fleet", str(cfg.n_uavs)]
+    args += ["--scenario", cfg.scenario, "--seed", str(seed),
+             "--aoa-noise-deg", repr(float(cfg.radio.aoa_noise_deg))]
+    for pair in changed_settings(cfg):
+        if not pair.startswith(("n_uavs=", "scenario=")):
+            args += ["--set", pair]
+    return args
+
+
 @contextlib.contextmanager
 def embedded_fleet(cfg: EnvConfig, seed: int, speed: float, log_path: Path | None,
                    signing_key_file: Path | None = None) -> Iterator[list[str]]:
@@ -37,11 +50,7 @@ def embedded_fleet(cfg: EnvConfig, seed: int, speed: float, log_path: Path | Non
     from sitl_stub.launcher import vehicle_process
 
     ports = [free_udp_port() for _ in range(cfg.n_uavs)]
-    args = ["--fleet", str(cfg.n_uavs), "--scenario", cfg.scenario, "--seed", str(seed),
-            "--aoa-noise-deg", repr(float(cfg.radio.aoa_noise_deg))]
-    for pair in changed_settings(cfg):
-        if not pair.startswith(("n_uavs=", "scenario=")):
-            args += ["--set", pair]
+    args = vehicle_args(cfg, seed)
     if signing_key_file is not None:
         args += ["--signing-key", str(signing_key_file)]
     with vehicle_process([f"udpout:127.0.0.1:{p}" for p in ports], speed, args, log_path=log_path):
@@ -73,20 +82,16 @@ def run_fleet_fly(args: argparse.Namespace, policy: Policy, cfg: EnvConfig, key:
             group.close()
             if tlog_file:
                 tlog_file.close()
-    summary = {"scenario": cfg.scenario, "policy": str(args.policy), "seed": args.seed,
-               "connect": args.connect or "embedded sitl_stub --fleet", "speed_factor": round(speed, 2),
+    summary = {"scenario": cfg.scenario, "policy": str(args.policy),
+               **episode_fields(args, cfg, result.episode), "connect": args.connect or "embedded sitl_stub --fleet", "speed_factor": round(speed, 2),
                **fleet, "wall_s": round(time.monotonic() - start, 2), "tlog": str(tlog)}
     if not getattr(args, "no_picture", False):
         summary.update(picture_after_flight(tlog, out_dir / "flight.png"))
-    (out_dir / "summary.json").write_text(json.dumps(summary, indent=2) + "\n")
-    if args.json:
-        print(json.dumps(summary, indent=2))
-    else:
-        per = "; ".join(f"system {v['system_id']}: {v['decisions']} decisions, {v['holds']} holds"
-                        for v in summary["vehicles"])
-        print(f"flew {summary['frames']} frames of {cfg.scenario!r} with {args.policy} and "
-              f"{cfg.n_uavs} vehicles: mean UE throughput {summary['mean_rate_mbps']} Mbps; "
-              f"min separation flown {summary['min_separation_flown_m']} m; {per}; "
-              f"log {tlog}, summary {out_dir / 'summary.json'}"
-              + (f", picture {summary['picture']}" if summary.get("picture") else ""))
-    return 130 if result.interrupted else 0
+    per = "; ".join(f"system {v['system_id']}: {v['decisions']} decisions, {v['holds']} holds"
+                    for v in summary["vehicles"])
+    return finish(summary, out_dir, args.json,
+                  f"flew {summary['frames']} frames of {cfg.scenario!r} with {args.policy} and "
+                  f"{cfg.n_uavs} vehicles: mean UE throughput {summary['mean_rate_mbps']} Mbps; "
+                  f"min separation flown {summary['min_separation_flown_m']} m; {per}; "
+                  f"log {tlog}, summary {out_dir / 'summary.json'}"
+                  + (f", picture {summary['picture']}" if summary.get("picture") else ""))

@@ -33,16 +33,11 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, BinaryIO
 
+from uavlink.mavlink import radio_codec as radio
 from uavlink.mavlink.connection import normalize_connection
 from uavlink.mavlink.dialect import mavlink, mavutil
 from uavlink.mavlink.mission import MISSION_REPLIES
 from uavlink.mavlink.px4_modes import PX4_MAIN_OFFBOARD, decode_custom_mode
-from uavlink.mavlink.radio_codec import (
-    RADIO_COMPONENT_ID,
-    RadioReportError,
-    decode_score,
-    message_kind,
-)
 from uavlink.mavlink.rejects import RejectLog, rescan_bad_frame
 from uavlink.mavlink.signing import SigningGuard
 
@@ -124,6 +119,7 @@ class VehicleLink:
         self._target_component = target_component
         self.on_radio: Callable = lambda msg: None
         self.on_score: Callable = lambda score: None
+        self.radio_episode: dict[str, int] = {}  # the payload's UL_EP_SEED / UL_EPISODE: seed, count
         self._acks: dict[int, int] = {}
         self._mission_inbox: deque[Any] = deque(maxlen=64)  # for recv_mission
         # Offboard keep-alive: while set, poll() re-sends this NED setpoint every
@@ -228,14 +224,16 @@ class VehicleLink:
         elif kind == "PARAM_VALUE":
             name = msg.param_id if isinstance(msg.param_id, str) else msg.param_id.decode("ascii", "replace")
             self.params[name.split("\x00", 1)[0]] = msg.param_value
-        elif src_comp == RADIO_COMPONENT_ID:
-            which = message_kind(msg)
+        elif src_comp == radio.RADIO_COMPONENT_ID:
+            which = radio.message_kind(msg)
             if which == "readings":
                 self.on_radio(msg)
+            elif kind == "NAMED_VALUE_INT" and (episode := radio.decode_episode(msg)) is not None:
+                self.radio_episode[episode[0]] = episode[1]
             elif which == "score":
                 try:
-                    score = decode_score(msg)
-                except RadioReportError as exc:
+                    score = radio.decode_score(msg)
+                except radio.RadioReportError as exc:
                     self.rejects.reject("radio_score", f"radio score: {exc}")
                     return
                 self.on_score(score)
@@ -366,11 +364,12 @@ class VehicleLink:
                 raise LinkError(f"vehicle refused {name}={value:g} (keeps {self.params[name]:g})")
         raise LinkError(f"no PARAM_VALUE for {name} after {tries} tries")
 
-    def arm(self) -> None:
+    def arm(self, armed: bool = True) -> None:
+        """Arm (or, with ``armed=False``, disarm) and wait for a heartbeat that shows it."""
         beats = self.status.heartbeats
-        self.command(MAV.MAV_CMD_COMPONENT_ARM_DISARM, 1.0,
-                     done=lambda: self.status.armed and self.status.heartbeats > beats)
-        self.wait_until(lambda: self.status.armed, 3.0, "armed heartbeat")
+        self.command(MAV.MAV_CMD_COMPONENT_ARM_DISARM, float(armed),
+                     done=lambda: self.status.armed == armed and self.status.heartbeats > beats)
+        self.wait_until(lambda: self.status.armed == armed, 3.0, f"{'' if armed else 'dis'}armed heartbeat")
 
     def takeoff(self, altitude_m: float) -> None:
         self.set_param("MIS_TAKEOFF_ALT", altitude_m)

@@ -7,14 +7,25 @@ Between reports the current target is re-sent every ``stream_period_vehicle_s`` 
 loss timeout (COM_OF_LOSS_T, 1 s) never fires. At the end (or on Ctrl-C) it lands.
 
 Faults: a vehicle that is already armed and in the air (``uavlink fly`` restarted after a crash) is
-resumed without a take-off, from whatever frame its radio payload has reached. When the vehicle
-falls back to hold (offboard-loss failsafe after lost setpoints), the loop re-enters OFFBOARD,
+resumed without a take-off, from whatever frame its radio payload has reached; one that took off
+away from its start position (an earlier flight landed elsewhere) flies there first
+(:mod:`uavlink.flight.start_point`). A vehicle still landing from an earlier flight is waited for
+until it has landed and disarmed; one landed but still armed is disarmed first: every flight begins
+with an arming, which gives it a fresh radio episode (``sitl_stub.sim.radio_episodes``). When the
+vehicle falls back to hold (offboard-loss failsafe after lost setpoints), the loop re-enters OFFBOARD,
 trying again about once a second until the vehicle takes it. If the vehicle goes to AUTO.LAND or
 AUTO.RTL, or disarms (an operator with the key, or a failsafe meant to end the flight), the mission
 ends and leaves it alone. Lost radio reports cost their frame's decision only; a backlog of reports
 (the loop was held up) is decided once, on the newest, the older ones only entering the observation
 history; lost scores do not stall the end of the episode. Without any message from the vehicle for
-``link_timeout_s`` of wall time the mission gives up with a LinkError.
+``link_timeout_s`` of wall time, or without a fresh radio frame for ``radio_timeout_s`` in
+OFFBOARD, the mission gives up.
+
+The result says whether the flight flew the frames it set out to
+(:func:`~uavlink.flight.outcome.judge`): every frame of a fresh episode from its start (a flight
+that took off), or the rest of the running one (a resumed flight). Anything else (no radio reports, an episode already running or over, a vehicle that never
+reached OFFBOARD, a lost link, an operator or failsafe ending the flight, Ctrl-C) is
+``completed = False`` with the reason, one line that says what happened and what to do.
 """
 
 from __future__ import annotations
@@ -32,7 +43,10 @@ from uavlink.env.actions import ActionMapping
 from uavlink.env.observation import ObservationBuilder, ObservationLayout
 from uavlink.flight.fence import upload_area_fence
 from uavlink.flight.link import STREAM_PERIOD_VEHICLE_S, LinkError, VehicleLink
+from uavlink.flight.outcome import judge
 from uavlink.flight.radio_source import MavlinkRadioSource, RadioSource
+from uavlink.flight.start_point import fly_to_starts
+from uavlink.mavlink.dialect import mavlink
 from uavlink.mavlink.px4_modes import (
     PX4_MAIN_AUTO,
     PX4_MAIN_OFFBOARD,
@@ -42,6 +56,7 @@ from uavlink.mavlink.px4_modes import (
     px4_mode_name,
 )
 from uavlink.mavlink.radio_codec import RadioReport, ScoreReport
+from uavlink.mobility.fleet import start_positions_m
 from uavlink.policies.base import Policy
 
 log = logging.getLogger(__name__)
@@ -57,6 +72,8 @@ class MissionConfig:
     offboard_entry_s: float = 20.0  # wall seconds to get the vehicle into OFFBOARD at the start
     reenter_interval_s: float = 1.0  # wall seconds between attempts to re-enter OFFBOARD
     fence: bool = True  # upload the operating area as the vehicle's geofence first
+    radio_timeout_s: float = 10.0  # wall seconds in OFFBOARD without a fresh radio frame: give up
+    landing_wait_vehicle_s: float = 300.0  # vehicle seconds to wait for an earlier flight's landing
 
 
 @dataclass
@@ -70,11 +87,17 @@ class MissionResult:
     episode_wall_s: float = 0.0
     interrupted: bool = False
     first_frame: int | None = None
+    last_frame: int | None = None  # the newest frame taken
     decisions: int = 0
     frames_missed: int = 0
     stale_reports: int = 0
     offboard_reentries: int = 0
     ended_by: str = ""
+    met_start: bool = False  # the radio episode was still waiting for OFFBOARD after take-off
+    episode: dict[str, int] = field(default_factory=dict)  # the payload's: seed, count
+    failure: str = ""  # the LinkError that ended the flight
+    completed: bool = False
+    reason: str = ""  # why not completed: what happened, what to do
 
     inference_s: list[float] = field(default_factory=list)
 
@@ -99,6 +122,8 @@ class MissionResult:
             "stale_radio_reports": self.stale_reports,
             "offboard_reentries": self.offboard_reentries,
             "ended_by": self.ended_by,
+            "completed": self.completed,
+            "reason": self.reason or None,
         }
 
 
@@ -147,8 +172,21 @@ def fly_mission(link: VehicleLink, pilot: PolicyPilot, cfg: EnvConfig, mission: 
     """Fly one episode: take control (arm and take off, or resume in the air), stream setpoints and
     enter OFFBOARD, make one decision per fresh radio frame until the episode ends, the operator or
     a failsafe takes over, or the link is lost; then land unless someone else is already ending the
-    flight. Ctrl-C lands too."""
+    flight. Ctrl-C lands too. Never raises LinkError: the result says what went wrong."""
     result = MissionResult()
+    try:
+        _fly(link, pilot, cfg, mission, radio, status, result)
+    except LinkError as exc:
+        result.failure = str(exc)
+    except KeyboardInterrupt:  # before the episode's loop (which lands by itself)
+        result.interrupted, result.ended_by = True, "interrupted"
+        if mission.land and link.status.armed and not _ending_mode(link.status):
+            _land(link)
+    judge(result, mission.frames)
+    return result
+
+
+def _fly(link, pilot, cfg, mission, radio, status, result: MissionResult) -> None:
     source = radio or MavlinkRadioSource(cfg.n_ues)
     if isinstance(source, MavlinkRadioSource):
         link.on_radio = source.feed
@@ -157,6 +195,11 @@ def fly_mission(link: VehicleLink, pilot: PolicyPilot, cfg: EnvConfig, mission: 
     half = cfg.area.half_width_m
 
     _take_control(link, mission, cfg.area, result)
+    if not result.resumed:  # what came before (an earlier episode, the wait) is not this flight's
+        fly_to_starts([link], start_positions_m(1, cfg.fleet_start_radius_m))
+        before = source.take_reports()
+        result.met_start = bool(before) and not before[-1].running
+        scores.clear()
     st = link.status
     target = np.array([st.east_m, st.north_m])  # env frame: x east, y north
     down = -cfg.area.uav_altitude_m
@@ -174,10 +217,14 @@ def fly_mission(link: VehicleLink, pilot: PolicyPilot, cfg: EnvConfig, mission: 
 
     frames = _FrameTracker()
     last_reentry = -math.inf
+    last_radio = time.monotonic()
     try:
         while True:
             link.poll(0.5)
             fresh = frames.fresh(source.take_reports(), result)
+            if fresh:
+                last_radio = time.monotonic()
+                result.episode = result.episode or dict(link.radio_episode)
             # A backlog (the loop was held up, e.g. by a mode change) is history, not a string of
             # moves to make at once: only the newest frame is decided.
             for report, first in fresh[:-1]:
@@ -205,6 +252,9 @@ def fly_mission(link: VehicleLink, pilot: PolicyPilot, cfg: EnvConfig, mission: 
                             "leaving the vehicle alone", _mode_name(st))
                 break
             now = time.monotonic()
+            if now - last_radio > mission.radio_timeout_s:
+                result.ended_by = "no radio reports"
+                break
             if not st.offboard and now - last_reentry >= mission.reenter_interval_s:
                 last_reentry = now
                 _reenter_offboard(link, result)
@@ -225,7 +275,6 @@ def fly_mission(link: VehicleLink, pilot: PolicyPilot, cfg: EnvConfig, mission: 
         if mission.land and st.armed and not _ending_mode(st) and result.ended_by != "link lost":
             _land(link)
         link.stream_ned = None
-    return result
 
 
 class _FrameTracker:
@@ -247,21 +296,38 @@ class _FrameTracker:
             if self.last >= 0:
                 result.frames_missed += report.frame - self.last - 1
             fresh.append((report, self.last < 0))
-            self.last = report.frame
+            self.last = result.last_frame = report.frame
         return fresh
 
 
 def _take_control(link: VehicleLink, mission: MissionConfig, area: AreaConfig, result: MissionResult) -> None:
-    """Wait for the vehicle and give it the operating area as its geofence; arm and take off, or
-    resume a vehicle already flying (not one that is landing or returning: someone else is ending
-    that flight)."""
+    """Wait for the vehicle to be ready (:func:`_wait_ready`), give it the operating area as its
+    geofence, then arm and take off, or resume a vehicle already flying."""
+    _wait_ready(link, mission)
+    _take_off_or_resume(link, mission, area, result)
+
+
+def _wait_ready(link: VehicleLink, mission: MissionConfig) -> None:
+    """Wait for the vehicle's heartbeat, position and landed state; a vehicle still landing or
+    returning (an earlier flight ending) is waited for until it has landed and disarmed, and one
+    landed but armed is disarmed, so that this flight begins with an arming (a fresh episode)."""
     link.wait_vehicle()
+    st = link.status
+    if st.armed and (_ending_mode(st) or st.landed_state == mavlink.MAV_LANDED_STATE_LANDING):
+        log.warning("vehicle is %s (an earlier flight ending): waiting until it has landed and "
+                    "disarmed", _mode_name(st))
+        link.wait_until(lambda: not st.armed, mission.landing_wait_vehicle_s,
+                        "the earlier flight's landing and disarm")
+    if st.armed and not st.in_air and mission.takeoff:
+        link.arm(False)
+
+
+def _take_off_or_resume(link: VehicleLink, mission: MissionConfig, area: AreaConfig,
+                        result: MissionResult) -> None:
+    st = link.status
     if mission.fence:
         upload_area_fence(link, area.half_width_m)
-    st = link.status
     if st.armed and st.in_air:
-        if _ending_mode(st):
-            raise LinkError(f"vehicle is armed and in {_mode_name(st)}: not taking it over")
         result.resumed = True
         log.warning("vehicle already armed and in the air (%s, %.0f m): resuming without take-off",
                     _mode_name(st), -st.down_m)

@@ -13,6 +13,12 @@ starts) and ``time_usec`` the simulated time.
     (all 0, the padding, when not reported: one UAV serves every UE).
 ``UL_SCORE`` (the simulator's truth, for scoring and logs only; never fed to the policy):
     data[0] = U, data[1] = mean UE rate (Mbps), data[2] = R_fair, data[3 : 3+U] = rates (Mbps).
+
+Which episode the world runs goes with every frame's readings, just before them, as two standard
+NAMED_VALUE_INT (id 252) from the same component, so a tlog names the episode it flew:
+``UL_EP_SEED`` is the seed S whose evaluation episode 0 it is (``uavlink evaluate --seed S
+--episodes 1`` replays it); ``UL_EPISODE`` counts the vehicle's episodes since it started (0: the
+first; each flight begins a new one, ``sitl_stub.sim.radio_episodes``).
 """
 
 from __future__ import annotations
@@ -24,6 +30,8 @@ import numpy as np
 RADIO_COMPONENT_ID = 158  # MAV_COMP_ID_PERIPHERAL: a payload on the vehicle's system
 READINGS_NAME = "UL_RADIO"
 SCORE_NAME = "UL_SCORE"
+EPISODE_SEED_NAME = "UL_EP_SEED"  # NAMED_VALUE_INT names: at most 10 characters
+EPISODE_COUNT_NAME = "UL_EPISODE"
 DATA_LEN = 58
 MAX_UES = (DATA_LEN - 2) // 2
 
@@ -99,6 +107,13 @@ def decode_score(msg) -> ScoreReport:
     if not (np.isfinite(mean) and np.isfinite(fair)) or mean < 0 or fair < 0:
         raise RadioReportError(f"radio score with unusable rates (mean {mean}, fair {fair})")
     return ScoreReport(int(msg.array_id), mean, fair)
+
+
+def decode_episode(msg) -> tuple[str, int] | None:
+    """A NAMED_VALUE_INT naming the radio episode: ("seed" | "count", value); None for others."""
+    name = _name(msg).rstrip("\x00")
+    key = {EPISODE_SEED_NAME: "seed", EPISODE_COUNT_NAME: "count"}.get(name)
+    return None if key is None else (key, int(msg.value))
 
 
 def message_kind(msg) -> str | None:

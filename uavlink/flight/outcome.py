@@ -1,0 +1,84 @@
+"""How ``uavlink fly`` ends: the episode it flew (and the command that replays it), the summary
+file, one line for the user, and the exit status.
+
+Exit status: 0 when the flight flew every frame it set out to (``completed: true`` in
+summary.json); 1 when it did not (``completed: false`` and ``reason``: no radio reports, an
+episode already running or over, a vehicle that never reached OFFBOARD, a lost link, an operator or
+failsafe ending the flight), with one line on stderr that says what happened and what to do;
+130 after Ctrl-C (the vehicle is told to land, the summary is written with ``completed: false``);
+2 for bad input, before anything flies (``uavlink.errors.UserError``).
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import shlex
+import sys
+from pathlib import Path
+from typing import TYPE_CHECKING
+
+from uavlink.config import EnvConfig
+
+if TYPE_CHECKING:
+    from uavlink.flight.mission import MissionResult
+
+EXIT_COMPLETE, EXIT_INCOMPLETE, EXIT_INTERRUPTED = 0, 1, 130
+
+
+def judge(result: MissionResult, frames: int) -> None:
+    """Set ``completed`` and ``reason``: did the flight fly the frames it set out to (all
+    ``frames`` of a fresh episode, or the rest of the one it resumed)?"""
+    first, last = result.first_frame, result.last_frame
+    if result.interrupted:
+        why = "interrupted (Ctrl-C); the vehicle was told to land"
+    elif result.failure:
+        why = f"{result.failure}; check the vehicle is running and reachable (--connect), then fly again"
+    elif result.ended_by == "no radio reports" or first is None:
+        where = "no" if first is None else f"no more (after frame {last})"
+        why = (f"{where} radio reports from the vehicle's radio payload (component 158) in OFFBOARD: "
+               "run the vehicle with its radio payload (sitl_stub without --no-payload) and fly again")
+    elif first >= frames:
+        why = (f"the vehicle's radio episode was already at frame {first}, past the {frames} frames "
+               "to fly: restart the vehicle (a current sitl_stub begins an episode per arming)")
+    elif not result.resumed and not result.met_start:
+        why = (f"the vehicle's radio episode was already running (frame {first}) before this flight "
+               "took off, so its start was not flown: restart the vehicle and fly again")
+    elif result.ended_by != "episode done":
+        why = (f"the flight ended early, after frame {last}: {result.ended_by} (operator or "
+               "failsafe); see the vehicle's log, then fly again")
+    else:
+        why = ""
+    result.completed, result.reason = not why, why
+
+
+def episode_fields(args: argparse.Namespace, cfg: EnvConfig, episode: dict[str, int]) -> dict:
+    """Which radio episode was flown and how to replay it: the vehicle's payload names it (its
+    UL_EP_SEED / UL_EPISODE messages); an embedded vehicle serves episode 0 of ``--seed``."""
+    seed = episode.get("seed", args.seed if args.connect is None else None)
+    replay = None
+    if seed is not None:
+        words = ["uavlink", "evaluate", "--policy", str(args.policy), "--scenario", cfg.scenario,
+                 "--seed", str(seed), "--episodes", "1"]
+        if args.aoa_noise_deg is not None:
+            words += ["--aoa-noise-deg", repr(float(args.aoa_noise_deg))]
+        for pair in args.overrides:
+            words += ["--set", pair]
+        replay = shlex.join(words)
+    return {"seed": seed, "episode": {"seed": seed, "index": 0, "on_vehicle": episode.get("count")},
+            "replay": replay}
+
+
+def finish(summary: dict, out_dir: Path, as_json: bool, flown_line: str) -> int:
+    """Write summary.json and print the summary (``--json``); then ``flown_line`` (stdout) for a
+    complete flight, one line on stderr for one that is not; returns the exit status."""
+    (out_dir / "summary.json").write_text(json.dumps(summary, indent=2) + "\n")
+    if as_json:
+        print(json.dumps(summary, indent=2))
+    if summary["completed"]:
+        if not as_json:
+            print(flown_line)
+        return EXIT_COMPLETE
+    print(f"uavlink fly: flight incomplete ({summary['decisions']} decisions, {summary['frames']} "
+          f"scored frames): {summary['reason']}", file=sys.stderr)
+    return EXIT_INTERRUPTED if summary["interrupted"] else EXIT_INCOMPLETE
