@@ -10,8 +10,8 @@ TensorBoard logs and checkpoints in a run folder) and reports
   - where that time goes, per env step: the env's physics (``BatchedUavEnv.step``/``reset`` less the
     observation), the observation (``ObservationBuilder``), the VecEnv face (SB3 infos, reward
     scaling), the policy's forward passes in the rollout (actions, values, the bootstrap values of
-    cut-off episodes), the rollout buffer (add, GAE), the PPO update, and the rest (SB3's loop,
-    callbacks, logging);
+    cut-off episodes), the rollout buffer (add, GAE), the PPO update (with SB3's per-rollout log
+    dump), and the rest (SB3's loop, callbacks, checkpoints);
   - the env's own rate at N = 256 (``benchmarks/env_throughput.py``'s batched measurement, circular,
     fading and shadowing on, random actions), measured just before and just after each training
     measurement, and the ratio of the two (the target: the default settings at >= 0.1x).
@@ -103,6 +103,7 @@ class LoopTimer:
         self.rollouts = 0
         self.marks: list[tuple[int, float, float, dict[str, float]]] = []  # (steps, wall, cpu, totals)
         self._wrapped: list[tuple[Any, str]] = []
+        self.update_start: float | None = None
 
     def _wrap(self, owner: Any, name: str, phase: str) -> None:
         inner = getattr(owner, name)
@@ -142,9 +143,14 @@ class LoopTimer:
                 timer._wrap(model.policy, "predict_values", "policy")
                 timer._wrap(model.rollout_buffer, "add", "buffer")
                 timer._wrap(model.rollout_buffer, "compute_returns_and_advantage", "buffer")
-                timer._wrap(model, "train", "update")
+                # The update is timed between the callbacks (a wrapper on the model itself would be
+                # pickled into the run's checkpoints): from a rollout's end to the next one's start.
+
+            def _on_rollout_end(self) -> None:
+                timer.update_start = time.perf_counter()
 
             def _on_rollout_start(self) -> None:
+                timer.end_update()
                 timer.rollouts += 1
                 if timer.rollouts == 2:  # the first rollout and its update are done: budget one
                     timer.mark(self.num_timesteps)
@@ -153,10 +159,16 @@ class LoopTimer:
                 return True
 
             def _on_training_end(self) -> None:
+                timer.end_update()
                 timer.mark(self.num_timesteps)
                 timer.unwrap()
 
         return Marks()
+
+    def end_update(self) -> None:
+        if self.update_start is not None:
+            self.totals["update"] += time.perf_counter() - self.update_start
+            self.update_start = None
 
     def mark(self, steps: int) -> None:
         self.marks.append((steps, time.perf_counter(), time.process_time(), dict(self.totals)))
