@@ -86,8 +86,9 @@ def measure(scenarios: list[str], train_episodes: int, episodes: int, seed: int,
     rows = {}
     for scenario in scenarios:
         cfg = EnvConfig(scenario=scenario)
+        # 128 steps x 10 epochs: the PPO loop of the figures in docs/ (TrainConfig's defaults then)
         tc = TrainConfig(episodes=train_episodes, seed=seed, n_envs=n_envs, batch_size=batch_size,
-                         **train_overrides)
+                         **{"n_steps": 128, "n_epochs": 10, **train_overrides})
         rule = AoaPolicy(cfg)
         model = make_model(cfg, tc, None)
         model.set_env(VecNormalize(RuleResidualVecEnv(UavVecEnv(cfg, n_envs=tc.n_envs, seed=tc.seed), rule),
@@ -109,8 +110,8 @@ def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--scenarios", nargs="+", default=["straight_90", "straight_180", "hotspot"])
     parser.add_argument("--train-episodes", type=int, default=4000, help="PPO budget per scenario")
-    parser.add_argument("--n-envs", type=int, default=256, help="envs per rollout (TrainConfig: 32)")
-    parser.add_argument("--batch-size", type=int, default=4096, help="minibatch (TrainConfig: 512)")
+    parser.add_argument("--n-envs", type=int, default=256, help="envs per rollout (default 256)")
+    parser.add_argument("--batch-size", type=int, default=4096, help="minibatch (default 4096)")
     parser.add_argument("--log-std", type=float, default=-3.0, help="initial exploration log std")
     defaults = TrainConfig()
     parser.add_argument("--learning-rate", type=float, default=defaults.learning_rate)

@@ -75,7 +75,7 @@ def assert_user_error(proc: subprocess.CompletedProcess, *fragments: str) -> Non
 PX4_PORTS = pytest.mark.px4_ports
 
 
-TINY_TRAINING = {"episodes": 96, "n_envs": 16, "batch_size": 512, "n_epochs": 10}  # tiny_policy_zip's
+TINY_TRAINING = {"episodes": 96, "n_envs": 16, "n_steps": 128, "batch_size": 512, "n_epochs": 10}  # tiny_policy_zip's
 
 
 @pytest.fixture(scope="session")

@@ -97,3 +97,27 @@ def test_soak_serves_consecutive_flights_from_one_vehicle_process() -> None:
         assert [r["episode_seed"] for r in run["rows"]] == [0, 1]
         assert run["checks"]["every_flight_complete"] and run["checks"]["fds_constant"], run["rows"]
         assert all(r["vehicle_rss_kib"] > 10_000 and r["evaluated_mbps"] > 0 for r in run["rows"])
+
+
+def test_train_throughput_times_every_phase_of_the_loop_and_covers_every_recipe() -> None:
+    folder = str(ROOT / "benchmarks")
+    sys.path.insert(0, folder)
+    try:
+        bench = runpy.run_path(str(ROOT / "benchmarks" / "train_throughput.py"), run_name="train_throughput")
+    finally:
+        sys.path.remove(folder)
+    from uavlink.config import EnvConfig, TrainConfig
+    from uavlink.sweep.spec import load_spec
+
+    covered = {label.split()[0] for s in bench["recipe_settings"](ROOT / "sweeps") for label in s.covers}
+    specs = [load_spec(p) for p in sorted((ROOT / "sweeps").glob("*.toml"))]
+    assert covered == {f"{spec.name}:{scenario}" for spec in specs for scenario in spec.scenarios}
+    tiny = bench["Setting"]("tiny", EnvConfig(scenario="straight"),
+                            TrainConfig(n_envs=4, n_steps=16, batch_size=32, n_epochs=1), ["test"])
+    row = bench["run"]([tiny], 100, 0.05, 0)["results"][0]
+    # k >= 2 rollouts after the first (more where the budget rounds up to whole episodes)
+    assert row["rollouts"] >= 2 and row["env_steps"] == row["rollouts"] * 4 * 16
+    measured = {k: v for k, v in row["us_per_env_step"].items() if k != "other"}
+    assert all(v > 0 for v in measured.values()), measured  # every wrapper was hit
+    assert row["us_per_env_step"]["other"] >= 0  # the phases do not overlap: they fit in the wall time
+    assert row["env_steps_per_s"] > 0 and row["ratio"] == round(row["env_steps_per_s"] / row["env_n256_steps_per_s"], 4)

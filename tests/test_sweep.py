@@ -293,7 +293,7 @@ def test_scenario_train_overrides_reach_only_their_scenario() -> None:
     assert (hotspot.n_envs, hotspot.episodes, hotspot.warm_start.shadow_gate_db) == (8, 4, 1.0)
     assert hotspot.warm_start.epochs == 80 and isinstance(hotspot.warm_start.epochs, int)
     assert isinstance(hotspot.warm_start.shadow_gate_db, float)  # an optional number: 1 becomes 1.0
-    assert jobs["straight"].train_config().n_envs == 32
+    assert jobs["straight"].train_config().n_envs == TrainConfig().n_envs
     # The old flat keys name the same fields: the same jobs.
     old = parse_spec({**base, "scenario_train": {"hotspot": {"n_envs": 8, "warm_start_teacher": "aoa",
                                                              "warm_start_shadow_gate_db": 1.0,
@@ -470,3 +470,17 @@ def test_sweep_reruns_only_what_its_shipped_record_lacks(tmp_path: Path, capsys)
     assert set(read_record(record_path(shipped, changed))) == {job.key for job in changed.jobs()}
     straight = json.loads((shipped / "straight.json").read_text())["selection"]["key"]
     assert straight in {job.key for job in changed.jobs() if job.scenario == "straight"}
+
+
+def test_the_fast_ppo_defaults_leave_the_shipped_jobs_as_they_were() -> None:
+    """TrainConfig's PPO loop defaults changed (issue 24); the shipped sweep files pin the old loop, so
+    their jobs keep the keys (and the settings) their results and policies were made under."""
+    keys = {(spec, j.scenario, j.seed): j.key for spec in ("table1", "table1_spatial", "tiny")
+            for j in load_spec(Path(f"sweeps/{spec}.toml")).jobs()}
+    assert keys["table1", "straight", 1] == "ddda9676f0af"
+    assert keys["table1", "hotspot", 0] == "5a1875c9e4c8"  # a [scenario_train] recipe: 256 envs, 128 steps
+    assert keys["table1_spatial", "straight", 0] == "618c70d06377"
+    assert keys["tiny", "straight", 0] in ("1d48d5ec3402", "77c334c765b2")  # the grid's two points
+    job = load_spec(Path("sweeps/table1.toml")).jobs()[0].train_config()
+    assert (job.n_envs, job.n_steps, job.batch_size, job.n_epochs) == (32, 128, 512, 10) != (
+        TrainConfig().n_envs, TrainConfig().n_steps, TrainConfig().batch_size, TrainConfig().n_epochs)

@@ -1,0 +1,302 @@
+"""Training throughput: env steps per second of ``uavlink train`` end to end, against the env's own rate.
+
+For the default settings (``TrainConfig()`` on ``circular``) and for each shipped recipe (the
+distinct PPO-loop settings of ``sweeps/*.toml``), runs ``uavlink.learn.training.train`` (what ``uavlink
+train`` calls: the batched VecEnv, reward scaling, SB3's PPO, the progress/learning-curve callback,
+TensorBoard logs and checkpoints in a run folder) and reports
+  - the marginal rate between two budgets: env steps from the end of the first rollout's update to
+    the end of training, over the wall time between them, so start-up (imports, the model, the
+    first rollout) and the final save do not count (``uavlink train``'s evaluation is not run);
+  - where that time goes, per env step: the env's physics (``BatchedUavEnv.step``/``reset`` less the
+    observation), the observation (``ObservationBuilder``), the VecEnv face (SB3 infos, reward
+    scaling), the policy's forward passes in the rollout (actions, values, the bootstrap values of
+    cut-off episodes), the rollout buffer (add, GAE), the PPO update (with SB3's per-rollout log
+    dump), and the rest (SB3's loop, callbacks, checkpoints);
+  - the env's own rate at N = 256 (``benchmarks/env_throughput.py``'s batched measurement, circular,
+    fading and shadowing on, random actions), measured just before and just after each training
+    measurement, and the ratio of the two (the target: the default settings at >= 0.1x).
+An env step is one frame of one env (a fleet's frame moves all its UAVs: SB3's agent steps / D).
+A recipe's warm start (behaviour cloning) is start-up and is not run here; its critic warm-up
+rollouts (actor frozen, a cheaper update) are left out with it, so a recipe's rate is its steady
+state. Rates are wall time, with the process's CPU time alongside (steadier on a shared machine).
+
+    python benchmarks/train_throughput.py                 # Markdown table (about 2 minutes, idle)
+    python benchmarks/train_throughput.py --json          # one JSON object
+    python benchmarks/train_throughput.py --min-steps 500000 --env-seconds 3   # longer, steadier
+    python benchmarks/train_throughput.py --no-recipes    # the default settings only
+"""
+
+from __future__ import annotations
+
+import argparse
+import dataclasses
+import functools
+import json
+import math
+import os
+import platform
+import sys
+import tempfile
+import time
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+from env_throughput import TARGET_BATCHED_N, Bench, batched_bench
+
+from uavlink.config import EnvConfig, TrainConfig
+from uavlink.config.train import WarmStartConfig
+from uavlink.sweep.spec import load_spec
+
+ROOT = Path(__file__).resolve().parents[1]
+TARGET_RATIO = 0.1
+PHASES = ("env", "observation", "vecenv", "policy", "buffer", "update", "other")
+# What makes one recipe's PPO loop faster or slower than another's (not the learning rate, the
+# teacher, the seed or the budget): recipes equal in these share a measurement.
+SPEED_TRAIN = ("n_envs", "n_steps", "batch_size", "n_epochs", "normalize_reward", "net_arch")
+SPEED_ENV = ("n_uavs", "fleet_reuse", "radio.shadowing_model", "radio.aoa_noise_max_deg", "memory")
+
+
+@dataclasses.dataclass
+class Setting:
+    name: str
+    cfg: EnvConfig
+    tc: TrainConfig
+    covers: list[str]
+
+
+def default_setting() -> Setting:
+    return Setting("default", EnvConfig().replace(scenario="circular").validate(), TrainConfig(), ["uavlink train"])
+
+
+def _speed_key(cfg: EnvConfig, tc: TrainConfig) -> tuple:
+    flat_env = {**cfg.to_dict(), **{f"radio.{k}": v for k, v in cfg.to_dict()["radio"].items()}}
+    return (tuple(str(getattr(tc, k)) for k in SPEED_TRAIN)
+            + tuple(str(bool(v) if k.endswith("noise_max_deg") else v) for k, v in
+                    ((k, flat_env[k]) for k in SPEED_ENV)))
+
+
+def recipe_settings(sweep_dir: Path) -> list[Setting]:
+    """One Setting per distinct PPO-loop setting of the shipped sweep files, naming the recipes it covers."""
+    from uavlink.learn.training import training_env_config
+
+    found: dict[tuple, Setting] = {}
+    for path in sorted(sweep_dir.glob("*.toml")):
+        spec = load_spec(path)
+        for scenario in spec.scenarios:
+            for point in spec.points():
+                cfg, tc = spec.configs(scenario, point, spec.seeds[0])
+                key = _speed_key(training_env_config(cfg, tc), tc)
+                label = f"{spec.name}:{scenario}" + "".join(f" {k}={v}" for k, v in point.items())
+                if key not in found:
+                    found[key] = Setting(f"{spec.name}:{scenario}", cfg, tc, [])
+                found[key].covers.append(label)
+    return list(found.values())
+
+
+class LoopTimer:
+    """Accumulates wall time per phase of SB3's PPO loop by wrapping the methods each phase runs.
+    Built as an SB3 callback so ``train`` installs it on its own model; it only observes."""
+
+    def __init__(self) -> None:
+        self.totals = dict.fromkeys(("core", "observation", "vecenv", "policy", "buffer", "update"), 0.0)
+        self.rollouts = 0
+        self.marks: list[tuple[int, float, float, dict[str, float]]] = []  # (steps, wall, cpu, totals)
+        self._wrapped: list[tuple[Any, str]] = []
+        self.update_start: float | None = None
+
+    def _wrap(self, owner: Any, name: str, phase: str) -> None:
+        inner = getattr(owner, name)
+
+        @functools.wraps(inner)
+        def timed(*args, **kwargs):
+            start = time.perf_counter()
+            try:
+                return inner(*args, **kwargs)
+            finally:
+                self.totals[phase] += time.perf_counter() - start
+
+        setattr(owner, name, timed)  # an instance attribute over the class's method
+        self._wrapped.append((owner, name))
+
+    def unwrap(self) -> None:
+        """Back to the class's methods (the model is saved next: its attributes get pickled)."""
+        for owner, name in self._wrapped:
+            delattr(owner, name)
+        self._wrapped.clear()
+
+    def callback(self):
+        from stable_baselines3.common.callbacks import BaseCallback
+
+        timer = self
+
+        class Marks(BaseCallback):
+            def _on_training_start(self) -> None:
+                model, venv = self.model, self.model.get_env()
+                core = venv.unwrapped.core if hasattr(venv, "unwrapped") else venv.core
+                timer._wrap(venv, "step_wait", "vecenv")
+                timer._wrap(core, "step", "core")
+                timer._wrap(core, "reset", "core")
+                timer._wrap(core._builder, "push", "observation")
+                timer._wrap(core._builder, "reset", "observation")
+                timer._wrap(model.policy, "forward", "policy")
+                timer._wrap(model.policy, "predict_values", "policy")
+                timer._wrap(model.rollout_buffer, "add", "buffer")
+                timer._wrap(model.rollout_buffer, "compute_returns_and_advantage", "buffer")
+                # The update is timed between the callbacks (a wrapper on the model itself would be
+                # pickled into the run's checkpoints): from a rollout's end to the next one's start.
+
+            def _on_rollout_end(self) -> None:
+                timer.update_start = time.perf_counter()
+
+            def _on_rollout_start(self) -> None:
+                timer.end_update()
+                timer.rollouts += 1
+                if timer.rollouts == 2:  # the first rollout and its update are done: budget one
+                    timer.mark(self.num_timesteps)
+
+            def _on_step(self) -> bool:
+                return True
+
+            def _on_training_end(self) -> None:
+                timer.end_update()
+                timer.mark(self.num_timesteps)
+                timer.unwrap()
+
+        return Marks()
+
+    def end_update(self) -> None:
+        if self.update_start is not None:
+            self.totals["update"] += time.perf_counter() - self.update_start
+            self.update_start = None
+
+    def mark(self, steps: int) -> None:
+        self.marks.append((steps, time.perf_counter(), time.process_time(), dict(self.totals)))
+
+    def report(self, n_uavs: int) -> dict[str, Any]:
+        (s0, w0, c0, t0), (s1, w1, c1, t1) = self.marks[0], self.marks[-1]
+        env_steps, wall, cpu = (s1 - s0) / n_uavs, w1 - w0, c1 - c0
+        d = {k: t1[k] - t0[k] for k in t1}
+        phases = {"env": d["core"] - d["observation"], "observation": d["observation"],
+                  "vecenv": d["vecenv"] - d["core"], "policy": d["policy"], "buffer": d["buffer"],
+                  "update": d["update"]}
+        phases["other"] = wall - sum(phases.values())
+        return {
+            "env_steps": int(env_steps), "rollouts": self.rollouts - 1, "seconds": round(wall, 3),
+            "env_steps_per_s": round(env_steps / wall, 1), "env_steps_per_cpu_s": round(env_steps / cpu, 1),
+            "us_per_env_step": {k: round(1e6 * v / env_steps, 3) for k, v in phases.items()},
+            "share": {k: round(v / wall, 4) for k, v in phases.items()},
+        }
+
+
+def measure_training(setting: Setting, min_steps: int) -> dict[str, Any]:
+    """``train`` for 1 + k rollouts (k >= 2, k rollouts >= ``min_steps`` env steps), timed after the first."""
+    from uavlink.learn.training import train
+
+    cfg, tc = setting.cfg, setting.tc
+    rollout_rows = tc.n_envs * cfg.n_uavs * tc.n_steps
+    k = max(2, math.ceil(min_steps * cfg.n_uavs / rollout_rows))
+    episodes = math.ceil((1 + k) * rollout_rows / (cfg.episode_frames * cfg.n_uavs))
+    tc = dataclasses.replace(tc, episodes=episodes, warm_start=WarmStartConfig())
+    timer = LoopTimer()
+    with tempfile.TemporaryDirectory(prefix="uavlink-train-throughput-") as tmp:
+        train(cfg, tc, Path(tmp) / "policy.zip", run_dir=Path(tmp) / "run", progress=False,
+              callbacks=[timer.callback()])
+    return timer.report(cfg.n_uavs)
+
+
+def run(settings: list[Setting], min_steps: int, env_seconds: float, seed: int) -> dict[str, Any]:
+    env_cfg = EnvConfig().replace(scenario="circular", shadowing=True, fast_fading=True).validate()
+    env = batched_bench(env_cfg, TARGET_BATCHED_N, seed)
+    env.measure(min(0.2, env_seconds))  # warm-up: caches, the first episode's allocations
+    env.us_per_call.clear()
+    env.cpu_us_per_call.clear()
+    env.measure(env_seconds)
+    rows = []
+    for setting in settings:
+        before = len(env.us_per_call) - 1
+        row = measure_training(setting, min_steps)
+        env.measure(env_seconds)
+        bracket = env.us_per_call[before:before + 2]
+        bracket_cpu = env.cpu_us_per_call[before:before + 2]
+        env_rate = 1e6 * TARGET_BATCHED_N / float(np.mean(bracket))
+        env_cpu_rate = 1e6 * TARGET_BATCHED_N / float(np.mean(bracket_cpu))
+        tc, cfg = setting.tc, setting.cfg
+        rows.append({
+            "setting": setting.name, "covers": setting.covers, "scenario": cfg.scenario,
+            "n_envs": tc.n_envs, "n_steps": tc.n_steps, "batch_size": tc.batch_size, "n_epochs": tc.n_epochs,
+            "n_uavs": cfg.n_uavs, "shadowing_model": cfg.radio.shadowing_model, **row,
+            "env_n256_steps_per_s": round(env_rate, 1), "env_n256_steps_per_cpu_s": round(env_cpu_rate, 1),
+            "ratio": round(row["env_steps_per_s"] / env_rate, 4),
+            "ratio_cpu": round(row["env_steps_per_cpu_s"] / env_cpu_rate, 4),
+        })
+    report: dict[str, Any] = {
+        "benchmark": "train_throughput",
+        "statistic": "marginal wall-time rate from the end of the first rollout's update to the end of "
+                     "training; the env's N = 256 rate is the mean of its measurements just before and just "
+                     "after (env_throughput.py's batched env, circular, random actions); CPU-time rates alongside",
+        "min_steps": min_steps, "env_seconds": env_seconds, "seed": seed,
+        "load_average": list(os.getloadavg()) if hasattr(os, "getloadavg") else None,
+        "machine": {"python": platform.python_version(), "numpy": np.__version__, "cpus": os.cpu_count(),
+                    "platform": platform.platform()},
+        "env_n256": Bench.row(env),
+        "results": rows,
+        "target_ratio": TARGET_RATIO,
+    }
+    default = next((r for r in rows if r["setting"] == "default"), None)
+    if default is not None:
+        report["default_ratio"] = default["ratio"]
+        report["default_ratio_cpu"] = default["ratio_cpu"]
+        report["meets_target"] = default["ratio"] >= TARGET_RATIO
+    return report
+
+
+def markdown(report: dict[str, Any]) -> str:
+    load = report.get("load_average")
+    lines = [
+        f"training throughput (marginal rate after the first rollout, >= {report['min_steps']:,} env steps "
+        f"per setting; {report['machine']['cpus']} CPUs" + (f", load average {load[0]:.1f} at the start)" if load else ")"),
+        "",
+        "| setting | N | n_steps | batch | epochs | D | env steps/s | per CPU-s | env N=256/s | ratio | ratio (CPU) "
+        "| µs/step: " + " / ".join(PHASES) + " |",
+        "|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---|",
+    ]
+    for r in report["results"]:
+        us = " / ".join(f"{r['us_per_env_step'][p]:.1f}" for p in PHASES)
+        lines.append(f"| {r['setting']} | {r['n_envs']} | {r['n_steps']} | {r['batch_size']} | {r['n_epochs']} "
+                     f"| {r['n_uavs']} | {r['env_steps_per_s']:,.0f} | {r['env_steps_per_cpu_s']:,.0f} "
+                     f"| {r['env_n256_steps_per_s']:,.0f} | {r['ratio']:.3f} | {r['ratio_cpu']:.3f} | {us} |")
+    lines.append("")
+    for r in report["results"]:
+        lines.append(f"- {r['setting']}: {', '.join(r['covers'])}")
+    if "meets_target" in report:
+        ok = "meets" if report["meets_target"] else "MISSES"
+        lines += ["", f"default `uavlink train`: {report['default_ratio']:.3f}x the env's N = 256 rate "
+                  f"({report['default_ratio_cpu']:.3f}x in CPU time; {ok} the target of >= {TARGET_RATIO}x)"]
+    return "\n".join(lines)
+
+
+def main(argv: list[str] | None = None) -> int:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--min-steps", type=int, default=65_536,
+                        help="env steps timed per setting, after the first rollout (default 65536)")
+    parser.add_argument("--env-seconds", type=float, default=1.0,
+                        help="wall time of each measurement of the env's N = 256 rate (default 1)")
+    parser.add_argument("--sweeps", type=Path, default=ROOT / "sweeps",
+                        help="folder of the sweep files whose recipes are measured (default: sweeps/)")
+    parser.add_argument("--no-recipes", action="store_true", help="measure the default settings only")
+    parser.add_argument("--seed", type=int, default=0)
+    parser.add_argument("--json", action="store_true", help="print one JSON object instead of a table")
+    args = parser.parse_args(argv)
+    if args.min_steps < 1 or args.env_seconds <= 0:
+        parser.error("--min-steps and --env-seconds must be positive")
+    settings = [default_setting()]
+    if not args.no_recipes:
+        settings += recipe_settings(args.sweeps)
+    report = run(settings, args.min_steps, args.env_seconds, args.seed)
+    print(json.dumps(report, indent=2) if args.json else markdown(report))
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
