@@ -15,7 +15,7 @@ from uavlink.config import BASELINE_NAMES, EnvConfig
 from uavlink.evaluation import EvalResult, evaluate_policy
 from uavlink.mobility import SCENARIOS
 from uavlink.policies.baselines import AoaPolicy
-from uavlink.policies.registry import make_baseline
+from uavlink.policies.registry import baseline_env, make_baseline
 
 # Table I of the paper, "static" column (Mbps).
 PAPER_STATIC = {"no_move": 7.95, "straight": 4.59, "circular": 3.59, "straight_90": 5.33,
@@ -27,7 +27,7 @@ MOVING = ("straight", "circular", "straight_90", "hotspot")
 
 
 def evaluate(policy: str, scenario: str, episodes: int, seed: int = 0) -> EvalResult:
-    cfg = EnvConfig(scenario=scenario)
+    cfg = baseline_env(policy, EnvConfig(scenario=scenario))  # explore brings its memory of place
     return evaluate_policy(make_baseline(policy, cfg), cfg, episodes=episodes, seed=seed)
 
 
@@ -38,7 +38,7 @@ def static_results() -> dict[str, EvalResult]:
 
 @pytest.fixture(scope="module")
 def paired() -> dict[str, dict[str, EvalResult]]:
-    """static, aoa and oracle on the same seeded episodes of every scenario but no_move."""
+    """Every baseline but the genie on the same seeded episodes of every scenario but no_move."""
     return {p: {s: evaluate(p, s, COMPARISON_EPISODES) for s in SCENARIOS if s != "no_move"}
             for p in BASELINE_NAMES}  # the genie has its own tests (tests/test_genie.py)
 

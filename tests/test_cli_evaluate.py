@@ -143,7 +143,8 @@ def test_results_folder_has_the_tables_and_figures_and_is_reproducible(tmp_path,
     # reproducibility below then also holds across processes.
     monkeypatch.setattr(sys, "argv", ["uavlink", *command, "--out", str(a)])  # results.md records it
     assert main(sys.argv[1:]) == 0
-    proc = uavlink(*command, "--out", str(b), "--spatial", str(root / "policies"))
+    # the spatial part plans a genie per episode: more than the default 120 s on a loaded machine
+    proc = uavlink(*command, "--out", str(b), "--spatial", str(root / "policies"), timeout=360)
     assert proc.returncode == 0, proc.stderr[-2000:]
     table1 = (a / "table1.csv").read_text().splitlines()
     assert len(table1) == 1 + len(SCENARIOS) and all(row.split(",")[0] in SCENARIOS for row in table1[1:])
@@ -161,6 +162,7 @@ def test_results_folder_has_the_tables_and_figures_and_is_reproducible(tmp_path,
     # fly the same policies on the same channel and must agree; the spatial Table I is another channel's.
     spatial = (b / "table1_spatial.csv").read_text().splitlines()
     assert len(spatial) == 1 + len(SCENARIOS) and spatial != table1
+    assert "genie" in spatial[0].split(",") and "PPO / genie" in spatial[0].split(",")
     assert len((b / "table2_spatial.csv").read_text().splitlines()) == 1 + 6
     transfer = list(csv.reader((b / "transfer_spatial.csv").open()))
     assert [row[0] for row in transfer[1:]] == list(SCENARIOS)
