@@ -84,7 +84,8 @@ def test_plot_time_draws_a_flown_flight_and_times_its_parts() -> None:
     assert result["frames"] >= 8 and result["decision_frames"] >= 6 and result["flight_wall_s"] > 0
     parts = result["parts_s_median"]
     assert result["picture_s_median"] == parts["total_s"] > 0
-    assert parts["total_s"] >= parts["read_s"] + parts["import_s"] + parts["draw_s"] - 1e-3
+    # each part is rounded to the millisecond: their sum may exceed the rounded total by 1.5 ms
+    assert parts["total_s"] >= parts["read_s"] + parts["import_s"] + parts["draw_s"] - 2e-3
     assert parts["total_cpu_s"] > 0 and result["target_s"] == 2.0
 
 

@@ -16,7 +16,6 @@ from uavlink.errors import UserError
 from uavlink.flight.fly_fleet import run_fleet_fly, split_urls, vehicle_args
 from uavlink.flight.outcome import episode_fields, finish
 from uavlink.mavlink.connection import free_udp_port
-from uavlink.plot.command import picture_after_flight
 from uavlink.policies.contract import OVERRIDES_HELP, EnvOverrides, load_with_env
 
 log = logging.getLogger("uavlink.fly")
@@ -93,14 +92,12 @@ def run_fly(args: argparse.Namespace) -> int:
         "signing": link.signing.stats() if link.signing else None,
         "link_rejected": link.rejects.as_dict(),
     }
-    if not getattr(args, "no_picture", False):
-        summary.update(picture_after_flight(tlog, out_dir / "flight.png"))
     return finish(summary, out_dir, args.json,
                   f"flew {summary['frames']} frames of {cfg.scenario!r} with {args.policy}: "
                   f"mean UE throughput {summary['mean_rate_mbps']} Mbps; decision latency p50 "
                   f"{summary['latency_ms_p50']} ms, p99 {summary['latency_ms_p99']} ms; "
-                  f"log {tlog}, summary {out_dir / 'summary.json'}"
-                  + (f", picture {summary['picture']}" if summary.get("picture") else ""))
+                  f"log {tlog}, summary {out_dir / 'summary.json'}",
+                  picture=not getattr(args, "no_picture", False))
 
 
 def add_fly_parser(sub) -> None:

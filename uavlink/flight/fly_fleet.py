@@ -14,7 +14,6 @@ from uavlink.config import EnvConfig, changed_settings
 from uavlink.errors import UserError
 from uavlink.flight.outcome import episode_fields, finish
 from uavlink.mavlink.connection import free_udp_port, normalize_connection
-from uavlink.plot.command import picture_after_flight
 from uavlink.policies.base import Policy
 
 
@@ -85,13 +84,11 @@ def run_fleet_fly(args: argparse.Namespace, policy: Policy, cfg: EnvConfig, key:
     summary = {"scenario": cfg.scenario, "policy": str(args.policy),
                **episode_fields(args, cfg, result.episode), "connect": args.connect or "embedded sitl_stub --fleet", "speed_factor": round(speed, 2),
                **fleet, "wall_s": round(time.monotonic() - start, 2), "tlog": str(tlog)}
-    if not getattr(args, "no_picture", False):
-        summary.update(picture_after_flight(tlog, out_dir / "flight.png"))
     per = "; ".join(f"system {v['system_id']}: {v['decisions']} decisions, {v['holds']} holds"
                     for v in summary["vehicles"])
     return finish(summary, out_dir, args.json,
                   f"flew {summary['frames']} frames of {cfg.scenario!r} with {args.policy} and "
                   f"{cfg.n_uavs} vehicles: mean UE throughput {summary['mean_rate_mbps']} Mbps; "
                   f"min separation flown {summary['min_separation_flown_m']} m; {per}; "
-                  f"log {tlog}, summary {out_dir / 'summary.json'}"
-                  + (f", picture {summary['picture']}" if summary.get("picture") else ""))
+                  f"log {tlog}, summary {out_dir / 'summary.json'}",
+                  picture=not getattr(args, "no_picture", False))

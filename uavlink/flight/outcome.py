@@ -19,6 +19,7 @@ from pathlib import Path
 from typing import TYPE_CHECKING
 
 from uavlink.config import EnvConfig
+from uavlink.plot.command import picture_after_flight
 
 if TYPE_CHECKING:
     from uavlink.flight.mission import MissionResult
@@ -69,9 +70,13 @@ def episode_fields(args: argparse.Namespace, cfg: EnvConfig, episode: dict[str, 
             "replay": replay}
 
 
-def finish(summary: dict, out_dir: Path, as_json: bool, flown_line: str) -> int:
-    """Write summary.json and print the summary (``--json``); then ``flown_line`` (stdout) for a
-    complete flight, one line on stderr for one that is not; returns the exit status."""
+def finish(summary: dict, out_dir: Path, as_json: bool, flown_line: str, picture: bool = True) -> int:
+    """Draw flight.png from the flight's tlog (unless ``picture`` is off; complete or not), write
+    summary.json and print the summary (``--json``); then ``flown_line`` (stdout) for a complete
+    flight, one line on stderr for one that is not; returns the exit status."""
+    if picture:
+        summary.update(picture_after_flight(Path(summary["tlog"]), out_dir / "flight.png"))
+        flown_line += f", picture {summary['picture']}" if summary.get("picture") else ""
     (out_dir / "summary.json").write_text(json.dumps(summary, indent=2) + "\n")
     if as_json:
         print(json.dumps(summary, indent=2))
