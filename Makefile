@@ -21,7 +21,8 @@ demo: $(STAMP)
 
 test: $(STAMP)
 	$(BIN)/ruff check uavlink sitl_stub tests benchmarks
-	$(BIN)/python -m pytest -q
+	$(BIN)/python -m pytest -q -n 2 -m "not px4_ports and not serial"
+	$(BIN)/python -m pytest -q -m "px4_ports or serial"
 
 lint: $(STAMP)
 	$(BIN)/ruff check uavlink sitl_stub tests benchmarks
