@@ -209,6 +209,7 @@ def test_evaluate_against_refuses_the_results_folder(tmp_path: Path):
     assert not (tmp_path / "out").exists()
 
 
+@pytest.mark.slow  # 4.2 s on an idle 2-core machine
 def test_evaluate_against_pairs_a_fleet_with_one_uav_on_the_same_episodes():
     """A fleet policy against a single-UAV policy: the same UEs and channel with one UAV more (the
     fleet's "a second UAV never hurts" ratio); the single-UAV policy's episodes are those it flies

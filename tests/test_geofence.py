@@ -95,6 +95,7 @@ def test_px4_rule_inside_some_inclusion_and_outside_every_exclusion(p):
     assert Geofence((exc,)).allows(p) == (not exc.contains(p) or exc.boundary_distance(p) <= 1e-9)
 
 
+@pytest.mark.slow  # 60 cases: 2.1 s on an idle 2-core machine
 @settings(max_examples=60, deadline=None)  # a property, not a speed: it ran 0.2-0.5 s per case on a loaded 2-core machine
 @given(end=point)
 def test_last_allowed_stops_on_the_boundary_when_the_end_is_outside(end):

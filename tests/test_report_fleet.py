@@ -53,6 +53,7 @@ def test_tables_hold_every_column_and_judge_the_bars(rows):
     assert all(len(row[6].split(" / ")) == 2 for row in body)  # UEs per UAV, D = 2
 
 
+@pytest.mark.slow  # 1.8 s: matplotlib
 def test_fleet_trajectory_plot_is_written(rows, tmp_path):
     path = tmp_path / "fleet.png"
     plot_fleet_trajectory("straight_180", rows["straight_180"]["D2 kmeans"], 200.0, path)
