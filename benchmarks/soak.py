@@ -15,7 +15,7 @@ flight loop's failsafe holds cost throughput (the flight tests judge parity). Th
 wall time at --speed 20) so that a loop starved for a moment does not trip the offboard-loss
 failsafe; 1 restores PX4's.
 
-    python benchmarks/soak.py [--flights N] [--speed 20] [--json]
+    python benchmarks/soak.py [--flights 20] [--fleet-flights 10] [--speed 20] [--json]
 """
 
 from __future__ import annotations
@@ -109,18 +109,20 @@ def main(argv: Sequence[str] | None = None) -> int:
     parser.add_argument("--fleet-policy", default="policies/fleet/circular.zip", help="the fleet's (D = 2)")
     parser.add_argument("--scenario", default="circular")
     parser.add_argument("--seed", type=int, default=0, help="the vehicles' --seed (their first episode)")
-    parser.add_argument("--flights", type=int, default=None,
-                        help="flights per vehicle (default: 20 for one UAV, 10 for the fleet)")
+    parser.add_argument("--flights", type=int, default=20, help="flights of the one-UAV vehicle")
+    parser.add_argument("--fleet-flights", type=int, default=10, help="flights of the fleet (0: no fleet run)")
     parser.add_argument("--speed", type=float, default=20.0, help="the vehicles' --speed")
     parser.add_argument("--offboard-loss-s", type=float, default=5.0,
                         help="the vehicles' COM_OF_LOSS_T, vehicle seconds (PX4: 1)")
     parser.add_argument("--json", action="store_true")
     args = parser.parse_args(argv)
+    if args.flights < 1 or args.fleet_flights < 0:
+        parser.error("--flights must be >= 1 and --fleet-flights >= 0")
     with tempfile.TemporaryDirectory(prefix="soak_") as tmp:
         common = (args.scenario, args.seed)
-        runs = [soak(str(ROOT / args.policy), *common, args.flights or 20, args.speed, args.offboard_loss_s, Path(tmp)),
-                soak(str(ROOT / args.fleet_policy), *common, args.flights or 10, args.speed, args.offboard_loss_s,
-                     Path(tmp))]
+        runs = [soak(str(ROOT / policy), *common, flights, args.speed, args.offboard_loss_s, Path(tmp))
+                for policy, flights in ((args.policy, args.flights), (args.fleet_policy, args.fleet_flights))
+                if flights > 0]
     result = {"speed": args.speed, "com_of_loss_t_s": args.offboard_loss_s, "runs": runs, "pass": all(r["pass"] for r in runs)}
     if args.json:
         print(json.dumps(result, indent=2))

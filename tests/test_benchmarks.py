@@ -91,9 +91,11 @@ def test_plot_time_draws_a_flown_flight_and_times_its_parts() -> None:
 
 @pytest.mark.timeout(600)
 def test_soak_serves_consecutive_flights_from_one_vehicle_process() -> None:
-    """benchmarks/soak.py with 2 flights per vehicle (one UAV, a fleet of 2): every flight complete,
-    each a new episode, the vehicle's memory and file descriptors measured after each."""
-    result = run_json("soak.py", "--flights", "2")
+    """benchmarks/soak.py with 2 flights of one UAV: every flight complete, each a new episode, the
+    vehicle's memory and file descriptors measured after each. (A fleet's consecutive flights are
+    test_fly_again's; the soak's fleet run is the same code with another policy.)"""
+    result = run_json("soak.py", "--flights", "2", "--fleet-flights", "0")
+    assert [run["n_uavs"] for run in result["runs"]] == [1]
     for run in result["runs"]:
         assert [r["episode_seed"] for r in run["rows"]] == [0, 1]
         assert run["checks"]["every_flight_complete"] and run["checks"]["fds_constant"], run["rows"]
