@@ -180,3 +180,21 @@ def test_map_report_refuses_without_spatial_and_skips_untrained_scenarios(tmp_pa
     assert not (tmp_path / "out").exists()
     header, body = map_table(tmp_path, ROOT / "policies" / "spatial", 1, 0, EnvOverrides())
     assert body == [] and header[:3] == ["scenario", "map PPO", "spatial PPO"]
+
+
+@pytest.mark.slow
+def test_map_report_rows_put_each_map_policy_beside_explore_and_the_genie() -> None:
+    """One row per shipped map policy, with the genie's column and the shares of it (the genie is
+    the limit: its episode is at least the map policy's and the spatial policy's)."""
+    from uavlink.evaluation.report_map import map_table
+    from uavlink.policies.contract import EnvOverrides
+
+    header, body = map_table(ROOT / "policies" / "map", ROOT / "policies" / "spatial", 2, 0, EnvOverrides())
+    shipped = sorted(p.stem for p in (ROOT / "policies" / "map").glob("*.zip"))
+    assert sorted(row[0] for row in body) == shipped
+    col = {name: i for i, name in enumerate(header)}
+    for row in body:
+        mbps = {name: float(row[col[name]].split(" ± ")[0]) for name in ("map PPO", "spatial PPO", "genie")}
+        assert mbps["genie"] >= max(mbps["map PPO"], mbps["spatial PPO"]), row
+        for share in ("map / genie", "spatial / genie"):
+            assert 0 < float(row[col[share]].split(" %")[0]) <= 100, row

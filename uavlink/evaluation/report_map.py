@@ -2,9 +2,10 @@
 place, ``sweeps/map.toml``) against today's spatial policies and the GPS-free ``explore`` rule.
 
 Per scenario that has a map policy: the map policy, the spatial policy of the scenario, explore,
-aoa and static, all on the spatial channel on the same seeded episodes, with paired ratios: the map
-policy over the spatial policy, over explore and over its warm start's rule (explore on no_move,
-aoa elsewhere, as sweeps/map.toml), and explore over the spatial policy.
+aoa, static and the genie (the full-knowledge yardstick), all on the spatial channel on the same
+seeded episodes, with paired ratios: the map policy over the spatial policy, over explore and over
+its warm start's rule (explore on no_move, aoa elsewhere, as sweeps/map.toml), explore over the
+spatial policy, and each of the two policies as a share of the genie.
 """
 
 from __future__ import annotations
@@ -19,12 +20,17 @@ from uavlink.policies.contract import EnvOverrides, load_with_env
 from uavlink.policies.loader import policy_for_scenario
 from uavlink.policies.manifest import PolicyFileError
 
-COLUMNS = ("map", "spatial", "explore", "aoa", "static")
+COLUMNS = ("map", "spatial", "explore", "aoa", "static", "genie")
 
 
 def _ratio(results: dict[str, EvalResult], a: str, b: str) -> str:
     ratio, lo, hi = paired_ratio_ci(results[a].episode_rate_mbps, results[b].episode_rate_mbps)
     return f"{100 * (ratio - 1):+.1f} % [{100 * (lo - 1):+.1f}, {100 * (hi - 1):+.1f}]"
+
+
+def _share(results: dict[str, EvalResult], a: str) -> str:
+    share, lo, hi = paired_ratio_ci(results[a].episode_rate_mbps, results["genie"].episode_rate_mbps)
+    return f"{100 * share:.1f} % [{100 * lo:.1f}, {100 * hi:.1f}]"
 
 
 def _teacher(map_policy) -> str:
@@ -36,8 +42,8 @@ def _teacher(map_policy) -> str:
 
 def map_table(map_folder: Path, spatial_folder: Path, episodes: int, seed: int, overrides: EnvOverrides,
               progress: Callable[[str], None] = lambda _: None) -> tuple[list[str], list[list[str]]]:
-    header = ["scenario", "map PPO", "spatial PPO", "explore", "aoa", "static", "map vs spatial PPO",
-              "map vs explore", "map vs its teacher", "explore vs spatial PPO"]
+    header = ["scenario", "map PPO", "spatial PPO", "explore", "aoa", "static", "genie", "map vs spatial PPO",
+              "map vs explore", "map vs its teacher", "explore vs spatial PPO", "map / genie", "spatial / genie"]
     body = []
     on_spatial = spatial_overrides(overrides)
     for scenario in SCENARIOS:
@@ -45,7 +51,7 @@ def map_table(map_folder: Path, spatial_folder: Path, episodes: int, seed: int, 
             map_file = policy_for_scenario(map_folder, scenario)
         except PolicyFileError:
             continue  # not trained yet: the table shows the scenarios that are
-        specs = [map_file, policy_for_scenario(spatial_folder, scenario), "explore", "aoa", "static"]
+        specs = [map_file, policy_for_scenario(spatial_folder, scenario), "explore", "aoa", "static", "genie"]
         loaded = load_with_env(specs, on_spatial.on(scenario))
         results = {}
         for column, (policy, cfg) in zip(COLUMNS, loaded, strict=True):
@@ -54,7 +60,8 @@ def map_table(map_folder: Path, spatial_folder: Path, episodes: int, seed: int, 
         teacher = _teacher(loaded[0][0])
         body.append([scenario, *(f"{results[c].mean_rate_mbps:.2f} ± {results[c].ci95_mbps:.2f}" for c in COLUMNS),
                      _ratio(results, "map", "spatial"), _ratio(results, "map", "explore"),
-                     f"{teacher}: {_ratio(results, 'map', teacher)}", _ratio(results, "explore", "spatial")])
+                     f"{teacher}: {_ratio(results, 'map', teacher)}", _ratio(results, "explore", "spatial"),
+                     _share(results, "map"), _share(results, "spatial")])
     return header, body
 
 
@@ -69,9 +76,9 @@ def map_sections(map_folder: Path, spatial_folder: Path, episodes: int, seed: in
         "Policies whose observation holds a memory of place (layout v3: the best spot the UAV sensed,",
         "relative to it, its value against now and its age; docs/design.md), trained on the spatial",
         "channel (`sweeps/map.toml`), against the spatial policies above and the GPS-free `explore`",
-        "rule (search a cross, return to the best spot sensed, follow the team when it leaves). Same",
-        "episodes; paired ratios with 95 % bootstrap intervals. Scenarios without a map policy yet are",
-        "left out.",
+        "rule (search a cross, return to the best spot sensed, follow the team when it leaves), and as a",
+        "share of the `genie` (the full-knowledge yardstick). Same episodes; paired ratios with 95 %",
+        "bootstrap intervals. Scenarios without a map policy yet are left out.",
         "",
         markdown_table(header, body),
         "",
