@@ -24,6 +24,8 @@ state. Rates are wall time, with the process's CPU time alongside (steadier on a
     python benchmarks/train_throughput.py --json          # one JSON object
     python benchmarks/train_throughput.py --min-steps 500000 --env-seconds 3   # longer, steadier
     python benchmarks/train_throughput.py --no-recipes    # the default settings only
+    python benchmarks/train_throughput.py --no-recipes --variant torch_threads=2 --variant n_epochs=1
+                                                          # the default beside variants of it
 """
 
 from __future__ import annotations
@@ -46,7 +48,8 @@ from env_throughput import TARGET_BATCHED_N, Bench, batched_bench
 
 from uavlink.config import EnvConfig, TrainConfig
 from uavlink.config.train import WarmStartConfig
-from uavlink.sweep.spec import load_spec
+from uavlink.errors import ConfigError
+from uavlink.sweep.spec import load_spec, tomllib
 
 ROOT = Path(__file__).resolve().parents[1]
 TARGET_RATIO = 0.1
@@ -67,6 +70,25 @@ class Setting:
 
 def default_setting() -> Setting:
     return Setting("default", EnvConfig().replace(scenario="circular").validate(), TrainConfig(), ["uavlink train"])
+
+
+def variant_setting(spec: str) -> Setting:
+    """The default settings with TrainConfig overrides ``KEY=VALUE[,KEY=VALUE]`` (a side-by-side variant)."""
+    from uavlink.config.fields import coerce
+
+    base = default_setting()
+    overrides = {}
+    for item in spec.split(","):
+        key, sep, value = item.partition("=")
+        if not sep:
+            raise ValueError(f"--variant {spec!r}: expected KEY=VALUE")
+        try:  # a TOML value, as in a sweep file's [train] table
+            parsed = tomllib.loads(f"v = {value.strip()}")["v"]
+        except tomllib.TOMLDecodeError:
+            parsed = value.strip()
+        overrides[key.strip()] = coerce(TrainConfig, key.strip(), parsed, key.strip())
+    tc = dataclasses.replace(base.tc, **overrides).validate(base.cfg)
+    return Setting(f"default {spec}", base.cfg, tc, [f"uavlink train with {spec}"])
 
 
 def _speed_key(cfg: EnvConfig, tc: TrainConfig) -> tuple:
@@ -285,12 +307,18 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--sweeps", type=Path, default=ROOT / "sweeps",
                         help="folder of the sweep files whose recipes are measured (default: sweeps/)")
     parser.add_argument("--no-recipes", action="store_true", help="measure the default settings only")
+    parser.add_argument("--variant", action="append", default=[], metavar="KEY=VALUE[,...]",
+                        help="also measure the default settings with these TrainConfig overrides (repeatable)")
     parser.add_argument("--seed", type=int, default=0)
     parser.add_argument("--json", action="store_true", help="print one JSON object instead of a table")
     args = parser.parse_args(argv)
     if args.min_steps < 1 or args.env_seconds <= 0:
         parser.error("--min-steps and --env-seconds must be positive")
     settings = [default_setting()]
+    try:
+        settings += [variant_setting(v) for v in args.variant]
+    except (ValueError, ConfigError) as exc:
+        parser.error(str(exc))
     if not args.no_recipes:
         settings += recipe_settings(args.sweeps)
     report = run(settings, args.min_steps, args.env_seconds, args.seed)
