@@ -124,3 +124,21 @@ def test_train_throughput_times_every_phase_of_the_loop_and_covers_every_recipe(
     assert all(v > 0 for v in measured.values()), measured  # every wrapper was hit
     assert row["us_per_env_step"]["other"] >= 0  # the phases do not overlap: they fit in the wall time
     assert row["env_steps_per_s"] > 0 and row["ratio"] == round(row["env_steps_per_s"] / row["env_n256_steps_per_s"], 4)
+
+
+@pytest.mark.slow
+def test_map_sensitivity_puts_every_policy_over_static_on_each_channel() -> None:
+    """benchmarks/map_sensitivity.py on no_move, 3 episodes: a row per (sigma, UAV-end
+    decorrelation), the genie above static on every channel (it knows the field), each ratio
+    inside its interval."""
+    result = run_json("map_sensitivity.py", "--scenarios", "no_move", "--episodes", "3")
+    assert [(r["shadowing_std_db"], r["uav_decorrelation_m"]) for r in result["rows"]] == [
+        (s, d) for s in (4.0, 8.0) for d in (25.0, 50.0, 100.0)]
+    for row in result["rows"]:
+        assert row["genie"]["over_static"] > 1, row
+        for name in ("genie", "explore", "map", "spatial"):
+            lo, hi = row[name]["ci95"]
+            assert lo <= row[name]["over_static"] <= hi, row
+    # a larger sigma leaves more to find: the genie's gain grows with it at every decorrelation
+    by_cell = {(r["shadowing_std_db"], r["uav_decorrelation_m"]): r["genie"]["over_static"] for r in result["rows"]}
+    assert all(by_cell[(8.0, d)] > by_cell[(4.0, d)] for d in (25.0, 50.0, 100.0))
