@@ -198,3 +198,10 @@ def test_map_report_rows_put_each_map_policy_beside_explore_and_the_genie() -> N
         assert mbps["genie"] >= max(mbps["map PPO"], mbps["spatial PPO"]), row
         for share in ("map / genie", "spatial / genie"):
             assert 0 < float(row[col[share]].split(" %")[0]) <= 100, row
+    # without the genie: the same cells for the rest (the same episodes), and no genie column
+    header_lean, body_lean = map_table(ROOT / "policies" / "map", ROOT / "policies" / "spatial", 2, 0,
+                                       EnvOverrides(), with_genie=False)
+    assert "genie" not in " ".join(header_lean)
+    lean = {name: i for i, name in enumerate(header_lean)}
+    for row, row_lean in zip(body, body_lean, strict=True):
+        assert all(row[col[name]] == row_lean[lean[name]] for name in header_lean), (row, row_lean)

@@ -41,9 +41,14 @@ def _teacher(map_policy) -> str:
 
 
 def map_table(map_folder: Path, spatial_folder: Path, episodes: int, seed: int, overrides: EnvOverrides,
-              progress: Callable[[str], None] = lambda _: None) -> tuple[list[str], list[list[str]]]:
-    header = ["scenario", "map PPO", "spatial PPO", "explore", "aoa", "static", "genie", "map vs spatial PPO",
-              "map vs explore", "map vs its teacher", "explore vs spatial PPO", "map / genie", "spatial / genie"]
+              progress: Callable[[str], None] = lambda _: None,
+              with_genie: bool = True) -> tuple[list[str], list[list[str]]]:
+    """The table's header and rows; ``with_genie=False`` leaves out the genie's columns (its plans
+    cost about a CPU-second per episode, where the rest costs milliseconds)."""
+    columns = COLUMNS if with_genie else COLUMNS[:-1]
+    header = ["scenario", "map PPO", "spatial PPO", "explore", "aoa", "static", *(["genie"] if with_genie else []),
+              "map vs spatial PPO", "map vs explore", "map vs its teacher", "explore vs spatial PPO",
+              *(["map / genie", "spatial / genie"] if with_genie else [])]
     body = []
     on_spatial = spatial_overrides(overrides)
     for scenario in SCENARIOS:
@@ -51,17 +56,17 @@ def map_table(map_folder: Path, spatial_folder: Path, episodes: int, seed: int, 
             map_file = policy_for_scenario(map_folder, scenario)
         except PolicyFileError:
             continue  # not trained yet: the table shows the scenarios that are
-        specs = [map_file, policy_for_scenario(spatial_folder, scenario), "explore", "aoa", "static", "genie"]
+        specs = [map_file, policy_for_scenario(spatial_folder, scenario), *columns[2:]]
         loaded = load_with_env(specs, on_spatial.on(scenario))
         results = {}
-        for column, (policy, cfg) in zip(COLUMNS, loaded, strict=True):
+        for column, (policy, cfg) in zip(columns, loaded, strict=True):
             progress(f"map {scenario}: {column}")
             results[column] = evaluate_policy(policy, cfg, episodes, seed)
         teacher = _teacher(loaded[0][0])
-        body.append([scenario, *(f"{results[c].mean_rate_mbps:.2f} ± {results[c].ci95_mbps:.2f}" for c in COLUMNS),
+        body.append([scenario, *(f"{results[c].mean_rate_mbps:.2f} ± {results[c].ci95_mbps:.2f}" for c in columns),
                      _ratio(results, "map", "spatial"), _ratio(results, "map", "explore"),
                      f"{teacher}: {_ratio(results, 'map', teacher)}", _ratio(results, "explore", "spatial"),
-                     _share(results, "map"), _share(results, "spatial")])
+                     *([_share(results, "map"), _share(results, "spatial")] if with_genie else [])])
     return header, body
 
 

@@ -1,0 +1,55 @@
+"""The results report's memory-of-place table alone (``uavlink evaluate --out ... --spatial ...
+--map ...``'s part, uavlink/evaluation/report_map.py), for checks the whole report would make too
+costly: more or other episodes, and without the genie's columns (about a CPU-second per episode).
+
+Per scenario with a map policy: the map policy, the spatial policy, explore, aoa, static (and the
+genie) on the spatial channel on the same seeded episodes, with paired ratios.
+
+    python benchmarks/map_table.py                                  # results.md's 100 episodes, seed 0
+    python benchmarks/map_table.py --episodes 1000 --seed 7 --no-genie   # fresh episodes
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parents[1]
+
+
+def main(argv: list[str] | None = None) -> int:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--map", type=Path, default=ROOT / "policies" / "map", help="the map policies' folder")
+    parser.add_argument("--spatial", type=Path, default=ROOT / "policies" / "spatial",
+                        help="the spatial policies' folder")
+    parser.add_argument("--episodes", type=int, default=100)
+    parser.add_argument("--seed", type=int, default=0)
+    parser.add_argument("--no-genie", action="store_true", help="leave out the genie's columns")
+    parser.add_argument("--csv", type=Path, default=None, help="also write the table here")
+    args = parser.parse_args(argv)
+    if args.episodes < 2:
+        parser.error("--episodes must be >= 2 (a paired interval)")
+    from uavlink.errors import UserError
+    from uavlink.evaluation.report_map import map_table
+    from uavlink.evaluation.tables import markdown_table, write_csv
+    from uavlink.policies.contract import EnvOverrides
+
+    def progress(line: str) -> None:
+        if sys.stderr.isatty():
+            print(line, file=sys.stderr, flush=True)
+
+    try:
+        header, body = map_table(args.map, args.spatial, args.episodes, args.seed, EnvOverrides(), progress,
+                                 with_genie=not args.no_genie)
+    except UserError as exc:
+        parser.error(str(exc))
+    if args.csv is not None:
+        write_csv(args.csv, header, body)
+    print(f"{args.episodes} episodes, seed {args.seed}, spatial channel\n")
+    print(markdown_table(header, body))
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
