@@ -27,7 +27,8 @@ UAV_DECORRELATIONS_M = (25.0, 50.0, 100.0)
 POLICIES = ("genie", "explore", "map", "spatial")
 
 
-def run(scenarios: list[str], episodes: int, seed: int, progress: bool) -> dict:
+def run(scenarios: list[str], episodes: int, seed: int, progress: bool, map_folder: Path = ROOT / "policies" / "map",
+        spatial_folder: Path = ROOT / "policies" / "spatial") -> dict:
     from uavlink.evaluation import evaluate_policy, paired_ratio_ci
     from uavlink.evaluation.tables import spatial_overrides
     from uavlink.policies.contract import EnvOverrides, load_with_env
@@ -38,8 +39,8 @@ def run(scenarios: list[str], episodes: int, seed: int, progress: bool) -> dict:
         overrides = spatial_overrides(EnvOverrides(scenario, None, {
             "radio.shadowing_std_db": sigma_db, "radio.shadowing_uav_decorrelation_m": decorrelation_m}))
         specs = {"static": "static", "genie": "genie", "explore": "explore",
-                 "map": policy_for_scenario(ROOT / "policies" / "map", scenario),
-                 "spatial": policy_for_scenario(ROOT / "policies" / "spatial", scenario)}
+                 "map": policy_for_scenario(map_folder, scenario),
+                 "spatial": policy_for_scenario(spatial_folder, scenario)}
         loaded = dict(zip(specs, load_with_env(list(specs.values()), overrides), strict=True))
         rates = {}
         for name, (policy, cfg) in loaded.items():
@@ -75,6 +76,9 @@ def markdown(report: dict) -> str:
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--scenarios", nargs="+", default=["no_move", "circular"])
+    parser.add_argument("--map", type=Path, default=ROOT / "policies" / "map", help="the map policies' folder")
+    parser.add_argument("--spatial", type=Path, default=ROOT / "policies" / "spatial",
+                        help="the spatial policies' folder")
     parser.add_argument("--episodes", type=int, default=50, help="episodes per cell (default 50)")
     parser.add_argument("--seed", type=int, default=0)
     parser.add_argument("--json", action="store_true", help="print one JSON object instead of a table")
@@ -84,7 +88,7 @@ def main(argv: list[str] | None = None) -> int:
     from uavlink.errors import UserError
 
     try:
-        report = run(args.scenarios, args.episodes, args.seed, progress=sys.stderr.isatty())
+        report = run(args.scenarios, args.episodes, args.seed, sys.stderr.isatty(), args.map, args.spatial)
     except UserError as exc:  # a scenario without a map or spatial policy, a bad override
         parser.error(str(exc))
     print(json.dumps(report, indent=2) if args.json else markdown(report))
