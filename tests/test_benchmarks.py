@@ -142,3 +142,17 @@ def test_map_sensitivity_puts_every_policy_over_static_on_each_channel() -> None
     # a larger sigma leaves more to find: the genie's gain grows with it at every decorrelation
     by_cell = {(r["shadowing_std_db"], r["uav_decorrelation_m"]): r["genie"]["over_static"] for r in result["rows"]}
     assert all(by_cell[(8.0, d)] > by_cell[(4.0, d)] for d in (25.0, 50.0, 100.0))
+
+
+@pytest.mark.slow
+def test_teacher_gain_rebuilds_each_policys_own_teacher_from_its_manifest() -> None:
+    """benchmarks/teacher_gain.py: the map policy of straight_90 faces the aoa variant its manifest
+    names (span 3 dB, gate 2 dB), no_move's the explore rule; the gain is the ratio of the two."""
+    result = run_json("teacher_gain.py", str(ROOT / "policies" / "map" / "straight_90.zip"),
+                      str(ROOT / "policies" / "map" / "no_move.zip"), "--episodes", "3")
+    teachers = {row["scenario"]: row["teacher"] for row in result["rows"]}
+    assert teachers == {"straight_90": "aoa (span 3, gate 2)", "no_move": "explore"}
+    for row in result["rows"]:
+        lo, hi = row["ci95"]
+        assert lo <= row["gain"] <= hi and row["beats_teacher"] == (lo > 0)
+        assert abs(row["ppo_mbps"] / row["teacher_mbps"] - 1 - row["gain"]) < 1e-3
