@@ -128,10 +128,10 @@ def test_train_throughput_times_every_phase_of_the_loop_and_covers_every_recipe(
 
 @pytest.mark.slow
 def test_map_sensitivity_puts_every_policy_over_static_on_each_channel() -> None:
-    """benchmarks/map_sensitivity.py on no_move, 3 episodes: a row per (sigma, UAV-end
+    """benchmarks/map_sensitivity.py on no_move, 2 episodes: a row per (sigma, UAV-end
     decorrelation), the genie above static on every channel (it knows the field), each ratio
     inside its interval."""
-    result = run_json("map_sensitivity.py", "--scenarios", "no_move", "--episodes", "3")
+    result = run_json("map_sensitivity.py", "--scenarios", "no_move", "--episodes", "2")
     assert [(r["shadowing_std_db"], r["uav_decorrelation_m"]) for r in result["rows"]] == [
         (s, d) for s in (4.0, 8.0) for d in (25.0, 50.0, 100.0)]
     for row in result["rows"]:
