@@ -21,10 +21,9 @@ demo: $(STAMP)
 
 # The suite in three streams: two pytest-xdist workers run most tests; beside them a second pytest
 # runs the tests on PX4's fixed ports one after another (xdist's loadgroup cannot keep them on one
-# worker under pytest 9), then SIDE: long tests that fly no timed parity, and a module fixture
-# each xdist worker would compute again (their reports follow the workers'); then the `serial`
-# flights run alone.
-SIDE := tests/test_benchmarks.py tests/test_cli_evaluate.py tests/test_baselines.py
+# worker under pytest 9), then SIDE, long tests that fly no timed parity (their reports follow the
+# workers'); then the `serial` flights run alone.
+SIDE := tests/test_benchmarks.py tests/test_cli_evaluate.py
 
 test: $(STAMP)
 	$(BIN)/ruff check uavlink sitl_stub tests benchmarks

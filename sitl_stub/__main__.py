@@ -192,16 +192,17 @@ def main(argv: Sequence[str] | None = None, payload_factory: PayloadFactory | No
     who = (f"vehicle {server.system_id}" if args.fleet is None
            else f"fleet of {args.fleet} vehicles ({'no' if args.no_payload else 'one shared'} radio world)")
     count = len(payloads) if args.fleet is None else len(server.world.views) if server.world else 0
-    print(f"{PROG}: {who} on {server.connection}, {args.speed:g}x real time, "
-          f"{count} payload(s), {signing}", file=sys.stderr, flush=True)
     stop = threading.Event()
 
     def _on_signal(signum: int, _frame: object) -> None:
         stop.set()
 
+    # before the ready line: a launcher that signals as soon as it reads it gets a clean stop
     if threading.current_thread() is threading.main_thread():
         for sig in (signal.SIGINT, signal.SIGTERM):
             signal.signal(sig, _on_signal)
+    print(f"{PROG}: {who} on {server.connection}, {args.speed:g}x real time, "
+          f"{count} payload(s), {signing}", file=sys.stderr, flush=True)
     try:
         server.run(stop)
     finally:
