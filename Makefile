@@ -20,18 +20,15 @@ demo: $(STAMP)
 	$(BIN)/uavlink evaluate --scenario all --policy aoa --episodes 20 --seed 0
 
 # The suite in three streams: two pytest-xdist workers run most tests; beside them a second pytest
-# runs the tests on PX4's fixed ports one after another (xdist's loadgroup cannot keep them on one
-# worker under pytest 9), then SIDE, long tests that fly no timed parity (their reports follow the
-# workers'); then the `serial` flights run alone.
-SIDE := tests/test_benchmarks.py tests/test_cli_evaluate.py
-
+# runs the tests on PX4's fixed ports one after another (its report follows the workers'; xdist's
+# loadgroup cannot keep them on one worker under pytest 9); then the `serial` flights run alone.
+# (Long CPU-bound tests moved beside the workers as well made timed flight tests fail: 2 of 3 runs.)
 test: $(STAMP)
 	$(BIN)/ruff check uavlink sitl_stub tests benchmarks
-	@($(BIN)/python -m pytest -q -m px4_ports; ports=$$?; $(BIN)/python -m pytest -q -m "not serial" $(SIDE); \
-	  [ $$? -eq 0 ] && [ $$ports -eq 0 ]) > $(VENV)/side.log 2>&1 & side=$$!; \
-	$(BIN)/python -m pytest -q -n 2 -m "not px4_ports and not serial" $(addprefix --ignore=,$(SIDE)); rest=$$?; \
-	wait $$side; side_status=$$?; echo "--- beside the above: the PX4-port tests, then $(SIDE):"; \
-	cat $(VENV)/side.log; [ $$rest -eq 0 ] && [ $$side_status -eq 0 ]
+	@$(BIN)/python -m pytest -q -m px4_ports > $(VENV)/px4_ports.log 2>&1 & px4=$$!; \
+	$(BIN)/python -m pytest -q -n 2 -m "not px4_ports and not serial"; rest=$$?; \
+	wait $$px4; px4_status=$$?; echo "--- tests on PX4's fixed ports (run beside the above):"; \
+	cat $(VENV)/px4_ports.log; [ $$rest -eq 0 ] && [ $$px4_status -eq 0 ]
 	$(BIN)/python -m pytest -q -m serial
 
 lint: $(STAMP)
