@@ -137,7 +137,7 @@ def test_version():
 def test_results_folder_has_the_tables_and_figures_and_is_reproducible(tmp_path, monkeypatch):
     root = Path(__file__).resolve().parents[1]
     a, b = tmp_path / "a", tmp_path / "b"
-    command = ["evaluate", "--scenario", "all", "--policy", str(root / "policies"), "--episodes", "3",
+    command = ["evaluate", "--scenario", "all", "--policy", str(root / "policies"), "--episodes", "2",
                "--seed", "0"]
     # a through the CLI's main in this process (no second torch import), b as users run it: the
     # reproducibility below then also holds across processes.
@@ -154,7 +154,7 @@ def test_results_folder_has_the_tables_and_figures_and_is_reproducible(tmp_path,
     for figure in figures:
         assert (a / figure).read_bytes()[:8] == b"\x89PNG\r\n\x1a\n", figure
     markdown = (a / "results.md").read_text()
-    assert "--episodes 3" in markdown and all(f"]({figure})" in markdown for figure in figures)
+    assert "--episodes 2" in markdown and all(f"]({figure})" in markdown for figure in figures)
     # seeded: the same command gives the same tables and raw results (the spatial part of b adds to them)
     for name in ("table1.csv", "table2.csv", "results.json"):
         assert (a / name).read_bytes() == (b / name).read_bytes(), name
