@@ -13,6 +13,7 @@ observations to float32.)
 from __future__ import annotations
 
 import copy
+import functools
 from pathlib import Path
 from typing import Any
 
@@ -53,33 +54,55 @@ def deterministic_actor(policy: Any):
     return DeterministicActor().eval()
 
 
+class _NoOptimizer:
+    """Stands in for the policy's Adam when it is only run: building a torch optimizer imports
+    torch._dynamo (``torch._disable_dynamo``), about 3 s of every ``fly`` and ``evaluate`` start."""
+
+    def __init__(self, params: Any, **kwargs: Any) -> None:
+        pass
+
+
 class SB3Policy:
     needs_truth = False
 
     def __init__(self, path: str | Path) -> None:
         path = Path(path)
+        self.path = path
         self.manifest = read_zip_manifest(path)
         self.layout = ObservationLayout.from_dict(self.manifest["observation_layout"])
         self.name = path.stem
         import torch
-        from stable_baselines3 import PPO
+        from stable_baselines3.common.save_util import load_from_zip_file
 
         # One thread: a 3 x 128 MLP on one observation gains nothing from more, and in flight the
         # loop shares the CPU with the vehicle (and, in SITL, the simulator).
         torch.set_num_threads(1)
         self._torch = torch
 
+        # SB3's own reader and policy class with the saved settings, as PPO.load builds them, but
+        # without the algorithm around the policy and its optimizer, which running it never needs.
         try:
-            self.model = PPO.load(path, device="cpu")
+            data, params, _ = load_from_zip_file(path, device="cpu")
+            policy = data["policy_class"](data["observation_space"], data["action_space"], lambda _: 0.0,
+                                          use_sde=data["use_sde"], **data["policy_kwargs"],
+                                          optimizer_class=_NoOptimizer)
+            policy.load_state_dict(params["policy"])
         except Exception as exc:  # SB3 raises many kinds on a damaged archive
             raise PolicyFileError(f"{path}: cannot load the SB3 model ({type(exc).__name__}: {exc})") from None
-        if self.model.observation_space.shape != (self.layout.size,):
-            raise PolicyFileError(f"{path}: model input {self.model.observation_space.shape} does not "
+        if data["observation_space"].shape != (self.layout.size,):
+            raise PolicyFileError(f"{path}: model input {data['observation_space'].shape} does not "
                                   f"match its manifest's layout {self.layout.describe()}")
         try:
-            self.actor = deterministic_actor(self.model.policy)
+            self.actor = deterministic_actor(policy)
         except PolicyFileError as exc:
             raise PolicyFileError(f"{path}: {exc}") from None
+
+    @functools.cached_property
+    def model(self) -> Any:
+        """The whole SB3 PPO model (``PPO.load``), for comparing with SB3's own ``predict``."""
+        from stable_baselines3 import PPO
+
+        return PPO.load(self.path, device="cpu")
 
     def act(self, obs: np.ndarray, truth: GroundTruth | None = None) -> np.ndarray:
         """Actions (N, 2) float32 in the box for observations (N, obs); a single (obs,) is N=1.
