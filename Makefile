@@ -8,12 +8,10 @@ STAMP := $(VENV)/.installed
 
 .PHONY: demo test lint bench clean
 
-# --no-compile: pip would byte-compile every installed file (about a minute on 2 cores, mostly
-# torch's); Python compiles what is imported, once, on first import.
 $(STAMP): pyproject.toml
 	$(PYTHON) -m venv $(VENV)
 	$(BIN)/pip install --quiet --upgrade pip
-	$(BIN)/pip install --quiet --no-compile -e '.[dev]'
+	$(BIN)/pip install --quiet -e '.[dev]'
 	touch $(STAMP)
 
 demo: $(STAMP)

@@ -150,6 +150,17 @@ def test_fly_against_a_silent_payload_fails_with_one_line(tmp_path: Path) -> Non
     assert summary["completed"] is False and summary["frames"] == 0 and "no radio reports" in summary["reason"]
 
 
+def _heard_radio(tlog: Path) -> bool:
+    """Whether the (growing) tlog already holds a radio report (DEBUG_FLOAT_ARRAY)."""
+    if not tlog.exists():
+        return False
+    log = mavutil.mavlink_connection(str(tlog))
+    try:
+        return log.recv_match(type="DEBUG_FLOAT_ARRAY") is not None
+    finally:
+        log.close()
+
+
 @pytest.mark.slow
 @pytest.mark.timeout(120)
 def test_ctrl_c_lands_writes_the_summary_and_exits_130(tmp_path: Path) -> None:
@@ -157,10 +168,12 @@ def test_ctrl_c_lands_writes_the_summary_and_exits_130(tmp_path: Path) -> None:
     `completed: false`, `interrupted: true`."""
     proc = subprocess.Popen([*UAVLINK, "fly", "--policy", "aoa", "--out", str(tmp_path), "--quiet"],
                             stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, cwd=ROOT)
+    # into the episode: the tlog holds a radio report (a fixed wait after start-up was too short for
+    # a take-off on a loaded machine)
     deadline = time.monotonic() + 60
-    while time.monotonic() < deadline and proc.poll() is None and not (tmp_path / "flight.tlog").exists():
-        time.sleep(0.1)
-    time.sleep(3.0)  # into the flight (take-off is ~1.6 s of wall time at --speed 20)
+    while time.monotonic() < deadline and proc.poll() is None and not _heard_radio(tmp_path / "flight.tlog"):
+        time.sleep(0.2)
+    time.sleep(0.5)
     proc.send_signal(signal.SIGINT)
     out, err = proc.communicate(timeout=60)
     assert proc.returncode == 130, err
