@@ -102,6 +102,9 @@ def test_fleet_aoa_flight_keeps_20_m_in_transit(tmp_path: Path) -> None:
             capture_output=True, text=True, timeout=240, cwd=ROOT)
         assert proc.returncode == 0, proc.stderr[-3000:] + vehicle.output()[-2000:]
     flown = json.loads(proc.stdout)
-    assert flown["frames"] == 80 and all(v["decisions"] >= 75 for v in flown["vehicles"]), flown
+    # every frame flown; on a loaded machine a frame can reach the loop in a backlog with the next
+    # (then only the newest is decided), so most, not all, are decisions
+    assert flown["frames"] == 80 and flown["radio_frames_missed"] == 0, flown
+    assert all(v["decisions"] >= 0.85 * 80 and v["holds"] == 0 for v in flown["vehicles"]), flown["vehicles"]
     assert flown["min_separation_setpoints_m"] >= 20.0
     assert flown["min_separation_flown_m"] >= 20.0, flown
