@@ -208,3 +208,54 @@ def test_map_report_rows_put_each_map_policy_beside_explore_and_the_genie() -> N
     lean = {name: i for i, name in enumerate(header_lean)}
     for row, row_lean in zip(body, body_lean, strict=True):
         assert all(row[col[name]] == row_lean[lean[name]] for name in header_lean), (row, row_lean)
+
+
+@pytest.mark.slow
+def test_place_map_holds_the_cells_flown_over_the_fields_truth(tmp_path: Path) -> None:
+    """uavlink.evaluation.place_map on circular's map policy, episode 0 of seed 0: the episode is
+    evaluate's, the memory holds exactly the cells the UAV was in (its best among them), and the
+    truth at a spot is the env's mean-channel rate for a UAV there (the radio code, not the genie's
+    float32 grid)."""
+    from uavlink.evaluation.place_map import draw_place_map, fly_place_map
+    from uavlink.policies.contract import EnvOverrides, load_with_env
+    from uavlink.radio import distance_3d_m, mean_rx_power_dbm
+    from uavlink.radio.cells import mean_channel_rate_bps
+
+    [(policy, cfg)] = load_with_env([str(ROOT / "policies" / "map" / "circular.zip")],
+                                    EnvOverrides.from_command_line("circular", None, []))
+    episode = fly_place_map(policy, cfg, 0)
+    assert episode.mean_rate_mbps == evaluate_policy(policy, cfg, 1, 0).mean_rate_mbps
+    assert len(episode.uav_path_m) == cfg.episode_frames + 1
+    half, cell = episode.half_width_m, episode.cell_m
+    side = episode.memory_mbps.shape[0]
+    visited = {tuple(np.clip(np.floor((xy + half) / cell), 0, side - 1).astype(int)) for xy in episode.uav_path_m}
+    assert {tuple(ij) for ij in np.argwhere(np.isfinite(episode.memory_mbps))} == visited
+    assert tuple(np.floor((episode.best_m + half) / cell).astype(int)) in visited
+    for ix, iy in np.random.default_rng(0).integers(0, len(episode.field_x_m), size=(3, 2)):
+        uav, ue = np.array([[[episode.field_x_m[ix], episode.field_x_m[iy]]]]), episode.ue_xy_m[None]
+        rx_dbm = mean_rx_power_dbm(distance_3d_m(uav, ue, cfg.area.uav_altitude_m), cfg.radio)
+        rx_dbm = rx_dbm + episode.shadow_field.shadow_db(uav, ue)
+        assert episode.field_mbps[ix, iy] == pytest.approx(mean_channel_rate_bps(rx_dbm, cfg.radio).mean() * 1e-6,
+                                                           rel=2e-3)
+    draw_place_map(episode, tmp_path / "map.png")
+    assert (tmp_path / "map.png").read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+
+
+@pytest.mark.slow
+def test_map_sections_draw_a_place_map_per_scenario_with_a_map_policy(tmp_path: Path) -> None:
+    """The report's map part with one map policy (no_move): its row, and its picture linked."""
+    import shutil
+
+    from uavlink.evaluation.report_map import map_sections
+    from uavlink.policies.contract import EnvOverrides
+
+    folder = tmp_path / "map"
+    folder.mkdir()
+    for suffix in (".zip", ".json"):
+        shutil.copy(ROOT / "policies" / "map" / f"no_move{suffix}", folder)
+    out = tmp_path / "out"
+    out.mkdir()
+    markdown = "\n".join(map_sections(folder, ROOT / "policies" / "spatial", 1, 0, EnvOverrides(), out, []))
+    assert [row.split(",")[0] for row in (out / "map.csv").read_text().splitlines()[1:]] == ["no_move"]
+    assert (out / "place_map_no_move.png").read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+    assert "](place_map_no_move.png)" in markdown

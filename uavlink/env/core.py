@@ -19,6 +19,7 @@ import numpy as np
 from uavlink.config import EnvConfig
 from uavlink.env.actions import ActionMapping
 from uavlink.env.observation import ObservationBuilder, ObservationLayout, fleet_quantities
+from uavlink.env.place_memory import PlaceMemory
 from uavlink.env.reward import RewardBounds
 from uavlink.mobility import MobilityState, draw_scenarios, init_mobility, step_mobility
 from uavlink.mobility.fleet import separate, start_positions_m
@@ -83,6 +84,11 @@ class BatchedUavEnv:
             seed = np.random.SeedSequence(seed)
         streams = seed.spawn(2)
         self.mobility_rng, self.radio_rng = (np.random.default_rng(s) for s in streams)
+
+    @property
+    def place_memory(self) -> PlaceMemory | None:
+        """The memory of place the observations are built from (None without one), for pictures."""
+        return self._builder.place
 
     def reset(self, seed: int | np.random.SeedSequence | None = None) -> np.ndarray:
         """Start N new episodes (UAVs at their start positions); returns the observations (N D, obs)."""

@@ -6,7 +6,9 @@
 - ``tables``: the report's leaf: per-scenario rows, Table I and II, Markdown and CSV writers.
 - ``report``: the results folder (``uavlink evaluate --out``), over its spatial-channel part
   (``report_spatial``) and fleet part (``report_fleet``); the parts import ``tables``, never ``report``
-  or each other. Plots import matplotlib inside the function that draws.
+  or each other; the memory-of-place part (``report_map``) draws its pictures with ``place_map``
+  (what a map policy remembered, over the true field). Plots import matplotlib inside the function
+  that draws.
 
 May import: ``config``, ``errors``, ``mobility``, ``env``, ``seeding``, ``rollout``, ``policies``.
 """

@@ -14,6 +14,7 @@ from collections.abc import Callable
 from pathlib import Path
 
 from uavlink.evaluation import EvalResult, evaluate_policy, paired_ratio_ci
+from uavlink.evaluation.place_map import draw_place_map, fly_place_map
 from uavlink.evaluation.tables import markdown_table, spatial_overrides, write_csv
 from uavlink.mobility import SCENARIOS
 from uavlink.policies.contract import EnvOverrides, load_with_env
@@ -75,6 +76,13 @@ def map_sections(map_folder: Path, spatial_folder: Path, episodes: int, seed: in
     """Evaluate, write ``map.csv`` into ``out`` and return the Markdown of the part."""
     header, body = map_table(map_folder, spatial_folder, episodes, seed, overrides, progress)
     write_csv(out / "map.csv", header, body)
+    pictures = []
+    for scenario in (row[0] for row in body):
+        progress(f"map {scenario}: picture")
+        [(policy, cfg)] = load_with_env([policy_for_scenario(map_folder, scenario)],
+                                        spatial_overrides(overrides).on(scenario))
+        draw_place_map(fly_place_map(policy, cfg, seed), out / f"place_map_{scenario}.png")
+        pictures += [f"![the map {scenario}'s policy built](place_map_{scenario}.png)", ""]
     return [
         f"### A memory of place: map policies (`{map_folder}`) and the explore rule",
         "",
@@ -87,5 +95,11 @@ def map_sections(map_folder: Path, spatial_folder: Path, episodes: int, seed: in
         "",
         markdown_table(header, body),
         "",
+        f"What each map policy remembered in episode 0 of seed {seed} (`uavlink.evaluation.place_map`):",
+        "left, the mean UE throughput a UAV would get from each spot at the episode's last frame (path",
+        "loss and the shadowing field, no fast fading); right, the value the policy sensed in each cell it",
+        "visited, on the same scale, and the cell its memory ranks best.",
+        "",
+        *pictures,
         *sweep_sections,
     ]
