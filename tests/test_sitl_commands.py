@@ -16,7 +16,7 @@ from sitl_stub.core.params import int_to_param_float
 from sitl_stub.mavlink.server import SitlServer
 from uavlink.mavlink.dialect import mavutil
 
-pytestmark = [pytest.mark.slow, pytest.mark.timeout(120)]
+pytestmark = [pytest.mark.slow, pytest.mark.waits, pytest.mark.timeout(120)]
 
 mavlink = mavutil.mavlink
 NAN = math.nan

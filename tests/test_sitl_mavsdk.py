@@ -26,7 +26,7 @@ from mavsdk.asyncio.plugins.telemetry import FlightMode, LandedState, TelemetryA
 from sitl_stub.launcher import vehicle_process  # noqa: E402
 from uavlink.mavlink.connection import free_udp_port  # noqa: E402
 
-pytestmark = [pytest.mark.slow, pytest.mark.timeout(120)]
+pytestmark = [pytest.mark.slow, pytest.mark.waits, pytest.mark.timeout(120)]
 
 SPEED = 5.0  # MAVSDK streams offboard setpoints at 20 Hz of wall time: keep speed <= 5
 

@@ -16,7 +16,7 @@ from sitl_stub.mavlink.server import ServerConfig, SitlServer
 from tests.mavlink_gcs import FAST_CLIMB_PARAMS, Gcs
 from uavlink.mavlink.dialect import mavlink
 
-pytestmark = [pytest.mark.slow, pytest.mark.timeout(180)]
+pytestmark = [pytest.mark.slow, pytest.mark.waits, pytest.mark.timeout(180)]
 
 MISSION_MODE = (4, 4)
 HOLD_MODE = (4, 3)

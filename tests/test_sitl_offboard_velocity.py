@@ -15,7 +15,7 @@ from sitl_hover import LOITER_MODE, hovering
 from sitl_stub.mavlink.server import SitlServer
 from uavlink.mavlink.dialect import mavutil
 
-pytestmark = [pytest.mark.slow, pytest.mark.timeout(120)]
+pytestmark = [pytest.mark.slow, pytest.mark.waits, pytest.mark.timeout(120)]
 
 mavlink = mavutil.mavlink
 NAN = math.nan

@@ -18,7 +18,7 @@ from sitl_stub.mavlink.telemetry import TelemetrySender
 from sitl_stub.sim.battery import CELL_COUNT, CELL_EMPTY_V, CELL_FULL_V, Battery
 from uavlink.mavlink.dialect import mavutil
 
-pytestmark = pytest.mark.timeout(90)
+pytestmark = [pytest.mark.waits, pytest.mark.timeout(90)]
 
 mavlink = mavutil.mavlink
 SPEED = 10.0
