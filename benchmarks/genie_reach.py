@@ -2,7 +2,8 @@
 
 For each seeded episode of a scenario on the spatial channel, the genie's dynamic programme
 (``uavlink.policies.genie``, one UAV, the 4 m grid) is solved again with every grid spot farther
-than R metres from the team's centroid forbidden at each frame, for several R. A GPS-free policy
+than R metres from the team's centroid forbidden at each frame, for several R (from the first frame
+a path can keep to it: circular's team starts out of reach). A GPS-free policy
 that stays within R of the team can do no better than that plan, whatever it remembers. Beside
 them, the paths ``explore``, the scenario's map policy and its spatial policy fly in the same
 episodes, scored the same way. Every figure is the planner's own: the mean UE throughput of a path
@@ -43,6 +44,19 @@ def flown_paths(policy, cfg, episodes: int, seed: int) -> np.ndarray:
     return np.concatenate(paths)
 
 
+def within_radius_path(reward: np.ndarray, near: np.ndarray, grid, first: np.ndarray) -> np.ndarray:
+    """The best grid path that keeps to the ``near`` (T, n, n) cells from the earliest frame it can
+    (the team may start out of reach: circular's is 150 m from the UAV), free before that."""
+    from uavlink.policies.genie.grid import best_grid_path
+
+    for k in range(len(reward)):
+        cells, _ = best_grid_path(np.where(near | (np.arange(len(reward)) < k)[:, None, None], reward, -np.inf),
+                                  grid, first)
+        if cells is not None:
+            return cells
+    raise AssertionError("unreachable: with no frame constrained the genie's own path is allowed")
+
+
 def episode_values(planner, grid, ue_m: np.ndarray, flown: dict[str, np.ndarray]) -> dict[str, float]:
     """One episode's figures: the genie's plan, its mean distance from the team's centroid, the plan
     within each radius of it, and each flown path (T + 1, 2), all scored by the planner (float64)."""
@@ -63,7 +77,7 @@ def episode_values(planner, grid, ue_m: np.ndarray, flown: dict[str, np.ndarray]
     cells, _ = best_grid_path(reward, grid, first)
     values = {"genie": score(cells), "distance_m": float(np.hypot(*(grid.points_m(cells) - centroid).T).mean())}
     for r in RADII_M:
-        values[f"within {r:g} m"] = score(best_grid_path(np.where(gap_m <= r, reward, -np.inf), grid, first)[0])
+        values[f"within {r:g} m"] = score(within_radius_path(reward, gap_m <= r, grid, first))
     for name, path in flown.items():
         values[name] = planner.rate_mbps(path[:, None])
     return values

@@ -145,6 +145,19 @@ def test_map_sensitivity_puts_every_policy_over_static_on_each_channel() -> None
 
 
 @pytest.mark.slow
+def test_genie_reach_keeps_each_plan_within_its_radius_below_the_next() -> None:
+    """benchmarks/genie_reach.py on no_move, 2 episodes: a plan kept nearer the team is never better
+    than one kept less near (the grids' cells are a superset), and none beats the genie."""
+    result = run_json("genie_reach.py", "--scenarios", "no_move", "--episodes", "2")
+    [row] = result["rows"]
+    shares = [row["shares"][f"within {r:g} m"]["of_genie"] for r in result["radii_m"]]
+    assert all(a <= b + 1e-6 for a, b in zip(shares, [*shares[1:], 1.0], strict=True)), shares
+    assert shares[0] > 0 and row["genie_mbps"] > 0 and row["genie_mean_distance_from_team_m"] > 0
+    for name in ("explore", "map", "spatial"):
+        assert 0 < row["shares"][name]["of_genie"] <= 1.0, row["shares"][name]
+
+
+@pytest.mark.slow
 def test_teacher_gain_rebuilds_each_policys_own_teacher_from_its_manifest() -> None:
     """benchmarks/teacher_gain.py: the map policy of straight_90 faces the aoa variant its manifest
     names (span 3 dB, gate 2 dB), no_move's the explore rule; the gain is the ratio of the two."""
