@@ -31,7 +31,7 @@ demo: $(STAMP)
 test: $(STAMP)
 	$(BIN)/ruff check uavlink sitl_stub tests benchmarks
 	@$(BIN)/python -m pytest -q -m "px4_ports or waits" > $(VENV)/beside.log 2>&1 & beside=$$!; \
-	$(BIN)/python -m pytest -q -n 2 -m "not px4_ports and not waits and not serial"; rest=$$?; \
+	$(BIN)/python -m pytest -q -n 2 -m "not px4_ports and not waits and not serial" --durations=15; rest=$$?; \
 	wait $$beside; beside_status=$$?; echo "--- tests on PX4's fixed ports and waiting tests (run beside the above):"; \
 	cat $(VENV)/beside.log; [ $$rest -eq 0 ] && [ $$beside_status -eq 0 ]
 	$(BIN)/python -m pytest -q -m serial
