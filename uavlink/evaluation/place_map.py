@@ -3,11 +3,11 @@
 One episode of a policy with a memory of place (layout v3; ``uavlink.env.place_memory``) on the
 spatial channel, episode 0 of ``uavlink evaluate --episodes 1 --seed S``. Left, the truth at the
 episode's last frame: the mean UE throughput a UAV would get at each spot (path loss and the
-episode's shadowing field, no fast fading; TR 36.814 path loss as the env computes it, the genie's
-grid), the team where it is then, and the UAV's path. Right, the memory as the policy left it: the
-value sensed in each cell it visited, on the same scale (its bits/s/Hz times the per-UE bandwidth
-B / U, so Mbps as the round robin gives them; sensed with fast fading, at the frame of the visit),
-and the cell it ranks best. Where the two agree, the map is worth returning to; where the team has
+episode's shadowing field, no fast fading, as the env computes them, on the genie's grid), the team
+where it is then, and the UAV's path. Right, the memory as the policy left it: the value sensed
+in each cell it visited, on the same scale (its bits/s/Hz times the per-UE bandwidth B / U, so Mbps
+as the round robin gives them; sensed with fast fading, at the frame of the visit), and the cell it
+ranks best. Where the two agree, the map is worth returning to; where the team has
 moved since, the memory is stale (the ranking discounts age).
 """
 
@@ -45,13 +45,14 @@ class PlaceMapEpisode:
     memory_mbps: np.ndarray  # (n_side, n_side) [ix, iy], NaN where never sensed
     best_m: np.ndarray  # (2,) centre of the cell the memory ranks best
     half_width_m: float
-    shadow_field: SpatialShadowField  # the episode's
+    shadow_field: SpatialShadowField | None  # the episode's (None without shadowing)
 
 
 def fly_place_map(policy: Policy, cfg: EnvConfig, seed: int) -> PlaceMapEpisode:
     """Fly episode 0 of ``seed`` and read the memory and the truth at its end."""
-    if cfg.place_cell_m <= 0 or cfg.n_uavs != 1:
-        raise ValueError("a place map needs one UAV with a memory of place (place_cell_m > 0)")
+    if cfg.place_cell_m <= 0 or cfg.n_uavs != 1 or cfg.radio.shadowing_model != "spatial":
+        raise ValueError("a place map needs one UAV with a memory of place (place_cell_m > 0) on the "
+                         "spatial channel (radio.shadowing_model = spatial)")
     chunk = next(chunks(cfg, EVAL, 1, seed))
     env = chunk.env
     path, rates = [env.uav_xy_m[0].copy()], []
@@ -59,8 +60,6 @@ def fly_place_map(policy: Policy, cfg: EnvConfig, seed: int) -> PlaceMapEpisode:
         path.append(env.uav_xy_m[0].copy())
         rates.append(frame.result.mean_rate_mbps[0])
     truth = env.ground_truth()
-    if truth.shadow_field is None:
-        raise ValueError("a place map needs the spatial channel (radio.shadowing_model = spatial)")
     radio, per_ue_mbps = cfg.radio, cfg.radio.bandwidth_hz / cfg.n_ues * 1e-6
     grid = Grid.over_area(cfg.area.half_width_m, FIELD_GRID_M, cfg.r_max_m)
     field = env_field(truth.shadow_field, 0, 1)

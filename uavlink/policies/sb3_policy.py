@@ -83,9 +83,9 @@ class SB3Policy:
         # without the algorithm around the policy and its optimizer, which running it never needs.
         try:
             data, params, _ = load_from_zip_file(path, device="cpu")
+            kwargs = {**data["policy_kwargs"], "optimizer_class": _NoOptimizer}
             policy = data["policy_class"](data["observation_space"], data["action_space"], lambda _: 0.0,
-                                          use_sde=data["use_sde"], **data["policy_kwargs"],
-                                          optimizer_class=_NoOptimizer)
+                                          use_sde=data["use_sde"], **kwargs)
             policy.load_state_dict(params["policy"])
         except Exception as exc:  # SB3 raises many kinds on a damaged archive
             raise PolicyFileError(f"{path}: cannot load the SB3 model ({type(exc).__name__}: {exc})") from None
