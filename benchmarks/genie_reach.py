@@ -60,7 +60,7 @@ def within_radius_path(reward: np.ndarray, near: np.ndarray, grid, first: np.nda
 def episode_values(planner, grid, ue_m: np.ndarray, flown: dict[str, np.ndarray]) -> dict[str, float]:
     """One episode's figures: the genie's plan, its mean distance from the team's centroid, the plan
     within each radius of it, and each flown path (T + 1, 2), all scored by the planner (float64)."""
-    from uavlink.policies.genie.grid import best_grid_path
+    from uavlink.policies.genie.grid import best_grid_path, one_uav_rate_mbps
 
     start = planner.start_m  # (1, 2)
 
@@ -69,7 +69,7 @@ def episode_values(planner, grid, ue_m: np.ndarray, flown: dict[str, np.ndarray]
             return float("nan")
         return planner.rate_mbps(np.concatenate([start, grid.points_m(cells)])[:, None])
 
-    reward = planner._reward(0, start[None])  # (T, n, n) Mbps, one UAV at every cell (entry t: frame t + 1)
+    reward = one_uav_rate_mbps(planner.rx_grid, planner.cfg.radio)  # (T, n, n) Mbps (entry t: frame t + 1)
     first = grid.cells_within(start[0], grid.r_max_m)
     centroid = ue_m.mean(axis=1)  # (T, 2), frame t + 1
     gap_m = np.hypot(grid.x_m[None, :, None] - centroid[:, 0, None, None],

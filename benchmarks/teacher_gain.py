@@ -14,7 +14,6 @@ from __future__ import annotations
 import argparse
 import json
 import sys
-from pathlib import Path
 
 
 def teacher_of(policy, cfg):
@@ -70,7 +69,7 @@ def main(argv: list[str] | None = None) -> int:
     from uavlink.errors import UserError
 
     try:
-        report = run([str(Path(p)) for p in args.policies], args.episodes, args.seed)
+        report = run(args.policies, args.episodes, args.seed)
     except UserError as exc:
         parser.error(str(exc))
     if args.json:

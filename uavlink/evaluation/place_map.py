@@ -20,9 +20,8 @@ import numpy as np
 
 from uavlink.config import EnvConfig
 from uavlink.policies.base import Policy
-from uavlink.policies.genie.grid import Grid, grid_rx_dbm
+from uavlink.policies.genie.grid import Grid, grid_rx_dbm, one_uav_rate_mbps
 from uavlink.policies.genie.policy import env_field
-from uavlink.radio.noise import noise_power_dbm
 from uavlink.radio.spatial_shadowing import SpatialShadowField
 from uavlink.rollout import chunks
 from uavlink.seeding import EVAL
@@ -60,17 +59,16 @@ def fly_place_map(policy: Policy, cfg: EnvConfig, seed: int) -> PlaceMapEpisode:
         path.append(env.uav_xy_m[0].copy())
         rates.append(frame.result.mean_rate_mbps[0])
     truth = env.ground_truth()
-    radio, per_ue_mbps = cfg.radio, cfg.radio.bandwidth_hz / cfg.n_ues * 1e-6
+    per_ue_mbps = cfg.radio.bandwidth_hz / cfg.n_ues * 1e-6
     grid = Grid.over_area(cfg.area.half_width_m, FIELD_GRID_M, cfg.r_max_m)
     field = env_field(truth.shadow_field, 0, 1)
-    rx_dbm = grid_rx_dbm(grid, truth.ue_xy_m[:1], field, radio, cfg.area.uav_altitude_m)[0]  # (U, n, n)
-    snr = 10.0 ** ((rx_dbm.astype(float) - noise_power_dbm(radio.bandwidth_hz, radio)) / 10.0)
+    rx_dbm = grid_rx_dbm(grid, truth.ue_xy_m[:1], field, cfg.radio, cfg.area.uav_altitude_m)  # (1, U, n, n)
     memory = env.place_memory
     side = memory.n_side
     sensed = np.isfinite(memory.score[0]).reshape(side, side)
     remembered = np.where(sensed, per_ue_mbps * memory.value[0].reshape(side, side), np.nan)
     return PlaceMapEpisode(cfg.scenario, seed, float(np.mean(rates)), np.array(path), truth.ue_xy_m[0],
-                           grid.x_m, per_ue_mbps * np.log2(1.0 + snr).mean(axis=0), memory.cell_m,
+                           grid.x_m, one_uav_rate_mbps(rx_dbm, cfg.radio)[0], memory.cell_m,
                            remembered, memory.centre_m(memory.best[:1])[0], cfg.area.half_width_m, field)
 
 

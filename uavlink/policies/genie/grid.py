@@ -14,6 +14,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from uavlink.config import RadioConfig
+from uavlink.radio.noise import noise_power_dbm
 from uavlink.radio.pathloss import mean_rx_power_dbm
 from uavlink.radio.spatial_shadowing import SpatialShadowField
 
@@ -91,6 +92,15 @@ def grid_rx_dbm(grid: Grid, ue_xy_m: np.ndarray, field: SpatialShadowField | Non
             left = np.concatenate([np.cos(ue_phase), -np.sin(ue_phase)], axis=-1).astype(np.float32)
             rx += np.float32(field.amplitude_db) * (left.reshape(-1, left.shape[-1]) @ right).reshape(rx.shape)
     return out
+
+
+def one_uav_rate_mbps(rx_dbm: np.ndarray, radio: RadioConfig) -> np.ndarray:
+    """Mean UE rate (..., n, n), Mbps, of one UAV at every grid cell from its received powers
+    (..., U, n, n) dBm (``grid_rx_dbm``): round robin's (B / U) log2(1 + SNR), averaged over UEs. In
+    float32, 10^(x/10) as exp: the hot path of one UAV's plan."""
+    snr = np.exp((rx_dbm - np.float32(noise_power_dbm(radio.bandwidth_hz, radio))) * np.float32(np.log(10.0) / 10.0))
+    snr += np.float32(1.0)
+    return (radio.bandwidth_hz / rx_dbm.shape[-3] * 1e-6) * np.log2(snr, out=snr).mean(axis=-3, dtype=float)
 
 
 def best_grid_path(reward: np.ndarray, grid: Grid, first: np.ndarray,

@@ -28,7 +28,7 @@ from uavlink.env.core import GroundTruth
 from uavlink.mobility import MobilityState, step_mobility
 from uavlink.mobility.fleet import separate
 from uavlink.policies.fleet_baselines import moves_to
-from uavlink.policies.genie.grid import Grid, best_grid_path, grid_rx_dbm
+from uavlink.policies.genie.grid import Grid, best_grid_path, grid_rx_dbm, one_uav_rate_mbps
 from uavlink.radio.cells import mean_channel_rate_bps
 from uavlink.radio.noise import noise_power_dbm
 from uavlink.radio.pathloss import distance_3d_m, mean_rx_power_dbm
@@ -173,11 +173,7 @@ class EpisodePlanner:
         radio, n = self.cfg.radio, self.grid.n
         n_ues, n_uavs = self.rx_grid.shape[1], path_m.shape[1]
         if n_uavs == 1:
-            # (B / U) log2(1 + SNR) in float32, 10^(x/10) as exp: the hot path of one UAV's plan.
-            snr = np.exp((self.rx_grid - np.float32(noise_power_dbm(radio.bandwidth_hz, radio)))
-                         * np.float32(np.log(10.0) / 10.0))
-            snr += np.float32(1.0)
-            return (radio.bandwidth_hz / n_ues * 1e-6) * np.log2(snr, out=snr).mean(axis=1, dtype=float)
+            return one_uav_rate_mbps(self.rx_grid, radio)
         others = [j for j in range(n_uavs) if j != d]
         others_mw = (10.0 ** (self.rx_dbm(path_m)[..., others] / 10.0)).astype(np.float32)  # (T, U, D-1)
         reward = np.empty((self.frames, n, n))
