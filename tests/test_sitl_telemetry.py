@@ -103,6 +103,12 @@ def _command(conn: Any, command: int, *params: float) -> int:
     raise AssertionError(f"no COMMAND_ACK for {command}")
 
 
+def _stamped_intervals_s(messages: list[Any], kind: str) -> list[float]:
+    """Simulated seconds between messages of ``kind`` that carry their own ``time_usec``."""
+    stamps = [m.time_usec / 1e6 for m in messages if m.get_type() == kind]
+    return [b - a for a, b in zip(stamps, stamps[1:], strict=False)]
+
+
 def _sim_intervals_s(messages: list[Any], kind: str) -> list[float]:
     """Simulated seconds between messages of ``kind``, timed by the latest ATTITUDE before each."""
     now_s, stamps = None, []
@@ -127,15 +133,13 @@ def test_streams_arrive_at_their_rates_and_the_battery_drains_in_flight() -> Non
             for kind in ("BATTERY_STATUS", "HOME_POSITION", "GPS_RAW_INT", "EXTENDED_SYS_STATE",
                          "SYS_STATUS"):
                 assert kind in kinds, f"no {kind} stream"
-            home = [m.time_usec / 1e6 for m in before if m.get_type() == "HOME_POSITION"]
-            gaps = [b - a for a, b in zip(home, home[1:], strict=False)]
+            gaps = _stamped_intervals_s(before, "HOME_POSITION")
             assert gaps and all(1.8 <= g <= 2.3 for g in gaps), gaps  # about every 2 s
             battery_gaps = _sim_intervals_s(before, "BATTERY_STATUS")
             assert battery_gaps and all(1.7 <= g <= 2.4 for g in battery_gaps), battery_gaps
-            # GPS_RAW_INT carries its own simulated time: the ATTITUDE clock above trails it by
-            # up to a delayed ATTITUDE on a loaded machine (0.75 then 1.37 s seen)
-            gps = [m.time_usec / 1e6 for m in before if m.get_type() == "GPS_RAW_INT"]
-            gps_gaps = [b - a for a, b in zip(gps, gps[1:], strict=False)]
+            # GPS_RAW_INT carries its own simulated time: the ATTITUDE clock trails it by up to a
+            # delayed ATTITUDE on a loaded machine (0.75 then 1.37 s seen)
+            gps_gaps = _stamped_intervals_s(before, "GPS_RAW_INT")
             assert gps_gaps and all(0.8 <= g <= 1.3 for g in gps_gaps), gps_gaps
             assert {m.battery_remaining for m in before if m.get_type() == "BATTERY_STATUS"} == {100}
             # HOME_POSITION on request (MAVSDK asks until it comes), before the next periodic one
