@@ -6,6 +6,7 @@ flies an in-process vehicle over loopback UDP."""
 from __future__ import annotations
 
 import dataclasses
+import statistics
 import time
 from typing import Any
 
@@ -120,6 +121,15 @@ def _sim_intervals_s(messages: list[Any], kind: str) -> list[float]:
     return [b - a for a, b in zip(stamps, stamps[1:], strict=False)]
 
 
+def _assert_period(gaps_s: list[float], period_s: float) -> None:
+    """A stream at its rate: the median gap within 15 % of ``period_s``, none much shorter and none
+    skipped (a gap under 1.9 periods). One late message is allowed for: at 10x a server thread held
+    30 ms by a loaded machine stretches a gap by 0.3 simulated seconds (CI: 1.30 s for GPS's 1 s)."""
+    assert len(gaps_s) >= 5, gaps_s
+    assert abs(statistics.median(gaps_s) / period_s - 1.0) <= 0.15, gaps_s
+    assert all(0.8 * period_s <= g < 1.9 * period_s for g in gaps_s), gaps_s
+
+
 @pytest.mark.slow
 def test_streams_arrive_at_their_rates_and_the_battery_drains_in_flight() -> None:
     config = ServerConfig(connect="udpin:127.0.0.1:0", speed=SPEED, params={"MIS_TAKEOFF_ALT": 5.0})
@@ -133,14 +143,11 @@ def test_streams_arrive_at_their_rates_and_the_battery_drains_in_flight() -> Non
             for kind in ("BATTERY_STATUS", "HOME_POSITION", "GPS_RAW_INT", "EXTENDED_SYS_STATE",
                          "SYS_STATUS"):
                 assert kind in kinds, f"no {kind} stream"
-            gaps = _stamped_intervals_s(before, "HOME_POSITION")
-            assert gaps and all(1.8 <= g <= 2.3 for g in gaps), gaps  # about every 2 s
-            battery_gaps = _sim_intervals_s(before, "BATTERY_STATUS")
-            assert battery_gaps and all(1.7 <= g <= 2.4 for g in battery_gaps), battery_gaps
+            _assert_period(_stamped_intervals_s(before, "HOME_POSITION"), 2.0)
+            _assert_period(_sim_intervals_s(before, "BATTERY_STATUS"), 2.0)
             # GPS_RAW_INT carries its own simulated time: the ATTITUDE clock trails it by up to a
             # delayed ATTITUDE on a loaded machine (0.75 then 1.37 s seen)
-            gps_gaps = _stamped_intervals_s(before, "GPS_RAW_INT")
-            assert gps_gaps and all(0.8 <= g <= 1.3 for g in gps_gaps), gps_gaps
+            _assert_period(_stamped_intervals_s(before, "GPS_RAW_INT"), 1.0)
             assert {m.battery_remaining for m in before if m.get_type() == "BATTERY_STATUS"} == {100}
             # HOME_POSITION on request (MAVSDK asks until it comes), before the next periodic one
             assert _command(gcs, mavlink.MAV_CMD_REQUEST_MESSAGE,
