@@ -17,8 +17,9 @@ from uavlink.config import EnvConfig, RadioConfig
 from uavlink.env.core import BatchedUavEnv
 from uavlink.evaluation import evaluate_policy
 from uavlink.mobility.fleet import min_separation_m
-from uavlink.policies.genie import GeniePolicy, fleet_cell_rates_bps
+from uavlink.policies.genie import GeniePolicy, fleet_mean_rate_bps
 from uavlink.policies.genie.grid import Grid, best_grid_path, grid_rx_dbm
+from uavlink.policies.genie.policy import MIN_EPISODES_PER_WORKER
 from uavlink.policies.registry import make_baseline
 from uavlink.radio.cells import mean_channel_rate_bps
 from uavlink.radio.pathloss import distance_3d_m, mean_rx_power_dbm
@@ -89,13 +90,13 @@ def test_grid_powers_are_the_envs() -> None:
 
 
 @pytest.mark.parametrize("n_uavs,reuse", [(2, "full"), (3, "full"), (2, "orthogonal")])
-def test_fleet_cell_rates_are_the_mean_channel_rates(n_uavs: int, reuse: str) -> None:
+def test_fleet_mean_rates_are_the_mean_channel_rates(n_uavs: int, reuse: str) -> None:
     rng, radio = np.random.default_rng(n_uavs), RadioConfig()
     mine, others = rng.uniform(-90, -60, (3, 10, 40)), rng.uniform(-90, -60, (3, 10, n_uavs - 1))
     rx = np.concatenate([mine.transpose(0, 2, 1)[..., None], np.repeat(others[:, None], 40, axis=1)], axis=-1)
-    want = mean_channel_rate_bps(rx, radio, reuse).transpose(0, 2, 1)
-    got = fleet_cell_rates_bps((10 ** (mine / 10)).astype(np.float32), (10 ** (others / 10)).astype(np.float32),
-                               radio, reuse)
+    want = mean_channel_rate_bps(rx, radio, reuse).mean(axis=-1)  # (T, G)
+    got = fleet_mean_rate_bps((10 ** (mine / 10)).astype(np.float32), (10 ** (others / 10)).astype(np.float32),
+                              radio, reuse)
     np.testing.assert_allclose(got, want, rtol=1e-5)
 
 
@@ -153,6 +154,21 @@ def test_fleet_flies_its_plan_apart() -> None:
     np.testing.assert_allclose(rates, genie.planned_rate_mbps, rtol=1e-9)
     for name in ("static", "oracle", "kmeans"):
         assert (rates >= evaluate_policy(make_baseline(name, cfg), cfg, 2, 0).episode_rate_mbps - 1e-9).all()
+
+
+def test_episodes_planned_side_by_side_are_the_ones_planned_in_turn() -> None:
+    """Threads plan a batch's episodes (numpy releases the GIL); the plans are the serial ones."""
+    cfg = small("circular", n_uavs=2, episode_frames=8)
+    [chunk] = list(chunks(cfg, EVAL, 2 * MIN_EPISODES_PER_WORKER, 0))
+    truth = chunk.env.ground_truth()
+    plans = []
+    for workers in (1, 2):
+        genie = make_baseline("genie", cfg)
+        genie.workers = workers
+        genie.plan(truth)
+        plans.append((genie.path_m, genie.planned_rate_mbps))
+    np.testing.assert_array_equal(plans[0][0], plans[1][0])
+    np.testing.assert_array_equal(plans[0][1], plans[1][1])
 
 
 @pytest.mark.slow

@@ -129,3 +129,14 @@ def test_budget_is_in_episodes_of_the_envs_length(tmp_path: Path, capsys) -> Non
     assert "for 64 env steps" in capsys.readouterr().err
     manifest = read_zip_manifest(out)
     assert manifest["training"]["total_timesteps"] == 4 * 16 and manifest["env_config"]["episode_frames"] == 16
+
+
+def test_rollouts_that_cut_episodes_are_warned(tmp_path: Path, caplog: pytest.LogCaptureFixture) -> None:
+    args = ["train", "--scenario", "straight", "--set", "episode_frames=16", "--episodes", "4", "--n-envs", "4",
+            "--batch-size", "32", "--n-epochs", "1", "--run-dir", str(tmp_path / "run"), "--eval-episodes", "0",
+            "--no-progress"]
+    for n_steps in (8, 32):
+        caplog.clear()
+        assert main([*args, "--n-steps", str(n_steps), "--out", str(tmp_path / f"{n_steps}.zip")]) == 0
+        cut = "train.n_steps=8 is not a multiple of env.episode_frames=16" in caplog.text
+        assert cut == (n_steps == 8), caplog.text

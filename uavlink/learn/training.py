@@ -7,6 +7,7 @@ the paper does not state. Imports torch and stable-baselines3 (inside the functi
 from __future__ import annotations
 
 import json
+import logging
 import time
 from collections.abc import Iterator, Sequence
 from contextlib import contextmanager
@@ -33,6 +34,12 @@ def make_model(cfg: EnvConfig, tc: TrainConfig, run_dir: Path | None):
 
     from uavlink.env.vec_env import UavVecEnv
 
+    if tc.n_steps % cfg.episode_frames:
+        # the batched env's episodes end together: a rollout of whole episodes never bootstraps a
+        # cut-off return from a critic that sees no episode clock (docs/design.md, "PPO settings")
+        logging.getLogger(__name__).warning(
+            "train.n_steps=%d is not a multiple of env.episode_frames=%d: rollouts cut episodes, which "
+            "biases PPO's advantages; set --n-steps %d", tc.n_steps, cfg.episode_frames, cfg.episode_frames)
     torch.set_num_threads(tc.torch_threads)
     env = UavVecEnv(training_env_config(cfg, tc), n_envs=tc.n_envs, seed=tc.seed)
     if tc.normalize_reward:

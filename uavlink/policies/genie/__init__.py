@@ -5,6 +5,6 @@ UAV). Part of ``uavlink.policies``.
 May import: what ``uavlink.policies`` may (layers 0-4) and that package's rules (``fleet_baselines``);
 never ``registry``, which builds the genie with its reference baselines."""
 
-from uavlink.policies.genie.policy import REFERENCES, GeniePolicy, fleet_cell_rates_bps
+from uavlink.policies.genie.policy import REFERENCES, GeniePolicy, fleet_mean_rate_bps
 
-__all__ = ["REFERENCES", "GeniePolicy", "fleet_cell_rates_bps"]
+__all__ = ["REFERENCES", "GeniePolicy", "fleet_mean_rate_bps"]

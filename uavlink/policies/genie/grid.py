@@ -124,10 +124,8 @@ def best_grid_path(reward: np.ndarray, grid: Grid, first: np.ndarray,
         padded[pad:pad + n, pad:pad + n] = values[t + 1]
         best.fill(-np.inf)
         for k, window in enumerate(windows):
-            view = padded[window]
-            if allowed_moves is not None:
-                view = np.where(allowed_moves[t, k], view, -np.inf)
-            np.maximum(best, view, out=best)
+            # a forbidden move leaves ``best`` as it is (ufunc ``where``: no masked copy per move)
+            np.maximum(best, padded[window], out=best, where=True if allowed_moves is None else allowed_moves[t, k])
         np.add(reward[t], best, out=values[t])
     total = np.where(first, values[0], -np.inf)
     cell = np.unravel_index(int(np.argmax(total)), total.shape)

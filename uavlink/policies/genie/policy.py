@@ -19,6 +19,8 @@ steers to the plan's next point through the env's action mapping; ``fly`` and ``
 from __future__ import annotations
 
 import dataclasses
+import os
+from concurrent.futures import ThreadPoolExecutor
 
 import numpy as np
 
@@ -36,6 +38,9 @@ from uavlink.radio.spatial_shadowing import SpatialShadowField
 
 SEPARATION_SLACK_M = 1e-6  # planned moves keep this much more than the minimum: the filter never cuts
 REFERENCES = ("static", "oracle", "kmeans")  # the baselines whose paths a fleet plan starts from
+# A worker process costs about a second to start (spawn, imports): below this many episodes each, a
+# batch plans in the calling process (tests' few-episode batches, a re-plan after a surprise).
+MIN_EPISODES_PER_WORKER = 4
 
 
 def future_ues(mobility: MobilityState, frames: int, frame_s: float, half_width_m: float) -> tuple[np.ndarray, np.ndarray]:
@@ -72,37 +77,42 @@ def segment_clear(a: np.ndarray, b: np.ndarray, c: np.ndarray, distance_m: float
     return dx * dx + dy * dy >= distance_m * distance_m
 
 
-def fleet_cell_rates_bps(mine_mw: np.ndarray, others_mw: np.ndarray, radio: RadioConfig,
-                         fleet_reuse: str) -> np.ndarray:
-    """``mean_channel_rate_bps`` (T, U, G) with one UAV at each of G places and the others fixed:
-    received powers mW, (T, U, G) from the moving UAV, (T, U, D - 1) from the others. The same
-    cells, shares and interference, written per UE and place rather than over a UAV axis, so a
-    fleet plan's reward costs a few passes over (T, U, G) (exact ties of power aside, which go to
-    the moving UAV here and to the lower index there)."""
+def fleet_mean_rate_bps(mine_mw: np.ndarray, others_mw: np.ndarray, radio: RadioConfig,
+                        fleet_reuse: str) -> np.ndarray:
+    """The UEs' mean ``mean_channel_rate_bps`` (T, G) with one UAV at each of G places and the others
+    fixed: received powers mW, (T, U, G) from the moving UAV, (T, U, D - 1) from the others. The same
+    cells, shares and interference (exact ties of power aside, which go to the moving UAV here and
+    to the lower index there), written per place: a fleet plan's hot path.
+
+    Every UE of a cell has the cell's size, so the mean over UEs is, per cell, the sum of its UEs'
+    log2(1 + SINR) over its size: cell sums are matrix products of UE-to-cell indicators (float32
+    throughout), not (T, U, G) arrays of sizes."""
+    n_ues, n_others = others_mw.shape[-2:]
     noise_mw = np.float32(10.0 ** (noise_power_dbm(radio.bandwidth_hz, radio) / 10.0))
-    n_others = others_mw.shape[-1]
     their = others_mw.argmax(axis=-1)  # (T, U) the strongest other UAV of each UE
-    strongest = others_mw.max(axis=-1)[..., None]
-    mine = mine_mw > strongest  # (T, U, G) served by the moving UAV
-    n_mine = mine.sum(axis=1, dtype=np.int32)  # (T, G)
-    is_their = [(their == j)[..., None] for j in range(n_others)]  # (T, U, 1) each
-    # UEs left in each other cell (T, G), and each UE's other cell's size (T, U, G), per other UAV:
-    # D - 1 passes over (T, U, G) rather than gathers along a UAV axis.
-    n_their = [j_ues.sum(axis=1) - (mine & j_ues).sum(axis=1) for j_ues in is_their]
-    their_size = sum(j_ues * n[:, None, :] for j_ues, n in zip(is_their, n_their, strict=True))
     signal_theirs = np.take_along_axis(others_mw, their[..., None], axis=-1)  # (T, U, 1)
+    mine = mine_mw > signal_theirs  # (T, U, G) served by the moving UAV
+    mine_f = mine.astype(np.float32)
+    n_mine = mine_f.sum(axis=1)  # (T, G)
+    member = (their[:, None, :] == np.arange(n_others)[None, :, None]).astype(np.float32)  # (T, D-1, U)
+    n_their = member.sum(axis=-1)[..., None] - member @ mine_f  # (T, D-1, G): each other cell's UEs left
     if fleet_reuse == "orthogonal":
         share = np.float32((radio.n_resource_blocks // (n_others + 1)) / radio.n_resource_blocks)
         sinr = np.where(mine, mine_mw, signal_theirs) / (share * noise_mw)
         bandwidth = share * np.float32(radio.bandwidth_hz)
     else:  # every active other cell's power, less the UE's own for a UE of another cell
-        from_others = sum(others_mw[:, :, j, None] * (n > 0)[:, None, :] for j, n in enumerate(n_their))
+        from_others = sum(others_mw[:, :, j, None] * (n_their[:, None, j] > 0) for j in range(n_others))
         interference = np.where(mine, from_others,
                                 from_others - signal_theirs + (n_mine > 0)[:, None, :] * mine_mw)
         sinr = np.where(mine, mine_mw, signal_theirs) / (interference + noise_mw)
         bandwidth = np.float32(radio.bandwidth_hz)
-    size = np.where(mine, n_mine[:, None, :], their_size)
-    return bandwidth / size * np.log2(1.0 + sinr)
+    bits = np.log2(sinr + np.float32(1.0), out=sinr)  # (T, U, G) per UE, before its cell's share
+    in_mine = (bits * mine_f).sum(axis=1)  # (T, G)
+    in_theirs = member @ (bits - bits * mine_f)  # (T, D-1, G)
+    with np.errstate(divide="ignore", invalid="ignore"):  # an empty cell holds no UE: 0 / 0 -> 0
+        per_cell = np.where(n_mine > 0, in_mine / n_mine, 0.0) + np.where(
+            n_their > 0, in_theirs / n_their, 0.0).sum(axis=1)
+    return bandwidth / n_ues * per_cell
 
 
 class EpisodePlanner:
@@ -179,8 +189,8 @@ class EpisodePlanner:
         reward = np.empty((self.frames, n, n))
         for t0 in range(0, self.frames, block):
             rx_mw = np.exp(self.rx_grid[t0:t0 + block].reshape(-1, n_ues, n * n) * np.float32(np.log(10.0) / 10.0))
-            rate = fleet_cell_rates_bps(rx_mw, others_mw[t0:t0 + block], radio, self.cfg.fleet_reuse)
-            reward[t0:t0 + block] = rate.mean(axis=1, dtype=float).reshape(-1, n, n) * 1e-6
+            rate = fleet_mean_rate_bps(rx_mw, others_mw[t0:t0 + block], radio, self.cfg.fleet_reuse)
+            reward[t0:t0 + block] = rate.reshape(-1, n, n) * 1e-6
         return reward
 
     def _cells_clear(self, d: int, path_m: np.ndarray) -> np.ndarray:
@@ -233,6 +243,13 @@ class EpisodePlanner:
         return clear
 
 
+def _plan_episode(task: tuple) -> tuple[np.ndarray, float]:
+    """One episode's plan and its rate, from ``GeniePolicy.plan``'s task (a top-level function: a
+    worker process calls it)."""
+    cfg, grid, ue, field, start, references, tolerance, max_rounds = task
+    return EpisodePlanner(cfg, grid, ue, field, start).plan(references, tolerance, max_rounds)
+
+
 class GeniePolicy:
     """The genie as a policy: needs ground truth (``GroundTruth.mobility``, ``shadow_field``)."""
 
@@ -242,10 +259,13 @@ class GeniePolicy:
     privilege = "knows the episode's future (the UEs' paths and the shadowing field), is for evaluation only"
 
     def __init__(self, cfg: EnvConfig, references: list, grid_m: float = 4.0, tolerance: float = 1e-3,
-                 max_rounds: int = 4) -> None:
+                 max_rounds: int = 4, workers: int | None = None) -> None:
         """``references``: the baselines of ``REFERENCES`` for ``cfg`` (a fleet's plan starts from the
-        best of their paths); ``uavlink.policies.registry.make_baseline("genie", cfg)`` passes them."""
+        best of their paths); ``uavlink.policies.registry.make_baseline("genie", cfg)`` passes them.
+        ``workers``: processes that plan a batch's episodes side by side (default: one per CPU;
+        batches under ``MIN_EPISODES_PER_WORKER`` episodes per worker plan in this process)."""
         self.cfg = cfg.validate()
+        self.workers = max(1, workers or os.cpu_count() or 1)
         self.mapping = ActionMapping.for_config(cfg)
         self.grid = Grid.over_area(cfg.area.half_width_m, grid_m, cfg.r_max_m)
         self.tolerance, self.max_rounds = tolerance, max_rounds
@@ -272,12 +292,15 @@ class GeniePolicy:
         ue, velocity = future_ues(truth.mobility, frames, cfg.frame_s, cfg.area.half_width_m)
         start = truth.uav_xy_m.reshape(-1, n_uavs, 2)
         references = [self._replay(p, start, ue, velocity, truth.scenario_ids) for p in self.references]
-        paths, rates = [], []
-        for env in range(len(start)):
-            planner = EpisodePlanner(cfg, self.grid, ue[:, env], env_field(truth.shadow_field, env, 1), start[env])
-            path, rate = planner.plan([r[:, env] for r in references], self.tolerance, self.max_rounds)
-            paths.append(path)
-            rates.append(rate)
+        tasks = [(cfg, self.grid, ue[:, env], env_field(truth.shadow_field, env, 1), start[env],
+                  [r[:, env] for r in references], self.tolerance, self.max_rounds) for env in range(len(start))]
+        workers = min(self.workers, len(tasks) // MIN_EPISODES_PER_WORKER)
+        if workers > 1:  # episodes plan independently, and numpy's array loops release the GIL
+            with ThreadPoolExecutor(workers) as pool:
+                plans = list(pool.map(_plan_episode, tasks))
+        else:
+            plans = [_plan_episode(task) for task in tasks]
+        paths, rates = zip(*plans, strict=True)
         self.path_m, self.planned_rate_mbps, self.planned_at = np.stack(paths, axis=1), np.array(rates), truth.frame
 
     def _replay(self, policy, start: np.ndarray, ue: np.ndarray, velocity: np.ndarray,
