@@ -30,6 +30,9 @@ SHADOWING_MODELS = ("ar1", "spatial")
 ACTION_MAPPINGS = ("cartesian-v1", "polar-v1")
 # How a fleet shares the band (SPEC "A fleet"): every UAV on every RB, or the band split D ways.
 FLEET_REUSE = ("full", "orthogonal")
+# How the UAV reaches its setpoint in a frame (uavlink.mobility.uav_motion): at once (the paper's),
+# or flown by PX4's position loop under its speed and acceleration limits, as sitl_stub flies.
+UAV_MOTIONS = ("instant", "px4")
 
 
 @dataclass(frozen=True)
@@ -111,6 +114,7 @@ class EnvConfig:
     episode_frames: int = 128
     frame_s: float = 1.0
     r_max_m: float = 12.0  # PX4 MPC_XY_VEL_MAX default, 12 m/s x 1 s frame
+    uav_motion: str = UAV_MOTIONS[0]
     action_mapping: str = ACTION_MAPPINGS[0]  # see uavlink.env.actions.ActionMapping
     memory: int = 4
     # A memory of place (SPEC "The limit, and a memory of place"): what the UAV sensed where, on a
@@ -134,6 +138,10 @@ class EnvConfig:
         if self.action_mapping not in ACTION_MAPPINGS:
             raise ConfigError(f"unknown action mapping {self.action_mapping!r}; choose from "
                               f"{', '.join(ACTION_MAPPINGS)}")
+        if self.uav_motion not in UAV_MOTIONS:
+            raise ConfigError(f"unknown uav_motion {self.uav_motion!r}; choose from {', '.join(UAV_MOTIONS)}")
+        if self.uav_motion != "instant" and self.n_uavs > 1:
+            raise ConfigError("uav_motion=px4 flies one UAV; a fleet's separation filter needs instant moves")
         if self.fleet_reuse not in FLEET_REUSE:
             raise ConfigError(f"unknown fleet_reuse {self.fleet_reuse!r}; choose from {', '.join(FLEET_REUSE)}")
         for name in ("n_ues", "episode_frames", "memory", "n_uavs"):

@@ -23,6 +23,7 @@ from uavlink.env.place_memory import PlaceMemory
 from uavlink.env.reward import RewardBounds
 from uavlink.mobility import MobilityState, draw_scenarios, init_mobility, step_mobility
 from uavlink.mobility.fleet import separate, start_positions_m
+from uavlink.mobility.uav_motion import PX4_MOTION
 from uavlink.radio.channel import RadioChannel, RadioReadings
 from uavlink.radio.rates import fair_rate
 from uavlink.radio.spatial_shadowing import SpatialShadowField
@@ -76,6 +77,8 @@ class BatchedUavEnv:
         self._seed(seed)
         self.frame = 0
         self.uav_xy_m = self._start_xy_m.copy()
+        self.setpoint_xy_m = self._start_xy_m.copy()
+        self.uav_velocity_mps = np.zeros_like(self.uav_xy_m)
         self.mobility = None
         self.readings: RadioReadings | None = None
 
@@ -98,6 +101,8 @@ class BatchedUavEnv:
         self.scenario_ids = draw_scenarios(self.mobility_rng, self.cfg.scenario, self.n_envs)
         self.mobility = init_mobility(self.mobility_rng, self.scenario_ids, self.cfg)
         self.uav_xy_m = self._start_xy_m.copy()
+        self.setpoint_xy_m = self._start_xy_m.copy()  # uav_motion px4: where PX4 is asked to be
+        self.uav_velocity_mps = np.zeros_like(self.uav_xy_m)
         self.readings = self.channel.reset(self.radio_rng, self._per_env(self.uav_xy_m),
                                            self.mobility.position_m)
         return self._builder.reset(**self._sensed())
@@ -108,6 +113,11 @@ class BatchedUavEnv:
             raise RuntimeError("call reset() before step()")
         action = self.actions.validate(action, self.n_rows)
         half = self.cfg.area.half_width_m
+        if self.cfg.uav_motion == "px4":  # the move shifts the setpoint, which PX4 then flies to
+            self.setpoint_xy_m = np.clip(self.setpoint_xy_m + self.actions.to_displacement_m(action), -half, half)
+            position, self.uav_velocity_mps = PX4_MOTION.fly(self.uav_xy_m, self.uav_velocity_mps,
+                                                             self.setpoint_xy_m, self.cfg.frame_s)
+            return self.step_to(position)
         target = np.clip(self.uav_xy_m + self.actions.to_displacement_m(action), -half, half)
         if self.n_uavs > 1:
             target = separate(self._per_env(self.uav_xy_m), self._per_env(target),

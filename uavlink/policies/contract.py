@@ -41,7 +41,8 @@ OVERRIDES_HELP = (f"A policy file runs in the env its manifest records; --scenar
 # What compared policies may differ in: each flies with its own action mapping and memory, and with
 # its own number of UAVs and its own memory of place over the same UEs and channel (a fleet against one UAV: the per-episode
 # world streams do not depend on n_uavs, so the episodes pair as in docs/results.md's fleet ratios).
-PER_POLICY = ("action_mapping", "r_max_m", "memory", "place_cell_m", "n_uavs")
+# How its UAV reaches a setpoint is a policy's too: motion draws nothing, so the episodes pair.
+PER_POLICY = ("action_mapping", "r_max_m", "memory", "place_cell_m", "n_uavs", "uav_motion")
 # Training-time randomisation: off in a policy's env unless an override turns it on.
 TRAINING_ONLY = "radio.aoa_noise_max_deg"
 

@@ -60,7 +60,8 @@ KEY_VERSION = 2
 # at n_uavs = 1 bit for bit the single-UAV env): left out of a job's key while at that default, so
 # existing results keep their keys. A new field whose default changes figures bumps KEY_VERSION.
 NEUTRAL_ENV_DEFAULTS: dict[str, Any] = {"n_uavs": 1, "fleet_reuse": "full", "uav_separation_m": 20.0,
-                                        "fleet_start_radius_m": 100.0, "place_cell_m": 0.0}
+                                        "fleet_start_radius_m": 100.0, "place_cell_m": 0.0,
+                                        "uav_motion": "instant"}
 # The same for the training's (nested) warm-start fields.
 NEUTRAL_WARM_START_DEFAULTS: dict[str, Any] = {"leader_policy": ""}
 TOP_KEYS = ("name", "description", "scenarios", "seeds", "train", "scenario_train", "env", "eval", "grid")

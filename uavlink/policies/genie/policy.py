@@ -265,6 +265,9 @@ class GeniePolicy:
         ``workers``: processes that plan a batch's episodes side by side (default: one per CPU;
         batches under ``MIN_EPISODES_PER_WORKER`` episodes per worker plan in this process)."""
         self.cfg = cfg.validate()
+        if cfg.uav_motion != "instant":
+            raise ValueError("the genie plans instant moves: plan it in the env with uav_motion='instant' "
+                             "(uavlink.policies.registry.baseline_env)")
         self.workers = max(1, workers or os.cpu_count() or 1)
         self.mapping = ActionMapping.for_config(cfg)
         self.grid = Grid.over_area(cfg.area.half_width_m, grid_m, cfg.r_max_m)

@@ -1,0 +1,76 @@
+"""env.uav_motion = "px4": the UAV flies to its setpoint as sitl_stub's PX4 position loop does, and
+the move shifts the setpoint (as ``uavlink fly`` sends it); "instant", the default, is the paper's."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from sitl_stub.flight.pos_control import track
+from sitl_stub.flight.vehicle import SUBSTEP_S
+from uavlink.config import EnvConfig
+from uavlink.env.core import BatchedUavEnv
+from uavlink.errors import ConfigError
+from uavlink.mobility.uav_motion import PX4_MOTION
+
+
+def test_the_position_loop_is_sitl_stubs() -> None:
+    """Random starts, velocities and setpoints: one frame of the batched loop lands where
+    sitl_stub's controller, substep by substep, flies the same vehicle."""
+    rng = np.random.default_rng(0)
+    pos, vel = rng.uniform(-50, 50, (20, 2)), rng.uniform(-8, 8, (20, 2))
+    setpoint = pos + rng.uniform(-30, 30, (20, 2))
+    got_pos, got_vel = PX4_MOTION.fly(pos, vel, setpoint, 1.0)
+    assert PX4_MOTION.substep_s == SUBSTEP_S
+    for i in range(len(pos)):
+        p, v = [pos[i, 0], pos[i, 1], -95.0], [vel[i, 0], vel[i, 1], 0.0]
+        for _ in range(round(1.0 / SUBSTEP_S)):
+            track(p, v, (setpoint[i, 0], setpoint[i, 1], -95.0), (PX4_MOTION.max_speed_mps, 3.0, 1.5),
+                  PX4_MOTION.max_accel_mps2, SUBSTEP_S)
+        np.testing.assert_allclose(got_pos[i], p[:2], atol=1e-9)
+        np.testing.assert_allclose(got_vel[i], v[:2], atol=1e-9)
+
+
+def _flown(motion: str, moves: list[tuple[float, float]]) -> tuple[np.ndarray, np.ndarray]:
+    """The UAV's positions and setpoints (frames + 1, 2) over cartesian moves in [-1, 1]."""
+    cfg = EnvConfig(scenario="no_move", uav_motion=motion).validate()
+    env = BatchedUavEnv(cfg, 1, seed=0)
+    env.reset()
+    positions, setpoints = [env.uav_xy_m[0].copy()], [env.setpoint_xy_m[0].copy()]
+    for move in moves:
+        env.step(np.array([move]))
+        positions.append(env.uav_xy_m[0].copy())
+        setpoints.append(env.setpoint_xy_m[0].copy())
+    return np.array(positions), np.array(setpoints)
+
+
+def test_a_full_speed_move_from_a_hover_takes_px4_more_than_a_frame() -> None:
+    east = [(1.0, 0.0)] * 6 + [(0.0, 0.0)] * 14  # 72 m east at the paper's 12 m per frame, then hover
+    instant, _ = _flown("instant", east)
+    px4, setpoints = _flown("px4", east)
+    np.testing.assert_allclose(instant[6], [72.0, 0.0])
+    np.testing.assert_allclose(setpoints[6:], [[72.0, 0.0]] * 15)  # the moves shift the setpoint
+    steps_m = np.linalg.norm(np.diff(px4, axis=0), axis=1)
+    assert 2.0 < steps_m[0] < 3.0  # 5 m/s^2 from a hover: 2.5 m in the first second
+    assert (steps_m <= 12.0 + 1e-9).all()  # never faster than MPC_XY_VEL_MAX
+    assert px4[6, 0] < 60.0  # still trailing its setpoint when the moves stop
+    np.testing.assert_allclose(px4[-1], [72.0, 0.0], atol=0.5)  # and there without overshoot
+    assert px4[:, 0].max() <= 72.0 + 1e-9
+
+
+def test_px4_motion_is_for_one_uav() -> None:
+    with pytest.raises(ConfigError, match="unknown uav_motion"):
+        EnvConfig(uav_motion="teleport").validate()
+    with pytest.raises(ConfigError, match="px4 flies one UAV"):
+        EnvConfig(uav_motion="px4", n_uavs=2).validate()
+
+
+def test_the_genie_plans_instant_moves_beside_a_px4_uav() -> None:
+    """Compared with a policy whose UAV flies as PX4 does, the genie gets the same world with instant
+    moves (its bound: a PX4 path moves at most r_max per frame too)."""
+    from uavlink.policies.contract import EnvOverrides, load_with_env
+
+    overrides = EnvOverrides(scenario="no_move", settings={"uav_motion": "px4"})
+    (_, static_cfg), (genie, genie_cfg) = load_with_env(["static", "genie"], overrides)
+    assert static_cfg.uav_motion == "px4" and genie_cfg.uav_motion == genie.cfg.uav_motion == "instant"
+    assert genie_cfg.replace(uav_motion="px4") == static_cfg
