@@ -7,6 +7,7 @@ genie) on the spatial channel on the same seeded episodes, with paired ratios.
 
     python benchmarks/map_table.py                                  # results.md's 100 episodes, seed 0
     python benchmarks/map_table.py --episodes 1000 --seed 7 --no-genie   # fresh episodes
+    python benchmarks/map_table.py --set uav_motion=px4                 # every UAV flown as PX4 flies
 """
 
 from __future__ import annotations
@@ -27,6 +28,9 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--seed", type=int, default=0)
     parser.add_argument("--no-genie", action="store_true", help="leave out the genie's columns")
     parser.add_argument("--csv", type=Path, default=None, help="also write the table here")
+    parser.add_argument("--set", dest="settings", action="append", default=[], metavar="KEY=VALUE",
+                        help="an env override for every column, e.g. uav_motion=px4 (the genie keeps "
+                             "instant moves: its plan bounds a PX4-flown UAV); repeatable")
     args = parser.parse_args(argv)
     if args.episodes < 2:
         parser.error("--episodes must be >= 2 (a paired interval)")
@@ -40,13 +44,15 @@ def main(argv: list[str] | None = None) -> int:
             print(line, file=sys.stderr, flush=True)
 
     try:
-        header, body = map_table(args.map, args.spatial, args.episodes, args.seed, EnvOverrides(), progress,
+        overrides = EnvOverrides.from_command_line(None, None, args.settings)
+        header, body = map_table(args.map, args.spatial, args.episodes, args.seed, overrides, progress,
                                  with_genie=not args.no_genie)
     except UserError as exc:
         parser.error(str(exc))
     if args.csv is not None:
         write_csv(args.csv, header, body)
-    print(f"{args.episodes} episodes, seed {args.seed}, spatial channel\n")
+    print(f"{args.episodes} episodes, seed {args.seed}, spatial channel"
+          + "".join(f", {pair}" for pair in args.settings) + "\n")
     print(markdown_table(header, body))
     return 0
 
