@@ -29,16 +29,26 @@ import numpy as np
 STALE_BITS_PER_FRAME = 0.01  # a spot sensed 100 frames ago must have been 1 bit/s/Hz better than now
 HYSTERESIS_BITS = 0.1  # the best cell stays best until it reads this much less than when it won
 NEIGHBOURS = np.array([[1, 0], [0, 1], [-1, 0], [0, -1]])  # east, north, west, south, in cells
+SCORE, VALUE, SEEN = 0, 1, 2  # a cell's slot
 
 
 def sensed_value_bits(sinr_db: np.ndarray) -> np.ndarray:
     """The value a spot is remembered by: mean over UEs of log2(1 + SINR), rows (N, U) dB -> (N,)."""
-    linear = np.exp(np.asarray(sinr_db, dtype=float) * (np.log(10.0) / 10.0))  # exp: far cheaper than 10.0 ** x
-    return np.log1p(linear).mean(axis=1) / np.log(2.0)
+    x = np.asarray(sinr_db, dtype=float) * (np.log(10.0) / 10.0)
+    np.exp(x, out=x)  # exp: far cheaper than 10.0 ** x
+    np.log1p(x, out=x)
+    bits = x.sum(axis=1)  # then / U: what .mean(axis=1) computes, bit for bit, without its wrapper
+    bits /= x.shape[1]
+    bits /= np.log(2.0)
+    return bits
 
 
 class PlaceMemory:
-    """Per-row grid maps (rows = agent rows, one UAV each), batched in numpy."""
+    """Per-row grid maps (rows = agent rows, one UAV each), batched in numpy.
+
+    The per-frame update is on the env's hot path and is some thirty small numpy calls, so cells are
+    addressed flat (row offset + cell), cell centres and neighbours come from tables built once, and
+    a neighbour beyond the grid's edge is a cell that is never sensed."""
 
     def __init__(self, cell_m: float, half_width_m: float, n_rows: int) -> None:
         self.cell_m = float(cell_m)
@@ -46,59 +56,77 @@ class PlaceMemory:
         self.n_side = max(1, math.ceil(2 * half_width_m / cell_m))
         n_cells = self.n_side * self.n_side
         self._rows = np.arange(n_rows)
-        self.value = np.zeros((n_rows, n_cells))
-        self.score = np.full((n_rows, n_cells), -np.inf)  # value + stale x frame seen; -inf: never
-        self.seen = np.zeros((n_rows, n_cells), dtype=np.int64)
+        self._row_offset = self._rows * (n_cells + 1)  # flat index of a row's cell 0
+        # A cell's slot: its score (value + stale x frame seen; -inf: never sensed), the value sensed
+        # and the frame, so one gather reads all three. One more cell per row than the grid has: the
+        # neighbour beyond the edge, never sensed.
+        self._slots = np.zeros((n_rows, n_cells + 1, 3))
+        self._slots[..., SCORE] = -np.inf
         self.best = np.zeros(n_rows, dtype=np.int64)
         self.best_score = np.full(n_rows, -np.inf)  # the best cell's score when it won (or last rose)
         self.frames = 0
+        ij = np.stack(np.divmod(np.arange(n_cells), self.n_side), axis=-1)  # (cells, 2)
+        self._centres_m = (ij + 0.5) * self.cell_m - self.half_width_m
+        nbr = ij[:, None, :] + NEIGHBOURS[None]  # (cells, 4, 2)
+        inside = ((nbr >= 0) & (nbr < self.n_side)).all(axis=2)
+        self._nbr_cell = np.where(inside, nbr[..., 0] * self.n_side + nbr[..., 1], n_cells)
+
+    @property
+    def value(self) -> np.ndarray:
+        """(rows, cells) the value last sensed in each cell, bits/s/Hz (where ``score`` is finite)."""
+        return self._slots[:, :-1, VALUE]
+
+    @property
+    def score(self) -> np.ndarray:
+        """(rows, cells) each cell's rank, value + stale x frame seen; -inf where never sensed."""
+        return self._slots[:, :-1, SCORE]
 
     def reset(self) -> None:
-        self.score[:] = -np.inf
+        self._slots[..., SCORE] = -np.inf
         self.best_score[:] = -np.inf
         self.frames = 0
 
-    def _cell_xy(self, uav_xy_m: np.ndarray) -> np.ndarray:
-        """Grid indices (rows, 2) of positions (rows, 2)."""
+    def _cell(self, uav_xy_m: np.ndarray) -> np.ndarray:
+        """Flat grid cells (rows,) of positions (rows, 2), clipped to the grid."""
         ij = np.floor((uav_xy_m + self.half_width_m) / self.cell_m).astype(np.int64)
-        return np.clip(ij, 0, self.n_side - 1)
+        np.clip(ij, 0, self.n_side - 1, out=ij)
+        return ij[:, 0] * self.n_side + ij[:, 1]
 
     def centre_m(self, cell: np.ndarray) -> np.ndarray:
         """Centres (rows, 2) of flat cell indices (rows,)."""
-        ij = np.stack([cell // self.n_side, cell % self.n_side], axis=-1)
-        return (ij + 0.5) * self.cell_m - self.half_width_m
+        return self._centres_m[cell]
 
     def update(self, uav_xy_m: np.ndarray, sinr_db: np.ndarray) -> dict[str, np.ndarray]:
         """Write this frame's sensed value at each row's cell; the memory's quantities for the
         observation (see the module docstring), rows first."""
         uav_xy_m = np.asarray(uav_xy_m, dtype=float)
-        rows, t = self._rows, self.frames
+        t = self.frames
         now = sensed_value_bits(sinr_db)
-        ij = self._cell_xy(uav_xy_m)
-        cell = ij[:, 0] * self.n_side + ij[:, 1]
+        cell = self._cell(uav_xy_m)
+        flat = self._row_offset + cell
+        slots = self._slots.reshape(-1, 3)
         new_score = now + STALE_BITS_PER_FRAME * t
-        self.value[rows, cell] = now
-        self.seen[rows, cell] = t
-        self.score[rows, cell] = new_score
+        slots[flat, SCORE] = new_score
+        slots[flat, VALUE] = now
+        slots[flat, SEEN] = t
         won = new_score >= self.best_score
         lost = (cell == self.best) & (new_score < self.best_score - HYSTERESIS_BITS)  # the best read less
         self.best = np.where(won, cell, self.best)
         self.best_score = np.where(won, new_score, self.best_score)
         if lost.any():
-            best = self.score[lost].argmax(axis=1)
-            self.best[lost] = best
-            self.best_score[lost] = self.score[np.flatnonzero(lost), best]
+            rows = np.flatnonzero(lost)
+            best = self._slots[rows, :, SCORE].argmax(axis=1)  # never the edge cell: it stays -inf
+            self.best[rows] = best
+            self.best_score[rows] = self._slots[rows, best, SCORE]
         self.frames = t + 1
-        best = self.best
-        nbr = ij[:, None, :] + NEIGHBOURS[None]  # (rows, 4, 2)
-        inside = ((nbr >= 0) & (nbr < self.n_side)).all(axis=2)
-        nbr_cell = np.clip(nbr[..., 0], 0, self.n_side - 1) * self.n_side + np.clip(nbr[..., 1], 0, self.n_side - 1)
-        known = inside & np.isfinite(self.score[rows[:, None], nbr_cell])
+        best = slots[self._row_offset + self.best]  # (rows, 3)
+        nbr = slots[self._row_offset[:, None] + self._nbr_cell[cell]]  # (rows, 4 neighbours, 3)
+        known = nbr[..., SCORE] > -np.inf
         return {
-            "place_best_offset_m": self.centre_m(best) - uav_xy_m,
-            "place_best_gain_bits": self.value[rows, best] - now,
-            "place_best_age_frames": (t - self.seen[rows, best]).astype(float),
-            "place_frames": np.full(len(rows), float(self.frames)),
-            "place_neighbour_gain_bits": np.where(known, self.value[rows[:, None], nbr_cell] - now[:, None], 0.0),
+            "place_best_offset_m": self._centres_m[self.best] - uav_xy_m,
+            "place_best_gain_bits": best[:, VALUE] - now,
+            "place_best_age_frames": t - best[:, SEEN],
+            "place_frames": np.full(len(cell), float(self.frames)),
+            "place_neighbour_gain_bits": np.where(known, nbr[..., VALUE] - now[:, None], 0.0),
             "place_neighbour_known": known.astype(float),
         }
