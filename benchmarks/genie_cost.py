@@ -60,7 +60,7 @@ def measure(scenario: str, n_uavs: int, episodes: int, seed: int) -> dict:
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--episodes", type=int, default=8,
-                        help="per run (default 8: threads plan batches of at least 4 episodes each)")
+                        help="per run (default 8)")
     parser.add_argument("--seed", type=int, default=0)
     parser.add_argument("--scenario", default="straight_180")
     parser.add_argument("--uavs", nargs="+", type=int, default=[1, 2])

@@ -19,7 +19,6 @@ from uavlink.evaluation import evaluate_policy
 from uavlink.mobility.fleet import min_separation_m
 from uavlink.policies.genie import GeniePolicy, fleet_mean_rate_bps
 from uavlink.policies.genie.grid import Grid, best_grid_path, grid_rx_dbm
-from uavlink.policies.genie.policy import MIN_EPISODES_PER_WORKER
 from uavlink.policies.registry import make_baseline
 from uavlink.radio.cells import mean_channel_rate_bps
 from uavlink.radio.pathloss import distance_3d_m, mean_rx_power_dbm
@@ -159,7 +158,7 @@ def test_fleet_flies_its_plan_apart() -> None:
 def test_episodes_planned_side_by_side_are_the_ones_planned_in_turn() -> None:
     """Threads plan a batch's episodes (numpy releases the GIL); the plans are the serial ones."""
     cfg = small("circular", n_uavs=2, episode_frames=8)
-    [chunk] = list(chunks(cfg, EVAL, 2 * MIN_EPISODES_PER_WORKER, 0))
+    [chunk] = list(chunks(cfg, EVAL, 5, 0))
     truth = chunk.env.ground_truth()
     plans = []
     for workers in (1, 2):

@@ -38,9 +38,6 @@ from uavlink.radio.spatial_shadowing import SpatialShadowField
 
 SEPARATION_SLACK_M = 1e-6  # planned moves keep this much more than the minimum: the filter never cuts
 REFERENCES = ("static", "oracle", "kmeans")  # the baselines whose paths a fleet plan starts from
-# A worker process costs about a second to start (spawn, imports): below this many episodes each, a
-# batch plans in the calling process (tests' few-episode batches, a re-plan after a surprise).
-MIN_EPISODES_PER_WORKER = 4
 
 
 def future_ues(mobility: MobilityState, frames: int, frame_s: float, half_width_m: float) -> tuple[np.ndarray, np.ndarray]:
@@ -262,8 +259,7 @@ class GeniePolicy:
                  max_rounds: int = 4, workers: int | None = None) -> None:
         """``references``: the baselines of ``REFERENCES`` for ``cfg`` (a fleet's plan starts from the
         best of their paths); ``uavlink.policies.registry.make_baseline("genie", cfg)`` passes them.
-        ``workers``: processes that plan a batch's episodes side by side (default: one per CPU;
-        batches under ``MIN_EPISODES_PER_WORKER`` episodes per worker plan in this process)."""
+        ``workers``: threads that plan a batch's episodes side by side (default: one per CPU)."""
         self.cfg = cfg.validate()
         if cfg.uav_motion != "instant":
             raise ValueError("the genie plans instant moves: plan it in the env with uav_motion='instant' "
@@ -297,7 +293,7 @@ class GeniePolicy:
         references = [self._replay(p, start, ue, velocity, truth.scenario_ids) for p in self.references]
         tasks = [(cfg, self.grid, ue[:, env], env_field(truth.shadow_field, env, 1), start[env],
                   [r[:, env] for r in references], self.tolerance, self.max_rounds) for env in range(len(start))]
-        workers = min(self.workers, len(tasks) // MIN_EPISODES_PER_WORKER)
+        workers = min(self.workers, len(tasks))
         if workers > 1:  # episodes plan independently, and numpy's array loops release the GIL
             with ThreadPoolExecutor(workers) as pool:
                 plans = list(pool.map(_plan_episode, tasks))
