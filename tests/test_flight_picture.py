@@ -30,7 +30,7 @@ from uavlink.mavlink.dialect import mavlink, mavutil
 from uavlink.mavlink.geo import GeoOrigin
 from uavlink.mavlink.radio_codec import RADIO_COMPONENT_ID
 from uavlink.mavlink.ue_truth import decode_ue_fix
-from uavlink.plot.tlog import read_flight
+from uavlink.plot.tlog import _records, read_flight
 from uavlink.policies.registry import make_baseline
 
 PICTURE_PX = (760, 1040)
@@ -100,6 +100,19 @@ def test_other_adsb_traffic_is_not_a_ue() -> None:
     plane = mavlink.MAVLink_adsb_vehicle_message(0xABCDEF, 473977420, 85455940, 1, 500000, 0, 0, 0,
                                                  b"SWR123", 3, 0, 1 | 64, 0)  # an airliner
     assert decode_ue_fix(plane) is None
+
+
+def test_a_log_cut_anywhere_reads_up_to_the_cut() -> None:
+    """Two MAVLink 2 records, the second cut at every byte (a flight killed while writing, CI saw a
+    cut inside a header): the first is read, the cut one is not, and nothing raises."""
+    mav = mavlink.MAVLink(None, srcSystem=1, srcComponent=1)
+    packet = mav.local_position_ned_encode(1000, 1.0, 2.0, -95.0, 0.0, 0.0, 0.0).pack(mav)
+    record = (123).to_bytes(8, "big") + packet
+    for cut in range(len(record)):
+        blob = record + record[:cut]
+        got = list(_records(blob))
+        assert [m.get_type() for m in got] == ["LOCAL_POSITION_NED"], cut
+    assert len(list(_records(record + record))) == 2
 
 
 # ------------------------------------------------------------------ damaged, empty (fast)

@@ -194,6 +194,8 @@ def _records(blob: bytes) -> Iterator:
         start = i + 8
         magic = blob[start]
         if magic == _V2:
+            if start + 10 > end:
+                return  # cut inside the header: the log ends here
             size = 12 + blob[start + 1] + (13 if blob[start + 2] & 1 else 0)
             msg_id = blob[start + 7] | blob[start + 8] << 8 | blob[start + 9] << 16
         elif magic == _V1:
