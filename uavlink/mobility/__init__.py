@@ -1,5 +1,5 @@
 """UE mobility scenarios, batched numpy with the random generator passed in; a fleet's start
-positions and separation filter (``fleet``).
+positions and separation filter (``fleet``); how a UAV flies to its setpoint (``uav_motion``).
 
 May import: ``config``, ``errors``.
 """
