@@ -28,26 +28,27 @@ from uavlink.policies.registry import make_baseline
 TARGET_100_MIN = 10.0  # "minutes, not hours"
 
 
-def timed(name: str, cfg: EnvConfig, episodes: int, seed: int, workers: int | None = None) -> tuple[float, float, float]:
-    """(wall s, CPU s, mean Mbps) of evaluating baseline ``name`` over ``episodes`` (the genie on
-    ``workers`` threads, its default when None)."""
+def timed(name: str, cfg: EnvConfig, episodes: int, seed: int,
+          workers: int | None = None) -> tuple[float, float, float, object]:
+    """(wall s, CPU s, mean Mbps, the policy) of evaluating baseline ``name`` over ``episodes`` (the
+    genie on ``workers`` threads, its default when None)."""
     policy = make_baseline(name, cfg)
     if workers is not None:
         policy.workers = workers
     wall, cpu = time.perf_counter(), time.process_time()
     result = evaluate_policy(policy, cfg, episodes, seed)
-    return time.perf_counter() - wall, time.process_time() - cpu, result.mean_rate_mbps
+    return time.perf_counter() - wall, time.process_time() - cpu, result.mean_rate_mbps, policy
 
 
 def measure(scenario: str, n_uavs: int, episodes: int, seed: int) -> dict:
     cfg = EnvConfig(scenario=scenario).replace(**{"radio.shadowing_model": "spatial", "n_uavs": n_uavs}).validate()
-    static_wall, static_cpu, _ = timed("static", cfg, episodes, seed)
-    serial_wall, serial_cpu, serial_mbps = timed("genie", cfg, episodes, seed, workers=1)
-    wall, cpu, mbps = timed("genie", cfg, episodes, seed)
+    static_wall, static_cpu, _, _ = timed("static", cfg, episodes, seed)
+    serial_wall, serial_cpu, serial_mbps, _ = timed("genie", cfg, episodes, seed, workers=1)
+    wall, cpu, mbps, genie = timed("genie", cfg, episodes, seed)
     if mbps != serial_mbps:
         raise AssertionError(f"the threaded plan flew {mbps} Mbps, the serial one {serial_mbps}")
     return {"scenario": scenario, "n_uavs": n_uavs, "episodes": episodes, "seed": seed,
-            "threads": make_baseline("genie", cfg).workers,
+            "threads": genie.workers,
             "genie_wall_s_per_episode": round(wall / episodes, 3), "genie_cpu_s_per_episode": round(cpu / episodes, 3),
             "genie_one_thread_wall_s_per_episode": round(serial_wall / episodes, 3),
             "genie_one_thread_cpu_s_per_episode": round(serial_cpu / episodes, 3),

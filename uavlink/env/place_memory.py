@@ -55,8 +55,7 @@ class PlaceMemory:
         self.half_width_m = float(half_width_m)
         self.n_side = max(1, math.ceil(2 * half_width_m / cell_m))
         n_cells = self.n_side * self.n_side
-        self._rows = np.arange(n_rows)
-        self._row_offset = self._rows * (n_cells + 1)  # flat index of a row's cell 0
+        self._row_offset = np.arange(n_rows) * (n_cells + 1)  # flat index of a row's cell 0
         # A cell's slot: its score (value + stale x frame seen; -inf: never sensed), the value sensed
         # and the frame, so one gather reads all three. One more cell per row than the grid has: the
         # neighbour beyond the edge, never sensed.
