@@ -14,6 +14,8 @@ from collections.abc import Callable
 from pathlib import Path
 
 from uavlink.evaluation import EvalResult, evaluate_policy, paired_ratio_ci
+from uavlink.evaluation.map_sensitivity import SCENARIOS as SENSITIVITY_SCENARIOS
+from uavlink.evaluation.map_sensitivity import sensitivity, sensitivity_table
 from uavlink.evaluation.place_map import draw_place_map, fly_place_map
 from uavlink.evaluation.tables import markdown_table, spatial_overrides, write_csv
 from uavlink.mobility import SCENARIOS
@@ -83,6 +85,8 @@ def map_sections(map_folder: Path, spatial_folder: Path, episodes: int, seed: in
                                         spatial_overrides(overrides).on(scenario))
         draw_place_map(fly_place_map(policy, cfg, seed), out / f"place_map_{scenario}.png")
         pictures += [f"![the map {scenario}'s policy built](place_map_{scenario}.png)", ""]
+    trained = [s for s in SENSITIVITY_SCENARIOS if s in {row[0] for row in body}]
+    by_channel = sensitivity(map_folder, spatial_folder, episodes, seed, trained, progress) if trained else None
     return [
         f"### A memory of place: map policies (`{map_folder}`) and the explore rule",
         "",
@@ -101,5 +105,16 @@ def map_sections(map_folder: Path, spatial_folder: Path, episodes: int, seed: in
         "visited, on the same scale, and the cell its memory ranks best.",
         "",
         *pictures,
+        *([] if by_channel is None else [
+            "#### How much a map is worth on which channel",
+            "",
+            "Each policy over static on the same episodes, with the shadowing's sigma and its UAV-end",
+            "decorrelation set by radio overrides (the map and spatial policies were trained at 8 dB and",
+            "50 m; `uavlink.evaluation.map_sensitivity`, also `python benchmarks/map_sensitivity.py`).",
+            "A short decorrelation puts a better spot near any other; a long one leaves little to find.",
+            "",
+            sensitivity_table(by_channel),
+            "",
+        ]),
         *sweep_sections,
     ]
