@@ -87,13 +87,15 @@ class PlaceMemory:
 
     def _cell(self, uav_xy_m: np.ndarray) -> np.ndarray:
         """Flat grid cells (rows,) of positions (rows, 2), clipped to the grid."""
-        ij = np.floor((uav_xy_m + self.half_width_m) / self.cell_m).astype(np.int64)
-        np.clip(ij, 0, self.n_side - 1, out=ij)
+        # truncation, then the clip, is floor's cell for every position (np.clip is slow on ints)
+        ij = ((uav_xy_m + self.half_width_m) / self.cell_m).astype(np.int64)
+        np.maximum(ij, 0, out=ij)
+        np.minimum(ij, self.n_side - 1, out=ij)
         return ij[:, 0] * self.n_side + ij[:, 1]
 
     def centre_m(self, cell: np.ndarray) -> np.ndarray:
         """Centres (rows, 2) of flat cell indices (rows,)."""
-        return self._centres_m[cell]
+        return self._centres_m.take(cell, axis=0)
 
     def update(self, uav_xy_m: np.ndarray, sinr_db: np.ndarray) -> dict[str, np.ndarray]:
         """Write this frame's sensed value at each row's cell; the memory's quantities for the
@@ -105,9 +107,10 @@ class PlaceMemory:
         flat = self._row_offset + cell
         slots = self._slots.reshape(-1, 3)
         new_score = now + STALE_BITS_PER_FRAME * t
-        slots[flat, SCORE] = new_score
-        slots[flat, VALUE] = now
-        slots[flat, SEEN] = t
+        element = self._slots.reshape(-1)  # one slot's three numbers are elements 3 flat + 0, 1, 2
+        element[3 * flat + SCORE] = new_score
+        element[3 * flat + VALUE] = now
+        element[3 * flat + SEEN] = t
         won = new_score >= self.best_score
         lost = (cell == self.best) & (new_score < self.best_score - HYSTERESIS_BITS)  # the best read less
         self.best = np.where(won, cell, self.best)
@@ -118,11 +121,12 @@ class PlaceMemory:
             self.best[rows] = best
             self.best_score[rows] = self._slots[rows, best, SCORE]
         self.frames = t + 1
-        best = slots[self._row_offset + self.best]  # (rows, 3)
-        nbr = slots[self._row_offset[:, None] + self._nbr_cell[cell]]  # (rows, 4 neighbours, 3)
+        # take() rather than fancy indexing: the same gather at a fifth of the cost on these sizes
+        best = slots.take(self._row_offset + self.best, axis=0)  # (rows, 3)
+        nbr = slots.take(self._row_offset[:, None] + self._nbr_cell.take(cell, axis=0), axis=0)  # (rows, 4, 3)
         known = nbr[..., SCORE] > -np.inf
         return {
-            "place_best_offset_m": self._centres_m[self.best] - uav_xy_m,
+            "place_best_offset_m": self._centres_m.take(self.best, axis=0) - uav_xy_m,
             "place_best_gain_bits": best[:, VALUE] - now,
             "place_best_age_frames": t - best[:, SEEN],
             "place_frames": np.full(len(cell), float(self.frames)),
