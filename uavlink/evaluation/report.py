@@ -130,7 +130,7 @@ def write_results(policy_folder: Path, out: Path, markdown: Path, episodes: int,
         spatial = spatial_sections(policy_folder, spatial_folder, rows, episodes, seed, overrides, out,
                                    sweep_sections(rel, "spatial"), progress)
     if map_folder is not None and spatial_folder is not None:
-        spatial += map_sections(map_folder, spatial_folder, episodes, seed, overrides, out,
+        spatial += map_sections(map_folder, spatial_folder, episodes, seed, overrides, out, rel,
                                 sweep_sections(rel, "map"), progress)
     fleet = []
     if fleet_folder is not None and spatial_folder is not None:

@@ -74,8 +74,10 @@ def map_table(map_folder: Path, spatial_folder: Path, episodes: int, seed: int, 
 
 
 def map_sections(map_folder: Path, spatial_folder: Path, episodes: int, seed: int, overrides: EnvOverrides,
-                 out: Path, sweep_sections: list[str], progress: Callable[[str], None] = lambda _: None) -> list[str]:
-    """Evaluate, write ``map.csv`` into ``out`` and return the Markdown of the part."""
+                 out: Path, rel: Path, sweep_sections: list[str],
+                 progress: Callable[[str], None] = lambda _: None) -> list[str]:
+    """Evaluate, write ``map.csv`` and the pictures into ``out`` and return the Markdown of the part,
+    which links the pictures as ``rel/<file>`` (``out`` seen from the Markdown's folder)."""
     header, body = map_table(map_folder, spatial_folder, episodes, seed, overrides, progress)
     write_csv(out / "map.csv", header, body)
     pictures = []
@@ -84,7 +86,7 @@ def map_sections(map_folder: Path, spatial_folder: Path, episodes: int, seed: in
         [(policy, cfg)] = load_with_env([policy_for_scenario(map_folder, scenario)],
                                         spatial_overrides(overrides).on(scenario))
         draw_place_map(fly_place_map(policy, cfg, seed), out / f"place_map_{scenario}.png")
-        pictures += [f"![the map {scenario}'s policy built](place_map_{scenario}.png)", ""]
+        pictures += [f"![the map {scenario}'s policy built]({rel / f'place_map_{scenario}.png'})", ""]
     trained = [s for s in SENSITIVITY_SCENARIOS if s in {row[0] for row in body}]
     by_channel = sensitivity(map_folder, spatial_folder, episodes, seed, trained, progress) if trained else None
     return [
