@@ -28,11 +28,14 @@ SCENARIOS = ("no_move", "circular")
 
 def sensitivity(map_folder: Path, spatial_folder: Path, episodes: int, seed: int,
                 scenarios: tuple[str, ...] | list[str] = SCENARIOS,
-                progress: Callable[[str], None] = lambda _: None) -> dict:
-    """One row per (scenario, sigma, decorrelation): static's Mbps and each policy's over static's."""
+                progress: Callable[[str], None] = lambda _: None, base: EnvOverrides | None = None) -> dict:
+    """One row per (scenario, sigma, decorrelation): static's Mbps and each policy's over static's;
+    ``base`` is what else the command line overrides (the channel's two settings win)."""
+    base = base or EnvOverrides()
     rows = []
     for scenario, sigma_db, decorrelation_m in itertools.product(scenarios, SIGMAS_DB, UAV_DECORRELATIONS_M):
-        overrides = spatial_overrides(EnvOverrides(scenario, None, {
+        overrides = spatial_overrides(EnvOverrides(scenario, base.aoa_noise_deg, {
+            **base.settings,
             "radio.shadowing_std_db": sigma_db, "radio.shadowing_uav_decorrelation_m": decorrelation_m}))
         specs = {"static": "static", "genie": "genie", "explore": "explore",
                  "map": policy_for_scenario(map_folder, scenario),

@@ -88,7 +88,8 @@ def map_sections(map_folder: Path, spatial_folder: Path, episodes: int, seed: in
         draw_place_map(fly_place_map(policy, cfg, seed), out / f"place_map_{scenario}.png")
         pictures += [f"![the map {scenario}'s policy built]({rel / f'place_map_{scenario}.png'})", ""]
     trained = [s for s in SENSITIVITY_SCENARIOS if s in {row[0] for row in body}]
-    by_channel = sensitivity(map_folder, spatial_folder, episodes, seed, trained, progress) if trained else None
+    by_channel = sensitivity(map_folder, spatial_folder, episodes, seed, trained, progress,
+                             overrides) if trained else None
     return [
         f"### A memory of place: map policies (`{map_folder}`) and the explore rule",
         "",
