@@ -435,6 +435,18 @@ def test_shipped_record_rebuilds_the_results_section_without_runs(tmp_path: Path
                                                              "sweep_tiny4_throughput.png"]
     assert sections["runs"] == sections["record"]
     assert "| straight | 2/2 |" in sections["record"] and "(results/sweep_tiny4_throughput.png)" in sections["record"]
+    assert f"in `{shipped}/` (the single-policy table above) are each scenario's median seed." in sections["runs"]
+
+    # a shipped policy chosen from another run (its seeds' figures differ): the section says which
+    from uavlink.policies.manifest import read_zip_manifest, write_zip_manifest
+
+    scenario = spec.scenarios[0]
+    manifest = read_zip_manifest(shipped / f"{scenario}.zip")
+    manifest["selection"]["seeds_mbps"] = {k: v + 0.01 for k, v in manifest["selection"]["seeds_mbps"].items()}
+    write_zip_manifest(shipped / f"{scenario}.zip", manifest)
+    text = results_section(spec, sweep_dir, tmp_path / "assets_moved", Path("results"), shipped)
+    assert f"not this run's median seeds for {scenario}: they were chosen from an earlier run" in text
+    assert "; elsewhere they are." in text
 
     with pytest.raises(UserError, match="not finished"):
         finished_rows(changed, tmp_path / "gone", record)

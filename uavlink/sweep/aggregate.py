@@ -245,13 +245,39 @@ def results_section(spec: SweepSpec, sweep_dir: Path, assets: Path, link_prefix:
         "",
         f"`uavlink sweep` of `{spec.name}` ({len(spec.seeds)} seeds per scenario, {first.episodes:,} "
         f"training episodes each, evaluation on {spec.eval['episodes']} episodes, seed {spec.eval['seed']}). "
-        "PPO is the mean over training seeds ± the 95 % Student-t interval across seeds. The policies "
-        f"in `{shipped_to}/` (the single-policy table above) are each scenario's median seed.",
+        "PPO is the mean over training seeds ± the 95 % Student-t interval across seeds. "
+        + shipped_sentence(rows, spec, shipped_to),
         "",
         markdown_table(header, body),
         "",
         *figures,
     ])
+
+
+def shipped_sentence(rows: list[SettingRow], spec: SweepSpec, shipped_to: Path) -> str:
+    """Which shipped policies are this run's median seeds. A shipped policy's manifest keeps the
+    per-seed figures of the run it was chosen from; where they are not this run's (the code moved
+    the figures since, and the policies were not re-shipped), the sentence says so."""
+    from uavlink.policies.manifest import PolicyFileError, read_zip_manifest
+
+    considered, earlier = 0, []
+    for row in rows:
+        try:
+            selection = read_zip_manifest(shipped_to / f"{row.scenario}.zip").get("selection", {})
+        except PolicyFileError:
+            continue  # nothing shipped for this scenario
+        considered += 1
+        shipped = selection.get("seeds_mbps", {}) if selection.get("sweep") == spec.name else {}
+        here = {str(r["seed"]): r["evaluation"]["ppo"]["mean_rate_mbps"] for r in row.results}
+        if shipped.keys() != here.keys() or any(abs(shipped[k] - here[k]) > 1e-6 for k in here):
+            earlier.append(row.scenario)
+    where = f"The policies in `{shipped_to}/` (the single-policy table above) are"
+    if not earlier:
+        return f"{where} each scenario's median seed."
+    which = "" if len(earlier) == considered else f" for {', '.join(earlier)}"
+    return (f"{where} not this run's median seeds{which}: they were chosen from an earlier run of the "
+            "sweep whose per-seed throughputs differ from this run's (each manifest's `selection` keeps "
+            f"them){'; elsewhere they are' if which else ''}.")
 
 
 def _label(row: SettingRow, grid_keys: list[str]) -> str:
