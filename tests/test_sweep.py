@@ -38,7 +38,7 @@ from uavlink.sweep.aggregate import (  # noqa: E402
 )
 from uavlink.sweep.jobs import figures  # noqa: E402
 from uavlink.sweep.runner import run_sweep  # noqa: E402
-from uavlink.sweep.spec import KEY_VERSION, Job, load_spec, parse_spec  # noqa: E402
+from uavlink.sweep.spec import KEY_VERSION, POLICY_FILE_FIELDS, Job, load_spec, parse_spec  # noqa: E402
 
 TINY = """
 name = "tiny4"
@@ -319,7 +319,8 @@ def test_job_keys_are_versioned_hashes_of_the_full_configs() -> None:
     job = parse_spec({"name": "a", "scenarios": ["straight"], "seeds": [0]}).jobs()[0]
     assert job.settings()["key_version"] == KEY_VERSION
     full = job.train_config().to_dict()
-    del full["warm_start"]["leader_policy"]  # a field added later, out of the key at its default
+    for later in ("leader_policy", "policy"):  # fields added later, out of the key at their defaults
+        del full["warm_start"][later]
     assert job.settings()["train"] == full  # nothing else left out, nothing bent
     assert Job.from_dict(json.loads(json.dumps(job.to_dict()))).key == job.key
     # Reordering keys changes nothing; changing any setting changes the key.
@@ -346,7 +347,7 @@ def _changed_train_fields(tc: TrainConfig) -> list[tuple[str, object]]:
     out = []
     for f, _ in config_fields(TrainConfig):
         if f.name == "warm_start":
-            out += [(f"warm_start.{w.name}", "policies/spatial/no_move.zip" if w.name == "leader_policy"  # a file
+            out += [(f"warm_start.{w.name}", "policies/spatial/no_move.zip" if w.name in POLICY_FILE_FIELDS  # a file
                      else other[type(getattr(tc.warm_start, w.name))](getattr(tc.warm_start, w.name)))
                     for w, _ in config_fields(WarmStartConfig)]
         else:
@@ -384,13 +385,16 @@ def test_a_new_warm_start_field_at_its_default_keeps_the_old_keys() -> None:
     assert lead.key != led.key
 
 
-def test_a_lead_jobs_key_names_its_leaders_bytes(tmp_path: Path, monkeypatch) -> None:
-    """The lead teacher's leader is a file: the key hashes its bytes, so a re-shipped leader makes
-    new jobs (a sweep record's figures of the old ones no longer count), and a job carries the hash
-    to its worker unchanged. A leader that is not there fails at load time, naming the path."""
+@pytest.mark.parametrize("warm_start", [{"teacher": "lead", "leader_policy": "leader.zip"}, {"policy": "leader.zip"}],
+                         ids=["leader_policy", "start_policy"])
+def test_a_jobs_key_names_its_warm_start_files_bytes(tmp_path: Path, monkeypatch, warm_start: dict) -> None:
+    """The lead teacher's leader and a start policy are files: the key hashes their bytes, so a
+    re-shipped file makes new jobs (a sweep record's figures of the old ones no longer count), and a
+    job carries the hash to its worker unchanged. A file that is not there fails at load time,
+    naming the path."""
     monkeypatch.chdir(tmp_path)
     leader = tmp_path / "leader.zip"
-    data = {"seeds": [0], "env": {"n_uavs": 2}, "train": {"warm_start": {"teacher": "lead", "leader_policy": "leader.zip"}}}
+    data = {"seeds": [0], "env": {"n_uavs": 2}, "train": {"warm_start": warm_start}}
 
     def key() -> str:
         return parse_spec(data).jobs()[0].key
@@ -405,6 +409,16 @@ def test_a_lead_jobs_key_names_its_leaders_bytes(tmp_path: Path, monkeypatch) ->
     leader.unlink()
     with pytest.raises(UserError, match="leader.zip: cannot read it"):
         key()
+
+
+def test_a_jobs_json_of_before_the_start_policy_keeps_its_leaders_hash() -> None:
+    """jobs.json written before warm_start.policy kept the leader's hash as ``leader_sha256``."""
+    data = {"seeds": [0], "env": {"n_uavs": 2}, "train": {"warm_start": {
+        "teacher": "lead", "leader_policy": "policies/spatial/no_move.zip"}}}
+    job = parse_spec(data).jobs()[0]
+    old = {k: v for k, v in job.to_dict().items() if k != "file_sha256"}
+    old["leader_sha256"] = job.file_sha256["leader_policy"]
+    assert Job.from_dict(old).key == job.key
 
 
 @pytest.mark.slow

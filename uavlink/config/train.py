@@ -30,9 +30,11 @@ def config_name(path: str) -> str:
 
 @dataclass(frozen=True)
 class WarmStartConfig:
-    """Behaviour-cloning warm start (ours; uavlink/learn/imitation.py): the actor is first fitted to a rule's
-    actions over ``episodes`` of its own flying, its exploration std set to exp(``log_std``); PPO then
-    fits only the critic for ``critic_rollouts`` rollouts (the actor frozen) and trains as usual."""
+    """Warm starts (ours). Behaviour cloning (uavlink/learn/imitation.py): the actor is first fitted to
+    a rule's actions over ``episodes`` of its own flying. Or ``policy``: every weight comes from a
+    policy file whose observation lacks some of this env's fields (uavlink/learn/policy_transfer.py).
+    Either way the exploration std is set to exp(``log_std``) and PPO fits only the critic for
+    ``critic_rollouts`` rollouts (the actor frozen) before it trains as usual."""
 
     teacher: str = setting("", "first fit the actor to this rule's actions (behaviour cloning), then run "
                            "PPO (ours; e.g. aoa, as the shipped policies; default: off, the paper's PPO "
@@ -40,7 +42,7 @@ class WarmStartConfig:
     episodes: int = setting(256, "episodes the rule flies to make the cloning data", low=1)
     epochs: int | None = setting(None, "passes of the actor over the cloning data (default 20, "
                                  "imitation.CLONE_EPOCHS)", low=1, metavar="N")
-    log_std: float = setting(-1.0, "exploration log std PPO starts from after the cloning")
+    log_std: float = setting(-1.0, "exploration log std PPO starts from after the warm start")
     critic_rollouts: int = setting(10, "PPO updates with the actor frozen, fitting the critic", low=0)
     shadow_gate_db: float | None = setting(
         None, "aoa teacher only: hover when the newest frame's mean SINR beats the older frames' by "
@@ -55,12 +57,20 @@ class WarmStartConfig:
     leader_policy: str = setting(
         "", "lead teacher only: the single-UAV policy file (.zip) the leading UAV flies (e.g. "
         "policies/spatial/no_move.zip; default: the single-UAV aoa rule)", metavar="FILE")
+    policy: str = setting(
+        "", "instead of a teacher, start from this policy file's weights: one whose observation lacks "
+        "some of this env's fields (e.g. policies/spatial/hotspot.zip for a map policy); its inputs keep "
+        "their weights and the new ones start at zero, so PPO starts from its actions exactly "
+        "(uavlink/learn/policy_transfer.py; ours)", flag="--start-from", metavar="FILE")
 
     def validate(self, name: Namer = config_name) -> WarmStartConfig:
         check_fields(self, lambda path: name(f"warm_start.{path}"))
         for knob in ("shadow_gate_db", "sinr_span_db", "shadow_estimator_episodes"):
             if getattr(self, knob) is not None and self.teacher != "aoa":
                 raise ConfigError(f"{name('warm_start.' + knob)} needs {name('warm_start.teacher')} aoa")
+        if self.policy and self.teacher:
+            raise ConfigError(f"{name('warm_start.policy')} starts from a policy's weights: it takes no "
+                              f"{name('warm_start.teacher')} (leave it empty)")
         if self.leader_policy and self.teacher != "lead":
             raise ConfigError(f"{name('warm_start.leader_policy')} needs {name('warm_start.teacher')} lead")
         if self.shadow_estimator_episodes is not None and self.shadow_gate_db is None:

@@ -37,10 +37,13 @@ def _share(results: dict[str, EvalResult], a: str) -> str:
 
 
 def _teacher(map_policy) -> str:
-    """The rule the map policy's warm start copied, from its manifest (aoa when unknown)."""
+    """What the map policy's warm start copied, from its manifest: a rule, or ``spatial`` where it
+    started from a spatial policy's weights (aoa when unknown)."""
     manifest = getattr(map_policy, "manifest", None) or {}
-    teacher = manifest.get("training", {}).get("warm_start", {}).get("teacher", "")
-    return teacher if teacher in ("explore", "aoa") else "aoa"
+    warm = (manifest.get("training") or {}).get("warm_start") or {}
+    if warm.get("policy"):
+        return "spatial"
+    return warm.get("teacher") if warm.get("teacher") in ("explore", "aoa") else "aoa"
 
 
 def map_table(map_folder: Path, spatial_folder: Path, episodes: int, seed: int, overrides: EnvOverrides,

@@ -127,12 +127,17 @@ def _without_distribution_checks() -> Iterator[None]:
 
 
 def _warm_start(sb3_policy: Any, cfg: EnvConfig, tc: TrainConfig) -> dict[str, Any]:
-    """Clone the teacher TrainConfig names into the actor (uavlink/learn/imitation.py); the report."""
+    """Clone the teacher TrainConfig names into the actor (uavlink/learn/imitation.py), or start from
+    the policy it names (uavlink/learn/policy_transfer.py); the report."""
     from uavlink.learn.imitation import CLONE_EPOCHS, warm_start
     from uavlink.learn.teachers import make_teacher
 
-    estimator = None
     ws = tc.warm_start
+    if ws.policy:
+        from uavlink.learn.policy_transfer import start_from_policy
+
+        return start_from_policy(sb3_policy, cfg, ws.policy, ws.log_std)
+    estimator = None
     if ws.shadow_estimator_episodes is not None:
         from uavlink.learn.shadow_estimation import fit_shadow_estimator
 
@@ -163,7 +168,7 @@ def train(cfg: EnvConfig, tc: TrainConfig, out: Path, run_dir: Path | None = Non
         model = PPO.load(resume, env=model.get_env(), device="cpu", tensorboard_log=str(run_dir) if run_dir else None)
     start = time.perf_counter()  # the wall time counts the warm start too
     cloned = None
-    if tc.warm_start.teacher and resume is None:
+    if (tc.warm_start.teacher or tc.warm_start.policy) and resume is None:
         cloned = _warm_start(model.policy, training_env_config(cfg, tc), tc)
     if run_dir is None:
         # Without a run folder SB3 would make an empty one under the temp dir for every run.

@@ -46,9 +46,11 @@ def run_job(job_data: dict[str, Any]) -> dict[str, Any]:
     from uavlink.policies.manifest import read_zip_manifest
 
     cfg, tc = job.env_config(), job.train_config()
-    leader = tc.warm_start.leader_policy
-    if leader and hashlib.sha256(Path(leader).read_bytes()).hexdigest() != job.leader_sha256:
-        raise RuntimeError(f"job {job.key}: {leader} on this worker is not the leader policy the job was made with")
+    for name, digest in job.file_sha256.items():
+        path = getattr(tc.warm_start, name)
+        if hashlib.sha256(Path(path).read_bytes()).hexdigest() != digest:
+            raise RuntimeError(f"job {job.key}: {path} on this worker is not the warm_start.{name} file the "
+                               "job was made with")
     with tempfile.TemporaryDirectory(prefix=f"uavlink-{job.key}-") as tmp:
         path = Path(tmp) / "policy.zip"
         t0 = time.perf_counter()

@@ -63,7 +63,10 @@ NEUTRAL_ENV_DEFAULTS: dict[str, Any] = {"n_uavs": 1, "fleet_reuse": "full", "uav
                                         "fleet_start_radius_m": 100.0, "place_cell_m": 0.0,
                                         "uav_motion": "instant"}
 # The same for the training's (nested) warm-start fields.
-NEUTRAL_WARM_START_DEFAULTS: dict[str, Any] = {"leader_policy": ""}
+NEUTRAL_WARM_START_DEFAULTS: dict[str, Any] = {"leader_policy": "", "policy": ""}
+# Warm-start fields that name a policy file: a job's key holds the file's bytes (its sha256), not only
+# its path, so a re-shipped file makes the job (and a sweep record's figures of it) another one.
+POLICY_FILE_FIELDS = ("leader_policy", "policy")
 TOP_KEYS = ("name", "description", "scenarios", "seeds", "train", "scenario_train", "env", "eval", "grid")
 EVAL_DEFAULTS: dict[str, int] = {"episodes": 100, "seed": 0}
 BASELINE_COLUMNS = ("static", "oracle", "aoa")
@@ -92,17 +95,18 @@ class Job:
     env: EnvConfig
     train: TrainConfig
     eval: dict[str, int]
-    leader_sha256: str = ""  # the lead teacher's leader policy file, hashed where the job is made
+    file_sha256: dict[str, str] = field(default_factory=dict)  # POLICY_FILE_FIELDS' files, hashed where the job is made
     key: str = field(default="", init=False)
 
     def __post_init__(self) -> None:
-        leader = self.train.warm_start.leader_policy
-        if leader and not self.leader_sha256:
-            try:
-                self.leader_sha256 = hashlib.sha256(Path(leader).read_bytes()).hexdigest()
-            except OSError as exc:
-                raise SweepSpecError(f"{self.sweep}: warm_start.leader_policy {leader}: cannot read it "
-                                     f"({exc.strerror}); paths are relative to where the sweep runs") from None
+        for name in POLICY_FILE_FIELDS:
+            path = getattr(self.train.warm_start, name)
+            if path and name not in self.file_sha256:
+                try:
+                    self.file_sha256[name] = hashlib.sha256(Path(path).read_bytes()).hexdigest()
+                except OSError as exc:
+                    raise SweepSpecError(f"{self.sweep}: warm_start.{name} {path}: cannot read it "
+                                         f"({exc.strerror}); paths are relative to where the sweep runs") from None
         self.key = hashlib.sha256(json.dumps(self.settings(), sort_keys=True).encode()).hexdigest()[:12]
 
     @property
@@ -128,23 +132,22 @@ class Job:
         train = self.train.to_dict()
         train["warm_start"] = {k: v for k, v in train["warm_start"].items()
                                if k not in NEUTRAL_WARM_START_DEFAULTS or v != NEUTRAL_WARM_START_DEFAULTS[k]}
-        if self.leader_sha256:
-            # The leader's bytes, not only its path: a re-shipped leader makes the job (and a sweep
-            # record's figures of it) another one.
-            train["warm_start"]["leader_policy_sha256"] = self.leader_sha256
+        for name, digest in self.file_sha256.items():
+            train["warm_start"][f"{name}_sha256"] = digest
         return {"key_version": KEY_VERSION, "env": env, "train": train,
                 "eval": {**self.eval, "policies": ["ppo", *BASELINE_COLUMNS]}}
 
     def to_dict(self) -> dict[str, Any]:
         return {"sweep": self.sweep, "scenario": self.scenario, "seed": self.seed, "point": self.point,
                 "env": self.env.to_dict(), "train": self.train.to_dict(), "eval": self.eval,
-                "leader_sha256": self.leader_sha256, "key": self.key}
+                "file_sha256": self.file_sha256, "key": self.key}
 
     @classmethod
     def from_dict(cls, data: dict[str, Any]) -> Job:
         job = cls(data["sweep"], data["scenario"], data["seed"], dict(data["point"]),
                   EnvConfig.from_dict(data["env"]), TrainConfig.from_dict(data["train"]), dict(data["eval"]),
-                  data.get("leader_sha256", ""))
+                  dict(data.get("file_sha256") or  # jobs.json before the start policy: the leader's only
+                       ({"leader_policy": data["leader_sha256"]} if data.get("leader_sha256") else {})))
         if data.get("key", job.key) != job.key:
             raise ValueError(f"job {data['key']}: settings hash to {job.key} here (another uavlink version?)")
         return job

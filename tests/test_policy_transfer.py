@@ -1,0 +1,70 @@
+"""A policy grown from another (uavlink/learn/policy_transfer.py): a map policy started from a shipped
+spatial policy acts and values as that policy does, whatever its memory of place reads."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from uavlink.config import EnvConfig, TrainConfig
+from uavlink.config.fields import with_changes
+from uavlink.env.core import BatchedUavEnv
+from uavlink.env.observation import ObservationLayout
+from uavlink.errors import ConfigError, UserError
+
+ROOT = Path(__file__).resolve().parents[1]
+SPATIAL_HOTSPOT = ROOT / "policies" / "spatial" / "hotspot.zip"
+MAP_ENV = EnvConfig(scenario="hotspot", place_cell_m=12.0).replace(**{"radio.shadowing_model": "spatial"})
+
+
+def _ppo(cfg: EnvConfig):
+    from uavlink.learn.training import make_model
+
+    return make_model(cfg, TrainConfig(n_envs=2, n_steps=128, batch_size=64), None)
+
+
+@pytest.mark.slow  # builds PPO and loads a policy (torch)
+def test_a_map_policy_started_from_a_spatial_one_acts_and_values_as_it_does() -> None:
+    import torch
+    from stable_baselines3 import PPO
+
+    from uavlink.learn.policy_transfer import start_from_policy
+
+    model = _ppo(MAP_ENV)
+    report = start_from_policy(model.policy, MAP_ENV, SPATIAL_HOTSPOT)
+    source = PPO.load(SPATIAL_HOTSPOT, device="cpu").policy
+    target, old = ObservationLayout.for_config(MAP_ENV), ObservationLayout.for_config(EnvConfig())
+    assert report["inputs_kept"] == old.size and report["inputs_new"] == target.size - old.size > 0
+
+    env = BatchedUavEnv(MAP_ENV, n_envs=16, seed=3)
+    obs = env.reset()
+    rng = np.random.default_rng(0)
+    for _ in range(40):  # the memory fills: its fields read far from zero
+        obs = env.step(rng.uniform(-1, 1, (16, 2))).observation
+    names = target.feature_names()
+    old_obs = obs[:, [names.index(n) for n in old.feature_names()]]
+    assert np.abs(obs[:, [i for i, n in enumerate(names) if "place" in n]]).max() > 0.1
+    with torch.no_grad():
+        actions_new, values_new, _ = model.policy(torch.as_tensor(obs), deterministic=True)
+        actions_old, values_old, _ = source(torch.as_tensor(old_obs), deterministic=True)
+    np.testing.assert_allclose(actions_new.numpy(), actions_old.numpy(), rtol=1e-5, atol=1e-6)
+    np.testing.assert_allclose(values_new.numpy(), values_old.numpy(), rtol=1e-5, atol=1e-5)
+    assert torch.equal(model.policy.log_std, source.log_std)  # no log_std given: the file's
+
+
+@pytest.mark.slow
+def test_a_start_policy_of_another_observation_is_refused_in_one_line() -> None:
+    from uavlink.learn.policy_transfer import start_from_policy
+
+    fleet = ROOT / "policies" / "fleet" / "hotspot.zip"  # two UAVs' observation: not this env's minus fields
+    with pytest.raises(UserError, match=r"warm_start.policy .*fleet/hotspot.zip: its observation") as info:
+        start_from_policy(_ppo(MAP_ENV).policy, MAP_ENV, fleet)
+    assert "\n" not in str(info.value)
+
+
+def test_a_start_policy_takes_no_teacher() -> None:
+    with pytest.raises(ConfigError, match="warm_start.policy .* takes no train.warm_start.teacher"):
+        with_changes(TrainConfig(), {"warm_start.policy": str(SPATIAL_HOTSPOT),
+                                     "warm_start.teacher": "aoa"}).validate(MAP_ENV)
