@@ -68,3 +68,18 @@ def test_a_start_policy_takes_no_teacher() -> None:
     with pytest.raises(ConfigError, match="warm_start.policy .* takes no train.warm_start.teacher"):
         with_changes(TrainConfig(), {"warm_start.policy": str(SPATIAL_HOTSPOT),
                                      "warm_start.teacher": "aoa"}).validate(MAP_ENV)
+
+
+def test_the_map_report_compares_a_started_policy_with_the_spatial_one_it_started_from() -> None:
+    """The map table's "map vs its teacher" column: a start from a policy file is against the spatial
+    policy, a cloned rule against that rule, an unknown warm start against aoa."""
+    from types import SimpleNamespace
+
+    from uavlink.evaluation.report_map import _teacher
+
+    def policy(warm_start: dict | None) -> SimpleNamespace:
+        return SimpleNamespace(manifest={"training": {"warm_start": warm_start}})
+
+    assert _teacher(policy({"policy": str(SPATIAL_HOTSPOT), "policy_sha256": "0" * 64})) == "spatial"
+    assert _teacher(policy({"teacher": "explore"})) == "explore"
+    assert _teacher(policy(None)) == "aoa"
