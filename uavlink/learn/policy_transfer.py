@@ -53,7 +53,7 @@ def start_from_policy(sb3_policy: Any, cfg: EnvConfig, path: str | Path, log_std
     for name, value in params["policy"].items():
         if name not in target:
             raise UserError(f"warm_start.policy {path}: its network has {name}, PPO's here does not")
-        if name in FIRST_LAYERS:
+        if name in FIRST_LAYERS and value.shape == (target[name].shape[0], len(columns)):
             grown = torch.zeros_like(target[name])
             grown[:, columns] = value
             value = grown
