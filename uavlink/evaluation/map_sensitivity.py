@@ -16,7 +16,7 @@ from collections.abc import Callable
 from pathlib import Path
 
 from uavlink.evaluation.core import evaluate_policy, paired_ratio_ci
-from uavlink.evaluation.tables import spatial_overrides
+from uavlink.evaluation.tables import gain_cell, spatial_overrides
 from uavlink.policies.contract import EnvOverrides, load_with_env
 from uavlink.policies.loader import policy_for_scenario
 
@@ -62,8 +62,7 @@ def sensitivity_table(report: dict) -> str:
     lines = ["| scenario | sigma (dB) | UAV-end decorrelation (m) | static Mbps | " + " | ".join(POLICIES) + " |",
              "|---|---:|---:|---:|" + "---|" * len(POLICIES)]
     for r in report["rows"]:
-        cells = [f"{100 * (r[p]['over_static'] - 1):+.1f} % [{100 * (r[p]['ci95'][0] - 1):+.1f}, "
-                 f"{100 * (r[p]['ci95'][1] - 1):+.1f}]" for p in POLICIES]
+        cells = [gain_cell(r[p]["over_static"], *r[p]["ci95"]) for p in POLICIES]
         lines.append(f"| {r['scenario']} | {r['shadowing_std_db']:g} | {r['uav_decorrelation_m']:g} | "
                      f"{r['static_mbps']:.2f} | " + " | ".join(cells) + " |")
     return "\n".join(lines)

@@ -17,7 +17,13 @@ from uavlink.evaluation import EvalResult, evaluate_policy, paired_ratio_ci
 from uavlink.evaluation.map_sensitivity import SCENARIOS as SENSITIVITY_SCENARIOS
 from uavlink.evaluation.map_sensitivity import sensitivity, sensitivity_table
 from uavlink.evaluation.place_map import draw_place_map, fly_place_map
-from uavlink.evaluation.tables import markdown_table, spatial_overrides, write_csv
+from uavlink.evaluation.tables import (
+    gain_cell,
+    markdown_table,
+    share_cell,
+    spatial_overrides,
+    write_csv,
+)
 from uavlink.mobility import SCENARIOS
 from uavlink.policies.contract import EnvOverrides, load_with_env
 from uavlink.policies.loader import policy_for_scenario
@@ -27,13 +33,11 @@ COLUMNS = ("map", "spatial", "explore", "aoa", "static", "genie")
 
 
 def _ratio(results: dict[str, EvalResult], a: str, b: str) -> str:
-    ratio, lo, hi = paired_ratio_ci(results[a].episode_rate_mbps, results[b].episode_rate_mbps)
-    return f"{100 * (ratio - 1):+.1f} % [{100 * (lo - 1):+.1f}, {100 * (hi - 1):+.1f}]"
+    return gain_cell(*paired_ratio_ci(results[a].episode_rate_mbps, results[b].episode_rate_mbps))
 
 
 def _share(results: dict[str, EvalResult], a: str) -> str:
-    share, lo, hi = paired_ratio_ci(results[a].episode_rate_mbps, results["genie"].episode_rate_mbps)
-    return f"{100 * share:.1f} % [{100 * lo:.1f}, {100 * hi:.1f}]"
+    return share_cell(*paired_ratio_ci(results[a].episode_rate_mbps, results["genie"].episode_rate_mbps))
 
 
 def _teacher(map_policy) -> str:

@@ -17,6 +17,7 @@ from uavlink.evaluation.core import paired_ratio_ci
 from uavlink.evaluation.tables import (
     ScenarioRow,
     evaluate_scenarios,
+    gain_cell,
     markdown_table,
     spatial_overrides,
     table_one,
@@ -27,8 +28,7 @@ from uavlink.policies.contract import EnvOverrides
 
 
 def _vs(row: ScenarioRow, other: str) -> str:
-    ratio, lo, hi = paired_ratio_ci(row.results["ppo"].episode_rate_mbps, row.results[other].episode_rate_mbps)
-    return f"{100 * (ratio - 1):+.1f} % [{100 * (lo - 1):+.1f}, {100 * (hi - 1):+.1f}]"
+    return gain_cell(*paired_ratio_ci(row.results["ppo"].episode_rate_mbps, row.results[other].episode_rate_mbps))
 
 
 def transfer_table(ar1: list[ScenarioRow], transferred: list[ScenarioRow],

@@ -84,11 +84,11 @@ def table_one(rows: list[ScenarioRow]) -> tuple[list[str], list[list[str]]]:
         body.append([
             row.scenario, cell("ppo"), cell("static"), cell("oracle"), cell("aoa"),
             *([cell("genie")] if has_genie else []), *([cell("ppo_mixed")] if has_mixed else []),
-            f"{100 * (gain - 1):+.1f} % [{100 * (glo - 1):+.1f}, {100 * (ghi - 1):+.1f}]",
+            gain_cell(gain, glo, ghi),
             f"{100 * (paper_ppo / paper_static - 1):+.1f} %",
-            f"{100 * share:.1f} % [{100 * slo:.1f}, {100 * shi:.1f}]",
+            share_cell(share, slo, shi),
             *([_share(ppo, r["genie"].episode_rate_mbps)] if has_genie else []),
-            f"{100 * (vs_aoa - 1):+.1f} % [{100 * (alo - 1):+.1f}, {100 * (ahi - 1):+.1f}]",
+            gain_cell(vs_aoa, alo, ahi),
             " / ".join(f"{r[k].mean_fair_rate:.2f}" for k in ("ppo", "static", "oracle", "aoa")),
             f"{target:.2f} ({rule})",
             "yes" if r["ppo"].mean_rate_mbps >= target else "no",
@@ -96,9 +96,18 @@ def table_one(rows: list[ScenarioRow]) -> tuple[list[str], list[list[str]]]:
     return header, body
 
 
+def gain_cell(ratio: float, lo: float, hi: float) -> str:
+    """A ratio with its interval as a gain: 1.021 [1.015, 1.027] -> "+2.1 % [+1.5, +2.7]"."""
+    return f"{100 * (ratio - 1):+.1f} % [{100 * (lo - 1):+.1f}, {100 * (hi - 1):+.1f}]"
+
+
+def share_cell(ratio: float, lo: float, hi: float) -> str:
+    """A ratio with its interval as a share: 0.724 [0.702, 0.746] -> "72.4 % [70.2, 74.6]"."""
+    return f"{100 * ratio:.1f} % [{100 * lo:.1f}, {100 * hi:.1f}]"
+
+
 def _share(num: np.ndarray, den: np.ndarray) -> str:
-    share, lo, hi = paired_ratio_ci(num, den)
-    return f"{100 * share:.1f} % [{100 * lo:.1f}, {100 * hi:.1f}]"
+    return share_cell(*paired_ratio_ci(num, den))
 
 
 def table_two(policy_folder: Path, episodes: int, seed: int,
