@@ -12,7 +12,6 @@ Two environment variables, read on the worker, exist for tests and debugging and
 
 from __future__ import annotations
 
-import hashlib
 import json
 import os
 import shutil
@@ -22,6 +21,7 @@ import time
 from pathlib import Path
 from typing import Any
 
+from uavlink.policies.manifest import file_sha256
 from uavlink.sweep.spec import BASELINE_COLUMNS, Job
 
 RESULT_FORMAT = "uavlink-sweep-result-v1"
@@ -48,7 +48,7 @@ def run_job(job_data: dict[str, Any]) -> dict[str, Any]:
     cfg, tc = job.env_config(), job.train_config()
     for name, digest in job.file_sha256.items():
         path = getattr(tc.warm_start, name)
-        if hashlib.sha256(Path(path).read_bytes()).hexdigest() != digest:
+        if file_sha256(Path(path)) != digest:
             raise RuntimeError(f"job {job.key}: {path} on this worker is not the warm_start.{name} file the "
                                "job was made with")
     with tempfile.TemporaryDirectory(prefix=f"uavlink-{job.key}-") as tmp:

@@ -47,6 +47,7 @@ from uavlink.config import MIXED, SCENARIOS, EnvConfig, TrainConfig
 from uavlink.config.fields import coerce, resolve, with_changes
 from uavlink.config.train import legacy_warm_start_key
 from uavlink.errors import UserError
+from uavlink.policies.manifest import file_sha256
 
 if sys.version_info >= (3, 11):
     import tomllib
@@ -103,7 +104,7 @@ class Job:
             path = getattr(self.train.warm_start, name)
             if path and name not in self.file_sha256:
                 try:
-                    self.file_sha256[name] = hashlib.sha256(Path(path).read_bytes()).hexdigest()
+                    self.file_sha256[name] = file_sha256(Path(path))
                 except OSError as exc:
                     raise SweepSpecError(f"{self.sweep}: warm_start.{name} {path}: cannot read it "
                                          f"({exc.strerror}); paths are relative to where the sweep runs") from None
