@@ -156,6 +156,11 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--signing-key", metavar="FILE", default=None,
                    help="MAVLink 2 signing key (32 raw bytes, e.g. from `uavlink keygen`): sign "
                    "everything sent, drop every unsigned, wrongly signed or replayed packet")
+    p.add_argument("--lockstep", action="store_true",
+                   help="hold simulated time at each radio frame of a running episode until the "
+                   "flight computer has decided it (`uavlink fly` says so after each setpoint), "
+                   "at most 2 s of wall time: a flight decides every frame at the instant the env "
+                   "does and replays exactly")
     p.add_argument("-v", "--verbose", action="store_true", help="log every event")
     return p
 
@@ -168,9 +173,12 @@ def main(argv: Sequence[str] | None = None, payload_factory: PayloadFactory | No
                         format="%(name)s: %(message)s", stream=sys.stderr)
     home = GeoOrigin(args.home_lat, args.home_lon, args.home_alt)
     try:
+        if args.lockstep and args.fleet:
+            raise ValueError("--lockstep runs one vehicle; a fleet's vehicles share one clock but "
+                             "do not wait for decisions")
         home.validate()
         options = PayloadOptions(args.scenario, args.seed, args.aoa_noise_deg, tuple(args.settings),
-                                 home, not args.no_ue_truth)
+                                 home, not args.no_ue_truth, args.lockstep)
         payloads = [] if args.no_payload or args.fleet else as_payload_list(
             (payload_factory or default_payload_factory)(options))
         key = load_key(args.signing_key) if args.signing_key else None

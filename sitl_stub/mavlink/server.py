@@ -37,7 +37,7 @@ from typing import Any
 from sitl_stub.core.geo import GeoOrigin
 from sitl_stub.core.params import ParamStore
 from sitl_stub.core.vehicle_state import VehicleState
-from sitl_stub.flight.vehicle import Vehicle
+from sitl_stub.flight.vehicle import SUBSTEP_S, Vehicle
 from sitl_stub.mavlink.commands import CommandHandler
 from sitl_stub.mavlink.links import (
     Fanout,
@@ -124,6 +124,10 @@ class SitlServer:
             check_payload(p, ids)
             ids.add(int(p.component_id))
         self._payloads = list(payloads)
+        self._lockstep = any(getattr(p, "lockstep", False) for p in payloads)
+        if self._lockstep and any(abs(p.frame_s / SUBSTEP_S - round(p.frame_s / SUBSTEP_S)) > 1e-9
+                                  for p in payloads):
+            raise ValueError(f"lockstep needs payload frames in whole {SUBSTEP_S * 1e3:g} ms substeps")
         self._slots: list[PayloadSlot] = []
         self.stats: Counter[str] = Counter()
         self.rejects = RejectLog(log)
@@ -262,7 +266,8 @@ class SitlServer:
         assert self.clock is not None
         wall = self.clock.wall()
         self.receive(wall)
-        self._advance_to(self.clock.advance())
+        if self._advance_to(self.clock.advance()):
+            self.clock.sim_s = self.vehicle.t  # held: the wall time spent waiting is not made up
         self.after_step(wall)
 
     def receive(self, wall: float) -> None:
@@ -286,21 +291,37 @@ class SitlServer:
         self._send_due(wall)
         self._snapshot = self.vehicle.state()
 
-    def _advance_to(self, target_s: float) -> None:
+    def _advance_to(self, target_s: float) -> bool:
+        """Step the vehicle to ``target_s``, stopping at payload frames to tick them; True when a
+        payload holds time at its frame (lockstep). In lockstep the vehicle moves in whole
+        integration substeps, so its path does not depend on how wall time fell into steps."""
         v = self.vehicle
         while True:
             for slot in self._slots:
                 while slot.next_frame * slot.payload.frame_s <= v.t + 1e-6:
                     self._tick(slot, slot.next_frame * slot.payload.frame_s)
                     slot.next_frame += 1
+            if any(_holds_clock(slot.payload) for slot in self._slots):
+                return True
             next_frame = min((s.next_frame * s.payload.frame_s for s in self._slots),
                              default=math.inf)
             end = min(target_s, next_frame)
             if end <= v.t + 1e-9:
-                return
-            v.step(end - v.t)
+                return False
+            if not self._lockstep:
+                v.step(end - v.t)
+                continue
+            substeps = math.floor(end / SUBSTEP_S + 1e-6) - round(v.t / SUBSTEP_S)
+            if substeps <= 0:
+                return False
+            for _ in range(substeps):
+                v.step(SUBSTEP_S)
 
     def _tick(self, slot: PayloadSlot, sim_time_s: float) -> None:
+        if getattr(slot.payload, "lockstep", False):
+            # the position at this very instant, before the frame's readings: what the flight
+            # computer decides with, as the env's step does
+            self.telemetry.send("LOCAL_POSITION_NED", self.vehicle.state())
         try:
             slot.payload.on_frame(sim_time_s, self.vehicle.state(), slot.mav)
         except Exception:
@@ -324,3 +345,8 @@ class SitlServer:
     # ------------------------------------------------------------------ input
     def _on_signing_reject(self, reason: str, text: str) -> None:
         self._notices.append(f"Signing: rejected {reason} packets")
+
+
+def _holds_clock(payload: Payload) -> bool:
+    holds = getattr(payload, "holds_clock", None)
+    return bool(holds is not None and holds())

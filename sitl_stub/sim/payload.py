@@ -18,6 +18,11 @@ when it raises. An optional ``summary() -> dict`` is included in the server's ``
 in ``sitl-stub``'s exit stats line). Broadcast
 commands (target_component 0) are answered by the autopilot only.
 
+Lockstep: a payload with an optional ``holds_clock() -> bool`` that returns True holds simulated
+time at its current frame (the server keeps handling messages and sending heartbeats) until it
+returns False, e.g. once the flight computer has answered the frame; it must give up by itself after
+a while of wall time, or a silent client would stop the vehicle's world.
+
 The CLI builds payloads with a factory ``(PayloadOptions) -> Payload | Sequence[Payload] | None``.
 The default factory uses ``sitl_stub.sim.radio_payload.RadioPayload(options)`` when that module
 exists, and runs without a payload otherwise.
@@ -66,6 +71,7 @@ class PayloadOptions:
     settings: tuple[tuple[str, object], ...] = ()  # --set KEY=VALUE: the radio payload's env fields
     home: GeoOrigin = GeoOrigin()  # the LOCAL_NED origin: where the UE truth is placed on Earth
     ue_truth: bool = True  # send the simulated UEs as ADSB_VEHICLE (sitl_stub.sim.ue_truth)
+    lockstep: bool = False  # hold each frame of a running episode until the flight computer decides it
 
 
 @dataclass

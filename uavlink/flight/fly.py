@@ -23,13 +23,13 @@ log = logging.getLogger("uavlink.fly")
 
 @contextlib.contextmanager
 def embedded_sitl(cfg: EnvConfig, seed: int, speed: float, log_path: Path | None,
-                  signing_key_file: Path | None = None):
+                  signing_key_file: Path | None = None, lockstep: bool = False):
     """Start the SITL vehicle (:mod:`sitl_stub.launcher`) on a free loopback port, its radio
     payload simulating ``cfg`` (:func:`vehicle_args`); yields the URL to listen on."""
     from sitl_stub.launcher import vehicle_process
 
     port = free_udp_port()
-    args = vehicle_args(cfg, seed)
+    args = vehicle_args(cfg, seed) + (["--lockstep"] if lockstep else [])
     if signing_key_file is not None:
         args += ["--signing-key", str(signing_key_file)]
     with vehicle_process(f"udpout:127.0.0.1:{port}", speed, args, log_path=log_path):
@@ -52,7 +52,14 @@ def run_fly(args: argparse.Namespace) -> int:
         privilege = getattr(policy, "privilege", "needs UE positions (GPS)")
         raise UserError(f"{policy.name} {privilege} and cannot fly; use a policy file, aoa or static")
     live = not (args.quiet or args.json) and sys.stderr.isatty()
+    if args.lockstep and args.connect is not None:
+        raise UserError("--lockstep sets up the embedded SITL; a vehicle you connect to runs in "
+                        "lockstep when started so (sitl-stub --lockstep), and `uavlink fly` answers "
+                        "it either way")
     if cfg.n_uavs > 1:
+        if args.lockstep:
+            raise UserError("--lockstep flies one vehicle; a fleet's vehicles already share one "
+                            "clock but do not wait for decisions")
         return run_fleet_fly(args, policy, cfg, key, live)
     if args.connect and "," in args.connect:
         raise UserError("--connect with several URLs is for a fleet (a policy with n_uavs > 1, or "
@@ -70,7 +77,8 @@ def run_fly(args: argparse.Namespace) -> int:
         print(f"\rframe {frame + 1:4d}/{args.frames}  target E {target[0]:7.1f} N {target[1]:7.1f} m  "
               f"{rate_text}", end="", file=sys.stderr, flush=True)
 
-    sitl = (embedded_sitl(cfg, args.seed, args.speed, out_dir / "sitl.log", Path(args.signing_key) if key else None)
+    sitl = (embedded_sitl(cfg, args.seed, args.speed, out_dir / "sitl.log",
+                          Path(args.signing_key) if key else None, args.lockstep)
             if args.connect is None else contextlib.nullcontext(args.connect))
     start = time.monotonic()
     with sitl as url:
@@ -127,6 +135,10 @@ def add_fly_parser(sub) -> None:
                    help="override a field of the policy's env (the embedded SITL simulates it too), "
                         "e.g. --set radio.shadowing=false")
     p.add_argument("--speed", type=float, default=20.0, help="embedded SITL speed factor")
+    p.add_argument("--lockstep", action="store_true",
+                   help="run the embedded SITL in lockstep (sitl-stub --lockstep): its time waits for "
+                        "each frame's decision, so the flight replays exactly and matches `uavlink "
+                        "evaluate --episodes 1 --seed S --set uav_motion=px4`")
     p.add_argument("--frames", type=int, default=128, help="decision frames to fly (one episode: 128)")
     p.add_argument("--out", type=Path, default=Path("runs/fly"),
                    help="folder for flight.tlog, summary.json and flight.png (the flight's picture, "

@@ -55,7 +55,7 @@ from uavlink.mavlink.px4_modes import (
     PX4_SUB_AUTO_RTL,
     px4_mode_name,
 )
-from uavlink.mavlink.radio_codec import RadioReport, ScoreReport
+from uavlink.mavlink.radio_codec import RadioReport, ScoreReport, send_frame_decided
 from uavlink.mobility.fleet import start_positions_m
 from uavlink.policies.base import Policy
 
@@ -188,7 +188,8 @@ def fly_mission(link: VehicleLink, pilot: PolicyPilot, cfg: EnvConfig, mission: 
 
 def _fly(link, pilot, cfg, mission, radio, status, result: MissionResult) -> None:
     source = radio or MavlinkRadioSource(cfg.n_ues)
-    if isinstance(source, MavlinkRadioSource):
+    simulated = isinstance(source, MavlinkRadioSource)  # the SITL's radio payload: lockstep-able
+    if simulated:
         link.on_radio = source.feed
     scores: dict[int, ScoreReport] = {}
     link.on_score = lambda s: scores.__setitem__(s.frame, s)
@@ -232,16 +233,17 @@ def _fly(link, pilot, cfg, mission, radio, status, result: MissionResult) -> Non
                 pilot.observe(report, np.array([st.east_m, st.north_m]), first)
             for report, first in fresh[-1:]:
                 arrived = time.monotonic()
-                if report.frame >= mission.frames:
-                    continue
-                move = pilot.decide(report, np.array([st.east_m, st.north_m]), first)
-                target = np.clip(target + move, -half, half)
-                send()
-                result.decisions += 1
-                result.latencies_s.append(time.monotonic() - arrived)
-                if status:
-                    frame_score = scores.get(report.frame)
-                    status(report.frame, target, frame_score.mean_rate_mbps if frame_score else None)
+                if report.frame < mission.frames:
+                    move = pilot.decide(report, np.array([st.east_m, st.north_m]), first)
+                    target = np.clip(target + move, -half, half)
+                    send()
+                    result.decisions += 1
+                    result.latencies_s.append(time.monotonic() - arrived)
+                    if status:
+                        frame_score = scores.get(report.frame)
+                        status(report.frame, target, frame_score.mean_rate_mbps if frame_score else None)
+                if simulated:  # after the setpoint: a lockstep vehicle's time may go on
+                    send_frame_decided(link.conn.mav, link.target_system, report.frame)
             if mission.frames in scores or frames.last >= mission.frames + 2 or (
                     frames.last >= mission.frames and len(scores) >= mission.frames):
                 result.ended_by = "episode done"

@@ -19,6 +19,13 @@ NAMED_VALUE_INT (id 252) from the same component, so a tlog names the episode it
 ``UL_EP_SEED`` is the seed S whose evaluation episode 0 it is (``uavlink evaluate --seed S
 --episodes 1`` replays it); ``UL_EPISODE`` counts the vehicle's episodes since it started (0: the
 first; each flight begins a new one, ``sitl_stub.sim.radio_episodes``).
+
+Lockstep (a simulated vehicle started with ``--lockstep``): after deciding frame k (its setpoint
+sent), the flight computer sends COMMAND_LONG ``FRAME_DECIDED_COMMAND`` (MAV_CMD_USER_1) to
+``RADIO_COMPONENT_ID`` with param1 = k, fire-and-forget (no ACK: one a frame would only add
+traffic). A lockstep vehicle holds simulated time at each frame of a running episode until that
+command arrives, so a flight decides every frame at the instant the env does; any other vehicle
+ignores it.
 """
 
 from __future__ import annotations
@@ -32,6 +39,7 @@ READINGS_NAME = "UL_RADIO"
 SCORE_NAME = "UL_SCORE"
 EPISODE_SEED_NAME = "UL_EP_SEED"  # NAMED_VALUE_INT names: at most 10 characters
 EPISODE_COUNT_NAME = "UL_EPISODE"
+FRAME_DECIDED_COMMAND = 31010  # MAV_CMD_USER_1, param1 = the frame decided
 DATA_LEN = 58
 MAX_UES = (DATA_LEN - 2) // 2
 
@@ -107,6 +115,13 @@ def decode_score(msg) -> ScoreReport:
     if not (np.isfinite(mean) and np.isfinite(fair)) or mean < 0 or fair < 0:
         raise RadioReportError(f"radio score with unusable rates (mean {mean}, fair {fair})")
     return ScoreReport(int(msg.array_id), mean, fair)
+
+
+def send_frame_decided(mav, target_system: int, frame: int) -> None:
+    """FRAME_DECIDED for ``frame`` to the radio payload of ``target_system`` (``mav``: a pymavlink
+    ``MAVLink``): a lockstep vehicle lets simulated time go on; no ACK is awaited."""
+    mav.command_long_send(target_system, RADIO_COMPONENT_ID, FRAME_DECIDED_COMMAND, 0, float(frame),
+                          *(float("nan"),) * 6)
 
 
 def decode_episode(msg) -> tuple[str, int] | None:

@@ -1,0 +1,130 @@
+"""Lockstep: the SITL's time waits at each radio frame for the flight computer's decision.
+
+The vehicle side over real MAVLink on loopback (the server in this process, stepped by hand), and
+whole flights of the shipped map policy through `uavlink fly --lockstep`.
+"""
+
+from __future__ import annotations
+
+import time
+from typing import Any
+
+import pytest
+from conftest import ROOT, assert_user_error, cli_json, run_uavlink_in_process
+
+import sitl_stub.sim.radio_payload as radio_payload
+from sitl_stub.mavlink.server import ServerConfig, SitlServer
+from sitl_stub.sim.payload import PayloadOptions
+from sitl_stub.sim.radio_payload import RadioPayload
+from uavlink.mavlink import radio_codec
+from uavlink.mavlink.dialect import mavutil
+
+mavlink = mavutil.mavlink
+MAP_NO_MOVE = str(ROOT / "policies/map/no_move.zip")
+
+
+def _offboard_server(lockstep: bool = True) -> tuple[SitlServer, RadioPayload, Any]:
+    """A vehicle in OFFBOARD at t = 0 (its one setpoint lasts: COM_OF_LOSS_T 60 s) and a ground
+    station that has spoken to it."""
+    payload = RadioPayload(PayloadOptions(scenario="no_move", seed=3, lockstep=lockstep))
+    server = SitlServer(ServerConfig(connect="udpin:127.0.0.1:0", params={"COM_OF_LOSS_T": 60.0}), [payload])
+    server.open()
+    host, port = server.address
+    gcs = mavutil.mavlink_connection(f"udpout:{host}:{port}", source_system=255, source_component=190)
+    gcs.mav.heartbeat_send(mavlink.MAV_TYPE_GCS, mavlink.MAV_AUTOPILOT_INVALID, 0, 0, 0)
+    _receive(server)
+    v = server.vehicle
+    v.offer_setpoint(0.0, 0.0, -10.0)
+    assert v.arm().ok and v.start_offboard().ok
+    return server, payload, gcs
+
+
+def _receive(server: SitlServer) -> None:
+    time.sleep(0.05)  # loopback delivery
+    server.receive(server.clock.wall())
+
+
+def _frame_messages(gcs: Any) -> list[Any]:
+    out = []
+    while (m := gcs.recv_match(blocking=True, timeout=0.2)) is not None:
+        if m.get_type() in ("LOCAL_POSITION_NED", "DEBUG_FLOAT_ARRAY"):
+            out.append(m)
+    return out
+
+
+def test_time_waits_at_each_frame_until_it_is_decided() -> None:
+    server, payload, gcs = _offboard_server()
+    try:
+        v = server.vehicle
+        assert server._advance_to(5.0)  # frame 0 ticked in OFFBOARD: the episode starts, and holds
+        assert v.t == 0.0 and payload.episodes.started
+        assert server._advance_to(5.0) and v.t == 0.0  # still held: no decision yet
+        gcs.mav.command_long_send(1, radio_codec.RADIO_COMPONENT_ID, radio_codec.FRAME_DECIDED_COMMAND,
+                                  0, 0, 0, 0, 0, 0, 0, 0)
+        _receive(server)
+        assert server._advance_to(5.0)  # on to frame 1, held there
+        assert v.t == pytest.approx(1.0, abs=1e-9)
+        # the vehicle's position at the frame's instant goes out just before the frame's readings
+        messages = _frame_messages(gcs)
+        first_readings = next(i for i, m in enumerate(messages)
+                              if m.get_type() == "DEBUG_FLOAT_ARRAY" and m.array_id == 1)
+        before = messages[first_readings - 1]
+        assert before.get_type() == "LOCAL_POSITION_NED" and before.time_boot_ms == 1000
+        # a decision for an older frame does not let frame 1 go
+        gcs.mav.command_long_send(1, radio_codec.RADIO_COMPONENT_ID, radio_codec.FRAME_DECIDED_COMMAND,
+                                  0, 0, 0, 0, 0, 0, 0, 0)
+        _receive(server)
+        assert server._advance_to(5.0) and v.t == pytest.approx(1.0, abs=1e-9)
+        assert payload.lockstep_timeouts == 0
+    finally:
+        gcs.close()
+        server.close()
+
+
+def test_an_unanswered_frame_is_let_go_after_the_wall_wait(monkeypatch) -> None:
+    server, payload, gcs = _offboard_server()
+    try:
+        assert server._advance_to(2.5)
+        monkeypatch.setattr(radio_payload, "LOCKSTEP_WAIT_WALL_S", 0.2)
+        time.sleep(0.3)
+        assert server._advance_to(2.5)  # frame 0 let go; frame 1 held anew
+        assert server.vehicle.t == pytest.approx(1.0, abs=1e-9)
+        assert payload.lockstep_timeouts == 1
+        assert server.report()["payloads"][str(radio_codec.RADIO_COMPONENT_ID)]["lockstep_timeouts"] == 1
+    finally:
+        gcs.close()
+        server.close()
+
+
+def test_a_vehicle_not_in_lockstep_never_holds() -> None:
+    server, payload, gcs = _offboard_server(lockstep=False)
+    try:
+        assert not server._advance_to(2.5)
+        assert server.vehicle.t == pytest.approx(2.5) and "lockstep_timeouts" not in payload.summary()
+    finally:
+        gcs.close()
+        server.close()
+
+
+def test_fly_refuses_lockstep_with_connect() -> None:
+    proc = run_uavlink_in_process("fly", "--policy", "static", "--lockstep", "--connect", "udp:14550")
+    assert_user_error(proc, "--lockstep", "sitl-stub --lockstep")
+
+
+@pytest.mark.slow
+@pytest.mark.timeout(240)
+@pytest.mark.parametrize("seed", [0])
+def test_a_lockstep_flight_replays_and_matches_the_px4_motion_evaluation(tmp_path, seed: int) -> None:
+    """The map policy's searching flight, twice at the same seed: the same throughput, within 5 % of
+    `uavlink evaluate --episodes 1 --set uav_motion=px4` (the env moving the UAV as the vehicle does;
+    what is left is MAVLink's float32 positions, amplified by the closed loop)."""
+    flights = [cli_json("fly", "--out", str(tmp_path / str(k)), "--json", "--no-picture", "--lockstep",
+                        "--policy", MAP_NO_MOVE, "--scenario", "no_move", "--seed", str(seed))
+               for k in range(2)]
+    evaluated = cli_json("evaluate", "--policy", MAP_NO_MOVE, "--scenario", "no_move", "--episodes", "1",
+                         "--seed", str(seed), "--set", "uav_motion=px4", "--json")["mean_rate_mbps"]
+    flown = [f["mean_rate_mbps"] for f in flights]
+    print(f"\nno_move seed {seed}: flown in lockstep {flown} Mbps, evaluated (px4 motion) {evaluated:.6f}")
+    assert all(f["frames"] == 128 and f["decisions"] == 128 and f["completed"] for f in flights)
+    assert flown[0] == flown[1]
+    assert abs(flown[0] - evaluated) <= 0.05 * evaluated
