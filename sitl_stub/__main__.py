@@ -173,9 +173,6 @@ def main(argv: Sequence[str] | None = None, payload_factory: PayloadFactory | No
                         format="%(name)s: %(message)s", stream=sys.stderr)
     home = GeoOrigin(args.home_lat, args.home_lon, args.home_alt)
     try:
-        if args.lockstep and args.fleet:
-            raise ValueError("--lockstep runs one vehicle; a fleet's vehicles share one clock but "
-                             "do not wait for decisions")
         home.validate()
         options = PayloadOptions(args.scenario, args.seed, args.aoa_noise_deg, tuple(args.settings),
                                  home, not args.no_ue_truth, args.lockstep)
@@ -229,7 +226,7 @@ def _fleet(args: argparse.Namespace, base: ServerConfig, options: PayloadOptions
                          f"{args.instance + args.fleet - 1}, more than {MAX_INSTANCE}")
     cfg = fleet_env(options, args.fleet)
     world = None if args.no_payload else FleetWorld(
-        cfg, args.seed, options.home if options.ue_truth else None)
+        cfg, args.seed, options.home if options.ue_truth else None, options.lockstep)
     return FleetServer(fleet_configs(base, args.fleet, spawn_points_ne(cfg)), world)
 
 

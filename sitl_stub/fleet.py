@@ -36,8 +36,9 @@ from dataclasses import replace
 from typing import Any
 
 from sitl_stub.core.vehicle_state import VehicleState
-from sitl_stub.mavlink.server import LOOP_WAIT_S, ServerConfig, SitlServer
+from sitl_stub.mavlink.server import LOOP_WAIT_S, ServerConfig, SitlServer, step_vehicles
 from sitl_stub.sim.clock import SimClock
+from sitl_stub.sim.lockstep import FrameHold
 from sitl_stub.sim.payload import MAV_AUTOPILOT_INVALID, PayloadOptions
 from sitl_stub.sim.radio_episodes import RadioEpisodes
 from sitl_stub.sim.ue_truth import send_ue_truth
@@ -79,9 +80,12 @@ class FleetWorld:
     ``truth_origin``: the fleet's LOCAL_NED origin, where the first vehicle's payload places the
     UEs it sends as ADSB_VEHICLE (:mod:`sitl_stub.sim.ue_truth`; once for the fleet); None: not sent."""
 
-    def __init__(self, cfg: EnvConfig, seed: int, truth_origin: GeoOrigin | None = None) -> None:
+    def __init__(self, cfg: EnvConfig, seed: int, truth_origin: GeoOrigin | None = None,
+                 lockstep: bool = False) -> None:
         self.cfg = cfg
         self.truth_origin = truth_origin
+        self.lockstep = lockstep  # each frame waits for every vehicle's FRAME_DECIDED
+        self.hold = FrameHold(cfg.n_uavs)
         self.frame_s = self.cfg.frame_s
         self.episodes = RadioEpisodes(cfg, seed)
         self.next_frame = 0
@@ -93,9 +97,12 @@ class FleetWorld:
         result = self.episodes.tick(states)
         self.score = None if result is None else encode_score(result.rate_bps, result.fair_rate)
         self.next_frame += 1
+        if self.lockstep and self.episodes.awaits_decision(states):
+            self.hold.hold(self.episodes.world.frame)
 
     def summary(self) -> dict[str, Any]:
-        return self.episodes.summary()
+        lockstep = {"lockstep_timeouts": self.hold.timeouts} if self.lockstep else {}
+        return {**self.episodes.summary(), **lockstep}
 
 
 class FleetRadioView:
@@ -107,6 +114,10 @@ class FleetRadioView:
     def __init__(self, fleet: FleetWorld, uav: int) -> None:
         self.fleet, self.uav = fleet, uav
         self.frame_s = fleet.frame_s
+        self.lockstep = fleet.lockstep
+
+    def on_command(self, msg: Any, mav: Any) -> int | None:
+        return self.fleet.hold.on_command(msg, self.uav)
 
     def heartbeat(self) -> tuple[int, int, int, int, int]:
         return (MAV_TYPE_ONBOARD_CONTROLLER, MAV_AUTOPILOT_INVALID, 0, 0, MAV_STATE_ACTIVE)
@@ -184,11 +195,14 @@ class FleetServer:
         wall = self.clock.wall()
         for server in self.servers:
             server.receive(wall)
-        self._advance_to(self.clock.advance())
+        if self._advance_to(self.clock.advance()):
+            self.clock.sim_s = self.servers[0].vehicle.t  # held: the wait is not made up
         for server in self.servers:
             server.after_step(wall)
 
-    def _advance_to(self, target_s: float) -> None:
+    def _advance_to(self, target_s: float) -> bool:
+        """Step every vehicle to ``target_s``, ticking the world at its frames; True when the
+        world holds time at a frame (lockstep: :mod:`sitl_stub.sim.lockstep`)."""
         vehicles = [s.vehicle for s in self.servers]
         world = self.world
         while True:
@@ -199,11 +213,10 @@ class FleetServer:
                 for server in self.servers:
                     server._tick(server._slots[0], boundary)
                 continue
-            end = min(target_s, boundary)
-            if end <= t + 1e-9:
-                return
-            for v in vehicles:
-                v.step(end - v.t)
+            if world is not None and world.hold.holding():
+                return True
+            if not step_vehicles(vehicles, min(target_s, boundary), world is not None and world.lockstep):
+                return False
 
     def run(self, stop: threading.Event | None = None) -> None:
         """Run until ``stop`` is set or ``duration_s`` simulated seconds pass."""

@@ -12,7 +12,7 @@ from typing import Any
 import pytest
 from conftest import ROOT, assert_user_error, cli_json, run_uavlink_in_process
 
-import sitl_stub.sim.radio_payload as radio_payload
+import sitl_stub.sim.lockstep as lockstep
 from sitl_stub.mavlink.server import ServerConfig, SitlServer
 from sitl_stub.sim.payload import PayloadOptions
 from sitl_stub.sim.radio_payload import RadioPayload
@@ -75,7 +75,7 @@ def test_time_waits_at_each_frame_until_it_is_decided() -> None:
                                   0, 0, 0, 0, 0, 0, 0, 0)
         _receive(server)
         assert server._advance_to(5.0) and v.t == pytest.approx(1.0, abs=1e-9)
-        assert payload.lockstep_timeouts == 0
+        assert payload.hold.timeouts == 0
     finally:
         gcs.close()
         server.close()
@@ -85,11 +85,11 @@ def test_an_unanswered_frame_is_let_go_after_the_wall_wait(monkeypatch) -> None:
     server, payload, gcs = _offboard_server()
     try:
         assert server._advance_to(2.5)
-        monkeypatch.setattr(radio_payload, "LOCKSTEP_WAIT_WALL_S", 0.2)
+        monkeypatch.setattr(lockstep, "LOCKSTEP_WAIT_WALL_S", 0.2)
         time.sleep(0.3)
         assert server._advance_to(2.5)  # frame 0 let go; frame 1 held anew
         assert server.vehicle.t == pytest.approx(1.0, abs=1e-9)
-        assert payload.lockstep_timeouts == 1
+        assert payload.hold.timeouts == 1
         assert server.report()["payloads"][str(radio_codec.RADIO_COMPONENT_ID)]["lockstep_timeouts"] == 1
     finally:
         gcs.close()
@@ -128,3 +128,16 @@ def test_a_lockstep_flight_replays_and_matches_the_px4_motion_evaluation(tmp_pat
     assert all(f["frames"] == 128 and f["decisions"] == 128 and f["completed"] for f in flights)
     assert flown[0] == flown[1]
     assert abs(flown[0] - evaluated) <= 0.05 * evaluated
+
+
+@pytest.mark.slow
+@pytest.mark.timeout(240)
+def test_a_fleet_flies_in_lockstep_and_replays(tmp_path) -> None:
+    """Two vehicles of `sitl_stub --fleet 2 --lockstep`: every frame waits for both decisions, none
+    times out, and the same seed flies the same throughput twice."""
+    flights = [cli_json("fly", "--out", str(tmp_path / str(k)), "--json", "--no-picture", "--lockstep",
+                        "--policy", "aoa", "--set", "n_uavs=2", "--scenario", "circular", "--frames", "30")
+               for k in range(2)]
+    assert all(f["frames"] == 30 and f["completed"] for f in flights)
+    assert flights[0]["mean_rate_mbps"] == flights[1]["mean_rate_mbps"]
+    assert '"lockstep_timeouts": 0' in (tmp_path / "0" / "sitl.log").read_text()

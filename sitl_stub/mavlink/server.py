@@ -305,17 +305,8 @@ class SitlServer:
                 return True
             next_frame = min((s.next_frame * s.payload.frame_s for s in self._slots),
                              default=math.inf)
-            end = min(target_s, next_frame)
-            if end <= v.t + 1e-9:
+            if not step_vehicles([v], min(target_s, next_frame), self._lockstep):
                 return False
-            if not self._lockstep:
-                v.step(end - v.t)
-                continue
-            substeps = math.floor(end / SUBSTEP_S + 1e-6) - round(v.t / SUBSTEP_S)
-            if substeps <= 0:
-                return False
-            for _ in range(substeps):
-                v.step(SUBSTEP_S)
 
     def _tick(self, slot: PayloadSlot, sim_time_s: float) -> None:
         if getattr(slot.payload, "lockstep", False):
@@ -345,6 +336,23 @@ class SitlServer:
     # ------------------------------------------------------------------ input
     def _on_signing_reject(self, reason: str, text: str) -> None:
         self._notices.append(f"Signing: rejected {reason} packets")
+
+
+def step_vehicles(vehicles: Sequence[Vehicle], end_s: float, whole_substeps: bool) -> bool:
+    """Step every vehicle (all at the same time) to ``end_s``, or with ``whole_substeps`` to the
+    last 20 ms substep boundary before it; False when there is nothing to step."""
+    t = vehicles[0].t
+    if not whole_substeps:
+        if end_s <= t + 1e-9:
+            return False
+        for v in vehicles:
+            v.step(end_s - v.t)
+        return True
+    substeps = math.floor(end_s / SUBSTEP_S + 1e-6) - round(t / SUBSTEP_S)
+    for _ in range(substeps):
+        for v in vehicles:
+            v.step(SUBSTEP_S)
+    return substeps > 0
 
 
 def _holds_clock(payload: Payload) -> bool:

@@ -65,6 +65,12 @@ class RadioEpisodes:
         self.started = all(s.mode is FlightMode.OFFBOARD for s in states)
         return None
 
+    def awaits_decision(self, states: Sequence[VehicleState]) -> bool:
+        """The frame just ticked is one a flight computer decides: the episode runs, has frames
+        left, and a vehicle flies it in OFFBOARD (what a lockstep world holds for)."""
+        return (self.started and self.world.frame < self.cfg.episode_frames
+                and any(s.mode is FlightMode.OFFBOARD for s in states))
+
     def _flight_begins(self, states: Sequence[VehicleState]) -> bool:
         """A vehicle armed since the last tick, and every vehicle armed now armed since then: the
         first arming(s) of a flight, never a vehicle re-armed while others fly on."""

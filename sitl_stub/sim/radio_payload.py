@@ -18,24 +18,20 @@ With ``PayloadOptions.lockstep`` each frame of a running episode in OFFBOARD hol
 until the flight computer says it has decided that frame (``FRAME_DECIDED_COMMAND``,
 ``uavlink.mavlink.radio_codec``), as the env does, where a step waits for its action: the flight
 no longer depends on how long a decision took in wall time, and a seed's flight replays exactly.
-A frame that gets no answer within ``LOCKSTEP_WAIT_WALL_S`` is let go (counted in the summary).
+A frame that gets no answer in time is let go (:mod:`sitl_stub.sim.lockstep`; counted in the summary).
 """
 
 from __future__ import annotations
 
-import logging
-import time
 from typing import Any
 
-from sitl_stub.core.modes import FlightMode
 from sitl_stub.core.vehicle_state import VehicleState
+from sitl_stub.sim.lockstep import FrameHold
 from sitl_stub.sim.payload import MAV_AUTOPILOT_INVALID, PayloadOptions
 from sitl_stub.sim.radio_episodes import RadioEpisodes
 from sitl_stub.sim.ue_truth import send_ue_truth
 from uavlink.config import EnvConfig
-from uavlink.mavlink.dialect import mavlink
 from uavlink.mavlink.radio_codec import (
-    FRAME_DECIDED_COMMAND,
     RADIO_COMPONENT_ID,
     READINGS_NAME,
     SCORE_NAME,
@@ -45,9 +41,6 @@ from uavlink.mavlink.radio_codec import (
 
 MAV_TYPE_ONBOARD_CONTROLLER = 18
 MAV_STATE_ACTIVE = 4
-LOCKSTEP_WAIT_WALL_S = 2.0  # wall seconds a frame waits for its decision before time goes on
-
-log = logging.getLogger(__name__)
 
 
 class RadioPayload:
@@ -64,9 +57,7 @@ class RadioPayload:
         self.episodes = RadioEpisodes(self.cfg, options.seed)
         self.truth_origin = options.home if options.ue_truth else None
         self.lockstep = options.lockstep
-        self.lockstep_timeouts = 0
-        self._awaiting: int | None = None  # the frame held until it is decided
-        self._held_since_wall = 0.0
+        self.hold = FrameHold()
 
     def heartbeat(self) -> tuple[int, int, int, int, int]:
         return (MAV_TYPE_ONBOARD_CONTROLLER, MAV_AUTOPILOT_INVALID, 0, 0, MAV_STATE_ACTIVE)
@@ -83,35 +74,17 @@ class RadioPayload:
             self._send(mav, sim_time_s, READINGS_NAME, data)
         if self.truth_origin is not None:
             send_ue_truth(mav, episodes.world, self.truth_origin)
-        if (self.lockstep and episodes.started and state.mode is FlightMode.OFFBOARD
-                and episodes.world.frame < self.cfg.episode_frames):
-            self._awaiting, self._held_since_wall = episodes.world.frame, time.monotonic()
+        if self.lockstep and episodes.awaits_decision([state]):
+            self.hold.hold(episodes.world.frame)
 
     def on_command(self, msg: Any, mav: Any) -> int | None:
-        """FRAME_DECIDED (param1: the frame) lets a held frame go; no ACK. Anything else: unsupported."""
-        if msg.command != FRAME_DECIDED_COMMAND:
-            return mavlink.MAV_RESULT_UNSUPPORTED
-        if self._awaiting is not None and msg.param1 >= self._awaiting:
-            self._awaiting = None
-        return None
+        return self.hold.on_command(msg)
 
     def holds_clock(self) -> bool:
-        """Lockstep: simulated time waits for the held frame's decision, at most
-        ``LOCKSTEP_WAIT_WALL_S`` of wall time."""
-        if self._awaiting is None:
-            return False
-        if time.monotonic() - self._held_since_wall <= LOCKSTEP_WAIT_WALL_S:
-            return True
-        self.lockstep_timeouts += 1
-        if self.lockstep_timeouts == 1:
-            log.warning("lockstep: frame %d got no FRAME_DECIDED within %g s of wall time: going "
-                        "on without it (is the flight computer in lockstep?)", self._awaiting,
-                        LOCKSTEP_WAIT_WALL_S)
-        self._awaiting = None
-        return False
+        return self.hold.holding()
 
     def summary(self) -> dict[str, Any]:
-        lockstep = {"lockstep_timeouts": self.lockstep_timeouts} if self.lockstep else {}
+        lockstep = {"lockstep_timeouts": self.hold.timeouts} if self.lockstep else {}
         return {**self.episodes.summary(), **lockstep}
 
     def _send(self, mav: Any, sim_time_s: float, name: str, data: list[float]) -> None:

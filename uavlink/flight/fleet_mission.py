@@ -50,7 +50,7 @@ from uavlink.flight.start_point import fly_to_starts
 from uavlink.flight.transit import guard_transit
 from uavlink.mavlink.dialect import mavlink
 from uavlink.mavlink.px4_modes import PX4_MAIN_OFFBOARD
-from uavlink.mavlink.radio_codec import RadioReport, ScoreReport
+from uavlink.mavlink.radio_codec import RadioReport, ScoreReport, send_frame_decided
 from uavlink.mobility.fleet import min_separation_m, separate, start_positions_m
 from uavlink.policies.base import Policy
 
@@ -273,7 +273,10 @@ class _Loop:
         if any(r is None for r in self.newest):
             return None  # every UAV's readings are needed once, for the first observation
         frame = max(r.frame for r in self.newest)
-        if frame <= self.decided or frame >= self.mission.frames:
+        if frame <= self.decided:
+            return None
+        if frame >= self.mission.frames:  # past the flight's frames: nothing to decide, nothing to wait for
+            self._decided(frame)
             return None
         live = [now - link.last_rx_wall < LIVE_S for link in self.links]
         have = [r.frame == frame for r in self.newest]
@@ -295,12 +298,18 @@ class _Loop:
         for i in np.flatnonzero(movable):
             self.send(int(i))
             result.vehicles[i].decisions += 1
-        self.decided = frame
+        self._decided(frame)
         result.decisions += 1
         result.latencies_s.append(time.monotonic() - arrived)
         if self.status:
             score = self.scores.get(frame)
             self.status(frame, self.targets[0], score.mean_rate_mbps if score else None)
+
+    def _decided(self, frame: int) -> None:
+        """Frame ``frame`` is decided (every setpoint sent): a lockstep world may go on."""
+        self.decided = frame
+        for link in self.links:
+            send_frame_decided(link.conn.mav, link.target_system, frame)
 
     def _episode_done(self) -> bool:
         last = max((r.frame for r in self.newest if r is not None), default=-1)

@@ -29,7 +29,7 @@ def embedded_sitl(cfg: EnvConfig, seed: int, speed: float, log_path: Path | None
     from sitl_stub.launcher import vehicle_process
 
     port = free_udp_port()
-    args = vehicle_args(cfg, seed) + (["--lockstep"] if lockstep else [])
+    args = vehicle_args(cfg, seed, lockstep)
     if signing_key_file is not None:
         args += ["--signing-key", str(signing_key_file)]
     with vehicle_process(f"udpout:127.0.0.1:{port}", speed, args, log_path=log_path):
@@ -57,9 +57,6 @@ def run_fly(args: argparse.Namespace) -> int:
                         "lockstep when started so (sitl-stub --lockstep), and `uavlink fly` answers "
                         "it either way")
     if cfg.n_uavs > 1:
-        if args.lockstep:
-            raise UserError("--lockstep flies one vehicle; a fleet's vehicles already share one "
-                            "clock but do not wait for decisions")
         return run_fleet_fly(args, policy, cfg, key, live)
     if args.connect and "," in args.connect:
         raise UserError("--connect with several URLs is for a fleet (a policy with n_uavs > 1, or "

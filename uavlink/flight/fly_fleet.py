@@ -28,11 +28,11 @@ def split_urls(connect: str) -> list[str]:
     return urls
 
 
-def vehicle_args(cfg: EnvConfig, seed: int) -> list[str]:
+def vehicle_args(cfg: EnvConfig, seed: int, lockstep: bool = False) -> list[str]:
     """The ``sitl_stub`` options whose radio payload simulates ``cfg`` from episode 0 of ``seed``
     (``--fleet D`` for ``n_uavs`` = D > 1): the embedded vehicle's, and what a vehicle started by
     hand needs to serve a policy of ``cfg`` (benchmarks/soak.py, the tests)."""
-    args = [] if cfg.n_uavs == 1 else ["--fleet", str(cfg.n_uavs)]
+    args = ([] if cfg.n_uavs == 1 else ["--fleet", str(cfg.n_uavs)]) + (["--lockstep"] if lockstep else [])
     args += ["--scenario", cfg.scenario, "--seed", str(seed),
              "--aoa-noise-deg", repr(float(cfg.radio.aoa_noise_deg))]
     for pair in changed_settings(cfg):
@@ -43,13 +43,13 @@ def vehicle_args(cfg: EnvConfig, seed: int) -> list[str]:
 
 @contextlib.contextmanager
 def embedded_fleet(cfg: EnvConfig, seed: int, speed: float, log_path: Path | None,
-                   signing_key_file: Path | None = None) -> Iterator[list[str]]:
+                   signing_key_file: Path | None = None, lockstep: bool = False) -> Iterator[list[str]]:
     """``sitl_stub --fleet D`` with vehicle i sending to free loopback port i; yields the URLs to
     listen on, in vehicle (UAV) order."""
     from sitl_stub.launcher import vehicle_process
 
     ports = [free_udp_port() for _ in range(cfg.n_uavs)]
-    args = vehicle_args(cfg, seed)
+    args = vehicle_args(cfg, seed, lockstep)
     if signing_key_file is not None:
         args += ["--signing-key", str(signing_key_file)]
     with vehicle_process([f"udpout:127.0.0.1:{p}" for p in ports], speed, args, log_path=log_path):
@@ -68,7 +68,7 @@ def run_fleet_fly(args: argparse.Namespace, policy: Policy, cfg: EnvConfig, key:
     out_dir.mkdir(parents=True, exist_ok=True)
     tlog = out_dir / "flight.tlog"
     sitl = (embedded_fleet(cfg, args.seed, args.speed, out_dir / "sitl.log",
-                           Path(args.signing_key) if key else None)
+                           Path(args.signing_key) if key else None, args.lockstep)
             if urls is None else contextlib.nullcontext(urls))
     start = time.monotonic()
     with sitl as vehicle_urls:
