@@ -6,6 +6,7 @@ whole flights of the shipped map policy through `uavlink fly --lockstep`.
 
 from __future__ import annotations
 
+import shlex
 import time
 from typing import Any
 
@@ -121,8 +122,9 @@ def test_a_lockstep_flight_replays_and_matches_the_px4_motion_evaluation(tmp_pat
     flights = [cli_json("fly", "--out", str(tmp_path / str(k)), "--json", "--no-picture", "--lockstep",
                         "--policy", MAP_NO_MOVE, "--scenario", "no_move", "--seed", str(seed))
                for k in range(2)]
-    evaluated = cli_json("evaluate", "--policy", MAP_NO_MOVE, "--scenario", "no_move", "--episodes", "1",
-                         "--seed", str(seed), "--set", "uav_motion=px4", "--json")["mean_rate_mbps"]
+    replay = shlex.split(flights[0]["replay"])  # the command the flight's summary gives
+    assert replay[:2] == ["uavlink", "evaluate"] and replay[-2:] == ["--set", "uav_motion=px4"]
+    evaluated = cli_json(*replay[1:], "--json")["mean_rate_mbps"]
     flown = [f["mean_rate_mbps"] for f in flights]
     print(f"\nno_move seed {seed}: flown in lockstep {flown} Mbps, evaluated (px4 motion) {evaluated:.6f}")
     assert all(f["frames"] == 128 and f["decisions"] == 128 and f["completed"] for f in flights)

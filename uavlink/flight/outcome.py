@@ -55,7 +55,8 @@ def judge(result: MissionResult, frames: int) -> None:
 
 def episode_fields(args: argparse.Namespace, cfg: EnvConfig, episode: dict[str, int]) -> dict:
     """Which radio episode was flown and how to replay it: the vehicle's payload names it (its
-    UL_EP_SEED / UL_EPISODE messages); an embedded vehicle serves episode 0 of ``--seed``."""
+    UL_EP_SEED / UL_EPISODE messages); an embedded vehicle serves episode 0 of ``--seed``. A
+    lockstep flight of one UAV is replayed with the vehicle's motion (``uav_motion=px4``)."""
     seed = episode.get("seed", args.seed if args.connect is None else None)
     replay = None
     if seed is not None:
@@ -65,6 +66,8 @@ def episode_fields(args: argparse.Namespace, cfg: EnvConfig, episode: dict[str, 
             words += ["--aoa-noise-deg", repr(float(args.aoa_noise_deg))]
         for pair in args.overrides:
             words += ["--set", pair]
+        if getattr(args, "lockstep", False) and cfg.n_uavs == 1 and cfg.uav_motion != "px4":
+            words += ["--set", "uav_motion=px4"]
         replay = shlex.join(words)
     return {"seed": seed, "episode": {"seed": seed, "index": 0, "on_vehicle": episode.get("count")},
             "replay": replay}
