@@ -7,7 +7,8 @@ telemetry; replies go back on the link the request came on; signing covers every
 
 One thread does everything: it advances simulated time (:class:`~sitl_stub.sim.clock.SimClock`),
 steps the :class:`~sitl_stub.flight.vehicle.Vehicle` (stopping at payload frame boundaries to tick the
-payloads), handles incoming messages and sends the telemetry that is due. Use it blocking
+payloads, and staying there while a lockstep payload holds time: :mod:`sitl_stub.sim.lockstep`),
+handles incoming messages and sends the telemetry that is due. Use it blocking
 (:meth:`SitlServer.run`, as ``python -m sitl_stub`` does) or in the background
 (:meth:`SitlServer.start` / :meth:`SitlServer.stop`, or ``with SitlServer(...)``), e.g. listening
 on ``udpin:127.0.0.1:0`` and reading the chosen port from :attr:`SitlServer.address` (the first
