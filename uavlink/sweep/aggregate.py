@@ -198,7 +198,7 @@ def write_summary(spec: SweepSpec, sweep_dir: Path, command: str = "",
         "",
         *([spec.description, ""] if spec.description else []),
         f"{done} of {total} jobs finished" + (f"; made by `{command}`" if command else "") + ".",
-        f"Each job trains PPO for {spec.jobs()[0].train_config().episodes:,} episodes and evaluates PPO, "
+        f"Each job trains PPO for {training_episodes(spec)} episodes and evaluates PPO, "
         f"static, oracle and aoa on the same {spec.eval['episodes']} episodes (evaluation seed "
         f"{spec.eval['seed']}). PPO is the mean over training seeds ± the 95 % Student-t interval "
         "across seeds; gain and oracle share carry the same interval. The median seed is the seed "
@@ -214,6 +214,12 @@ def write_summary(spec: SweepSpec, sweep_dir: Path, command: str = "",
     clean = [{k: None if isinstance(v, float) and math.isnan(v) else v for k, v in x.items()} for x in numeric]
     (sweep_dir / "summary.json").write_text(json.dumps(clean, indent=1) + "\n")
     return path, table
+
+
+def training_episodes(spec: SweepSpec) -> str:
+    """The jobs' training episodes: one figure, or the range where recipes differ."""
+    counts = sorted({job.train_config().episodes for job in spec.jobs()})
+    return f"{counts[0]:,}" if len(counts) == 1 else f"{counts[0]:,} to {counts[-1]:,}"
 
 
 def finished_rows(spec: SweepSpec, sweep_dir: Path, record: dict[str, dict[str, Any]] | None = None) -> list[SettingRow]:
@@ -240,11 +246,10 @@ def results_section(spec: SweepSpec, sweep_dir: Path, assets: Path, link_prefix:
     plot_learning_curves(rows, list(spec.grid), assets / f"{prefix}learning_curves.png")
     figures = [line for name in ("throughput", "learning_curves")
                for line in (f"![{name}]({link_prefix / f'{prefix}{name}.png'})", "")]
-    first = spec.jobs()[0].train_config()
     return "\n".join([
         f"{level} Table I across training seeds (sweep `{spec.name}`)",
         "",
-        f"`uavlink sweep` of `{spec.name}` ({len(spec.seeds)} seeds per scenario, {first.episodes:,} "
+        f"`uavlink sweep` of `{spec.name}` ({len(spec.seeds)} seeds per scenario, {training_episodes(spec)} "
         f"training episodes each, evaluation on {spec.eval['episodes']} episodes, seed {spec.eval['seed']}). "
         "PPO is the mean over training seeds ± the 95 % Student-t interval across seeds. "
         + shipped_sentence(rows, spec, shipped_to),
