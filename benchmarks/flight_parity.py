@@ -46,14 +46,14 @@ def within(flown: list[float], evaluated: list[float], share: float = 0.05) -> i
     return int(sum(abs(f - e) <= share * e for f, e in zip(flown, evaluated, strict=True)))
 
 
-def main() -> None:
+def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--policy", default="policies/map/no_move.zip")
     parser.add_argument("--scenario", default="no_move")
     parser.add_argument("--seeds", type=int, nargs="+", default=list(range(16)))
     parser.add_argument("--free", action="store_true", help="also fly each seed without --lockstep")
     parser.add_argument("--json", action="store_true")
-    args = parser.parse_args()
+    args = parser.parse_args(argv)
 
     modes = {"lockstep": True, **({"free": False} if args.free else {})}
     rows = []
@@ -80,7 +80,7 @@ def main() -> None:
     result = {"policy": args.policy, "scenario": args.scenario, "rows": rows, "summary": summary}
     if args.json:
         print(json.dumps(result, indent=2))
-        return
+        return 0
     keys = list(rows[0])
     print("| " + " | ".join(keys) + " |")
     print("|" + "---|" * len(keys))
@@ -90,7 +90,8 @@ def main() -> None:
     for name, s in summary.items():
         print(f"{name}: {s['within_5pct']} of {s['flights']} flights within 5 %, largest difference "
               f"{s['max_abs_diff_pct']} %, mean of the flights {s['mean_of_flights_vs_mean_evaluated_pct']:+} %")
+    return 0
 
 
 if __name__ == "__main__":
-    main()
+    sys.exit(main())

@@ -169,3 +169,23 @@ def test_teacher_gain_rebuilds_each_policys_own_teacher_from_its_manifest() -> N
         lo, hi = row["ci95"]
         assert lo <= row["gain"] <= hi and row["beats_teacher"] == (lo > 0)
         assert abs(row["ppo_mbps"] / row["teacher_mbps"] - 1 - row["gain"]) < 1e-3
+
+
+def test_manifest_check_gives_back_a_paper_channel_policys_figure_to_the_last_digit(tmp_path: Path) -> None:
+    """benchmarks/manifest_check.py on a folder with one paper-channel policy: its recorded figure
+    comes back exactly (no transcendental numpy kernel in its loop differs between CPUs)."""
+    import shutil
+
+    for suffix in (".zip", ".json"):
+        shutil.copy(ROOT / "policies" / f"no_move{suffix}", tmp_path / f"no_move{suffix}")
+    [row] = run_json("manifest_check.py", "--policies", str(tmp_path))
+    assert row["channel"] == "ar1" and row["episodes"] == 100
+    assert row["now_mbps"] == row["recorded_mbps"] and row["diff_pct"] == 0.0
+
+
+@pytest.mark.timeout(240)
+def test_flight_parity_flies_a_seed_in_lockstep_onto_its_px4_motion_evaluation() -> None:
+    result = run_json("flight_parity.py", "--seeds", "2")
+    [row] = result["rows"]
+    assert set(row) == {"seed", "evaluated_instant", "evaluated_px4", "flown_lockstep"}
+    assert result["summary"]["lockstep_vs_px4"]["within_5pct"] == 1
