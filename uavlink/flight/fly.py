@@ -134,8 +134,9 @@ def add_fly_parser(sub) -> None:
     p.add_argument("--speed", type=float, default=20.0, help="embedded SITL speed factor")
     p.add_argument("--lockstep", action="store_true",
                    help="run the embedded SITL in lockstep (sitl-stub --lockstep): its time waits for "
-                        "each frame's decision, so the flight replays exactly and matches `uavlink "
-                        "evaluate --episodes 1 --seed S --set uav_motion=px4`")
+                        "each frame's decision, so the flight replays exactly and follows `uavlink "
+                        "evaluate --episodes 1 --seed S --set uav_motion=px4` (the summary's replay) "
+                        "up to MAVLink's float32 positions")
     p.add_argument("--frames", type=int, default=128, help="decision frames to fly (one episode: 128)")
     p.add_argument("--out", type=Path, default=Path("runs/fly"),
                    help="folder for flight.tlog, summary.json and flight.png (the flight's picture, "
