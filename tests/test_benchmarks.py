@@ -189,3 +189,12 @@ def test_flight_parity_flies_a_seed_in_lockstep_onto_its_px4_motion_evaluation()
     [row] = result["rows"]
     assert set(row) == {"seed", "evaluated_instant", "evaluated_px4", "flown_lockstep"}
     assert result["summary"]["lockstep_vs_px4"]["within_5pct"] == 1
+
+
+def test_explore_search_pairs_every_variant_with_explore() -> None:
+    result = run_json("explore_search.py", "--episodes", "4")
+    names = [r["variant"] for r in result["rows"]]
+    assert names[0] == "explore" and len(names) == len(set(names)) > 1
+    for row in result["rows"][1:]:
+        ratio, low, high = row["vs_explore_pct"]
+        assert low <= ratio <= high
