@@ -35,6 +35,7 @@ from collections.abc import Sequence
 from dataclasses import replace
 from typing import Any
 
+from sitl_stub.core.modes import FlightMode
 from sitl_stub.core.vehicle_state import VehicleState
 from sitl_stub.mavlink.server import LOOP_WAIT_S, ServerConfig, SitlServer, step_vehicles
 from sitl_stub.sim.clock import SimClock
@@ -213,7 +214,8 @@ class FleetServer:
                 for server in self.servers:
                     server._tick(server._slots[0], boundary)
                 continue
-            if world is not None and world.hold.holding():
+            if world is not None and world.hold.holding(
+                    flying=any(v.mode is FlightMode.OFFBOARD for v in vehicles)):
                 return True
             if not step_vehicles(vehicles, min(target_s, boundary), world is not None and world.lockstep):
                 return False

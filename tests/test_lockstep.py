@@ -97,6 +97,20 @@ def test_an_unanswered_frame_is_let_go_after_the_wall_wait(monkeypatch) -> None:
         server.close()
 
 
+def test_a_vehicle_that_leaves_offboard_is_not_held() -> None:
+    """The flight computer switches to hold or land at its flight's end: the frame it will not
+    decide is let go at once, not after the wall wait."""
+    server, payload, gcs = _offboard_server()
+    try:
+        assert server._advance_to(2.5)
+        assert server.vehicle.hold().ok
+        assert not server._advance_to(2.5)
+        assert server.vehicle.t == pytest.approx(2.5) and payload.hold.timeouts == 0
+    finally:
+        gcs.close()
+        server.close()
+
+
 def test_a_vehicle_not_in_lockstep_never_holds() -> None:
     server, payload, gcs = _offboard_server(lockstep=False)
     try:

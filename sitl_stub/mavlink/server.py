@@ -302,7 +302,7 @@ class SitlServer:
                 while slot.next_frame * slot.payload.frame_s <= v.t + 1e-6:
                     self._tick(slot, slot.next_frame * slot.payload.frame_s)
                     slot.next_frame += 1
-            if any(_holds_clock(slot.payload) for slot in self._slots):
+            if any(_holds_clock(slot.payload, v.state()) for slot in self._slots):
                 return True
             next_frame = min((s.next_frame * s.payload.frame_s for s in self._slots),
                              default=math.inf)
@@ -356,6 +356,6 @@ def step_vehicles(vehicles: Sequence[Vehicle], end_s: float, whole_substeps: boo
     return substeps > 0
 
 
-def _holds_clock(payload: Payload) -> bool:
+def _holds_clock(payload: Payload, state: VehicleState) -> bool:
     holds = getattr(payload, "holds_clock", None)
-    return bool(holds is not None and holds())
+    return bool(holds is not None and holds(state))

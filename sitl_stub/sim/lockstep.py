@@ -46,9 +46,13 @@ class FrameHold:
                 self.frame = None
         return None
 
-    def holding(self) -> bool:
-        """True while the held frame waits for its decisions (and the wall wait is not over)."""
+    def holding(self, flying: bool = True) -> bool:
+        """True while the held frame waits for its decisions: the wall wait is not over, and
+        ``flying`` (a vehicle still in OFFBOARD: one that has left it decides nothing more)."""
         if self.frame is None:
+            return False
+        if not flying:
+            self.frame = None
             return False
         if time.monotonic() - self.since_wall <= LOCKSTEP_WAIT_WALL_S:
             return True

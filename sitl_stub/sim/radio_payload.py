@@ -25,6 +25,7 @@ from __future__ import annotations
 
 from typing import Any
 
+from sitl_stub.core.modes import FlightMode
 from sitl_stub.core.vehicle_state import VehicleState
 from sitl_stub.sim.lockstep import FrameHold
 from sitl_stub.sim.payload import MAV_AUTOPILOT_INVALID, PayloadOptions
@@ -80,8 +81,8 @@ class RadioPayload:
     def on_command(self, msg: Any, mav: Any) -> int | None:
         return self.hold.on_command(msg)
 
-    def holds_clock(self) -> bool:
-        return self.hold.holding()
+    def holds_clock(self, state: VehicleState) -> bool:
+        return self.hold.holding(flying=state.mode is FlightMode.OFFBOARD)
 
     def summary(self) -> dict[str, Any]:
         lockstep = {"lockstep_timeouts": self.hold.timeouts} if self.lockstep else {}
