@@ -85,8 +85,8 @@ class FleetWorld:
                  lockstep: bool = False) -> None:
         self.cfg = cfg
         self.truth_origin = truth_origin
-        self.lockstep = lockstep  # each frame waits for every vehicle's FRAME_DECIDED
-        self.hold = FrameHold(cfg.n_uavs)
+        self.lockstep = lockstep  # each frame waits for the FRAME_DECIDED of every vehicle in OFFBOARD
+        self.hold = FrameHold()
         self.frame_s = self.cfg.frame_s
         self.episodes = RadioEpisodes(cfg, seed)
         self.next_frame = 0
@@ -98,8 +98,9 @@ class FleetWorld:
         result = self.episodes.tick(states)
         self.score = None if result is None else encode_score(result.rate_bps, result.fair_rate)
         self.next_frame += 1
-        if self.lockstep and self.episodes.awaits_decision(states):
-            self.hold.hold(self.episodes.world.frame)
+        if self.lockstep and self.episodes.awaits_decision(states):  # each vehicle flying it decides
+            self.hold.hold(self.episodes.world.frame,
+                           {i for i, s in enumerate(states) if s.mode is FlightMode.OFFBOARD})
 
     def summary(self) -> dict[str, Any]:
         lockstep = {"lockstep_timeouts": self.hold.timeouts} if self.lockstep else {}

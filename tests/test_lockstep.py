@@ -121,6 +121,22 @@ def test_a_vehicle_not_in_lockstep_never_holds() -> None:
         server.close()
 
 
+def test_a_fleet_frame_waits_for_each_vehicle_flying_it() -> None:
+    hold = lockstep.FrameHold()
+    decided = [mavlink.MAVLink_command_long_message(1, radio_codec.RADIO_COMPONENT_ID,
+                                                    radio_codec.FRAME_DECIDED_COMMAND, 0, k, 0, 0, 0, 0, 0, 0)
+               for k in (2, 3)]
+    hold.hold(3, {0, 2})  # vehicle 1 is not in OFFBOARD: not waited for
+    assert hold.on_command(decided[0], 0) is None and hold.holding()  # frame 2's answer: too old
+    hold.on_command(decided[1], 0)
+    assert hold.holding() and hold.waiting == {2}
+    hold.on_command(decided[1], 2)
+    assert not hold.holding() and hold.timeouts == 0
+    other = mavlink.MAVLink_command_long_message(1, radio_codec.RADIO_COMPONENT_ID, mavlink.MAV_CMD_DO_SET_SERVO,
+                                                 0, 1, 1500, 0, 0, 0, 0, 0)
+    assert hold.on_command(other) == mavlink.MAV_RESULT_UNSUPPORTED
+
+
 def test_fly_refuses_lockstep_with_connect() -> None:
     proc = run_uavlink_in_process("fly", "--policy", "static", "--lockstep", "--connect", "udp:14550")
     assert_user_error(proc, "--lockstep", "sitl-stub --lockstep")

@@ -3,7 +3,7 @@
 The env steps only when given an action; a flight computer decides while the vehicle's time runs
 on, so without a hold a decision reaches the vehicle a few wall milliseconds (tens of simulated
 ones at 20x) late, by a different amount every time. A held frame waits for ``FRAME_DECIDED``
-(``uavlink.mavlink.radio_codec``) from each of its deciders (one per vehicle of a fleet), at most
+(``uavlink.mavlink.radio_codec``) from each of its deciders (a fleet's vehicles in OFFBOARD), at most
 ``LOCKSTEP_WAIT_WALL_S`` of wall time: a flight computer that does not answer slows the world down
 but never stops it.
 """
@@ -23,17 +23,19 @@ log = logging.getLogger(__name__)
 
 
 class FrameHold:
-    """The frame being held, if any, and who has answered it."""
+    """The frame being held, if any, and who still has to answer it."""
 
-    def __init__(self, deciders: int = 1) -> None:
-        self.deciders = deciders
+    def __init__(self) -> None:
         self.frame: int | None = None
-        self.answered: set[int] = set()
+        self.waiting: set[int] = set()
         self.since_wall = 0.0
         self.timeouts = 0
 
-    def hold(self, frame: int) -> None:
-        self.frame, self.answered, self.since_wall = frame, set(), time.monotonic()
+    def hold(self, frame: int, deciders: set[int] | None = None) -> None:
+        """Hold ``frame`` until each of ``deciders`` (vehicle indices; default the one vehicle,
+        0) has answered it."""
+        self.frame, self.since_wall = frame, time.monotonic()
+        self.waiting = {0} if deciders is None else set(deciders)
 
     def on_command(self, msg: Any, decider: int = 0) -> int | None:
         """A payload's ``on_command``: FRAME_DECIDED (param1: the frame) answers the held frame
@@ -41,8 +43,8 @@ class FrameHold:
         if msg.command != FRAME_DECIDED_COMMAND:
             return mavlink.MAV_RESULT_UNSUPPORTED
         if self.frame is not None and msg.param1 >= self.frame:
-            self.answered.add(decider)
-            if len(self.answered) >= self.deciders:
+            self.waiting.discard(decider)
+            if not self.waiting:
                 self.frame = None
         return None
 
