@@ -24,10 +24,10 @@ mavlink = mavutil.mavlink
 MAP_NO_MOVE = str(ROOT / "policies/map/no_move.zip")
 
 
-def _offboard_server(lockstep: bool = True) -> tuple[SitlServer, RadioPayload, Any]:
+def _offboard_server(in_lockstep: bool = True) -> tuple[SitlServer, RadioPayload, Any]:
     """A vehicle in OFFBOARD at t = 0 (its one setpoint lasts: COM_OF_LOSS_T 60 s) and a ground
     station that has spoken to it."""
-    payload = RadioPayload(PayloadOptions(scenario="no_move", seed=3, lockstep=lockstep))
+    payload = RadioPayload(PayloadOptions(scenario="no_move", seed=3, lockstep=in_lockstep))
     server = SitlServer(ServerConfig(connect="udpin:127.0.0.1:0", params={"COM_OF_LOSS_T": 60.0}), [payload])
     server.open()
     host, port = server.address
@@ -112,7 +112,7 @@ def test_a_vehicle_that_leaves_offboard_is_not_held() -> None:
 
 
 def test_a_vehicle_not_in_lockstep_never_holds() -> None:
-    server, payload, gcs = _offboard_server(lockstep=False)
+    server, payload, gcs = _offboard_server(in_lockstep=False)
     try:
         assert not server._advance_to(2.5)
         assert server.vehicle.t == pytest.approx(2.5) and "lockstep_timeouts" not in payload.summary()
