@@ -206,7 +206,8 @@ def main(argv: Sequence[str] | None = None, payload_factory: PayloadFactory | No
     if threading.current_thread() is threading.main_thread():
         for sig in (signal.SIGINT, signal.SIGTERM):
             signal.signal(sig, _on_signal)
-    print(f"{PROG}: {who} on {server.connection}, {args.speed:g}x real time, "
+    lockstep = ", lockstep" if args.lockstep and count else ""
+    print(f"{PROG}: {who} on {server.connection}, {args.speed:g}x real time{lockstep}, "
           f"{count} payload(s), {signing}", file=sys.stderr, flush=True)
     try:
         server.run(stop)
