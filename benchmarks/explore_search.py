@@ -1,16 +1,23 @@
 """Adaptive searches against `explore` on no_move (spatial channel): stop early at a good spot, search again
-from a poor one.
+from a poor one, and probe the cells around the best spot.
 
-`explore` always searches its 32-frame cross, then returns to the best spot it sensed. Two GPS-free
+`explore` always searches its 32-frame cross, then returns to the best spot it sensed. GPS-free
 changes, read from the same observation (the memory of place and the SINRs now):
 - stop: leave the search for the best spot once it is worth at least ``stop`` bits/s/Hz (mean over
   UEs of log2(1 + SINR));
 - again: if the best spot is worth less than ``again`` bits when the UAV is back on it, fly a
-  second cross (diagonals) from there.
-Each variant against explore on the same episodes (paired ratio, 95 % bootstrap interval). Issue 23
-asks for 1.2x today's spatial policy on no_move, about +6.6 % over explore.
+  second cross (diagonals) from there;
+- probe: on the best spot after the search, fly to a neighbouring cell never sensed (the memory's
+  east, north, west, south); the memory then ranks it, and the UAV stays or goes back. The field
+  decorrelates over 50 m but is rough: a cell next to the best one is often better;
+- full return: go back to the best spot in one move (explore closes half the distance a frame,
+  which suits PX4's motion, not the env's instant moves);
+- leg: frames per leg of the search cross (explore: 4).
+Each variant in each memory grid (``--cell-m``; the shipped map policies and explore's default: 12
+m) against explore with its default grid and against today's spatial policy, on the same episodes
+(paired ratios, 95 % bootstrap intervals). Issue 23 asks for 1.2x the spatial policy on no_move.
 
-    python benchmarks/explore_search.py [--episodes 100] [--seed 1] [--json]
+    python benchmarks/explore_search.py [--cell-m 12 6] [--episodes 100] [--seed 1] [--set KEY=VALUE] [--json]
 """
 
 from __future__ import annotations
@@ -21,23 +28,35 @@ import sys
 
 import numpy as np
 
+from uavlink.config import EnvConfig
+from uavlink.env.core import GroundTruth
 from uavlink.env.place_memory import sensed_value_bits
 from uavlink.evaluation.core import evaluate_policy, paired_ratio_ci
 from uavlink.policies.contract import EnvOverrides, load_with_env
 from uavlink.policies.explore import ExplorePolicy
 
-VARIANTS = {"stop 11": (11.0, None), "stop 12": (12.0, None), "stop 13": (13.0, None),
-            "again 9": (None, 9.0), "stop 12, again 9": (12.0, 9.0), "stop 13, again 9": (13.0, 9.0)}
+VARIANTS = {  # name: ExploreVariant's (stop bits, again bits, probe, approach gain, leg frames)
+    "explore": (None, None, False, 0.5, 4),
+    "stop 12, again 9": (12.0, 9.0, False, 0.5, 4),
+    "probe": (None, None, True, 0.5, 4),
+    "probe, full return": (None, None, True, 1.0, 4),
+    "stop 11, again 9, probe, full return": (11.0, 9.0, True, 1.0, 4),
+    "leg 3, stop 12, again 9, probe, full return": (12.0, 9.0, True, 1.0, 3),
+    "leg 2, stop 12, again 9.5, probe, full return": (12.0, 9.5, True, 1.0, 2),
+}
 
 
-class AdaptiveExplore(ExplorePolicy):
-    """explore, with an early stop at a good spot and a second cross from a poor one."""
+class ExploreVariant(ExplorePolicy):
+    """explore with an early stop at a good spot, a second cross from a poor one and probes of the
+    cells around the best spot; one UAV."""
 
-    def __init__(self, cfg, stop_bits: float | None, again_bits: float | None) -> None:
-        super().__init__(cfg)
-        self.stop_bits, self.again_bits = stop_bits, again_bits
+    def __init__(self, cfg: EnvConfig, stop_bits: float | None, again_bits: float | None, probe: bool,
+                 approach_gain: float, search_leg_frames: int) -> None:
+        super().__init__(cfg, search_leg_frames=search_leg_frames, approach_gain=approach_gain)
+        self.stop_bits, self.again_bits, self.probe = stop_bits, again_bits, probe
+        self.cell_m = cfg.place_cell_m
 
-    def act(self, obs: np.ndarray, truth=None) -> np.ndarray:
+    def act(self, obs: np.ndarray, truth: GroundTruth | None = None) -> np.ndarray:
         action = super().act(obs, truth)
         frame = self.layout.newest_frame(obs)
         index = np.rint(frame["place_frames"]).astype(int) - 1
@@ -58,32 +77,54 @@ class AdaptiveExplore(ExplorePolicy):
             heading = np.where(j < 4 * leg, np.where(out, 45.0, 225.0), np.where(out, 135.0, -45.0))
             action = np.where(second[:, None], self.mapping.from_polar(heading, np.full(len(index), r_max)),
                               action)
+        if self.probe:
+            on_best = np.hypot(offset[:, 0], offset[:, 1]) < self.cell_m / 2
+            unknown = frame["place_neighbour_known"] < 0.5  # (rows, 4): east, north, west, south
+            probe = (index >= self.search_frames) & on_best & unknown.any(axis=1)
+            step = self.mapping.from_polar(90.0 * np.argmax(unknown, axis=1),
+                                           np.full(len(index), min(self.cell_m, r_max)))
+            action = np.where(probe[:, None], step, action)
         return action
 
 
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--cell-m", type=float, nargs="+", default=[12.0, 6.0], help="memory grids to try (m)")
     parser.add_argument("--episodes", type=int, default=100)
     parser.add_argument("--seed", type=int, default=1, help="evaluation seed (1: validation episodes)")
+    parser.add_argument("--set", dest="overrides", action="append", default=[], metavar="KEY=VALUE",
+                        help="env overrides for every run, e.g. uav_motion=px4")
     parser.add_argument("--json", action="store_true")
     args = parser.parse_args(argv)
-    overrides = EnvOverrides.from_command_line("no_move", None, ["radio.shadowing_model=spatial"])
-    [(explore, cfg)] = load_with_env(["explore"], overrides)
-    base = evaluate_policy(explore, cfg, args.episodes, args.seed)
-    rows = [{"variant": "explore", "mean_rate_mbps": round(base.mean_rate_mbps, 4)}]
-    for name, (stop, again) in VARIANTS.items():
-        result = evaluate_policy(AdaptiveExplore(cfg, stop, again), cfg, args.episodes, args.seed)
-        ratio, low, high = paired_ratio_ci(result.episode_rate_mbps, base.episode_rate_mbps)
-        rows.append({"variant": name, "mean_rate_mbps": round(result.mean_rate_mbps, 4),
-                     "vs_explore_pct": [round((x - 1) * 100, 2) for x in (ratio, low, high)]})
+    settings = ["radio.shadowing_model=spatial", *args.overrides]
+    on_spatial = EnvOverrides.from_command_line("no_move", None, settings)
+    [(spatial, spatial_cfg), (explore, explore_cfg)] = load_with_env(["policies/spatial/no_move.zip", "explore"],
+                                                                      on_spatial)
+    spatial_result = evaluate_policy(spatial, spatial_cfg, args.episodes, args.seed)
+    explore_result = evaluate_policy(explore, explore_cfg, args.episodes, args.seed)
+    rows = []
+    for cell_m in args.cell_m:
+        [(_, cfg)] = load_with_env(["explore"], EnvOverrides.from_command_line(
+            "no_move", None, [*settings, f"place_cell_m={cell_m:g}"]))
+        for name, variant in VARIANTS.items():
+            result = evaluate_policy(ExploreVariant(cfg, *variant), cfg, args.episodes, args.seed)
+            rows.append({"cell_m": cell_m, "variant": name, "mean_rate_mbps": round(result.mean_rate_mbps, 4),
+                         **{f"vs_{ref}": [round(x, 4) for x in paired_ratio_ci(result.episode_rate_mbps,
+                                                                              base.episode_rate_mbps)]
+                            for ref, base in (("explore", explore_result), ("spatial", spatial_result))}})
+    summary = {"episodes": args.episodes, "seed": args.seed, "settings": settings,
+               "spatial_mbps": round(spatial_result.mean_rate_mbps, 4),
+               "explore_mbps": round(explore_result.mean_rate_mbps, 4), "rows": rows}
     if args.json:
-        print(json.dumps({"episodes": args.episodes, "seed": args.seed, "rows": rows}, indent=1))
+        print(json.dumps(summary, indent=1))
         return 0
-    print("| variant | Mbps | vs explore |\n|---|---:|---|")
+    print(f"spatial policy {summary['spatial_mbps']:.3f} Mbps, explore {summary['explore_mbps']:.3f} Mbps "
+          f"({args.episodes} episodes, seed {args.seed}, {' '.join(settings)})\n")
+    print("| cell (m) | variant | Mbps | vs explore | vs spatial policy |\n|---|---|---:|---|---|")
     for r in rows:
-        gain = r.get("vs_explore_pct")
-        print(f"| {r['variant']} | {r['mean_rate_mbps']:.3f} | "
-              + (f"{gain[0]:+.1f} % [{gain[1]:+.1f}, {gain[2]:+.1f}]" if gain else "") + " |")
+        cells = [f"{(x[0] - 1) * 100:+.1f} % [{(x[1] - 1) * 100:+.1f}, {(x[2] - 1) * 100:+.1f}]"
+                 for x in (r["vs_explore"], r["vs_spatial"])]
+        print(f"| {r['cell_m']:g} | {r['variant']} | {r['mean_rate_mbps']:.3f} | {cells[0]} | {cells[1]} |")
     return 0
 
 

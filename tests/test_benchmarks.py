@@ -191,10 +191,12 @@ def test_flight_parity_flies_a_seed_in_lockstep_onto_its_px4_motion_evaluation()
     assert result["summary"]["lockstep_vs_px4"]["within_5pct"] == 1
 
 
-def test_explore_search_pairs_every_variant_with_explore() -> None:
-    result = run_json("explore_search.py", "--episodes", "4")
-    names = [r["variant"] for r in result["rows"]]
-    assert names[0] == "explore" and len(names) == len(set(names)) > 1
-    for row in result["rows"][1:]:
-        ratio, low, high = row["vs_explore_pct"]
-        assert low <= ratio <= high
+def test_explore_search_pairs_every_variant_with_explore_and_the_spatial_policy() -> None:
+    result = run_json("explore_search.py", "--episodes", "4", "--cell-m", "12")
+    rows = result["rows"]
+    assert [r["variant"] for r in rows][0] == "explore" and len(rows) > 1
+    assert rows[0]["mean_rate_mbps"] == pytest.approx(result["explore_mbps"], abs=1e-4)  # 12 m: the baseline
+    for row in rows:
+        for ref in ("vs_explore", "vs_spatial"):
+            ratio, low, high = row[ref]
+            assert low <= ratio <= high
