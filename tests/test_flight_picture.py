@@ -115,6 +115,38 @@ def test_a_log_cut_anywhere_reads_up_to_the_cut() -> None:
     assert len(list(_records(record + record))) == 2
 
 
+def test_a_frame_is_a_decision_frame_when_offboard_shows_before_the_next_one(tmp_path: Path) -> None:
+    """The heartbeat trails a mode change by up to its period: the first frame of the episode (in
+    OFFBOARD on the vehicle, its heartbeat still LOITER in the log) is a decision frame; the frame
+    after the vehicle was handed back is not (CI saw frame 0 dropped: 15 decision frames of 16)."""
+    from uavlink.mavlink.px4_modes import (
+        PX4_MAIN_AUTO,
+        PX4_MAIN_OFFBOARD,
+        PX4_SUB_AUTO_LOITER,
+        encode_custom_mode,
+    )
+    from uavlink.mavlink.radio_codec import READINGS_NAME, encode_readings
+
+    vehicle = mavlink.MAVLink(None, srcSystem=1, srcComponent=1)
+    radio = mavlink.MAVLink(None, srcSystem=1, srcComponent=RADIO_COMPONENT_ID)
+    data = encode_readings(np.full(2, 10.0), np.zeros(2), running=True)
+
+    def beat(main: int, sub: int = 0):
+        return vehicle.heartbeat_encode(mavlink.MAV_TYPE_QUADROTOR, mavlink.MAV_AUTOPILOT_PX4,
+                                        mavlink.MAV_MODE_FLAG_CUSTOM_MODE_ENABLED, encode_custom_mode(main, sub), 4)
+
+    loiter, offboard = beat(PX4_MAIN_AUTO, PX4_SUB_AUTO_LOITER), beat(PX4_MAIN_OFFBOARD)
+    log = [loiter]
+    for frame, after in enumerate([offboard, offboard, loiter, loiter]):  # frames 0-3, then a heartbeat
+        log += [vehicle.local_position_ned_encode(1000 * frame, 0.0, 0.0, -95.0, 0, 0, 0),
+                radio.debug_float_array_encode(frame * 1_000_000, READINGS_NAME.encode(), frame, data), after]
+    tlog = tmp_path / "flight.tlog"
+    tlog.write_bytes(b"".join((k).to_bytes(8, "big") + m.pack(vehicle if m.get_srcComponent() == 1 else radio)
+                              for k, m in enumerate(log)))
+    [track] = read_flight(tlog).vehicles
+    assert track.frames[track.decided].tolist() == [0, 1]
+
+
 # ------------------------------------------------------------------ damaged, empty (fast)
 def test_plot_refuses_empty_damaged_and_missing_logs(tmp_path: Path) -> None:
     empty = tmp_path / "empty.tlog"

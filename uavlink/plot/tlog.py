@@ -9,7 +9,8 @@ Any .tlog works (8-byte big-endian microsecond timestamp + raw packet per record
   episode (SINR and sensed AoA per UE, its cell in a fleet), the vehicle's position at each frame
   interpolated at the frame's simulated time; the team's UL_SCORE (mean UE rate) per frame;
 - decision frames: the frames a vehicle flew in OFFBOARD (the policy steering it), from the frame's
-  readings to the next frame's. When there are
+  readings to the next frame's (a heartbeat shows OFFBOARD at or after the readings, before the next
+  frame's: the heartbeat trails a mode change by up to its period). When there are
   any, the picture keeps the frames from the first to the last decision (take-off and landing
   leave the radio payload counting frames that no policy decided); without, every running frame;
 - UEs: the simulation's truth (ADSB_VEHICLE, :mod:`uavlink.mavlink.ue_truth`), each fix tagged with
@@ -127,7 +128,11 @@ class _Reader:
         if kind == "HEARTBEAT":
             if msg.autopilot != mavlink.MAV_AUTOPILOT_INVALID:
                 self.autopilots.add(sys_id)
-                self.offboard[sys_id] = decode_custom_mode(msg.custom_mode)[0] == PX4_MAIN_OFFBOARD
+                offboard = decode_custom_mode(msg.custom_mode)[0] == PX4_MAIN_OFFBOARD
+                self.offboard[sys_id] = offboard
+                got, frame = self.readings.get(sys_id, {}), self.last_frame.get(sys_id)
+                if offboard and frame in got:  # the heartbeat lags a mode change by up to its period:
+                    got[frame] = (*got[frame][:2], True)  # a frame is OFFBOARD if it shows before the next
         elif kind == "LOCAL_POSITION_NED":
             if math.isfinite(msg.x) and math.isfinite(msg.y):
                 self.local.setdefault(sys_id, []).append((msg.time_boot_ms * 1e-3, msg.y, msg.x))
