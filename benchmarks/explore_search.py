@@ -12,7 +12,9 @@ changes, read from the same observation (the memory of place and the SINRs now):
   decorrelates over 50 m but is rough: a cell next to the best one is often better;
 - full return: go back to the best spot in one move (explore closes half the distance a frame,
   which suits PX4's motion, not the env's instant moves);
-- leg: frames per leg of the search cross (explore: 4).
+- leg: frames per leg of the search cross (explore: 4);
+- spiral: 8 frames after the search, a small square spiral (6 m steps) around where the UAV is, then
+  back to the best spot: new cells near it without a multicopter's reversals.
 Each variant in each memory grid (``--cell-m``; the shipped map policies and explore's default: 12
 m) against explore with its default grid and against today's spatial policy, on the same episodes
 (paired ratios, 95 % bootstrap intervals). Issue 23 asks for 1.2x the spatial policy on no_move.
@@ -35,25 +37,44 @@ from uavlink.evaluation.core import evaluate_policy, paired_ratio_ci
 from uavlink.policies.contract import EnvOverrides, load_with_env
 from uavlink.policies.explore import ExplorePolicy
 
-VARIANTS = {  # name: ExploreVariant's (stop bits, again bits, probe, approach gain, leg frames)
-    "explore": (None, None, False, 0.5, 4),
-    "stop 12, again 9": (12.0, 9.0, False, 0.5, 4),
-    "probe": (None, None, True, 0.5, 4),
-    "probe, full return": (None, None, True, 1.0, 4),
-    "stop 11, again 9, probe, full return": (11.0, 9.0, True, 1.0, 4),
-    "leg 3, stop 12, again 9, probe, full return": (12.0, 9.0, True, 1.0, 3),
-    "leg 2, stop 12, again 9.5, probe, full return": (12.0, 9.5, True, 1.0, 2),
+VARIANTS = {  # name: ExploreVariant's settings (the rest as explore)
+    "explore": {},
+    "stop 12, again 9": {"stop_bits": 12.0, "again_bits": 9.0},
+    "probe": {"probe": True},
+    "probe, full return": {"probe": True, "approach_gain": 1.0},
+    "stop 11, again 9, probe, full return": {"stop_bits": 11.0, "again_bits": 9.0, "probe": True,
+                                             "approach_gain": 1.0},
+    "leg 3, stop 12, again 9, probe, full return": {"stop_bits": 12.0, "again_bits": 9.0, "probe": True,
+                                                    "approach_gain": 1.0, "search_leg_frames": 3},
+    "leg 2, stop 12, again 9.5, probe, full return": {"stop_bits": 12.0, "again_bits": 9.5, "probe": True,
+                                                      "approach_gain": 1.0, "search_leg_frames": 2},
+    "leg 3, stop 12, spiral 12 x 6 m": {"stop_bits": 12.0, "search_leg_frames": 3, "spiral_frames": 12},
 }
 
 
-class ExploreVariant(ExplorePolicy):
-    """explore with an early stop at a good spot, a second cross from a poor one and probes of the
-    cells around the best spot; one UAV."""
+def square_spiral_deg(frames: int) -> np.ndarray:
+    """Headings (deg from east) of a square spiral of one-step legs 1, 1, 2, 2, 3, 3, ..."""
+    out: list[float] = []
+    leg, turn = 1, 0
+    while len(out) < frames:
+        for _ in range(2):
+            out += [90.0 * turn] * leg
+            turn = (turn + 1) % 4
+        leg += 1
+    return np.array(out[:frames])
 
-    def __init__(self, cfg: EnvConfig, stop_bits: float | None, again_bits: float | None, probe: bool,
-                 approach_gain: float, search_leg_frames: int) -> None:
+
+class ExploreVariant(ExplorePolicy):
+    """explore with an early stop at a good spot, a second cross from a poor one, probes of the
+    cells around the best spot, or a small square spiral (``spiral_step_m`` a frame) from where the
+    UAV is 8 frames after the search, which a multicopter flies without reversals; one UAV."""
+
+    def __init__(self, cfg: EnvConfig, stop_bits: float | None = None, again_bits: float | None = None,
+                 probe: bool = False, approach_gain: float = 0.5, search_leg_frames: int = 4,
+                 spiral_frames: int = 0, spiral_step_m: float = 6.0) -> None:
         super().__init__(cfg, search_leg_frames=search_leg_frames, approach_gain=approach_gain)
         self.stop_bits, self.again_bits, self.probe = stop_bits, again_bits, probe
+        self.spiral_deg, self.spiral_step_m = square_spiral_deg(spiral_frames), spiral_step_m
         self.cell_m = cfg.place_cell_m
 
     def act(self, obs: np.ndarray, truth: GroundTruth | None = None) -> np.ndarray:
@@ -84,6 +105,12 @@ class ExploreVariant(ExplorePolicy):
             step = self.mapping.from_polar(90.0 * np.argmax(unknown, axis=1),
                                            np.full(len(index), min(self.cell_m, r_max)))
             action = np.where(probe[:, None], step, action)
+        if len(self.spiral_deg):
+            j = index - (self.search_frames + 8)
+            spiral = (j >= 0) & (j < len(self.spiral_deg))
+            step = self.mapping.from_polar(self.spiral_deg[np.clip(j, 0, len(self.spiral_deg) - 1)],
+                                           np.full(len(index), self.spiral_step_m))
+            action = np.where(spiral[:, None], step, action)
         return action
 
 
@@ -107,7 +134,7 @@ def main(argv: list[str] | None = None) -> int:
         [(_, cfg)] = load_with_env(["explore"], EnvOverrides.from_command_line(
             "no_move", None, [*settings, f"place_cell_m={cell_m:g}"]))
         for name, variant in VARIANTS.items():
-            result = evaluate_policy(ExploreVariant(cfg, *variant), cfg, args.episodes, args.seed)
+            result = evaluate_policy(ExploreVariant(cfg, **variant), cfg, args.episodes, args.seed)
             rows.append({"cell_m": cell_m, "variant": name, "mean_rate_mbps": round(result.mean_rate_mbps, 4),
                          **{f"vs_{ref}": [round(x, 4) for x in paired_ratio_ci(result.episode_rate_mbps,
                                                                               base.episode_rate_mbps)]
