@@ -200,3 +200,13 @@ def test_explore_search_pairs_every_variant_with_explore_and_the_spatial_policy(
         for ref in ("vs_explore", "vs_spatial"):
             ratio, low, high = row[ref]
             assert low <= ratio <= high
+
+
+@pytest.mark.timeout(300)
+def test_spiral_ppo_trains_from_the_spiral_rule_and_pairs_it_with_the_spatial_policy() -> None:
+    result = run_json("spiral_ppo.py", "--seeds", "0", "--train-episodes", "256", "--episodes", "2")
+    assert [(r["motion"], r["policy"]) for r in result["rows"]] == [
+        ("instant", "rule"), ("instant", "PPO seed 0"), ("px4", "rule"), ("px4", "PPO seed 0")]
+    for row in result["rows"]:
+        ratio, low, high = row["vs_spatial"]
+        assert low <= ratio <= high
