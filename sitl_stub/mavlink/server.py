@@ -302,7 +302,7 @@ class SitlServer:
                 while slot.next_frame * slot.payload.frame_s <= v.t + 1e-6:
                     self._tick(slot, slot.next_frame * slot.payload.frame_s)
                     slot.next_frame += 1
-            if any(_holds_clock(slot.payload, v.state()) for slot in self._slots):
+            if self._lockstep and _holds_clock(self._slots, v.state()):
                 return True
             next_frame = min((s.next_frame * s.payload.frame_s for s in self._slots),
                              default=math.inf)
@@ -310,12 +310,13 @@ class SitlServer:
                 return False
 
     def _tick(self, slot: PayloadSlot, sim_time_s: float) -> None:
+        state = self.vehicle.state()
         if getattr(slot.payload, "lockstep", False):
             # the position at this very instant, before the frame's readings: what the flight
             # computer decides with, as the env's step does
-            self.telemetry.send("LOCAL_POSITION_NED", self.vehicle.state())
+            self.telemetry.send("LOCAL_POSITION_NED", state)
         try:
-            slot.payload.on_frame(sim_time_s, self.vehicle.state(), slot.mav)
+            slot.payload.on_frame(sim_time_s, state, slot.mav)
         except Exception:
             slot.failures += 1
             if slot.failures == 1 or slot.failures % 100 == 0:
@@ -356,6 +357,7 @@ def step_vehicles(vehicles: Sequence[Vehicle], end_s: float, whole_substeps: boo
     return substeps > 0
 
 
-def _holds_clock(payload: Payload, state: VehicleState) -> bool:
-    holds = getattr(payload, "holds_clock", None)
-    return bool(holds is not None and holds(state))
+def _holds_clock(slots: Sequence[PayloadSlot], state: VehicleState) -> bool:
+    """Whether a lockstep payload holds time at its frame (its optional ``holds_clock``)."""
+    return any(getattr(slot.payload, "lockstep", False) and getattr(slot.payload, "holds_clock", None)
+               and slot.payload.holds_clock(state) for slot in slots)

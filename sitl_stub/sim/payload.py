@@ -18,10 +18,11 @@ when it raises. An optional ``summary() -> dict`` is included in the server's ``
 in ``sitl-stub``'s exit stats line). Broadcast
 commands (target_component 0) are answered by the autopilot only.
 
-Lockstep: a payload with an optional ``holds_clock(state) -> bool`` that returns True holds
-simulated time at its current frame (the server keeps handling messages and sending heartbeats) until
-it returns False, e.g. once the flight computer has answered the frame; it must give up by itself
-after a while of wall time, or a silent client would stop the vehicle's world.
+Lockstep: a payload whose ``lockstep`` attribute is true gets the vehicle's LOCAL_POSITION_NED sent
+just before each of its frames, and its optional ``holds_clock(state) -> bool`` asked after each: while it
+returns True, simulated time stays at that frame (the server keeps handling messages and sending
+heartbeats), e.g. until the flight computer has answered the frame; it must give up by itself after
+a while of wall time, or a silent client would stop the vehicle's world.
 
 The CLI builds payloads with a factory ``(PayloadOptions) -> Payload | Sequence[Payload] | None``.
 The default factory uses ``sitl_stub.sim.radio_payload.RadioPayload(options)`` when that module

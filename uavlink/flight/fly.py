@@ -29,9 +29,7 @@ def embedded_sitl(cfg: EnvConfig, seed: int, speed: float, log_path: Path | None
     from sitl_stub.launcher import vehicle_process
 
     port = free_udp_port()
-    args = vehicle_args(cfg, seed, lockstep)
-    if signing_key_file is not None:
-        args += ["--signing-key", str(signing_key_file)]
+    args = vehicle_args(cfg, seed, lockstep, signing_key_file)
     with vehicle_process(f"udpout:127.0.0.1:{port}", speed, args, log_path=log_path):
         yield f"udpin:127.0.0.1:{port}"
 

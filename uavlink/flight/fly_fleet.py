@@ -28,17 +28,19 @@ def split_urls(connect: str) -> list[str]:
     return urls
 
 
-def vehicle_args(cfg: EnvConfig, seed: int, lockstep: bool = False) -> list[str]:
+def vehicle_args(cfg: EnvConfig, seed: int, lockstep: bool = False,
+                 signing_key_file: Path | None = None) -> list[str]:
     """The ``sitl_stub`` options whose radio payload simulates ``cfg`` from episode 0 of ``seed``
-    (``--fleet D`` for ``n_uavs`` = D > 1): the embedded vehicle's, and what a vehicle started by
-    hand needs to serve a policy of ``cfg`` (benchmarks/soak.py, the tests)."""
+    (``--fleet D`` for ``n_uavs`` = D > 1), in lockstep and signing with the key file when asked:
+    the embedded vehicle's, and what a vehicle started by hand needs to serve a policy of ``cfg``
+    (benchmarks/soak.py, the tests)."""
     args = ([] if cfg.n_uavs == 1 else ["--fleet", str(cfg.n_uavs)]) + (["--lockstep"] if lockstep else [])
     args += ["--scenario", cfg.scenario, "--seed", str(seed),
              "--aoa-noise-deg", repr(float(cfg.radio.aoa_noise_deg))]
     for pair in changed_settings(cfg):
         if not pair.startswith(("n_uavs=", "scenario=")):
             args += ["--set", pair]
-    return args
+    return args + ([] if signing_key_file is None else ["--signing-key", str(signing_key_file)])
 
 
 @contextlib.contextmanager
@@ -49,9 +51,7 @@ def embedded_fleet(cfg: EnvConfig, seed: int, speed: float, log_path: Path | Non
     from sitl_stub.launcher import vehicle_process
 
     ports = [free_udp_port() for _ in range(cfg.n_uavs)]
-    args = vehicle_args(cfg, seed, lockstep)
-    if signing_key_file is not None:
-        args += ["--signing-key", str(signing_key_file)]
+    args = vehicle_args(cfg, seed, lockstep, signing_key_file)
     with vehicle_process([f"udpout:127.0.0.1:{p}" for p in ports], speed, args, log_path=log_path):
         yield [f"udpin:127.0.0.1:{p}" for p in ports]
 
