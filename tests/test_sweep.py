@@ -38,7 +38,7 @@ from uavlink.sweep.aggregate import (  # noqa: E402
 )
 from uavlink.sweep.jobs import figures  # noqa: E402
 from uavlink.sweep.runner import run_sweep  # noqa: E402
-from uavlink.sweep.spec import KEY_VERSION, POLICY_FILE_FIELDS, Job, load_spec, parse_spec  # noqa: E402
+from uavlink.sweep.spec import KEY_VERSION, POLICY_FILE_FIELDS, Job, SweepSpecError, load_spec, parse_spec  # noqa: E402
 
 TINY = """
 name = "tiny4"
@@ -510,3 +510,18 @@ def test_the_fast_ppo_defaults_leave_the_shipped_jobs_as_they_were() -> None:
     job = load_spec(Path("sweeps/table1.toml")).jobs()[0].train_config()
     assert (job.n_envs, job.n_steps, job.batch_size, job.n_epochs) == (32, 128, 512, 10) != (
         TrainConfig().n_envs, TrainConfig().n_steps, TrainConfig().batch_size, TrainConfig().n_epochs)
+
+
+def test_scenario_env_overrides_reach_only_their_scenario() -> None:
+    base = {"name": "a", "scenarios": ["no_move", "straight"], "seeds": [0], "train": {"episodes": 4},
+            "env": {"radio": {"shadowing_model": "spatial"}, "place_cell_m": 12.0}}
+    plain = {j.scenario: j for j in parse_spec(base).jobs()}
+    jobs = {j.scenario: j for j in parse_spec({**base, "scenario_env": {"no_move": {"place_model": "kriging"}}}).jobs()}
+    assert jobs["straight"].key == plain["straight"].key
+    assert jobs["no_move"].key != plain["no_move"].key
+    assert jobs["no_move"].env_config().place_model == "kriging"
+    assert jobs["straight"].env_config().place_model == "cells"
+    with pytest.raises(SweepSpecError, match="place_model .*scenario no_move"):
+        parse_spec({**base, "scenario_env": {"no_move": {"place_model": "gp"}}})
+    with pytest.raises(SweepSpecError, match="scenario_env"):
+        parse_spec({**base, "scenario_env": {"no_move": {"r_max_m": 10.0}}, "grid": {"r_max_m": [10.0]}})

@@ -326,7 +326,7 @@ def build_parser() -> argparse.ArgumentParser:
     p.set_defaults(func=cmd_export)
 
     p = sub.add_parser("sweep", help="train + evaluate a grid of scenarios x seeds x settings on Dask",
-                       description="Run a sweep file (TOML: scenarios, seeds, [train], [scenario_train.NAME], [env], [eval], "
+                       description="Run a sweep file (TOML: scenarios, seeds, [train], [scenario_train.NAME], [env], [scenario_env.NAME], [eval], "
                                    "[grid]) on an embedded Dask cluster or --scheduler; writes "
                                    "OUT_ROOT/<name>/<job>/ and a per-setting summary. Finished jobs "
                                    "are skipped on a rerun. See sweeps/tiny.toml.")

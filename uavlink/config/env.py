@@ -33,6 +33,10 @@ FLEET_REUSE = ("full", "orthogonal")
 # How the UAV reaches its setpoint in a frame (uavlink.mobility.uav_motion): at once (the paper's),
 # or flown by PX4's position loop under its speed and acceleration limits, as sitl_stub flies.
 UAV_MOTIONS = ("instant", "px4")
+# What the memory of place keeps: "cells", the grid of sensed values (layout v3, v4 for a fleet);
+# "kriging", that grid and a model of the sensed field with the spot it makes worth flying to (v5,
+# one UAV; uavlink/env/field_model.py).
+PLACE_MODELS = ("cells", "kriging")
 
 
 @dataclass(frozen=True)
@@ -121,6 +125,7 @@ class EnvConfig:
     # grid of cells this wide (m) over the area; 0 (default) is off, the layouts of before.
     # uavlink/env/place_memory.py; it makes the observation layout v3 (v4 for a fleet).
     place_cell_m: float = 0.0
+    place_model: str = PLACE_MODELS[0]  # what the memory keeps: PLACE_MODELS above
     ue_speed_mps: float = 8.0
     cluster_size_m: float = 10.0
     # The fleet (SPEC "A fleet"): D UAVs, start spread on a circle, kept apart by a safety filter.
@@ -155,6 +160,11 @@ class EnvConfig:
         _non_negative("env.place_cell_m", self.place_cell_m)
         if self.place_cell_m > self.area.half_width_m:
             raise ConfigError("env.place_cell_m must be 0 (off) or at most area.half_width_m")
+        if self.place_model not in PLACE_MODELS:
+            raise ConfigError(f"unknown place_model {self.place_model!r}; choose from {', '.join(PLACE_MODELS)}")
+        if self.place_model == "kriging" and (self.place_cell_m <= 0 or self.n_uavs > 1):
+            raise ConfigError("env.place_model=kriging models one UAV's memory of place: it needs "
+                              "place_cell_m > 0 and n_uavs = 1")
         _non_negative("env.ue_speed_mps", self.ue_speed_mps)
         _non_negative("env.cluster_size_m", self.cluster_size_m)
         if self.cluster_size_m >= 2 * self.area.half_width_m:

@@ -16,7 +16,7 @@ from uavlink.config.fields import Namer, check_fields, coerce, config_fields, ne
 from uavlink.errors import ConfigError
 
 # The rules a warm start can copy; uavlink.policies.baselines implements them by these names.
-BASELINE_NAMES = ("static", "oracle", "aoa", "kmeans", "explore")
+BASELINE_NAMES = ("static", "oracle", "aoa", "kmeans", "explore", "kriging")
 # What a warm start may imitate: a baseline, or a fleet-only teacher (uavlink.learn.teachers: solo;
 # uavlink.learn.lead_teacher: lead).
 TEACHER_NAMES = (*BASELINE_NAMES, "solo", "lead")

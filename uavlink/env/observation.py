@@ -27,7 +27,8 @@ from typing import Any
 import numpy as np
 
 from uavlink.config import EnvConfig
-from uavlink.env.place_memory import PlaceMemory
+from uavlink.env.field_model import FieldModel
+from uavlink.env.place_memory import PlaceMemory, sensed_value_bits
 from uavlink.errors import UserError
 from uavlink.radio.aoa import circular_stats_deg
 
@@ -35,6 +36,7 @@ OBS_LAYOUT_VERSION = 1
 FLEET_LAYOUT_VERSION = 2
 PLACE_LAYOUT_VERSION = 3  # v1 + the memory of place
 FLEET_PLACE_LAYOUT_VERSION = 4  # v2 + the memory of place
+KRIGING_LAYOUT_VERSION = 5  # v3 + the model of the sensed field
 PLACE_GAIN_CLIP_BITS = 4.0  # a remembered spot's value minus now, bits/s/Hz, clipped
 PLACE_AGE_SCALE_FRAMES = 128.0  # ages and the memory's length in episodes of 128 frames, at most 2
 
@@ -157,6 +159,17 @@ PLACE_FIELDS: tuple[Field, ...] = (
           bounds=lambda layout: (0.0, 1.0)),
 )
 
+# The model of the sensed field (layout v5, uavlink/env/field_model.py): the spot it picks, from the
+# UAV (m), its posterior mean minus the value now and its posterior std (bits/s/Hz).
+KRIGING_FIELDS: tuple[Field, ...] = (
+    Field("place_pick_offset_m", ("place_pick_dx", "place_pick_dy"),
+          encode=lambda layout, q: q["place_pick_offset_m"] / layout.half_width_m,
+          decode=lambda layout, x: x * layout.half_width_m,
+          bounds=lambda layout: (-2.0, 2.0)),
+    _gain_bits("place_pick_gain_bits", ("place_pick_gain",)),
+    _gain_bits("place_pick_std_bits", ("place_pick_std",)),
+)
+
 
 def fleet_quantities(uav_xy_m: np.ndarray, serving: np.ndarray) -> dict[str, np.ndarray]:
     """What a fleet shares, as each UAV sees it, rows (N D) in fleet order: ``others_xy_m``
@@ -186,19 +199,27 @@ class ObservationLayout:
     sinr_clip_db: tuple[float, float] = (-30.0, 50.0)
     aoa_std_max_rad: float = 2 * np.pi
     place_cell_m: float = 0.0  # the memory of place's grid (0: none; layouts v1 and v2)
+    place_model: str = "cells"  # "kriging": v5, with the model of the field, which plans over an
+    episode_frames: int = 128  # episode of this many frames at this longest move a frame (recorded
+    r_max_m: float = 12.0  # for v5 only)
 
     @classmethod
     def for_config(cls, cfg: EnvConfig) -> ObservationLayout:
         fleet, place = cfg.n_uavs > 1, cfg.place_cell_m > 0
         version = {(False, False): OBS_LAYOUT_VERSION, (True, False): FLEET_LAYOUT_VERSION,
                    (False, True): PLACE_LAYOUT_VERSION, (True, True): FLEET_PLACE_LAYOUT_VERSION}[fleet, place]
-        return cls(version=version, n_ues=cfg.n_ues, n_uavs=cfg.n_uavs, memory=cfg.memory,
-                   half_width_m=cfg.area.half_width_m, place_cell_m=float(cfg.place_cell_m))
+        kriging = place and cfg.place_model == "kriging"
+        return cls(version=KRIGING_LAYOUT_VERSION if kriging else version, n_ues=cfg.n_ues, n_uavs=cfg.n_uavs,
+                   memory=cfg.memory, half_width_m=cfg.area.half_width_m, place_cell_m=float(cfg.place_cell_m),
+                   place_model=cfg.place_model if kriging else "cells",
+                   episode_frames=cfg.episode_frames if kriging else cls.episode_frames,
+                   r_max_m=cfg.r_max_m if kriging else cls.r_max_m)
 
     @property
     def fields(self) -> tuple[Field, ...]:
         fields = FIELDS if self.n_uavs == 1 else FIELDS + FLEET_FIELDS
-        return fields + PLACE_FIELDS if self.place_cell_m > 0 else fields
+        fields = fields + PLACE_FIELDS if self.place_cell_m > 0 else fields
+        return fields + KRIGING_FIELDS if self.place_model == "kriging" else fields
 
     @functools.cached_property
     def slices(self) -> dict[str, slice]:
@@ -237,6 +258,8 @@ class ObservationLayout:
             del data["n_uavs"]
         if self.place_cell_m == 0:  # so does a record without a memory of place
             del data["place_cell_m"]
+        if self.place_model == "cells":  # and one without a model of the field
+            del data["place_model"], data["episode_frames"], data["r_max_m"]
         return data
 
     @classmethod
@@ -254,6 +277,8 @@ class ObservationLayout:
     def describe(self) -> str:
         fleet = f"n_uavs={self.n_uavs}, " if self.n_uavs > 1 else ""
         fleet += f"place_cell_m={self.place_cell_m:g}, " if self.place_cell_m > 0 else ""
+        fleet += (f"place_model=kriging, episode_frames={self.episode_frames}, r_max_m={self.r_max_m:g}, "
+                  if self.place_model == "kriging" else "")
         return (f"v{self.version} ({fleet}n_ues={self.n_ues}, memory={self.memory}, "
                 f"half_width_m={self.half_width_m:g}, size={self.size})")
 
@@ -316,10 +341,14 @@ class ObservationBuilder:
         self._history = np.zeros((n_rows, layout.memory, layout.frame_size), dtype=np.float32)
         self.place = (PlaceMemory(layout.place_cell_m, layout.half_width_m, n_rows)
                       if layout.place_cell_m > 0 else None)
+        self.field = (FieldModel(n_rows, layout.episode_frames, layout.r_max_m, layout.half_width_m)
+                      if layout.place_model == "kriging" else None)
 
     def _encode(self, uav_xy_m: np.ndarray, sinr_db: np.ndarray, aoa_deg: np.ndarray,
                 **fleet: np.ndarray) -> np.ndarray:
         place = self.place.update(uav_xy_m, sinr_db) if self.place is not None else {}
+        if self.field is not None:
+            place |= self.field.update(uav_xy_m, sensed_value_bits(sinr_db))
         return self.layout.encode_frame(uav_xy_m, sinr_db, aoa_deg, **fleet, **place)
 
     def reset(self, uav_xy_m: np.ndarray, sinr_db: np.ndarray, aoa_deg: np.ndarray,
@@ -328,6 +357,8 @@ class ObservationBuilder:
         before it."""
         if self.place is not None:
             self.place.reset()
+        if self.field is not None:
+            self.field.reset()
         self._history[:] = self._encode(uav_xy_m, sinr_db, aoa_deg, **fleet)[:, None, :]
         return self.observation()
 

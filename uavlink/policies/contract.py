@@ -33,7 +33,7 @@ from uavlink.policies.manifest import PolicyFileError
 from uavlink.policies.registry import BASELINES, baseline_env
 
 # Fields a policy was built for: its action mapping and its observation layout's inputs.
-BUILT_FOR = ("action_mapping", "r_max_m", "memory", "place_cell_m", "n_ues", "n_uavs", "area.half_width_m")
+BUILT_FOR = ("action_mapping", "r_max_m", "memory", "place_cell_m", "place_model", "n_ues", "n_uavs", "area.half_width_m")
 OVERRIDES_HELP = (f"A policy file runs in the env its manifest records; --scenario, --aoa-noise-deg and --set "
                   f"override it. Radio physics and the world may be overridden (a robustness study); what "
                   f"the policy was built for ({', '.join(BUILT_FOR)}) may not. Baselines get the env of the "
@@ -42,7 +42,7 @@ OVERRIDES_HELP = (f"A policy file runs in the env its manifest records; --scenar
 # its own number of UAVs and its own memory of place over the same UEs and channel (a fleet against one UAV: the per-episode
 # world streams do not depend on n_uavs, so the episodes pair as in docs/results.md's fleet ratios).
 # How its UAV reaches a setpoint is a policy's too: motion draws nothing, so the episodes pair.
-PER_POLICY = ("action_mapping", "r_max_m", "memory", "place_cell_m", "n_uavs", "uav_motion")
+PER_POLICY = ("action_mapping", "r_max_m", "memory", "place_cell_m", "place_model", "n_uavs", "uav_motion")
 # Training-time randomisation: off in a policy's env unless an override turns it on.
 TRAINING_ONLY = "radio.aoa_noise_max_deg"
 

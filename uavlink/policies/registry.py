@@ -11,6 +11,7 @@ from uavlink.policies.baselines import AoaPolicy, OraclePolicy, StaticPolicy
 from uavlink.policies.explore import ExplorePolicy, explore_env
 from uavlink.policies.fleet_baselines import FleetAoaPolicy, FleetOraclePolicy, KMeansPolicy
 from uavlink.policies.genie import REFERENCES, GeniePolicy
+from uavlink.policies.kriging import KrigingPolicy, kriging_env
 
 # The warm start's teachers are declared in config; the genie is for evaluation only (it plans on the
 # episode's future: uavlink.policies.genie), so no policy learns from it by accident.
@@ -19,11 +20,14 @@ BASELINES = (*BASELINE_NAMES, "genie")
 
 def baseline_env(name: str, cfg: EnvConfig) -> EnvConfig:
     """The env the baseline ``name`` flies in ``cfg``'s world: ``cfg``, except that ``explore``
-    gets a memory of place when ``cfg`` has none (``uavlink.policies.explore.explore_env``), and the
+    gets a memory of place when ``cfg`` has none (``uavlink.policies.explore.explore_env``),
+    ``kriging`` the model of the field (``uavlink.policies.kriging.kriging_env``), and the
     genie moves at once: its plan is over instant moves of up to r_max, which every path PX4's
     position loop flies (``uav_motion="px4"``) also keeps to, so on the same episodes it still bounds them."""
     if name == "genie":
         return cfg.replace(uav_motion="instant").validate()
+    if name == "kriging":
+        return kriging_env(cfg)
     return explore_env(cfg) if name == "explore" else cfg
 
 
@@ -35,6 +39,8 @@ def make_baseline(name: str, cfg: EnvConfig):
     fleet = cfg.n_uavs > 1
     if name == "explore":
         return ExplorePolicy(baseline_env(name, cfg))
+    if name == "kriging":
+        return KrigingPolicy(baseline_env(name, cfg))
     if name == "static":
         return StaticPolicy(cfg)
     if name == "aoa":

@@ -12,6 +12,8 @@ A sweep file (``sweeps/tiny.toml`` is a commented example)::
     n_envs = 64
     [env]                             # EnvConfig fields; radio.x / area.x reach the nested configs
     "radio.shadowing" = true
+    [scenario_env.no_move]            # EnvConfig fields for one scenario's jobs only
+    place_model = "kriging"
     [eval]
     episodes = 100                    # evaluation episodes per policy (PPO, static, oracle, aoa)
     seed = 0                          # evaluation seed: every policy meets the same episodes
@@ -20,7 +22,8 @@ A sweep file (``sweeps/tiny.toml`` is a commented example)::
     learning_rate = [1e-4, 3e-4]      # train.x / env.x prefixes are accepted too
 
 Every problem (unknown key, bad value, empty grid) raises ``SweepSpecError`` with one line naming
-the key, before any job starts. The ``[train]``, ``[scenario_train.NAME]``, ``[env]`` and ``[grid]``
+the key, before any job starts. The ``[train]``, ``[scenario_train.NAME]``, ``[env]``,
+``[scenario_env.NAME]`` and ``[grid]``
 values are the fields of ``TrainConfig`` and ``EnvConfig``, typed by their annotations
 (``uavlink.config.fields.coerce``) and checked by their ``validate()``, as ``uavlink train`` checks
 its flags. The warm start's fields are nested (``warm_start.teacher``, or a ``[train.warm_start]``
@@ -62,13 +65,14 @@ KEY_VERSION = 2
 # existing results keep their keys. A new field whose default changes figures bumps KEY_VERSION.
 NEUTRAL_ENV_DEFAULTS: dict[str, Any] = {"n_uavs": 1, "fleet_reuse": "full", "uav_separation_m": 20.0,
                                         "fleet_start_radius_m": 100.0, "place_cell_m": 0.0,
-                                        "uav_motion": "instant"}
+                                        "uav_motion": "instant", "place_model": "cells"}
 # The same for the training's (nested) warm-start fields.
 NEUTRAL_WARM_START_DEFAULTS: dict[str, Any] = {"leader_policy": "", "policy": ""}
 # Warm-start fields that name a policy file: a job's key holds the file's bytes (its sha256), not only
 # its path, so a re-shipped file makes the job (and a sweep record's figures of it) another one.
 POLICY_FILE_FIELDS = ("leader_policy", "policy")
-TOP_KEYS = ("name", "description", "scenarios", "seeds", "train", "scenario_train", "env", "eval", "grid")
+TOP_KEYS = ("name", "description", "scenarios", "seeds", "train", "scenario_train", "env", "scenario_env", "eval",
+            "grid")
 EVAL_DEFAULTS: dict[str, int] = {"episodes": 100, "seed": 0}
 BASELINE_COLUMNS = ("static", "oracle", "aoa")
 # Config fields a sweep does not set, and why.
@@ -166,6 +170,7 @@ class SweepSpec:
     description: str = ""
     source: Path | None = None
     scenario_train: dict[str, dict[str, Any]] = field(default_factory=dict)  # scenario -> train changes
+    scenario_env: dict[str, dict[str, Any]] = field(default_factory=dict)  # scenario -> env changes
 
     def points(self) -> list[dict[str, Any]]:
         keys = list(self.grid)
@@ -173,7 +178,8 @@ class SweepSpec:
 
     def configs(self, scenario: str, point: dict[str, Any], seed: int) -> tuple[EnvConfig, TrainConfig]:
         """The validated configs of one job (a ConfigError naming the field if a value is bad)."""
-        env = {**self.env, **{k[4:]: v for k, v in point.items() if k.startswith("env.")}}
+        env = {**self.env, **self.scenario_env.get(scenario, {}),
+               **{k[4:]: v for k, v in point.items() if k.startswith("env.")}}
         train = {**self.train, **self.scenario_train.get(scenario, {}),
                  **{k[6:]: v for k, v in point.items() if k.startswith("train.")}}
         cfg = EnvConfig().replace(**env, scenario=scenario).validate()
@@ -240,12 +246,14 @@ def parse_spec(data: dict[str, Any], default_name: str = "sweep") -> SweepSpec:
         raise SweepSpecError("key 'seeds' lists a seed twice")
 
     train = _section(_table(data, "train"), "train", ("train",))
-    scenario_train: dict[str, dict[str, Any]] = {}
-    for scenario, table in _table(data, "scenario_train").items():
-        if scenario not in scenarios or not isinstance(table, dict):
-            raise SweepSpecError(f"[scenario_train] key {scenario!r} must be a table named after one of "
-                                 f"the sweep's scenarios ({', '.join(scenarios)})")
-        scenario_train[scenario] = _section(table, f"scenario_train.{scenario}", ("train",))
+    per_scenario: dict[str, dict[str, dict[str, Any]]] = {"train": {}, "env": {}}
+    for section, tables in per_scenario.items():
+        for scenario, table in _table(data, f"scenario_{section}").items():
+            if scenario not in scenarios or not isinstance(table, dict):
+                raise SweepSpecError(f"[scenario_{section}] key {scenario!r} must be a table named after one "
+                                     f"of the sweep's scenarios ({', '.join(scenarios)})")
+            tables[scenario] = _section(table, f"scenario_{section}.{scenario}", (section,))
+    scenario_train = per_scenario["train"]
     env = _section(_table(data, "env"), "env", ("env",))
 
     evaluation = dict(EVAL_DEFAULTS)
@@ -266,8 +274,8 @@ def parse_spec(data: dict[str, Any], default_name: str = "sweep") -> SweepSpec:
             raise SweepSpecError(f"[grid] key {key!r} is empty: give at least one value")
         if path in (train if section == "train" else env):
             raise SweepSpecError(f"key {key!r} is set in both [{section}] and [grid]")
-        if section == "train" and any(path in o for o in scenario_train.values()):
-            raise SweepSpecError(f"key {key!r} is set in both [scenario_train] and [grid]")
+        if any(path in o for o in per_scenario[section].values()):
+            raise SweepSpecError(f"key {key!r} is set in both [scenario_{section}] and [grid]")
         if qualified in grid:
             raise SweepSpecError(f"[grid] key {key!r} is given twice")
         coerced = [_coerce(section, path, v, f"[grid] key {key!r}") for v in values]
@@ -276,7 +284,7 @@ def parse_spec(data: dict[str, Any], default_name: str = "sweep") -> SweepSpec:
         grid[qualified] = coerced
 
     spec = SweepSpec(name, list(scenarios), list(seeds), train, env, evaluation, grid, description,
-                     scenario_train=scenario_train)
+                     scenario_train=scenario_train, scenario_env=per_scenario["env"])
 
     for scenario in spec.scenarios:  # build every config: validate() names the field of a bad value
         for point in spec.points():

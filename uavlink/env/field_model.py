@@ -1,0 +1,115 @@
+"""A model of the sensed field: kriging of what a UAV sensed where, and the spot it makes worth flying to
+(observation layout v5; ``EnvConfig.place_model = "kriging"``).
+
+GPS-free for the UEs, like the memory of place (``uavlink.env.place_memory``): its inputs are the
+UAV's own position and the value it senses each frame (mean over UEs of log2(1 + SINR), bits/s/Hz).
+On the spatial channel that value is a field over the UAV's position: path loss plus the shadowing,
+which decorrelates over ``DECORRELATION_M`` (Gudmundson's exponential covariance, SPEC "The spatial
+channel"; TR 38.901 7.6.3 models spatial consistency the same way). So the value is modelled as a
+Gaussian process with that covariance, an unknown constant mean (a broad prior on a constant term:
+ordinary kriging) and a nugget for the fast fading, and its posterior is kept at spots on a grid
+(``SPACING_M``) over a disc of ``RADIUS_M`` around the area's centre, where a UAV starts over its team.
+
+Each frame the model picks the spot worth most over the frames left, optimistically:
+(frames left - frames to get there) x (posterior mean + ``BETA`` x posterior std), GP-UCB with the
+horizon in it (Srinivas et al. 2010), so a look far away pays early in an episode and not late. A
+picked spot stays picked until another scores ``SWITCH_GAIN`` times more: a vehicle that changes its
+mind each frame flies reversals. The values were chosen on the validation episodes (seed 1) of
+no_move: docs/experiments.md, "A model of the field".
+
+The posterior is updated in O(n K) a frame (n spots sensed so far, K grid spots) by appending each
+observation to the inverse Cholesky factor of the observations' covariance, batched over rows.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+DECORRELATION_M = 50.0  # the SPEC's UAV-end shadowing decorrelation distance
+SIGMA_BITS = 1.5  # the field's standard deviation in sensed value (8 dB shadowing; fit on seed 1)
+MEAN_SIGMA_BITS = 10.0  # the prior on the unknown constant mean: broad, so the data set it
+NUGGET_BITS = 0.3  # the fast fading's frame-to-frame wobble of a sensed value
+BETA = 2.5  # optimism: posterior std's weight in a spot's score
+RADIUS_M = 120.0  # the disc of candidate spots around the area's centre
+SPACING_M = 6.0  # the grid of candidate spots
+SWITCH_GAIN = 1.02  # a new pick must score this much more than the current one
+
+
+def candidate_spots_m(radius_m: float = RADIUS_M, spacing_m: float = SPACING_M,
+                      half_width_m: float = math.inf) -> np.ndarray:
+    """The grid spots (K, 2) within ``radius_m`` of the centre and inside the area, m."""
+    axis = np.arange(-radius_m, radius_m + 1e-9, spacing_m)
+    grid = np.stack(np.meshgrid(axis, axis, indexing="ij"), axis=-1).reshape(-1, 2)
+    keep = (np.hypot(grid[:, 0], grid[:, 1]) <= radius_m) & (np.abs(grid) <= half_width_m).all(axis=1)
+    return grid[keep]
+
+
+class FieldModel:
+    """Per-row Gaussian-process posteriors of the sensed value over candidate spots, batched in numpy."""
+
+    def __init__(self, n_rows: int, horizon_frames: int, r_max_m: float, half_width_m: float = math.inf) -> None:
+        self.horizon_frames, self.r_max_m = int(horizon_frames), float(r_max_m)
+        self.spots_m = candidate_spots_m(half_width_m=half_width_m)
+        self.prior_var = SIGMA_BITS ** 2 + MEAN_SIGMA_BITS ** 2
+        n, k = self.horizon_frames + 1, len(self.spots_m)  # the episode's first observation, then a frame's each
+        self._x = np.zeros((n_rows, n, 2))
+        self._linv = np.zeros((n_rows, n, n))  # inverse Cholesky factor of the observations' covariance
+        self._v = np.zeros((n_rows, n, k))  # linv @ cov(observations, spots)
+        self._w = np.zeros((n_rows, n))  # linv @ values
+        self.mean = np.zeros((n_rows, k))
+        self.var = np.zeros((n_rows, k))
+        self.pick = np.zeros(n_rows, dtype=np.int64)
+        self.frames = 0
+
+    def reset(self) -> None:
+        self._linv[:] = 0.0
+        self._v[:] = 0.0
+        self._w[:] = 0.0
+        self.mean[:] = 0.0
+        self.var[:] = self.prior_var
+        self.frames = 0
+
+    def _cov(self, a: np.ndarray, b: np.ndarray) -> np.ndarray:
+        """Prior covariance between positions a (rows, 2) and b (rows, m, 2) or (m, 2): (rows, m)."""
+        d = np.sqrt(((b - a[:, None, :]) ** 2).sum(axis=-1))
+        return SIGMA_BITS ** 2 * np.exp(-d / DECORRELATION_M) + MEAN_SIGMA_BITS ** 2
+
+    def update(self, uav_xy_m: np.ndarray, value_bits: np.ndarray) -> dict[str, np.ndarray]:
+        """Add this frame's sensed value at each row's position; the pick's quantities (offset from
+        the UAV, m; posterior mean minus the value now and posterior std, bits/s/Hz)."""
+        t = self.frames
+        if t > self.horizon_frames:
+            raise ValueError(f"the field model holds {self.horizon_frames} frames; reset it between episodes")
+        x, y = np.asarray(uav_xy_m, dtype=float), np.asarray(value_bits, dtype=float)
+        linv, v, w = self._linv[:, :t, :t], self._v[:, :t], self._w[:, :t]
+        k_old = self._cov(x, self._x[:, :t])  # (rows, t)
+        ell = np.matmul(linv, k_old[..., None])[..., 0]  # (rows, t): L^-1 k
+        d = np.sqrt(np.maximum(self.prior_var + NUGGET_BITS ** 2 - (ell * ell).sum(axis=1), 1e-12))
+        self._linv[:, t, :t] = -np.matmul(ell[:, None, :], linv)[:, 0] / d[:, None]
+        self._linv[:, t, t] = 1.0 / d
+        v_new = (self._cov(x, self.spots_m) - np.matmul(ell[:, None, :], v)[:, 0]) / d[:, None]  # (rows, K)
+        w_new = (y - (ell * w).sum(axis=1)) / d
+        self._v[:, t], self._w[:, t], self._x[:, t] = v_new, w_new, x
+        self.mean += v_new * w_new[:, None]
+        self.var -= v_new * v_new
+        self.frames = t + 1
+        return self._pick(x, y)
+
+    def _pick(self, x: np.ndarray, now_bits: np.ndarray) -> dict[str, np.ndarray]:
+        rows = np.arange(len(x))
+        to_spot = self.spots_m[None] - x[:, None, :]  # (rows, K, 2)
+        travel = np.ceil(np.sqrt((to_spot ** 2).sum(axis=-1)) / self.r_max_m)
+        std = np.sqrt(np.maximum(self.var, 0.0))
+        left = self.horizon_frames + 1 - self.frames  # decisions still to come, this one included
+        score = np.maximum(left - travel, 0.0) * (self.mean + BETA * std)
+        best = score.argmax(axis=1)
+        if self.frames == 1:
+            self.pick = best
+        else:
+            switch = score[rows, best] > SWITCH_GAIN * score[rows, self.pick]
+            self.pick = np.where(switch, best, self.pick)
+        return {"place_pick_offset_m": to_spot[rows, self.pick],
+                "place_pick_gain_bits": self.mean[rows, self.pick] - now_bits,
+                "place_pick_std_bits": std[rows, self.pick]}
