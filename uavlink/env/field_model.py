@@ -64,9 +64,7 @@ class FieldModel:
         self.frames = 0
 
     def reset(self) -> None:
-        self._linv[:] = 0.0
-        self._v[:] = 0.0
-        self._w[:] = 0.0
+        # the factors need no clearing: an update reads only the rows the episode has written
         self.mean[:] = 0.0
         self.var[:] = self.prior_var
         self.frames = 0
@@ -80,9 +78,9 @@ class FieldModel:
         """Add this frame's sensed value at each row's position; the pick's quantities (offset from
         the UAV, m; posterior mean minus the value now and posterior std, bits/s/Hz)."""
         t = self.frames
-        if t > self.horizon_frames:
-            raise ValueError(f"the field model holds {self.horizon_frames} frames; reset it between episodes")
         x, y = np.asarray(uav_xy_m, dtype=float), np.asarray(value_bits, dtype=float)
+        if t > self.horizon_frames:  # stepped past the episode without a reset: the model is full
+            return self._pick(x, y)
         linv, v, w = self._linv[:, :t, :t], self._v[:, :t], self._w[:, :t]
         k_old = self._cov(x, self._x[:, :t])  # (rows, t)
         ell = np.matmul(linv, k_old[..., None])[..., 0]  # (rows, t): L^-1 k
@@ -102,7 +100,7 @@ class FieldModel:
         to_spot = self.spots_m[None] - x[:, None, :]  # (rows, K, 2)
         travel = np.ceil(np.sqrt((to_spot ** 2).sum(axis=-1)) / self.r_max_m)
         std = np.sqrt(np.maximum(self.var, 0.0))
-        left = self.horizon_frames + 1 - self.frames  # decisions still to come, this one included
+        left = max(self.horizon_frames + 1 - self.frames, 0)  # decisions still to come, this one included
         score = np.maximum(left - travel, 0.0) * (self.mean + BETA * std)
         best = score.argmax(axis=1)
         if self.frames == 1:
