@@ -13,6 +13,8 @@ Measures, in one run,
       layout v3), interleaved with (c) so that the memory's cost is a ratio of one run;
   (f) (e) with the UAV flown by PX4's position loop between setpoints (``uav_motion = "px4"``,
       50 substeps a frame), interleaved with (e): what the motion model costs (no target);
+  (g) (e) with the model of the sensed field (``place_model = "kriging"``, layout v5), interleaved
+      with (e): what the model costs (no target);
 and the single-env overhead beyond the physics, in microseconds per step:
   (time per step of the Gymnasium env) - (time per call of BatchedUavEnv at N = 1).
 Episodes are run back to back (a reset every 128 frames is part of the cost); actions are drawn
@@ -75,10 +77,10 @@ class Bench:
 
     def __init__(self, name: str, n_envs: int, step: Callable[[int], None], chunk: int,
                  shadowing_model: str, n_uavs: int = 1, place_cell_m: float = 0.0,
-                 uav_motion: str = "instant") -> None:
+                 uav_motion: str = "instant", place_model: str = "cells") -> None:
         self.name, self.n_envs, self.step, self.chunk = name, n_envs, step, chunk
         self.shadowing_model, self.n_uavs, self.place_cell_m = shadowing_model, n_uavs, place_cell_m
-        self.uav_motion = uav_motion
+        self.uav_motion, self.place_model = uav_motion, place_model
         self.calls = 0
         self.seconds = 0.0
         self.us_per_call: list[float] = []
@@ -100,6 +102,7 @@ class Bench:
             "n_uavs": self.n_uavs,
             "place_cell_m": self.place_cell_m,
             "uav_motion": self.uav_motion,
+            "place_model": self.place_model,
             "calls": self.calls,
             "seconds": round(self.seconds, 4),
             "env_steps_per_s": round(1e6 * self.n_envs / best, 1),
@@ -136,7 +139,7 @@ def batched_bench(cfg: EnvConfig, n_envs: int, seed: int) -> Bench:
             env.reset()
 
     return Bench("BatchedUavEnv", n_envs, step, 64 if n_envs <= 16 else 8, cfg.radio.shadowing_model,
-                 cfg.n_uavs, cfg.place_cell_m, cfg.uav_motion)
+                 cfg.n_uavs, cfg.place_cell_m, cfg.uav_motion, cfg.place_model)
 
 
 def run(seconds: float, sizes: list[int], scenario: str, seed: int, rounds: int) -> dict:
@@ -149,6 +152,7 @@ def run(seconds: float, sizes: list[int], scenario: str, seed: int, rounds: int)
         place = spatial.replace(place_cell_m=PLACE_CELL_M).validate()
         benches.append(batched_bench(place, TARGET_BATCHED_N, seed))
         benches.append(batched_bench(place.replace(uav_motion="px4").validate(), TARGET_BATCHED_N, seed))
+        benches.append(batched_bench(place.replace(place_model="kriging").validate(), TARGET_BATCHED_N, seed))
     for bench in benches:  # warm-up: caches, first episode's allocations
         _timed(bench.step, min(0.1, seconds / rounds), bench.chunk)
     # Interleaved rounds, best round reported: on a shared machine the fastest round is the one
@@ -159,11 +163,12 @@ def run(seconds: float, sizes: list[int], scenario: str, seed: int, rounds: int)
             bench.measure(seconds / rounds)
     rows = [b.row() for b in benches]
     batched = {r["n_envs"]: r for r in rows[1:] if r["shadowing_model"] == "ar1"}
-    spatial_row, fleet_row, place_row, px4_row = (
+    spatial_row, fleet_row, place_row, px4_row, kriging_row = (
         next((r for r in rows[1:] if r["shadowing_model"] == "spatial" and r["n_uavs"] == d
-              and r["place_cell_m"] == cell and r["uav_motion"] == motion), None)
-        for d, cell, motion in ((1, 0.0, "instant"), (TARGET_FLEET_UAVS, 0.0, "instant"),
-                                (1, PLACE_CELL_M, "instant"), (1, PLACE_CELL_M, "px4")))
+              and r["place_cell_m"] == cell and r["uav_motion"] == motion and r["place_model"] == model), None)
+        for d, cell, motion, model in ((1, 0.0, "instant", "cells"), (TARGET_FLEET_UAVS, 0.0, "instant", "cells"),
+                                       (1, PLACE_CELL_M, "instant", "cells"), (1, PLACE_CELL_M, "px4", "cells"),
+                                       (1, PLACE_CELL_M, "instant", "kriging")))
     report: dict = {
         "benchmark": "env_throughput",
         "scenario": scenario,
@@ -214,6 +219,8 @@ def run(seconds: float, sizes: list[int], scenario: str, seed: int, rounds: int)
         report["meets_place_target"] = report["n256_place_over_spatial"] >= TARGET_PLACE_OVER_SPATIAL
         report["n256_env_steps_per_s_place_px4"] = px4_row["env_steps_per_s"]
         report["n256_px4_over_instant_place"] = round(px4_row["env_steps_per_s"] / place_row["env_steps_per_s"], 4)
+        report["n256_env_steps_per_s_kriging"] = kriging_row["env_steps_per_s"]
+        report["n256_kriging_over_place"] = round(kriging_row["env_steps_per_s"] / place_row["env_steps_per_s"], 4)
     return report
 
 
@@ -231,7 +238,7 @@ def markdown(report: dict) -> str:
         "|---|---:|---:|---:|---|---|---:|---:|---:|---:|---:|",
     ]
     for r in report["results"]:
-        lines.append(f"| {r['env']} | {r['n_envs']} | {r['n_uavs']} | {r['place_cell_m']:g} | {r['uav_motion']} | {r['shadowing_model']} | {r['env_steps_per_s']:,.0f} | "
+        lines.append(f"| {r['env']} | {r['n_envs']} | {r['n_uavs']} | {r['place_cell_m']:g}{' kriging' * (r['place_model'] == 'kriging')} | {r['uav_motion']} | {r['shadowing_model']} | {r['env_steps_per_s']:,.0f} | "
                      f"{r['us_per_call']:.1f} | {r['us_per_call_median']:.1f} | {r['us_per_env_step']:.3f} "
                      f"| {r['env_steps_per_cpu_s']:,.0f} |")
     lines.append("")
@@ -263,6 +270,9 @@ def markdown(report: dict) -> str:
         lines.append(f"the same with PX4's position loop between setpoints: "
                      f"{report['n256_env_steps_per_s_place_px4']:,.0f} env steps/s, "
                      f"{report['n256_px4_over_instant_place']:.2f}x the instant moves' rate")
+        lines.append(f"the same with the model of the sensed field (kriging, layout v5): "
+                     f"{report['n256_env_steps_per_s_kriging']:,.0f} env steps/s, "
+                     f"{report['n256_kriging_over_place']:.2f}x the memory of place's rate")
     return "\n".join(lines)
 
 

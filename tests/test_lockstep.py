@@ -144,19 +144,21 @@ def test_fly_refuses_lockstep_with_connect() -> None:
 
 @pytest.mark.slow
 @pytest.mark.timeout(240)
-@pytest.mark.parametrize("seed", [0])
-def test_a_lockstep_flight_replays_and_matches_the_px4_motion_evaluation(tmp_path, seed: int) -> None:
-    """The map policy's searching flight, twice at the same seed: the same throughput, within 5 % of
+@pytest.mark.parametrize(("policy", "seed"), [(MAP_NO_MOVE, 0), ("kriging", 0)])
+def test_a_lockstep_flight_replays_and_matches_the_px4_motion_evaluation(tmp_path, policy: str, seed: int) -> None:
+    """A searching flight (the map policy's; the kriging rule's, with the model of the field built in
+    flight from LOCAL_POSITION_NED), twice at the same seed: the same throughput, within 5 % of
     `uavlink evaluate --episodes 1 --set uav_motion=px4` (the env moving the UAV as the vehicle does;
     what is left is MAVLink's float32 positions, amplified by the closed loop)."""
+    spatial = [] if policy == MAP_NO_MOVE else ["--set", "radio.shadowing_model=spatial"]
     flights = [cli_json("fly", "--out", str(tmp_path / str(k)), "--json", "--no-picture", "--lockstep",
-                        "--policy", MAP_NO_MOVE, "--scenario", "no_move", "--seed", str(seed))
+                        "--policy", policy, "--scenario", "no_move", "--seed", str(seed), *spatial)
                for k in range(2)]
     replay = shlex.split(flights[0]["replay"])  # the command the flight's summary gives
     assert replay[:2] == ["uavlink", "evaluate"] and replay[-2:] == ["--set", "uav_motion=px4"]
     evaluated = cli_json(*replay[1:], "--json")["mean_rate_mbps"]
     flown = [f["mean_rate_mbps"] for f in flights]
-    print(f"\nno_move seed {seed}: flown in lockstep {flown} Mbps, evaluated (px4 motion) {evaluated:.6f}")
+    print(f"\n{policy} on no_move seed {seed}: flown in lockstep {flown} Mbps, evaluated (px4 motion) {evaluated:.6f}")
     assert all(f["frames"] == 128 and f["decisions"] == 128 and f["completed"] for f in flights)
     assert flown[0] == flown[1]
     assert abs(flown[0] - evaluated) <= 0.05 * evaluated
