@@ -142,11 +142,16 @@ def _gain_bits(quantity: str, labels: tuple[str, ...]) -> Field:
                  bounds=lambda layout: (-PLACE_GAIN_CLIP_BITS, PLACE_GAIN_CLIP_BITS))
 
 
+def _offset_m(quantity: str, labels: tuple[str, str]) -> Field:
+    """A spot's offset from the UAV (m), in half-widths: within the area, at most 2."""
+    return Field(quantity, labels,
+                 encode=lambda layout, q: q[quantity] / layout.half_width_m,
+                 decode=lambda layout, x: x * layout.half_width_m,
+                 bounds=lambda layout: (-2.0, 2.0))
+
+
 PLACE_FIELDS: tuple[Field, ...] = (
-    Field("place_best_offset_m", ("place_best_dx", "place_best_dy"),
-          encode=lambda layout, q: q["place_best_offset_m"] / layout.half_width_m,
-          decode=lambda layout, x: x * layout.half_width_m,
-          bounds=lambda layout: (-2.0, 2.0)),
+    _offset_m("place_best_offset_m", ("place_best_dx", "place_best_dy")),
     _gain_bits("place_best_gain_bits", ("place_best_gain",)),
     _scaled_frames("place_best_age_frames", "place_best_age"),
     _scaled_frames("place_frames", "place_frames"),
@@ -162,10 +167,7 @@ PLACE_FIELDS: tuple[Field, ...] = (
 # The model of the sensed field (layout v5, uavlink/env/field_model.py): the spot it picks, from the
 # UAV (m), its posterior mean minus the value now and its posterior std (bits/s/Hz).
 KRIGING_FIELDS: tuple[Field, ...] = (
-    Field("place_pick_offset_m", ("place_pick_dx", "place_pick_dy"),
-          encode=lambda layout, q: q["place_pick_offset_m"] / layout.half_width_m,
-          decode=lambda layout, x: x * layout.half_width_m,
-          bounds=lambda layout: (-2.0, 2.0)),
+    _offset_m("place_pick_offset_m", ("place_pick_dx", "place_pick_dy")),
     _gain_bits("place_pick_gain_bits", ("place_pick_gain",)),
     _gain_bits("place_pick_std_bits", ("place_pick_std",)),
 )
