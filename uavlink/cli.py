@@ -12,7 +12,7 @@ import sys
 from collections.abc import Sequence
 from pathlib import Path
 
-from uavlink.config import MIXED, SCENARIOS, EnvConfig
+from uavlink.config import BASELINE_NAMES, MIXED, SCENARIOS, EnvConfig
 from uavlink.errors import UserError
 from uavlink.policies.contract import (
     BUILT_FOR,
@@ -266,11 +266,11 @@ def build_parser() -> argparse.ArgumentParser:
     sub = parser.add_subparsers(dest="command", required=True, metavar="COMMAND")
 
     p = sub.add_parser("evaluate", help="evaluate a policy or baseline, print a table",
-                       description="Evaluate a policy file, a folder of them, or a baseline (static, aoa, "
-                                   "explore, oracle, kmeans, genie). " + OVERRIDES_HELP)
+                       description=f"Evaluate a policy file, a folder of them, or a baseline "
+                                   f"({', '.join(BASELINE_NAMES)}, genie). " + OVERRIDES_HELP)
     _add_env_options(p, scenario_default="circular", for_policy=True)
     p.add_argument("--policy", default="static",
-                   help="static | aoa | explore | oracle | kmeans | genie (evaluation only: plans on the episode's "
+                   help=f"{' | '.join(BASELINE_NAMES)} | genie (evaluation only: plans on the episode's "
                         "future) | FILE.zip | FILE.onnx | FOLDER")
     p.add_argument("--against", default=None, metavar="POLICY",
                    help="also fly this policy (same forms) on the same episodes and print the paired "
