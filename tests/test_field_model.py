@@ -92,3 +92,15 @@ def test_the_kriging_rule_beats_explore_on_no_move() -> None:
     explore = evaluate_policy(make_baseline("explore", SPATIAL), baseline_env("explore", SPATIAL), 16, seed=1)
     ratio, low, _ = paired_ratio_ci(kriging.episode_rate_mbps, explore.episode_rate_mbps)
     assert low > 1.0, ratio
+
+
+def test_the_shipped_no_move_map_policy_sees_the_model_and_names_its_teacher() -> None:
+    """The report's "map vs its teacher" column flies the kriging rule for it (not a column)."""
+    from conftest import ROOT
+
+    from uavlink.evaluation.report_map import _teacher
+    from uavlink.policies.contract import EnvOverrides, load_with_env
+
+    [(policy, cfg)] = load_with_env([str(ROOT / "policies" / "map" / "no_move.zip")], EnvOverrides())
+    assert ObservationLayout.for_config(cfg).version == KRIGING_LAYOUT_VERSION
+    assert _teacher(policy) == "kriging"
