@@ -160,11 +160,11 @@ def test_genie_reach_keeps_each_plan_within_its_radius_below_the_next() -> None:
 @pytest.mark.slow
 def test_teacher_gain_rebuilds_each_policys_own_teacher_from_its_manifest() -> None:
     """benchmarks/teacher_gain.py: the map policy of straight_90 faces the aoa variant its manifest
-    names (span 3 dB, gate 2 dB), no_move's the explore rule; the gain is the ratio of the two."""
+    names (span 3 dB, gate 2 dB), no_move's the kriging rule; the gain is the ratio of the two."""
     result = run_json("teacher_gain.py", str(ROOT / "policies" / "map" / "straight_90.zip"),
                       str(ROOT / "policies" / "map" / "no_move.zip"), "--episodes", "3")
     teachers = {row["scenario"]: row["teacher"] for row in result["rows"]}
-    assert teachers == {"straight_90": "aoa (span 3, gate 2)", "no_move": "explore"}
+    assert teachers == {"straight_90": "aoa (span 3, gate 2)", "no_move": "kriging"}
     for row in result["rows"]:
         lo, hi = row["ci95"]
         assert lo <= row["gain"] <= hi and row["beats_teacher"] == (lo > 0)
