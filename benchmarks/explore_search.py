@@ -33,6 +33,7 @@ import numpy as np
 from uavlink.config import EnvConfig
 from uavlink.env.core import GroundTruth
 from uavlink.env.place_memory import sensed_value_bits
+from uavlink.evaluation import EvalResult
 from uavlink.evaluation.core import evaluate_policy, paired_ratio_ci
 from uavlink.policies.contract import EnvOverrides, load_with_env
 from uavlink.policies.explore import ExplorePolicy
@@ -84,10 +85,8 @@ class ExploreVariant(ExplorePolicy):
         best_bits = sensed_value_bits(frame["sinr_db"]) + np.maximum(frame["place_best_gain_bits"], 0.0)
         r_max = self.mapping.r_max_m
         offset = frame["place_best_offset_m"]
-        distance = np.minimum(self.approach_gain * np.hypot(offset[:, 0], offset[:, 1]), r_max)
         go = frame["place_best_gain_bits"] > self.margin_bits
-        to_best = self.mapping.from_polar(np.degrees(np.arctan2(offset[:, 1], offset[:, 0])),
-                                          np.where(go, distance, 0.0))
+        to_best = self.mapping.towards(offset, np.where(go, self.approach_gain, 0.0))
         if self.stop_bits is not None:
             stop = (index < self.search_frames) & (best_bits >= self.stop_bits)
             action = np.where(stop[:, None], to_best, action)
@@ -114,6 +113,20 @@ class ExploreVariant(ExplorePolicy):
         return action
 
 
+def no_move_references(settings: list[str], episodes: int, seed: int) -> dict[str, EvalResult]:
+    """Today's spatial no_move policy and explore on the same episodes, with ``settings``."""
+    on_spatial = EnvOverrides.from_command_line("no_move", None, settings)
+    loaded = load_with_env(["policies/spatial/no_move.zip", "explore"], on_spatial)
+    return {name: evaluate_policy(policy, cfg, episodes, seed)
+            for name, (policy, cfg) in zip(("spatial", "explore"), loaded, strict=True)}
+
+
+def versus(result: EvalResult, references: dict[str, EvalResult]) -> dict[str, list[float]]:
+    """``vs_<name>``: ``result`` over each reference, paired, with its 95 % interval."""
+    return {f"vs_{name}": [round(x, 4) for x in paired_ratio_ci(result.episode_rate_mbps, base.episode_rate_mbps)]
+            for name, base in references.items()}
+
+
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--cell-m", type=float, nargs="+", default=[12.0, 6.0], help="memory grids to try (m)")
@@ -124,11 +137,7 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--json", action="store_true")
     args = parser.parse_args(argv)
     settings = ["radio.shadowing_model=spatial", *args.overrides]
-    on_spatial = EnvOverrides.from_command_line("no_move", None, settings)
-    [(spatial, spatial_cfg), (explore, explore_cfg)] = load_with_env(["policies/spatial/no_move.zip", "explore"],
-                                                                      on_spatial)
-    spatial_result = evaluate_policy(spatial, spatial_cfg, args.episodes, args.seed)
-    explore_result = evaluate_policy(explore, explore_cfg, args.episodes, args.seed)
+    references = no_move_references(settings, args.episodes, args.seed)
     rows = []
     for cell_m in args.cell_m:
         [(_, cfg)] = load_with_env(["explore"], EnvOverrides.from_command_line(
@@ -136,12 +145,9 @@ def main(argv: list[str] | None = None) -> int:
         for name, variant in VARIANTS.items():
             result = evaluate_policy(ExploreVariant(cfg, **variant), cfg, args.episodes, args.seed)
             rows.append({"cell_m": cell_m, "variant": name, "mean_rate_mbps": round(result.mean_rate_mbps, 4),
-                         **{f"vs_{ref}": [round(x, 4) for x in paired_ratio_ci(result.episode_rate_mbps,
-                                                                              base.episode_rate_mbps)]
-                            for ref, base in (("explore", explore_result), ("spatial", spatial_result))}})
+                         **versus(result, references)})
     summary = {"episodes": args.episodes, "seed": args.seed, "settings": settings,
-               "spatial_mbps": round(spatial_result.mean_rate_mbps, 4),
-               "explore_mbps": round(explore_result.mean_rate_mbps, 4), "rows": rows}
+               **{f"{name}_mbps": round(r.mean_rate_mbps, 4) for name, r in references.items()}, "rows": rows}
     if args.json:
         print(json.dumps(summary, indent=1))
         return 0

@@ -19,8 +19,10 @@ import itertools
 import json
 import sys
 
+from explore_search import no_move_references, versus
+
 from uavlink.env import field_model
-from uavlink.evaluation.core import evaluate_policy, paired_ratio_ci
+from uavlink.evaluation.core import evaluate_policy
 from uavlink.policies.contract import EnvOverrides, load_with_env
 from uavlink.policies.kriging import KrigingPolicy
 
@@ -38,25 +40,19 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--json", action="store_true")
     args = parser.parse_args(argv)
     settings = ["radio.shadowing_model=spatial", *args.overrides]
-    on_spatial = EnvOverrides.from_command_line("no_move", None, settings)
-    [(spatial, spatial_cfg), (explore, explore_cfg), (_, cfg)] = load_with_env(
-        ["policies/spatial/no_move.zip", "explore", "kriging"], on_spatial)
-    spatial_result = evaluate_policy(spatial, spatial_cfg, args.episodes, args.seed)
-    explore_result = evaluate_policy(explore, explore_cfg, args.episodes, args.seed)
+    references = no_move_references(settings, args.episodes, args.seed)
+    [(_, cfg)] = load_with_env(["kriging"], EnvOverrides.from_command_line("no_move", None, settings))
     chosen, rows = field_model.BETA, []
     try:
         for beta, gain in itertools.product(args.beta, args.approach_gain):
             field_model.BETA = beta  # read by the model at each pick
             result = evaluate_policy(KrigingPolicy(cfg, approach_gain=gain), cfg, args.episodes, args.seed)
             rows.append({"beta": beta, "approach_gain": gain, "mean_rate_mbps": round(result.mean_rate_mbps, 4),
-                         **{f"vs_{ref}": [round(x, 4) for x in paired_ratio_ci(result.episode_rate_mbps,
-                                                                              base.episode_rate_mbps)]
-                            for ref, base in (("explore", explore_result), ("spatial", spatial_result))}})
+                         **versus(result, references)})
     finally:
         field_model.BETA = chosen
     summary = {"episodes": args.episodes, "seed": args.seed, "settings": settings,
-               "spatial_mbps": round(spatial_result.mean_rate_mbps, 4),
-               "explore_mbps": round(explore_result.mean_rate_mbps, 4), "rows": rows}
+               **{f"{name}_mbps": round(r.mean_rate_mbps, 4) for name, r in references.items()}, "rows": rows}
     if args.json:
         print(json.dumps(summary, indent=1))
         return 0

@@ -202,6 +202,26 @@ def test_explore_search_pairs_every_variant_with_explore_and_the_spatial_policy(
             assert low <= ratio <= high
 
 
+def test_kriging_search_flies_the_chosen_rule_and_restores_the_model_s_optimism() -> None:
+    """Its row at the chosen constants is `uavlink evaluate --policy kriging` on the same episodes;
+    a varied beta is put back after the run (the script patches the model's module constant)."""
+    from uavlink.env import field_model
+    from uavlink.evaluation import evaluate_policy
+    from uavlink.policies.contract import EnvOverrides, load_with_env
+
+    result = run_json("kriging_search.py", "--episodes", "3", "--seed", "0", "--beta", str(field_model.BETA), "1")
+    [(rule, cfg)] = load_with_env(["kriging"], EnvOverrides.from_command_line(
+        "no_move", None, ["radio.shadowing_model=spatial"]))
+    chosen = evaluate_policy(rule, cfg, 3, 0).mean_rate_mbps  # after the run: beta 1 was the last tried
+    assert [r["beta"] for r in result["rows"]] == [field_model.BETA, 1.0]
+    assert result["rows"][0]["mean_rate_mbps"] == pytest.approx(chosen, abs=1e-4)
+    assert result["rows"][1]["mean_rate_mbps"] != result["rows"][0]["mean_rate_mbps"]
+    for row in result["rows"]:
+        for ref in ("vs_explore", "vs_spatial"):
+            ratio, low, high = row[ref]
+            assert low <= ratio <= high
+
+
 @pytest.mark.timeout(300)
 def test_spiral_ppo_trains_from_the_spiral_rule_and_pairs_it_with_the_spatial_policy() -> None:
     result = run_json("spiral_ppo.py", "--seeds", "0", "--train-episodes", "256", "--episodes", "2")

@@ -76,6 +76,14 @@ class ActionMapping:
         rad = np.radians(angle_deg)
         return np.stack([fraction * np.cos(rad), fraction * np.sin(rad)], axis=-1)
 
+    def towards(self, offset_m: np.ndarray, share: float | np.ndarray) -> np.ndarray:
+        """The action that closes ``share`` of the way to spots at ``offset_m`` (rows, 2), r_max at
+        most: a vehicle trails its setpoint, so a rule that steps the whole way from where the
+        vehicle is overshoots and swings (docs/design.md, "explore")."""
+        offset_m = np.asarray(offset_m)
+        return self.from_polar(np.degrees(np.arctan2(offset_m[:, 1], offset_m[:, 0])),
+                               share * np.hypot(offset_m[:, 0], offset_m[:, 1]))
+
     def to_dict(self) -> dict[str, Any]:
         return dataclasses.asdict(self)
 

@@ -78,11 +78,8 @@ class ExplorePolicy:
         heading = np.where(index < 4 * leg, np.where(out, 0.0, 180.0), np.where(out, 90.0, -90.0))
         search = self.mapping.from_polar(heading, np.full(len(index), r_max))
         # 2. the best remembered spot, when it is worth going to.
-        offset = frame["place_best_offset_m"]
-        distance = np.minimum(self.approach_gain * np.hypot(offset[:, 0], offset[:, 1]), r_max)
         go = frame["place_best_gain_bits"] > self.margin_bits
-        to_best = self.mapping.from_polar(np.degrees(np.arctan2(offset[:, 1], offset[:, 0])),
-                                          np.where(go, distance, 0.0))
+        to_best = self.mapping.towards(frame["place_best_offset_m"], np.where(go, self.approach_gain, 0.0))
         # 3. follow the team when it has left.
         follow = self._sinr_gap_db(frame) > self.follow_gap_db
         action = np.where(follow[:, None], self.follow.act(obs), to_best)

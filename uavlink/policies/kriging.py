@@ -43,6 +43,4 @@ class KrigingPolicy:
         self.approach_gain = approach_gain
 
     def act(self, obs: np.ndarray, truth: GroundTruth | None = None) -> np.ndarray:
-        offset = self.layout.newest_frame(obs)["place_pick_offset_m"]
-        distance = np.minimum(self.approach_gain * np.hypot(offset[:, 0], offset[:, 1]), self.mapping.r_max_m)
-        return self.mapping.from_polar(np.degrees(np.arctan2(offset[:, 1], offset[:, 0])), distance)
+        return self.mapping.towards(self.layout.newest_frame(obs)["place_pick_offset_m"], self.approach_gain)
