@@ -127,6 +127,19 @@ def versus(result: EvalResult, references: dict[str, EvalResult]) -> dict[str, l
             for name, base in references.items()}
 
 
+def print_summary(episodes: int, seed: int, settings: list[str], references: dict[str, EvalResult],
+                  rows: list[dict], as_json: bool) -> bool:
+    """Print the run as JSON (then True: nothing more to print) or the references' heading line."""
+    summary = {"episodes": episodes, "seed": seed, "settings": settings,
+               **{f"{name}_mbps": round(r.mean_rate_mbps, 4) for name, r in references.items()}, "rows": rows}
+    if as_json:
+        print(json.dumps(summary, indent=1))
+        return True
+    print(f"spatial policy {summary['spatial_mbps']:.3f} Mbps, explore {summary['explore_mbps']:.3f} Mbps "
+          f"({episodes} episodes, seed {seed}, {' '.join(settings)})\n")
+    return False
+
+
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--cell-m", type=float, nargs="+", default=[12.0, 6.0], help="memory grids to try (m)")
@@ -146,13 +159,8 @@ def main(argv: list[str] | None = None) -> int:
             result = evaluate_policy(ExploreVariant(cfg, **variant), cfg, args.episodes, args.seed)
             rows.append({"cell_m": cell_m, "variant": name, "mean_rate_mbps": round(result.mean_rate_mbps, 4),
                          **versus(result, references)})
-    summary = {"episodes": args.episodes, "seed": args.seed, "settings": settings,
-               **{f"{name}_mbps": round(r.mean_rate_mbps, 4) for name, r in references.items()}, "rows": rows}
-    if args.json:
-        print(json.dumps(summary, indent=1))
+    if print_summary(args.episodes, args.seed, settings, references, rows, args.json):
         return 0
-    print(f"spatial policy {summary['spatial_mbps']:.3f} Mbps, explore {summary['explore_mbps']:.3f} Mbps "
-          f"({args.episodes} episodes, seed {args.seed}, {' '.join(settings)})\n")
     print("| cell (m) | variant | Mbps | vs explore | vs spatial policy |\n|---|---|---:|---|---|")
     for r in rows:
         cells = [f"{(x[0] - 1) * 100:+.1f} % [{(x[1] - 1) * 100:+.1f}, {(x[2] - 1) * 100:+.1f}]"

@@ -16,10 +16,9 @@ from __future__ import annotations
 
 import argparse
 import itertools
-import json
 import sys
 
-from explore_search import no_move_references, versus
+from explore_search import no_move_references, print_summary, versus
 
 from uavlink.env import field_model
 from uavlink.evaluation.core import evaluate_policy
@@ -51,13 +50,8 @@ def main(argv: list[str] | None = None) -> int:
                          **versus(result, references)})
     finally:
         field_model.BETA = chosen
-    summary = {"episodes": args.episodes, "seed": args.seed, "settings": settings,
-               **{f"{name}_mbps": round(r.mean_rate_mbps, 4) for name, r in references.items()}, "rows": rows}
-    if args.json:
-        print(json.dumps(summary, indent=1))
+    if print_summary(args.episodes, args.seed, settings, references, rows, args.json):
         return 0
-    print(f"spatial policy {summary['spatial_mbps']:.3f} Mbps, explore {summary['explore_mbps']:.3f} Mbps "
-          f"({args.episodes} episodes, seed {args.seed}, {' '.join(settings)})\n")
     print("| beta | approach gain | Mbps | vs explore | vs spatial policy |\n|---:|---:|---:|---|---|")
     for r in rows:
         cells = [f"{x[0]:.3f}x [{x[1]:.3f}, {x[2]:.3f}]" for x in (r["vs_explore"], r["vs_spatial"])]
