@@ -82,6 +82,20 @@ def test_bad_arguments_exit_2_with_one_line(args, fragments):
     assert_user_error(uavlink("evaluate", "--policy", "static", "--episodes", "2", *args), *fragments)
 
 
+def test_a_policy_file_flies_its_own_scenario_unless_told_otherwise():
+    """Without --scenario a policy file flies the scenario its manifest names (a no_move policy is
+    not measured on circular by default); two files trained on different scenarios need one named."""
+    own = cli_json("evaluate", "--policy", "policies/map/no_move.zip", "--against", "static", "--episodes", "1",
+                   "--json")
+    assert [r["scenario"] for r in own["results"]] == ["no_move", "no_move"]
+    told = cli_json("evaluate", "--policy", "policies/map/no_move.zip", "--scenario", "straight", "--episodes", "1",
+                    "--json")
+    assert told["scenario"] == "straight"
+    assert_user_error(uavlink("evaluate", "--policy", "policies/map/straight.zip", "--against",
+                              "policies/map/circular.zip", "--episodes", "1"),
+                      "scenario='straight' vs 'circular'", "--scenario")
+
+
 @pytest.mark.parametrize("policy", ["missing.zip", "missing.onnx", "no_such_policy"])
 def test_missing_policy_file_exits_2(policy, tmp_path):
     assert_user_error(uavlink("evaluate", "--policy", policy, "--episodes", "2", cwd=tmp_path), policy)

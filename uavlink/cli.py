@@ -31,10 +31,14 @@ def scenario_list(name: str) -> list[str]:
     return [name]
 
 
-def _add_env_options(p: argparse.ArgumentParser, scenario_default: str | None = "circular",
-                     for_policy: bool = False) -> None:
-    p.add_argument("--scenario", default=scenario_default,
-                   help=f"one of {', '.join(SCENARIOS)}, {MIXED}" + (" or all" if scenario_default is None else ""))
+def _add_env_options(p: argparse.ArgumentParser, for_policy: bool = False) -> None:
+    names = f"{', '.join(SCENARIOS)}, {MIXED}"
+    if for_policy:  # evaluate: a policy file flies its own scenario unless told otherwise
+        p.add_argument("--scenario", default=None,
+                       help=f"one of {names} or all (default: a policy file's own scenario, from its "
+                            "manifest; circular for a baseline or a folder)")
+    else:
+        p.add_argument("--scenario", default="circular", help=f"one of {names} (default: circular)")
     p.add_argument("--aoa-noise-deg", type=float, default=None,
                    help="std of the AoA estimate noise (deg)" + (" (default: the policy's; 0 for a baseline alone)" if for_policy else ""))
     p.add_argument("--set", dest="overrides", action="append", default=[], metavar="KEY=VALUE",
@@ -55,7 +59,11 @@ def cmd_evaluate(args: argparse.Namespace) -> int:
     results, comparisons = [], []
     overrides = EnvOverrides.from_command_line(None, args.aoa_noise_deg, args.overrides)
     specs = [args.policy] if args.against is None else [args.policy, args.against]
-    for scenario in scenario_list(args.scenario):
+    if args.scenario is None and Path(args.policy).is_file():
+        scenarios = [None]  # the file's manifest names it; a baseline beside it flies the file's world
+    else:
+        scenarios = scenario_list(args.scenario or "circular")
+    for scenario in scenarios:
         flown = [evaluate_policy(policy, cfg, args.episodes, args.seed)
                  for policy, cfg in load_with_env(specs, overrides.on(scenario))]
         results += flown
@@ -268,7 +276,7 @@ def build_parser() -> argparse.ArgumentParser:
     p = sub.add_parser("evaluate", help="evaluate a policy or baseline, print a table",
                        description=f"Evaluate a policy file, a folder of them, or a baseline "
                                    f"({', '.join(BASELINE_NAMES)}, genie). " + OVERRIDES_HELP)
-    _add_env_options(p, scenario_default="circular", for_policy=True)
+    _add_env_options(p, for_policy=True)
     p.add_argument("--policy", default="static",
                    help=f"{' | '.join(BASELINE_NAMES)} | genie (evaluation only: plans on the episode's "
                         "future) | FILE.zip | FILE.onnx | FOLDER")

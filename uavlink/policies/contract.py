@@ -120,7 +120,7 @@ def resolve(spec: str | Path, scenario: str | None) -> str | Path:
     if str(spec) in BASELINES or not Path(spec).is_dir():
         return spec
     if scenario is None:
-        raise UserError(f"{spec} is a folder of policies: name a scenario to pick one")
+        raise UserError(f"{spec} is a folder of policies: name a scenario (--scenario) to pick one")
     return policy_for_scenario(Path(spec), scenario)
 
 
@@ -147,5 +147,6 @@ def _check_same_world(first: str | None, world: EnvConfig, spec: str, cfg: EnvCo
     theirs = cfg.replace(**{key: ours[key] for key in PER_POLICY}).to_flat_dict()
     key = next((k for k, v in theirs.items() if ours[k] != v), None)
     if key is not None:
+        hint = ": --scenario flies both on one" if key == "scenario" else ""
         raise UserError(f"{first} and {spec} were built for different envs ({key}={ours[key]!r} vs "
-                        f"{theirs[key]!r}); they cannot be compared on the same episodes")
+                        f"{theirs[key]!r}); they cannot be compared on the same episodes{hint}")
