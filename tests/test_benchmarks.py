@@ -157,6 +157,21 @@ def test_genie_reach_keeps_each_plan_within_its_radius_below_the_next() -> None:
         assert 0 < row["shares"][name]["of_genie"] <= 1.0, row["shares"][name]
 
 
+def test_memory_worth_scores_the_remembered_spot_now_and_a_still_team_keeps_its_word() -> None:
+    """benchmarks/memory_worth.py, 3 episodes: where the team stands still a spot reads now what it
+    read then (claimed == now, the SPEC's "identical value on return"); where it moves, what the whole
+    episode's memory claims is more than its pick is worth now."""
+    result = run_json("memory_worth.py", "--scenarios", "no_move", "straight", "--episodes", "3")
+    still, moving = result["rows"]
+    for row in (still, moving):
+        for w in result["windows_frames"]:
+            assert row["windows"][str(w)]["claimed"]["ratio"] >= 1.0  # the best of a window includes now
+    for w in result["windows_frames"]:
+        assert still["windows"][str(w)]["claimed"] == still["windows"][str(w)]["now"]
+    whole = moving["windows"][str(max(result["windows_frames"]))]
+    assert whole["now"]["ratio"] < whole["claimed"]["ratio"] and whole["mean_age_frames"] > 4
+
+
 @pytest.mark.slow
 def test_teacher_gain_rebuilds_each_policys_own_teacher_from_its_manifest() -> None:
     """benchmarks/teacher_gain.py: the map policy of straight_90 faces the aoa variant its manifest

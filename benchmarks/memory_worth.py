@@ -1,0 +1,151 @@
+"""What a memory of place is worth when the team moves: the best spot remembered, scored now (issue 23).
+
+A memory of place tells a GPS-free policy where it sensed best. Going back pays only while that
+spot is still good. On the spatial channel the shadowing decorrelates over 50 m at the UE end too
+(SPEC "A spatially consistent channel"), so a spot's value fades as the team moves: at 8 m/s by
+exp(-8 t / 50) after t frames.
+
+For each seeded episode, the path today's spatial policy flies (``policies/spatial/<scenario>.zip``)
+is scored frame by frame on the mean channel (path loss and the episode's shadowing field, no fast
+fading; the genie's scoring, ``uavlink.policies.genie``). At each frame t the memory's pick is the
+spot of the best value sensed over the last A frames. Two numbers follow:
+- what the memory claims: the pick's value when it was sensed, against the value here now;
+- what the pick is worth now: the value the UAV would have at the pick this frame, with the team
+  where it is now.
+Travel is free here, which favours the memory: a UAV needs frames to get back. A ratio "now" above
+1 is the most a return could gain; at or below 1 no memory of this kind can gain by returning.
+
+    python benchmarks/memory_worth.py                              # every scenario, 50 episodes
+    python benchmarks/memory_worth.py --scenarios no_move straight_180 --episodes 20 --json
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+from pathlib import Path
+
+import numpy as np
+from genie_reach import flown_paths
+
+ROOT = Path(__file__).resolve().parents[1]
+WINDOWS_FRAMES = (4, 16, 128)  # today's observation (M = 4), a longer memory, the whole episode
+SCENARIOS = ("no_move", "straight", "circular", "straight_90", "straight_180", "hotspot")
+
+
+def remembered_picks(values: np.ndarray, window: int) -> np.ndarray:
+    """Frame index (T,) of the best of ``values`` (T,) over the last ``window`` frames, each frame."""
+    picks = np.empty(len(values), dtype=int)
+    for t in range(len(values)):
+        lo = max(0, t - window + 1)
+        picks[t] = lo + int(np.argmax(values[lo:t + 1]))
+    return picks
+
+
+def frame_rates_mbps(planner, path_m: np.ndarray) -> np.ndarray:
+    """Mean UE rate (T,) at each frame of ``path_m`` (T + 1, 2), on the mean channel, Mbps."""
+    from uavlink.radio.cells import mean_channel_rate_bps
+
+    return mean_channel_rate_bps(planner.rx_dbm(path_m[:, None]), planner.cfg.radio).mean(axis=-1) * 1e-6
+
+
+def episode_sums(planner, path_m: np.ndarray) -> dict[int, tuple[float, float, float, float]]:
+    """Per window: (value here, the pick's value when sensed, the pick's value now, the pick's age in
+    frames), each summed over the episode's frames."""
+    here = frame_rates_mbps(planner, path_m)  # entry t: frame t + 1, the UAV at path_m[t + 1]
+    sums = {}
+    for window in WINDOWS_FRAMES:
+        picks = remembered_picks(here, window)
+        at_pick = path_m.copy()
+        at_pick[1:] = path_m[1:][picks]  # the UAV put back on its pick, every frame
+        now = frame_rates_mbps(planner, at_pick)
+        age = np.arange(len(here)) - picks
+        sums[window] = (float(here.sum()), float(here[picks].sum()), float(now.sum()), float(age.sum()))
+    return sums
+
+
+def run(scenarios: list[str], episodes: int, seed: int, progress: bool) -> dict:
+    from uavlink.evaluation import paired_ratio_ci
+    from uavlink.evaluation.tables import spatial_overrides
+    from uavlink.policies.contract import EnvOverrides, load_with_env
+    from uavlink.policies.genie.grid import Grid
+    from uavlink.policies.genie.policy import EpisodePlanner, env_field, future_ues
+    from uavlink.policies.loader import policy_for_scenario
+    from uavlink.rollout import chunks
+    from uavlink.seeding import EVAL
+
+    rows = []
+    for scenario in scenarios:
+        spec = policy_for_scenario(ROOT / "policies" / "spatial", scenario)
+        [(policy, cfg)] = load_with_env([spec], spatial_overrides(EnvOverrides(scenario)))
+        paths = flown_paths(policy, cfg, episodes, seed)
+        # the planner is used for its scoring only: a coarse grid keeps its set-up cheap
+        grid = Grid.over_area(cfg.area.half_width_m, 50.0, cfg.r_max_m)
+        sums = {w: [] for w in WINDOWS_FRAMES}
+        episode = 0
+        for chunk in chunks(cfg, EVAL, episodes, seed):
+            truth = chunk.env.ground_truth()
+            ue, _ = future_ues(truth.mobility, cfg.episode_frames, cfg.frame_s, cfg.area.half_width_m)
+            for env in range(chunk.env.n_envs):
+                if progress:
+                    print(f"{scenario}: episode {episode + 1}/{episodes}", file=sys.stderr, flush=True)
+                planner = EpisodePlanner(cfg, grid, ue[:, env], env_field(truth.shadow_field, env, 1),
+                                         truth.uav_xy_m[env:env + 1])
+                for window, s in episode_sums(planner, paths[episode]).items():
+                    sums[window].append(s)
+                episode += 1
+        row = {"scenario": scenario, "policy": str(Path(spec).relative_to(ROOT)), "windows": {}}
+        frames = episodes * cfg.episode_frames
+        for window in WINDOWS_FRAMES:
+            here, claimed, now, age = np.array(sums[window]).T
+            ratios = {}
+            for name, v in (("claimed", claimed), ("now", now)):
+                r, lo, hi = paired_ratio_ci(v, here)
+                ratios[name] = {"ratio": round(r, 4), "ci95": [round(lo, 4), round(hi, 4)]}
+            row["windows"][str(window)] = {**ratios, "here_mbps": round(float(here.sum() / frames), 4),
+                                           "mean_age_frames": round(float(age.sum() / frames), 1)}
+        rows.append(row)
+    return {"benchmark": "memory_worth", "episodes": episodes, "seed": seed, "windows_frames": list(WINDOWS_FRAMES),
+            "statistic": "the memory's pick (best value sensed over the last A frames) against the value here: "
+                         "as sensed then (claimed) and as it would be now (now); mean-channel rates of the "
+                         "spatial policy's path, ratio of episode sums with a 95 % paired bootstrap interval",
+            "rows": rows}
+
+
+def markdown(result: dict) -> str:
+    head = " | ".join(f"last {w}: claimed | last {w}: now | last {w}: age" for w in result["windows_frames"])
+    lines = [f"| scenario | here (Mbps) | {head} |",
+             "|---|---:|" + "---:|---:|---:|" * len(result["windows_frames"])]
+    for row in result["rows"]:
+        cells = []
+        for w in result["windows_frames"]:
+            s = row["windows"][str(w)]
+            for name in ("claimed", "now"):
+                r, (lo, hi) = s[name]["ratio"], s[name]["ci95"]
+                cells.append(f"{r:.3f} [{lo:.3f}, {hi:.3f}]")
+            cells.append(f"{s['mean_age_frames']:.1f}")
+        here = row["windows"][str(result["windows_frames"][0])]["here_mbps"]
+        lines.append(f"| {row['scenario']} | {here:.2f} | " + " | ".join(cells) + " |")
+    return "\n".join(lines)
+
+
+def main(argv: list[str] | None = None) -> int:
+    parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0].replace("\n", " "))
+    parser.add_argument("--scenarios", nargs="+", default=list(SCENARIOS), help="(default: all six)")
+    parser.add_argument("--episodes", type=int, default=50, help="seeded episodes per scenario (default 50)")
+    parser.add_argument("--seed", type=int, default=0, help="evaluation seed (default 0)")
+    parser.add_argument("--json", action="store_true", help="print one JSON object instead of a table")
+    args = parser.parse_args(argv)
+    from uavlink.mobility import SCENARIOS as KNOWN
+
+    unknown = [s for s in args.scenarios if s not in KNOWN or s == "mixed"]
+    if unknown or args.episodes < 1:
+        parser.error(f"unknown scenario {unknown[0]!r}" if unknown else "--episodes must be >= 1")
+    result = run(args.scenarios, args.episodes, args.seed, progress=sys.stderr.isatty())
+    print(json.dumps(result, indent=1) if args.json else markdown(result))
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
