@@ -150,18 +150,26 @@ def markdown(result: dict) -> str:
     return "\n".join(lines)
 
 
-def main(argv: list[str] | None = None) -> int:
-    parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0].replace("\n", " "))
-    parser.add_argument("--scenarios", nargs="+", default=["no_move"], help="(default: no_move)")
-    parser.add_argument("--episodes", type=int, default=20, help="seeded episodes per scenario (default 20)")
+def scenario_args(doc: str, argv: list[str] | None, scenarios: list[str], episodes: int) -> argparse.Namespace:
+    """The options of a benchmark over seeded episodes of some scenarios (this one's and
+    memory_worth's), checked: --scenarios, --episodes, --seed, --json."""
+    from uavlink.mobility import SCENARIOS
+
+    parser = argparse.ArgumentParser(description=doc.split("\n\n")[0].replace("\n", " "))
+    parser.add_argument("--scenarios", nargs="+", default=scenarios, help=f"(default: {' '.join(scenarios)})")
+    parser.add_argument("--episodes", type=int, default=episodes,
+                        help=f"seeded episodes per scenario (default {episodes})")
     parser.add_argument("--seed", type=int, default=0, help="evaluation seed (default 0)")
     parser.add_argument("--json", action="store_true", help="print one JSON object instead of a table")
     args = parser.parse_args(argv)
-    from uavlink.mobility import SCENARIOS
-
     unknown = [s for s in args.scenarios if s not in SCENARIOS]
     if unknown or args.episodes < 1:
         parser.error(f"unknown scenario {unknown[0]!r}" if unknown else "--episodes must be >= 1")
+    return args
+
+
+def main(argv: list[str] | None = None) -> int:
+    args = scenario_args(__doc__, argv, ["no_move"], 20)
     result = run(args.scenarios, args.episodes, args.seed, progress=sys.stderr.isatty())
     print(json.dumps(result, indent=1) if args.json else markdown(result))
     return 0

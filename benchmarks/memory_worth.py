@@ -21,13 +21,12 @@ Travel is free here, which favours the memory: a UAV needs frames to get back. A
 
 from __future__ import annotations
 
-import argparse
 import json
 import sys
 from pathlib import Path
 
 import numpy as np
-from genie_reach import flown_paths
+from genie_reach import flown_paths, scenario_args
 
 ROOT = Path(__file__).resolve().parents[1]
 WINDOWS_FRAMES = (4, 16, 128)  # today's observation (M = 4), a longer memory, the whole episode
@@ -130,17 +129,9 @@ def markdown(result: dict) -> str:
 
 
 def main(argv: list[str] | None = None) -> int:
-    parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0].replace("\n", " "))
     from uavlink.mobility import SCENARIOS
 
-    parser.add_argument("--scenarios", nargs="+", default=list(SCENARIOS), help="(default: all six)")
-    parser.add_argument("--episodes", type=int, default=50, help="seeded episodes per scenario (default 50)")
-    parser.add_argument("--seed", type=int, default=0, help="evaluation seed (default 0)")
-    parser.add_argument("--json", action="store_true", help="print one JSON object instead of a table")
-    args = parser.parse_args(argv)
-    unknown = [s for s in args.scenarios if s not in SCENARIOS]
-    if unknown or args.episodes < 1:
-        parser.error(f"unknown scenario {unknown[0]!r}" if unknown else "--episodes must be >= 1")
+    args = scenario_args(__doc__, argv, list(SCENARIOS), 50)
     result = run(args.scenarios, args.episodes, args.seed, progress=sys.stderr.isatty())
     print(json.dumps(result, indent=1) if args.json else markdown(result))
     return 0
