@@ -83,15 +83,31 @@ def episode_values(planner, grid, ue_m: np.ndarray, flown: dict[str, np.ndarray]
     return values
 
 
+def episode_planners(cfg, grid, episodes: int, seed: int, progress: bool):
+    """(episode index, the genie's planner of that episode) for ``episodes`` seeded evaluation
+    episodes, in order: the UEs' whole paths and the episode's field, as the genie sees them."""
+    from uavlink.policies.genie.policy import EpisodePlanner, env_field, future_ues
+    from uavlink.rollout import chunks
+    from uavlink.seeding import EVAL
+
+    episode = 0
+    for chunk in chunks(cfg, EVAL, episodes, seed):
+        truth = chunk.env.ground_truth()
+        ue, _ = future_ues(truth.mobility, cfg.episode_frames, cfg.frame_s, cfg.area.half_width_m)
+        for env in range(chunk.env.n_envs):
+            if progress:
+                print(f"{cfg.scenario}: episode {episode + 1}/{episodes}", file=sys.stderr, flush=True)
+            yield episode, EpisodePlanner(cfg, grid, ue[:, env], env_field(truth.shadow_field, env, 1),
+                                          truth.uav_xy_m[env:env + 1])
+            episode += 1
+
+
 def run(scenarios: list[str], episodes: int, seed: int, progress: bool) -> dict:
     from uavlink.evaluation import paired_ratio_ci
     from uavlink.evaluation.tables import spatial_overrides
     from uavlink.policies.contract import EnvOverrides, load_with_env
     from uavlink.policies.genie.grid import Grid
-    from uavlink.policies.genie.policy import EpisodePlanner, env_field, future_ues
     from uavlink.policies.loader import policy_for_scenario
-    from uavlink.rollout import chunks
-    from uavlink.seeding import EVAL
 
     rows = []
     for scenario in scenarios:
@@ -103,19 +119,10 @@ def run(scenarios: list[str], episodes: int, seed: int, progress: bool) -> dict:
         paths = {name: flown_paths(policy, c, episodes, seed) for name, (policy, c) in loaded.items()}
         grid = Grid.over_area(cfg.area.half_width_m, 4.0, cfg.r_max_m)
         values = {name: [] for name in ("genie", "distance_m", *(f"within {r:g} m" for r in RADII_M), *POLICIES)}
-        episode = 0
-        for chunk in chunks(cfg, EVAL, episodes, seed):
-            truth = chunk.env.ground_truth()
-            ue, _ = future_ues(truth.mobility, cfg.episode_frames, cfg.frame_s, cfg.area.half_width_m)
-            for env in range(chunk.env.n_envs):
-                if progress:
-                    print(f"{scenario}: episode {episode + 1}/{episodes}", file=sys.stderr, flush=True)
-                planner = EpisodePlanner(cfg, grid, ue[:, env], env_field(truth.shadow_field, env, 1),
-                                         truth.uav_xy_m[env:env + 1])
-                flown = {name: path[episode] for name, path in paths.items()}
-                for name, value in episode_values(planner, grid, ue[1:, env], flown).items():
-                    values[name].append(value)
-                episode += 1
+        for episode, planner in episode_planners(cfg, grid, episodes, seed, progress):
+            flown = {name: path[episode] for name, path in paths.items()}
+            for name, value in episode_values(planner, grid, planner.ue_xy_m[1:], flown).items():
+                values[name].append(value)
         genie = np.array(values["genie"])
         row = {"scenario": scenario, "genie_mbps": round(float(genie.mean()), 4),
                "genie_mean_distance_from_team_m": round(float(np.mean(values["distance_m"])), 1), "shares": {}}

@@ -26,7 +26,7 @@ import sys
 from pathlib import Path
 
 import numpy as np
-from genie_reach import flown_paths, scenario_args
+from genie_reach import episode_planners, flown_paths, scenario_args
 
 ROOT = Path(__file__).resolve().parents[1]
 WINDOWS_FRAMES = (4, 16, 128)  # today's observation (M = 4), a longer memory, the whole episode
@@ -68,10 +68,7 @@ def run(scenarios: list[str], episodes: int, seed: int, progress: bool) -> dict:
     from uavlink.evaluation.tables import spatial_overrides
     from uavlink.policies.contract import EnvOverrides, load_with_env
     from uavlink.policies.genie.grid import Grid
-    from uavlink.policies.genie.policy import EpisodePlanner, env_field, future_ues
     from uavlink.policies.loader import policy_for_scenario
-    from uavlink.rollout import chunks
-    from uavlink.seeding import EVAL
 
     rows = []
     for scenario in scenarios:
@@ -81,18 +78,9 @@ def run(scenarios: list[str], episodes: int, seed: int, progress: bool) -> dict:
         # the planner is used for its scoring only: a coarse grid keeps its set-up cheap
         grid = Grid.over_area(cfg.area.half_width_m, 50.0, cfg.r_max_m)
         sums = {w: [] for w in WINDOWS_FRAMES}
-        episode = 0
-        for chunk in chunks(cfg, EVAL, episodes, seed):
-            truth = chunk.env.ground_truth()
-            ue, _ = future_ues(truth.mobility, cfg.episode_frames, cfg.frame_s, cfg.area.half_width_m)
-            for env in range(chunk.env.n_envs):
-                if progress:
-                    print(f"{scenario}: episode {episode + 1}/{episodes}", file=sys.stderr, flush=True)
-                planner = EpisodePlanner(cfg, grid, ue[:, env], env_field(truth.shadow_field, env, 1),
-                                         truth.uav_xy_m[env:env + 1])
-                for window, s in episode_sums(planner, paths[episode]).items():
-                    sums[window].append(s)
-                episode += 1
+        for episode, planner in episode_planners(cfg, grid, episodes, seed, progress):
+            for window, s in episode_sums(planner, paths[episode]).items():
+                sums[window].append(s)
         row = {"scenario": scenario, "policy": str(Path(spec).relative_to(ROOT)), "windows": {}}
         frames = episodes * cfg.episode_frames
         for window in WINDOWS_FRAMES:
