@@ -91,6 +91,9 @@ def test_a_policy_file_flies_its_own_scenario_unless_told_otherwise():
     told = cli_json("evaluate", "--policy", "policies/map/no_move.zip", "--scenario", "straight", "--episodes", "1",
                     "--json")
     assert told["scenario"] == "straight"
+    namesakes = cli_json("evaluate", "--policy", "policies/map/no_move.zip", "--against",
+                         "policies/spatial/no_move.zip", "--episodes", "1", "--json")  # told apart by path
+    assert [r["policy"] for r in namesakes["results"]] == ["policies/map/no_move.zip", "policies/spatial/no_move.zip"]
     assert_user_error(uavlink("evaluate", "--policy", "policies/map/straight.zip", "--against",
                               "policies/map/circular.zip", "--episodes", "1"),
                       "scenario='straight' vs 'circular'", "--scenario")

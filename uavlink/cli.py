@@ -7,6 +7,7 @@ exit with status 2, without a traceback. Heavy modules are imported only by the 
 from __future__ import annotations
 
 import argparse
+import dataclasses
 import json
 import sys
 from collections.abc import Sequence
@@ -66,6 +67,8 @@ def cmd_evaluate(args: argparse.Namespace) -> int:
     for scenario in scenarios:
         flown = [evaluate_policy(policy, cfg, args.episodes, args.seed)
                  for policy, cfg in load_with_env(specs, overrides.on(scenario))]
+        if len(flown) == 2 and flown[0].policy == flown[1].policy:  # policies/map/x.zip vs policies/spatial/x.zip
+            flown = [dataclasses.replace(r, policy=str(spec)) for r, spec in zip(flown, specs, strict=True)]
         results += flown
         if args.against is not None:
             comparisons.append(compare(*flown))
@@ -134,9 +137,10 @@ def _write_results_folder(args: argparse.Namespace) -> int:
 
 
 def format_table(results) -> str:
-    lines = [f"{'scenario':<13} {'policy':<16} {'episodes':>8} {'Mbps':>7} {'±95%':>6} {'R_fair':>7}"]
+    width = max([16, *(len(r.policy) for r in results)])
+    lines = [f"{'scenario':<13} {'policy':<{width}} {'episodes':>8} {'Mbps':>7} {'±95%':>6} {'R_fair':>7}"]
     for r in results:
-        lines.append(f"{r.scenario:<13} {r.policy:<16} {r.episodes:>8} {r.mean_rate_mbps:>7.3f} "
+        lines.append(f"{r.scenario:<13} {r.policy:<{width}} {r.episodes:>8} {r.mean_rate_mbps:>7.3f} "
                      f"{r.ci95_mbps:>6.3f} {r.mean_fair_rate:>7.3f}")
     return "\n".join(lines)
 
