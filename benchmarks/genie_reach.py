@@ -157,9 +157,11 @@ def markdown(result: dict) -> str:
     return "\n".join(lines)
 
 
-def scenario_args(doc: str, argv: list[str] | None, scenarios: list[str], episodes: int) -> argparse.Namespace:
+def scenario_args(doc: str, argv: list[str] | None, scenarios: list[str], episodes: int,
+                  plot_help: str | None = None) -> argparse.Namespace:
     """The options of a benchmark over seeded episodes of some scenarios (this one's and
-    memory_worth's), checked: --scenarios, --episodes, --seed, --json."""
+    memory_worth's), checked: --scenarios, --episodes, --seed, --json, and --plot PNG with a
+    ``plot_help``."""
     from uavlink.mobility import SCENARIOS
 
     parser = argparse.ArgumentParser(description=doc.split("\n\n")[0].replace("\n", " "))
@@ -168,6 +170,8 @@ def scenario_args(doc: str, argv: list[str] | None, scenarios: list[str], episod
                         help=f"seeded episodes per scenario (default {episodes})")
     parser.add_argument("--seed", type=int, default=0, help="evaluation seed (default 0)")
     parser.add_argument("--json", action="store_true", help="print one JSON object instead of a table")
+    if plot_help:
+        parser.add_argument("--plot", type=Path, default=None, metavar="PNG", help=plot_help)
     args = parser.parse_args(argv)
     unknown = [s for s in args.scenarios if s not in SCENARIOS]
     if unknown or args.episodes < 1:

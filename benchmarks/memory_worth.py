@@ -17,6 +17,7 @@ Travel is free here, which favours the memory: a UAV needs frames to get back. A
 
     python benchmarks/memory_worth.py                              # every scenario, 50 episodes
     python benchmarks/memory_worth.py --scenarios no_move straight_180 --episodes 20 --json
+    python benchmarks/memory_worth.py --plot docs/img/memory_worth.png   # the figure in docs/design.md
 """
 
 from __future__ import annotations
@@ -116,12 +117,42 @@ def markdown(result: dict) -> str:
     return "\n".join(lines)
 
 
+def plot(result: dict, path: Path) -> None:
+    """Per scenario, what the memory's pick claims and what it is worth now, against the memory's
+    length: the two lines part where the team moves."""
+    from matplotlib.backends.backend_agg import FigureCanvasAgg
+    from matplotlib.figure import Figure
+
+    windows = result["windows_frames"]
+    fig = Figure(figsize=(7.0, 4.2), dpi=110)
+    FigureCanvasAgg(fig)
+    ax = fig.add_subplot()
+    for i, row in enumerate(result["rows"]):
+        colour = f"C{i}"
+        for name, style in (("claimed", ":"), ("now", "-")):
+            ax.plot(windows, [row["windows"][str(w)][name]["ratio"] for w in windows], style, color=colour,
+                    marker="o", label=row["scenario"] if name == "now" else None)
+    ax.axhline(1.0, color="grey", lw=0.8)
+    ax.set_xscale("log", base=2)
+    ax.set_xticks(windows, [str(w) for w in windows])
+    ax.set_xlabel("memory length (frames): the pick is the best spot sensed over the last ones")
+    ax.set_ylabel("pick / here (mean-channel throughput)")
+    ax.set_title(f"The remembered best spot: claimed (dotted) and worth now (solid), "
+                 f"{result['episodes']} episodes", fontsize=9)
+    ax.legend(fontsize=8, ncol=2)
+    fig.tight_layout()
+    fig.savefig(path)
+
+
 def main(argv: list[str] | None = None) -> int:
     from uavlink.mobility import SCENARIOS
 
-    args = scenario_args(__doc__, argv, list(SCENARIOS), 50)
+    args = scenario_args(__doc__, argv, list(SCENARIOS), 50,
+                         plot_help="also draw the ratios against the memory's length into this PNG")
     result = run(args.scenarios, args.episodes, args.seed, progress=sys.stderr.isatty())
     print(json.dumps(result, indent=1) if args.json else markdown(result))
+    if args.plot is not None:
+        plot(result, args.plot)
     return 0
 
 

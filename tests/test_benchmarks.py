@@ -157,11 +157,13 @@ def test_genie_reach_keeps_each_plan_within_its_radius_below_the_next() -> None:
         assert 0 < row["shares"][name]["of_genie"] <= 1.0, row["shares"][name]
 
 
-def test_memory_worth_scores_the_remembered_spot_now_and_a_still_team_keeps_its_word() -> None:
+def test_memory_worth_scores_the_remembered_spot_now_and_a_still_team_keeps_its_word(tmp_path: Path) -> None:
     """benchmarks/memory_worth.py, 3 episodes: where the team stands still a spot reads now what it
     read then (claimed == now, the SPEC's "identical value on return"); where it moves, what the whole
-    episode's memory claims is more than its pick is worth now."""
-    result = run_json("memory_worth.py", "--scenarios", "no_move", "straight", "--episodes", "3")
+    episode's memory claims is more than its pick is worth now. --plot draws the figure."""
+    figure = tmp_path / "memory_worth.png"
+    result = run_json("memory_worth.py", "--scenarios", "no_move", "straight", "--episodes", "3", "--plot", str(figure))
+    assert figure.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
     still, moving = result["rows"]
     for row in (still, moving):
         for w in result["windows_frames"]:
