@@ -84,7 +84,8 @@ def test_bad_arguments_exit_2_with_one_line(args, fragments):
 
 def test_a_policy_file_flies_its_own_scenario_unless_told_otherwise():
     """Without --scenario a policy file flies the scenario its manifest names (a no_move policy is
-    not measured on circular by default); two files trained on different scenarios need one named."""
+    not measured on circular by default), and a folder beside it gives its policy for that scenario;
+    two files trained on different scenarios need one named."""
     own = cli_json("evaluate", "--policy", "policies/map/no_move.zip", "--against", "static", "--episodes", "1",
                    "--json")
     assert [r["scenario"] for r in own["results"]] == ["no_move", "no_move"]
@@ -94,6 +95,9 @@ def test_a_policy_file_flies_its_own_scenario_unless_told_otherwise():
     namesakes = cli_json("evaluate", "--policy", "policies/map/no_move.zip", "--against",
                          "policies/spatial/no_move.zip", "--episodes", "1", "--json")  # told apart by path
     assert [r["policy"] for r in namesakes["results"]] == ["policies/map/no_move.zip", "policies/spatial/no_move.zip"]
+    folder = cli_json("evaluate", "--policy", "policies/map/no_move.zip", "--against", "policies/spatial",
+                      "--episodes", "1", "--json")  # the folder's policy for the file's scenario
+    assert folder["results"][1]["episode_rate_mbps"] == namesakes["results"][1]["episode_rate_mbps"]
     assert_user_error(uavlink("evaluate", "--policy", "policies/map/straight.zip", "--against",
                               "policies/map/circular.zip", "--episodes", "1"),
                       "scenario='straight' vs 'circular'", "--scenario")

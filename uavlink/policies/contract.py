@@ -128,7 +128,13 @@ def load_with_env(specs: Sequence[str | Path], overrides: EnvOverrides) -> list[
     """Load the policies ``specs`` names (baselines, files, folders resolved per scenario), each
     with the env it runs in. Files get their own manifest's env; baselines get the first file's,
     so compared policies fly the same world. Files built for different worlds are refused: they
-    could not fly the same episodes."""
+    could not fly the same episodes. Without a scenario in ``overrides``, a folder beside a file
+    resolves to the file's own scenario (its manifest's)."""
+    if overrides.scenario is None and any(Path(spec).is_dir() for spec in specs):
+        own = next((spec for spec in specs if str(spec) not in BASELINES and not Path(spec).is_dir()), None)
+        if own is not None:
+            [(_, cfg)] = load_with_env([own], overrides)
+            overrides = overrides.on(cfg.scenario)
     resolved = [str(resolve(spec, overrides.scenario)) for spec in specs]
     defaults = apply_overrides(EnvConfig(), overrides)
     files = {spec: load_policy(spec, defaults) for spec in resolved if spec not in BASELINES}
