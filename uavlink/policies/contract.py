@@ -130,14 +130,15 @@ def load_with_env(specs: Sequence[str | Path], overrides: EnvOverrides) -> list[
     so compared policies fly the same world. Files built for different worlds are refused: they
     could not fly the same episodes. Without a scenario in ``overrides``, a folder beside a file
     resolves to the file's own scenario (its manifest's)."""
-    if overrides.scenario is None and any(Path(spec).is_dir() for spec in specs):
-        own = next((spec for spec in specs if str(spec) not in BASELINES and not Path(spec).is_dir()), None)
-        if own is not None:
-            [(_, cfg)] = load_with_env([own], overrides)
-            overrides = overrides.on(cfg.scenario)
-    resolved = [str(resolve(spec, overrides.scenario)) for spec in specs]
     defaults = apply_overrides(EnvConfig(), overrides)
-    files = {spec: load_policy(spec, defaults) for spec in resolved if spec not in BASELINES}
+    named = {str(spec): load_policy(spec, defaults) for spec in specs
+             if str(spec) not in BASELINES and not Path(spec).is_dir()}  # a file's policy needs no env
+    if overrides.scenario is None and named and any(Path(spec).is_dir() for spec in specs):
+        own = next(iter(named))  # the folder's policy is the one for the first file's scenario
+        overrides = overrides.on(policy_env(named[own], overrides, own).scenario)
+        defaults = apply_overrides(EnvConfig(), overrides)
+    resolved = [str(resolve(spec, overrides.scenario)) for spec in specs]
+    files = {spec: named.get(spec) or load_policy(spec, defaults) for spec in resolved if spec not in BASELINES}
     envs = {spec: policy_env(policy, overrides, spec) for spec, policy in files.items()}
     first = next(iter(envs), None)
     world = envs[first] if first is not None else defaults
