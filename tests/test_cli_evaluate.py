@@ -224,6 +224,16 @@ def test_evaluate_against_pairs_two_policies_on_the_same_episodes():
     assert "better in 0 of 4 episodes" in proc.stdout
 
 
+def test_evaluate_against_repeated_compares_the_policy_with_each():
+    """Every --against is flown and paired with --policy (the last one used to win silently)."""
+    args = ("evaluate", "--scenario", "hotspot", "--policy", "aoa", "--episodes", "3", "--seed", "5", "--json")
+    both = cli_json(*args, "--against", "static", "--against", "oracle")
+    assert [r["policy"] for r in both["results"]] == ["aoa", "static", "oracle"]
+    assert [(c["a"], c["b"]) for c in both["comparisons"]] == [("aoa", "static"), ("aoa", "oracle")]
+    alone = cli_json(*args, "--against", "oracle")
+    assert both["comparisons"][1] == alone["comparisons"][0]
+
+
 def test_evaluate_against_refuses_the_results_folder(tmp_path: Path):
     assert_user_error(uavlink("evaluate", "--scenario", "all", "--policy", "policies", "--against", "aoa",
                               "--out", str(tmp_path / "out")), "--against")

@@ -54,12 +54,12 @@ def cmd_evaluate(args: argparse.Namespace) -> int:
     if args.episodes < 1:
         raise UserError(f"--episodes must be a positive integer, got {args.episodes}")
     if args.out is not None:
-        if args.against is not None:
-            raise UserError("--against compares two policies in a table; it does not go with --out")
+        if args.against:
+            raise UserError("--against compares policies in a table; it does not go with --out")
         return _write_results_folder(args)
     results, comparisons = [], []
     overrides = EnvOverrides.from_command_line(None, args.aoa_noise_deg, args.overrides)
-    specs = [args.policy] if args.against is None else [args.policy, args.against]
+    specs = [args.policy, *(args.against or [])]
     if args.scenario is None and Path(args.policy).is_file():
         scenarios = [None]  # the file's manifest names it; a baseline beside it flies the file's world
     else:
@@ -67,11 +67,10 @@ def cmd_evaluate(args: argparse.Namespace) -> int:
     for scenario in scenarios:
         flown = [evaluate_policy(policy, cfg, args.episodes, args.seed)
                  for policy, cfg in load_with_env(specs, overrides.on(scenario))]
-        if len(flown) == 2 and flown[0].policy == flown[1].policy:  # policies/map/x.zip vs policies/spatial/x.zip
+        if len({r.policy for r in flown}) < len(flown):  # policies/map/x.zip vs policies/spatial/x.zip
             flown = [dataclasses.replace(r, policy=str(spec)) for r, spec in zip(flown, specs, strict=True)]
         results += flown
-        if args.against is not None:
-            comparisons.append(compare(*flown))
+        comparisons += [compare(flown[0], other) for other in flown[1:]]
     if args.json:
         payload = [r.to_dict() for r in results]
         if comparisons:
@@ -284,8 +283,8 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--policy", default="static",
                    help=f"{' | '.join(BASELINE_NAMES)} | genie (evaluation only: plans on the episode's "
                         "future) | FILE.zip | FILE.onnx | FOLDER")
-    p.add_argument("--against", default=None, metavar="POLICY",
-                   help="also fly this policy (same forms) on the same episodes and print the paired "
+    p.add_argument("--against", action="append", default=None, metavar="POLICY",
+                   help="also fly this policy (same forms; repeatable) on the same episodes and print --policy's paired "
                         "throughput ratio with its 95 %% interval, the R_fair difference and the episodes won "
                         "(a fleet policy may face a single-UAV one: the same UEs and channel)")
     p.add_argument("--episodes", type=int, default=100)
