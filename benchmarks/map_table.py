@@ -2,7 +2,7 @@
 --map ...``'s part, uavlink/evaluation/report_map.py), for checks the whole report would make too
 costly: more or other episodes, and without the genie's columns (about a CPU-second per episode).
 
-Per scenario with a map policy: the map policy, the spatial policy, explore, aoa, static (and the
+Per scenario with a map policy, and mixed: the map policy, the spatial policy, explore, aoa, static (and the
 genie) on the spatial channel on the same seeded episodes, with paired ratios.
 
     python benchmarks/map_table.py                                  # results.md's 100 episodes, seed 0

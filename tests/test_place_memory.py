@@ -184,17 +184,17 @@ def test_map_report_refuses_without_spatial_and_skips_untrained_scenarios(tmp_pa
 
 @pytest.mark.slow
 def test_map_report_rows_put_each_map_policy_beside_explore_and_the_genie(tmp_path: Path) -> None:
-    """One row per scenario a shipped map policy flies, with the genie's column and the shares of it (the genie is
+    """One row per scenario a shipped map policy flies (and mixed's), with the genie's column and the shares of it (the genie is
     the limit: its episode is at least the map policy's and the spatial policy's)."""
     from uavlink.evaluation.report_map import map_table
     from uavlink.policies.contract import EnvOverrides
 
     header, body = map_table(ROOT / "policies" / "map", ROOT / "policies" / "spatial", 2, 0, EnvOverrides())
-    from uavlink.mobility import SCENARIOS
+    from uavlink.mobility import MIXED, SCENARIOS
 
     shipped = {p.stem for p in (ROOT / "policies" / "map").glob("*.zip")}
     # a scenario without its own map policy is flown by the mixed one, if shipped
-    assert [row[0] for row in body] == [s for s in SCENARIOS if s in shipped or "mixed" in shipped]
+    assert [row[0] for row in body] == [s for s in (*SCENARIOS, MIXED) if s in shipped or MIXED in shipped]
     col = {name: i for i, name in enumerate(header)}
     for row in body:
         mbps = {name: float(row[col[name]].split(" ± ")[0]) for name in ("map PPO", "spatial PPO", "genie")}

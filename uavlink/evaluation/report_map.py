@@ -1,11 +1,12 @@
 """The results report's memory-of-place part (issue 23): the map policies (trained with a memory of
 place, ``sweeps/map.toml``) against today's spatial policies and the GPS-free ``explore`` rule.
 
-Per scenario that has a map policy: the map policy, the spatial policy of the scenario, explore,
-aoa, static and the genie (the full-knowledge yardstick), all on the spatial channel on the same
-seeded episodes, with paired ratios: the map policy over the spatial policy, over explore and over
-its warm start's rule (kriging on no_move, aoa elsewhere, as sweeps/map.toml), explore over the
-spatial policy, and each of the two policies as a share of the genie.
+Per scenario that has a map policy, and mixed (each episode's scenario drawn): the map policy, the
+spatial policy of the scenario, explore, aoa, static and the genie (the full-knowledge yardstick),
+all on the spatial channel on the same seeded episodes, with paired ratios: the map policy over the
+spatial policy, over explore and over its warm start's rule (kriging on no_move, aoa elsewhere, as
+sweeps/map.toml), explore over the spatial policy, and each of the two policies as a share of the
+genie.
 """
 
 from __future__ import annotations
@@ -25,7 +26,7 @@ from uavlink.evaluation.tables import (
     spatial_overrides,
     write_csv,
 )
-from uavlink.mobility import SCENARIOS
+from uavlink.mobility import MIXED, SCENARIOS
 from uavlink.policies.contract import EnvOverrides, load_with_env
 from uavlink.policies.loader import policy_for_scenario
 from uavlink.policies.manifest import PolicyFileError
@@ -62,7 +63,7 @@ def map_table(map_folder: Path, spatial_folder: Path, episodes: int, seed: int, 
               *(["map / genie", "spatial / genie"] if with_genie else [])]
     body = []
     on_spatial = spatial_overrides(overrides)
-    for scenario in SCENARIOS:
+    for scenario in (*SCENARIOS, MIXED):  # mixed: one policy for all, each episode's scenario drawn
         try:
             map_file = policy_for_scenario(map_folder, scenario)
         except PolicyFileError:
@@ -111,7 +112,8 @@ def map_sections(map_folder: Path, spatial_folder: Path, episodes: int, seed: in
         "channel (`sweeps/map.toml`), against the spatial policies above and the GPS-free `explore`",
         "rule (search a cross, return to the best spot sensed, follow the team when it leaves), and as a",
         "share of the `genie` (the full-knowledge yardstick). Same episodes; paired ratios with 95 %",
-        "bootstrap intervals. Scenarios without a map policy yet are left out.",
+        "bootstrap intervals; `mixed`: each episode's scenario drawn, the mixed policies of both kinds.",
+        "Scenarios without a map policy yet are left out.",
         "",
         markdown_table(header, body),
         "",
