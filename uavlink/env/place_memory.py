@@ -107,14 +107,17 @@ class PlaceMemory:
         flat = self._row_offset + cell
         slots = self._slots.reshape(-1, 3)
         new_score = now + STALE_BITS_PER_FRAME * t
-        element = self._slots.reshape(-1)  # one slot's three numbers are elements 3 flat + 0, 1, 2
-        element[3 * flat + SCORE] = new_score
-        element[3 * flat + VALUE] = now
-        element[3 * flat + SEEN] = t
+        first = 3 * flat  # a slot's three numbers are elements 3 flat + 0, 1, 2 of the flat table
+        element = self._slots.reshape(-1)
+        element[first] = new_score  # SCORE, VALUE, SEEN = 0, 1, 2
+        first += 1
+        element[first] = now
+        first += 1
+        element[first] = t
         won = new_score >= self.best_score
         lost = (cell == self.best) & (new_score < self.best_score - HYSTERESIS_BITS)  # the best read less
-        self.best = np.where(won, cell, self.best)
-        self.best_score = np.where(won, new_score, self.best_score)
+        np.copyto(self.best, cell, where=won)
+        np.copyto(self.best_score, new_score, where=won)
         if lost.any():
             rows = np.flatnonzero(lost)
             best = self._slots[rows, :, SCORE].argmax(axis=1)  # never the edge cell: it stays -inf
