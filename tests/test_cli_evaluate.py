@@ -167,6 +167,7 @@ def test_results_folder_has_the_tables_and_figures_and_is_reproducible(tmp_path,
     # the spatial part plans a genie per episode: more than the default 120 s on a loaded machine
     proc = uavlink(*command, "--out", str(b), "--spatial", str(root / "policies"), timeout=360)
     assert proc.returncode == 0, proc.stderr[-2000:]
+    assert "evaluating" not in proc.stderr  # stderr is a pipe here: no progress lines in logs
     table1 = (a / "table1.csv").read_text().splitlines()
     assert len(table1) == 1 + len(SCENARIOS) and all(row.split(",")[0] in SCENARIOS for row in table1[1:])
     assert len((a / "table2.csv").read_text().splitlines()) == 1 + 6  # AoA noise 0, 1, 5, 10, 50, 100
@@ -191,6 +192,23 @@ def test_results_folder_has_the_tables_and_figures_and_is_reproducible(tmp_path,
     spatial_markdown = (b / "results.md").read_text()
     assert "## On the spatial channel" in spatial_markdown and "### What survives" in spatial_markdown
     assert "## On the spatial channel" not in markdown
+
+
+def test_report_progress_is_one_line_on_a_terminal_and_quiet_elsewhere(monkeypatch, capsys):
+    from uavlink.cli import _StatusLine
+
+    quiet = _StatusLine()  # pytest captures stderr: not a terminal
+    quiet.show("evaluating no_move: ppo")
+    quiet.close()
+    assert capsys.readouterr().err == ""
+    monkeypatch.setattr(sys.stderr, "isatty", lambda: True)
+    live = _StatusLine()
+    live.show("evaluating no_move: ppo")
+    live.show("evaluating no_move: static")
+    live.close()
+    err = capsys.readouterr().err
+    assert "\n" not in err and err.count("\r") == 3 and err.endswith("\r\033[K")
+    assert "evaluating no_move: static" in err
 
 
 def test_results_folder_refuses_a_missing_spatial_folder_before_evaluating(tmp_path):

@@ -127,12 +127,33 @@ def _write_results_folder(args: argparse.Namespace) -> int:
                 for section in (results_section(spec, args.sweep_root / spec.name, args.out, link_prefix,
                                                 shipped(spec), "##" if wanted == "ar1" else "###"), "")]
 
-    path = write_results(folder, args.out, markdown, args.episodes, args.seed, overrides, command,
-                         progress=lambda msg: print(f"evaluating {msg}", file=sys.stderr),
-                         sweep_sections=sweep_sections, spatial_folder=args.spatial, fleet_folder=args.fleet,
-                         map_folder=args.map)
+    status = _StatusLine()
+    try:
+        path = write_results(folder, args.out, markdown, args.episodes, args.seed, overrides, command,
+                             progress=lambda msg: status.show(f"evaluating {msg}"),
+                             sweep_sections=sweep_sections, spatial_folder=args.spatial, fleet_folder=args.fleet,
+                             map_folder=args.map)
+    finally:
+        status.close()
     print(path.read_text())
     return 0
+
+
+class _StatusLine:
+    """One line of progress on stderr, rewritten in place; quiet when stderr is not a terminal
+    (logs, pipes, CI), like the training and sweep bars (tqdm's ``disable=None``)."""
+
+    def __init__(self) -> None:
+        self.live, self.shown = sys.stderr.isatty(), False
+
+    def show(self, message: str) -> None:
+        if self.live:
+            print(f"\r\033[K{message}", end="", file=sys.stderr, flush=True)
+            self.shown = True
+
+    def close(self) -> None:
+        if self.shown:
+            print("\r\033[K", end="", file=sys.stderr, flush=True)
 
 
 def format_table(results) -> str:
