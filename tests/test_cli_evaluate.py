@@ -195,14 +195,14 @@ def test_results_folder_has_the_tables_and_figures_and_is_reproducible(tmp_path,
 
 
 def test_report_progress_is_one_line_on_a_terminal_and_quiet_elsewhere(monkeypatch, capsys):
-    from uavlink.cli import _StatusLine
+    from uavlink.cli.evaluate import StatusLine
 
-    quiet = _StatusLine()  # pytest captures stderr: not a terminal
+    quiet = StatusLine()  # pytest captures stderr: not a terminal
     quiet.show("evaluating no_move: ppo")
     quiet.close()
     assert capsys.readouterr().err == ""
     monkeypatch.setattr(sys.stderr, "isatty", lambda: True)
-    live = _StatusLine()
+    live = StatusLine()
     live.show("evaluating no_move: ppo")
     live.show("evaluating no_move: static")
     live.close()

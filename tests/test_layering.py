@@ -161,8 +161,9 @@ def _cycles(graph: dict[str, set[str]]) -> list[list[str]]:
 
 def test_the_graph_sees_imports_inside_functions_and_skips_type_checking() -> None:
     graph = _imports(_modules())
-    # uavlink.cli imports its commands' modules inside the functions that run them
-    assert {"uavlink.learn.training", "uavlink.evaluation.report", "uavlink.flight.fly"} <= graph["uavlink.cli"]
+    # uavlink.cli's commands import what runs them inside the functions that run them
+    cli = set().union(*(targets for name, targets in graph.items() if _unit(name) == "uavlink.cli"))
+    assert {"uavlink.learn.training", "uavlink.evaluation.report", "uavlink.flight.fly"} <= cli
     assert "sitl_stub.launcher" in graph["uavlink.flight.fly"]  # inside fly()
     assert _cycles({"a": {"b"}, "b": {"c"}, "c": {"a"}, "d": {"a"}}) == [["a", "b", "c"]]
 

@@ -1,0 +1,61 @@
+"""The ``uavlink`` command line: train | evaluate | fly | plot | export | sweep | keygen.
+
+A module per command (``evaluate``, ``train``, ``export``, ``sweep``, ``keygen`` here; ``fly`` in
+``uavlink.flight.fly``, ``plot`` in ``uavlink.plot.command``) and the options they share
+(``options``).
+
+User errors (bad arguments, unknown scenarios, unusable policy files) print one line on stderr and
+exit with status 2, without a traceback. Heavy modules are imported only by the command that needs them.
+
+May import: all of uavlink (the top layer).
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+from collections.abc import Sequence
+
+from uavlink.errors import UserError
+
+
+def build_parser() -> argparse.ArgumentParser:
+    parser = argparse.ArgumentParser(prog="uavlink", description=__doc__.splitlines()[0])
+    from uavlink import __version__
+
+    parser.add_argument("--version", action="version", version=f"uavlink {__version__}")
+    sub = parser.add_subparsers(dest="command", required=True, metavar="COMMAND")
+
+    from uavlink.cli.evaluate import add_evaluate_parser
+    from uavlink.cli.export import add_export_parser
+    from uavlink.cli.keygen import add_keygen_parser
+    from uavlink.cli.sweep import add_sweep_parser
+    from uavlink.cli.train import add_train_parser
+    from uavlink.flight.fly import add_fly_parser
+    from uavlink.plot.command import add_plot_parser
+
+    for add in (add_evaluate_parser, add_train_parser, add_export_parser, add_sweep_parser, add_keygen_parser,
+                add_fly_parser, add_plot_parser):
+        add(sub)
+    return parser
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    parser = build_parser()
+    args = parser.parse_args(argv)
+    try:
+        return args.func(args)
+    except UserError as exc:
+        print(f"uavlink {args.command}: error: {exc}", file=sys.stderr)
+        return 2
+    except RuntimeError as exc:  # the vehicle link (LinkError) and other run-time failures
+        if type(exc).__name__ != "LinkError":
+            raise
+        print(f"uavlink {args.command}: error: {exc}", file=sys.stderr)
+        return 1
+    except BrokenPipeError:  # e.g. piped into head
+        return 0
+    except KeyboardInterrupt:
+        print(f"uavlink {args.command}: interrupted", file=sys.stderr)
+        return 130
+

@@ -1,0 +1,167 @@
+"""``uavlink evaluate``: a policy, a folder or a baseline on seeded episodes, a paired comparison
+(``--against``), or the results folder (``--out``: the report, with finished sweeps' tables)."""
+
+from __future__ import annotations
+
+import argparse
+import dataclasses
+import json
+import sys
+from pathlib import Path
+
+from uavlink.cli.options import add_env_options, scenario_list
+from uavlink.config import BASELINE_NAMES, EnvConfig
+from uavlink.errors import UserError
+from uavlink.policies.contract import OVERRIDES_HELP, EnvOverrides, apply_overrides, load_with_env
+
+
+def cmd_evaluate(args: argparse.Namespace) -> int:
+    from uavlink.evaluation import compare, evaluate_policy
+
+    if args.episodes < 1:
+        raise UserError(f"--episodes must be a positive integer, got {args.episodes}")
+    if args.out is not None:
+        if args.against:
+            raise UserError("--against compares policies in a table; it does not go with --out")
+        return _write_results_folder(args)
+    results, comparisons = [], []
+    overrides = EnvOverrides.from_command_line(None, args.aoa_noise_deg, args.overrides)
+    specs = [args.policy, *(args.against or [])]
+    if args.scenario is None and Path(args.policy).is_file():
+        scenarios = [None]  # the file's manifest names it; a baseline beside it flies the file's world
+    else:
+        scenarios = scenario_list(args.scenario or "circular")
+    for scenario in scenarios:
+        flown = [evaluate_policy(policy, cfg, args.episodes, args.seed)
+                 for policy, cfg in load_with_env(specs, overrides.on(scenario))]
+        if len({r.policy for r in flown}) < len(flown):  # policies/map/x.zip vs policies/spatial/x.zip
+            flown = [dataclasses.replace(r, policy=str(spec)) for r, spec in zip(flown, specs, strict=True)]
+        results += flown
+        comparisons += [compare(flown[0], other) for other in flown[1:]]
+    if args.json:
+        payload = [r.to_dict() for r in results]
+        if comparisons:
+            print(json.dumps({"results": payload, "comparisons": [c.to_dict() for c in comparisons]}, indent=2))
+        else:
+            print(json.dumps(payload[0] if len(payload) == 1 else payload, indent=2))
+    else:
+        print(format_table(results))
+        for comparison in comparisons:
+            print(comparison.describe())
+    return 0
+
+
+def _write_results_folder(args: argparse.Namespace) -> int:
+    from uavlink.evaluation.report import write_results
+
+    folder = Path(args.policy)
+    if args.scenario != "all" or not folder.is_dir():
+        raise UserError("--out needs --scenario all and --policy FOLDER (one policy file per scenario)")
+    overrides = EnvOverrides.from_command_line(None, args.aoa_noise_deg, args.overrides)
+    apply_overrides(EnvConfig(), overrides.on("no_move"))  # a bad --set fails before the long run
+    command = "uavlink " + " ".join(sys.argv[1:]) if sys.argv[1:2] == ["evaluate"] else "uavlink evaluate ..."
+    markdown = args.markdown or args.out / "results.md"
+
+    if args.spatial is not None and not args.spatial.is_dir():
+        raise UserError(f"--spatial {args.spatial}: not a folder of policies")
+    if args.fleet is not None and (args.spatial is None or not args.fleet.is_dir()):
+        raise UserError(f"--fleet {args.fleet}: needs a folder of fleet policies and --spatial (one UAV's, to compare)")
+    if args.map is not None and (args.spatial is None or not args.map.is_dir()):
+        raise UserError(f"--map {args.map}: needs a folder of map policies and --spatial (today's, to compare)")
+
+    def kind(spec) -> str:
+        env = spec.jobs()[0].env_config()
+        return "fleet" if env.n_uavs > 1 else "map" if env.place_cell_m > 0 else env.radio.shadowing_model
+
+    def shipped(spec) -> Path:
+        """The folder a sweep's median seeds were shipped to: its record lies beside them."""
+        return Path({"ar1": folder, "spatial": args.spatial, "fleet": args.fleet, "map": args.map}[kind(spec)]
+                    or folder)
+
+    specs = []
+    if args.sweep:  # checked before the long evaluation, which would write the folder
+        from uavlink.sweep.aggregate import finished_rows, read_record, record_path
+        from uavlink.sweep.spec import load_spec
+
+        specs = [load_spec(path) for path in args.sweep]
+        for spec in specs:
+            finished_rows(spec, args.sweep_root / spec.name, read_record(record_path(shipped(spec), spec)))
+
+    def sweep_sections(link_prefix: Path, wanted: str) -> list[str]:
+        from uavlink.sweep.aggregate import results_section
+
+        return [section for spec in specs if kind(spec) == wanted
+                for section in (results_section(spec, args.sweep_root / spec.name, args.out, link_prefix,
+                                                shipped(spec), "##" if wanted == "ar1" else "###"), "")]
+
+    status = StatusLine()
+    try:
+        path = write_results(folder, args.out, markdown, args.episodes, args.seed, overrides, command,
+                             progress=lambda msg: status.show(f"evaluating {msg}"),
+                             sweep_sections=sweep_sections, spatial_folder=args.spatial, fleet_folder=args.fleet,
+                             map_folder=args.map)
+    finally:
+        status.close()
+    print(path.read_text())
+    return 0
+
+
+class StatusLine:
+    """One line of progress on stderr, rewritten in place; quiet when stderr is not a terminal
+    (logs, pipes, CI), like the training and sweep bars (tqdm's ``disable=None``)."""
+
+    def __init__(self) -> None:
+        self.live, self.shown = sys.stderr.isatty(), False
+
+    def show(self, message: str) -> None:
+        if self.live:
+            print(f"\r\033[K{message}", end="", file=sys.stderr, flush=True)
+            self.shown = True
+
+    def close(self) -> None:
+        if self.shown:
+            print("\r\033[K", end="", file=sys.stderr, flush=True)
+
+
+def format_table(results) -> str:
+    width = max([16, *(len(r.policy) for r in results)])
+    lines = [f"{'scenario':<13} {'policy':<{width}} {'episodes':>8} {'Mbps':>7} {'±95%':>6} {'R_fair':>7}"]
+    for r in results:
+        lines.append(f"{r.scenario:<13} {r.policy:<{width}} {r.episodes:>8} {r.mean_rate_mbps:>7.3f} "
+                     f"{r.ci95_mbps:>6.3f} {r.mean_fair_rate:>7.3f}")
+    return "\n".join(lines)
+
+
+def add_evaluate_parser(sub) -> None:
+    p = sub.add_parser("evaluate", help="evaluate a policy or baseline, print a table",
+                       description=f"Evaluate a policy file, a folder of them, or a baseline "
+                                   f"({', '.join(BASELINE_NAMES)}, genie). " + OVERRIDES_HELP)
+    add_env_options(p, for_policy=True)
+    p.add_argument("--policy", default="static",
+                   help=f"{' | '.join(BASELINE_NAMES)} | genie (evaluation only: plans on the episode's "
+                        "future) | FILE.zip | FILE.onnx | FOLDER")
+    p.add_argument("--against", action="append", default=None, metavar="POLICY",
+                   help="also fly this policy (same forms; repeatable) on the same episodes and print --policy's paired "
+                        "throughput ratio with its 95 %% interval, the R_fair difference and the episodes won "
+                        "(a fleet policy may face a single-UAV one: the same UEs and channel)")
+    p.add_argument("--episodes", type=int, default=100)
+    p.add_argument("--seed", type=int, default=0)
+    p.add_argument("--json", action="store_true", help="print JSON instead of a table")
+    p.add_argument("--out", type=Path, default=None,
+                   help="write a results folder (Table I/II as Markdown and CSV, figures); "
+                        "needs --scenario all and --policy FOLDER")
+    p.add_argument("--markdown", type=Path, default=None, help="where the report goes (default OUT/results.md)")
+    p.add_argument("--sweep", type=Path, action="append", default=[],
+                   help="with --out: add the across-seed table of this finished sweep file (e.g. "
+                        "sweeps/table1.toml; repeat for more; a spatial-channel sweep goes with --spatial)")
+    p.add_argument("--spatial", type=Path, default=None, metavar="FOLDER",
+                   help="with --out: add the spatial-channel tables (radio.shadowing_model=spatial): FOLDER's "
+                        "policies, trained on it, and --policy's flown on it (e.g. policies/spatial)")
+    p.add_argument("--map", type=Path, default=None, metavar="FOLDER",
+                   help="with --out and --spatial: add the memory-of-place table: FOLDER's map policies "
+                        "(e.g. policies/map) against --spatial's, explore, aoa and static on the spatial channel")
+    p.add_argument("--fleet", type=Path, default=None, metavar="FOLDER",
+                   help="with --out and --spatial: add the fleet tables (D = 1, 2, 3 UAVs on the spatial channel): "
+                        "FOLDER's fleet policies against the fleet baselines and --spatial's (e.g. policies/fleet)")
+    p.add_argument("--sweep-root", type=Path, default=Path("runs"), help="where the sweep's results are (default runs)")
+    p.set_defaults(func=cmd_evaluate)

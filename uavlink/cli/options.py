@@ -1,0 +1,35 @@
+"""Options more than one command shares: the scenario names and the env overrides (``--scenario``,
+``--aoa-noise-deg``, ``--set``) that ``uavlink.policies.contract.EnvOverrides`` reads."""
+
+from __future__ import annotations
+
+import argparse
+
+from uavlink.config import MIXED, SCENARIOS
+from uavlink.errors import UserError
+from uavlink.policies.contract import BUILT_FOR
+
+
+def scenario_list(name: str) -> list[str]:
+    """The scenarios ``--scenario NAME`` stands for (``all``: every one but mixed)."""
+    if name == "all":
+        return list(SCENARIOS)
+    if name not in (*SCENARIOS, MIXED):
+        raise UserError(f"unknown scenario {name!r}; choose from {', '.join(SCENARIOS)}, {MIXED} or all")
+    return [name]
+
+
+def add_env_options(p: argparse.ArgumentParser, for_policy: bool = False) -> None:
+    names = f"{', '.join(SCENARIOS)}, {MIXED}"
+    if for_policy:  # evaluate: a policy file flies its own scenario unless told otherwise
+        p.add_argument("--scenario", default=None,
+                       help=f"one of {names} or all (default: a policy file's own scenario, from its "
+                            "manifest; circular for a baseline or a folder)")
+    else:
+        p.add_argument("--scenario", default="circular", help=f"one of {names} (default: circular)")
+    p.add_argument("--aoa-noise-deg", type=float, default=None,
+                   help="std of the AoA estimate noise (deg)" + (" (default: the policy's; 0 for a baseline alone)" if for_policy else ""))
+    p.add_argument("--set", dest="overrides", action="append", default=[], metavar="KEY=VALUE",
+                   help="override an env config field, e.g. --set r_max_m=10 --set radio.shadowing=false"
+                        + (f"; under a policy file radio fields may change, {', '.join(BUILT_FOR)} may not"
+                           if for_policy else ""))

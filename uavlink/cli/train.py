@@ -1,0 +1,67 @@
+"""``uavlink train``: PPO on the batched env, options from ``TrainConfig``; the saved policy's
+evaluation goes into its manifest."""
+
+from __future__ import annotations
+
+import argparse
+import sys
+from pathlib import Path
+
+from uavlink.cli.options import add_env_options
+from uavlink.config import MIXED, SCENARIOS, EnvConfig
+from uavlink.errors import UserError
+from uavlink.policies.contract import EnvOverrides, apply_overrides
+
+
+def cmd_train(args: argparse.Namespace) -> int:
+    from uavlink.config import TrainConfig
+    from uavlink.config.fields import flag_of, from_options
+    from uavlink.learn.training import train
+
+    cfg = apply_overrides(EnvConfig(), EnvOverrides.from_command_line(args.scenario, args.aoa_noise_deg, args.overrides))
+    tc = from_options(TrainConfig, args).validate(cfg, name=lambda path: flag_of(TrainConfig, path))
+    if args.eval_episodes < 0:
+        raise UserError(f"--eval-episodes must be >= 0 (0: skip), got {args.eval_episodes}")
+    if args.resume is not None and not args.resume.is_file():
+        raise UserError(f"--resume {args.resume}: no such checkpoint")
+    run_dir = args.run_dir or Path("runs") / f"{args.out.stem}-seed{tc.seed}"
+    print(f"training PPO on {cfg.scenario!r} for {tc.total_timesteps(cfg):,} env steps; "
+          f"TensorBoard logs and checkpoint in {run_dir}", file=sys.stderr)
+    training = train(cfg, tc, args.out, run_dir, resume=args.resume, progress=not args.no_progress)
+    if args.eval_episodes:
+        _attach_evaluation(args.out, cfg, args.eval_episodes)
+    print(f"saved {args.out} ({training['total_timesteps']:,} steps in {training['wall_time_s']:.0f} s)")
+    return 0
+
+
+def _attach_evaluation(path: Path, cfg: EnvConfig, episodes: int) -> None:
+    """Evaluate the saved policy (seed 0) and store the figures in its manifest."""
+    from uavlink.evaluation import evaluate_policy
+    from uavlink.policies.manifest import read_zip_manifest, write_zip_manifest
+    from uavlink.policies.sb3_policy import SB3Policy
+
+    policy = SB3Policy(path)
+    figures = {}
+    for scenario in (SCENARIOS if cfg.scenario == MIXED else [cfg.scenario]):
+        result = evaluate_policy(policy, cfg.replace(scenario=scenario), episodes, seed=0)
+        figures[scenario] = {k: v for k, v in result.to_dict().items() if k != "episode_rate_mbps"}
+    manifest = read_zip_manifest(path)
+    manifest["evaluation"] = figures
+    write_zip_manifest(path, manifest)
+
+
+def add_train_parser(sub) -> None:
+    p = sub.add_parser("train", help="train a PPO policy",
+                       description="Train PPO on the batched env. Defaults are the paper's; the training "
+                                   "options are TrainConfig's fields (uavlink/config/train.py).")
+    add_env_options(p)
+    p.add_argument("--out", type=Path, required=True, help="policy zip to write")
+    from uavlink.config import TrainConfig
+    from uavlink.config.fields import add_options
+
+    add_options(p, TrainConfig)
+    p.add_argument("--run-dir", type=Path, default=None, help="TensorBoard logs and checkpoint (default runs/OUT-seedN)")
+    p.add_argument("--resume", type=Path, default=None, help="continue from a checkpoint zip")
+    p.add_argument("--eval-episodes", type=int, default=100, help="evaluate after training into the manifest (0: skip)")
+    p.add_argument("--no-progress", action="store_true", help="no progress bar")
+    p.set_defaults(func=cmd_train)
