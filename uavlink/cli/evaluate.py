@@ -31,13 +31,19 @@ def cmd_evaluate(args: argparse.Namespace) -> int:
         scenarios = [None]  # the file's manifest names it; a baseline beside it flies the file's world
     else:
         scenarios = scenario_list(args.scenario or "circular")
-    for scenario in scenarios:
-        flown = [evaluate_policy(policy, cfg, args.episodes, args.seed)
-                 for policy, cfg in load_with_env(specs, overrides.on(scenario))]
-        if len({r.policy for r in flown}) < len(flown):  # policies/map/x.zip vs policies/spatial/x.zip
-            flown = [dataclasses.replace(r, policy=str(spec)) for r, spec in zip(flown, specs, strict=True)]
-        results += flown
-        comparisons += [compare(flown[0], other) for other in flown[1:]]
+    status = StatusLine()
+    try:
+        for scenario in scenarios:
+            flown = []
+            for spec, (policy, cfg) in zip(specs, load_with_env(specs, overrides.on(scenario)), strict=True):
+                status.show(f"evaluating {cfg.scenario}: {spec} ({args.episodes} episodes)")
+                flown.append(evaluate_policy(policy, cfg, args.episodes, args.seed))
+            if len({r.policy for r in flown}) < len(flown):  # policies/map/x.zip vs policies/spatial/x.zip
+                flown = [dataclasses.replace(r, policy=str(spec)) for r, spec in zip(flown, specs, strict=True)]
+            results += flown
+            comparisons += [compare(flown[0], other) for other in flown[1:]]
+    finally:
+        status.close()
     if args.json:
         payload = [r.to_dict() for r in results]
         if comparisons:
