@@ -13,6 +13,7 @@ genie) on the spatial channel on the same seeded episodes, with paired ratios.
 from __future__ import annotations
 
 import argparse
+import json
 import sys
 from pathlib import Path
 
@@ -28,6 +29,8 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--seed", type=int, default=0)
     parser.add_argument("--no-genie", action="store_true", help="leave out the genie's columns")
     parser.add_argument("--csv", type=Path, default=None, help="also write the table here")
+    parser.add_argument("--json", action="store_true",
+                        help="print one JSON object (the table's rows by column, as the report writes the cells)")
     parser.add_argument("--set", dest="settings", action="append", default=[], metavar="KEY=VALUE",
                         help="an env override for every column, e.g. uav_motion=px4 (the genie keeps "
                              "instant moves: its plan bounds a PX4-flown UAV); repeatable")
@@ -51,6 +54,11 @@ def main(argv: list[str] | None = None) -> int:
         parser.error(str(exc))
     if args.csv is not None:
         write_csv(args.csv, header, body)
+    if args.json:
+        print(json.dumps({"benchmark": "map_table", "episodes": args.episodes, "seed": args.seed,
+                          "settings": args.settings, "rows": [dict(zip(header, row, strict=True)) for row in body]},
+                         indent=2))
+        return 0
     print(f"{args.episodes} episodes, seed {args.seed}, spatial channel"
           + "".join(f", {pair}" for pair in args.settings) + "\n")
     print(markdown_table(header, body))

@@ -247,3 +247,11 @@ def test_spiral_ppo_trains_from_the_spiral_rule_and_pairs_it_with_the_spatial_po
     for row in result["rows"]:
         ratio, low, high = row["vs_spatial"]
         assert low <= ratio <= high
+
+
+def test_map_table_gives_every_map_policy_and_mixed_its_row_as_json() -> None:
+    result = run_json("map_table.py", "--episodes", "2", "--no-genie")
+    scenarios = [row["scenario"] for row in result["rows"]]
+    assert sorted(scenarios) == sorted(p.stem for p in (ROOT / "policies" / "map").glob("*.zip"))
+    assert scenarios[-1] == "mixed" and result["episodes"] == 2
+    assert all("genie" not in row and row["map vs spatial PPO"].endswith("]") for row in result["rows"])
