@@ -40,6 +40,7 @@ def main(argv: list[str] | None = None) -> int:
     from uavlink.errors import UserError
     from uavlink.evaluation.report_map import map_table
     from uavlink.evaluation.tables import markdown_table, write_csv
+    from uavlink.learn.teachers import policy_teacher
     from uavlink.policies.contract import EnvOverrides
 
     def progress(line: str) -> None:
@@ -48,7 +49,7 @@ def main(argv: list[str] | None = None) -> int:
 
     try:
         overrides = EnvOverrides.from_command_line(None, None, args.settings)
-        header, body = map_table(args.map, args.spatial, args.episodes, args.seed, overrides, progress,
+        header, body = map_table(args.map, args.spatial, args.episodes, args.seed, overrides, policy_teacher, progress,
                                  with_genie=not args.no_genie)
     except UserError as exc:
         parser.error(str(exc))

@@ -2,7 +2,8 @@
 
 The teacher is rebuilt from the policy's manifest (``training.hyperparameters.warm_start``: the rule,
 its variant's speed span and shadow gate, and a shadowing estimator refitted on the same number of
-episodes of the training seed, as ``uavlink.learn.training`` builds it), and flies the policy's env
+episodes of the training seed, as ``uavlink.learn.training`` builds it:
+``uavlink.learn.teachers.policy_teacher``), and flies the policy's env
 on the same seeded episodes as the policy; the gain is the paired throughput ratio with its 95 %
 bootstrap interval. A policy trained without a warm start has no teacher and is skipped.
 
@@ -16,35 +17,15 @@ import json
 import sys
 
 
-def teacher_of(policy, cfg):
-    """The warm start's teacher of a loaded policy (None without one), and its name."""
-    from uavlink.config import TrainConfig
-    from uavlink.learn.teachers import make_teacher
-
-    training = (getattr(policy, "manifest", None) or {}).get("training") or {}
-    tc = TrainConfig.from_dict(training.get("hyperparameters") or {})
-    ws = tc.warm_start
-    if not ws.teacher:
-        return None, ""
-    estimator = None
-    if ws.shadow_estimator_episodes is not None:
-        from uavlink.learn.shadow_estimation import fit_shadow_estimator
-
-        estimator = fit_shadow_estimator(cfg, ws.shadow_estimator_episodes, tc.seed)
-    knobs = {k: v for k, v in (("span", ws.sinr_span_db), ("gate", ws.shadow_gate_db),
-                               ("estimator", ws.shadow_estimator_episodes)) if v is not None}
-    name = ws.teacher + (" (" + ", ".join(f"{k} {v:g}" for k, v in knobs.items()) + ")" if knobs else "")
-    return make_teacher(cfg, ws.teacher, ws.shadow_gate_db, ws.sinr_span_db, estimator, ws.leader_policy), name
-
-
 def run(paths: list[str], episodes: int, seed: int) -> dict:
     from uavlink.evaluation import evaluate_policy, paired_ratio_ci
+    from uavlink.learn.teachers import policy_teacher
     from uavlink.policies.contract import EnvOverrides, load_with_env
 
     rows = []
     for path in paths:
         [(policy, cfg)] = load_with_env([path], EnvOverrides())
-        teacher, name = teacher_of(policy, cfg)
+        teacher, name = policy_teacher(policy, cfg)
         if teacher is None:
             continue
         ppo = evaluate_policy(policy, cfg, episodes, seed)

@@ -94,13 +94,15 @@ def test_the_kriging_rule_beats_explore_on_no_move() -> None:
     assert low > 1.0, ratio
 
 
-def test_the_shipped_no_move_map_policy_sees_the_model_and_names_its_teacher() -> None:
-    """The report's "map vs its teacher" column flies the kriging rule for it (not a column)."""
+def test_the_shipped_no_move_map_policy_sees_the_model_and_its_teacher_is_the_kriging_rule() -> None:
+    """The report's "map vs its teacher" column flies the kriging rule for it, in its own env."""
     from conftest import ROOT
 
-    from uavlink.evaluation.report_map import _teacher
+    from uavlink.learn.teachers import policy_teacher
     from uavlink.policies.contract import EnvOverrides, load_with_env
 
     [(policy, cfg)] = load_with_env([str(ROOT / "policies" / "map" / "no_move.zip")], EnvOverrides())
     assert ObservationLayout.for_config(cfg).version == KRIGING_LAYOUT_VERSION
-    assert _teacher(policy) == "kriging"
+    teacher, label = policy_teacher(policy, cfg)
+    assert label == "kriging" and teacher.name == "kriging"
+    assert teacher.layout == ObservationLayout.for_config(cfg)  # reads the policy's observation

@@ -172,13 +172,14 @@ def test_map_report_refuses_without_spatial_and_skips_untrained_scenarios(tmp_pa
     from conftest import run_uavlink_in_process
 
     from uavlink.evaluation.report_map import map_table
+    from uavlink.learn.teachers import policy_teacher
     from uavlink.policies.contract import EnvOverrides
 
     proc = run_uavlink_in_process("evaluate", "--scenario", "all", "--policy", str(ROOT / "policies"),
                                   "--out", str(tmp_path / "out"), "--map", str(tmp_path))
     assert proc.returncode == 2 and "--map" in proc.stderr and "--spatial" in proc.stderr
     assert not (tmp_path / "out").exists()
-    header, body = map_table(tmp_path, ROOT / "policies" / "spatial", 1, 0, EnvOverrides())
+    header, body = map_table(tmp_path, ROOT / "policies" / "spatial", 1, 0, EnvOverrides(), policy_teacher)
     assert body == [] and header[:3] == ["scenario", "map PPO", "spatial PPO"]
 
 
@@ -187,15 +188,19 @@ def test_map_report_rows_put_each_map_policy_beside_explore_and_the_genie(tmp_pa
     """One row per scenario a shipped map policy flies (and mixed's), with the genie's column and the shares of it (the genie is
     the limit: its episode is at least the map policy's and the spatial policy's)."""
     from uavlink.evaluation.report_map import map_table
+    from uavlink.learn.teachers import policy_teacher
     from uavlink.policies.contract import EnvOverrides
 
-    header, body = map_table(ROOT / "policies" / "map", ROOT / "policies" / "spatial", 2, 0, EnvOverrides())
+    header, body = map_table(ROOT / "policies" / "map", ROOT / "policies" / "spatial", 2, 0, EnvOverrides(), policy_teacher)
     from uavlink.mobility import MIXED, SCENARIOS
 
     shipped = {p.stem for p in (ROOT / "policies" / "map").glob("*.zip")}
     # a scenario without its own map policy is flown by the mixed one, if shipped
     assert [row[0] for row in body] == [s for s in (*SCENARIOS, MIXED) if s in shipped or MIXED in shipped]
     col = {name: i for i, name in enumerate(header)}
+    # each map policy beside the teacher it copied, knobs and all (not only the rule's name)
+    teachers = {row[0]: row[col["map vs its teacher"]] for row in body}
+    assert teachers["no_move"].startswith("kriging: ") and teachers["straight_90"].startswith("aoa (span 3, gate 2): ")
     for row in body:
         mbps = {name: float(row[col[name]].split(" ± ")[0]) for name in ("map PPO", "spatial PPO", "genie")}
         assert mbps["genie"] >= max(mbps["map PPO"], mbps["spatial PPO"]), row
@@ -207,7 +212,8 @@ def test_map_report_rows_put_each_map_policy_beside_explore_and_the_genie(tmp_pa
 
     for name in ("no_move.zip", "no_move.json", "circular.zip", "circular.json"):
         shutil.copy(ROOT / "policies" / "map" / name, tmp_path)
-    header_lean, body_lean = map_table(tmp_path, ROOT / "policies" / "spatial", 2, 0, EnvOverrides(), with_genie=False)
+    header_lean, body_lean = map_table(tmp_path, ROOT / "policies" / "spatial", 2, 0, EnvOverrides(), policy_teacher,
+                                       with_genie=False)
     assert "genie" not in " ".join(header_lean) and [row[0] for row in body_lean] == ["no_move", "circular"]
     lean = {name: i for i, name in enumerate(header_lean)}
     for row_lean in body_lean:
@@ -254,6 +260,7 @@ def test_map_sections_draw_a_place_map_per_scenario_with_a_map_policy(tmp_path: 
     import shutil
 
     from uavlink.evaluation.report_map import map_sections
+    from uavlink.learn.teachers import policy_teacher
     from uavlink.policies.contract import EnvOverrides
 
     folder = tmp_path / "map"
@@ -263,7 +270,7 @@ def test_map_sections_draw_a_place_map_per_scenario_with_a_map_policy(tmp_path: 
     out = tmp_path / "out"
     out.mkdir()
     markdown = "\n".join(map_sections(folder, ROOT / "policies" / "spatial", 1, 0, EnvOverrides(), out,
-                                       Path("results"), []))
+                                       Path("results"), [], policy_teacher))
     assert [row.split(",")[0] for row in (out / "map.csv").read_text().splitlines()[1:]] == ["no_move"]
     assert (out / "place_map_no_move.png").read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
     assert "](results/place_map_no_move.png)" in markdown  # linked from the Markdown's folder

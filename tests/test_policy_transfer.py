@@ -70,16 +70,21 @@ def test_a_start_policy_takes_no_teacher() -> None:
                                      "warm_start.teacher": "aoa"}).validate(MAP_ENV)
 
 
-def test_the_map_report_compares_a_started_policy_with_the_spatial_one_it_started_from() -> None:
-    """The map table's "map vs its teacher" column: a start from a policy file is against the spatial
-    policy, a cloned rule against that rule, an unknown warm start against aoa."""
+def test_a_policy_started_from_weights_has_no_rule_for_a_teacher_and_says_whose() -> None:
+    """The map table's "map vs its teacher" column: a start from a policy file names that file (its
+    ratio to the spatial policy is the column beside), a cloned rule is that rule, and no warm start
+    says so."""
     from types import SimpleNamespace
 
-    from uavlink.evaluation.report_map import _teacher
+    from uavlink.learn.teachers import policy_teacher
 
-    def policy(warm_start: dict | None) -> SimpleNamespace:
-        return SimpleNamespace(manifest={"training": {"warm_start": warm_start}})
+    cfg = EnvConfig().replace(place_cell_m=12.0)
 
-    assert _teacher(policy({"policy": str(SPATIAL_HOTSPOT), "policy_sha256": "0" * 64})) == "spatial"
-    assert _teacher(policy({"teacher": "explore"})) == "explore"
-    assert _teacher(policy(None)) == "aoa"
+    def policy(**warm_start) -> SimpleNamespace:
+        tc = with_changes(TrainConfig(), {f"warm_start.{k}": v for k, v in warm_start.items()})
+        return SimpleNamespace(manifest={"training": {"hyperparameters": tc.to_dict()}})
+
+    assert policy_teacher(policy(policy=str(SPATIAL_HOTSPOT)), cfg) == (None, f"the weights of {SPATIAL_HOTSPOT}")
+    teacher, label = policy_teacher(policy(teacher="explore"), cfg)
+    assert label == "explore" and teacher.name == "explore"
+    assert policy_teacher(policy(), cfg) == (None, "no warm start")

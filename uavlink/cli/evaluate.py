@@ -59,6 +59,7 @@ def cmd_evaluate(args: argparse.Namespace) -> int:
 
 def _write_results_folder(args: argparse.Namespace) -> int:
     from uavlink.evaluation.report import write_results
+    from uavlink.learn.teachers import policy_teacher
 
     folder = Path(args.policy)
     if args.scenario != "all" or not folder.is_dir():
@@ -105,7 +106,7 @@ def _write_results_folder(args: argparse.Namespace) -> int:
         path = write_results(folder, args.out, markdown, args.episodes, args.seed, overrides, command,
                              progress=lambda msg: status.show(f"evaluating {msg}"),
                              sweep_sections=sweep_sections, spatial_folder=args.spatial, fleet_folder=args.fleet,
-                             map_folder=args.map)
+                             map_folder=args.map, teacher_of=policy_teacher)
     finally:
         status.close()
     print(path.read_text())

@@ -14,7 +14,7 @@ from pathlib import Path
 import numpy as np
 
 from uavlink.evaluation.report_fleet import fleet_sections
-from uavlink.evaluation.report_map import map_sections
+from uavlink.evaluation.report_map import TeacherOf, map_sections
 from uavlink.evaluation.report_spatial import spatial_sections
 from uavlink.evaluation.tables import (
     ScenarioRow,
@@ -111,14 +111,17 @@ def write_results(policy_folder: Path, out: Path, markdown: Path, episodes: int,
                   overrides: EnvOverrides, command: str, progress: Callable[[str], None] = lambda _: None,
                   sweep_sections: Callable[[Path, str], list[str]] = lambda _, __: [],
                   spatial_folder: Path | None = None, fleet_folder: Path | None = None,
-                  map_folder: Path | None = None) -> Path:
+                  map_folder: Path | None = None, teacher_of: TeacherOf | None = None) -> Path:
     """Evaluate everything, then write the folder (nothing is written if an evaluation fails);
     returns the Markdown path. ``sweep_sections(link_prefix, kind)`` gives the across-seed sections
     of the sweeps of that kind (``"ar1"``, ``"spatial"``, ``"fleet"``); with ``spatial_folder``
     (policies trained on the spatial channel) the report gains its spatial part
     (``uavlink.evaluation.report_spatial``), with ``fleet_folder`` too (fleet policies) its fleet part
     (``uavlink.evaluation.report_fleet``), and with ``map_folder`` too (policies with a memory of
-    place) its map part (``uavlink.evaluation.report_map``)."""
+    place) its map part (``uavlink.evaluation.report_map``), whose ``teacher_of`` rebuilds each map
+    policy's warm-start teacher."""
+    if map_folder is not None and teacher_of is None:
+        raise ValueError("the map part needs teacher_of (uavlink.learn.teachers.policy_teacher)")
     rows = evaluate_scenarios(policy_folder, episodes, seed, overrides, progress)
     h1, b1 = table_one(rows)
     progress("table II")
@@ -131,7 +134,7 @@ def write_results(policy_folder: Path, out: Path, markdown: Path, episodes: int,
                                    sweep_sections(rel, "spatial"), progress)
     if map_folder is not None and spatial_folder is not None:
         spatial += map_sections(map_folder, spatial_folder, episodes, seed, overrides, out, rel,
-                                sweep_sections(rel, "map"), progress)
+                                sweep_sections(rel, "map"), teacher_of, progress)
     fleet = []
     if fleet_folder is not None and spatial_folder is not None:
         fleet = fleet_sections(fleet_folder, spatial_folder, episodes, seed, overrides, out, rel,

@@ -4,9 +4,10 @@ place, ``sweeps/map.toml``) against today's spatial policies and the GPS-free ``
 Per scenario that has a map policy, and mixed (each episode's scenario drawn): the map policy, the
 spatial policy of the scenario, explore, aoa, static and the genie (the full-knowledge yardstick),
 all on the spatial channel on the same seeded episodes, with paired ratios: the map policy over the
-spatial policy, over explore and over its warm start's rule (kriging on no_move, aoa elsewhere, as
-sweeps/map.toml), explore over the spatial policy, and each of the two policies as a share of the
-genie.
+spatial policy, over explore and over the teacher its warm start copied (the rule with its knobs,
+rebuilt from the policy's manifest by the caller's ``teacher_of``:
+``uavlink.learn.teachers.policy_teacher``, which this layer may not import), explore over the spatial
+policy, and each of the two policies as a share of the genie.
 """
 
 from __future__ import annotations
@@ -14,7 +15,7 @@ from __future__ import annotations
 from collections.abc import Callable
 from pathlib import Path
 
-from uavlink.config import BASELINE_NAMES
+from uavlink.config import EnvConfig
 from uavlink.evaluation import EvalResult, evaluate_policy, paired_ratio_ci
 from uavlink.evaluation.map_sensitivity import SCENARIOS as SENSITIVITY_SCENARIOS
 from uavlink.evaluation.map_sensitivity import sensitivity, sensitivity_table
@@ -27,6 +28,7 @@ from uavlink.evaluation.tables import (
     write_csv,
 )
 from uavlink.mobility import MIXED, SCENARIOS
+from uavlink.policies.base import Policy
 from uavlink.policies.contract import EnvOverrides, load_with_env
 from uavlink.policies.loader import policy_for_scenario
 from uavlink.policies.manifest import PolicyFileError
@@ -42,18 +44,13 @@ def _share(results: dict[str, EvalResult], a: str) -> str:
     return share_cell(*paired_ratio_ci(results[a].episode_rate_mbps, results["genie"].episode_rate_mbps))
 
 
-def _teacher(map_policy) -> str:
-    """What the map policy's warm start copied, from its manifest: a rule, or ``spatial`` where it
-    started from a spatial policy's weights (aoa when unknown)."""
-    manifest = getattr(map_policy, "manifest", None) or {}
-    warm = (manifest.get("training") or {}).get("warm_start") or {}
-    if warm.get("policy"):
-        return "spatial"
-    return warm.get("teacher") if warm.get("teacher") in BASELINE_NAMES else "aoa"
+# (policy, its env) -> the teacher its warm start copied, flying that env (None where it copied no
+# rule), and a label naming it
+TeacherOf = Callable[[Policy, EnvConfig], tuple[Policy | None, str]]
 
 
 def map_table(map_folder: Path, spatial_folder: Path, episodes: int, seed: int, overrides: EnvOverrides,
-              progress: Callable[[str], None] = lambda _: None,
+              teacher_of: TeacherOf, progress: Callable[[str], None] = lambda _: None,
               with_genie: bool = True) -> tuple[list[str], list[list[str]]]:
     """The table's header and rows; ``with_genie=False`` leaves out the genie's columns (its plans
     cost about a CPU-second per episode, where the rest costs milliseconds)."""
@@ -74,24 +71,24 @@ def map_table(map_folder: Path, spatial_folder: Path, episodes: int, seed: int, 
         for column, (policy, cfg) in zip(columns, loaded, strict=True):
             progress(f"map {scenario}: {column}")
             results[column] = evaluate_policy(policy, cfg, episodes, seed)
-        teacher = _teacher(loaded[0][0])
-        if teacher not in results:  # a rule that is not a column (kriging): flown for its cell alone
-            [(rule, rule_cfg)] = load_with_env([teacher], on_spatial.on(scenario))
-            progress(f"map {scenario}: {teacher}")
-            results[teacher] = evaluate_policy(rule, rule_cfg, episodes, seed)
+        teacher, label = teacher_of(*loaded[0])
+        if teacher is not None:  # flies the map policy's env, as it did in the warm start
+            progress(f"map {scenario}: {label}")
+            results["teacher"] = evaluate_policy(teacher, loaded[0][1], episodes, seed)
+            label = f"{label}: {_ratio(results, 'map', 'teacher')}"
         body.append([scenario, *(f"{results[c].mean_rate_mbps:.2f} ± {results[c].ci95_mbps:.2f}" for c in columns),
                      _ratio(results, "map", "spatial"), _ratio(results, "map", "explore"),
-                     f"{teacher}: {_ratio(results, 'map', teacher)}", _ratio(results, "explore", "spatial"),
+                     label, _ratio(results, "explore", "spatial"),
                      *([_share(results, "map"), _share(results, "spatial")] if with_genie else [])])
     return header, body
 
 
 def map_sections(map_folder: Path, spatial_folder: Path, episodes: int, seed: int, overrides: EnvOverrides,
-                 out: Path, rel: Path, sweep_sections: list[str],
+                 out: Path, rel: Path, sweep_sections: list[str], teacher_of: TeacherOf,
                  progress: Callable[[str], None] = lambda _: None) -> list[str]:
     """Evaluate, write ``map.csv`` and the pictures into ``out`` and return the Markdown of the part,
     which links the pictures as ``rel/<file>`` (``out`` seen from the Markdown's folder)."""
-    header, body = map_table(map_folder, spatial_folder, episodes, seed, overrides, progress)
+    header, body = map_table(map_folder, spatial_folder, episodes, seed, overrides, teacher_of, progress)
     write_csv(out / "map.csv", header, body)
     pictures = []
     for scenario in (row[0] for row in body):
@@ -113,6 +110,8 @@ def map_sections(map_folder: Path, spatial_folder: Path, episodes: int, seed: in
         "rule (search a cross, return to the best spot sensed, follow the team when it leaves), and as a",
         "share of the `genie` (the full-knowledge yardstick). Same episodes; paired ratios with 95 %",
         "bootstrap intervals; `mixed`: each episode's scenario drawn, the mixed policies of both kinds.",
+        "\"Its teacher\" is the rule the policy's warm start copied, with its knobs (speed span, shadow",
+        "gate, shadowing estimator), rebuilt from the policy's manifest as training built it.",
         "Scenarios without a map policy yet are left out.",
         "",
         markdown_table(header, body),

@@ -6,7 +6,8 @@ links look favourably shadowed, a draw that moving would throw away (docs/design
 GPS-free, so benchmarks evaluate it like any policy. ``TrueAoaTeacher`` flies a rule on the true
 AoAs instead of the observation's estimates and says so with ``needs_truth``: under heavy AoA noise
 the student then learns what the noisy observation implies about the clean rule's move, not to copy
-a rule that flies wherever the noise points. ``make_teacher`` builds what ``TrainConfig`` names.
+a rule that flies wherever the noise points. ``make_teacher`` builds what ``TrainConfig`` names
+(``warm_start_teacher`` from a config, ``policy_teacher`` from a trained policy's manifest).
 The shadowing estimator a gate can read lives in ``uavlink.learn.shadow_estimation``.
 """
 
@@ -16,7 +17,7 @@ from typing import Any, Protocol
 
 import numpy as np
 
-from uavlink.config import EnvConfig
+from uavlink.config import EnvConfig, TrainConfig
 from uavlink.config.train import TEACHER_NAMES
 from uavlink.env.actions import ActionMapping
 from uavlink.env.core import GroundTruth
@@ -115,6 +116,34 @@ def make_teacher(cfg: EnvConfig, teacher: str, shadow_gate_db: float | None = No
                          f"teacher, not of {teacher!r}")
     span = {} if sinr_span_db is None else {"sinr_span_db": sinr_span_db}
     return TrueAoaTeacher(AoaVariant(cfg, shadow_gate_db=shadow_gate_db, shadow_estimator=shadow_estimator, **span))
+
+
+def warm_start_teacher(cfg: EnvConfig, tc: TrainConfig) -> tuple[Any, Any]:
+    """The teacher ``tc.warm_start`` names, built as training builds it (the shadowing estimator its
+    gate reads refitted on the same episodes of the training seed), and that estimator (or None)."""
+    ws = tc.warm_start
+    estimator = None
+    if ws.shadow_estimator_episodes is not None:
+        from uavlink.learn.shadow_estimation import fit_shadow_estimator
+
+        estimator = fit_shadow_estimator(cfg, ws.shadow_estimator_episodes, tc.seed)
+    return make_teacher(cfg, ws.teacher, ws.shadow_gate_db, ws.sinr_span_db, estimator, ws.leader_policy), estimator
+
+
+def policy_teacher(policy: Any, cfg: EnvConfig) -> tuple[Any | None, str]:
+    """A trained policy's warm-start teacher rebuilt from its manifest (``training.hyperparameters``)
+    to fly ``cfg``, and a label naming the rule and its knobs, e.g. ``aoa (span 3, gate 2)``; None and
+    a label saying why for a policy that copied no rule (no warm start, or another policy's weights)."""
+    training = (getattr(policy, "manifest", None) or {}).get("training") or {}
+    tc = TrainConfig.from_dict(training.get("hyperparameters") or {})
+    ws = tc.warm_start
+    if ws.policy:
+        return None, f"the weights of {ws.policy}"
+    if not ws.teacher:
+        return None, "no warm start"
+    knobs = [f"{k} {v:g}" for k, v in (("span", ws.sinr_span_db), ("gate", ws.shadow_gate_db),
+                                       ("estimator", ws.shadow_estimator_episodes)) if v is not None]
+    return warm_start_teacher(cfg, tc)[0], ws.teacher + (f" ({', '.join(knobs)})" if knobs else "")
 
 
 class SoloTeacher:

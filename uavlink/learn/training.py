@@ -130,19 +130,14 @@ def _warm_start(sb3_policy: Any, cfg: EnvConfig, tc: TrainConfig) -> dict[str, A
     """Clone the teacher TrainConfig names into the actor (uavlink/learn/imitation.py), or start from
     the policy it names (uavlink/learn/policy_transfer.py); the report."""
     from uavlink.learn.imitation import CLONE_EPOCHS, warm_start
-    from uavlink.learn.teachers import make_teacher
+    from uavlink.learn.teachers import warm_start_teacher
 
     ws = tc.warm_start
     if ws.policy:
         from uavlink.learn.policy_transfer import start_from_policy
 
         return start_from_policy(sb3_policy, cfg, ws.policy, ws.log_std)
-    estimator = None
-    if ws.shadow_estimator_episodes is not None:
-        from uavlink.learn.shadow_estimation import fit_shadow_estimator
-
-        estimator = fit_shadow_estimator(cfg, ws.shadow_estimator_episodes, tc.seed)
-    teacher = make_teacher(cfg, ws.teacher, ws.shadow_gate_db, ws.sinr_span_db, estimator, ws.leader_policy)
+    teacher, estimator = warm_start_teacher(cfg, tc)
     epochs = CLONE_EPOCHS if ws.epochs is None else ws.epochs
     report = warm_start(sb3_policy, cfg, teacher, ws.episodes, tc.seed, epochs=epochs,
                         log_std=ws.log_std).to_dict()
