@@ -20,6 +20,8 @@ def scenario_list(name: str) -> list[str]:
 
 
 def add_env_options(p: argparse.ArgumentParser, for_policy: bool = False) -> None:
+    """``--scenario``, ``--aoa-noise-deg`` and ``--set``; ``for_policy``: as evaluate reads them,
+    where a policy file's manifest gives the defaults and limits what may change."""
     names = f"{', '.join(SCENARIOS)}, {MIXED}"
     if for_policy:  # evaluate: a policy file flies its own scenario unless told otherwise
         p.add_argument("--scenario", default=None,

@@ -8,14 +8,13 @@ import sys
 from pathlib import Path
 
 from uavlink.cli.options import add_env_options
-from uavlink.config import MIXED, SCENARIOS, EnvConfig
+from uavlink.config import MIXED, SCENARIOS, EnvConfig, TrainConfig
+from uavlink.config.fields import add_options, flag_of, from_options
 from uavlink.errors import UserError
 from uavlink.policies.contract import EnvOverrides, apply_overrides
 
 
 def cmd_train(args: argparse.Namespace) -> int:
-    from uavlink.config import TrainConfig
-    from uavlink.config.fields import flag_of, from_options
     from uavlink.learn.training import train
 
     cfg = apply_overrides(EnvConfig(), EnvOverrides.from_command_line(args.scenario, args.aoa_noise_deg, args.overrides))
@@ -56,9 +55,6 @@ def add_train_parser(sub) -> None:
                                    "options are TrainConfig's fields (uavlink/config/train.py).")
     add_env_options(p)
     p.add_argument("--out", type=Path, required=True, help="policy zip to write")
-    from uavlink.config import TrainConfig
-    from uavlink.config.fields import add_options
-
     add_options(p, TrainConfig)
     p.add_argument("--run-dir", type=Path, default=None, help="TensorBoard logs and checkpoint (default runs/OUT-seedN)")
     p.add_argument("--resume", type=Path, default=None, help="continue from a checkpoint zip")
