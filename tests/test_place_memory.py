@@ -254,12 +254,13 @@ def test_place_map_holds_the_cells_flown_over_the_fields_truth(tmp_path: Path) -
 
 @pytest.mark.slow
 def test_map_sections_draw_a_place_map_per_scenario_with_a_map_policy(tmp_path: Path) -> None:
-    """The report's map part with one map policy (no_move): its row, its picture linked through the
-    given prefix (the output folder seen from the Markdown's), and the sensitivity table's six
+    """The report's map part with one map policy (no_move): its row, its picture linked as the
+    Markdown sees the output folder, and the sensitivity table's six
     channels for it (circular has no map policy here, so no rows)."""
     import shutil
 
     from uavlink.evaluation.report_map import map_sections
+    from uavlink.evaluation.tables import ReportRun
     from uavlink.learn.teachers import policy_teacher
     from uavlink.policies.contract import EnvOverrides
 
@@ -269,11 +270,11 @@ def test_map_sections_draw_a_place_map_per_scenario_with_a_map_policy(tmp_path: 
         shutil.copy(ROOT / "policies" / "map" / f"no_move{suffix}", folder)
     out = tmp_path / "out"
     out.mkdir()
-    markdown = "\n".join(map_sections(folder, ROOT / "policies" / "spatial", 1, 0, EnvOverrides(), out,
-                                       Path("results"), [], policy_teacher))
+    run = ReportRun(1, 0, EnvOverrides(), out, out.parent / "results.md")  # links out as "out/..."
+    markdown = "\n".join(map_sections(run, folder, ROOT / "policies" / "spatial", [], policy_teacher))
     assert [row.split(",")[0] for row in (out / "map.csv").read_text().splitlines()[1:]] == ["no_move"]
     assert (out / "place_map_no_move.png").read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
-    assert "](results/place_map_no_move.png)" in markdown  # linked from the Markdown's folder
+    assert "](out/place_map_no_move.png)" in markdown  # linked from the Markdown's folder
     channels = [line.split(" | ")[1:3] for line in markdown.splitlines() if line.startswith("| no_move | ")
                 and line.count(" | ") == 7]
     assert channels == [[s, d] for s in ("4", "8") for d in ("25", "50", "100")]

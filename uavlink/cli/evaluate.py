@@ -59,6 +59,7 @@ def cmd_evaluate(args: argparse.Namespace) -> int:
 
 def _write_results_folder(args: argparse.Namespace) -> int:
     from uavlink.evaluation.report import write_results
+    from uavlink.evaluation.tables import ReportRun
     from uavlink.learn.teachers import policy_teacher
 
     folder = Path(args.policy)
@@ -103,10 +104,10 @@ def _write_results_folder(args: argparse.Namespace) -> int:
 
     status = StatusLine()
     try:
-        path = write_results(folder, args.out, markdown, args.episodes, args.seed, overrides, command,
-                             progress=lambda msg: status.show(f"evaluating {msg}"),
-                             sweep_sections=sweep_sections, spatial_folder=args.spatial, fleet_folder=args.fleet,
-                             map_folder=args.map, teacher_of=policy_teacher)
+        run = ReportRun(args.episodes, args.seed, overrides, args.out, markdown,
+                        progress=lambda msg: status.show(f"evaluating {msg}"))
+        path = write_results(run, folder, command, sweep_sections=sweep_sections, spatial_folder=args.spatial,
+                             fleet_folder=args.fleet, map_folder=args.map, teacher_of=policy_teacher)
     finally:
         status.close()
     print(path.read_text())

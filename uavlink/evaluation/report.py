@@ -7,7 +7,6 @@ in the Markdown comes from the evaluations made in that call; the command is wri
 from __future__ import annotations
 
 import json
-import os
 from collections.abc import Callable
 from pathlib import Path
 
@@ -17,6 +16,7 @@ from uavlink.evaluation.report_fleet import fleet_sections
 from uavlink.evaluation.report_map import TeacherOf, map_sections
 from uavlink.evaluation.report_spatial import spatial_sections
 from uavlink.evaluation.tables import (
+    ReportRun,
     ScenarioRow,
     evaluate_scenarios,
     markdown_table,
@@ -25,7 +25,6 @@ from uavlink.evaluation.tables import (
     write_csv,
 )
 from uavlink.mobility import SCENARIOS
-from uavlink.policies.contract import EnvOverrides
 from uavlink.policies.loader import policy_for_scenario
 
 
@@ -107,38 +106,35 @@ def plot_trajectories(row: ScenarioRow, half_width_m: float, path: Path) -> None
     plt.close(fig)
 
 
-def write_results(policy_folder: Path, out: Path, markdown: Path, episodes: int, seed: int,
-                  overrides: EnvOverrides, command: str, progress: Callable[[str], None] = lambda _: None,
+def write_results(run: ReportRun, policy_folder: Path, command: str,
                   sweep_sections: Callable[[Path, str], list[str]] = lambda _, __: [],
                   spatial_folder: Path | None = None, fleet_folder: Path | None = None,
                   map_folder: Path | None = None, teacher_of: TeacherOf | None = None) -> Path:
-    """Evaluate everything, then write the folder (nothing is written if an evaluation fails);
-    returns the Markdown path. ``sweep_sections(link_prefix, kind)`` gives the across-seed sections
-    of the sweeps of that kind (``"ar1"``, ``"spatial"``, ``"fleet"``); with ``spatial_folder``
-    (policies trained on the spatial channel) the report gains its spatial part
-    (``uavlink.evaluation.report_spatial``), with ``fleet_folder`` too (fleet policies) its fleet part
-    (``uavlink.evaluation.report_fleet``), and with ``map_folder`` too (policies with a memory of
-    place) its map part (``uavlink.evaluation.report_map``), whose ``teacher_of`` rebuilds each map
-    policy's warm-start teacher."""
+    """Evaluate everything, then write the folder ``run.out`` and the Markdown ``run.markdown``
+    (nothing is written if an evaluation fails); returns the Markdown path.
+    ``sweep_sections(link_prefix, kind)`` gives the across-seed sections of the sweeps of that kind
+    (``"ar1"``, ``"spatial"``, ``"fleet"``, ``"map"``); with ``spatial_folder`` (policies trained on the
+    spatial channel) the report gains its spatial part (``uavlink.evaluation.report_spatial``), with
+    ``fleet_folder`` too (fleet policies) its fleet part (``uavlink.evaluation.report_fleet``), and with
+    ``map_folder`` too (policies with a memory of place) its map part
+    (``uavlink.evaluation.report_map``), whose ``teacher_of`` rebuilds each map policy's warm-start teacher."""
     if map_folder is not None and teacher_of is None:
         raise ValueError("the map part needs teacher_of (uavlink.learn.teachers.policy_teacher)")
-    rows = evaluate_scenarios(policy_folder, episodes, seed, overrides, progress)
+    episodes, seed, out, rel = run.episodes, run.seed, run.out, run.rel
+    rows = evaluate_scenarios(policy_folder, episodes, seed, run.overrides, run.progress)
     h1, b1 = table_one(rows)
-    progress("table II")
-    h2, b2 = table_two(policy_folder, episodes, seed, overrides)
-    rel = Path(os.path.relpath(out, markdown.parent))
+    run.progress("table II")
+    h2, b2 = table_two(policy_folder, episodes, seed, run.overrides)
     out.mkdir(parents=True, exist_ok=True)
     spatial = []
     if spatial_folder is not None:
-        spatial = spatial_sections(policy_folder, spatial_folder, rows, episodes, seed, overrides, out,
-                                   sweep_sections(rel, "spatial"), progress)
+        spatial = spatial_sections(run, policy_folder, spatial_folder, rows, sweep_sections(rel, "spatial"))
     if map_folder is not None and spatial_folder is not None:
-        spatial += map_sections(map_folder, spatial_folder, episodes, seed, overrides, out, rel,
-                                sweep_sections(rel, "map"), teacher_of, progress)
+        spatial += map_sections(run, map_folder, spatial_folder, sweep_sections(rel, "map"), teacher_of)
     fleet = []
     if fleet_folder is not None and spatial_folder is not None:
-        fleet = fleet_sections(fleet_folder, spatial_folder, episodes, seed, overrides, out, rel,
-                               rows[0].cfg.area.half_width_m, progress) + sweep_sections(rel, "fleet")
+        fleet = fleet_sections(run, fleet_folder, spatial_folder,
+                               rows[0].cfg.area.half_width_m) + sweep_sections(rel, "fleet")
     write_csv(out / "table1.csv", h1, b1)
     write_csv(out / "table2.csv", h2, b2)
     plot_throughput_per_episode(rows, out / "throughput_per_episode.png")
@@ -186,5 +182,5 @@ def write_results(policy_folder: Path, out: Path, markdown: Path, episodes: int,
         *spatial,
         *fleet,
     ]
-    markdown.write_text("\n".join(text))
-    return markdown
+    run.markdown.write_text("\n".join(text))
+    return run.markdown

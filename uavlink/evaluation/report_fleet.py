@@ -14,7 +14,7 @@ from collections.abc import Callable
 from pathlib import Path
 
 from uavlink.evaluation.core import EvalResult, evaluate_policy, paired_ratio_ci
-from uavlink.evaluation.tables import markdown_table, spatial_overrides, write_csv
+from uavlink.evaluation.tables import ReportRun, markdown_table, spatial_overrides, write_csv
 from uavlink.mobility import SCENARIOS
 from uavlink.policies.contract import EnvOverrides, load_with_env
 from uavlink.policies.registry import make_baseline
@@ -125,11 +125,10 @@ def plot_fleet_trajectory(scenario: str, result: EvalResult, half_width_m: float
     plt.close(fig)
 
 
-def fleet_sections(fleet_folder: Path, single_folder: Path, episodes: int, seed: int, overrides: EnvOverrides,
-                   out: Path, rel: Path, half_width_m: float,
-                   progress: Callable[[str], None] = lambda _: None) -> list[str]:
-    """Evaluate, write the CSVs and plots into ``out`` and return the Markdown of the fleet part."""
-    rows = evaluate_fleet(fleet_folder, single_folder, episodes, seed, overrides, progress)
+def fleet_sections(run: ReportRun, fleet_folder: Path, single_folder: Path, half_width_m: float) -> list[str]:
+    """Evaluate, write the CSVs and plots into ``run.out`` and return the Markdown of the fleet part."""
+    out, rel, seed = run.out, run.rel, run.seed
+    rows = evaluate_fleet(fleet_folder, single_folder, run.episodes, seed, run.overrides, run.progress)
     tables = {"fleet_throughput": throughput_table(rows), "fleet_ratios": ratio_table(rows),
               "fleet_metrics": metrics_table(rows)}
     for name, (header, body) in tables.items():

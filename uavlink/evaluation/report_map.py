@@ -21,6 +21,7 @@ from uavlink.evaluation.map_sensitivity import SCENARIOS as SENSITIVITY_SCENARIO
 from uavlink.evaluation.map_sensitivity import sensitivity, sensitivity_table
 from uavlink.evaluation.place_map import draw_place_map, fly_place_map
 from uavlink.evaluation.tables import (
+    ReportRun,
     gain_cell,
     markdown_table,
     share_cell,
@@ -83,12 +84,12 @@ def map_table(map_folder: Path, spatial_folder: Path, episodes: int, seed: int, 
     return header, body
 
 
-def map_sections(map_folder: Path, spatial_folder: Path, episodes: int, seed: int, overrides: EnvOverrides,
-                 out: Path, rel: Path, sweep_sections: list[str], teacher_of: TeacherOf,
-                 progress: Callable[[str], None] = lambda _: None) -> list[str]:
-    """Evaluate, write ``map.csv`` and the pictures into ``out`` and return the Markdown of the part,
-    which links the pictures as ``rel/<file>`` (``out`` seen from the Markdown's folder)."""
-    header, body = map_table(map_folder, spatial_folder, episodes, seed, overrides, teacher_of, progress)
+def map_sections(run: ReportRun, map_folder: Path, spatial_folder: Path, sweep_sections: list[str],
+                 teacher_of: TeacherOf) -> list[str]:
+    """Evaluate, write ``map.csv`` and the pictures into ``run.out`` and return the Markdown of the
+    part, which links the pictures as the Markdown sees ``run.out``."""
+    out, rel, seed, overrides, progress = run.out, run.rel, run.seed, run.overrides, run.progress
+    header, body = map_table(map_folder, spatial_folder, run.episodes, seed, overrides, teacher_of, progress)
     write_csv(out / "map.csv", header, body)
     pictures = []
     for scenario in (row[0] for row in body):
@@ -98,7 +99,7 @@ def map_sections(map_folder: Path, spatial_folder: Path, episodes: int, seed: in
         draw_place_map(fly_place_map(policy, cfg, seed), out / f"place_map_{scenario}.png")
         pictures += [f"![the map {scenario}'s policy built]({rel / f'place_map_{scenario}.png'})", ""]
     trained = [s for s in SENSITIVITY_SCENARIOS if s in {row[0] for row in body}]
-    by_channel = sensitivity(map_folder, spatial_folder, episodes, seed, trained, progress,
+    by_channel = sensitivity(map_folder, spatial_folder, run.episodes, seed, trained, progress,
                              overrides) if trained else None
     return [
         f"### A memory of place: map policies (`{map_folder}`) and the explore rule",

@@ -10,11 +10,11 @@ of a gain was the channel and which was learning.
 
 from __future__ import annotations
 
-from collections.abc import Callable
 from pathlib import Path
 
 from uavlink.evaluation.core import paired_ratio_ci
 from uavlink.evaluation.tables import (
+    ReportRun,
     ScenarioRow,
     evaluate_scenarios,
     gain_cell,
@@ -24,7 +24,6 @@ from uavlink.evaluation.tables import (
     table_two,
     write_csv,
 )
-from uavlink.policies.contract import EnvOverrides
 
 
 def _vs(row: ScenarioRow, other: str) -> str:
@@ -42,19 +41,19 @@ def transfer_table(ar1: list[ScenarioRow], transferred: list[ScenarioRow],
     return header, body
 
 
-def spatial_sections(ar1_folder: Path, spatial_folder: Path, ar1_rows: list[ScenarioRow], episodes: int,
-                     seed: int, overrides: EnvOverrides, out: Path, sweep_sections: list[str],
-                     progress: Callable[[str], None] = lambda _: None) -> list[str]:
-    """Evaluate, write the CSVs into ``out`` and return the Markdown of the spatial part."""
-    on_spatial = spatial_overrides(overrides)
-    spatial = evaluate_scenarios(spatial_folder, episodes, seed, on_spatial, lambda m: progress(f"spatial {m}"),
-                                 extra=("genie",))
-    transferred = evaluate_scenarios(ar1_folder, episodes, seed, on_spatial,
-                                     lambda m: progress(f"AR(1) policies on spatial {m}"))
-    progress("spatial table II")
+def spatial_sections(run: ReportRun, ar1_folder: Path, spatial_folder: Path, ar1_rows: list[ScenarioRow],
+                     sweep_sections: list[str]) -> list[str]:
+    """Evaluate, write the CSVs into ``run.out`` and return the Markdown of the spatial part."""
+    on_spatial = spatial_overrides(run.overrides)
+    spatial = evaluate_scenarios(spatial_folder, run.episodes, run.seed, on_spatial,
+                                 lambda m: run.progress(f"spatial {m}"), extra=("genie",))
+    transferred = evaluate_scenarios(ar1_folder, run.episodes, run.seed, on_spatial,
+                                     lambda m: run.progress(f"AR(1) policies on spatial {m}"))
+    run.progress("spatial table II")
     h1, b1 = table_one(spatial)
-    h2, b2 = table_two(spatial_folder, episodes, seed, on_spatial)
+    h2, b2 = table_two(spatial_folder, run.episodes, run.seed, on_spatial)
     h3, b3 = transfer_table(ar1_rows, transferred, spatial)
+    out = run.out
     write_csv(out / "table1_spatial.csv", h1, b1)
     write_csv(out / "table2_spatial.csv", h2, b2)
     write_csv(out / "transfer_spatial.csv", h3, b3)

@@ -6,6 +6,7 @@ package: it imports no report module, so the parts import it and not each other.
 from __future__ import annotations
 
 import csv
+import os
 from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
@@ -16,6 +17,26 @@ from uavlink.config import EnvConfig
 from uavlink.evaluation.core import EvalResult, evaluate_policy, paired_ratio_ci
 from uavlink.mobility import SCENARIOS
 from uavlink.policies.contract import EnvOverrides, load_with_env
+
+
+@dataclass(frozen=True)
+class ReportRun:
+    """What every part of one results report shares: the seeded episodes each cell flies
+    (``episodes`` from ``seed`` under ``overrides``), the folder its files go to (``out``), the
+    Markdown file that links them and where progress is told."""
+
+    episodes: int
+    seed: int
+    overrides: EnvOverrides
+    out: Path
+    markdown: Path
+    progress: Callable[[str], None] = lambda _: None
+
+    @property
+    def rel(self) -> Path:
+        """``out`` as the Markdown links it (seen from its folder)."""
+        return Path(os.path.relpath(self.out, self.markdown.parent))
+
 
 # The paper's Table I (PPO, static) and Table II (straight under AoA noise), Mbps (SPEC).
 PAPER_TABLE_ONE = {
