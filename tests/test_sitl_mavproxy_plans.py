@@ -18,6 +18,7 @@ from mavproxy_console import MAVPROXY, mavproxy
 from sitl_stub.core.params import PARAM_DEFS
 from sitl_stub.launcher import vehicle_process
 from uavlink.mavlink.connection import free_udp_port
+from uavlink.mavlink.frames import TO_INT_FRAME
 
 pytestmark = [pytest.mark.slow, pytest.mark.timeout(120)]
 
@@ -33,7 +34,6 @@ PLANS = {  # module: (file to load, rows: seq current frame command p1-p4 lat lo
     "rally": ("rally.txt", ["0\t0\t3\t5100\t0\t0\t0\t0\t47.3980000\t8.5450000\t30.0\t1"]),
 }
 SAVED = {"wp": "way.txt", "fence": "fence-items.txt", "rally": "rally-items.txt"}
-TO_INT_FRAME = {0: 5, 3: 6}
 
 
 def _wait_text(path: Path, text: str, timeout: float, after: int = 0) -> int:

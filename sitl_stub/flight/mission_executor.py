@@ -40,7 +40,6 @@ NAV_LAND = 21
 NAV_TAKEOFF = 22
 DO_JUMP = 177
 DO_CHANGE_SPEED = 178
-GLOBAL_FRAMES = frozenset({0, 5})  # MAV_FRAME_GLOBAL, MAV_FRAME_GLOBAL_INT: AMSL
 NAV_MC_ALT_RAD_M = 0.8  # PX4 NAV_MC_ALT_RAD: vertical acceptance of a multicopter waypoint
 ALT_ACCEPT_M = 0.5  # takeoff done within this of its altitude
 LAND_XY_ACCEPT_M = 1.0  # a landing starts its descent this close to the landing point
@@ -219,4 +218,4 @@ class MissionExecutor:
 
     def _altitude(self, item: MissionItem, z: float) -> float:
         """Height above home of an item's altitude ``z`` in its frame."""
-        return z - self.origin.alt_amsl_m if item.frame in GLOBAL_FRAMES else z
+        return item.height_above_home_m(z, self.origin.alt_amsl_m)

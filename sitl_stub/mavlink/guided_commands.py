@@ -19,6 +19,7 @@ from sitl_stub.core.vehicle_state import ACCEPTED, Outcome, Result
 from sitl_stub.flight.failures import FAILURE_TYPE_OFF
 from sitl_stub.flight.guidance import YAW_FRONT_TO_CENTER, Orbit, sanitize_orbit
 from sitl_stub.flight.vehicle import Vehicle
+from uavlink.mavlink.frames import LOCAL_NED, RELATIVE_ALT_FRAMES
 
 INT32_MAX = 2**31 - 1
 INT32_MIN = -(2**31)  # what a NaN latitude cast to int32 becomes (MAVSDK's do_orbit with NaN)
@@ -27,18 +28,15 @@ SPEED_TYPES_XY = (0.0, 1.0)  # SPEED_TYPE_AIRSPEED, SPEED_TYPE_GROUNDSPEED
 ORBIT_YAW_BEHAVIOURS = range(5)  # ORBIT_YAW_BEHAVIOUR_* 0..4
 ORBIT_YAW_RC_CONTROLLED = 4
 
-_RELATIVE = frozenset({3, 6, 10, 11})  # MAV_FRAME_GLOBAL_RELATIVE_ALT(_INT), TERRAIN_ALT(_INT)
-_LOCAL_NED = 1
-
 
 def height_m(z: float, frame: int | None, origin: GeoOrigin) -> float | None:
     """Height above home of param7/z (None when NaN): relative and terrain frames give a height
     (the world is flat at home), MAV_FRAME_LOCAL_NED a down coordinate, others AMSL."""
     if not math.isfinite(z):
         return None
-    if frame in _RELATIVE:
+    if frame in RELATIVE_ALT_FRAMES:
         return z
-    if frame == _LOCAL_NED:
+    if frame == LOCAL_NED:
         return -z
     return z - origin.alt_amsl_m
 

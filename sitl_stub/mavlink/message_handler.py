@@ -28,6 +28,7 @@ from sitl_stub.mavlink.setpoints import Refusal, read_setpoint
 from sitl_stub.mavlink.telemetry import TelemetrySender
 from sitl_stub.sim.payload import PayloadSlot
 from uavlink.mavlink.dialect import mavlink
+from uavlink.mavlink.frames import GLOBAL_FRAMES, height_above_home_m
 from uavlink.mavlink.px4_modes import decode_custom_mode
 from uavlink.mavlink.rejects import RejectLog, rescan_bad_frame
 from uavlink.mavlink.signing import SigningGuard
@@ -36,10 +37,6 @@ log = logging.getLogger("sitl_stub")
 
 AUTOPILOT_COMPONENT = 1
 _BODY_FRAMES = frozenset({mavlink.MAV_FRAME_BODY_NED, mavlink.MAV_FRAME_BODY_FRD})
-_GLOBAL_FRAMES = frozenset({
-    mavlink.MAV_FRAME_GLOBAL, mavlink.MAV_FRAME_GLOBAL_INT, mavlink.MAV_FRAME_GLOBAL_RELATIVE_ALT,
-    mavlink.MAV_FRAME_GLOBAL_RELATIVE_ALT_INT, mavlink.MAV_FRAME_GLOBAL_TERRAIN_ALT,
-    mavlink.MAV_FRAME_GLOBAL_TERRAIN_ALT_INT})
 MAX_RX_PER_TICK = 2000  # messages/datagrams handled per loop iteration: a flood cannot stall time
 
 
@@ -156,7 +153,7 @@ class MessageHandler:
         frame = m.coordinate_frame
         body_yaw = None
         if m.get_type() == "SET_POSITION_TARGET_GLOBAL_INT":
-            if frame not in _GLOBAL_FRAMES:
+            if frame not in GLOBAL_FRAMES:
                 return self._refuse_setpoint(Refusal(
                     "setpoint_frame", f"global setpoint in frame {frame}: only MAV_FRAME_GLOBAL"
                     "(_INT), GLOBAL_RELATIVE_ALT(_INT) and GLOBAL_TERRAIN_ALT(_INT)"), frame)
@@ -187,8 +184,7 @@ class MessageHandler:
         """LOCAL_NED of a global setpoint; the world is flat at home, so terrain = home."""
         origin = self.telemetry.origin
         north, east = origin.to_local(lat_int / 1e7, lon_int / 1e7)
-        amsl = frame in (mavlink.MAV_FRAME_GLOBAL, mavlink.MAV_FRAME_GLOBAL_INT)
-        return north, east, -(alt_m - origin.alt_amsl_m if amsl else alt_m)
+        return north, east, -height_above_home_m(alt_m, frame, origin.alt_amsl_m)
 
     def _on_command(self, msg: Any, kind: str, wall: float) -> None:
         if msg.target_system not in (0, self.system_id):

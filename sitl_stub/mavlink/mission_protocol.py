@@ -48,7 +48,8 @@ from sitl_stub.core.mission_store import (
     MissionStore,
 )
 from uavlink.mavlink.dialect import mavlink
-from uavlink.mavlink.mission import GLOBAL_FRAMES, item_from_message, send_item
+from uavlink.mavlink.frames import GLOBAL_FRAMES, TO_FLOAT_FRAME, TO_INT_FRAME
+from uavlink.mavlink.mission import item_from_message, send_item
 
 RETRY_TIMEOUT_S = 0.25  # MAVLINK_MISSION_RETRY_TIMEOUT_DEFAULT (wall)
 PROTOCOL_TIMEOUT_S = 5.0  # MAVLINK_MISSION_PROTOCOL_TIMEOUT_DEFAULT (wall)
@@ -89,11 +90,7 @@ FENCE_RALLY_COMMANDS = _cmds(
     "NAV_FENCE_CIRCLE_INCLUSION", "NAV_FENCE_CIRCLE_EXCLUSION", "NAV_RALLY_POINT")
 POLYGON_COMMANDS = _cmds("NAV_FENCE_POLYGON_VERTEX_INCLUSION", "NAV_FENCE_POLYGON_VERTEX_EXCLUSION")
 ROI_COMMANDS = _cmds("NAV_ROI", "DO_SET_ROI")
-INT_ONLY_FRAMES = frozenset({mavlink.MAV_FRAME_GLOBAL_INT, mavlink.MAV_FRAME_GLOBAL_RELATIVE_ALT_INT})
-FLOAT_FRAMES = frozenset({mavlink.MAV_FRAME_GLOBAL, mavlink.MAV_FRAME_GLOBAL_RELATIVE_ALT})
-TO_INT_FRAME = {mavlink.MAV_FRAME_GLOBAL: mavlink.MAV_FRAME_GLOBAL_INT,
-                mavlink.MAV_FRAME_GLOBAL_RELATIVE_ALT: mavlink.MAV_FRAME_GLOBAL_RELATIVE_ALT_INT}
-TO_FLOAT_FRAME = {v: k for k, v in TO_INT_FRAME.items()}
+FLOAT_FRAMES, INT_ONLY_FRAMES = frozenset(TO_INT_FRAME), frozenset(TO_FLOAT_FRAME)
 
 # the protocol uploading into each store: one upload per vehicle, whatever the link
 _uploading: weakref.WeakKeyDictionary[MissionStore, MissionProtocol] = weakref.WeakKeyDictionary()

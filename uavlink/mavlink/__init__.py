@@ -5,6 +5,7 @@
 - :mod:`~uavlink.mavlink.signing`: MAVLink 2 message signing and key files;
 - :mod:`~uavlink.mavlink.rejects`: counting and logging rejected input;
 - :mod:`~uavlink.mavlink.px4_modes`: PX4's flight-mode encoding;
+- :mod:`~uavlink.mavlink.frames`: the MAV_FRAME sets (global, AMSL, relative) and the mission items' frame pairs;
 - :mod:`~uavlink.mavlink.radio_codec`: how radio readings travel (DEBUG_FLOAT_ARRAY).
 
 Nothing here imports the flight loop, the vehicle or the trainer; importing this package imports

@@ -18,14 +18,13 @@ from dataclasses import dataclass, replace
 from typing import Any
 
 from uavlink.mavlink.dialect import mavlink
+from uavlink.mavlink.frames import GLOBAL_FRAMES, height_above_home_m
 
 MISSION = 0  # MAV_MISSION_TYPE_MISSION
 FENCE = 1  # MAV_MISSION_TYPE_FENCE
 RALLY = 2  # MAV_MISSION_TYPE_RALLY
 MISSION_TYPES = (MISSION, FENCE, RALLY)
 TYPE_NAMES = {MISSION: "mission", FENCE: "fence", RALLY: "rally"}
-# frames whose x/y are latitude/longitude: degrees * 1e7 in MISSION_ITEM_INT, degrees in MISSION_ITEM
-GLOBAL_FRAMES = frozenset({0, 3, 5, 6, 10, 11})
 MISSION_REPLIES = ("MISSION_COUNT", "MISSION_ITEM", "MISSION_ITEM_INT", "MISSION_REQUEST",
                    "MISSION_REQUEST_INT", "MISSION_ACK", "MISSION_CURRENT")
 ANSWER_TIMEOUT_S = 1.5  # QGC PlanManager::_ackTimeoutMilliseconds
@@ -51,6 +50,10 @@ class MissionItem:
     z: float = 0.0
     autocontinue: int = 1
     mission_type: int = MISSION
+
+    def height_above_home_m(self, z_m: float, home_amsl_m: float) -> float:
+        """The height above home of an altitude ``z_m`` given in this item's frame."""
+        return height_above_home_m(z_m, self.frame, home_amsl_m)
 
 
 class MissionTransferError(RuntimeError):
