@@ -51,3 +51,19 @@ def test_mavlink20_is_set_in_one_place() -> None:
                for folder in SOURCE_DIRS for path in sorted((ROOT / folder).rglob("*.py"))
                if path != here and "MAVLINK20" in path.read_text()]
     assert setters == ["uavlink/mavlink/dialect.py"]
+
+
+def test_the_frame_sets_name_mavlinks_frames_and_give_heights_above_home() -> None:
+    from uavlink.mavlink import frames
+    from uavlink.mavlink.dialect import mavlink
+
+    for name in ("GLOBAL", "LOCAL_NED", "GLOBAL_RELATIVE_ALT", "GLOBAL_INT", "GLOBAL_RELATIVE_ALT_INT",
+                 "GLOBAL_TERRAIN_ALT", "GLOBAL_TERRAIN_ALT_INT"):
+        assert getattr(frames, name) == getattr(mavlink, f"MAV_FRAME_{name}"), name
+    assert frames.AMSL_FRAMES.isdisjoint(frames.RELATIVE_ALT_FRAMES)
+    assert frames.LOCAL_NED not in frames.GLOBAL_FRAMES
+    assert set(frames.TO_INT_FRAME) | set(frames.TO_FLOAT_FRAME) <= frames.GLOBAL_FRAMES
+    home_amsl_m = 488.0
+    assert frames.height_above_home_m(538.0, mavlink.MAV_FRAME_GLOBAL_INT, home_amsl_m) == 50.0
+    assert frames.height_above_home_m(50.0, mavlink.MAV_FRAME_GLOBAL_RELATIVE_ALT_INT, home_amsl_m) == 50.0
+    assert frames.height_above_home_m(50.0, mavlink.MAV_FRAME_GLOBAL_TERRAIN_ALT, home_amsl_m) == 50.0
