@@ -99,11 +99,11 @@ class CommandHandler:
             first = int(p[0]) if math.isfinite(p[0]) and p[0] >= 0 else None
             return _reply(v.start_mission(first))
         if c == mavlink.MAV_CMD_DO_REPOSITION:
-            return _reply(guided.reposition(v, self.telemetry.origin, p, req.frame))
+            return _reply(guided.reposition(v, v.origin, p, req.frame))
         if c == mavlink.MAV_CMD_DO_CHANGE_SPEED:
             return _reply(guided.change_speed(v, p))
         if c == mavlink.MAV_CMD_DO_ORBIT:
-            return _reply(guided.orbit(v, self.telemetry.origin, p, req.frame))
+            return _reply(guided.orbit(v, v.origin, p, req.frame))
         if c == mavlink.MAV_CMD_INJECT_FAILURE:
             return _reply(guided.inject_failure(v, p))
         if c == mavlink.MAV_CMD_REQUEST_MESSAGE:
@@ -150,7 +150,7 @@ class CommandHandler:
         height, MAV_FRAME_LOCAL_NED a down coordinate. NaN, or a height under 0.5 m, means
         MIS_TAKEOFF_ALT (PX4: "using minimum takeoff altitude").
         """
-        alt = guided.height_m(req.params[6], req.frame, self.telemetry.origin)
+        alt = guided.height_m(req.params[6], req.frame, self.vehicle.origin)
         return alt if alt is not None and alt >= MIN_TAKEOFF_ALT_M else None
 
 

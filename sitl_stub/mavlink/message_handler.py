@@ -182,7 +182,7 @@ class MessageHandler:
     def _global_to_local(self, lat_int: int, lon_int: int, alt_m: float,
                          frame: int) -> tuple[float, float, float]:
         """LOCAL_NED of a global setpoint; the world is flat at home, so terrain = home."""
-        origin = self.telemetry.origin
+        origin = self.vehicle.origin
         north, east = origin.to_local(lat_int / 1e7, lon_int / 1e7)
         return north, east, -height_above_home_m(alt_m, frame, origin.alt_amsl_m)
 

@@ -162,7 +162,8 @@ class SitlServer:
                     self.signing.attach(mav).signing.link_id = link.index
         per_component = list(zip(*encoders, strict=True))  # [autopilot encoders, payload 1's, ...]
         self.mav = Fanout(per_component[0], self.route)
-        self.telemetry = TelemetrySender(self.mav, c.home, self.battery, self.mav.everyone(), c.home_ne)
+        # home is the vehicle's (PX4's commander owns it); telemetry encodes positions against it
+        self.telemetry = TelemetrySender(self.mav, self.vehicle.origin, self.battery, self.mav.everyone(), c.home_ne)
         self.commands = CommandHandler(self.vehicle, self.streams, self.telemetry)
         self.param_protocol = ParamProtocol(self.params, self.mav)
         self._slots = [PayloadSlot(p, Fanout(mavs, self.route))
