@@ -28,12 +28,7 @@ from sitl_stub.core.geo import GeoOrigin
 from sitl_stub.core.params import PARAM_DEFS
 from sitl_stub.mavlink.links import MAX_INSTANCE
 from sitl_stub.mavlink.server import ServerConfig, SitlServer
-from sitl_stub.sim.payload import (
-    PayloadFactory,
-    PayloadOptions,
-    as_payload_list,
-    default_payload_factory,
-)
+from sitl_stub.sim.payload import Payload, PayloadFactory, PayloadOptions, as_payload_list
 from uavlink.config import parse_settings
 from uavlink.mavlink.connection import normalize_connection
 from uavlink.mavlink.signing import load_key
@@ -165,6 +160,14 @@ def build_parser() -> argparse.ArgumentParser:
     return p
 
 
+def radio_payload(options: PayloadOptions) -> Payload:
+    """The default payload: the radio simulator's base station (imported here, not at start: it
+    loads the env)."""
+    from sitl_stub.sim.radio_payload import RadioPayload
+
+    return RadioPayload(options)
+
+
 def main(argv: Sequence[str] | None = None, payload_factory: PayloadFactory | None = None) -> int:
     """Parse ``argv``, build payloads with ``payload_factory`` and run the vehicle."""
     parser = build_parser()
@@ -177,7 +180,7 @@ def main(argv: Sequence[str] | None = None, payload_factory: PayloadFactory | No
         options = PayloadOptions(args.scenario, args.seed, args.aoa_noise_deg, tuple(args.settings),
                                  home, not args.no_ue_truth, args.lockstep)
         payloads = [] if args.no_payload or args.fleet else as_payload_list(
-            (payload_factory or default_payload_factory)(options))
+            (payload_factory or radio_payload)(options))
         key = load_key(args.signing_key) if args.signing_key else None
         config = ServerConfig(connect=args.connect, instance=args.instance, speed=args.speed,
                               home=home, params=dict(args.param), system_id=args.system_id,

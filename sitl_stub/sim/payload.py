@@ -24,23 +24,18 @@ returns True, simulated time stays at that frame (the server keeps handling mess
 heartbeats), e.g. until the flight computer has answered the frame; it must give up by itself after
 a while of wall time, or a silent client would stop the vehicle's world.
 
-The CLI builds payloads with a factory ``(PayloadOptions) -> Payload | Sequence[Payload] | None``.
-The default factory uses ``sitl_stub.sim.radio_payload.RadioPayload(options)`` when that module
-exists, and runs without a payload otherwise.
+The CLI builds payloads with a factory ``(PayloadOptions) -> Payload | Sequence[Payload] | None``;
+this hook knows no implementation (the CLI's default is the radio payload, ``sitl_stub.__main__``).
 """
 
 from __future__ import annotations
 
-import importlib
-import logging
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from typing import Any, Protocol, runtime_checkable
 
 from sitl_stub.core.vehicle_state import VehicleState
 from uavlink.mavlink.geo import GeoOrigin
-
-log = logging.getLogger(__name__)
 
 MAV_AUTOPILOT_INVALID = 8
 
@@ -109,15 +104,3 @@ def check_payload(payload: Payload, system_component_ids: set[int]) -> None:
         raise ValueError(
             f"payload {cid} heartbeat must be (type, MAV_AUTOPILOT_INVALID=8, base_mode=0, "
             f"custom_mode, system_status), got {hb}")
-
-
-def default_payload_factory(options: PayloadOptions) -> Payload | Sequence[Payload] | None:
-    """``sitl_stub.sim.radio_payload.RadioPayload(options)`` if that module exists, else None."""
-    try:
-        module = importlib.import_module("sitl_stub.sim.radio_payload")
-    except ModuleNotFoundError as exc:
-        if exc.name != "sitl_stub.sim.radio_payload":
-            raise
-        log.info("no sitl_stub.sim.radio_payload: running without a payload")
-        return None
-    return module.RadioPayload(options)
