@@ -16,7 +16,7 @@ clamped onto it and the position never leaves it; altitude setpoints are clamped
 Its snapshot, request outcomes and safety monitors are in :mod:`sitl_stub.core.vehicle_state`; the
 position controller is :mod:`sitl_stub.flight.pos_control`. AUTO.MISSION flies the stored mission
 (:mod:`sitl_stub.flight.mission_executor`); the uploaded geofence is enforced with GF_ACTION
-(:mod:`sitl_stub.flight.fence_failsafe`); RTL returns to the nearest rally point or home (:mod:`sitl_stub.flight.rtl`).
+and a lost offboard stream with their failsafe reactions (:mod:`sitl_stub.flight.failsafe`); RTL returns to the nearest rally point or home (:mod:`sitl_stub.flight.rtl`).
 """
 
 from __future__ import annotations
@@ -30,25 +30,26 @@ from sitl_stub.core.modes import FlightMode, LandedState
 from sitl_stub.core.params import ParamStore
 from sitl_stub.core.vehicle_state import (
     ACCEPTED,
+    SEVERITY_CRITICAL,
     SEVERITY_INFO,
     SEVERITY_WARNING,
     Outcome,
     Result,
     VehicleState,
 )
+from sitl_stub.flight.failsafe import Action, Reaction, geofence_breach, offboard_lost
 from sitl_stub.flight.failures import FailureState
-from sitl_stub.flight.fence_failsafe import geofence_failsafe
 from sitl_stub.flight.geofence import FenceGuard
 from sitl_stub.flight.guidance import ControlCommand, Guidance, Motion
+from sitl_stub.flight.land_detector import LandDetector
 from sitl_stub.flight.mission_executor import Leg, MissionExecutor
 from sitl_stub.flight.offboard import OffboardStream
-from sitl_stub.flight.pos_control import GROUND_EPS_M, fall, stopping_point, tilt, track, turn, wrap
+from sitl_stub.flight.pos_control import fall, stopping_point, tilt, track, turn, wrap
 from sitl_stub.flight.rtl import ReturnPhases, rally_points, return_destination
 from uavlink.config import AreaConfig
 
 SUBSTEP_S = 0.02  # integration step; step(dt) subdivides
 ALT_ACCEPT_M = 0.5  # takeoff done within this of the target altitude
-TAKEN_OFF_ALT_M = 1.0  # above this the vehicle counts as having flown
 MAX_ALTITUDE_M = 500.0  # vertical fence: setpoints above are clamped (= the altitude params' max)
 
 
@@ -76,9 +77,7 @@ class Vehicle:
         self.mode = FlightMode.LOITER
         self._target = (0.0, 0.0, 0.0)
         self._rtl = ReturnPhases()
-        self._landed = True
-        self._landed_since = 0.0
-        self._has_flown = False
+        self.ground = LandDetector()
         self.offboard = OffboardStream()
         self.max_abs_xy_m = 0.0
         self._events: deque[tuple[int, str]] = deque(maxlen=32)
@@ -90,15 +89,14 @@ class Vehicle:
         """Arm on the ground (PX4: not in AUTO.LAND / AUTO.RTL, which prevent arming)."""
         if self.armed:
             return ACCEPTED
-        if not self._landed:
+        if not self.ground.landed:
             return Outcome(Result.DENIED, "Arming denied: vehicle not landed")
         if self.mode in (FlightMode.LAND, FlightMode.RTL):
             return Outcome(Result.DENIED, f"Arming denied: not allowed in {self.mode.px4_name}")
         if self.mode is FlightMode.OFFBOARD and not self.offboard_stream_ok():
             return Outcome(Result.DENIED, "Arming denied: no offboard setpoints")
         self.armed, self.armings = True, self.armings + 1
-        self._has_flown = False
-        self._landed_since = self.t
+        self.ground.armed(self.t)
         if self.mode is FlightMode.LOITER:
             self._target = self._ground_point()
         self._event(SEVERITY_INFO, "Armed")
@@ -108,7 +106,7 @@ class Vehicle:
         """Disarm when landed; in the air only when forced (the vehicle then falls)."""
         if not self.armed:
             return ACCEPTED
-        if not self._landed and not force:
+        if not self.ground.landed and not force:
             return Outcome(Result.DENIED, "Disarming denied: not landed")
         self._disarm("Disarmed")
         return ACCEPTED
@@ -140,15 +138,15 @@ class Vehicle:
         self.mode = FlightMode.RTL
         rally = rally_points(self.plans.items(RALLY), self.origin)
         dest = self._clamp((*return_destination(self.pos[0], self.pos[1], rally, self.home_ne), 0.0))
-        self._target = self._rtl.start(self._stopping_point(), self._landed,
+        self._target = self._rtl.start(self._stopping_point(), self.ground.landed,
                                        self.params["RTL_RETURN_ALT"], dest[:2])
         return ACCEPTED
 
     def hold(self, at_ne: tuple[float, float] | None = None) -> Outcome:
         """AUTO.LOITER: brake and hold where the vehicle stops (or at ``at_ne``, this altitude)."""
         self.mode = FlightMode.LOITER
-        self._target = self._ground_point() if self._landed else self._stopping_point()
-        if at_ne is not None and not self._landed:
+        self._target = self._ground_point() if self.ground.landed else self._stopping_point()
+        if at_ne is not None and not self.ground.landed:
             self._target = (*at_ne, self.pos[2])
         return ACCEPTED
 
@@ -189,7 +187,7 @@ class Vehicle:
         """Enter ``mode`` (LOITER: DO_REPOSITION; ORBIT) flying to ``target`` (fenced), heading
         ``yaw_rad`` (None: keep); the fenced target, or None when landed (PX4 stays down)."""
         self.mode = mode
-        if self._landed:
+        if self.ground.landed:
             self._target = self._ground_point()
             return None
         self._target = self._fenced(target)
@@ -254,12 +252,13 @@ class Vehicle:
         if self.mode is FlightMode.OFFBOARD:
             if self.offboard_stream_ok():
                 self.offboard.flown_at(self.t)
-            else:
-                self._offboard_lost()
+            else:  # lost: COM_OBL_ACT's reaction
+                self.offboard.failsafes += 1
+                self._react(offboard_lost(int(self.params["COM_OBL_ACT"]), self.armed and not self.ground.landed))
         if self.armed and not self.failures.motors_off:
             self._advance_mode()
-            if not self._landed:
-                geofence_failsafe(self)
+            if not self.ground.landed:
+                self._check_geofence()
             self._control(h)
         else:
             self._fall(h)
@@ -267,12 +266,22 @@ class Vehicle:
         self.max_abs_xy_m = max(self.max_abs_xy_m, abs(self.pos[0]), abs(self.pos[1]))
         self._update_landed()
 
-    def _offboard_lost(self) -> None:
-        self.offboard.failsafes += 1
-        action = 1 if not self.armed or self._landed else int(self.params["COM_OBL_ACT"])
-        name, act = {0: ("Land", self.land), 1: ("Hold", self.hold)}.get(action, ("Return", self.return_to_launch))
-        act()
-        self._event(SEVERITY_WARNING, f"Failsafe: offboard lost, activating {name}")
+    def _check_geofence(self) -> None:
+        """A breach predicted at the braking point is announced once, then GF_ACTION applied."""
+        gf_action = int(self.params["GF_ACTION"])
+        if gf_action == 0:
+            self.fence.breached = False
+        elif (safe := self.fence.check((self.pos[0], self.pos[1]), self._stopping_point()[:2])) is not None:
+            self._event(SEVERITY_CRITICAL, "Geofence violation")
+            self._react(geofence_breach(gf_action, self.mode, safe))
+
+    def _react(self, reaction: Reaction) -> None:  # a failsafe's (sitl_stub.flight.failsafe)
+        if reaction.action in (Action.HOLD, Action.LAND):
+            (self.hold if reaction.action is Action.HOLD else self.land)(at_ne=reaction.at_ne)
+        elif reaction.action is Action.RETURN:
+            self.return_to_launch()
+        if reaction.announce:
+            self._event(SEVERITY_WARNING, reaction.announce)
 
     def _advance_mode(self) -> None:
         alt = -self.pos[2]
@@ -282,7 +291,7 @@ class Vehicle:
         elif self.mode is FlightMode.RTL:
             self._target = self._rtl.advance(self.pos) or self._target
         elif self.mode is FlightMode.MISSION:
-            self._leg = leg = self.mission.update(self.t, self.pos, self._landed)
+            self._leg = leg = self.mission.update(self.t, self.pos, self.ground.landed)
             if leg.return_home:
                 self.return_to_launch()
             else:
@@ -313,7 +322,7 @@ class Vehicle:
 
     def _control(self, h: float) -> None:
         cmd = self._command()
-        if self._landed and not cmd.wants_up:
+        if self.ground.landed and not cmd.wants_up:
             self.vel = [0.0, 0.0, 0.0]  # sitting on the ground, nothing to do
             self._acc_ne = (0.0, 0.0)
             return
@@ -338,26 +347,17 @@ class Vehicle:
                 self.vel = [0.0, 0.0, 0.0]
 
     def _update_landed(self) -> None:
-        alt = -self.pos[2]
         wants_up = self.armed and not self.failures.motors_off and self._command().wants_up
-        landed = alt <= GROUND_EPS_M and not wants_up and abs(self.vel[2]) < 0.3
-        if landed and not self._landed:
-            self._landed_since = self.t
-            if self.armed:
-                self.vel = [0.0, 0.0, 0.0]
-                self._event(SEVERITY_INFO, "Landing detected")
-        self._landed = landed
-        if self.armed and alt > TAKEN_OFF_ALT_M:
-            self._has_flown = True
-        disarm_after = self.params["COM_DISARM_LAND"]
+        if self.ground.update(self.t, -self.pos[2], self.vel[2], self.armed, wants_up) and self.armed:
+            self.vel = [0.0, 0.0, 0.0]
+            self._event(SEVERITY_INFO, "Landing detected")
         landing_mode = self.mode in (FlightMode.LAND, FlightMode.RTL)
-        if (self.armed and landed and disarm_after > 0 and (self._has_flown or landing_mode)
-                and self.t - self._landed_since >= disarm_after):
+        if self.armed and self.ground.disarm_due(self.t, self.params["COM_DISARM_LAND"], landing_mode):
             self._disarm("Disarmed by landing")
 
     def _disarm(self, why: str) -> None:
         self.armed = False
-        self._has_flown = False
+        self.ground.has_flown = False
         self.mode = FlightMode.LOITER
         self._target = self._ground_point()
         self._yaw_target = None
@@ -365,7 +365,7 @@ class Vehicle:
 
     # ---------------------------------------------------------------- helpers
     def _landed_state(self) -> LandedState:
-        if self._landed:
+        if self.ground.landed:
             return LandedState.ON_GROUND
         if self.armed and self.mode is FlightMode.TAKEOFF:
             return LandedState.TAKEOFF
@@ -391,7 +391,7 @@ class Vehicle:
         return self._clamp(stopping_point(self.pos, self.vel, self.params["MPC_ACC_HOR_MAX"]))
 
     def _tilt(self) -> tuple[float, float]:
-        if not self.armed or self._landed:
+        if not self.armed or self.ground.landed:
             return 0.0, 0.0
         return tilt(self._acc_ne, self.yaw)
 
