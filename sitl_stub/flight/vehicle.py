@@ -357,7 +357,6 @@ class Vehicle:
 
     def _disarm(self, why: str) -> None:
         self.armed = False
-        self.ground.has_flown = False
         self.mode = FlightMode.LOITER
         self._target = self._ground_point()
         self._yaw_target = None
