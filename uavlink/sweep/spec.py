@@ -221,7 +221,32 @@ def parse_spec(data: dict[str, Any], default_name: str = "sweep") -> SweepSpec:
     description = data.get("description", "")
     if not isinstance(description, str):
         raise SweepSpecError("key 'description' must be a string")
+    scenarios, seeds = _scenarios(data), _seeds(data)
 
+    train = _section(_table(data, "train"), "train", ("train",))
+    env = _section(_table(data, "env"), "env", ("env",))
+    per_scenario: dict[str, dict[str, dict[str, Any]]] = {"train": {}, "env": {}}
+    for section, tables in per_scenario.items():
+        for scenario, table in _table(data, f"scenario_{section}").items():
+            if scenario not in scenarios or not isinstance(table, dict):
+                raise SweepSpecError(f"[scenario_{section}] key {scenario!r} must be a table named after one "
+                                     f"of the sweep's scenarios ({', '.join(scenarios)})")
+            tables[scenario] = _section(table, f"scenario_{section}.{scenario}", (section,))
+    grid = _grid(data, {"train": train, "env": env}, per_scenario)
+
+    spec = SweepSpec(name, scenarios, seeds, train, env, _evaluation(data), grid, description,
+                     scenario_train=per_scenario["train"], scenario_env=per_scenario["env"])
+    for scenario in spec.scenarios:  # build every config: validate() names the field of a bad value
+        for point in spec.points():
+            where = f"scenario {scenario}" + (f", grid point {describe_point(point)}" if point else "")
+            try:
+                spec.configs(scenario, point, spec.seeds[0])
+            except (TypeError, ValueError) as exc:
+                raise SweepSpecError(f"{exc} ({where})") from None
+    return spec
+
+
+def _scenarios(data: dict[str, Any]) -> list[str]:
     scenarios = data.get("scenarios", list(SCENARIOS))
     if scenarios == "all":
         scenarios = list(SCENARIOS)
@@ -233,7 +258,10 @@ def parse_spec(data: dict[str, Any], default_name: str = "sweep") -> SweepSpec:
                                  f"{', '.join(SCENARIOS)}, {MIXED}")
     if len(set(scenarios)) != len(scenarios):
         raise SweepSpecError("key 'scenarios' lists a scenario twice")
+    return list(scenarios)
 
+
+def _seeds(data: dict[str, Any]) -> list[int]:
     seeds = data.get("seeds", [0])
     if isinstance(seeds, int) and not isinstance(seeds, bool):
         if seeds < 1:
@@ -244,18 +272,10 @@ def parse_spec(data: dict[str, Any], default_name: str = "sweep") -> SweepSpec:
         raise SweepSpecError(f"key 'seeds' must be a count or a non-empty list of integers >= 0, got {seeds!r}")
     if len(set(seeds)) != len(seeds):
         raise SweepSpecError("key 'seeds' lists a seed twice")
+    return list(seeds)
 
-    train = _section(_table(data, "train"), "train", ("train",))
-    per_scenario: dict[str, dict[str, dict[str, Any]]] = {"train": {}, "env": {}}
-    for section, tables in per_scenario.items():
-        for scenario, table in _table(data, f"scenario_{section}").items():
-            if scenario not in scenarios or not isinstance(table, dict):
-                raise SweepSpecError(f"[scenario_{section}] key {scenario!r} must be a table named after one "
-                                     f"of the sweep's scenarios ({', '.join(scenarios)})")
-            tables[scenario] = _section(table, f"scenario_{section}.{scenario}", (section,))
-    scenario_train = per_scenario["train"]
-    env = _section(_table(data, "env"), "env", ("env",))
 
+def _evaluation(data: dict[str, Any]) -> dict[str, int]:
     evaluation = dict(EVAL_DEFAULTS)
     for key, value in _table(data, "eval").items():
         if key not in EVAL_DEFAULTS:
@@ -263,7 +283,12 @@ def parse_spec(data: dict[str, Any], default_name: str = "sweep") -> SweepSpec:
         if isinstance(value, bool) or not isinstance(value, int) or value < (1 if key == "episodes" else 0):
             raise SweepSpecError(f"eval.{key} must be an integer >= {1 if key == 'episodes' else 0}, got {value!r}")
         evaluation[key] = value
+    return evaluation
 
+
+def _grid(data: dict[str, Any], fixed: dict[str, dict[str, Any]],
+          per_scenario: dict[str, dict[str, dict[str, Any]]]) -> dict[str, list[Any]]:
+    """[grid]'s values by qualified path; a key may not also be fixed in [train], [env] or a scenario's table."""
     grid: dict[str, list[Any]] = {}
     for key, values in _flatten(_table(data, "grid")).items():
         section, path = _qualify(key, "grid", ("train", "env"))
@@ -272,7 +297,7 @@ def parse_spec(data: dict[str, Any], default_name: str = "sweep") -> SweepSpec:
             raise SweepSpecError(f"[grid] key {key!r} must be a list of values, got {values!r}")
         if not values:
             raise SweepSpecError(f"[grid] key {key!r} is empty: give at least one value")
-        if path in (train if section == "train" else env):
+        if path in fixed[section]:
             raise SweepSpecError(f"key {key!r} is set in both [{section}] and [grid]")
         if any(path in o for o in per_scenario[section].values()):
             raise SweepSpecError(f"key {key!r} is set in both [scenario_{section}] and [grid]")
@@ -282,18 +307,7 @@ def parse_spec(data: dict[str, Any], default_name: str = "sweep") -> SweepSpec:
         if len({json.dumps(v) for v in coerced}) != len(coerced):
             raise SweepSpecError(f"[grid] key {key!r} repeats a value")
         grid[qualified] = coerced
-
-    spec = SweepSpec(name, list(scenarios), list(seeds), train, env, evaluation, grid, description,
-                     scenario_train=scenario_train, scenario_env=per_scenario["env"])
-
-    for scenario in spec.scenarios:  # build every config: validate() names the field of a bad value
-        for point in spec.points():
-            where = f"scenario {scenario}" + (f", grid point {describe_point(point)}" if point else "")
-            try:
-                cfg, _ = spec.configs(scenario, point, spec.seeds[0])
-            except (TypeError, ValueError) as exc:
-                raise SweepSpecError(f"{exc} ({where})") from None
-    return spec
+    return grid
 
 
 def _table(data: dict[str, Any], name: str) -> dict[str, Any]:
