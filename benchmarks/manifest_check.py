@@ -19,6 +19,8 @@ from pathlib import Path
 from uavlink.evaluation.core import evaluate_policy
 from uavlink.policies.contract import EnvOverrides, load_with_env
 
+ROOT = Path(__file__).resolve().parents[1]
+
 
 def check(folder: Path) -> list[dict]:
     rows = []
@@ -41,10 +43,13 @@ def check(folder: Path) -> list[dict]:
 
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--policies", type=Path, default=Path("policies"))
+    parser.add_argument("--policies", type=Path, default=ROOT / "policies",
+                        help="folder of shipped policies, searched recursively (default: the repository's)")
     parser.add_argument("--json", action="store_true")
     args = parser.parse_args(argv)
     rows = check(args.policies)
+    if not rows:
+        parser.error(f"{args.policies}: no policy zip with an evaluation in its manifest")
     if args.json:
         print(json.dumps(rows, indent=1))
         return 0

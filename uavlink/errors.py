@@ -14,3 +14,28 @@ class UserError(ValueError):
 
 class ConfigError(UserError):
     """A config value that makes no physical sense or names an unknown field."""
+
+
+# The optional packages and the extra that installs each (pyproject.toml's optional-dependencies).
+EXTRA_OF_MODULE = {"torch": "train", "stable_baselines3": "train", "tensorboard": "train", "tqdm": "train",
+                   "rich": "train", "onnxruntime": "fly", "pymavlink": "fly", "onnx": "export",
+                   "matplotlib": "plot", "distributed": "sweep", "dask": "sweep", "pettingzoo": "fleet"}
+
+
+def missing_extra(exc: ModuleNotFoundError) -> str | None:
+    """One line naming the extra that installs the missing module, or None when it is not optional
+    (then the missing module is a bug or a broken install, and keeps its traceback)."""
+    module = (exc.name or "").split(".")[0]
+    extra = EXTRA_OF_MODULE.get(module)
+    return None if extra is None else f"this needs {module}, which is optional: pip install 'uavlink[{extra}]'"
+
+
+def require(module: str) -> None:
+    """Import an optional module now, or raise a ``UserError`` with its install line: for work whose
+    last step needs it, so that nothing is left half-written."""
+    import importlib
+
+    try:
+        importlib.import_module(module)
+    except ModuleNotFoundError as exc:
+        raise UserError(missing_extra(exc) or f"this needs {module}") from None

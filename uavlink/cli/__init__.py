@@ -1,11 +1,12 @@
-"""The ``uavlink`` command line: train | evaluate | fly | plot | export | sweep | keygen.
+"""The uavlink command line: train | evaluate | fly | plot | export | sweep | keygen.
 
 A module per command (``evaluate``, ``train``, ``export``, ``sweep``, ``keygen`` here; ``fly`` in
 ``uavlink.flight.fly``, ``plot`` in ``uavlink.plot.command``) and the options they share
 (``options``).
 
-User errors (bad arguments, unknown scenarios, unusable policy files) print one line on stderr and
-exit with status 2, without a traceback. Heavy modules are imported only by the command that needs them.
+User errors (bad arguments, unknown scenarios, unusable policy files, a missing optional package)
+print one line on stderr and exit with status 2, without a traceback. Heavy modules are imported
+only by the command that needs them.
 
 May import: all of uavlink (the top layer).
 """
@@ -16,11 +17,19 @@ import argparse
 import sys
 from collections.abc import Sequence
 
-from uavlink.errors import UserError
+from uavlink.errors import UserError, missing_extra
+
+
+class OneLineParser(argparse.ArgumentParser):
+    """argparse with one-line errors, as every other user error here: argparse's own prints the
+    whole usage first. Sub-commands' parsers are of the same class (``add_subparsers`` uses it)."""
+
+    def error(self, message: str):
+        self.exit(2, f"{self.prog}: error: {message} (see {self.prog} --help)\n")
 
 
 def build_parser() -> argparse.ArgumentParser:
-    parser = argparse.ArgumentParser(prog="uavlink", description=__doc__.splitlines()[0])
+    parser = OneLineParser(prog="uavlink", description=__doc__.splitlines()[0])
     from uavlink import __version__
 
     parser.add_argument("--version", action="version", version=f"uavlink {__version__}")
@@ -47,6 +56,11 @@ def main(argv: Sequence[str] | None = None) -> int:
         return args.func(args)
     except UserError as exc:
         print(f"uavlink {args.command}: error: {exc}", file=sys.stderr)
+        return 2
+    except ModuleNotFoundError as exc:  # an optional package this command needs is not installed
+        if (hint := missing_extra(exc)) is None:
+            raise
+        print(f"uavlink {args.command}: error: {hint}", file=sys.stderr)
         return 2
     except RuntimeError as exc:  # the vehicle link (LinkError) and other run-time failures
         if type(exc).__name__ != "LinkError":

@@ -9,9 +9,9 @@ import json
 import sys
 from pathlib import Path
 
-from uavlink.cli.options import add_env_options, scenario_list
+from uavlink.cli.options import add_env_options, scenario_list, seed
 from uavlink.config import BASELINE_NAMES, EnvConfig
-from uavlink.errors import UserError
+from uavlink.errors import UserError, require
 from uavlink.policies.contract import OVERRIDES_HELP, EnvOverrides, apply_overrides, load_with_env
 
 
@@ -24,6 +24,12 @@ def cmd_evaluate(args: argparse.Namespace) -> int:
         if args.against:
             raise UserError("--against compares policies in a table; it does not go with --out")
         return _write_results_folder(args)
+    report_only = [flag for flag, value in (("--markdown", args.markdown), ("--spatial", args.spatial),
+                                            ("--map", args.map), ("--fleet", args.fleet), ("--sweep", args.sweep))
+                   if value]
+    if report_only:
+        raise UserError(f"{', '.join(report_only)} {'go' if len(report_only) > 1 else 'goes'} with --out FOLDER "
+                        "(the results folder, with --scenario all)")
     results, comparisons = [], []
     overrides = EnvOverrides.from_command_line(None, args.aoa_noise_deg, args.overrides)
     specs = [args.policy, *(args.against or [])]
@@ -65,6 +71,7 @@ def _write_results_folder(args: argparse.Namespace) -> int:
     folder = Path(args.policy)
     if args.scenario != "all" or not folder.is_dir():
         raise UserError("--out needs --scenario all and --policy FOLDER (one policy file per scenario)")
+    require("matplotlib")  # the report's figures come last: without it the tables would stand alone
     overrides = EnvOverrides.from_command_line(None, args.aoa_noise_deg, args.overrides)
     apply_overrides(EnvConfig(), overrides.on("no_move"))  # a bad --set fails before the long run
     command = "uavlink " + " ".join(sys.argv[1:]) if sys.argv[1:2] == ["evaluate"] else "uavlink evaluate ..."
@@ -152,8 +159,8 @@ def add_evaluate_parser(sub) -> None:
                    help="also fly this policy (same forms; repeatable) on the same episodes and print --policy's paired "
                         "throughput ratio with its 95 %% interval, the R_fair difference and the episodes won "
                         "(a fleet policy may face a single-UAV one: the same UEs and channel)")
-    p.add_argument("--episodes", type=int, default=100)
-    p.add_argument("--seed", type=int, default=0)
+    p.add_argument("--episodes", type=int, default=100, help="episodes per policy and scenario (default 100)")
+    p.add_argument("--seed", type=seed, default=0, help="seed of the episodes (default 0: docs/results.md's)")
     p.add_argument("--json", action="store_true", help="print JSON instead of a table")
     p.add_argument("--out", type=Path, default=None,
                    help="write a results folder (Table I/II as Markdown and CSV, figures); "

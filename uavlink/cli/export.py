@@ -6,6 +6,7 @@ import argparse
 import json
 from pathlib import Path
 
+from uavlink.cli.options import seed
 from uavlink.errors import UserError
 
 
@@ -38,6 +39,6 @@ def add_export_parser(sub) -> None:
     p.add_argument("--out", type=Path, default=None, help="ONNX file to write (default: POLICY with .onnx)")
     p.add_argument("--no-verify", action="store_true", help="skip the onnxruntime-vs-SB3 check")
     p.add_argument("--n-verify", type=int, default=1000, help="observations to check (default 1000)")
-    p.add_argument("--seed", type=int, default=0, help="seed of the verification episodes")
+    p.add_argument("--seed", type=seed, default=0, help="seed of the verification episodes (default 0)")
     p.add_argument("--json", action="store_true", help="print the export report as JSON")
     p.set_defaults(func=cmd_export)

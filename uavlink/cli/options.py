@@ -1,5 +1,5 @@
-"""Options more than one command shares: the scenario names and the env overrides (``--scenario``,
-``--aoa-noise-deg``, ``--set``) that ``uavlink.policies.contract.EnvOverrides`` reads."""
+"""Options more than one command shares: the scenario names, the env overrides (``--scenario``,
+``--aoa-noise-deg``, ``--set``) that ``uavlink.policies.contract.EnvOverrides`` reads, and seeds."""
 
 from __future__ import annotations
 
@@ -8,6 +8,18 @@ import argparse
 from uavlink.config import MIXED, SCENARIOS
 from uavlink.errors import UserError
 from uavlink.policies.contract import BUILT_FOR
+from uavlink.seeding import SEED_MAX
+
+
+def seed(text: str) -> int:
+    """argparse type of ``--seed``: an integer in 0..SEED_MAX (numpy's SeedSequence takes no negative)."""
+    try:
+        value = int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected an integer seed, got {text!r}") from None
+    if not 0 <= value <= SEED_MAX:
+        raise argparse.ArgumentTypeError(f"a seed must be in 0..{SEED_MAX}, got {value}")
+    return value
 
 
 def scenario_list(name: str) -> list[str]:

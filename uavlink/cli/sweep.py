@@ -71,9 +71,9 @@ def add_sweep_parser(sub) -> None:
                    help="Dask scheduler, e.g. tcp://HOST:8786 (default: a local cluster, one worker per core)")
     p.add_argument("--workers", type=int, default=None,
                    help="worker processes of the local cluster (default: one per core; 0: in this process, no Dask)")
-    p.add_argument("--out-root", type=Path, default=Path("runs"), help="results go to OUT_ROOT/<sweep name>/")
-    p.add_argument("--retries", type=int, default=2, help="retries of a job that raises (worker deaths are "
-                                                          "rescheduled by Dask anyway)")
+    p.add_argument("--out-root", type=Path, default=Path("runs"), help="results go to OUT_ROOT/<sweep name>/ (default runs)")
+    p.add_argument("--retries", type=int, default=2, help="retries of a job that raises (default 2; worker "
+                                                          "deaths are rescheduled by Dask anyway)")
     p.add_argument("--policies-out", type=Path, default=None, metavar="DIR",
                    help="copy each scenario's median-seed policy to DIR/<scenario>.zip and the sweep's record "
                         "to DIR/<name>.sweep.json; jobs in that record count as done")

@@ -10,7 +10,7 @@ from pathlib import Path
 from uavlink.cli.options import add_env_options
 from uavlink.config import MIXED, SCENARIOS, EnvConfig, TrainConfig
 from uavlink.config.fields import add_options, flag_of, from_options
-from uavlink.errors import UserError
+from uavlink.errors import UserError, require
 from uavlink.policies.contract import EnvOverrides, apply_overrides
 
 
@@ -21,8 +21,13 @@ def cmd_train(args: argparse.Namespace) -> int:
     tc = from_options(TrainConfig, args).validate(cfg, name=lambda path: flag_of(TrainConfig, path))
     if args.eval_episodes < 0:
         raise UserError(f"--eval-episodes must be >= 0 (0: skip), got {args.eval_episodes}")
-    if args.resume is not None and not args.resume.is_file():
-        raise UserError(f"--resume {args.resume}: no such checkpoint")
+    if args.resume is not None:
+        _check_checkpoint(args.resume)
+    for path in ("warm_start.policy", "warm_start.leader_policy"):  # before the first line of output
+        file = getattr(tc.warm_start, path.split(".")[1])
+        if file and not Path(file).is_file():
+            raise UserError(f"{flag_of(TrainConfig, path)} {file}: no such policy file")
+    require("stable_baselines3")
     run_dir = args.run_dir or Path("runs") / f"{args.out.stem}-seed{tc.seed}"
     print(f"training PPO on {cfg.scenario!r} for {tc.total_timesteps(cfg):,} env steps; "
           f"TensorBoard logs and checkpoint in {run_dir}", file=sys.stderr)
@@ -31,6 +36,16 @@ def cmd_train(args: argparse.Namespace) -> int:
         _attach_evaluation(args.out, cfg, args.eval_episodes)
     print(f"saved {args.out} ({training['total_timesteps']:,} steps in {training['wall_time_s']:.0f} s)")
     return 0
+
+
+def _check_checkpoint(path: Path) -> None:
+    """A checkpoint is an SB3 zip: its ``data`` member holds the model's settings."""
+    import zipfile
+
+    if not path.is_file():
+        raise UserError(f"--resume {path}: no such checkpoint")
+    if not zipfile.is_zipfile(path) or "data" not in zipfile.ZipFile(path).namelist():
+        raise UserError(f"--resume {path}: not a checkpoint (an SB3 zip such as RUN_DIR/checkpoint.zip)")
 
 
 def _attach_evaluation(path: Path, cfg: EnvConfig, episodes: int) -> None:
@@ -58,6 +73,7 @@ def add_train_parser(sub) -> None:
     add_options(p, TrainConfig)
     p.add_argument("--run-dir", type=Path, default=None, help="TensorBoard logs and checkpoint (default runs/OUT-seedN)")
     p.add_argument("--resume", type=Path, default=None, help="continue from a checkpoint zip")
-    p.add_argument("--eval-episodes", type=int, default=100, help="evaluate after training into the manifest (0: skip)")
+    p.add_argument("--eval-episodes", type=int, default=100,
+                   help="evaluate after training into the manifest (default 100; 0: skip)")
     p.add_argument("--no-progress", action="store_true", help="no progress bar")
     p.set_defaults(func=cmd_train)

@@ -156,8 +156,6 @@ def train(cfg: EnvConfig, tc: TrainConfig, out: Path, run_dir: Path | None = Non
     from uavlink.policies.manifest import build_manifest, write_zip_manifest
 
     tc.validate(cfg)
-    if run_dir is not None:
-        run_dir.mkdir(parents=True, exist_ok=True)
     model = make_model(cfg, tc, run_dir)
     if resume is not None:
         model = PPO.load(resume, env=model.get_env(), device="cpu", tensorboard_log=str(run_dir) if run_dir else None)
@@ -170,6 +168,8 @@ def train(cfg: EnvConfig, tc: TrainConfig, out: Path, run_dir: Path | None = Non
         from stable_baselines3.common.logger import Logger
 
         model.set_logger(Logger(folder=None, output_formats=[]))
+    if run_dir is not None:  # made once the inputs have loaded: a bad one leaves no empty folder
+        run_dir.mkdir(parents=True, exist_ok=True)
     total_timesteps = tc.total_timesteps(cfg)
     monitor = _callback(total_timesteps, run_dir, tc.checkpoint_every_steps, progress)
     callbacks = [monitor, *callbacks]

@@ -39,6 +39,9 @@ LOCAL_CLUSTER_CONFIG = {"distributed.scheduler.worker-saturation": 1.0,
                         "distributed.nanny.pre-spawn-environ.MALLOC_TRIM_THRESHOLD_": None}
 
 
+NEEDS_DASK = "sweeps need Dask: pip install 'uavlink[train,sweep]'"
+
+
 class EngineError(RuntimeError):
     """The engine could not start (dask missing, scheduler unreachable); one-line message."""
 
@@ -84,6 +87,8 @@ def run_sweep(spec: SweepSpec, out_root: Path, scheduler: str | None = None, wor
     """Run every job of ``spec`` that has no result yet (in ``out_root`` or, by key, in ``done_keys``:
     a shipped sweep record's jobs); returns what happened."""
     start = time.perf_counter()
+    if scheduler and workers != 0:
+        _check_address(scheduler)
     sweep_dir, jobs, pending = prepare(spec, out_root, done_keys)
     outcome = SweepOutcome(sweep_dir, len(jobs), len(jobs) - len(pending))
     log(f"sweep {spec.name}: {len(jobs)} jobs, {outcome.skipped} already done, {len(pending)} to run "
@@ -95,6 +100,21 @@ def run_sweep(spec: SweepSpec, out_root: Path, scheduler: str | None = None, wor
             _run_on_dask(pending, sweep_dir, outcome, scheduler, workers, retries, progress, log)
     outcome.wall_s = time.perf_counter() - start
     return outcome
+
+
+def _check_address(scheduler: str) -> None:
+    """A malformed scheduler address fails here, in one line: ``Client`` raises deep inside and its
+    half-built instance then waits in ``__del__`` for a connection that never was."""
+    try:
+        from distributed.comm.addressing import parse_address, parse_host_port
+    except ImportError:
+        raise EngineError(NEEDS_DASK) from None
+    try:
+        scheme, location = parse_address(scheduler)
+        if scheme in ("tcp", "tls"):
+            parse_host_port(location)
+    except ValueError as exc:
+        raise EngineError(f"--scheduler {scheduler!r} is not a Dask address ({exc}); e.g. tcp://HOST:8786") from None
 
 
 def _run_in_process(pending: list[Job], sweep_dir: Path, outcome: SweepOutcome, progress: bool,
@@ -123,7 +143,7 @@ def _run_on_dask(pending: list[Job], sweep_dir: Path, outcome: SweepOutcome, sch
         import dask
         from distributed import Client, LocalCluster, as_completed
     except ImportError:
-        raise EngineError("sweeps need Dask: pip install 'uavlink[train,sweep]'") from None
+        raise EngineError(NEEDS_DASK) from None
 
     cluster = None
     try:
