@@ -154,7 +154,7 @@ def add_evaluate_parser(sub) -> None:
     add_env_options(p, for_policy=True)
     p.add_argument("--policy", default="static",
                    help=f"{' | '.join(BASELINE_NAMES)} | genie (evaluation only: plans on the episode's "
-                        "future) | FILE.zip | FILE.onnx | FOLDER")
+                        "future) | FILE.zip | FILE.onnx | FOLDER (default static)")
     p.add_argument("--against", action="append", default=None, metavar="POLICY",
                    help="also fly this policy (same forms; repeatable) on the same episodes and print --policy's paired "
                         "throughput ratio with its 95 %% interval, the R_fair difference and the episodes won "
