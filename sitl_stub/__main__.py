@@ -29,11 +29,10 @@ from sitl_stub.core.params import PARAM_DEFS
 from sitl_stub.mavlink.links import MAX_INSTANCE
 from sitl_stub.mavlink.server import ServerConfig, SitlServer
 from sitl_stub.sim.payload import Payload, PayloadFactory, PayloadOptions, as_payload_list
-from uavlink.config import parse_settings
+from uavlink.config import MIXED, SCENARIOS, parse_settings
 from uavlink.mavlink.connection import normalize_connection
 from uavlink.mavlink.signing import load_key
 
-SCENARIOS = ("no_move", "straight", "circular", "straight_90", "straight_180", "hotspot")
 PROG = "sitl-stub"
 
 
@@ -122,8 +121,10 @@ def build_parser() -> argparse.ArgumentParser:
                    "position i (its home); with --connect, give D URLs, vehicle i on the i-th")
     p.add_argument("--speed", type=_positive, default=1.0,
                    help="simulated seconds per wall second (default 1)")
-    p.add_argument("--scenario", choices=SCENARIOS, default="circular",
-                   help="UE mobility scenario for the radio payload (default circular)")
+    p.add_argument("--scenario", choices=(*SCENARIOS, MIXED), default="circular",
+                   help="UE mobility scenario for the radio payload (default circular); mixed: "
+                   "each flight's episode draws one, as `uavlink evaluate --episodes 1 --seed S` "
+                   "draws it for the same seed")
     p.add_argument("--seed", type=int, default=0, help="radio payload seed (default 0)")
     p.add_argument("--aoa-noise-deg", type=_non_negative, default=0.0,
                    help="AoA noise std of the radio payload, degrees (default 0)")

@@ -5,8 +5,9 @@ The child gets ``--connect CONNECT`` (once per URL when CONNECT is a sequence; n
 None: PX4 SITL's ports, see ``--instance``), ``--speed SPEED`` and then ``extra_args`` (any other sitl-stub
 options: ``--scenario``, ``--seed``, ``--signing-key``, ``--param NAME=VALUE``, ...). Its
 stdout/stderr go to ``log_path`` when given (kept), else to a temporary file removed afterwards;
-read them with :meth:`VehicleProcess.output`. It is always stopped (SIGTERM, then SIGKILL) when the
-``with`` block ends. The child imports ``sitl_stub`` from where this module was imported (that
+read them with :meth:`VehicleProcess.output`; :meth:`VehicleProcess.wait_started` waits for its
+ready line, or reports the error line of a vehicle that exited instead. It is always stopped
+(SIGTERM, then SIGKILL) when the ``with`` block ends. The child imports ``sitl_stub`` from where this module was imported (that
 folder goes first on its PYTHONPATH), so caller and vehicle run the same code from any directory.
 """
 
@@ -16,14 +17,26 @@ import os
 import subprocess
 import sys
 import tempfile
+import time
 from collections.abc import Iterator, Sequence
 from contextlib import contextmanager
 from dataclasses import dataclass
 from pathlib import Path
 
-__all__ = ["VehicleProcess", "vehicle_process"]
+__all__ = ["VehicleExited", "VehicleProcess", "vehicle_process"]
 
 PACKAGE_ROOT = Path(__file__).resolve().parent.parent
+# The vehicle's first line once its links are open: "sitl-stub: vehicle 1 on ..., 20x real time, ..."
+# (sitl_stub/__main__.py); its errors are "sitl-stub: error: ...".
+READY_PREFIX, ERROR_PREFIX = "sitl-stub: ", "sitl-stub: error: "
+
+
+class VehicleExited(RuntimeError):
+    """The vehicle process ended before it was ready; the message carries its last output line."""
+
+    def __init__(self, status: int, last_line: str) -> None:
+        super().__init__(f"exited with status {status}: {last_line or '(no output)'}")
+        self.status, self.last_line = status, last_line
 
 
 @dataclass
@@ -35,6 +48,23 @@ class VehicleProcess:
 
     def output(self) -> str:
         return self.log_path.read_text(errors="replace")
+
+    def wait_started(self, timeout_s: float, poll_s: float = 0.05) -> bool:
+        """Wait until the vehicle prints its ready line (True) or ``timeout_s`` pass (False: still
+        starting, e.g. on a loaded machine); VehicleExited as soon as it has exited instead (a
+        bad argument): a caller reports the vehicle's own error at once rather than waiting for a
+        heartbeat that cannot come."""
+        deadline = time.monotonic() + timeout_s
+        while True:
+            status = self.proc.poll()
+            lines = self.output().splitlines()
+            if any(line.startswith(READY_PREFIX) and not line.startswith(ERROR_PREFIX) for line in lines):
+                return True
+            if status is not None:
+                raise VehicleExited(status, next((ln.strip() for ln in reversed(lines) if ln.strip()), ""))
+            if time.monotonic() > deadline:
+                return False
+            time.sleep(poll_s)
 
     def stop(self, timeout_s: float = 5.0) -> int:
         """SIGTERM, wait, SIGKILL if needed; returns the exit status."""

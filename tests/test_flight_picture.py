@@ -147,6 +147,50 @@ def test_a_frame_is_a_decision_frame_when_offboard_shows_before_the_next_one(tmp
     assert track.frames[track.decided].tolist() == [0, 1]
 
 
+def test_the_grounds_frame_decided_names_the_decision_frames_as_fly_counts_them(tmp_path: Path) -> None:
+    """fly decides frames 0..N-1 and scores 1..N; frame N's readings arrive while the vehicle is
+    still in OFFBOARD, but nobody decides them (FRAME_DECIDED param2 0): N decision frames, as fly's
+    summary says (the OFFBOARD rule alone counted N + 1), drawn over frames 0..N with fly's mean."""
+    from uavlink.mavlink.px4_modes import PX4_MAIN_OFFBOARD, encode_custom_mode
+    from uavlink.mavlink.radio_codec import (
+        READINGS_NAME,
+        SCORE_NAME,
+        encode_readings,
+        encode_score,
+        send_frame_decided,
+    )
+
+    n = 5
+    vehicle = mavlink.MAVLink(None, srcSystem=1, srcComponent=1)
+    radio = mavlink.MAVLink(None, srcSystem=1, srcComponent=RADIO_COMPONENT_ID)
+    ground = mavlink.MAVLink(io.BytesIO(), srcSystem=255, srcComponent=191)
+    sent: list = []
+    ground.set_send_callback(sent.append)
+    data = encode_readings(np.full(2, 10.0), np.zeros(2), running=True)
+    offboard = vehicle.heartbeat_encode(mavlink.MAV_TYPE_QUADROTOR, mavlink.MAV_AUTOPILOT_PX4,
+                                        mavlink.MAV_MODE_FLAG_CUSTOM_MODE_ENABLED,
+                                        encode_custom_mode(PX4_MAIN_OFFBOARD, 0), 4)
+    records = [(vehicle, offboard)]
+    for frame in range(n + 2):  # the vehicle stays in OFFBOARD two frames past the flight's
+        records += [(vehicle, vehicle.local_position_ned_encode(1000 * frame, 0.0, 0.0, -95.0, 0, 0, 0)),
+                    (radio, radio.debug_float_array_encode(frame * 1_000_000, READINGS_NAME.encode(), frame, data))]
+        if frame:
+            score = encode_score(np.full(2, frame * 1e6), 0.5)
+            records.append((radio, radio.debug_float_array_encode(frame * 1_000_000, SCORE_NAME.encode(), frame, score)))
+        if frame <= n:
+            send_frame_decided(ground, 1, frame, frame < n)
+            records.append((None, sent[-1]))
+        records.append((vehicle, offboard))
+    tlog = tmp_path / "flight.tlog"
+    tlog.write_bytes(b"".join(k.to_bytes(8, "big") + (bytes(m.get_msgbuf()) if mav is None else m.pack(mav))
+                              for k, (mav, m) in enumerate(records)))
+    data_read = read_flight(tlog)
+    [track] = data_read.vehicles
+    assert track.frames[track.decided].tolist() == list(range(n)) and data_read.decision_frames == n
+    assert data_read.frames.tolist() == list(range(n + 1))  # the last decision's outcome, frame n
+    assert np.nanmean(data_read.mean_rate_mbps) == pytest.approx(np.mean(range(1, n + 1)))
+
+
 # ------------------------------------------------------------------ damaged, empty (fast)
 def test_plot_refuses_empty_damaged_and_missing_logs(tmp_path: Path) -> None:
     empty = tmp_path / "empty.tlog"
@@ -173,8 +217,9 @@ def test_fly_draws_its_picture_and_plot_draws_the_same(tmp_path: Path) -> None:
     drawn = plot_json(str(tlog), "--out", str(tmp_path / "again.png"))
     assert (drawn["width_px"], drawn["height_px"]) == PICTURE_PX
     assert drawn["tracks"] == 1 and drawn["ue_tracks"] == 10 and drawn["bearings"] == 10
-    assert summary["decisions"] <= drawn["decision_frames"] <= 16 + 1
-    assert drawn["frames"] >= drawn["decision_frames"] and drawn["notes"] == []
+    # the picture counts fly's decisions (frames 0-15), over frames 0-16 (the last one's outcome)
+    assert drawn["decision_frames"] == summary["decisions"] == 16 and drawn["frame_span"] == [0, 16]
+    assert drawn["frames"] == 17 and drawn["notes"] == []
     first, again = png_pixels(png), png_pixels(tmp_path / "again.png")
     assert first.shape == (PICTURE_PX[1], PICTURE_PX[0], 3) and np.array_equal(first, again)
     data = read_flight(tlog)  # what was drawn: the UEs in the area, the fence around it

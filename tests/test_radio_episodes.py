@@ -38,7 +38,7 @@ def test_each_flight_after_a_started_episode_begins_the_next_seed() -> None:
     episodes.tick([_state(2, True)])  # the next flight arms
     assert (episodes.seed, episodes.count, episodes.started, episodes.world.frame) == (8, 1, False, 0)
     assert episodes.summary() == {"frames": 0, "frames_total": 0, "mean_rate_mbps": None,
-                                  "episode_seed": 8, "episodes": 2}
+                                  "episode_seed": 8, "episodes": 2, "scenario": "straight"}
     # what `uavlink evaluate --seed 8 --episodes 1` flies (tests/test_radio_world.py: RadioWorld is it)
     np.testing.assert_array_equal(episodes.world.readings().sinr_db, RadioWorld(CFG, 8).readings().sinr_db)
 

@@ -5,13 +5,15 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from uavlink.config import EnvConfig
-from uavlink.env.radio_world import RadioWorld
+from uavlink.config import SCENARIOS, EnvConfig
+from uavlink.env.radio_world import RadioWorld, episode_scenario
 from uavlink.evaluation import evaluate_policy
 from uavlink.policies.baselines import StaticPolicy
+from uavlink.rollout import chunks
+from uavlink.seeding import EVAL
 
 
-@pytest.mark.parametrize("scenario,seed", [("circular", 3), ("hotspot", 0)])
+@pytest.mark.parametrize("scenario,seed", [("circular", 3), ("hotspot", 0), ("mixed", 4)])
 def test_hovering_in_the_radio_world_scores_the_one_episode_evaluation(scenario: str, seed: int) -> None:
     cfg = EnvConfig().replace(scenario=scenario).validate()
     world = RadioWorld(cfg, seed)
@@ -26,6 +28,17 @@ def test_hovering_in_the_radio_world_scores_the_one_episode_evaluation(scenario:
     rel = 1e-12
     assert np.mean([s.mean_rate_mbps for s in scores]) == pytest.approx(evaluated.episode_rate_mbps[0], rel=rel)
     assert np.mean([s.fair_rate for s in scores]) == pytest.approx(evaluated.episode_fair_rate[0], rel=rel)
+
+
+def test_mixed_draws_each_seeds_scenario_as_the_evaluation_episode_does() -> None:
+    """A vehicle with --scenario mixed flies, per seed, the scenario `uavlink evaluate --episodes 1
+    --seed S` draws for that episode (so a mixed policy's flight is comparable with it)."""
+    cfg = EnvConfig().replace(scenario="mixed").validate()
+    drawn = [episode_scenario(cfg, seed) for seed in range(12)]
+    evaluated = [SCENARIOS[int(next(chunks(cfg, EVAL, 1, seed)).env.scenario_ids[0])] for seed in range(12)]
+    assert drawn == evaluated == [RadioWorld(cfg, seed).scenario for seed in range(12)]
+    assert len(set(drawn)) > 2  # drawn per seed, not one for all
+    assert episode_scenario(cfg.replace(scenario="hotspot"), 3) == "hotspot"
 
 
 def test_positions_are_clipped_to_the_area_and_shaped_per_uav() -> None:

@@ -87,8 +87,9 @@ class RadioEpisodes:
 
     def summary(self) -> dict[str, Any]:
         """Vehicle-side truth of the current episode (whatever the link lost): mean UE rate over
-        its first ``episode_frames`` frames, and which episode it is."""
+        its first ``episode_frames`` frames, which episode it is and its scenario (``mixed``
+        draws one per episode)."""
         rates = self.frame_rates_mbps[: self.cfg.episode_frames]
         return {"frames": len(rates), "frames_total": len(self.frame_rates_mbps),
                 "mean_rate_mbps": round(sum(rates) / len(rates), 6) if rates else None,
-                "episode_seed": self.seed, "episodes": self.count + 1}
+                "episode_seed": self.seed, "episodes": self.count + 1, "scenario": self.world.scenario}

@@ -15,7 +15,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from uavlink.config import EnvConfig
+from uavlink.config import MIXED, SCENARIOS, EnvConfig
 from uavlink.env.core import BatchedUavEnv
 from uavlink.seeding import EVAL
 
@@ -48,6 +48,12 @@ class RadioWorld:
         self._env.reset()
 
     @property
+    def scenario(self) -> str:
+        """The UE mobility scenario of this episode: the config's, or the one ``mixed`` drew for it
+        (the env's own draw, so it is the scenario evaluation's episode 0 of this seed flies)."""
+        return SCENARIOS[int(self._env.scenario_ids[0])]
+
+    @property
     def frame(self) -> int:
         """Frames advanced since the episode started (0 before the first :meth:`advance`)."""
         return self._env.frame
@@ -72,3 +78,9 @@ class RadioWorld:
         result = self._env.step_to(xy)
         return FrameScore(float(result.mean_rate_mbps[0]), float(result.fair_rate[0]),
                           self._env.readings.rate_bps[0].copy())
+
+
+def episode_scenario(cfg: EnvConfig, seed: int) -> str:
+    """The scenario episode 0 of ``seed`` flies (a vehicle's episode of that seed, and ``uavlink
+    evaluate --episodes 1 --seed``): ``cfg``'s own, or for ``mixed`` the one drawn for that seed."""
+    return cfg.scenario if cfg.scenario != MIXED else RadioWorld(cfg, seed).scenario

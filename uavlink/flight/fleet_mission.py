@@ -44,7 +44,7 @@ from uavlink.flight.mission import (
     _take_off_or_resume,
     _wait_ready,
 )
-from uavlink.flight.outcome import judge
+from uavlink.flight.outcome import judge, signing_hint
 from uavlink.flight.radio_source import MavlinkRadioSource
 from uavlink.flight.start_point import fly_to_starts
 from uavlink.flight.transit import guard_transit
@@ -156,7 +156,7 @@ def fly_fleet(links: Sequence[VehicleLink], pilot: FleetPilot, cfg: EnvConfig, m
     try:
         _fly_fleet(links, pilot, cfg, mission, status, result)
     except LinkError as exc:
-        result.failure = str(exc)
+        result.failure, result.fix = str(exc), next(filter(None, map(signing_hint, links)), "")
     except KeyboardInterrupt:  # before the episode's loop (which lands by itself)
         result.interrupted, result.ended_by = True, "interrupted"
         for link in links:
@@ -298,18 +298,19 @@ class _Loop:
         for i in np.flatnonzero(movable):
             self.send(int(i))
             result.vehicles[i].decisions += 1
-        self._decided(frame)
+        self._decided(frame, movable)
         result.decisions += 1
         result.latencies_s.append(time.monotonic() - arrived)
         if self.status:
             score = self.scores.get(frame)
             self.status(frame, self.targets[0], score.mean_rate_mbps if score else None)
 
-    def _decided(self, frame: int) -> None:
-        """Frame ``frame`` is decided (every setpoint sent): a lockstep world may go on."""
+    def _decided(self, frame: int, moved: Sequence[bool] | None = None) -> None:
+        """Frame ``frame`` is decided (every setpoint sent): a lockstep world may go on. ``moved``:
+        which vehicles the policy steered in it (None: none, the frame is only let go)."""
         self.decided = frame
-        for link in self.links:
-            send_frame_decided(link.conn.mav, link.target_system, frame)
+        for i, link in enumerate(self.links):
+            send_frame_decided(link.conn.mav, link.target_system, frame, moved is not None and bool(moved[i]))
 
     def _episode_done(self) -> bool:
         last = max((r.frame for r in self.newest if r is not None), default=-1)

@@ -13,25 +13,35 @@ import numpy as np
 
 from uavlink.config import EnvConfig
 from uavlink.errors import UserError
-from uavlink.flight.fly_fleet import run_fleet_fly, split_urls, vehicle_args
-from uavlink.flight.outcome import episode_fields, finish
+from uavlink.flight.fly_fleet import (
+    check_vehicle_options,
+    run_fleet_fly,
+    split_urls,
+    started_vehicle,
+    vehicle_args,
+)
+from uavlink.flight.outcome import episode_fields, finish, flown_name
 from uavlink.mavlink.connection import free_udp_port
 from uavlink.policies.contract import OVERRIDES_HELP, EnvOverrides, load_with_env
+from uavlink.policies.registry import flying_baselines
 
 log = logging.getLogger("uavlink.fly")
 
 
 @contextlib.contextmanager
-def embedded_sitl(cfg: EnvConfig, seed: int, speed: float, log_path: Path | None,
+def embedded_sitl(cfg: EnvConfig, seed: int, speed: float, log_path: Path,
                   signing_key_file: Path | None = None, lockstep: bool = False):
-    """Start the SITL vehicle (:mod:`sitl_stub.launcher`) on a free loopback port, its radio
+    """Start the SITL vehicle (:func:`started_vehicle`) on a free loopback port, its radio
     payload simulating ``cfg`` (:func:`vehicle_args`); yields the URL to listen on."""
-    from sitl_stub.launcher import vehicle_process
-
     port = free_udp_port()
     args = vehicle_args(cfg, seed, lockstep, signing_key_file)
-    with vehicle_process(f"udpout:127.0.0.1:{port}", speed, args, log_path=log_path):
+    with started_vehicle(f"udpout:127.0.0.1:{port}", speed, args, log_path):
         yield f"udpin:127.0.0.1:{port}"
+
+
+def policy_help() -> str:
+    """What ``--policy`` takes: a policy file or a baseline that flies (one list, also the refusal's)."""
+    return " | ".join(("FILE.zip", "FILE.onnx", *flying_baselines()))
 
 
 def run_fly(args: argparse.Namespace) -> int:
@@ -41,6 +51,8 @@ def run_fly(args: argparse.Namespace) -> int:
 
     logging.basicConfig(level=logging.INFO if args.verbose else logging.WARNING,
                         format="%(levelname)s %(name)s: %(message)s")
+    mission = MissionConfig(frames=args.frames).validate()
+    check_vehicle_options(args.seed, args.speed)
     key = load_key(args.signing_key) if args.signing_key else None  # before anything flies
     if args.connect is not None:
         split_urls(args.connect)  # every URL checked before anything else
@@ -48,14 +60,15 @@ def run_fly(args: argparse.Namespace) -> int:
     [(policy, cfg)] = load_with_env([args.policy], overrides)
     if policy.needs_truth:
         privilege = getattr(policy, "privilege", "needs UE positions (GPS)")
-        raise UserError(f"{policy.name} {privilege} and cannot fly; use a policy file, aoa or static")
+        raise UserError(f"{policy.name} {privilege} and cannot fly; use a policy file or one of "
+                        f"{', '.join(flying_baselines())}")
     live = not (args.quiet or args.json) and sys.stderr.isatty()
     if args.lockstep and args.connect is not None:
         raise UserError("--lockstep sets up the embedded SITL; a vehicle you connect to runs in "
                         "lockstep when started so (sitl-stub --lockstep), and `uavlink fly` answers "
                         "it either way")
     if cfg.n_uavs > 1:
-        return run_fleet_fly(args, policy, cfg, key, live)
+        return run_fleet_fly(args, policy, cfg, key, mission)
     if args.connect and "," in args.connect:
         raise UserError("--connect with several URLs is for a fleet (a policy with n_uavs > 1, or "
                         "--set n_uavs=D); give one URL for one vehicle")
@@ -79,7 +92,7 @@ def run_fly(args: argparse.Namespace) -> int:
     with sitl as url:
         link = VehicleLink(url, tlog=tlog, signing_key=key)
         try:
-            result = fly_mission(link, pilot, cfg, MissionConfig(frames=args.frames), status=status)
+            result = fly_mission(link, pilot, cfg, mission, status=status)
             speed = link.speed_factor()
         finally:
             link.close()
@@ -89,14 +102,14 @@ def run_fly(args: argparse.Namespace) -> int:
     if live:
         print(file=sys.stderr)
     summary = {
-        "scenario": cfg.scenario, "policy": str(args.policy), **episode_fields(args, cfg, result.episode),
+        **episode_fields(args, cfg, result.episode), "policy": str(args.policy),
         "connect": args.connect or "embedded sitl_stub", "speed_factor": round(speed, 2),
         **result.summary(), "wall_s": round(time.monotonic() - start, 2), "tlog": str(tlog),
         "signing": link.signing.stats() if link.signing else None,
         "link_rejected": link.rejects.as_dict(),
     }
     return finish(summary, out_dir, args.json,
-                  f"flew {summary['frames']} frames of {cfg.scenario!r} with {args.policy}: "
+                  f"flew {summary['frames']} frames of {flown_name(summary)} with {args.policy}: "
                   f"mean UE throughput {summary['mean_rate_mbps']} Mbps; decision latency p50 "
                   f"{summary['latency_ms_p50']} ms, p99 {summary['latency_ms_p99']} ms; "
                   f"log {tlog}, summary {out_dir / 'summary.json'}",
@@ -113,32 +126,37 @@ def add_fly_parser(sub) -> None:
                                    "to was flown; 1 when not (one line says why; summary.json has "
                                    "completed: false and the reason); 130 after Ctrl-C (the vehicle "
                                    "lands); 2 for bad input. " + OVERRIDES_HELP)
-    p.add_argument("--policy", default="policies/circular.zip", help="FILE.zip | FILE.onnx | aoa | static")
+    p.add_argument("--policy", default="policies/circular.zip", help=policy_help())
     p.add_argument("--connect", default=None,
                    help="vehicle link: udp:14550 (listen), udp:HOST:PORT, udpout:HOST:PORT, tcp:HOST:PORT, "
                         "udpin://0.0.0.0:14550, udpout://HOST:PORT; a fleet (n_uavs = D > 1): D URLs "
                         "URL1,URL2,... (vehicle i flies UAV i), or one URL carrying every system "
                         "(e.g. udp:14550: systems in ascending id order)")
     p.add_argument("--scenario", default=None, help="scenario of the embedded SITL and the policy's env "
-                   "(default: the policy's own; circular for a baseline)")
+                   "(default: the policy's own; circular for a baseline); mixed: the flight's "
+                   "episode draws one from --seed, as `uavlink evaluate --episodes 1` does, and the "
+                   "summary names it")
     p.add_argument("--seed", type=int, default=0,
-                   help="seed of the embedded SITL's radio episode (episode 0 of `uavlink evaluate "
-                        "--seed`); with --connect the vehicle's own episode is flown and reported")
+                   help="seed of the embedded SITL's radio episode, 0..2**31-1 (episode 0 of "
+                        "`uavlink evaluate --seed`); with --connect the vehicle's own episode is "
+                        "flown and reported")
     p.add_argument("--aoa-noise-deg", type=float, default=None,
                    help="std of the AoA estimate noise (deg) (default: the policy's, 0)")
     p.add_argument("--set", dest="overrides", action="append", default=[], metavar="KEY=VALUE",
                    help="override a field of the policy's env (the embedded SITL simulates it too), "
                         "e.g. --set radio.shadowing=false")
-    p.add_argument("--speed", type=float, default=20.0, help="embedded SITL speed factor")
+    p.add_argument("--speed", type=float, default=20.0,
+                   help="embedded SITL speed factor, > 0 (simulated seconds per wall second)")
     p.add_argument("--lockstep", action="store_true",
                    help="run the embedded SITL in lockstep (sitl-stub --lockstep): its time waits for "
                         "each frame's decision, so the flight replays exactly and follows `uavlink "
                         "evaluate --episodes 1 --seed S --set uav_motion=px4` (the summary's replay) "
                         "up to MAVLink's float32 positions")
-    p.add_argument("--frames", type=int, default=128, help="decision frames to fly (one episode: 128)")
+    p.add_argument("--frames", type=int, default=128, help="decision frames to fly, >= 1 (one episode: 128)")
     p.add_argument("--out", type=Path, default=Path("runs/fly"),
-                   help="folder for flight.tlog, summary.json and flight.png (the flight's picture, "
-                        "as `uavlink plot` draws it; needs pip install 'uavlink[plot]')")
+                   help="folder for flight.tlog, summary.json, flight.png (the flight's picture, "
+                        "as `uavlink plot` draws it; needs pip install 'uavlink[plot]') and, with the "
+                        "embedded SITL, sitl.log (the vehicle's output)")
     p.add_argument("--no-picture", action="store_true", help="do not draw flight.png")
     p.add_argument("--json", action="store_true", help="print the summary as JSON")
     p.add_argument("--quiet", action="store_true", help="no live status line")

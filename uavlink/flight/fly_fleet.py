@@ -6,15 +6,49 @@ from __future__ import annotations
 
 import argparse
 import contextlib
+import math
 import time
 from collections.abc import Iterator, Sequence
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 from uavlink.config import EnvConfig, changed_settings
 from uavlink.errors import UserError
-from uavlink.flight.outcome import episode_fields, finish
+from uavlink.flight.outcome import episode_fields, finish, flown_name
 from uavlink.mavlink.connection import free_udp_port, normalize_connection
 from uavlink.policies.base import Policy
+from uavlink.seeding import SEED_MAX
+
+if TYPE_CHECKING:
+    from uavlink.flight.mission import MissionConfig
+
+VEHICLE_START_S = 30.0  # wall seconds for the embedded vehicle to open its links (as the heartbeat wait)
+
+
+def check_vehicle_options(seed: int, speed: float) -> None:
+    """``--seed`` and ``--speed``, checked before anything starts or is written: the embedded
+    vehicle would refuse them too, but only after ``fly`` had made its --out folder."""
+    if not 0 <= seed <= SEED_MAX:
+        raise UserError(f"--seed must be in 0..{SEED_MAX} (the vehicle reports it as a MAVLink "
+                        f"int32), got {seed}")
+    if not (math.isfinite(speed) and speed > 0):
+        raise UserError(f"--speed must be a number > 0 (simulated seconds per wall second), got {speed:g}")
+
+
+@contextlib.contextmanager
+def started_vehicle(connect: str | list[str], speed: float, args: list[str], log_path: Path):
+    """The embedded vehicle (:func:`sitl_stub.launcher.vehicle_process`), waited for until its
+    links are open: one that exits at start (a bad argument) ends ``fly`` at once with the
+    vehicle's own error line (LinkError), not after a heartbeat wait that cannot succeed."""
+    from sitl_stub.launcher import VehicleExited, vehicle_process
+    from uavlink.flight.link import LinkError
+
+    with vehicle_process(connect, speed, args, log_path=log_path) as vehicle:
+        try:
+            vehicle.wait_started(VEHICLE_START_S)
+        except VehicleExited as exc:
+            raise LinkError(f"the embedded vehicle (sitl-stub) {exc} (its log: {log_path})") from None
+        yield vehicle
 
 
 def split_urls(connect: str) -> list[str]:
@@ -44,23 +78,20 @@ def vehicle_args(cfg: EnvConfig, seed: int, lockstep: bool = False,
 
 
 @contextlib.contextmanager
-def embedded_fleet(cfg: EnvConfig, seed: int, speed: float, log_path: Path | None,
+def embedded_fleet(cfg: EnvConfig, seed: int, speed: float, log_path: Path,
                    signing_key_file: Path | None = None, lockstep: bool = False) -> Iterator[list[str]]:
     """``sitl_stub --fleet D`` with vehicle i sending to free loopback port i; yields the URLs to
     listen on, in vehicle (UAV) order."""
-    from sitl_stub.launcher import vehicle_process
-
     ports = [free_udp_port() for _ in range(cfg.n_uavs)]
     args = vehicle_args(cfg, seed, lockstep, signing_key_file)
-    with vehicle_process([f"udpout:127.0.0.1:{p}" for p in ports], speed, args, log_path=log_path):
+    with started_vehicle([f"udpout:127.0.0.1:{p}" for p in ports], speed, args, log_path):
         yield [f"udpin:127.0.0.1:{p}" for p in ports]
 
 
 def run_fleet_fly(args: argparse.Namespace, policy: Policy, cfg: EnvConfig, key: bytes | None,
-                  live: bool) -> int:
+                  mission: MissionConfig) -> int:
     from uavlink.flight.fleet_mission import FleetPilot, fly_fleet
     from uavlink.flight.link_group import open_fleet_links
-    from uavlink.flight.mission import MissionConfig
 
     pilot = FleetPilot(policy, cfg)  # layout checks before anything is armed
     urls: Sequence[str] | None = split_urls(args.connect) if args.connect else None
@@ -74,20 +105,20 @@ def run_fleet_fly(args: argparse.Namespace, policy: Policy, cfg: EnvConfig, key:
     with sitl as vehicle_urls:
         group, tlog_file = open_fleet_links(vehicle_urls, cfg.n_uavs, tlog, key)
         try:
-            result = fly_fleet(group.links, pilot, cfg, MissionConfig(frames=args.frames))
+            result = fly_fleet(group.links, pilot, cfg, mission)
             speed = group.links[0].speed_factor()
             fleet = result.fleet_summary(group.links)
         finally:
             group.close()
             if tlog_file:
                 tlog_file.close()
-    summary = {"scenario": cfg.scenario, "policy": str(args.policy),
-               **episode_fields(args, cfg, result.episode), "connect": args.connect or "embedded sitl_stub --fleet", "speed_factor": round(speed, 2),
+    summary = {**episode_fields(args, cfg, result.episode), "policy": str(args.policy),
+               "connect": args.connect or "embedded sitl_stub --fleet", "speed_factor": round(speed, 2),
                **fleet, "wall_s": round(time.monotonic() - start, 2), "tlog": str(tlog)}
     per = "; ".join(f"system {v['system_id']}: {v['decisions']} decisions, {v['holds']} holds"
                     for v in summary["vehicles"])
     return finish(summary, out_dir, args.json,
-                  f"flew {summary['frames']} frames of {cfg.scenario!r} with {args.policy} and "
+                  f"flew {summary['frames']} frames of {flown_name(summary)} with {args.policy} and "
                   f"{cfg.n_uavs} vehicles: mean UE throughput {summary['mean_rate_mbps']} Mbps; "
                   f"min separation flown {summary['min_separation_flown_m']} m; {per}; "
                   f"log {tlog}, summary {out_dir / 'summary.json'}",

@@ -42,9 +42,10 @@ import numpy as np
 from uavlink.config import AreaConfig, EnvConfig
 from uavlink.env.actions import ActionMapping
 from uavlink.env.observation import ObservationBuilder, ObservationLayout
+from uavlink.errors import UserError
 from uavlink.flight.fence import upload_area_fence
 from uavlink.flight.link import STREAM_PERIOD_VEHICLE_S, LinkError, VehicleLink
-from uavlink.flight.outcome import judge
+from uavlink.flight.outcome import judge, signing_hint
 from uavlink.flight.radio_source import MavlinkRadioSource, RadioSource
 from uavlink.flight.start_point import fly_to_starts
 from uavlink.mavlink.dialect import mavlink
@@ -76,6 +77,12 @@ class MissionConfig:
     radio_timeout_s: float = 10.0  # wall seconds in OFFBOARD without a fresh radio frame: give up
     landing_wait_vehicle_s: float = 300.0  # vehicle seconds to wait for an earlier flight's landing
 
+    def validate(self) -> MissionConfig:
+        """UserError for frames no flight can fly (checked before anything starts or is written)."""
+        if self.frames < 1:
+            raise UserError(f"--frames must be at least 1 (decision frames to fly), got {self.frames}")
+        return self
+
 
 @dataclass
 class MissionResult:
@@ -97,6 +104,7 @@ class MissionResult:
     met_start: bool = False  # the radio episode was still waiting for OFFBOARD after take-off
     episode: dict[str, int] = field(default_factory=dict)  # the payload's: seed, count
     failure: str = ""  # the LinkError that ended the flight
+    fix: str = ""  # what to do about the failure, when known (else: check the vehicle is running)
     completed: bool = False
     reason: str = ""  # why not completed: what happened, what to do
 
@@ -178,7 +186,7 @@ def fly_mission(link: VehicleLink, pilot: PolicyPilot, cfg: EnvConfig, mission: 
     try:
         _fly(link, pilot, cfg, mission, radio, status, result)
     except LinkError as exc:
-        result.failure = str(exc)
+        result.failure, result.fix = str(exc), signing_hint(link)
     except KeyboardInterrupt:  # before the episode's loop (which lands by itself)
         result.interrupted, result.ended_by = True, "interrupted"
         if mission.land and link.status.armed and not _ending_mode(link.status):
@@ -244,7 +252,8 @@ def _fly(link, pilot, cfg, mission, radio, status, result: MissionResult) -> Non
                         frame_score = scores.get(report.frame)
                         status(report.frame, target, frame_score.mean_rate_mbps if frame_score else None)
                 if simulated:  # after the setpoint: a lockstep vehicle's time may go on
-                    send_frame_decided(link.conn.mav, link.target_system, report.frame)
+                    send_frame_decided(link.conn.mav, link.target_system, report.frame,
+                                       report.frame < mission.frames)
             if mission.frames in scores or frames.last >= mission.frames + 2 or (
                     frames.last >= mission.frames and len(scores) >= mission.frames):
                 result.ended_by = "episode done"

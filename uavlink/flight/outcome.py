@@ -18,7 +18,8 @@ import sys
 from pathlib import Path
 from typing import TYPE_CHECKING
 
-from uavlink.config import EnvConfig
+from uavlink.config import MIXED, EnvConfig
+from uavlink.env.radio_world import episode_scenario
 from uavlink.plot.command import picture_after_flight
 
 if TYPE_CHECKING:
@@ -34,7 +35,8 @@ def judge(result: MissionResult, frames: int) -> None:
     if result.interrupted:
         why = "interrupted (Ctrl-C); the vehicle was told to land"
     elif result.failure:
-        why = f"{result.failure}; check the vehicle is running and reachable (--connect), then fly again"
+        fix = result.fix or "check the vehicle is running and reachable (--connect)"
+        why = f"{result.failure}; {fix}, then fly again"
     elif result.ended_by == "no radio reports" or first is None:
         where = "no" if first is None else f"no more (after frame {last})"
         why = (f"{where} radio reports from the vehicle's radio payload (component 158) in OFFBOARD: "
@@ -53,11 +55,36 @@ def judge(result: MissionResult, frames: int) -> None:
     result.completed, result.reason = not why, why
 
 
+def signing_hint(link) -> str:
+    """What to do when a flight failed on a link whose signing disagrees with the vehicle's, or "":
+    without a key of ours, the vehicle's packets arrived signed (pymavlink counts every packet that
+    carries a signature, MAVLINK_IFLAG_SIGNED, in ``signing.sig_count`` even when it has no key to
+    check it with: the vehicle heard fine, then dropped our unsigned commands); with one, nothing
+    of the vehicle's was accepted and its packets were unsigned or signed with another key."""
+    mav = link.conn.mav
+    if mav.signing.secret_key is None:
+        return "the vehicle signs its link: pass --signing-key FILE (its key)" if mav.signing.sig_count else ""
+    guard = link.signing
+    if guard is None or guard.accepted:
+        return ""
+    if guard.rejected["bad_signature"]:
+        return "the vehicle signs its link with another key: pass the key it was started with"
+    if guard.rejected["unsigned"]:
+        return ("the vehicle does not sign its link: start it with the same --signing-key, or fly "
+                "without one")
+    return ""
+
+
 def episode_fields(args: argparse.Namespace, cfg: EnvConfig, episode: dict[str, int]) -> dict:
-    """Which radio episode was flown and how to replay it: the vehicle's payload names it (its
-    UL_EP_SEED / UL_EPISODE messages); an embedded vehicle serves episode 0 of ``--seed``. A
-    lockstep flight of one UAV is replayed with the vehicle's motion (``uav_motion=px4``)."""
+    """Which radio episode was flown, its scenario and how to replay it: the vehicle's payload names
+    it (its UL_EP_SEED / UL_EPISODE messages); an embedded vehicle serves episode 0 of ``--seed``.
+    ``mixed`` draws the episode's scenario from its seed, as the replay's evaluation does: the
+    summary names the one flown. A lockstep flight of one UAV is replayed with the vehicle's
+    motion (``uav_motion=px4``)."""
     seed = episode.get("seed", args.seed if args.connect is None else None)
+    scenario = {"scenario": cfg.scenario}
+    if cfg.scenario == MIXED and seed is not None:
+        scenario = {"scenario": episode_scenario(cfg, seed), "scenario_drawn_from": MIXED}
     replay = None
     if seed is not None:
         words = ["uavlink", "evaluate", "--policy", str(args.policy), "--scenario", cfg.scenario,
@@ -69,8 +96,14 @@ def episode_fields(args: argparse.Namespace, cfg: EnvConfig, episode: dict[str, 
         if getattr(args, "lockstep", False) and cfg.n_uavs == 1 and cfg.uav_motion != "px4":
             words += ["--set", "uav_motion=px4"]
         replay = shlex.join(words)
-    return {"seed": seed, "episode": {"seed": seed, "index": 0, "on_vehicle": episode.get("count")},
-            "replay": replay}
+    return {**scenario, "seed": seed,
+            "episode": {"seed": seed, "index": 0, "on_vehicle": episode.get("count")}, "replay": replay}
+
+
+def flown_name(summary: dict) -> str:
+    """The scenario flown, for the line after a flight: ``'hotspot' (drawn from mixed)``."""
+    drawn = summary.get("scenario_drawn_from")
+    return repr(summary["scenario"]) + (f" (drawn from {drawn})" if drawn else "")
 
 
 def finish(summary: dict, out_dir: Path, as_json: bool, flown_line: str, picture: bool = True) -> int:

@@ -25,7 +25,9 @@ sent), the flight computer sends COMMAND_LONG ``FRAME_DECIDED_COMMAND`` (MAV_CMD
 ``RADIO_COMPONENT_ID`` with param1 = k, fire-and-forget (no ACK: one a frame would only add
 traffic). A lockstep vehicle holds simulated time at each frame of a running episode until that
 command arrives, so a flight decides every frame at the instant the env does; any other vehicle
-ignores it.
+ignores it. param2 says whether the policy decided the frame (1) or the frame was only let go (0:
+past the frames the flight set out to fly, e.g. the episode's last frame, whose readings follow
+the last decision), so a log names the decision frames exactly (``uavlink plot``).
 """
 
 from __future__ import annotations
@@ -117,11 +119,12 @@ def decode_score(msg) -> ScoreReport:
     return ScoreReport(int(msg.array_id), mean, fair)
 
 
-def send_frame_decided(mav, target_system: int, frame: int) -> None:
+def send_frame_decided(mav, target_system: int, frame: int, decided: bool = True) -> None:
     """FRAME_DECIDED for ``frame`` to the radio payload of ``target_system`` (``mav``: a pymavlink
-    ``MAVLink``): a lockstep vehicle lets simulated time go on; no ACK is awaited."""
+    ``MAVLink``): a lockstep vehicle lets simulated time go on; no ACK is awaited. ``decided``
+    (param2): the policy decided this frame for this vehicle; False: only let go."""
     mav.command_long_send(target_system, RADIO_COMPONENT_ID, FRAME_DECIDED_COMMAND, 0, float(frame),
-                          *(float("nan"),) * 6)
+                          1.0 if decided else 0.0, *(float("nan"),) * 5)
 
 
 def decode_episode(msg) -> tuple[str, int] | None:

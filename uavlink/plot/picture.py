@@ -38,6 +38,7 @@ class PictureInfo:
     frames: int  # radio frames on the time axis
     decision_frames: int
     bearings: int  # sensed bearings drawn
+    frame_span: tuple[int, int] | None = None  # first and last radio frame on the time axis
 
 
 def source_name(data: FlightData) -> str:
@@ -211,8 +212,9 @@ def draw_flight(data: FlightData, out: Path, title: str | None = None) -> Pictur
     fig.canvas.draw()
     width, height = fig.canvas.get_width_height()
     _save_png(np.asarray(fig.canvas.buffer_rgba())[..., :3], out)
+    span = (int(data.frames[0]), int(data.frames[-1])) if len(data.frames) else None
     return PictureInfo(out, width, height, len(data.vehicles), drawn["ue_tracks"], len(data.frames),
-                       data.decision_frames, drawn["bearings"])
+                       data.decision_frames, drawn["bearings"], span)
 
 
 def _save_png(rgb: np.ndarray, out: Path) -> None:

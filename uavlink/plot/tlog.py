@@ -8,11 +8,17 @@ Any .tlog works (8-byte big-endian microsecond timestamp + raw packet per record
 - radio frames: each vehicle's UL_RADIO readings (:mod:`uavlink.mavlink.radio_codec`) of the running
   episode (SINR and sensed AoA per UE, its cell in a fleet), the vehicle's position at each frame
   interpolated at the frame's simulated time; the team's UL_SCORE (mean UE rate) per frame;
-- decision frames: the frames a vehicle flew in OFFBOARD (the policy steering it), from the frame's
-  readings to the next frame's (a heartbeat shows OFFBOARD at or after the readings, before the next
-  frame's: the heartbeat trails a mode change by up to its period). When there are
-  any, the picture keeps the frames from the first to the last decision (take-off and landing
-  leave the radio payload counting frames that no policy decided); without, every running frame;
+- decision frames: the frames the policy steered a vehicle in OFFBOARD (a heartbeat shows
+  OFFBOARD at or after the frame's readings, before the next frame's: the heartbeat trails a mode
+  change by up to its period). A log with the ground's FRAME_DECIDED commands (``uavlink fly``'s
+  own) names the frames the policy decided (:mod:`uavlink.mavlink.radio_codec`, param2), so the
+  count is ``fly``'s: an episode of N frames has N decisions (frames 0..N-1) and N scores (1..N);
+  the readings of frame N follow the last decision but nobody decides them, although the vehicle
+  is still in OFFBOARD then. Without those commands (another ground's log), a frame flown in
+  OFFBOARD from its readings to the next frame's counts. When there are any, the picture keeps
+  the frames from the first decision to the last one's outcome (its frame's successor, with the
+  score of the last move; take-off and landing leave the radio payload counting frames that no
+  policy decided); without, every running frame;
 - UEs: the simulation's truth (ADSB_VEHICLE, :mod:`uavlink.mavlink.ue_truth`), each fix tagged with
   the frame of its sender's latest readings, placed through the local origin (HOME_POSITION);
 - the fence: the inclusion polygon uploaded over the mission protocol (MISSION_ITEM_INT, FENCE).
@@ -38,11 +44,16 @@ from uavlink.errors import UserError
 from uavlink.mavlink.dialect import mavlink
 from uavlink.mavlink.geo import GeoOrigin
 from uavlink.mavlink.px4_modes import PX4_MAIN_OFFBOARD, decode_custom_mode
-from uavlink.mavlink.radio_codec import MAX_UES, RADIO_COMPONENT_ID, message_kind
+from uavlink.mavlink.radio_codec import (
+    FRAME_DECIDED_COMMAND,
+    MAX_UES,
+    RADIO_COMPONENT_ID,
+    message_kind,
+)
 from uavlink.mavlink.ue_truth import decode_ue_fix
 
 WANTED = ["HEARTBEAT", "LOCAL_POSITION_NED", "GLOBAL_POSITION_INT", "HOME_POSITION",
-          "DEBUG_FLOAT_ARRAY", "ADSB_VEHICLE", "MISSION_ITEM_INT"]
+          "DEBUG_FLOAT_ARRAY", "ADSB_VEHICLE", "MISSION_ITEM_INT", "COMMAND_LONG"]
 RESTART_FRAMES = 3  # a running frame this far below the newest: a new episode, not a late copy
 FENCE_MISSION_TYPE = mavlink.MAV_MISSION_TYPE_FENCE
 FENCE_VERTEX = mavlink.MAV_CMD_NAV_FENCE_POLYGON_VERTEX_INCLUSION
@@ -117,6 +128,7 @@ class _Reader:
         self.fixes: dict[int, dict[int, tuple[float, float]]] = {}
         self.scores: dict[int, float] = {}
         self.fence: dict[int, tuple[float, float]] = {}
+        self.decisions: dict[int, set[int]] = {}  # per system: frames the ground said it decided
         self.messages = 0
 
     def take(self, msg) -> None:
@@ -153,6 +165,7 @@ class _Reader:
                     got = self.readings.setdefault(sys_id, {})
                     if got and msg.array_id < max(got) - RESTART_FRAMES:
                         got.clear()  # the payload started a new episode: draw the latest flight
+                        self.decisions.pop(sys_id, None)
                     got.setdefault(msg.array_id, (msg.time_usec * 1e-6, tuple(data[:2 + 3 * n]),
                                                   self.offboard.get(sys_id, False)))
             elif which == "score":
@@ -161,6 +174,11 @@ class _Reader:
             fix = decode_ue_fix(msg)
             if fix is not None and sys_id in self.last_frame:
                 self.fixes.setdefault(self.last_frame[sys_id], {})[fix.ue] = (fix.lat_deg, fix.lon_deg)
+        elif kind == "COMMAND_LONG" and msg.command == FRAME_DECIDED_COMMAND \
+                and msg.target_component == RADIO_COMPONENT_ID and msg.param2 in (0.0, 1.0):
+            decided = self.decisions.setdefault(msg.target_system, set())  # (NaN: an older fly's)
+            if msg.param2 == 1.0:
+                decided.add(int(msg.param1))
         elif kind == "MISSION_ITEM_INT" and msg.mission_type == FENCE_MISSION_TYPE \
                 and msg.command == FENCE_VERTEX:
             self.fence[msg.seq] = (msg.x * 1e-7, msg.y * 1e-7)
@@ -243,6 +261,8 @@ def _assemble(r: _Reader, source: str) -> FlightData:
     all_frames = np.unique(np.concatenate([v.frames for v in vehicles] + [np.zeros(0, int)]))
     if decided:
         lo, hi = min(int(f.min()) for f in decided), max(int(f.max()) for f in decided)
+        if any(v.system_id in r.decisions for v in vehicles):
+            hi += 1  # the last decision's outcome: its successor's readings and score (fly's mean has it)
         all_frames = all_frames[(all_frames >= lo) & (all_frames <= hi)]
         for v in vehicles:
             _keep(v, (v.frames >= lo) & (v.frames <= hi))
@@ -290,10 +310,11 @@ def _track(system: int, r: _Reader, origin: GeoOrigin | None, n_ues: int) -> Veh
         sinr[row, :n], aoa[row, :n] = data[1:1 + n], data[1 + n:1 + 2 * n]
         flags[row, :n] = data[2 + 2 * n:2 + 3 * n]
         decided[row], frame_t[row] = offboard, time_s
-    # A decision frame: flown under OFFBOARD from its readings to the next frame's (the frame
-    # after the last decision arrives in OFFBOARD too, but then the loop hands the vehicle back).
-    then = np.append(decided[1:], r.offboard.get(system, False))
-    decided &= then
+    if system in r.decisions:  # the ground named its decisions (fly's log): exactly fly's count
+        decided &= np.isin(frames, sorted(r.decisions[system]))
+    else:  # flown under OFFBOARD from its readings to the next frame's (the frame after the last
+        # decision arrives in OFFBOARD too, but then the loop hands the vehicle back)
+        decided &= np.append(decided[1:], r.offboard.get(system, False))
     serves = flags > 0 if (flags != 0).any() else None
     fe = np.interp(frame_t, t, east) if len(t) else np.full(len(frames), np.nan)
     fn = np.interp(frame_t, t, north) if len(t) else np.full(len(frames), np.nan)

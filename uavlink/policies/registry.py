@@ -5,6 +5,8 @@ it from here or from ``uavlink.policies``."""
 
 from __future__ import annotations
 
+from functools import cache
+
 from uavlink.config import BASELINE_NAMES, EnvConfig
 from uavlink.errors import UserError
 from uavlink.policies.baselines import AoaPolicy, OraclePolicy, StaticPolicy
@@ -55,3 +57,10 @@ def make_baseline(name: str, cfg: EnvConfig):
     raise UserError(f"unknown baseline {name!r}; choose from {', '.join(BASELINES)}")
 
 
+@cache
+def flying_baselines() -> tuple[str, ...]:
+    """The baselines ``uavlink fly`` can fly: those that read nothing but the observation. Asked of
+    the policies themselves (``needs_truth``, what ``fly`` refuses on), so the list in its help and
+    its refusals cannot drift from what flies."""
+    cfg = EnvConfig()
+    return tuple(name for name in BASELINES if not make_baseline(name, cfg).needs_truth)
