@@ -87,3 +87,18 @@ def test_a_malformed_scheduler_address_fails_at_once_and_writes_nothing(tmp_path
     assert_user_error(run_uavlink_in_process("sweep", str(ROOT / "sweeps" / "tiny.toml"), "--scheduler", "bogus",
                                              "--out-root", str(out_root)), "'bogus' is not a Dask address")
     assert not out_root.exists()
+
+
+@pytest.mark.slow
+def test_an_unreachable_scheduler_is_one_line_and_writes_nothing(tmp_path):
+    pytest.importorskip("distributed")
+    import socket
+
+    with socket.socket() as s:  # a loopback port nobody listens on
+        s.bind(("127.0.0.1", 0))
+        port = s.getsockname()[1]
+    out_root = tmp_path / "runs"
+    assert_user_error(run_uavlink_in_process("sweep", str(ROOT / "sweeps" / "tiny.toml"), "--scheduler",
+                                             f"tcp://127.0.0.1:{port}", "--out-root", str(out_root)),
+                      "cannot reach the Dask scheduler")
+    assert not out_root.exists()

@@ -65,19 +65,23 @@ class SweepOutcome:
         return self.skipped + self.finished == self.jobs
 
 
-def prepare(spec: SweepSpec, out_root: Path, done_keys: Collection[str] = ()) -> tuple[Path, list[Job], list[Job]]:
+def plan(spec: SweepSpec, out_root: Path, done_keys: Collection[str] = ()) -> tuple[Path, list[Job], list[Job]]:
     """(sweep folder, all jobs, jobs without a result.json whose key is not in ``done_keys``);
-    records the sweep file and job list."""
+    writes nothing."""
     sweep_dir = out_root / spec.name
-    sweep_dir.mkdir(parents=True, exist_ok=True)
     jobs = spec.jobs()
+    pending = [j for j in jobs if j.key not in done_keys and not (sweep_dir / j.name / "result.json").is_file()]
+    return sweep_dir, jobs, pending
+
+
+def record_plan(spec: SweepSpec, sweep_dir: Path, jobs: list[Job]) -> None:
+    """Make the sweep folder and record the sweep file and its job list in it."""
+    sweep_dir.mkdir(parents=True, exist_ok=True)
     if spec.source is not None and spec.source.resolve() != (sweep_dir / "sweep.toml").resolve():
         shutil.copyfile(spec.source, sweep_dir / "sweep.toml")
     listing = [{"key": j.key, "name": j.name, "scenario": j.scenario, "seed": j.seed, "point": j.point}
                for j in jobs]
     (sweep_dir / "jobs.json").write_text(json.dumps(listing, indent=1) + "\n")
-    pending = [j for j in jobs if j.key not in done_keys and not (sweep_dir / j.name / "result.json").is_file()]
-    return sweep_dir, jobs, pending
 
 
 def run_sweep(spec: SweepSpec, out_root: Path, scheduler: str | None = None, workers: int | None = None,
@@ -85,19 +89,25 @@ def run_sweep(spec: SweepSpec, out_root: Path, scheduler: str | None = None, wor
               log: Callable[[str], None] = lambda msg: print(msg, file=sys.stderr),
               done_keys: Collection[str] = ()) -> SweepOutcome:
     """Run every job of ``spec`` that has no result yet (in ``out_root`` or, by key, in ``done_keys``:
-    a shipped sweep record's jobs); returns what happened."""
+    a shipped sweep record's jobs); returns what happened. Nothing is written before the engine
+    runs: a scheduler that cannot be reached leaves no sweep folder behind."""
     start = time.perf_counter()
     if scheduler and workers != 0:
         _check_address(scheduler)
-    sweep_dir, jobs, pending = prepare(spec, out_root, done_keys)
+    sweep_dir, jobs, pending = plan(spec, out_root, done_keys)
     outcome = SweepOutcome(sweep_dir, len(jobs), len(jobs) - len(pending))
-    log(f"sweep {spec.name}: {len(jobs)} jobs, {outcome.skipped} already done, {len(pending)} to run "
-        f"-> {sweep_dir}")
-    if pending:
-        if workers == 0:
+
+    def begin() -> None:
+        record_plan(spec, sweep_dir, jobs)
+        log(f"sweep {spec.name}: {len(jobs)} jobs, {outcome.skipped} already done, {len(pending)} to run "
+            f"-> {sweep_dir}")
+
+    if pending and workers != 0:
+        _run_on_dask(pending, sweep_dir, outcome, scheduler, workers, retries, progress, log, begin)
+    else:
+        begin()
+        if pending:
             _run_in_process(pending, sweep_dir, outcome, progress, log)
-        else:
-            _run_on_dask(pending, sweep_dir, outcome, scheduler, workers, retries, progress, log)
     outcome.wall_s = time.perf_counter() - start
     return outcome
 
@@ -138,7 +148,9 @@ def _run_in_process(pending: list[Job], sweep_dir: Path, outcome: SweepOutcome, 
 
 
 def _run_on_dask(pending: list[Job], sweep_dir: Path, outcome: SweepOutcome, scheduler: str | None,
-                 workers: int | None, retries: int, progress: bool, log: Callable[[str], None]) -> None:
+                 workers: int | None, retries: int, progress: bool, log: Callable[[str], None],
+                 begin: Callable[[], None]) -> None:
+    """The jobs on Dask; ``begin`` runs once the engine is up (and never when it cannot start)."""
     try:
         import dask
         from distributed import Client, LocalCluster, as_completed
@@ -172,7 +184,9 @@ def _run_on_dask(pending: list[Job], sweep_dir: Path, outcome: SweepOutcome, sch
         if cluster is not None:
             cluster.close()
         outcome.interrupted = True
+        begin()  # the sweep's folder, for the summary of nothing done
         return
+    begin()
     info = client.scheduler_info()
     log(f"engine: {outcome.engine} ({len(info.get('workers', {}))} workers connected)")
     if "dashboard" in info.get("services", {}):
