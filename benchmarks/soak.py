@@ -28,7 +28,6 @@ import os
 import shlex
 import sys
 import tempfile
-import time
 from collections.abc import Sequence
 from pathlib import Path
 
@@ -69,9 +68,7 @@ def soak(policy: str, scenario: str, seed: int, flights: int, speed: float, loss
     with vehicle_process([f"udpout:127.0.0.1:{p}" for p in ports], speed,
                          [*vehicle_args(cfg, seed), "--param", f"COM_OF_LOSS_T={loss_s:g}"],
                          log_path=tmp / f"vehicle-{cfg.n_uavs}.log") as vehicle:
-        deadline = time.monotonic() + 60
-        while "sitl-stub: " not in vehicle.output() and time.monotonic() < deadline:
-            time.sleep(0.1)  # up: its links open, its first episode built
+        vehicle.wait_started(60)  # up: its links open, its first episode built
         rss0, fds0 = process_memory(vehicle.proc.pid)
         for k in range(flights):
             status, out, err = uavlink(*fly, "--out", str(tmp / f"d{cfg.n_uavs}-flight{k}"))

@@ -34,11 +34,21 @@ from uavlink.mavlink.connection import normalize_connection
 from uavlink.mavlink.signing import load_key
 
 PROG = "sitl-stub"
+SCENARIO_CHOICES = (*SCENARIOS, MIXED)  # uavlink.config's: every scenario --scenario accepts
 
 
 class _Parser(argparse.ArgumentParser):
     def error(self, message: str) -> NoReturn:
         self.exit(2, f"{self.prog}: error: {message}\n")
+
+
+class _LogFormat(logging.Formatter):
+    """Log lines with the program's prefix, as its own lines: ``sitl-stub: MESSAGE`` from the
+    vehicle's loggers (``sitl_stub``, ``sitl_stub.*``), ``sitl-stub: LOGGER: MESSAGE`` from others."""
+
+    def formatMessage(self, record: logging.LogRecord) -> str:
+        ours = record.name == "sitl_stub" or record.name.startswith("sitl_stub.")
+        return f"{PROG}: {record.message}" if ours else f"{PROG}: {record.name}: {record.message}"
 
 
 def _positive(text: str) -> float:
@@ -121,10 +131,10 @@ def build_parser() -> argparse.ArgumentParser:
                    "position i (its home); with --connect, give D URLs, vehicle i on the i-th")
     p.add_argument("--speed", type=_positive, default=1.0,
                    help="simulated seconds per wall second (default 1)")
-    p.add_argument("--scenario", choices=(*SCENARIOS, MIXED), default="circular",
-                   help="UE mobility scenario for the radio payload (default circular); mixed: "
-                   "each flight's episode draws one, as `uavlink evaluate --episodes 1 --seed S` "
-                   "draws it for the same seed")
+    p.add_argument("--scenario", choices=SCENARIO_CHOICES, default="circular",
+                   help="UE mobility scenario for the radio payload (default circular); "
+                   f"{MIXED}: each flight's episode draws one, as `uavlink evaluate --episodes 1 "
+                   "--seed S` draws it for the same seed")
     p.add_argument("--seed", type=int, default=0, help="radio payload seed (default 0)")
     p.add_argument("--aoa-noise-deg", type=_non_negative, default=0.0,
                    help="AoA noise std of the radio payload, degrees (default 0)")
@@ -156,7 +166,7 @@ def build_parser() -> argparse.ArgumentParser:
                    help="hold simulated time at each radio frame of a running episode until the "
                    "flight computer has decided it (`uavlink fly` says so after each setpoint), "
                    "at most 2 s of wall time: a flight decides every frame at the instant the env "
-                   "does and replays exactly")
+                   "does and replays exactly (needs the radio payload: not with --no-payload)")
     p.add_argument("-v", "--verbose", action="store_true", help="log every event")
     return p
 
@@ -173,8 +183,11 @@ def main(argv: Sequence[str] | None = None, payload_factory: PayloadFactory | No
     """Parse ``argv``, build payloads with ``payload_factory`` and run the vehicle."""
     parser = build_parser()
     args = parser.parse_args(argv)
-    logging.basicConfig(level=logging.INFO if args.verbose else logging.WARNING,
-                        format="%(name)s: %(message)s", stream=sys.stderr)
+    if args.lockstep and args.no_payload:
+        parser.error("--lockstep holds the radio payload's frames: it does nothing with --no-payload")
+    handler = logging.StreamHandler(sys.stderr)
+    handler.setFormatter(_LogFormat())
+    logging.basicConfig(level=logging.INFO if args.verbose else logging.WARNING, handlers=[handler])
     home = GeoOrigin(args.home_lat, args.home_lon, args.home_alt)
     try:
         home.validate()
@@ -211,6 +224,7 @@ def main(argv: Sequence[str] | None = None, payload_factory: PayloadFactory | No
         for sig in (signal.SIGINT, signal.SIGTERM):
             signal.signal(sig, _on_signal)
     lockstep = ", lockstep" if args.lockstep and count else ""
+    # the ready line: sitl_stub.launcher's READY_LINE recognises it (keep the two in step)
     print(f"{PROG}: {who} on {server.connection}, {args.speed:g}x real time{lockstep}, "
           f"{count} payload(s), {signing}", file=sys.stderr, flush=True)
     try:

@@ -14,6 +14,7 @@ folder goes first on its PYTHONPATH), so caller and vehicle run the same code fr
 from __future__ import annotations
 
 import os
+import re
 import subprocess
 import sys
 import tempfile
@@ -26,9 +27,13 @@ from pathlib import Path
 __all__ = ["VehicleExited", "VehicleProcess", "vehicle_process"]
 
 PACKAGE_ROOT = Path(__file__).resolve().parent.parent
-# The vehicle's first line once its links are open: "sitl-stub: vehicle 1 on ..., 20x real time, ..."
-# (sitl_stub/__main__.py); its errors are "sitl-stub: error: ...".
+# Every line the vehicle prints starts with READY_PREFIX (its log lines too); once its links are
+# open it prints the ready line, "sitl-stub: vehicle 1 on ..., 20x real time, ..." or "sitl-stub:
+# fleet of 2 vehicles (...) on ..." (sitl_stub/__main__.py), matched by READY_LINE; its errors are
+# "sitl-stub: error: ...".
 READY_PREFIX, ERROR_PREFIX = "sitl-stub: ", "sitl-stub: error: "
+READY_LINE = re.compile(re.escape(READY_PREFIX)
+                        + r"(vehicle \d+|fleet of \d+ vehicles \([^)]*\)) on .*x real time")
 
 
 class VehicleExited(RuntimeError):
@@ -58,7 +63,7 @@ class VehicleProcess:
         while True:
             status = self.proc.poll()
             lines = self.output().splitlines()
-            if any(line.startswith(READY_PREFIX) and not line.startswith(ERROR_PREFIX) for line in lines):
+            if any(READY_LINE.match(line) for line in lines):
                 return True
             if status is not None:
                 raise VehicleExited(status, next((ln.strip() for ln in reversed(lines) if ln.strip()), ""))

@@ -90,6 +90,25 @@ def test_a_fleet_arming_together_begins_one_episode() -> None:
     assert (episodes.seed, episodes.count) == (1, 1)
 
 
+def test_episodes_in_the_summary_counts_those_begun_none_before_the_first_arming() -> None:
+    """The exit stats' ``episodes``: 0 until a flight begins one (the waiting episode is only
+    served, not flown), then one more per flight that begins an episode; ``UL_EPISODE`` (``count``,
+    what `uavlink fly` copies) stays the current episode's index."""
+    episodes = RadioEpisodes(CFG, 3)
+    for _ in range(3):
+        episodes.tick([IDLE])
+    assert (episodes.summary()["episodes"], episodes.summary()["episode_seed"], episodes.count) == (0, 3, 0)
+    episodes.tick([_state(1, True)])  # the first flight arms: it begins episode 0 (seed 3)
+    assert (episodes.summary()["episodes"], episodes.count) == (1, 0)
+    episodes.tick([_state(1, True, FlightMode.OFFBOARD)])
+    episodes.tick([_state(1, False)])
+    episodes.tick([_state(2, True)])  # the second flight begins episode 1 (seed 4)
+    assert (episodes.summary()["episodes"], episodes.summary()["episode_seed"], episodes.count) == (2, 4, 1)
+    resumed = RadioEpisodes(CFG, 0)  # flown in OFFBOARD without an arming it saw: begun all the same
+    resumed.tick([_state(0, True, FlightMode.OFFBOARD)])
+    assert resumed.summary()["episodes"] == 1
+
+
 def test_seeds_travel_as_int32() -> None:
     with pytest.raises(ValueError, match="0..2147483647"):
         RadioEpisodes(CFG, MAX_SEED + 1)

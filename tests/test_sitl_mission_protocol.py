@@ -4,6 +4,7 @@ PX4's re-request (0.25 s) and protocol (5 s) timeouts are checked exactly and at
 
 from __future__ import annotations
 
+import logging
 from typing import Any
 
 import pytest
@@ -17,6 +18,7 @@ from sitl_stub.mavlink.mission_protocol import (
 )
 from uavlink.mavlink.dialect import mavlink
 from uavlink.mavlink.mission import send_item
+from uavlink.mavlink.rejects import RejectLog
 
 GCS = (245, 190)
 WP = mavlink.MAV_CMD_NAV_WAYPOINT
@@ -47,8 +49,10 @@ class Harness:
         self.store = store or MissionStore()
         self.vehicle = Wire(1, 1)
         self.texts: list[str] = []
+        self.rejects = RejectLog(logging.getLogger("sitl_stub"))  # the server's, as message_handler passes it
         self.proto = MissionProtocol(self.store, self.vehicle.mav, 1,
-                                     lambda severity, text: self.texts.append(text))
+                                     lambda severity, text: self.texts.append(text),
+                                     reject=self.rejects.reject)
         self.wall = 100.0
 
     def send(self, name: str, *args: Any, src: tuple[int, int] = GCS) -> list[Any]:
@@ -112,6 +116,7 @@ def test_upload_then_download_round_trip(mission_type):
         assert item.get_type() == "MISSION_ITEM_INT" and (item.seq, item.x, item.y) == (i, items[i].x, items[i].y)
     assert h.send("mission_ack", 1, 1, 0, mission_type) == []
     assert h.proto.state.name == "IDLE"
+    assert h.rejects.as_dict() == {}  # a clean round trip refuses nothing
 
 
 def test_vehicle_re_requests_a_lost_item_then_gives_up_with_cancelled():
@@ -195,6 +200,48 @@ def test_item_px4_refuses_ends_the_upload_and_keeps_the_old_list(item, result):
     [ack] = h.item(item)
     assert ack.type == result
     assert h.store.items(MISSION) == old and h.proto.state.name == "IDLE"
+    assert h.rejects.as_dict() == {"mission_item_refused": 1}
+
+
+def test_a_refused_item_is_counted_and_logged_once_naming_command_frame_and_result(caplog):
+    """RTL in a global frame: PX4 answers MISSION_ACK UNSUPPORTED (RTL takes MAV_FRAME_MISSION only);
+    the vehicle counts it in the exit stats' "rejected" section and logs it once."""
+    caplog.set_level(logging.WARNING, logger="sitl_stub")
+    h = Harness()
+    rtl = MissionItem(0, REL_INT, mavlink.MAV_CMD_NAV_RETURN_TO_LAUNCH)
+    for _ in range(2):
+        h.send("mission_count", 1, 1, 1, MISSION)
+        [ack] = h.item(rtl)
+        assert ack.type == mavlink.MAV_MISSION_UNSUPPORTED
+    assert h.rejects.as_dict() == {"mission_item_refused": 2}
+    [line] = [r.getMessage() for r in caplog.records if "rejected input" in r.getMessage()]
+    assert ("MISSION_ITEM_INT 0: MAV_CMD_NAV_RETURN_TO_LAUNCH in frame "
+            "MAV_FRAME_GLOBAL_RELATIVE_ALT_INT: MAV_MISSION_UNSUPPORTED" in line), line
+    assert "'mission_item_refused'" in line
+    h.send("mission_count", 1, 1, 1, MISSION)
+    h.item(MissionItem(0, mavlink.MAV_FRAME_MISSION, mavlink.MAV_CMD_NAV_RETURN_TO_LAUNCH))
+    assert h.rejects.as_dict() == {"mission_item_refused": 2}  # in MAV_FRAME_MISSION it is accepted
+
+
+def test_every_kind_of_refused_mission_message_is_counted():
+    h = Harness()
+    h.store.replace(MISSION, tuple(waypoints(3)))
+    h.send("mission_count", 1, 1, 33, RALLY)  # NO_SPACE
+    h.send("mission_count", 1, 1, 1, 7)  # no such mission_type: INVALID
+    h.send("mission_clear_all", 1, 1, 7)  # ERROR
+    h.send("mission_set_current", 1, 1, 9)  # not in the list
+    h.item(waypoints(1)[0])  # no upload running
+    h.send("mission_request_list", 1, 1, MISSION)
+    h.send("mission_request_int", 1, 1, 2, MISSION)  # a jump: ends the download
+    h.send("mission_count", 1, 1, 2, MISSION)
+    h.send("mission_request_list", 1, 1, MISSION)  # busy: an upload runs
+    h.send("mission_count", 1, 1, 2, FENCE, src=(246, 190))  # a second station
+    h.item(waypoints(1)[0], src=(246, 190))  # not the uploading station
+    h.send("mission_clear_all", 1, 1, MISSION)  # busy
+    h.send("mission_set_current", 1, 1, 0)  # busy
+    assert h.rejects.as_dict() == {"mission_clear_refused": 2, "mission_count_refused": 3,
+                                   "mission_current_refused": 2, "mission_item_refused": 2,
+                                   "mission_request_refused": 2}
 
 
 def test_feasibility_as_px4():

@@ -266,7 +266,7 @@ def test_heartbeat_keeps_a_wall_clock_floor_at_low_speed():
 
 def test_cli_bad_arguments_exit_2_with_one_line():
     for args in (["--speed", "0"], ["--connect", "udp:nowhere"], ["--scenario", "nope"],
-                 ["--param", "NOPE=1"], ["--home-lat", "123"]):
+                 ["--param", "NOPE=1"], ["--home-lat", "123"], ["--no-payload", "--lockstep"]):
         r = subprocess.run([sys.executable, "-m", "sitl_stub", *args], capture_output=True,
                            text=True, timeout=30)
         assert r.returncode == 2, (args, r.stderr)

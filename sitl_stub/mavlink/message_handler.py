@@ -6,8 +6,9 @@ component, and get exactly one COMMAND_ACK; position setpoints go to the vehicle
 protocol, PING, TIMESYNC, FTP and mission-list requests are answered. Accepted targets:
 target_system 0 or the vehicle's id, target_component 0 (broadcast, what pymavlink ground stations
 send) or 1. Whatever is refused (bad bytes, unknown messages, unusable setpoints, refused
-parameters and commands) is counted in the server's ``rejects`` and logged once per kind; a bug met
-by some input is counted in ``stats["handler_errors"]`` and the vehicle flies on.
+parameters, commands and mission-protocol messages) is counted in the server's ``rejects`` and
+logged once per kind; a bug met by some input is counted in ``stats["handler_errors"]`` and the
+vehicle flies on.
 """
 
 from __future__ import annotations
@@ -58,7 +59,8 @@ class MessageHandler:
         self.stats = stats
         self.rejects = rejects
         self.signing = signing
-        self.missions = MissionProtocol(vehicle.plans, self.mav, system_id, telemetry.statustext)
+        self.missions = MissionProtocol(vehicle.plans, self.mav, system_id, telemetry.statustext,
+                                        reject=rejects.reject)
 
     def receive(self, wall: float) -> None:
         """Handle what arrived (at most MAX_RX_PER_TICK messages or datagrams)."""

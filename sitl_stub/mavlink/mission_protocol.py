@@ -29,6 +29,10 @@ sends the STATUSTEXT); a download whose items were all sent ends quietly without
 (MAVProxy sends none) rather than with "Operation timeout", and it blocks no other request (PX4
 lets only a new MISSION_REQUEST_LIST through, so MAVProxy's ``wp list`` then ``fence load`` would
 meet "Busy" for 5 s). Replies go out on ``mav``, the link the request came on.
+
+Each refusal (an error MISSION_ACK, a REJ./IGN STATUSTEXT) is counted by ``reject`` (the server's
+RejectLog, logged once per reason) as ``mission_{count,item,request,clear,current}_refused``; items
+out of sequence and requests with no download running are ignored as PX4 does, not counted.
 """
 
 from __future__ import annotations
@@ -59,6 +63,11 @@ MAX_COUNT = {MISSION: 1000, FENCE: 64, RALLY: 32}
 MAV_MISSION_TYPE_ALL = 255
 MISSION_PLANNER_COMPONENT = 190  # MAV_COMP_ID_MISSIONPLANNER: PX4 accepts it as a target
 CRITICAL = mavlink.MAV_SEVERITY_CRITICAL
+
+
+def _name(enum: str, value: int) -> str:
+    entry = mavlink.enums[enum].get(value)
+    return entry.name if entry is not None else f"{enum} {value}"
 
 
 def _cmds(*names: str) -> frozenset[int]:
@@ -133,8 +142,10 @@ class MissionProtocol:
     message, :meth:`tick` every loop (wall time drives the re-requests and timeouts)."""
 
     def __init__(self, store: MissionStore, mav: Any, system_id: int,
-                 statustext: Callable[[int, str], None], component_id: int = 1) -> None:
+                 statustext: Callable[[int, str], None], component_id: int = 1,
+                 reject: Callable[..., object] | None = None) -> None:
         self.store = store
+        self.reject = reject or (lambda kind, text, key=None: None)  # RejectLog.reject
         self.mav = mav
         self.system_id = system_id
         self.component_ids = (0, component_id, MISSION_PLANNER_COMPONENT)
@@ -182,26 +193,32 @@ class MissionProtocol:
         if self.state is State.GETLIST:
             self._last_recv = wall
             if src != self.partner:
+                self._refuse("count", "busy", "MISSION_COUNT during another station's upload")
                 self._ack(src, mavlink.MAV_MISSION_ERROR)
             elif self.transfer_seq == 0:  # our first request was lost: ask again
                 self._request(0, wall)
             else:
                 self.statustext(CRITICAL, "WPM: REJ. CMD: Busy")
+                self._refuse("count", "busy", "MISSION_COUNT during an upload: Busy")
                 self._ack(src, mavlink.MAV_MISSION_ERROR)
             return
         if self.state is State.SENDLIST:
             self.statustext(CRITICAL, "WPM: IGN MISSION_COUNT: Busy")
+            self._refuse("count", "busy", "MISSION_COUNT during a download: Busy")
             self._ack(src, mavlink.MAV_MISSION_ERROR, msg.mission_type)
             return
         self._last_recv = wall
         owner = _uploading.get(self.store)
         if owner is not None and owner is not self:  # another link is uploading
+            self._refuse("count", "busy", "MISSION_COUNT during another link's upload")
             self._ack(src, mavlink.MAV_MISSION_ERROR, msg.mission_type)
             return
         self.partner, self.mission_type = src, msg.mission_type
         if msg.mission_type not in MISSION_TYPES:
+            self._refuse("count", "type", f"MISSION_COUNT of mission_type {msg.mission_type}")
             self._ack(src, mavlink.MAV_MISSION_INVALID)
         elif msg.count > MAX_COUNT[msg.mission_type]:
+            self._refuse("count", "no_space", f"MISSION_COUNT {msg.count}: too many items")
             self._ack(src, mavlink.MAV_MISSION_NO_SPACE)
         elif msg.count == 0:
             self.store.replace(msg.mission_type, ())
@@ -218,8 +235,10 @@ class MissionProtocol:
         self.int_mode = msg.get_type() == "MISSION_ITEM_INT"
         if src != self.partner:
             self.statustext(CRITICAL, "REJ. MIS ITEM: partner id mismatch")
+            self._refuse("item", "partner", "MISSION_ITEM from a station that is not uploading")
             return
         if msg.mission_type != self.mission_type:
+            self._refuse("item", "type", f"MISSION_ITEM of another mission_type ({msg.mission_type})")
             self._ack(src, mavlink.MAV_MISSION_ERROR)
             return
         if self.state is State.IDLE:
@@ -227,10 +246,12 @@ class MissionProtocol:
                 self._ack(src, mavlink.MAV_MISSION_ACCEPTED)
             else:
                 self.statustext(CRITICAL, "IGN MISSION_ITEM: No transfer")
+                self._refuse("item", "no_transfer", "MISSION_ITEM with no upload running")
                 self._ack(src, mavlink.MAV_MISSION_ERROR)
             return
         if self.state is State.SENDLIST:
             self.statustext(CRITICAL, "IGN MISSION_ITEM: Busy")
+            self._refuse("item", "busy", "MISSION_ITEM during a download: Busy")
             self._ack(src, mavlink.MAV_MISSION_ERROR)
             return
         self._last_recv = wall
@@ -240,6 +261,9 @@ class MissionProtocol:
         verdict = check_item(item, self.int_mode)
         if verdict != mavlink.MAV_MISSION_ACCEPTED:
             self.statustext(CRITICAL, "IGN MISSION_ITEM: Invalid item")
+            what = (f"{_name('MAV_CMD', item.command)} in frame {_name('MAV_FRAME', item.frame)}: "
+                    f"{_name('MAV_MISSION_RESULT', verdict)}")
+            self._refuse("item", what, f"{msg.get_type()} {msg.seq}: {what}, upload ended")
             self._ack(src, verdict)
             self._idle()
             return
@@ -278,6 +302,7 @@ class MissionProtocol:
         if self.state is not State.IDLE and not same:
             self.statustext(mavlink.MAV_SEVERITY_INFO,
                             "Mission download request ignored, already active")
+            self._refuse("request", "busy", "MISSION_REQUEST_LIST during a transfer: ignored")
             return
         self._last_recv = wall
         self.partner, self.mission_type = src, msg.mission_type
@@ -291,9 +316,11 @@ class MissionProtocol:
         self.int_mode = msg.get_type() == "MISSION_REQUEST_INT"
         if src != self.partner:
             self.statustext(CRITICAL, "WPM: REJ. CMD: partner id mismatch")
+            self._refuse("request", "partner", "MISSION_REQUEST from a station that is not downloading")
             return
         if self.state is State.GETLIST:
             self.statustext(CRITICAL, "WPM: REJ. CMD: Busy")
+            self._refuse("request", "busy", "MISSION_REQUEST during an upload: Busy")
         if self.state is not State.SENDLIST or msg.mission_type != self.mission_type:
             return  # no download running: ignored silently, as PX4 (buggy OSDs send these)
         self._last_recv = wall
@@ -303,6 +330,7 @@ class MissionProtocol:
             self._idle()
             self._ack(src, mavlink.MAV_MISSION_ERROR)
             self.statustext(CRITICAL, "WPM: REJ. CMD: Req. WP was unexpected")
+            self._refuse("request", "seq", f"MISSION_REQUEST {msg.seq}: unexpected, download ended")
             return
         item = self._sending[msg.seq]
         if item.frame in GLOBAL_FRAMES:  # PX4 sends global items in the frame kind asked for
@@ -315,25 +343,34 @@ class MissionProtocol:
     def _on_clear_all(self, msg: Any, src: tuple[int, int], wall: float) -> None:
         if self.state is not State.IDLE:
             self.statustext(CRITICAL, "WPM: IGN CLEAR CMD: Busy")
+            self._refuse("clear", "busy", "MISSION_CLEAR_ALL during a transfer: Busy")
             return
         self._last_recv = wall
         types = MISSION_TYPES if msg.mission_type == MAV_MISSION_TYPE_ALL else (
             (msg.mission_type,) if msg.mission_type in MISSION_TYPES else ())
         for mission_type in types:
             self.store.replace(mission_type, ())
+        if not types:
+            self._refuse("clear", "type", f"MISSION_CLEAR_ALL of mission_type {msg.mission_type}")
         self._ack(src, mavlink.MAV_MISSION_ACCEPTED if types else mavlink.MAV_MISSION_ERROR,
                   msg.mission_type)
 
     def _on_set_current(self, msg: Any, src: tuple[int, int], wall: float) -> None:
         if self.state is not State.IDLE:
             self.statustext(CRITICAL, "WPM: IGN WP CURR CMD: Busy")
+            self._refuse("current", "busy", "MISSION_SET_CURRENT during a transfer: Busy")
         elif self.store.set_current(msg.seq):
             self._last_recv = wall
             self.mav.mission_current_send(msg.seq, len(self.store.items(MISSION)))
         else:
             self.statustext(CRITICAL, "WPM: WP CURR CMD: Not in list")
+            self._refuse("current", "seq", f"MISSION_SET_CURRENT {msg.seq}: not in the mission")
 
     # ----------------------------------------------------------------------------- helpers
+    def _refuse(self, message: str, why: str, text: str) -> None:
+        """Count a refused MISSION_* message as ``mission_<message>_refused``, logged once per ``why``."""
+        self.reject(f"mission_{message}_refused", text, key=f"mission_{message}_{why}")
+
     def _request(self, seq: int, wall: float) -> None:
         self._last_sent = wall
         send = self.mav.mission_request_int_send if self.int_mode else self.mav.mission_request_send

@@ -42,6 +42,7 @@ class RadioEpisodes:
         self.cfg, self.first_seed = cfg, seed
         self.count = 0  # episodes begun before this one
         self.world = RadioWorld(cfg, seed)
+        self.begun = False  # this episode has been begun by an arming (or is flown without one)
         self.started = False
         self.frame_rates_mbps: list[float] = []  # this episode's truth per scored frame 1, 2, ...
         self._armings: list[int] | None = None
@@ -54,15 +55,18 @@ class RadioEpisodes:
     def tick(self, states: Sequence[VehicleState]) -> FrameScore | None:
         """One frame with every UAV's vehicle state: begin a new episode when a flight begins,
         advance a running episode (its score), or start it when every vehicle is in OFFBOARD."""
-        if self._flight_begins(states) and self.started and self.seed < MAX_SEED:
+        begins = self._flight_begins(states)
+        if begins and self.started and self.seed < MAX_SEED:
             self.count += 1
             self.world = RadioWorld(self.cfg, self.seed)
             self.started, self.frame_rates_mbps = False, []
+        self.begun = self.begun or begins
         if self.started:
             score = self.world.advance([[s.x_east_m, s.y_north_m] for s in states])
             self.frame_rates_mbps.append(score.mean_rate_mbps)
             return score
         self.started = all(s.mode is FlightMode.OFFBOARD for s in states)
+        self.begun = self.begun or self.started
         return None
 
     def awaits_decision(self, states: Sequence[VehicleState]) -> bool:
@@ -88,8 +92,11 @@ class RadioEpisodes:
     def summary(self) -> dict[str, Any]:
         """Vehicle-side truth of the current episode (whatever the link lost): mean UE rate over
         its first ``episode_frames`` frames, which episode it is and its scenario (``mixed``
-        draws one per episode)."""
+        draws one per episode), and ``episodes``: how many flights have begun one since start (0
+        before the first arming; the episode then waiting is ``episode_seed``'s, the next flight's).
+        ``UL_EPISODE`` (``count``) is the current episode's index, what ``uavlink fly`` reads."""
         rates = self.frame_rates_mbps[: self.cfg.episode_frames]
         return {"frames": len(rates), "frames_total": len(self.frame_rates_mbps),
                 "mean_rate_mbps": round(sum(rates) / len(rates), 6) if rates else None,
-                "episode_seed": self.seed, "episodes": self.count + 1, "scenario": self.world.scenario}
+                "episode_seed": self.seed, "episodes": self.count + int(self.begun),
+                "scenario": self.world.scenario}
