@@ -14,6 +14,7 @@ import uavlink
 from uavlink.config import EnvConfig
 from uavlink.env import ActionMapping, BatchedUavEnv, RewardBounds
 from uavlink.env.gym_env import UavBsEnv
+from uavlink.errors import UserError
 from uavlink.mobility import MIXED, SCENARIOS
 
 ENV_ID = "uavlink/UavBs-v0"
@@ -221,6 +222,30 @@ def test_gym_env_accepts_config_overrides():
     assert env.config.radio.shadowing is False and env.config.radio.fast_fading is False
     assert env.config.r_max_m == 6.0
     assert env.action_space.shape == (2,) and env.observation_space.shape == (env.layout.size,)
+
+
+def test_gym_env_applies_named_arguments_over_a_config_and_refuses_what_it_cannot_be():
+    cfg = EnvConfig(scenario="hotspot")
+    env = fresh(gym.make(ENV_ID, config=cfg, scenario="no_move", n_ues=5))
+    assert env.config.scenario == "no_move" and env.config.n_ues == 5
+    assert fresh(gym.make(ENV_ID, config=cfg)).config == cfg.validate()
+    assert fresh(gym.make(ENV_ID, render_mode=None)).render() is None
+    with pytest.raises(UserError, match="render_mode 'rgb_array' is not supported"):
+        UavBsEnv(render_mode="rgb_array")  # (gym.make would warn first that it is not in render_modes)
+    with pytest.raises(UserError, match="n_uavs=2.*parallel_env"):
+        gym.make(ENV_ID, n_uavs=2)
+
+
+def test_gym_env_steps_only_inside_an_episode():
+    env = UavBsEnv("circular", episode_frames=3)
+    with pytest.raises(RuntimeError, match="call reset"):
+        env.step(np.zeros(2))
+    env.reset(seed=0)
+    assert [env.step(np.zeros(2))[3] for _ in range(3)] == [False, False, True]
+    with pytest.raises(RuntimeError, match="call reset"):
+        env.step(np.zeros(2))
+    env.reset(seed=1)
+    env.step(np.zeros(2))
 
 
 # --- SB3 VecEnv face ---------------------------------------------------------------------------

@@ -26,7 +26,7 @@ from pettingzoo import ParallelEnv
 
 from uavlink.config import EnvConfig
 from uavlink.env.core import BatchedUavEnv
-from uavlink.env.gym_env import make_config
+from uavlink.env.gym_env import config_with, make_config
 from uavlink.errors import UserError
 
 AgentID = str
@@ -44,9 +44,7 @@ def fleet_config(scenario: str | None = None, n_uavs: int | None = None,
     ``scenario``, ``n_uavs`` and ``overrides`` (``radio.x`` or plain field names) applied."""
     if config is None:
         return make_config(scenario or "circular", n_uavs=2 if n_uavs is None else n_uavs, **overrides)
-    explicit = {"scenario": scenario, "n_uavs": n_uavs}
-    changes = {key: value for key, value in explicit.items() if value is not None} | overrides
-    return config.replace(**changes).validate() if changes else config.validate()
+    return config_with(config, {"scenario": scenario, "n_uavs": n_uavs}, overrides)
 
 
 class FleetParallelEnv(ParallelEnv[AgentID, np.ndarray, np.ndarray]):
