@@ -157,3 +157,11 @@ def test_a_fleet_layout_adds_the_shared_fields_and_round_trips_them():
     empty = layout.encode_frame(uav[0], np.zeros((3, 3)), aoa, **fleet_quantities(uav, np.zeros((1, 3), int)))
     cell = layout.slices["cell_aoa_mean_deg"]
     np.testing.assert_array_equal(empty[1:, cell], 0.0)  # UAVs 1 and 2 serve nobody
+
+
+def test_unknown_quantity_names_the_layouts():
+    layout = ObservationLayout()
+    obs = np.zeros((1, layout.size), np.float32)
+    for lookup in (lambda: layout.history(obs, "nope"), lambda: layout.encoded_history(obs, "sinr_db", "nope")):
+        with pytest.raises(KeyError, match="no quantity 'nope'.*its quantities: uav_xy_m, sinr_db, aoa_mean_deg, aoa_std_deg"):
+            lookup()

@@ -306,7 +306,12 @@ class ObservationLayout:
         return obs.reshape(obs.shape[0], self.memory, self.frame_size).astype(float)
 
     def _field(self, quantity: str) -> Field:
-        return next(field for field in self.fields if field.quantity == quantity)
+        """The field carrying ``quantity``; KeyError naming this layout's quantities if none does."""
+        for field in self.fields:
+            if field.quantity == quantity:
+                return field
+        raise KeyError(f"no quantity {quantity!r} in observation layout {self.describe()}; "
+                       f"its quantities: {', '.join(self.slices)}")
 
     def history(self, obs: np.ndarray, quantity: str) -> np.ndarray:
         """A field decoded from every frame of observations (N, size): (N, memory, ...), newest first."""
@@ -315,7 +320,7 @@ class ObservationLayout:
     def encoded_history(self, obs: np.ndarray, *quantities: str) -> np.ndarray:
         """Fields as encoded (N, memory, widths summed), newest frame first."""
         frames, slices = self.frames(obs), self.slices
-        return np.concatenate([frames[:, :, slices[q]] for q in quantities], axis=2)
+        return np.concatenate([frames[:, :, slices[self._field(q).quantity]] for q in quantities], axis=2)
 
     def sinr_db_history(self, obs: np.ndarray) -> np.ndarray:
         """Per-UE SINRs (N, memory, U) in dB, newest frame first, decoded from observations (N, size)."""

@@ -16,13 +16,30 @@ from typing import Any
 
 import gymnasium as gym
 import numpy as np
-from stable_baselines3.common.vec_env.base_vec_env import VecEnv, VecEnvObs, VecEnvStepReturn
+from stable_baselines3.common.vec_env.base_vec_env import (
+    VecEnv,
+    VecEnvIndices,
+    VecEnvObs,
+    VecEnvStepReturn,
+)
 
 from uavlink.config import EnvConfig
 from uavlink.env.core import BatchedUavEnv
 
 
 class UavVecEnv(VecEnv):
+    """``n_envs`` episodes of ``cfg``'s world as one SB3 ``VecEnv`` of ``num_envs`` = N D agent rows.
+
+    SB3's VecEnv is a list of separate envs; this one is a single batched core (``self.core``,
+    :class:`~uavlink.env.core.BatchedUavEnv`) stepped as arrays, which is what makes training
+    fast. Stepping, resetting and seeding act on the whole batch (the episodes have one length,
+    so they start and end together). So do the per-env accessors: ``get_attr`` and ``env_method``
+    answer one entry per index (SB3's ``indices``), each the whole batch's value (e.g. a
+    ``GroundTruth`` of every env: row i of its per-row arrays is VecEnv index i, and env i // D's
+    world), and ``set_attr`` sets a value for the whole batch, so it takes only indices that cover
+    every row.
+    """
+
     def __init__(self, cfg: EnvConfig, n_envs: int, seed: int | None = None) -> None:
         self.core = BatchedUavEnv(cfg, n_envs=n_envs, seed=seed)
         obs_space = gym.spaces.Box(*self.core.layout.bounds(), dtype=np.float32)
@@ -36,6 +53,7 @@ class UavVecEnv(VecEnv):
         self._rate_sums = np.zeros(n_envs)
 
     def reset(self) -> VecEnvObs:
+        """Restart every episode (with the seed ``seed()`` set, once); observations (N D, obs)."""
         obs = self.core.reset(self._next_seed)
         self._next_seed = None
         self._returns[:] = 0.0
@@ -43,9 +61,11 @@ class UavVecEnv(VecEnv):
         return obs
 
     def step_async(self, actions: np.ndarray) -> None:
+        """Keep the actions (N D, 2) for ``step_wait``: the batch steps synchronously."""
         self._actions = actions
 
     def step_wait(self) -> VecEnvStepReturn:
+        """Step every row; at an episode's end, reset and report as the module docstring says."""
         result = self.core.step(self._actions)
         self._returns += result.reward
         self._rate_sums += result.mean_rate_mbps
@@ -64,21 +84,37 @@ class UavVecEnv(VecEnv):
         return obs, result.reward.astype(np.float32), dones, infos
 
     def close(self) -> None:
-        pass
+        """Nothing to release: the batch holds no processes or files."""
 
     def seed(self, seed: int | None = None) -> Sequence[None | int]:
+        """Seed the next ``reset`` of the whole batch (one seed; the core draws every env's streams
+        from it), so every row reports the same ``seed``."""
         self._next_seed = seed
         return [seed] * self.num_envs
 
-    def get_attr(self, attr_name: str, indices=None) -> list[Any]:
-        owner = self.core if hasattr(self.core, attr_name) else self  # e.g. render_mode lives here
+    def get_attr(self, attr_name: str, indices: VecEnvIndices = None) -> list[Any]:
+        """The core's attribute (or this VecEnv's, e.g. ``render_mode``), the batch's value once
+        per index (see the class docstring)."""
+        owner = self if hasattr(self, attr_name) and not hasattr(self.core, attr_name) else self.core
         return [getattr(owner, attr_name)] * len(self._get_indices(indices))
 
-    def set_attr(self, attr_name: str, value: Any, indices=None) -> None:
+    def set_attr(self, attr_name: str, value: Any, indices: VecEnvIndices = None) -> None:
+        """Set the core's attribute for the whole batch; ``indices`` must cover every row (one value
+        is shared by all of them), else ValueError."""
+        if set(self._get_indices(indices)) != set(range(self.num_envs)):
+            raise ValueError(f"{attr_name!r} is one value for the whole batch of {self.num_envs} rows; "
+                             "set it for all of them (indices=None)")
         setattr(self.core, attr_name, value)
 
-    def env_method(self, method_name: str, *args, indices=None, **kwargs) -> list[Any]:
-        return [getattr(self.core, method_name)(*args, **kwargs)] * len(self._get_indices(indices))
+    def env_method(self, method_name: str, *method_args, indices: VecEnvIndices = None,
+                   **method_kwargs) -> list[Any]:
+        """Call the core's method once, on the whole batch, and return its result once per index
+        (see the class docstring); a method that changes state changes every env."""
+        result = getattr(self.core, method_name)(*method_args, **method_kwargs)
+        return [result] * len(self._get_indices(indices))
 
-    def env_is_wrapped(self, wrapper_class, indices=None) -> list[bool]:
+    def env_is_wrapped(self, wrapper_class: type[gym.Wrapper], indices: VecEnvIndices = None) -> list[bool]:
+        """False for every index: the batch is no gymnasium env, so no gymnasium wrapper (e.g. SB3's
+        ``Monitor``, which is why SB3's ``VecMonitor`` and ``evaluate_policy`` ask) wraps it; the
+        ``info["episode"]`` it would add is written by ``step_wait``."""
         return [False] * len(self._get_indices(indices))

@@ -63,6 +63,19 @@ class _NoOptimizer:
 
 
 class SB3Policy:
+    """A PPO ``MlpPolicy`` from a uavlink policy zip, acting as SB3's deterministic ``predict`` does.
+
+    Loads only the policy network from the zip (SB3's ``load_from_zip_file``, no optimizer, no
+    algorithm) plus the zip's ``uavlink_manifest.json``: the observation layout, action mapping and
+    env config the policy was trained for. The manifest is required, because SB3's zip holds only
+    the observation's size: without the layout nothing could check that an env (or a vehicle in
+    flight) builds the same observation, so a plain SB3 ``model.save()`` zip is refused with
+    "zip has no uavlink_manifest.json". A zip with a manifest comes from ``uavlink train`` or
+    ``uavlink.learn.training.train(cfg, tc, out)``; ``uavlink.policies.contract.load_with_env``
+    loads one together with the env it was trained in. Raises ``PolicyFileError`` for a missing,
+    foreign or damaged file.
+    """
+
     needs_truth = False
 
     def __init__(self, path: str | Path) -> None:
