@@ -8,10 +8,14 @@ To see the table:
 
 from __future__ import annotations
 
+import dataclasses
+
 import numpy as np
 import pytest
 
 from uavlink.config import BASELINE_NAMES, EnvConfig
+from uavlink.env.core import BatchedUavEnv
+from uavlink.env.observation import ObservationLayout
 from uavlink.evaluation import EvalResult, evaluate_policy
 from uavlink.mobility import SCENARIOS
 from uavlink.policies.baselines import AoaPolicy
@@ -176,3 +180,52 @@ def test_oracle_needs_ground_truth_and_unknown_baseline_is_rejected():
         make_baseline("kamikaze", cfg)
     with pytest.raises(ValueError, match="episodes must be a positive integer"):
         evaluate_policy(make_baseline("static", cfg), cfg, episodes=0)
+
+
+@pytest.mark.parametrize("name", [*BASELINE_NAMES, "genie"])
+def test_every_rule_takes_a_single_observation_as_a_batch_of_one(name: str) -> None:
+    """A Gymnasium env's observation (obs,) is a batch of one: actions (1, 2), as SB3Policy and
+    OnnxPolicy return for it (``uavlink.policies.base.RulePolicy``)."""
+    cfg = baseline_env(name, EnvConfig(scenario="straight", episode_frames=4))
+    env = BatchedUavEnv(cfg, n_envs=1, seed=0)
+    obs = env.reset()
+    truth = env.ground_truth() if make_baseline(name, cfg).needs_truth else None
+    one = make_baseline(name, cfg).act(obs[0], truth)
+    batch = make_baseline(name, cfg).act(obs, truth)
+    assert obs.shape == (1, ObservationLayout.for_config(cfg).size) and one.shape == batch.shape == (1, 2)
+    np.testing.assert_array_equal(one, batch)
+
+
+def test_a_teachers_variant_of_a_rule_takes_a_single_observation_too() -> None:
+    from uavlink.learn.teachers import AoaVariant
+
+    cfg = EnvConfig(scenario="straight")
+    obs = BatchedUavEnv(cfg, n_envs=1, seed=0).reset()
+    assert AoaVariant(cfg, shadow_gate_db=0.0).act(obs[0]).shape == (1, 2)
+    fleet = cfg.replace(n_uavs=2)  # a fleet's (N D, obs) rows stay as they are
+    rows = BatchedUavEnv(fleet, n_envs=1, seed=0).reset()
+    assert rows.ndim == 2 and make_baseline("aoa", fleet).act(rows).shape == (2, 2)
+
+
+@pytest.mark.slow
+def test_a_rule_answers_a_single_observation_in_the_shape_sb3policy_does() -> None:
+    from uavlink.policies.sb3_policy import SB3Policy
+
+    policy = SB3Policy("policies/circular.zip")
+    obs = np.zeros(policy.layout.size, np.float32)
+    assert make_baseline("aoa", EnvConfig()).act(obs).shape == policy.act(obs).shape
+
+
+def test_eval_result_says_each_field_and_r_fair_is_the_sum_of_log10_rates() -> None:
+    doc = EvalResult.__doc__
+    for field in dataclasses.fields(EvalResult):
+        assert f"``{field.name}``" in doc, field.name
+    assert "Mbit/s" in doc and "log10" in doc and "bit/s" in doc
+    cfg = EnvConfig(scenario="hotspot", episode_frames=3)
+    env = BatchedUavEnv(cfg, n_envs=2, seed=0)
+    env.reset()
+    fair = [env.step(np.zeros((2, 2))).fair_rate for _ in range(3)]
+    np.testing.assert_allclose(fair[-1], np.log10(env.readings.rate_bps).sum(axis=1))
+    result = evaluate_policy(make_baseline("static", cfg), cfg, episodes=2, seed=0)
+    np.testing.assert_allclose(result.episode_fair_rate, np.mean(fair, axis=0))
+    assert result.mean_fair_rate == pytest.approx(np.mean(fair))

@@ -17,9 +17,11 @@ from uavlink.cli import main
 from uavlink.config import EnvConfig, changed_settings, parse_settings
 from uavlink.env.observation import ObservationLayout
 from uavlink.errors import UserError
+from uavlink.evaluation import evaluate_policy
 from uavlink.policies.contract import (
     EnvOverrides,
     apply_overrides,
+    check_policy_env,
     load_with_env,
     manifest_env,
     policy_env,
@@ -30,6 +32,7 @@ from uavlink.policies.manifest import (
     read_zip_manifest,
     write_zip_manifest,
 )
+from uavlink.policies.registry import baseline_env, make_baseline
 
 ROOT = Path(__file__).resolve().parents[1]
 POLAR = EnvConfig(scenario="straight", action_mapping="polar-v1", r_max_m=8.0)
@@ -80,8 +83,44 @@ def test_overrides_go_on_top_and_what_the_policy_was_built_for_is_refused() -> N
                                    f"conflicts (drop the --set)")
     with pytest.raises(UserError, match="unknown action mapping"):  # baselines: any mapping, if it exists
         apply_overrides(EnvConfig(), EnvOverrides(settings={"action_mapping": "spherical"}))
-    with pytest.raises(UserError, match="ten"):  # validate()'s int() fails: still a one-line UserError
+    with pytest.raises(UserError, match="ten"):  # a value of the wrong type: still a one-line UserError
         apply_overrides(EnvConfig(), EnvOverrides(settings={"n_ues": "ten"}))
+
+
+@pytest.mark.parametrize(("change", "built", "asked"), [
+    ({"r_max_m": 6}, "r_max_m=8.0", "6.0"),
+    ({"action_mapping": "cartesian-v1"}, "action_mapping='polar-v1'", "'cartesian-v1'"),
+])
+def test_evaluate_policy_refuses_a_policy_file_outside_what_it_was_built_for(change, built, asked) -> None:
+    policy = fake_policy(POLAR)  # refused before it would fly a frame
+    with pytest.raises(UserError) as info:
+        evaluate_policy(policy, POLAR.replace(**change), episodes=1)
+    assert str(info.value) == (f"policy 'fake' was built for {built}, not {asked}; evaluate it in the env its "
+                               f"manifest records: uavlink.policies.contract.load_with_env(['path'], "
+                               f"EnvOverrides()) gives (policy, env)")
+    # The contract's one check, as the CLI's: the world may change, what the policy reads may not.
+    check_policy_env(policy, POLAR.replace(**{"scenario": "circular", "radio.shadowing_std_db": 4.0,
+                                              "radio.aoa_noise_deg": 5.0, "r_max_m": 8}))
+    with pytest.raises(UserError, match=r"observation layout mismatch: policy 'fake' expects .*memory=4.*"
+                                        r"memory=2.*; evaluate it in the env its manifest records"):
+        check_policy_env(policy, POLAR.replace(memory=2))
+    policy.path = Path("policies/x.zip")  # a loaded file names its path
+    with pytest.raises(UserError, match=r"load_with_env\(\['policies/x.zip'\], EnvOverrides\(\)\)"):
+        check_policy_env(policy, POLAR.replace(r_max_m=6))
+
+
+def test_evaluate_policy_points_a_baseline_to_its_env() -> None:
+    cfg = EnvConfig(scenario="no_move")
+    explore = make_baseline("explore", cfg)  # built for baseline_env("explore", cfg): a memory of place
+    with pytest.raises(UserError) as info:
+        evaluate_policy(explore, cfg, episodes=1)
+    message = str(info.value)
+    assert message.startswith("observation layout mismatch: policy 'explore' expects v3") and "\n" not in message
+    assert message.endswith("; evaluate a baseline made for a world, make_baseline('explore', world), in "
+                            "uavlink.policies.registry.baseline_env('explore', world)")
+    check_policy_env(explore, baseline_env("explore", cfg))
+    check_policy_env(make_baseline("aoa", cfg), cfg.replace(r_max_m=6))  # no manifest: nothing built for
+    check_policy_env(make_baseline("static", cfg), cfg.replace(memory=2))  # reads no observation layout
 
 
 def test_a_manifest_whose_layout_disagrees_with_its_env_is_a_policy_file_error() -> None:
@@ -187,3 +226,19 @@ def test_the_sitl_radio_payload_simulates_the_set_pairs_fly_passes() -> None:
         args = build_parser().parse_args([arg for pair in changed_settings(cfg) for arg in ("--set", pair)])
         payload = RadioPayload(PayloadOptions("straight", 5, 0.0, tuple(args.settings)))
         assert payload.cfg == cfg
+
+
+def test_a_plain_sb3_zip_without_a_manifest_is_refused(tmp_path: Path) -> None:
+    """SB3Policy's docstring: a ``model.save()`` zip (here a shipped policy less its manifest) is refused."""
+    import zipfile
+
+    from uavlink.policies.sb3_policy import SB3Policy
+
+    plain = tmp_path / "plain.zip"
+    with zipfile.ZipFile(ROOT / "policies/circular.zip") as shipped, zipfile.ZipFile(plain, "w") as out:
+        for info in shipped.infolist():
+            if info.filename != "uavlink_manifest.json":
+                out.writestr(info, shipped.read(info))
+    SB3Policy(ROOT / "policies/circular.zip")  # the same weights with their manifest load
+    with pytest.raises(PolicyFileError, match="zip has no uavlink_manifest.json; not a uavlink policy"):
+        SB3Policy(plain)

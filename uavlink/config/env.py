@@ -3,7 +3,7 @@
 Every constant of the geometry, the radio model and the learning problem lives here; modules take
 these dataclasses rather than loose numbers. The scenario names are declared here, the lowest
 layer, and ``uavlink.mobility`` implements them. ``validate()`` rejects configs that make no physical
-sense with a one-line ``ConfigError`` (a ``UserError``) naming the field.
+sense, or hold a value of the wrong type, with a one-line ``ConfigError`` (a ``UserError``) naming the field.
 """
 
 from __future__ import annotations
@@ -15,7 +15,7 @@ from collections.abc import Sequence
 from dataclasses import dataclass, field
 from typing import Any
 
-from uavlink.config.fields import coerce
+from uavlink.config.fields import check_fields, coerce
 from uavlink.config.fields import finite as _finite
 from uavlink.config.fields import non_negative as _non_negative
 from uavlink.config.fields import positive as _positive
@@ -37,6 +37,10 @@ UAV_MOTIONS = ("instant", "px4")
 # "kriging", that grid and a model of the sensed field with the spot it makes worth flying to (v5,
 # one UAV; uavlink/env/field_model.py).
 PLACE_MODELS = ("cells", "kriging")
+# The finest memory-of-place grid validate() accepts: cells of at least PLACE_CELL_MIN_M, and at most
+# PLACE_CELLS_ACROSS of them across the area (EnvConfig.place_cell_m says why).
+PLACE_CELL_MIN_M = 1.0
+PLACE_CELLS_ACROSS = 400
 
 
 @dataclass(frozen=True)
@@ -47,6 +51,7 @@ class AreaConfig:
     uav_altitude_m: float = 95.0
 
     def validate(self) -> None:
+        check_fields(self, lambda path: f"area.{path}")
         _positive("area.half_width_m", self.half_width_m)
         _positive("area.uav_altitude_m", self.uav_altitude_m)
 
@@ -84,9 +89,10 @@ class RadioConfig:
     aoa_noise_max_deg: float = 0.0
 
     def validate(self) -> None:
+        check_fields(self, lambda path: f"radio.{path}")
         _positive("radio.carrier_ghz", self.carrier_ghz)
         _positive("radio.bandwidth_hz", self.bandwidth_hz)
-        if int(self.n_resource_blocks) != self.n_resource_blocks or self.n_resource_blocks < 1:
+        if self.n_resource_blocks < 1:
             raise ConfigError(f"radio.n_resource_blocks must be a positive integer, got {self.n_resource_blocks}")
         _positive("radio.min_distance_m", self.min_distance_m)
         _non_negative("radio.shadowing_std_db", self.shadowing_std_db)
@@ -123,7 +129,12 @@ class EnvConfig:
     memory: int = 4
     # A memory of place (SPEC "The limit, and a memory of place"): what the UAV sensed where, on a
     # grid of cells this wide (m) over the area; 0 (default) is off, the layouts of before.
-    # uavlink/env/place_memory.py; it makes the observation layout v3 (v4 for a fleet).
+    # uavlink/env/place_memory.py; it makes the observation layout v3 (v4 for a fleet). The shipped
+    # grids are 12 m (one frame's longest move) and 6 m. validate() wants cells of at least
+    # PLACE_CELL_MIN_M = 1 m (in flight the UAV knows its own position, LOCAL_POSITION_NED, to about a
+    # metre: finer cells would file its readings by noise) and at most PLACE_CELLS_ACROSS = 400 across
+    # the area: the memory keeps 24 bytes per cell and UAV, so 400 x 400 cells are 3.8 MB a UAV (0.5 GB
+    # for 128 envs), and it grows as 1 / cell^2 (1 mm cells over the default area: 3.5 TiB a UAV).
     place_cell_m: float = 0.0
     place_model: str = PLACE_MODELS[0]  # what the memory keeps: PLACE_MODELS above
     ue_speed_mps: float = 8.0
@@ -137,6 +148,8 @@ class EnvConfig:
     radio: RadioConfig = field(default_factory=RadioConfig)
 
     def validate(self) -> EnvConfig:
+        check_fields(self, lambda path: path if path in ("area", "radio") else f"env.{path}")
+        self.area.validate()  # the checks below read the area
         if self.scenario not in (*SCENARIOS, MIXED):
             raise ConfigError(
                 f"unknown scenario {self.scenario!r}; choose from {', '.join(SCENARIOS)} or {MIXED}")
@@ -151,8 +164,8 @@ class EnvConfig:
             raise ConfigError(f"unknown fleet_reuse {self.fleet_reuse!r}; choose from {', '.join(FLEET_REUSE)}")
         for name in ("n_ues", "episode_frames", "memory", "n_uavs"):
             value = getattr(self, name)
-            if int(value) != value or value < 1:
-                raise ConfigError(f"env.{name} must be a positive integer, got {value}")
+            if value < 1:
+                raise ConfigError(f"env.{name} must be a positive integer, got {value!r}")
         if self.n_ues < 2 and self.scenario in ("straight_90", "straight_180", "hotspot", MIXED):
             raise ConfigError(f"scenario {self.scenario!r} needs at least 2 UEs, got n_ues={self.n_ues}")
         _positive("env.frame_s", self.frame_s)
@@ -160,6 +173,11 @@ class EnvConfig:
         _non_negative("env.place_cell_m", self.place_cell_m)
         if self.place_cell_m > self.area.half_width_m:
             raise ConfigError("env.place_cell_m must be 0 (off) or at most area.half_width_m")
+        finest = max(PLACE_CELL_MIN_M, 2 * self.area.half_width_m / PLACE_CELLS_ACROSS)
+        if 0 < self.place_cell_m < finest:
+            raise ConfigError(f"env.place_cell_m must be 0 (off) or >= {finest:g} m (cells of at least "
+                              f"{PLACE_CELL_MIN_M:g} m, at most {PLACE_CELLS_ACROSS} across the area's "
+                              f"{2 * self.area.half_width_m:g} m), got {self.place_cell_m!r}")
         if self.place_model not in PLACE_MODELS:
             raise ConfigError(f"unknown place_model {self.place_model!r}; choose from {', '.join(PLACE_MODELS)}")
         if self.place_model == "kriging" and (self.place_cell_m <= 0 or self.n_uavs > 1):
@@ -177,7 +195,6 @@ class EnvConfig:
             if 2 * self.fleet_start_radius_m * math.sin(math.pi / self.n_uavs) < self.uav_separation_m:
                 raise ConfigError(f"{self.n_uavs} UAVs on a {self.fleet_start_radius_m:g} m start circle are "
                                   f"closer than env.uav_separation_m={self.uav_separation_m:g}")
-        self.area.validate()
         self.radio.validate()
         return self
 

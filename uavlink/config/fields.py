@@ -43,6 +43,20 @@ def _hints(cls: type) -> dict[str, Any]:
     return get_type_hints(cls)
 
 
+def _group(cls: type, path: str) -> type | None:
+    """The nested config dataclass a dotted path names (``area``), or None if it names none."""
+    head, _, tail = path.partition(".")
+    hint = _hints(cls).get(head)
+    if not dataclasses.is_dataclass(hint):
+        return None
+    return _group(hint, tail) if tail else hint
+
+
+def _a(cls: type) -> str:
+    """``an AreaConfig``, ``a RadioConfig``."""
+    return f"{'an' if cls.__name__[0] in 'AEIOU' else 'a'} {cls.__name__}"
+
+
 def kind(hint: Any) -> tuple[Any, bool]:
     """(base type, optional) of an annotation: ``int | None`` -> (int, True)."""
     if get_origin(hint) in (Union, types.UnionType):
@@ -76,6 +90,11 @@ def coerce(cls: type, path: str, value: Any, label: str) -> Any:
     a float, a list becomes a tuple); a ``ConfigError`` naming ``label`` if it has the wrong type."""
     owner, name = resolve(cls, path) or (None, None)
     if owner is None:
+        group = _group(cls, path)
+        if group is not None:  # a nested config's own name: it takes that config, or its fields one by one
+            first = dataclasses.fields(group)[0].name
+            raise ConfigError(f"{label} is a nested config: pass {_a(group)}, or set its fields one by one "
+                              f"({label}.{first}=...), got {value!r}")
         raise ConfigError(f"unknown config key {label!r}")
     base, optional = kind(_hints(owner)[name])
     if value is None and optional:
@@ -99,11 +118,13 @@ def coerce(cls: type, path: str, value: Any, label: str) -> Any:
 
 
 def check_fields(config: Any, name: Namer) -> None:
-    """Type and range of every field, as ``setting`` declared them (a nested config's own
-    ``validate()`` checks its fields)."""
+    """Type (``coerce``'s check, the value shown by repr) and range of every field, as ``setting``
+    declared them; a nested config must be its dataclass (its own ``validate()`` checks its fields)."""
     for f, hint in config_fields(type(config)):
         value, path = getattr(config, f.name), f.name
         if dataclasses.is_dataclass(hint):
+            if not isinstance(value, hint):
+                raise ConfigError(f"{name(path)} must be {_a(hint)}, got {value!r}")
             continue
         coerce(type(config), f.name, value, name(path))
         low, high, low_open = f.metadata.get("low"), f.metadata.get("high"), f.metadata.get("low_open")

@@ -15,6 +15,7 @@ import numpy as np
 
 from uavlink.config import EnvConfig
 from uavlink.policies.base import Policy
+from uavlink.policies.contract import check_policy_env
 from uavlink.rollout import chunks
 from uavlink.seeding import EVAL
 
@@ -50,6 +51,22 @@ class _Tally:
 
 @dataclass
 class EvalResult:
+    """What ``evaluate_policy`` measured: ``episodes`` seeded episodes (E) of ``scenario`` flown by
+    ``policy`` (its name), from ``seed`` on the ``EVAL`` stream, with AoA noise ``aoa_noise_deg``
+    (deg, the env's std). Per episode, means over its frames:
+
+    * ``episode_rate_mbps`` (E,): the mean UE rate, Mbit/s (a UE's rate is its round-robin share of
+      the band's Shannon rate at its SINR); ``mean_rate_mbps`` is their mean, the throughput every
+      table reports, and ``ci95_mbps`` the half-width of its 95 % interval, Mbit/s;
+    * ``episode_fair_rate`` (E,): R_fair, the sum over the UEs of log10 of each UE's rate in bit/s
+      (proportional fairness, what the reward normalises: ``uavlink.env.reward``), dimensionless;
+      ``mean_fair_rate`` is their mean (10 UEs at 1 Mbit/s each: 60);
+    * ``episode_jain`` (E,): Jain's index of the UE rates, 1/U to 1 (``jain_index``: the mean);
+    * ``ue_rate_mbps`` (E, U): each UE's mean rate, Mbit/s (``p5_ue_rate_mbps``: the 5th percentile);
+    * ``episode_ues_per_uav`` (E, D): UEs each UAV serves (``ues_per_uav``: the mean per UAV).
+
+    ``trajectory``: episode 0's positions when asked for (``record_trajectory``), else None."""
+
     scenario: str
     policy: str
     episodes: int
@@ -64,6 +81,7 @@ class EvalResult:
 
     @property
     def mean_rate_mbps(self) -> float:
+        """The mean UE rate, Mbit/s, mean over frames and episodes."""
         return float(self.episode_rate_mbps.mean())
 
     @property
@@ -74,6 +92,7 @@ class EvalResult:
 
     @property
     def mean_fair_rate(self) -> float:
+        """R_fair (sum over UEs of log10 of the rate in bit/s), mean over frames and episodes."""
         return float(self.episode_fair_rate.mean())
 
     @property
@@ -107,7 +126,11 @@ class EvalResult:
 
 def evaluate_policy(policy: Policy, cfg: EnvConfig, episodes: int = 100, seed: int = 0,
                     record_trajectory: bool = False) -> EvalResult:
-    """Run ``episodes`` seeded episodes; the trajectory of episode 0 is kept on request."""
+    """Run ``episodes`` seeded episodes; the trajectory of episode 0 is kept on request. ``cfg`` must
+    be the env ``policy`` was built for (``uavlink.policies.contract.check_policy_env``): a policy
+    file's manifest env (``load_with_env``) with world changes only, a baseline's
+    ``registry.baseline_env``; otherwise a one-line ``UserError`` says how to get it."""
+    check_policy_env(policy, cfg.validate())
     per_chunk, trajectory, d = [], None, cfg.n_uavs
     for chunk in chunks(cfg, EVAL, episodes, seed):
         keep = record_trajectory and chunk.index == 0

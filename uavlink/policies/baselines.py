@@ -8,6 +8,7 @@ from uavlink.config import EnvConfig
 from uavlink.env.actions import ActionMapping
 from uavlink.env.core import GroundTruth
 from uavlink.env.observation import ObservationLayout
+from uavlink.policies.base import RulePolicy
 from uavlink.radio.noise import noise_power_dbm
 from uavlink.radio.pathloss import mean_rx_power_dbm
 from uavlink.radio.rates import fair_rate, rate_bps
@@ -19,7 +20,7 @@ def hover_sinr_db(cfg: EnvConfig) -> float:
     return float(mean_rx_power_dbm(cfg.area.uav_altitude_m, cfg.radio) - noise_power_dbm(cfg.radio.bandwidth_hz, cfg.radio))
 
 
-class StaticPolicy:
+class StaticPolicy(RulePolicy):
     """Hover where the episode starts (the area centre; a fleet's UAVs on their start circle)."""
 
     name = "static"
@@ -33,7 +34,7 @@ class StaticPolicy:
         return np.tile(self.hover, (obs.shape[0], 1))
 
 
-class AoaPolicy:
+class AoaPolicy(RulePolicy):
     """GPS-free rule (SPEC "Baselines"): fly towards the circular-mean AoA, slower as the SINRs
     level off at the hover level.
 
@@ -65,7 +66,7 @@ class AoaPolicy:
         return self.mapping.from_polar(aoa_mean_deg, distance)
 
 
-class OraclePolicy:
+class OraclePolicy(RulePolicy):
     """Knows the UEs' true positions and velocities (GPS) and each frame takes the reachable move
     that maximises the expected R_fair at the UEs' next positions (mean channel: no shadowing or
     fading). Moves searched: ``n_angles`` directions x ``n_radii`` distances up to r_max, plus hover.

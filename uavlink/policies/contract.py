@@ -91,13 +91,48 @@ def apply_overrides(base: EnvConfig, overrides: EnvOverrides, built_for: str | N
     changes = overrides.changes()
     cfg = base.replace(**changes).validate()
     if built_for is not None:
-        ours, theirs = base.to_flat_dict(), cfg.to_flat_dict()
-        for path in BUILT_FOR:
-            if theirs[path] != ours[path]:
-                key = next((k for k in changes if k == path or k == path.rpartition(".")[2]), path)
-                raise UserError(f"policy {built_for} was built for {path}={ours[path]!r}; "
-                                f"--set {key}={changes.get(key)} conflicts (drop the --set)")
+        path = built_for_change(base, cfg)
+        if path is not None:
+            key = next((k for k in changes if k == path or k == path.rpartition(".")[2]), path)
+            raise UserError(f"policy {built_for} was built for {path}={base.to_flat_dict()[path]!r}; "
+                            f"--set {key}={changes.get(key)} conflicts (drop the --set)")
     return cfg
+
+
+def built_for_change(built: EnvConfig, cfg: EnvConfig) -> str | None:
+    """The first ``BUILT_FOR`` field (its ``replace`` key) in which ``cfg`` differs from ``built``, the
+    env a policy was built for; None when they agree."""
+    ours, theirs = built.to_flat_dict(), cfg.to_flat_dict()
+    return next((path for path in BUILT_FOR if theirs[path] != ours[path]), None)
+
+
+def check_policy_env(policy: Policy, cfg: EnvConfig) -> None:
+    """Refuse to fly ``policy`` in ``cfg`` when it was not built for it (what ``evaluate_policy`` checks):
+    the observation layout it reads, and for a policy file (one with a manifest) every ``BUILT_FOR``
+    field of its manifest's env. Each refusal is one line saying how to get the env it flies in."""
+    manifest = getattr(policy, "manifest", None)
+    name = getattr(policy, "name", policy)
+    if manifest is not None:
+        path = getattr(policy, "path", None)
+        how = (f"evaluate it in the env its manifest records: uavlink.policies.contract.load_with_env("
+               f"[{str(path) if path else 'path'!r}], EnvOverrides()) gives (policy, env)")
+    elif name in BASELINES:
+        how = (f"evaluate a baseline made for a world, make_baseline({name!r}, world), in "
+               f"uavlink.policies.registry.baseline_env({name!r}, world)")
+    else:
+        how = None
+    layout: ObservationLayout | None = getattr(policy, "layout", None)
+    if layout is not None:
+        try:
+            layout.check_matches(ObservationLayout.for_config(cfg), what=f"policy {name!r}")
+        except UserError as exc:
+            raise UserError(f"{exc}; {how}" if how else str(exc)) from None
+    if manifest is not None:
+        built = manifest_env(manifest)
+        path = built_for_change(built, cfg)
+        if path is not None:
+            raise UserError(f"policy {name!r} was built for {path}={built.to_flat_dict()[path]!r}, not "
+                            f"{cfg.to_flat_dict()[path]!r}; {how}")
 
 
 def policy_env(policy: Policy, overrides: EnvOverrides, source: str | Path | None = None) -> EnvConfig:

@@ -27,6 +27,7 @@ from uavlink.env.actions import ActionMapping
 from uavlink.env.core import GroundTruth
 from uavlink.env.observation import ObservationLayout
 from uavlink.errors import UserError
+from uavlink.policies.base import RulePolicy
 from uavlink.policies.baselines import AoaPolicy
 from uavlink.policies.fleet_baselines import FleetAoaPolicy
 
@@ -39,7 +40,7 @@ def explore_env(cfg: EnvConfig) -> EnvConfig:
     return cfg if cfg.place_cell_m > 0 else cfg.replace(place_cell_m=EXPLORE_PLACE_CELL_M)
 
 
-class ExplorePolicy:
+class ExplorePolicy(RulePolicy):
     """Search, go back to the best spot sensed, search again when the team leaves; one UAV or a fleet."""
 
     name = "explore"

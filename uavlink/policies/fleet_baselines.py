@@ -16,13 +16,14 @@ from uavlink.env.actions import ActionMapping
 from uavlink.env.core import GroundTruth
 from uavlink.env.observation import ObservationLayout
 from uavlink.mobility.fleet import separate
+from uavlink.policies.base import RulePolicy
 from uavlink.policies.baselines import hover_sinr_db
 from uavlink.radio.cells import mean_channel_rate_bps
 from uavlink.radio.pathloss import distance_3d_m, mean_rx_power_dbm
 from uavlink.radio.rates import fair_rate
 
 
-class FleetAoaPolicy:
+class FleetAoaPolicy(RulePolicy):
     """The aoa rule per cell: each UAV flies towards the circular-mean AoA of the UEs it serves,
     slower as their SINRs level off at the hover level; a UAV that serves none holds."""
 
@@ -61,7 +62,7 @@ def mean_fleet_fair_rate(cfg: EnvConfig, uav_xy_m: np.ndarray, ue_xy_m: np.ndarr
     return fair_rate(mean_channel_rate_bps(rx_dbm, cfg.radio, cfg.fleet_reuse))
 
 
-class FleetOraclePolicy:
+class FleetOraclePolicy(RulePolicy):
     """GPS greedy reference: each frame, UAV after UAV, the reachable move (hover, or one of
     ``n_angles`` x ``n_radii`` up to r_max, kept apart by the separation filter) that maximises the
     mean-channel R_fair of all UEs at their next positions, the UAVs before it at their chosen
@@ -98,7 +99,7 @@ class FleetOraclePolicy:
         return moves_to(truth.uav_xy_m, plan.reshape(-1, 2), self.mapping)
 
 
-class KMeansPolicy:
+class KMeansPolicy(RulePolicy):
     """GPS reference: split the UEs into D groups by k-means (Lloyd's iterations from the UAVs'
     positions), match groups to UAVs by the least total distance, fly each UAV towards its group's
     centroid. D = 1 flies to the centroid of all UEs."""

@@ -20,6 +20,7 @@ from uavlink.env.actions import ActionMapping
 from uavlink.env.core import GroundTruth
 from uavlink.env.observation import ObservationLayout
 from uavlink.errors import UserError
+from uavlink.policies.base import RulePolicy
 from uavlink.policies.explore import EXPLORE_PLACE_CELL_M
 
 
@@ -29,7 +30,7 @@ def kriging_env(cfg: EnvConfig) -> EnvConfig:
     return cfg.replace(place_cell_m=cell_m, place_model="kriging").validate()
 
 
-class KrigingPolicy:
+class KrigingPolicy(RulePolicy):
     """Fly towards the spot the model of the field picks; one UAV."""
 
     name = "kriging"

@@ -29,6 +29,7 @@ from uavlink.env.actions import ActionMapping
 from uavlink.env.core import GroundTruth
 from uavlink.mobility import MobilityState, step_mobility
 from uavlink.mobility.fleet import separate
+from uavlink.policies.base import RulePolicy
 from uavlink.policies.fleet_baselines import moves_to
 from uavlink.policies.genie.grid import Grid, best_grid_path, grid_rx_dbm, one_uav_rate_mbps
 from uavlink.radio.cells import mean_channel_rate_bps
@@ -247,7 +248,7 @@ def _plan_episode(task: tuple) -> tuple[np.ndarray, float]:
     return EpisodePlanner(cfg, grid, ue, field, start).plan(references, tolerance, max_rounds)
 
 
-class GeniePolicy:
+class GeniePolicy(RulePolicy):
     """The genie as a policy: needs ground truth (``GroundTruth.mobility``, ``shadow_field``)."""
 
     name = "genie"
