@@ -90,6 +90,7 @@ def test_a_malformed_scheduler_address_fails_at_once_and_writes_nothing(tmp_path
 
 
 @pytest.mark.slow
+@pytest.mark.waits  # 20 s of Dask's connect timeout, no CPU
 def test_an_unreachable_scheduler_is_one_line_and_writes_nothing(tmp_path):
     pytest.importorskip("distributed")
     import socket

@@ -10,11 +10,12 @@ import pytest
 
 from sitl_stub.core.modes import FlightMode
 from sitl_stub.flight.vehicle import Vehicle
-from sitl_stub.sim.radio_episodes import MAX_SEED, RadioEpisodes
+from sitl_stub.sim.radio_episodes import RadioEpisodes
 from uavlink.config import EnvConfig
 from uavlink.env.radio_world import RadioWorld
 from uavlink.flight.mission import MissionResult
 from uavlink.flight.outcome import judge
+from uavlink.seeding import SEED_MAX
 
 CFG = EnvConfig().replace(scenario="straight").validate()
 IDLE = Vehicle().state()  # disarmed on the ground, AUTO.LOITER
@@ -111,7 +112,7 @@ def test_episodes_in_the_summary_counts_those_begun_none_before_the_first_arming
 
 def test_seeds_travel_as_int32() -> None:
     with pytest.raises(ValueError, match="0..2147483647"):
-        RadioEpisodes(CFG, MAX_SEED + 1)
+        RadioEpisodes(CFG, SEED_MAX + 1)
 
 
 @pytest.mark.parametrize("result,fragment", [

@@ -29,16 +29,15 @@ from sitl_stub.core.vehicle_state import VehicleState
 from uavlink.config import EnvConfig
 from uavlink.env.radio_world import FrameScore, RadioWorld
 from uavlink.mavlink.radio_codec import EPISODE_COUNT_NAME, EPISODE_SEED_NAME
-
-MAX_SEED = 2**31 - 1  # NAMED_VALUE_INT carries an int32
+from uavlink.seeding import SEED_MAX  # the seeds a run takes: NAMED_VALUE_INT carries them as int32
 
 
 class RadioEpisodes:
     """One episode of ``cfg`` (its ``n_uavs`` UAVs) at a time, the next begun by each flight."""
 
     def __init__(self, cfg: EnvConfig, seed: int) -> None:
-        if not 0 <= seed <= MAX_SEED:
-            raise ValueError(f"seed must be in 0..{MAX_SEED} (it travels as a MAVLink int32), got {seed}")
+        if not 0 <= seed <= SEED_MAX:
+            raise ValueError(f"seed must be in 0..{SEED_MAX} (it travels as a MAVLink int32), got {seed}")
         self.cfg, self.first_seed = cfg, seed
         self.count = 0  # episodes begun before this one
         self.world = RadioWorld(cfg, seed)
@@ -56,7 +55,7 @@ class RadioEpisodes:
         """One frame with every UAV's vehicle state: begin a new episode when a flight begins,
         advance a running episode (its score), or start it when every vehicle is in OFFBOARD."""
         begins = self._flight_begins(states)
-        if begins and self.started and self.seed < MAX_SEED:
+        if begins and self.started and self.seed < SEED_MAX:
             self.count += 1
             self.world = RadioWorld(self.cfg, self.seed)
             self.started, self.frame_rates_mbps = False, []
