@@ -26,6 +26,7 @@ from typing import NoReturn
 
 from sitl_stub.core.geo import GeoOrigin
 from sitl_stub.core.params import PARAM_DEFS
+from sitl_stub.launcher import PROG
 from sitl_stub.mavlink.links import MAX_INSTANCE
 from sitl_stub.mavlink.server import ServerConfig, SitlServer
 from sitl_stub.sim.payload import Payload, PayloadFactory, PayloadOptions, as_payload_list
@@ -33,7 +34,6 @@ from uavlink.config import MIXED, SCENARIOS, parse_settings
 from uavlink.mavlink.connection import normalize_connection
 from uavlink.mavlink.signing import load_key
 
-PROG = "sitl-stub"
 SCENARIO_CHOICES = (*SCENARIOS, MIXED)  # uavlink.config's: every scenario --scenario accepts
 
 
@@ -224,7 +224,7 @@ def main(argv: Sequence[str] | None = None, payload_factory: PayloadFactory | No
         for sig in (signal.SIGINT, signal.SIGTERM):
             signal.signal(sig, _on_signal)
     lockstep = ", lockstep" if args.lockstep and count else ""
-    # the ready line: sitl_stub.launcher's READY_LINE recognises it (keep the two in step)
+    # the ready line: sitl_stub.launcher's READY_LINE recognises it
     print(f"{PROG}: {who} on {server.connection}, {args.speed:g}x real time{lockstep}, "
           f"{count} payload(s), {signing}", file=sys.stderr, flush=True)
     try:

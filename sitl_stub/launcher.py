@@ -27,12 +27,11 @@ from pathlib import Path
 __all__ = ["VehicleExited", "VehicleProcess", "vehicle_process"]
 
 PACKAGE_ROOT = Path(__file__).resolve().parent.parent
-# Every line the vehicle prints starts with READY_PREFIX (its log lines too); once its links are
-# open it prints the ready line, "sitl-stub: vehicle 1 on ..., 20x real time, ..." or "sitl-stub:
-# fleet of 2 vehicles (...) on ..." (sitl_stub/__main__.py), matched by READY_LINE; its errors are
-# "sitl-stub: error: ...".
-READY_PREFIX, ERROR_PREFIX = "sitl-stub: ", "sitl-stub: error: "
-READY_LINE = re.compile(re.escape(READY_PREFIX)
+# The program's name, which begins every message the vehicle prints (its log lines too); once its
+# links are open it prints the ready line, "sitl-stub: vehicle 1 on ..., 20x real time, ..." or
+# "sitl-stub: fleet of 2 vehicles (...) on ..." (sitl_stub/__main__.py), matched by READY_LINE.
+PROG = "sitl-stub"
+READY_LINE = re.compile(re.escape(f"{PROG}: ")
                         + r"(vehicle \d+|fleet of \d+ vehicles \([^)]*\)) on .*x real time")
 
 

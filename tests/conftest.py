@@ -45,7 +45,10 @@ def run_uavlink_in_process(*args: str) -> subprocess.CompletedProcess:
 
     out, err = io.StringIO(), io.StringIO()
     with contextlib.redirect_stdout(out), contextlib.redirect_stderr(err):
-        rc = main(list(args))
+        try:
+            rc = main(list(args))
+        except SystemExit as exc:  # argparse's own errors (and --help) exit this way
+            rc = exc.code
     return subprocess.CompletedProcess(["uavlink", *args], rc, out.getvalue(), err.getvalue())
 
 

@@ -3,6 +3,7 @@ real child processes of the CLI, the missing package made absent as Python sees 
 
 from __future__ import annotations
 
+import re
 import subprocess
 import sys
 from pathlib import Path
@@ -44,24 +45,12 @@ def test_the_results_folder_needs_matplotlib_before_it_writes_a_table(tmp_path):
     ("export", "policies/circular.zip", "--out", "never.onnx", "--seed", "-1"),
 ])
 def test_a_negative_seed_is_refused_in_one_line(args):
-    assert_user_error(run_uavlink_in_process_exit(*args), "a seed must be in 0..2147483647, got -1")
+    assert_user_error(run_uavlink_in_process(*args), "a seed must be an integer in 0..2147483647, got -1")
 
-
-def run_uavlink_in_process_exit(*args: str) -> subprocess.CompletedProcess:
-    """As ``run_uavlink_in_process``, for argparse's errors too (they exit through SystemExit)."""
-    import contextlib
-    import io
-
-    from uavlink.cli import main
-
-    err = io.StringIO()
-    with contextlib.redirect_stderr(err), pytest.raises(SystemExit) as exit_info:
-        main(list(args))
-    return subprocess.CompletedProcess(["uavlink", *args], exit_info.value.code, "", err.getvalue())
 
 
 def test_an_argparse_error_is_one_line_too():
-    assert_user_error(run_uavlink_in_process_exit("evaluate", "--episodes", "abc"),
+    assert_user_error(run_uavlink_in_process("evaluate", "--episodes", "abc"),
                       "argument --episodes: invalid int value: 'abc'", "see uavlink evaluate --help")
 
 
@@ -103,3 +92,18 @@ def test_an_unreachable_scheduler_is_one_line_and_writes_nothing(tmp_path):
                                              f"tcp://127.0.0.1:{port}", "--out-root", str(out_root)),
                       "cannot reach the Dask scheduler")
     assert not out_root.exists()
+
+
+def test_each_optional_module_names_an_extra_that_installs_it():
+    import tomllib
+
+    from uavlink.errors import EXTRA_OF_MODULE
+
+    extras = tomllib.loads((ROOT / "pyproject.toml").read_text())["project"]["optional-dependencies"]
+
+    def installs(extra: str) -> str:  # an extra's requirements, with those of the extras it names
+        return " ".join(installs(r[8:-1]) if r.startswith("uavlink[") else r for r in extras[extra])
+
+    for module, extra in EXTRA_OF_MODULE.items():
+        package = {"stable_baselines3": "stable-baselines3", "dask": "distributed"}.get(module, module)  # dask: by distributed
+        assert re.search(rf"(^|\s){re.escape(package)}\b", installs(extra)), (module, extra)

@@ -26,13 +26,13 @@ from uavlink.flight.outcome import judge, signing_hint
 from uavlink.mavlink.connection import free_udp_port
 from uavlink.mavlink.dialect import mavlink
 from uavlink.mavlink.signing import SigningGuard, write_key
-from uavlink.policies.registry import BASELINES, flying_baselines, make_baseline
+from uavlink.policies.registry import flying_baselines
 
 
 # ------------------------------------------------------------------ numbers, refused up front (fast)
 @pytest.mark.parametrize("option,value,fragment", [
-    ("--seed", "-1", "--seed must be in 0..2147483647"),
-    ("--seed", str(2**31), "--seed must be in 0..2147483647"),
+    ("--seed", "-1", "--seed must be an integer in 0..2147483647"),
+    ("--seed", str(2**31), "--seed must be an integer in 0..2147483647"),
     ("--speed", "0", "--speed must be a number > 0"),
     ("--speed", "-3", "--speed must be a number > 0"),
     ("--speed", "nan", "--speed must be a number > 0"),
@@ -49,8 +49,6 @@ def test_fly_refuses_bad_numbers_before_starting_or_writing_anything(tmp_path: P
 
 # ------------------------------------------------------------------ which baselines fly (fast)
 def test_the_baselines_that_fly_are_those_that_read_no_truth_in_help_and_refusals(tmp_path: Path) -> None:
-    cfg = EnvConfig()
-    assert flying_baselines() == tuple(n for n in BASELINES if not make_baseline(n, cfg).needs_truth)
     assert {"static", "aoa", "explore", "kriging"} <= set(flying_baselines()) <= set(BASELINE_NAMES)
     assert not {"oracle", "kmeans", "genie"} & set(flying_baselines())
     out = io.StringIO()

@@ -37,15 +37,14 @@ MAY_IMPORT: dict[str, set[str]] = {
     "sitl_stub.launcher": set(),
     "sitl_stub.core": {"uavlink.mavlink"},
     "sitl_stub.flight": {"sitl_stub.core", "uavlink.config", "uavlink.errors"},
-    "sitl_stub.sim": {"sitl_stub.core", "uavlink.config", "uavlink.errors", "uavlink.env", "uavlink.mavlink",
-                      "uavlink.seeding"},
+    "sitl_stub.sim": {"sitl_stub.core", "uavlink.config", "uavlink.errors", "uavlink.env", "uavlink.mavlink"},
     "sitl_stub.mavlink": {"sitl_stub.core", "sitl_stub.flight", "sitl_stub.sim", "uavlink.config",
                           "uavlink.errors", "uavlink.mavlink"},
     "sitl_stub": {"sitl_stub.core", "sitl_stub.flight", "sitl_stub.sim", "sitl_stub.mavlink",
                   "sitl_stub.launcher", "uavlink.config", "uavlink.errors", "uavlink.env",
                   "uavlink.mavlink", "uavlink.mobility"},
     "uavlink.plot": {"uavlink.errors", "uavlink.mavlink"},
-    "uavlink.flight": {"uavlink.config", "uavlink.errors", "uavlink.seeding", "uavlink.mobility", "uavlink.env",
+    "uavlink.flight": {"uavlink.config", "uavlink.errors", "uavlink.mobility", "uavlink.env",
                        "uavlink.mavlink", "uavlink.policies", "uavlink.plot", "sitl_stub.launcher"},
     "uavlink": {"uavlink.config", "uavlink.env"},  # the package itself: registers the Gymnasium id
 }

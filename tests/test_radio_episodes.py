@@ -11,11 +11,10 @@ import pytest
 from sitl_stub.core.modes import FlightMode
 from sitl_stub.flight.vehicle import Vehicle
 from sitl_stub.sim.radio_episodes import RadioEpisodes
-from uavlink.config import EnvConfig
+from uavlink.config import SEED_MAX, EnvConfig
 from uavlink.env.radio_world import RadioWorld
 from uavlink.flight.mission import MissionResult
 from uavlink.flight.outcome import judge
-from uavlink.seeding import SEED_MAX
 
 CFG = EnvConfig().replace(scenario="straight").validate()
 IDLE = Vehicle().state()  # disarmed on the ground, AUTO.LOITER

@@ -19,7 +19,8 @@ class ConfigError(UserError):
 # The optional packages and the extra that installs each (pyproject.toml's optional-dependencies).
 EXTRA_OF_MODULE = {"torch": "train", "stable_baselines3": "train", "tensorboard": "train", "tqdm": "train",
                    "rich": "train", "onnxruntime": "fly", "pymavlink": "fly", "onnx": "export",
-                   "matplotlib": "plot", "distributed": "sweep", "dask": "sweep", "pettingzoo": "fleet"}
+                   "matplotlib": "plot", "distributed": "sweep", "dask": "sweep", "tomli": "sweep",
+                   "pettingzoo": "fleet"}
 
 
 def missing_extra(exc: ModuleNotFoundError) -> str | None:

@@ -13,8 +13,6 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
-SEED_MAX = 2**31 - 1  # a run's seed is 0..SEED_MAX: the vehicle reports a flight's in an int32 (NAMED_VALUE_INT)
-
 
 @dataclass(frozen=True)
 class Stream:

@@ -26,18 +26,16 @@ from typing import Any
 
 from sitl_stub.core.modes import FlightMode
 from sitl_stub.core.vehicle_state import VehicleState
-from uavlink.config import EnvConfig
+from uavlink.config import SEED_MAX, EnvConfig, check_seed
 from uavlink.env.radio_world import FrameScore, RadioWorld
 from uavlink.mavlink.radio_codec import EPISODE_COUNT_NAME, EPISODE_SEED_NAME
-from uavlink.seeding import SEED_MAX  # the seeds a run takes: NAMED_VALUE_INT carries them as int32
 
 
 class RadioEpisodes:
     """One episode of ``cfg`` (its ``n_uavs`` UAVs) at a time, the next begun by each flight."""
 
     def __init__(self, cfg: EnvConfig, seed: int) -> None:
-        if not 0 <= seed <= SEED_MAX:
-            raise ValueError(f"seed must be in 0..{SEED_MAX} (it travels as a MAVLink int32), got {seed}")
+        check_seed(seed)
         self.cfg, self.first_seed = cfg, seed
         self.count = 0  # episodes begun before this one
         self.world = RadioWorld(cfg, seed)

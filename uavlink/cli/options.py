@@ -5,21 +5,19 @@ from __future__ import annotations
 
 import argparse
 
-from uavlink.config import MIXED, SCENARIOS
-from uavlink.errors import UserError
+from uavlink.config import MIXED, SCENARIOS, check_seed
+from uavlink.errors import ConfigError, UserError
 from uavlink.policies.contract import BUILT_FOR
-from uavlink.seeding import SEED_MAX
 
 
 def seed(text: str) -> int:
-    """argparse type of ``--seed``: an integer in 0..SEED_MAX (numpy's SeedSequence takes no negative)."""
+    """argparse type of ``--seed``: an integer in 0..SEED_MAX (``uavlink.config.check_seed``)."""
     try:
-        value = int(text)
+        return check_seed(int(text), "a seed")
+    except ConfigError as exc:
+        raise argparse.ArgumentTypeError(str(exc)) from None
     except ValueError:
         raise argparse.ArgumentTypeError(f"expected an integer seed, got {text!r}") from None
-    if not 0 <= value <= SEED_MAX:
-        raise argparse.ArgumentTypeError(f"a seed must be in 0..{SEED_MAX}, got {value}")
-    return value
 
 
 def scenario_list(name: str) -> list[str]:

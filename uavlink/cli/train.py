@@ -23,10 +23,10 @@ def cmd_train(args: argparse.Namespace) -> int:
         raise UserError(f"--eval-episodes must be >= 0 (0: skip), got {args.eval_episodes}")
     if args.resume is not None:
         _check_checkpoint(args.resume)
-    for path in ("warm_start.policy", "warm_start.leader_policy"):  # before the first line of output
-        file = getattr(tc.warm_start, path.split(".")[1])
+    for name in ("policy", "leader_policy"):  # before the first line of output
+        file = getattr(tc.warm_start, name)
         if file and not Path(file).is_file():
-            raise UserError(f"{flag_of(TrainConfig, path)} {file}: no such policy file")
+            raise UserError(f"{flag_of(TrainConfig, f'warm_start.{name}')} {file}: no such policy file")
     require("stable_baselines3")
     run_dir = args.run_dir or Path("runs") / f"{args.out.stem}-seed{tc.seed}"
     print(f"training PPO on {cfg.scenario!r} for {tc.total_timesteps(cfg):,} env steps; "
@@ -44,8 +44,11 @@ def _check_checkpoint(path: Path) -> None:
 
     if not path.is_file():
         raise UserError(f"--resume {path}: no such checkpoint")
-    if not zipfile.is_zipfile(path) or "data" not in zipfile.ZipFile(path).namelist():
-        raise UserError(f"--resume {path}: not a checkpoint (an SB3 zip such as RUN_DIR/checkpoint.zip)")
+    if zipfile.is_zipfile(path):
+        with zipfile.ZipFile(path) as archive:
+            if "data" in archive.namelist():
+                return
+    raise UserError(f"--resume {path}: not a checkpoint (an SB3 zip such as RUN_DIR/checkpoint.zip)")
 
 
 def _attach_evaluation(path: Path, cfg: EnvConfig, episodes: int) -> None:

@@ -14,7 +14,9 @@ from uavlink.config.env import (
     changed_settings,
     parse_settings,
 )
+from uavlink.config.fields import SEED_MAX, check_seed
 from uavlink.config.train import BASELINE_NAMES, PAPER_HYPERPARAMETERS, TrainConfig, WarmStartConfig
 
-__all__ = ["BASELINE_NAMES", "MIXED", "PAPER_HYPERPARAMETERS", "SCENARIOS", "SHADOWING_MODELS", "AreaConfig",
-           "EnvConfig", "RadioConfig", "TrainConfig", "WarmStartConfig", "changed_settings", "parse_settings"]
+__all__ = ["BASELINE_NAMES", "MIXED", "PAPER_HYPERPARAMETERS", "SCENARIOS", "SEED_MAX", "SHADOWING_MODELS",
+           "AreaConfig", "EnvConfig", "RadioConfig", "TrainConfig", "WarmStartConfig", "changed_settings",
+           "check_seed", "parse_settings"]

@@ -16,7 +16,6 @@ from dataclasses import dataclass, field
 from typing import Any
 
 from uavlink.config.fields import check_fields, coerce
-from uavlink.config.fields import finite as _finite
 from uavlink.config.fields import non_negative as _non_negative
 from uavlink.config.fields import positive as _positive
 from uavlink.errors import ConfigError
@@ -106,9 +105,6 @@ class RadioConfig:
         if 0 < self.aoa_noise_max_deg < self.aoa_noise_deg:
             raise ConfigError("radio.aoa_noise_max_deg must be 0 (off) or >= radio.aoa_noise_deg")
         _non_negative("radio.outdoor_to_indoor_loss_db", self.outdoor_to_indoor_loss_db)
-        for name in ("tx_power_dbm", "noise_figure_db", "thermal_noise_dbm_per_hz", "antenna_gain_db",
-                     "path_loss_intercept_db", "path_loss_slope_db", "rician_k_db"):
-            _finite(f"radio.{name}", getattr(self, name))
 
     @property
     def rb_bandwidth_hz(self) -> float:

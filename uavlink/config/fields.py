@@ -203,6 +203,16 @@ def from_options(cls: type, args: argparse.Namespace, prefix: str = "") -> Any:
     return cls(**values)
 
 
+SEED_MAX = 2**31 - 1  # a run's seed is 0..SEED_MAX: the vehicle reports a flight's in an int32 (NAMED_VALUE_INT)
+
+
+def check_seed(value: int, label: str = "seed") -> int:
+    """``value`` if it is a seed every seeded part takes (0..SEED_MAX), else a one-line ConfigError."""
+    if isinstance(value, bool) or not isinstance(value, int) or not 0 <= value <= SEED_MAX:
+        raise ConfigError(f"{label} must be an integer in 0..{SEED_MAX}, got {value!r}")
+    return value
+
+
 def finite(name: str, value: float) -> None:
     if not isinstance(value, (int, float)) or not math.isfinite(value):
         raise ConfigError(f"{name} must be a finite number, got {value!r}")

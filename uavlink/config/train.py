@@ -12,7 +12,15 @@ from dataclasses import dataclass
 from typing import Any
 
 from uavlink.config.env import EnvConfig
-from uavlink.config.fields import Namer, check_fields, coerce, config_fields, nested, setting
+from uavlink.config.fields import (
+    SEED_MAX,
+    Namer,
+    check_fields,
+    coerce,
+    config_fields,
+    nested,
+    setting,
+)
 from uavlink.errors import ConfigError
 
 # The rules a warm start can copy; uavlink.policies.baselines implements them by these names.
@@ -120,7 +128,7 @@ class TrainConfig:
     aoa_noise_max_deg: float = setting(0.0, "train with each episode's AoA noise std drawn from "
                                        "[--aoa-noise-deg, this] (ours; 0: off)", low=0)
     warm_start: WarmStartConfig = nested(WarmStartConfig, "behaviour-cloning warm start (ours)")
-    seed: int = setting(0, "seed of the envs, the network and the warm start", low=0)
+    seed: int = setting(0, "seed of the envs, the network and the warm start", low=0, high=SEED_MAX)
     torch_threads: int = setting(1, "torch CPU threads (1 is fastest for 3x128 MLPs)", low=1)
     checkpoint_every_steps: int = setting(100_000, "save RUN_DIR/checkpoint.zip every this many env "
                                           "steps", low=1)

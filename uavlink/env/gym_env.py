@@ -12,11 +12,6 @@ from uavlink.env.core import BatchedUavEnv
 from uavlink.errors import UserError
 
 
-def make_config(scenario: str = "circular", aoa_noise_deg: float = 0.0, **overrides: Any) -> EnvConfig:
-    """An EnvConfig from the SPEC defaults plus keyword overrides (``radio.x`` or plain field names)."""
-    return EnvConfig().replace(scenario=scenario, aoa_noise_deg=aoa_noise_deg, **overrides).validate()
-
-
 def config_with(config: EnvConfig, named: dict[str, Any], overrides: dict[str, Any]) -> EnvConfig:
     """``config`` with the named arguments that were given (not None) and ``overrides`` applied, so
     ``make(..., config=cfg, scenario="hotspot")`` flies hotspot rather than dropping the argument."""
@@ -26,7 +21,7 @@ def config_with(config: EnvConfig, named: dict[str, Any], overrides: dict[str, A
 
 class UavBsEnv(gym.Env):
     """One UAV's episode as a Gymnasium env (``gymnasium.make("uavlink/UavBs-v0", scenario=...,
-    radio.x=...)``): the observation is the layout's float32 Box (docs/design.md, "Observation"),
+    n_ues=..., **{"radio.shadowing": False})``): the observation is the layout's float32 Box (docs/design.md, "Observation"),
     the action a move in Box(-1, 1, (2,)) (``EnvConfig.action_mapping``). An episode ends by
     truncation after ``episode_frames`` steps; the info after a step carries the frame's
     ``mean_rate_mbps`` (mean UE throughput, Mbit/s) and ``fair_rate`` (R_fair, the sum over UEs of

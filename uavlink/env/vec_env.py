@@ -95,7 +95,7 @@ class UavVecEnv(VecEnv):
     def get_attr(self, attr_name: str, indices: VecEnvIndices = None) -> list[Any]:
         """The core's attribute (or this VecEnv's, e.g. ``render_mode``), the batch's value once
         per index (see the class docstring)."""
-        owner = self if hasattr(self, attr_name) and not hasattr(self.core, attr_name) else self.core
+        owner = self.core if hasattr(self.core, attr_name) else self  # e.g. render_mode lives here
         return [getattr(owner, attr_name)] * len(self._get_indices(indices))
 
     def set_attr(self, attr_name: str, value: Any, indices: VecEnvIndices = None) -> None:

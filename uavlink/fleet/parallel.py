@@ -26,7 +26,7 @@ from pettingzoo import ParallelEnv
 
 from uavlink.config import EnvConfig
 from uavlink.env.core import BatchedUavEnv
-from uavlink.env.gym_env import config_with, make_config
+from uavlink.env.gym_env import config_with
 from uavlink.errors import UserError
 
 AgentID = str
@@ -42,9 +42,8 @@ def fleet_config(scenario: str | None = None, n_uavs: int | None = None,
                  config: EnvConfig | None = None, **overrides: Any) -> EnvConfig:
     """The env's config: ``config`` (default: the SPEC defaults with ``circular`` and 2 UAVs) with
     ``scenario``, ``n_uavs`` and ``overrides`` (``radio.x`` or plain field names) applied."""
-    if config is None:
-        return make_config(scenario or "circular", n_uavs=2 if n_uavs is None else n_uavs, **overrides)
-    return config_with(config, {"scenario": scenario, "n_uavs": n_uavs}, overrides)
+    base = config if config is not None else EnvConfig(n_uavs=2)
+    return config_with(base, {"scenario": scenario, "n_uavs": n_uavs}, overrides)
 
 
 class FleetParallelEnv(ParallelEnv[AgentID, np.ndarray, np.ndarray]):

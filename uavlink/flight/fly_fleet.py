@@ -12,12 +12,11 @@ from collections.abc import Iterator, Sequence
 from pathlib import Path
 from typing import TYPE_CHECKING
 
-from uavlink.config import EnvConfig, changed_settings
+from uavlink.config import EnvConfig, changed_settings, check_seed
 from uavlink.errors import UserError
 from uavlink.flight.outcome import episode_fields, finish, flown_name
 from uavlink.mavlink.connection import free_udp_port, normalize_connection
 from uavlink.policies.base import Policy
-from uavlink.seeding import SEED_MAX
 
 if TYPE_CHECKING:
     from uavlink.flight.mission import MissionConfig
@@ -28,9 +27,7 @@ VEHICLE_START_S = 30.0  # wall seconds for the embedded vehicle to open its link
 def check_vehicle_options(seed: int, speed: float) -> None:
     """``--seed`` and ``--speed``, checked before anything starts or is written: the embedded
     vehicle would refuse them too, but only after ``fly`` had made its --out folder."""
-    if not 0 <= seed <= SEED_MAX:
-        raise UserError(f"--seed must be in 0..{SEED_MAX} (the vehicle reports it as a MAVLink "
-                        f"int32), got {seed}")
+    check_seed(seed, "--seed")
     if not (math.isfinite(speed) and speed > 0):
         raise UserError(f"--speed must be a number > 0 (simulated seconds per wall second), got {speed:g}")
 

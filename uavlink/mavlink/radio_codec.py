@@ -25,9 +25,10 @@ sent), the flight computer sends COMMAND_LONG ``FRAME_DECIDED_COMMAND`` (MAV_CMD
 ``RADIO_COMPONENT_ID`` with param1 = k, fire-and-forget (no ACK: one a frame would only add
 traffic). A lockstep vehicle holds simulated time at each frame of a running episode until that
 command arrives, so a flight decides every frame at the instant the env does; any other vehicle
-ignores it. param2 says whether the policy decided the frame (1) or the frame was only let go (0:
-past the frames the flight set out to fly, e.g. the episode's last frame, whose readings follow
-the last decision), so a log names the decision frames exactly (``uavlink plot``).
+ignores it. param2 says whether the policy decided the frame for that vehicle (1) or the frame was
+only let go (0: past the frames the flight set out to fly, e.g. the episode's last frame, whose
+readings follow the last decision; in a fleet, also a vehicle the policy did not steer that frame),
+so a log names the decision frames exactly (``uavlink plot``).
 """
 
 from __future__ import annotations
@@ -41,7 +42,7 @@ READINGS_NAME = "UL_RADIO"
 SCORE_NAME = "UL_SCORE"
 EPISODE_SEED_NAME = "UL_EP_SEED"  # NAMED_VALUE_INT names: at most 10 characters
 EPISODE_COUNT_NAME = "UL_EPISODE"
-FRAME_DECIDED_COMMAND = 31010  # MAV_CMD_USER_1, param1 = the frame decided
+FRAME_DECIDED_COMMAND = 31010  # MAV_CMD_USER_1: param1 = the frame, param2 = 1 decided / 0 let go
 DATA_LEN = 58
 MAX_UES = (DATA_LEN - 2) // 2
 
@@ -119,7 +120,7 @@ def decode_score(msg) -> ScoreReport:
     return ScoreReport(int(msg.array_id), mean, fair)
 
 
-def send_frame_decided(mav, target_system: int, frame: int, decided: bool = True) -> None:
+def send_frame_decided(mav, target_system: int, frame: int, decided: bool) -> None:
     """FRAME_DECIDED for ``frame`` to the radio payload of ``target_system`` (``mav``: a pymavlink
     ``MAVLink``): a lockstep vehicle lets simulated time go on; no ACK is awaited. ``decided``
     (param2): the policy decided this frame for this vehicle; False: only let go."""
