@@ -67,3 +67,11 @@ def test_the_frame_sets_name_mavlinks_frames_and_give_heights_above_home() -> No
     assert frames.height_above_home_m(538.0, mavlink.MAV_FRAME_GLOBAL_INT, home_amsl_m) == 50.0
     assert frames.height_above_home_m(50.0, mavlink.MAV_FRAME_GLOBAL_RELATIVE_ALT_INT, home_amsl_m) == 50.0
     assert frames.height_above_home_m(50.0, mavlink.MAV_FRAME_GLOBAL_TERRAIN_ALT, home_amsl_m) == 50.0
+
+
+def test_enum_name_reads_the_dialect_and_names_an_unknown_value() -> None:
+    from uavlink.mavlink.dialect import enum_name, mavlink
+
+    assert enum_name("MAV_CMD", mavlink.MAV_CMD_COMPONENT_ARM_DISARM) == "MAV_CMD_COMPONENT_ARM_DISARM"
+    assert enum_name("MAV_MISSION_RESULT", mavlink.MAV_MISSION_UNSUPPORTED) == "MAV_MISSION_UNSUPPORTED"
+    assert enum_name("MAV_FRAME", 12345) == "MAV_FRAME 12345"

@@ -51,7 +51,7 @@ from sitl_stub.core.mission_store import (
     MissionItem,
     MissionStore,
 )
-from uavlink.mavlink.dialect import mavlink
+from uavlink.mavlink.dialect import enum_name, mavlink
 from uavlink.mavlink.frames import GLOBAL_FRAMES, TO_FLOAT_FRAME, TO_INT_FRAME
 from uavlink.mavlink.mission import item_from_message, send_item
 
@@ -63,11 +63,6 @@ MAX_COUNT = {MISSION: 1000, FENCE: 64, RALLY: 32}
 MAV_MISSION_TYPE_ALL = 255
 MISSION_PLANNER_COMPONENT = 190  # MAV_COMP_ID_MISSIONPLANNER: PX4 accepts it as a target
 CRITICAL = mavlink.MAV_SEVERITY_CRITICAL
-
-
-def _name(enum: str, value: int) -> str:
-    entry = mavlink.enums[enum].get(value)
-    return entry.name if entry is not None else f"{enum} {value}"
 
 
 def _cmds(*names: str) -> frozenset[int]:
@@ -261,8 +256,8 @@ class MissionProtocol:
         verdict = check_item(item, self.int_mode)
         if verdict != mavlink.MAV_MISSION_ACCEPTED:
             self.statustext(CRITICAL, "IGN MISSION_ITEM: Invalid item")
-            what = (f"{_name('MAV_CMD', item.command)} in frame {_name('MAV_FRAME', item.frame)}: "
-                    f"{_name('MAV_MISSION_RESULT', verdict)}")
+            what = (f"{enum_name('MAV_CMD', item.command)} in frame {enum_name('MAV_FRAME', item.frame)}: "
+                    f"{enum_name('MAV_MISSION_RESULT', verdict)}")
             self._refuse("item", what, f"{msg.get_type()} {msg.seq}: {what}, upload ended")
             self._ack(src, verdict)
             self._idle()

@@ -35,7 +35,7 @@ from typing import Any, BinaryIO
 
 from uavlink.mavlink import radio_codec as radio
 from uavlink.mavlink.connection import normalize_connection
-from uavlink.mavlink.dialect import mavlink, mavutil
+from uavlink.mavlink.dialect import enum_name, mavlink, mavutil
 from uavlink.mavlink.mission import MISSION_REPLIES
 from uavlink.mavlink.px4_modes import PX4_MAIN_OFFBOARD, decode_custom_mode
 from uavlink.mavlink.rejects import RejectLog, rescan_bad_frame
@@ -336,7 +336,7 @@ class VehicleLink:
         of wall time until an ACK comes (or ``done()``: the telemetry already shows the effect, so
         a lost ACK costs no retry); LinkError on refusal or after ``tries`` sends."""
         params = tuple(params) + (math.nan,) * (7 - len(params))
-        name = MAV.enums["MAV_CMD"][command].name if command in MAV.enums["MAV_CMD"] else str(command)
+        name = enum_name("MAV_CMD", command)
         self._acks.pop(command, None)
         for confirmation in range(tries):
             self.conn.mav.command_long_send(self.target_system, self.target_component, command,

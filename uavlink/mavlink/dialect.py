@@ -21,4 +21,11 @@ mavlink = mavutil.mavlink
 if mavlink.WIRE_PROTOCOL_VERSION != "2.0":  # pragma: no cover - environment guard
     raise ImportError("uavlink needs pymavlink's MAVLink 2 'common' dialect")
 
-__all__ = ["mavlink", "mavutil"]
+__all__ = ["enum_name", "mavlink", "mavutil"]
+
+
+def enum_name(enum: str, value: int) -> str:
+    """A MAVLink enum entry's name (``enum_name("MAV_CMD", 400)``: ``MAV_CMD_COMPONENT_ARM_DISARM``),
+    or ``"ENUM value"`` for a value the dialect does not know."""
+    entry = mavlink.enums[enum].get(value)
+    return entry.name if entry is not None else f"{enum} {value}"

@@ -17,7 +17,7 @@ from collections.abc import Callable, Sequence
 from dataclasses import dataclass, replace
 from typing import Any
 
-from uavlink.mavlink.dialect import mavlink
+from uavlink.mavlink.dialect import enum_name, mavlink
 from uavlink.mavlink.frames import GLOBAL_FRAMES, height_above_home_m
 
 MISSION = 0  # MAV_MISSION_TYPE_MISSION
@@ -63,12 +63,6 @@ class MissionTransferError(RuntimeError):
     def __init__(self, message: str, result: int | None = None) -> None:
         super().__init__(message)
         self.result = result
-
-
-def result_name(result: int) -> str:
-    """MAV_MISSION_RESULT's name, e.g. ``MAV_MISSION_UNSUPPORTED``."""
-    entry = mavlink.enums["MAV_MISSION_RESULT"].get(result)
-    return entry.name if entry is not None else str(result)
 
 
 def item_from_message(msg: Any) -> MissionItem:
@@ -144,7 +138,7 @@ class MissionClient:
                 if msg.type == mavlink.MAV_MISSION_ACCEPTED and done:
                     return
                 raise MissionTransferError(f"vehicle refused the {what}: "
-                                           f"{result_name(msg.type)}", msg.type)
+                                           f"{enum_name('MAV_MISSION_RESULT', msg.type)}", msg.type)
             if not 0 <= msg.seq < len(items):
                 raise MissionTransferError(f"vehicle asked for item {msg.seq} of {len(items)} "
                                            f"in the {what}")
@@ -179,7 +173,7 @@ class MissionClient:
         ack = self._await(("MISSION_ACK",), mission_type,
                           lambda: self.mav.mission_clear_all_send(ts, tc, mission_type), what)
         if ack.type != mavlink.MAV_MISSION_ACCEPTED:
-            raise MissionTransferError(f"vehicle refused the {what}: {result_name(ack.type)}",
+            raise MissionTransferError(f"vehicle refused the {what}: {enum_name('MAV_MISSION_RESULT', ack.type)}",
                                        ack.type)
 
     def set_current(self, seq: int) -> None:
