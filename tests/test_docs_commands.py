@@ -72,3 +72,18 @@ def test_a_command_in_the_docs_parses(doc: str, command: str) -> None:
             PROGRAMS[program]().parse_args(argv)
         except SystemExit as exc:
             assert exc.code == 0, f"{doc}: `{command}`: {err.getvalue().strip()}"
+
+
+@pytest.mark.slow  # loads a policy (torch)
+def test_the_readmes_python_runs_and_prints_what_the_cli_prints(monkeypatch) -> None:
+    """README.md's Python blocks, run from the repository root; the shipped policy's figure is the
+    one its comment gives, `uavlink evaluate --policy policies/circular.zip --episodes 3`'s."""
+    monkeypatch.chdir(ROOT)
+    blocks = re.findall(r"```python\n(.*?)```", (ROOT / "README.md").read_text(), re.S)
+    assert len(blocks) >= 2
+    out = io.StringIO()
+    with contextlib.redirect_stdout(out):
+        for block in blocks:
+            exec(compile(block, "README.md", "exec"), {})  # noqa: S102 - the README's own code
+    printed = out.getvalue().split()
+    assert round(float(printed[0]), 6) == 7.772367 and 4.0 < float(printed[1]) < 8.0, printed
