@@ -23,10 +23,11 @@ def cmd_train(args: argparse.Namespace) -> int:
         raise UserError(f"--eval-episodes must be >= 0 (0: skip), got {args.eval_episodes}")
     if args.resume is not None:
         _check_checkpoint(args.resume)
-    for name in ("policy", "leader_policy"):  # before the first line of output
-        file = getattr(tc.warm_start, name)
-        if file and not Path(file).is_file():
-            raise UserError(f"{flag_of(TrainConfig, f'warm_start.{name}')} {file}: no such policy file")
+    from uavlink.policies.manifest import read_zip_manifest
+
+    for file in (tc.warm_start.policy, tc.warm_start.leader_policy):  # the loader's checks, before any output
+        if file:
+            read_zip_manifest(Path(file))
     require("stable_baselines3")
     run_dir = args.run_dir or Path("runs") / f"{args.out.stem}-seed{tc.seed}"
     print(f"training PPO on {cfg.scenario!r} for {tc.total_timesteps(cfg):,} env steps; "

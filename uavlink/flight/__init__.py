@@ -4,7 +4,7 @@ payload's radio readings), ``mission`` and ``fleet_mission`` (the fly loop for o
 ``fence``, ``transit``, and ``fly`` / ``fly_fleet`` (the command: an embedded SITL vehicle or a given
 connection). Layer: the top, below only the CLI.
 
-May import: ``config``, ``errors``, ``mobility``, ``env``, ``mavlink``,
-``policies``, ``plot`` (the flight picture) and
-``sitl_stub.launcher`` (the vehicle as a child process); never ``learn``, ``evaluation`` or ``sweep``.
+May import: ``config``, ``errors``, ``mobility``, ``env``, ``mavlink``, ``policies``, ``plot`` (the
+flight picture) and ``sitl_stub.launcher`` (the vehicle as a child process); never ``learn``,
+``evaluation`` or ``sweep``.
 """
