@@ -30,11 +30,9 @@ from sitl_stub.launcher import PROG
 from sitl_stub.mavlink.links import MAX_INSTANCE
 from sitl_stub.mavlink.server import ServerConfig, SitlServer
 from sitl_stub.sim.payload import Payload, PayloadFactory, PayloadOptions, as_payload_list
-from uavlink.config import MIXED, SCENARIOS, parse_settings
+from uavlink.config import MIXED, SCENARIO_NAMES, parse_settings
 from uavlink.mavlink.connection import normalize_connection
 from uavlink.mavlink.signing import load_key
-
-SCENARIO_CHOICES = (*SCENARIOS, MIXED)  # uavlink.config's: every scenario --scenario accepts
 
 
 class _Parser(argparse.ArgumentParser):
@@ -131,7 +129,7 @@ def build_parser() -> argparse.ArgumentParser:
                    "position i (its home); with --connect, give D URLs, vehicle i on the i-th")
     p.add_argument("--speed", type=_positive, default=1.0,
                    help="simulated seconds per wall second (default 1)")
-    p.add_argument("--scenario", choices=SCENARIO_CHOICES, default="circular",
+    p.add_argument("--scenario", choices=SCENARIO_NAMES, default="circular",
                    help="UE mobility scenario for the radio payload (default circular); "
                    f"{MIXED}: each flight's episode draws one, as `uavlink evaluate --episodes 1 "
                    "--seed S` draws it for the same seed")

@@ -11,11 +11,10 @@ import numpy as np
 import pytest
 
 import uavlink
-from uavlink.config import EnvConfig
+from uavlink.config import MIXED, SCENARIO_NAMES, EnvConfig
 from uavlink.env import ActionMapping, BatchedUavEnv, RewardBounds
 from uavlink.env.gym_env import UavBsEnv
 from uavlink.errors import UserError
-from uavlink.mobility import MIXED, SCENARIOS
 
 ENV_ID = "uavlink/UavBs-v0"
 QUIET = {"shadowing": False, "fast_fading": False}
@@ -161,7 +160,7 @@ def _check_all(env: gym.Env) -> list[str]:
 
 
 @pytest.mark.parametrize(("scenario", "aoa_noise_deg"),
-                         [(s, 0.0) for s in (*SCENARIOS, MIXED)] + [("straight", 5.0), (MIXED, 5.0)])
+                         [(s, 0.0) for s in SCENARIO_NAMES] + [("straight", 5.0), (MIXED, 5.0)])
 def test_gymnasium_and_sb3_env_checkers_pass(scenario, aoa_noise_deg):
     env = gym.make(ENV_ID, scenario=scenario, aoa_noise_deg=aoa_noise_deg)
     messages = _check_all(env)

@@ -192,11 +192,11 @@ def test_map_report_rows_put_each_map_policy_beside_explore_and_the_genie(tmp_pa
     from uavlink.policies.contract import EnvOverrides
 
     header, body = map_table(ROOT / "policies" / "map", ROOT / "policies" / "spatial", 2, 0, EnvOverrides(), policy_teacher)
-    from uavlink.mobility import MIXED, SCENARIOS
+    from uavlink.config import MIXED, SCENARIO_NAMES
 
     shipped = {p.stem for p in (ROOT / "policies" / "map").glob("*.zip")}
     # a scenario without its own map policy is flown by the mixed one, if shipped
-    assert [row[0] for row in body] == [s for s in (*SCENARIOS, MIXED) if s in shipped or MIXED in shipped]
+    assert [row[0] for row in body] == [s for s in SCENARIO_NAMES if s in shipped or MIXED in shipped]
     col = {name: i for i, name in enumerate(header)}
     # each map policy beside the teacher it copied, knobs and all (not only the rule's name)
     teachers = {row[0]: row[col["map vs its teacher"]] for row in body}

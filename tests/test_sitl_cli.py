@@ -18,7 +18,7 @@ from mavlink_gcs import Gcs, parse_vehicle_stats, wait_for_vehicle
 from sitl_stub.__main__ import _LogFormat, build_parser, main
 from sitl_stub.launcher import READY_LINE, VehicleProcess, vehicle_process
 from sitl_stub.sim.payload import PayloadOptions
-from uavlink.config import MIXED, SCENARIOS
+from uavlink.config import SCENARIO_NAMES
 from uavlink.mavlink.connection import free_udp_port
 from uavlink.mavlink.dialect import mavlink
 
@@ -42,8 +42,8 @@ def test_help_lists_every_scenario_the_cli_accepts(capsys: pytest.CaptureFixture
     assert exited.value.code == 0
     shown = re.search(r"--scenario \{([^}]*)\}", capsys.readouterr().out)
     assert shown is not None
-    assert shown.group(1).split(",") == [*SCENARIOS, MIXED]  # uavlink.config's, in its order
-    for scenario in (*SCENARIOS, MIXED):
+    assert shown.group(1).split(",") == list(SCENARIO_NAMES)  # uavlink.config's, in its order
+    for scenario in SCENARIO_NAMES:
         assert build_parser().parse_args(["--scenario", scenario]).scenario == scenario
 
 

@@ -5,7 +5,7 @@ from __future__ import annotations
 
 import argparse
 
-from uavlink.config import MIXED, SCENARIOS, check_seed
+from uavlink.config import SCENARIO_NAMES, SCENARIOS, check_seed
 from uavlink.errors import ConfigError, UserError
 from uavlink.policies.contract import BUILT_FOR
 
@@ -24,15 +24,15 @@ def scenario_list(name: str) -> list[str]:
     """The scenarios ``--scenario NAME`` stands for (``all``: every one but mixed)."""
     if name == "all":
         return list(SCENARIOS)
-    if name not in (*SCENARIOS, MIXED):
-        raise UserError(f"unknown scenario {name!r}; choose from {', '.join(SCENARIOS)}, {MIXED} or all")
+    if name not in SCENARIO_NAMES:
+        raise UserError(f"unknown scenario {name!r}; choose from {', '.join(SCENARIO_NAMES)} or all")
     return [name]
 
 
 def add_env_options(p: argparse.ArgumentParser, for_policy: bool = False) -> None:
     """``--scenario``, ``--aoa-noise-deg`` and ``--set``; ``for_policy``: as evaluate reads them,
     where a policy file's manifest gives the defaults and limits what may change."""
-    names = f"{', '.join(SCENARIOS)}, {MIXED}"
+    names = ', '.join(SCENARIO_NAMES)
     if for_policy:  # evaluate: a policy file flies its own scenario unless told otherwise
         p.add_argument("--scenario", default=None,
                        help=f"one of {names} or all (default: a policy file's own scenario, from its "

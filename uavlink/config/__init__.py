@@ -6,6 +6,7 @@ May import: ``errors``.
 
 from uavlink.config.env import (
     MIXED,
+    SCENARIO_NAMES,
     SCENARIOS,
     SHADOWING_MODELS,
     AreaConfig,
@@ -17,6 +18,6 @@ from uavlink.config.env import (
 from uavlink.config.fields import SEED_MAX, check_seed
 from uavlink.config.train import BASELINE_NAMES, PAPER_HYPERPARAMETERS, TrainConfig, WarmStartConfig
 
-__all__ = ["BASELINE_NAMES", "MIXED", "PAPER_HYPERPARAMETERS", "SCENARIOS", "SEED_MAX", "SHADOWING_MODELS",
+__all__ = ["BASELINE_NAMES", "MIXED", "PAPER_HYPERPARAMETERS", "SCENARIO_NAMES", "SCENARIOS", "SEED_MAX", "SHADOWING_MODELS",
            "AreaConfig", "EnvConfig", "RadioConfig", "TrainConfig", "WarmStartConfig", "changed_settings",
            "check_seed", "parse_settings"]

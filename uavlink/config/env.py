@@ -23,6 +23,7 @@ from uavlink.errors import ConfigError
 # The UE mobility scenarios (uavlink.mobility implements them); MIXED draws one per env and episode.
 SCENARIOS: tuple[str, ...] = ("no_move", "straight", "circular", "straight_90", "straight_180", "hotspot")
 MIXED = "mixed"
+SCENARIO_NAMES: tuple[str, ...] = (*SCENARIOS, MIXED)  # every scenario a config accepts
 # Shadowing: the SPEC's per-link AR(1) (the paper's) or the spatially consistent field.
 SHADOWING_MODELS = ("ar1", "spatial")
 # How a policy's output becomes a move (uavlink.env.actions.ActionMapping implements them).
@@ -146,7 +147,7 @@ class EnvConfig:
     def validate(self) -> EnvConfig:
         check_fields(self, lambda path: path if path in ("area", "radio") else f"env.{path}")
         self.area.validate()  # the checks below read the area
-        if self.scenario not in (*SCENARIOS, MIXED):
+        if self.scenario not in SCENARIO_NAMES:
             raise ConfigError(
                 f"unknown scenario {self.scenario!r}; choose from {', '.join(SCENARIOS)} or {MIXED}")
         if self.action_mapping not in ACTION_MAPPINGS:

@@ -15,7 +15,7 @@ from __future__ import annotations
 from collections.abc import Callable
 from pathlib import Path
 
-from uavlink.config import EnvConfig
+from uavlink.config import SCENARIO_NAMES, EnvConfig
 from uavlink.evaluation import EvalResult, evaluate_policy, paired_ratio_ci
 from uavlink.evaluation.map_sensitivity import SCENARIOS as SENSITIVITY_SCENARIOS
 from uavlink.evaluation.map_sensitivity import sensitivity, sensitivity_table
@@ -28,7 +28,6 @@ from uavlink.evaluation.tables import (
     spatial_overrides,
     write_csv,
 )
-from uavlink.mobility import MIXED, SCENARIOS
 from uavlink.policies.base import Policy
 from uavlink.policies.contract import EnvOverrides, load_with_env
 from uavlink.policies.loader import policy_for_scenario
@@ -61,7 +60,7 @@ def map_table(map_folder: Path, spatial_folder: Path, episodes: int, seed: int, 
               *(["map / genie", "spatial / genie"] if with_genie else [])]
     body = []
     on_spatial = spatial_overrides(overrides)
-    for scenario in (*SCENARIOS, MIXED):  # mixed: one policy for all, each episode's scenario drawn
+    for scenario in SCENARIO_NAMES:  # mixed: one policy for all, each episode's scenario drawn
         try:
             map_file = policy_for_scenario(map_folder, scenario)
         except PolicyFileError:

@@ -46,7 +46,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
-from uavlink.config import MIXED, SCENARIOS, EnvConfig, TrainConfig
+from uavlink.config import SCENARIO_NAMES, SCENARIOS, EnvConfig, TrainConfig
 from uavlink.config.fields import coerce, resolve, with_changes
 from uavlink.config.train import legacy_warm_start_key
 from uavlink.errors import UserError
@@ -253,9 +253,9 @@ def _scenarios(data: dict[str, Any]) -> list[str]:
     if not isinstance(scenarios, list) or not scenarios:
         raise SweepSpecError("key 'scenarios' must be \"all\" or a non-empty list of scenario names")
     for s in scenarios:
-        if s not in (*SCENARIOS, MIXED):
+        if s not in SCENARIO_NAMES:
             raise SweepSpecError(f"key 'scenarios': unknown scenario {s!r}; choose from "
-                                 f"{', '.join(SCENARIOS)}, {MIXED}")
+                                 f"{', '.join(SCENARIO_NAMES)}")
     if len(set(scenarios)) != len(scenarios):
         raise SweepSpecError("key 'scenarios' lists a scenario twice")
     return list(scenarios)
