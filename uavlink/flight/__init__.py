@@ -1,5 +1,5 @@
-"""Flying a policy over MAVLink (``uavlink fly``): ``link`` (the vehicle link: modes, arming,
-offboard setpoints, missions), ``link_group`` (one link per UAV of a fleet), ``radio_source`` (the
+"""Flying a policy over MAVLink (``uavlink fly``): ``link`` (the MAVLink ground end: one vehicle's
+link, what it knows of each system, a fleet's links as one group), ``radio_source`` (the
 payload's radio readings), ``mission`` and ``fleet_mission`` (the fly loop for one UAV and a fleet),
 ``fence``, ``transit``, and ``fly`` / ``fly_fleet`` (the command: an embedded SITL vehicle or a given
 connection). Layer: the top, below only the CLI.

@@ -1,7 +1,7 @@
 """``uavlink fly`` with a fleet: D vehicles, one policy acting on D agent rows per radio frame.
 
 Each vehicle is its own MAVLink system with its own link state and offboard stream (a
-:class:`~uavlink.flight.link_group.LinkGroup` keeps every stream alive while the loop waits on one
+:class:`~uavlink.flight.link.group.LinkGroup` keeps every stream alive while the loop waits on one
 vehicle). Take-off is one vehicle after the other (each holds when up), then each enters OFFBOARD;
 the world's episode starts once all are in OFFBOARD. Per frame: the newest report of every vehicle
 makes the D observation rows (as the env's: own readings, the others' positions, who serves each

@@ -88,7 +88,7 @@ def embedded_fleet(cfg: EnvConfig, seed: int, speed: float, log_path: Path,
 def run_fleet_fly(args: argparse.Namespace, policy: Policy, cfg: EnvConfig, key: bytes | None,
                   mission: MissionConfig) -> int:
     from uavlink.flight.fleet_mission import FleetPilot, fly_fleet
-    from uavlink.flight.link_group import open_fleet_links
+    from uavlink.flight.link.group import open_fleet_links
 
     pilot = FleetPilot(policy, cfg)  # layout checks before anything is armed
     urls: Sequence[str] | None = split_urls(args.connect) if args.connect else None

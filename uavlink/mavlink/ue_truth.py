@@ -5,7 +5,7 @@ They reach the ground only as the simulation's truth, so that ground stations dr
 ``uavlink plot`` draws its tracks: one ADSB_VEHICLE per UE per radio frame, from the radio payload's
 component, in the message ground stations already draw as traffic (QGroundControl's map shows
 ADSB_VEHICLE as vehicles, MAVProxy's map module as ``adsb`` icons). The flight loop never reads them:
-the link hands the radio source only DEBUG_FLOAT_ARRAY readings (:mod:`uavlink.flight.link`).
+the link hands the radio source only DEBUG_FLOAT_ARRAY readings (:mod:`uavlink.flight.link.vehicle_link`).
 
 Encoding (MAVLink common.xml): ``ICAO_address`` = :data:`UE_ICAO_BASE` + UE index (a 24-bit
 address no transponder is assigned: the E-prefix block reserved for test equipment in practice),

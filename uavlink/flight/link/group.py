@@ -1,4 +1,4 @@
-"""A fleet's links: several :class:`~uavlink.flight.link.VehicleLink` polled as one.
+"""A fleet's links: several :class:`~uavlink.flight.link.vehicle_link.VehicleLink` polled as one.
 
 Each vehicle of a fleet is its own MAVLink system with its own link state (status, ACKs, offboard
 keep-alive). While the loop waits on one vehicle (an ACK, a take-off), every other vehicle's
@@ -26,7 +26,7 @@ from pathlib import Path
 from typing import BinaryIO
 
 from uavlink.errors import UserError
-from uavlink.flight.link import MAX_RX_PER_POLL, LinkError, VehicleLink
+from uavlink.flight.link.vehicle_link import MAX_RX_PER_POLL, LinkError, VehicleLink
 
 DISCOVERY_S = 30.0  # wall seconds to hear every system on a shared URL
 

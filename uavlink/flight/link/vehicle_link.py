@@ -29,15 +29,15 @@ import struct
 import time
 from collections import deque
 from collections.abc import Callable
-from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, BinaryIO
 
+from uavlink.flight.link.vehicle_status import VehicleStatus
 from uavlink.mavlink import radio_codec as radio
 from uavlink.mavlink.connection import normalize_connection
 from uavlink.mavlink.dialect import enum_name, mavlink, mavutil
 from uavlink.mavlink.mission import MISSION_REPLIES
-from uavlink.mavlink.px4_modes import PX4_MAIN_OFFBOARD, decode_custom_mode
+from uavlink.mavlink.px4_modes import PX4_MAIN_OFFBOARD
 from uavlink.mavlink.rejects import RejectLog, rescan_bad_frame
 from uavlink.mavlink.signing import SigningGuard
 
@@ -51,42 +51,12 @@ ACK_WAIT_S = 0.5  # wall time to wait for a COMMAND_ACK before sending the comma
 COMMAND_TRIES = 10
 PARAM_TRIES = 10
 MAX_RX_PER_POLL = 2000  # messages/datagrams handled per poll: a flood cannot stall the loop
-REBOOT_BACKSTEP_S = 5.0  # LOCAL_POSITION_NED time going back more than this: the vehicle rebooted
 
 log = logging.getLogger(__name__)
 
 
 class LinkError(RuntimeError):
     """The vehicle did not answer or refused; the message says what and why."""
-
-
-@dataclass
-class VehicleStatus:
-    """What the link knows of one MAVLink system, from its messages."""
-
-    component_id: int | None = None  # its autopilot's component, from its first autopilot heartbeat
-    heartbeat: Any = None  # the autopilot's last HEARTBEAT
-    armed: bool = False
-    main_mode: int = 0
-    sub_mode: int = 0
-    landed_state: int = 0
-    north_m: float = 0.0
-    east_m: float = 0.0
-    down_m: float = 0.0
-    time_boot_ms: int = 0
-    heartbeats: int = 0
-    landed_known: bool = False
-    home: Any = None  # the last HOME_POSITION: where the local frame sits on Earth
-    # (wall s, vehicle s) of recent LOCAL_POSITION_NED: the vehicle's clock, for the speed factor
-    boot_samples: list[tuple[float, float]] = field(default_factory=list)
-
-    @property
-    def in_air(self) -> bool:
-        return self.landed_state in (MAV.MAV_LANDED_STATE_IN_AIR, MAV.MAV_LANDED_STATE_TAKEOFF)
-
-    @property
-    def offboard(self) -> bool:
-        return self.main_mode == PX4_MAIN_OFFBOARD
 
 
 class VehicleLink:
@@ -102,7 +72,7 @@ class VehicleLink:
             if value is not None and not 1 <= value <= 255:
                 raise ValueError(f"{name} must be in 1..255, got {value}")
         self.url = normalize_connection(url)
-        # ``connection``: another link's (one URL carrying several systems; see link_group)
+        # ``connection``: another link's (one URL carrying several systems; see ``group``)
         self.conn = connection or mavutil.mavlink_connection(self.url, source_system=system_id,
                                                              source_component=component_id, dialect="common")
         self._owns_conn, self.group = connection is None, None
@@ -213,7 +183,7 @@ class VehicleLink:
             self.target_system = src_sys
             log.info("target: system %d component %d (first autopilot heartbeat)", src_sys, src_comp)
         st = self.systems.setdefault(src_sys, VehicleStatus())
-        self._track(st, msg, kind, src_comp)
+        st.track(msg, kind, src_comp, self.rejects)
         if src_sys != self.target_system:
             return
         self.last_rx_wall = time.monotonic()
@@ -237,40 +207,6 @@ class VehicleLink:
                     self.rejects.reject("radio_score", f"radio score: {exc}")
                     return
                 self.on_score(score)
-
-    def _track(self, st: VehicleStatus, msg, kind: str, src_comp: int) -> None:
-        """Update a system's state from its HEARTBEAT, LOCAL_POSITION_NED or EXTENDED_SYS_STATE
-        (a NaN position is rejected, a late one ignored)."""
-        if kind == "HEARTBEAT":
-            if msg.autopilot == MAV.MAV_AUTOPILOT_INVALID:
-                return  # a payload's, a ground station's: not the vehicle's state
-            if st.component_id is None:
-                st.component_id = src_comp
-            if src_comp == st.component_id:
-                st.heartbeats += 1
-                st.heartbeat = msg
-                st.armed = bool(msg.base_mode & MAV.MAV_MODE_FLAG_SAFETY_ARMED)
-                st.main_mode, st.sub_mode = decode_custom_mode(msg.custom_mode)
-        elif kind == "LOCAL_POSITION_NED":
-            if not all(math.isfinite(v) for v in (msg.x, msg.y, msg.z)):
-                self.rejects.reject("position_not_finite",
-                                    f"LOCAL_POSITION_NED with NaN/infinite position ({msg.x}, {msg.y}, {msg.z})")
-                return
-            samples = st.boot_samples
-            newest = samples[-1][1] if samples else -math.inf
-            if msg.time_boot_ms * 1e-3 < newest - REBOOT_BACKSTEP_S:
-                samples.clear()  # the vehicle rebooted: its clock started again
-            elif msg.time_boot_ms * 1e-3 < newest:
-                return  # a late (reordered) sample: the vehicle has moved on since
-            st.north_m, st.east_m, st.down_m = msg.x, msg.y, msg.z
-            st.time_boot_ms = msg.time_boot_ms
-            samples.append((time.monotonic(), msg.time_boot_ms * 1e-3))
-            del samples[:-50]
-        elif kind == "EXTENDED_SYS_STATE":
-            st.landed_state = msg.landed_state
-            st.landed_known = True
-        elif kind == "HOME_POSITION":
-            st.home = msg
 
     def close(self) -> None:
         if self._tlog and self._owns_tlog:

@@ -1,0 +1,79 @@
+"""What a ground link knows of one MAVLink system, from its messages (as pymavlink's
+``mavfile.sysid_state`` keeps per system): its autopilot's heartbeat and mode, its local position
+and the vehicle clock behind it, its landed state and its home."""
+
+from __future__ import annotations
+
+import math
+import time
+from dataclasses import dataclass, field
+from typing import Any
+
+from uavlink.mavlink.dialect import mavlink as MAV
+from uavlink.mavlink.px4_modes import PX4_MAIN_OFFBOARD, decode_custom_mode
+from uavlink.mavlink.rejects import RejectLog
+
+REBOOT_BACKSTEP_S = 5.0  # LOCAL_POSITION_NED time going back more than this: the vehicle rebooted
+
+
+@dataclass
+class VehicleStatus:
+    """What the link knows of one MAVLink system, from its messages."""
+
+    component_id: int | None = None  # its autopilot's component, from its first autopilot heartbeat
+    heartbeat: Any = None  # the autopilot's last HEARTBEAT
+    armed: bool = False
+    main_mode: int = 0
+    sub_mode: int = 0
+    landed_state: int = 0
+    north_m: float = 0.0
+    east_m: float = 0.0
+    down_m: float = 0.0
+    time_boot_ms: int = 0
+    heartbeats: int = 0
+    landed_known: bool = False
+    home: Any = None  # the last HOME_POSITION: where the local frame sits on Earth
+    # (wall s, vehicle s) of recent LOCAL_POSITION_NED: the vehicle's clock, for the speed factor
+    boot_samples: list[tuple[float, float]] = field(default_factory=list)
+
+    @property
+    def in_air(self) -> bool:
+        return self.landed_state in (MAV.MAV_LANDED_STATE_IN_AIR, MAV.MAV_LANDED_STATE_TAKEOFF)
+
+    @property
+    def offboard(self) -> bool:
+        return self.main_mode == PX4_MAIN_OFFBOARD
+
+    def track(self, msg, kind: str, src_comp: int, rejects: RejectLog) -> None:
+        """Update the state from the system's HEARTBEAT, LOCAL_POSITION_NED, EXTENDED_SYS_STATE or HOME_POSITION
+        (a NaN position is rejected into ``rejects``, a late one ignored)."""
+        if kind == "HEARTBEAT":
+            if msg.autopilot == MAV.MAV_AUTOPILOT_INVALID:
+                return  # a payload's, a ground station's: not the vehicle's state
+            if self.component_id is None:
+                self.component_id = src_comp
+            if src_comp == self.component_id:
+                self.heartbeats += 1
+                self.heartbeat = msg
+                self.armed = bool(msg.base_mode & MAV.MAV_MODE_FLAG_SAFETY_ARMED)
+                self.main_mode, self.sub_mode = decode_custom_mode(msg.custom_mode)
+        elif kind == "LOCAL_POSITION_NED":
+            if not all(math.isfinite(v) for v in (msg.x, msg.y, msg.z)):
+                rejects.reject("position_not_finite",
+                               f"LOCAL_POSITION_NED with NaN/infinite position ({msg.x}, {msg.y}, {msg.z})")
+                return
+            samples = self.boot_samples
+            newest = samples[-1][1] if samples else -math.inf
+            if msg.time_boot_ms * 1e-3 < newest - REBOOT_BACKSTEP_S:
+                samples.clear()  # the vehicle rebooted: its clock started again
+            elif msg.time_boot_ms * 1e-3 < newest:
+                return  # a late (reordered) sample: the vehicle has moved on since
+            self.north_m, self.east_m, self.down_m = msg.x, msg.y, msg.z
+            self.time_boot_ms = msg.time_boot_ms
+            samples.append((time.monotonic(), msg.time_boot_ms * 1e-3))
+            del samples[:-50]
+        elif kind == "EXTENDED_SYS_STATE":
+            self.landed_state = msg.landed_state
+            self.landed_known = True
+        elif kind == "HOME_POSITION":
+            self.home = msg
