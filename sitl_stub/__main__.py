@@ -22,7 +22,6 @@ import signal
 import sys
 import threading
 from collections.abc import Callable, Sequence
-from typing import NoReturn
 
 from sitl_stub.core.geo import GeoOrigin
 from sitl_stub.core.params import PARAM_DEFS
@@ -31,13 +30,9 @@ from sitl_stub.mavlink.links import MAX_INSTANCE
 from sitl_stub.mavlink.server import ServerConfig, SitlServer
 from sitl_stub.sim.payload import Payload, PayloadFactory, PayloadOptions, as_payload_list
 from uavlink.config import MIXED, SCENARIO_NAMES, parse_settings
+from uavlink.errors import OneLineParser
 from uavlink.mavlink.connection import normalize_connection
 from uavlink.mavlink.signing import load_key
-
-
-class _Parser(argparse.ArgumentParser):
-    def error(self, message: str) -> NoReturn:
-        self.exit(2, f"{self.prog}: error: {message}\n")
 
 
 class _LogFormat(logging.Formatter):
@@ -111,7 +106,7 @@ def _int_in(low: int, high: int) -> Callable[[str], int]:
 
 
 def build_parser() -> argparse.ArgumentParser:
-    p = _Parser(prog=PROG, description="A lightweight PX4-style SITL multicopter speaking "
+    p = OneLineParser(prog=PROG, description="A lightweight PX4-style SITL multicopter speaking "
                 "MAVLink 2, with a radio payload component.")
     p.add_argument("--connect", type=_connection, action="append", default=None, metavar="URL",
                    help="talk on this connection instead of PX4's ports (repeatable: one link "

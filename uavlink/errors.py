@@ -7,6 +7,8 @@ It subclasses ``ValueError`` so library callers that catch ``ValueError`` keep w
 
 from __future__ import annotations
 
+import argparse
+
 
 class UserError(ValueError):
     """Bad input from the user; the message is one line that says what and how to fix it."""
@@ -40,3 +42,12 @@ def require(module: str) -> None:
         importlib.import_module(module)
     except ModuleNotFoundError as exc:
         raise UserError(missing_extra(exc) or f"this needs {module}") from None
+
+
+class OneLineParser(argparse.ArgumentParser):
+    """argparse with one-line errors, as every other user error here (argparse's own prints the whole
+    usage first): ``PROG: error: MESSAGE (see PROG --help)``, exit status 2. Used by ``uavlink`` (its
+    sub-commands' parsers are of the same class: ``add_subparsers`` uses it) and ``sitl-stub``."""
+
+    def error(self, message: str):
+        self.exit(2, f"{self.prog}: error: {message} (see {self.prog} --help)\n")

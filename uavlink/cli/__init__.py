@@ -17,15 +17,7 @@ import argparse
 import sys
 from collections.abc import Sequence
 
-from uavlink.errors import UserError, missing_extra
-
-
-class OneLineParser(argparse.ArgumentParser):
-    """argparse with one-line errors, as every other user error here: argparse's own prints the
-    whole usage first. Sub-commands' parsers are of the same class (``add_subparsers`` uses it)."""
-
-    def error(self, message: str):
-        self.exit(2, f"{self.prog}: error: {message} (see {self.prog} --help)\n")
+from uavlink.errors import OneLineParser, UserError, missing_extra
 
 
 def build_parser() -> argparse.ArgumentParser:
