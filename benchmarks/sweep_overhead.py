@@ -32,7 +32,7 @@ from pathlib import Path
 from typing import Any
 
 from uavlink.sweep.runner import SweepOutcome, run_sweep
-from uavlink.sweep.spec import parse_spec
+from uavlink.sweep.sweep_file import parse_spec
 
 TARGET_OVERHEAD_S = 1.0
 TARGET_SPEEDUP = 1.6

@@ -49,7 +49,7 @@ from env_throughput import TARGET_BATCHED_N, Bench, batched_bench
 from uavlink.config import EnvConfig, TrainConfig
 from uavlink.config.train import WarmStartConfig
 from uavlink.errors import ConfigError
-from uavlink.sweep.spec import load_spec, tomllib
+from uavlink.sweep.sweep_file import load_spec, tomllib
 
 ROOT = Path(__file__).resolve().parents[1]
 TARGET_RATIO = 0.1

@@ -110,7 +110,7 @@ def test_train_throughput_times_every_phase_of_the_loop_and_covers_every_recipe(
     finally:
         sys.path.remove(folder)
     from uavlink.config import EnvConfig, TrainConfig
-    from uavlink.sweep.spec import load_spec
+    from uavlink.sweep.sweep_file import load_spec
 
     covered = {label.split()[0] for s in bench["recipe_settings"](ROOT / "sweeps") for label in s.covers}
     specs = [load_spec(p) for p in sorted((ROOT / "sweeps").glob("*.toml"))]

@@ -38,14 +38,8 @@ from uavlink.sweep.aggregate import (  # noqa: E402
 )
 from uavlink.sweep.jobs import figures  # noqa: E402
 from uavlink.sweep.runner import run_sweep  # noqa: E402
-from uavlink.sweep.spec import (  # noqa: E402
-    KEY_VERSION,
-    POLICY_FILE_FIELDS,
-    Job,
-    SweepSpecError,
-    load_spec,
-    parse_spec,
-)
+from uavlink.sweep.spec import KEY_VERSION, POLICY_FILE_FIELDS, Job, SweepSpecError  # noqa: E402
+from uavlink.sweep.sweep_file import load_spec, parse_spec  # noqa: E402
 
 TINY = """
 name = "tiny4"

@@ -96,7 +96,7 @@ def _write_results_folder(args: argparse.Namespace) -> int:
     specs = []
     if args.sweep:  # checked before the long evaluation, which would write the folder
         from uavlink.sweep.aggregate import finished_rows, read_record, record_path
-        from uavlink.sweep.spec import load_spec
+        from uavlink.sweep.sweep_file import load_spec
 
         specs = [load_spec(path) for path in args.sweep]
         for spec in specs:

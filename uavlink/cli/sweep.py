@@ -18,7 +18,7 @@ def cmd_sweep(args: argparse.Namespace) -> int:
         record_path,
         write_summary,
     )
-    from uavlink.sweep.spec import load_spec
+    from uavlink.sweep.sweep_file import load_spec
 
     spec = load_spec(args.file)  # SweepSpecError (a UserError): one line, exit 2, before any job
     if args.workers is not None and args.workers < 0:
