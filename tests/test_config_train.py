@@ -84,6 +84,18 @@ def test_validate_against_the_env() -> None:
     with pytest.raises(ConfigError, match=r"^radio.aoa_noise_max_deg is the training's .* set train.aoa_noise_max_deg"):
         TrainConfig().validate(EnvConfig(radio=RadioConfig(aoa_noise_max_deg=30.0)))
     assert TrainConfig().validate(EnvConfig()) == TrainConfig()
+    # the teacher against the env it flies: before any model is built, not in the teacher's factory
+    fleet, one = EnvConfig(n_uavs=2), EnvConfig()
+    for teacher in ("solo", "lead"):
+        assert TrainConfig(warm_start=WarmStartConfig(teacher=teacher)).validate(fleet)
+        with pytest.raises(ConfigError, match=rf"^train.warm_start.teacher {teacher} is a fleet's teacher"):
+            TrainConfig(warm_start=WarmStartConfig(teacher=teacher)).validate(one)
+    gate = TrainConfig(warm_start=WarmStartConfig(teacher="aoa", shadow_gate_db=1.0))
+    assert gate.validate(one)
+    with pytest.raises(ConfigError, match="single-UAV aoa teacher's"):
+        gate.validate(fleet)
+    with pytest.raises(ConfigError, match="compares frames: it needs memory >= 2"):
+        gate.validate(EnvConfig(memory=1))
 
 
 def test_budget_follows_the_episode_length() -> None:

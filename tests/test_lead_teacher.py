@@ -93,7 +93,7 @@ def test_make_teacher_and_config_name_the_lead_teacher() -> None:
     assert make_teacher(FLEET, "lead", leader_policy=str(SINGLE_POLICY)).leader.name == "no_move"
     with pytest.raises(UserError, match="fleet"):
         make_teacher(FLEET.replace(n_uavs=1), "lead")
-    with pytest.raises(UserError, match="lead teacher"):
+    with pytest.raises(UserError, match="leader_policy needs train.warm_start.teacher lead"):
         make_teacher(FLEET, "solo", leader_policy=str(SINGLE_POLICY))
     with pytest.raises(UserError, match="leader_policy"):
         TrainConfig.from_dict({"warm_start": {"teacher": "aoa", "leader_policy": "x.zip"}}).validate()

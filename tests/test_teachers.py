@@ -99,9 +99,11 @@ def test_make_teacher_builds_what_train_config_names() -> None:
     variant = make_teacher(cfg, "aoa", shadow_gate_db=0.5, sinr_span_db=3.0).rule
     assert isinstance(variant, AoaVariant) and (variant.shadow_gate_db, variant.sinr_span_db) == (0.5, 3.0)
     assert make_teacher(cfg, "aoa", shadow_gate_db=0.5).rule.sinr_span_db == AoaPolicy.sinr_span_db
-    for setting in ({"shadow_gate_db": 0.0}, {"sinr_span_db": 2.0}, {"shadow_estimator": object()}):
-        with pytest.raises(ValueError, match="aoa teacher"):
+    for setting in ({"shadow_gate_db": 0.0}, {"sinr_span_db": 2.0}):
+        with pytest.raises(ValueError, match="needs train.warm_start.teacher aoa"):
             make_teacher(cfg, "static", **setting)
+    with pytest.raises(ValueError, match="needs the gate's threshold"):
+        make_teacher(cfg, "aoa", shadow_estimator=object())
     with pytest.raises(ValueError, match="unknown teacher 'gps'"):
         make_teacher(cfg, "gps")
 
@@ -117,5 +119,5 @@ def test_a_fleets_aoa_teacher_takes_a_speed_span_only() -> None:
     obs = BatchedUavEnv(cfg, n_envs=32, seed=2).reset()
     far_short, far_rule = short.mapping.to_polar(short.act(obs))[1], rule.mapping.to_polar(rule.act(obs))[1]
     assert (far_short >= far_rule - 1e-9).all() and (far_short > far_rule + 0.1).any()
-    with pytest.raises(ValueError, match="shadow gate"):
+    with pytest.raises(ValueError, match="single-UAV aoa teacher's"):
         make_teacher(cfg, "aoa", shadow_gate_db=1.0)

@@ -86,6 +86,17 @@ class WarmStartConfig:
                               f"{name('warm_start.shadow_gate_db')} (the gate's threshold)")
         return self
 
+    def check_env(self, env: EnvConfig, name: Namer = config_name) -> None:
+        """The checks against the env the teacher flies: a fleet's teachers need a fleet, the shadow
+        gate is the single-UAV aoa rule's and compares frames."""
+        if self.teacher in ("solo", "lead") and env.n_uavs == 1:
+            raise ConfigError(f"{name('warm_start.teacher')} {self.teacher} is a fleet's teacher: it needs n_uavs > 1")
+        if self.shadow_gate_db is not None and env.n_uavs > 1:
+            raise ConfigError(f"{name('warm_start.shadow_gate_db')} is the single-UAV aoa teacher's; a "
+                              f"fleet's aoa teacher takes only {name('warm_start.sinr_span_db')}")
+        if self.shadow_gate_db is not None and env.memory < 2:
+            raise ConfigError(f"{name('warm_start.shadow_gate_db')} compares frames: it needs memory >= 2")
+
 
 @dataclass(frozen=True)
 class TrainConfig:
@@ -147,6 +158,7 @@ class TrainConfig:
             raise ConfigError(f"{name('n_envs')} x {name('n_steps')} must be >= 2 (PPO's rollout buffer)")
         self.warm_start.validate(name)
         if env is not None:
+            self.warm_start.check_env(env, name)
             if env.radio.aoa_noise_max_deg:
                 raise ConfigError(f"radio.aoa_noise_max_deg is the training's AoA noise randomisation: "
                                   f"set {name('aoa_noise_max_deg')} instead")

@@ -17,7 +17,7 @@ from typing import Any, Protocol
 
 import numpy as np
 
-from uavlink.config import EnvConfig, TrainConfig
+from uavlink.config import EnvConfig, TrainConfig, WarmStartConfig
 from uavlink.config.train import TEACHER_NAMES
 from uavlink.env.actions import ActionMapping
 from uavlink.env.core import GroundTruth
@@ -92,28 +92,25 @@ def make_teacher(cfg: EnvConfig, teacher: str, shadow_gate_db: float | None = No
     """The warm start's teacher named ``teacher``: the aoa rule (or its variant, when
     ``shadow_gate_db``, ``sinr_span_db`` or ``shadow_estimator`` is set) on the true AoAs, a
     fleet's ``solo`` or ``lead`` teacher (the latter's leader flies ``leader_policy``, a single-UAV
-    policy file, or the single-UAV aoa rule), or another baseline as it is."""
+    policy file, or the single-UAV aoa rule), or another baseline as it is. A combination no teacher
+    takes is refused by ``WarmStartConfig``'s own checks, as ``uavlink train`` refuses it."""
     if teacher not in TEACHER_NAMES:
         raise UserError(f"unknown teacher {teacher!r}; choose from {', '.join(TEACHER_NAMES)}")
-    variant = not (shadow_gate_db is None and sinr_span_db is None and shadow_estimator is None)
-    if teacher in ("solo", "lead") and cfg.n_uavs == 1:
-        raise UserError(f"the {teacher} teacher is a fleet's (n_uavs > 1)")
-    if leader_policy and teacher != "lead":
-        raise UserError(f"a leader policy is a setting of the lead teacher, not of {teacher!r}")
-    if teacher == "lead" and not variant:
+    ws = WarmStartConfig(teacher=teacher, shadow_gate_db=shadow_gate_db, sinr_span_db=sinr_span_db,
+                         leader_policy=leader_policy).validate()
+    ws.check_env(cfg)
+    if shadow_estimator is not None and shadow_gate_db is None:
+        raise UserError("a shadow estimator needs the gate's threshold (shadow_gate_db)")
+    if teacher == "lead":
         return make_lead_teacher(cfg, leader_policy)
-    if cfg.n_uavs > 1:  # a fleet's teachers: its baselines as they are (the aoa rule's span aside), or solo
-        if teacher == "aoa" and sinr_span_db is not None and shadow_gate_db is None and shadow_estimator is None:
-            return FleetAoaPolicy(cfg, sinr_span_db=sinr_span_db)
-        if variant:
-            raise UserError("a shadow gate and a shadow estimator are settings of the single-UAV aoa "
-                            "teacher, a speed span of an aoa teacher, not of a fleet's others")
-        return SoloTeacher(cfg) if teacher == "solo" else make_baseline(teacher, cfg)
-    if not variant:
-        return TrueAoaTeacher(AoaPolicy(cfg)) if teacher == "aoa" else make_baseline(teacher, cfg)
+    if teacher == "solo":
+        return SoloTeacher(cfg)
     if teacher != "aoa":
-        raise UserError(f"a shadow gate, a speed span and a shadow estimator are settings of the aoa "
-                         f"teacher, not of {teacher!r}")
+        return make_baseline(teacher, cfg)
+    if cfg.n_uavs > 1:  # a fleet's aoa rule, with its speed span replaced if asked
+        return make_baseline(teacher, cfg) if sinr_span_db is None else FleetAoaPolicy(cfg, sinr_span_db=sinr_span_db)
+    if shadow_gate_db is None and sinr_span_db is None:
+        return TrueAoaTeacher(AoaPolicy(cfg))
     span = {} if sinr_span_db is None else {"sinr_span_db": sinr_span_db}
     return TrueAoaTeacher(AoaVariant(cfg, shadow_gate_db=shadow_gate_db, shadow_estimator=shadow_estimator, **span))
 
