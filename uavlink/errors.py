@@ -1,7 +1,8 @@
 """The errors uavlink raises on purpose, so the CLI can tell a user's mistake from a bug.
 
 ``UserError`` (bad input: a flag, a config value, a policy or key file) is what the command line
-turns into one line on stderr and exit status 2; anything else is a bug and keeps its traceback.
+turns into one line on stderr and exit status 2; ``LinkError`` (a lost or refusing vehicle) is one
+line and exit status 1; anything else is a bug and keeps its traceback.
 It subclasses ``ValueError`` so library callers that catch ``ValueError`` keep working.
 """
 
@@ -16,6 +17,11 @@ class UserError(ValueError):
 
 class ConfigError(UserError):
     """A config value that makes no physical sense or names an unknown field."""
+
+
+class LinkError(RuntimeError):
+    """The vehicle did not answer or refused; the message says what and why. Declared here, not in
+    ``uavlink.flight.link``, so the CLI can catch it (exit status 1) without importing pymavlink."""
 
 
 # The optional packages and the extra that installs each (pyproject.toml's optional-dependencies).

@@ -17,7 +17,7 @@ import argparse
 import sys
 from collections.abc import Sequence
 
-from uavlink.errors import OneLineParser, UserError, missing_extra
+from uavlink.errors import LinkError, OneLineParser, UserError, missing_extra
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -54,9 +54,7 @@ def main(argv: Sequence[str] | None = None) -> int:
             raise
         print(f"uavlink {args.command}: error: {hint}", file=sys.stderr)
         return 2
-    except RuntimeError as exc:  # the vehicle link (LinkError) and other run-time failures
-        if type(exc).__name__ != "LinkError":
-            raise
+    except LinkError as exc:  # the vehicle was lost or refused: not the user's input, so status 1
         print(f"uavlink {args.command}: error: {exc}", file=sys.stderr)
         return 1
     except BrokenPipeError:  # e.g. piped into head

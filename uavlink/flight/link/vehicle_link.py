@@ -32,6 +32,7 @@ from collections.abc import Callable
 from pathlib import Path
 from typing import Any, BinaryIO
 
+from uavlink.errors import LinkError
 from uavlink.flight.link.vehicle_status import VehicleStatus
 from uavlink.mavlink import radio_codec as radio
 from uavlink.mavlink.connection import normalize_connection
@@ -53,10 +54,6 @@ PARAM_TRIES = 10
 MAX_RX_PER_POLL = 2000  # messages/datagrams handled per poll: a flood cannot stall the loop
 
 log = logging.getLogger(__name__)
-
-
-class LinkError(RuntimeError):
-    """The vehicle did not answer or refused; the message says what and why."""
 
 
 class VehicleLink:
