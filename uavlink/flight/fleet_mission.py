@@ -44,7 +44,7 @@ from uavlink.flight.mission import (
     _take_off_or_resume,
     _wait_ready,
 )
-from uavlink.flight.outcome import judge, signing_hint
+from uavlink.flight.outcome import EndedBy, judge, signing_hint
 from uavlink.flight.radio_source import MavlinkRadioSource
 from uavlink.flight.start_point import fly_to_starts
 from uavlink.flight.transit import guard_transit
@@ -158,7 +158,7 @@ def fly_fleet(links: Sequence[VehicleLink], pilot: FleetPilot, cfg: EnvConfig, m
     except LinkError as exc:
         result.failure, result.fix = str(exc), next(filter(None, map(signing_hint, links)), "")
     except KeyboardInterrupt:  # before the episode's loop (which lands by itself)
-        result.interrupted, result.ended_by = True, "interrupted"
+        result.interrupted, result.ended_by = True, EndedBy.INTERRUPTED
         for link in links:
             if mission.land and link.status.armed and not _ending_mode(link.status):
                 _land(link)
@@ -225,20 +225,20 @@ class _Loop:
                     started = started or now
                     self._decide(frame, now)
                 if self._episode_done():
-                    result.ended_by = "episode done"
+                    result.ended_by = EndedBy.EPISODE_DONE
                     break
                 if all(v.released for v in result.vehicles):
-                    result.ended_by = "every vehicle released"
+                    result.ended_by = EndedBy.EVERY_VEHICLE_RELEASED
                     break
                 if now - self.last_radio > mission.radio_timeout_s:
-                    result.ended_by = "no radio reports"
+                    result.ended_by = EndedBy.NO_RADIO_REPORTS
                     break
                 self._watch(now, started is not None)
                 if min(now - link.last_rx_wall for link in links) > mission.link_timeout_s:
-                    result.ended_by = "link lost"
+                    result.ended_by = EndedBy.LINK_LOST
                     raise LinkError(f"no message from any vehicle for {mission.link_timeout_s:g} s")
         except KeyboardInterrupt:
-            result.interrupted, result.ended_by = True, "interrupted"
+            result.interrupted, result.ended_by = True, EndedBy.INTERRUPTED
         finally:
             result.episode_wall_s = time.monotonic() - started if started else 0.0
             frames = sorted(k for k in self.scores if 1 <= k <= mission.frames)

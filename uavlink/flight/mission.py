@@ -45,7 +45,7 @@ from uavlink.env.observation import ObservationBuilder, ObservationLayout
 from uavlink.errors import UserError
 from uavlink.flight.fence import upload_area_fence
 from uavlink.flight.link import STREAM_PERIOD_VEHICLE_S, LinkError, VehicleLink
-from uavlink.flight.outcome import judge, signing_hint
+from uavlink.flight.outcome import EndedBy, judge, signing_hint
 from uavlink.flight.radio_source import MavlinkRadioSource, RadioSource
 from uavlink.flight.start_point import fly_to_starts
 from uavlink.mavlink.dialect import mavlink
@@ -188,7 +188,7 @@ def fly_mission(link: VehicleLink, pilot: PolicyPilot, cfg: EnvConfig, mission: 
     except LinkError as exc:
         result.failure, result.fix = str(exc), signing_hint(link)
     except KeyboardInterrupt:  # before the episode's loop (which lands by itself)
-        result.interrupted, result.ended_by = True, "interrupted"
+        result.interrupted, result.ended_by = True, EndedBy.INTERRUPTED
         if mission.land and link.status.armed and not _ending_mode(link.status):
             _land(link)
     judge(result, mission.frames)
@@ -256,7 +256,7 @@ def _fly(link, pilot, cfg, mission, radio, status, result: MissionResult) -> Non
                                        report.frame < mission.frames)
             if mission.frames in scores or frames.last >= mission.frames + 2 or (
                     frames.last >= mission.frames and len(scores) >= mission.frames):
-                result.ended_by = "episode done"
+                result.ended_by = EndedBy.EPISODE_DONE
                 break
             if not st.armed or _ending_mode(st):
                 result.ended_by = f"vehicle in {_mode_name(st)}"
@@ -265,18 +265,18 @@ def _fly(link, pilot, cfg, mission, radio, status, result: MissionResult) -> Non
                 break
             now = time.monotonic()
             if now - last_radio > mission.radio_timeout_s:
-                result.ended_by = "no radio reports"
+                result.ended_by = EndedBy.NO_RADIO_REPORTS
                 break
             if not st.offboard and now - last_reentry >= mission.reenter_interval_s:
                 last_reentry = now
                 _reenter_offboard(link, result)
             if now - link.last_rx_wall > mission.link_timeout_s:
-                result.ended_by = "link lost"
+                result.ended_by = EndedBy.LINK_LOST
                 raise LinkError(f"no message from the vehicle for {mission.link_timeout_s:g} s: "
-                                "link lost")
+                                f"{EndedBy.LINK_LOST}")
     except KeyboardInterrupt:
         result.interrupted = True
-        result.ended_by = "interrupted"
+        result.ended_by = EndedBy.INTERRUPTED
     finally:
         result.episode_wall_s = time.monotonic() - frames.started_wall if frames.started_wall else 0.0
         result.frame_rates_mbps = [scores[k].mean_rate_mbps for k in sorted(scores) if 1 <= k <= mission.frames]
@@ -284,7 +284,7 @@ def _fly(link, pilot, cfg, mission, radio, status, result: MissionResult) -> Non
         result.guarded_actions = pilot.guarded
         result.inference_s = pilot.inference_s
         result.rejected_reports = getattr(source, "rejected", 0)
-        if mission.land and st.armed and not _ending_mode(st) and result.ended_by != "link lost":
+        if mission.land and st.armed and not _ending_mode(st) and result.ended_by != EndedBy.LINK_LOST:
             _land(link)
         link.stream_ned = None
 

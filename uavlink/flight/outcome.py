@@ -28,6 +28,18 @@ if TYPE_CHECKING:
 EXIT_COMPLETE, EXIT_INCOMPLETE, EXIT_INTERRUPTED = 0, 1, 130
 
 
+class EndedBy:
+    """Why a flight's loop ended: ``MissionResult.ended_by``, summary.json's ``ended_by``. Plain
+    strings (not an Enum: Python 3.12 formats a str Enum by its name); an operator or failsafe
+    ending it is ``vehicle in MODE``, whatever the mode."""
+
+    EPISODE_DONE = "episode done"
+    NO_RADIO_REPORTS = "no radio reports"
+    LINK_LOST = "link lost"
+    INTERRUPTED = "interrupted"
+    EVERY_VEHICLE_RELEASED = "every vehicle released"  # a fleet's: every vehicle taken over
+
+
 def judge(result: MissionResult, frames: int) -> None:
     """Set ``completed`` and ``reason``: did the flight fly the frames it set out to (all
     ``frames`` of a fresh episode, or the rest of the one it resumed)?"""
@@ -37,7 +49,7 @@ def judge(result: MissionResult, frames: int) -> None:
     elif result.failure:
         fix = result.fix or "check the vehicle is running and reachable (--connect)"
         why = f"{result.failure}; {fix}, then fly again"
-    elif result.ended_by == "no radio reports" or first is None:
+    elif result.ended_by == EndedBy.NO_RADIO_REPORTS or first is None:
         where = "no" if first is None else f"no more (after frame {last})"
         why = (f"{where} radio reports from the vehicle's radio payload (component 158) in OFFBOARD: "
                "run the vehicle with its radio payload (sitl_stub without --no-payload) and fly again")
@@ -47,7 +59,7 @@ def judge(result: MissionResult, frames: int) -> None:
     elif not result.resumed and not result.met_start:
         why = (f"the vehicle's radio episode was already running (frame {first}) before this flight "
                "took off, so its start was not flown: restart the vehicle and fly again")
-    elif result.ended_by != "episode done":
+    elif result.ended_by != EndedBy.EPISODE_DONE:
         why = (f"the flight ended early, after frame {last}: {result.ended_by} (operator or "
                "failsafe); see the vehicle's log, then fly again")
     else:
