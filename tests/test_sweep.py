@@ -38,7 +38,13 @@ from uavlink.sweep.aggregate import (  # noqa: E402
 )
 from uavlink.sweep.jobs import figures  # noqa: E402
 from uavlink.sweep.runner import run_sweep  # noqa: E402
-from uavlink.sweep.spec import KEY_VERSION, POLICY_FILE_FIELDS, Job, SweepSpecError  # noqa: E402
+from uavlink.sweep.spec import (  # noqa: E402
+    KEY_VERSION,
+    NEUTRAL_WARM_START_DEFAULTS,
+    POLICY_FILE_FIELDS,
+    Job,
+    SweepSpecError,
+)
 from uavlink.sweep.sweep_file import load_spec, parse_spec  # noqa: E402
 
 TINY = """
@@ -320,7 +326,7 @@ def test_job_keys_are_versioned_hashes_of_the_full_configs() -> None:
     job = parse_spec({"name": "a", "scenarios": ["straight"], "seeds": [0]}).jobs()[0]
     assert job.settings()["key_version"] == KEY_VERSION
     full = job.train_config().to_dict()
-    for later in ("leader_policy", "policy"):  # fields added later, out of the key at their defaults
+    for later in NEUTRAL_WARM_START_DEFAULTS:  # fields added later, out of the key at their defaults
         del full["warm_start"][later]
     assert job.settings()["train"] == full  # nothing else left out, nothing bent
     assert Job.from_dict(json.loads(json.dumps(job.to_dict()))).key == job.key
