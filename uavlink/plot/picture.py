@@ -156,17 +156,7 @@ def draw_map(ax, data: FlightData, upto: int | None = None, bearings: bool = Tru
                 ax.plot([fe[-1], fe[-1] + ray * np.cos(a)], [fn[-1], fn[-1] + ray * np.sin(a)], "-",
                         color=ue_colour[ue], lw=0.9, alpha=0.85, zorder=2)
                 n_bearings += 1
-    draw_memory(ax, data)
     return {"ue_tracks": ue_tracks, "bearings": n_bearings}
-
-
-def draw_memory(ax, data: FlightData) -> None:
-    """Where the policy keeps a memory of place: what it remembered (issue 25). Nothing is drawn
-    until the observation carries one and :func:`~uavlink.plot.tlog.read_flight` fills
-    ``data.memory`` from the log; this is the one place to draw it."""
-    if data.memory is None:
-        return
-    raise NotImplementedError("drawing a policy's memory of place: fill in with its format")
 
 
 def _legend_handles(data: FlightData):

@@ -89,9 +89,6 @@ class FlightData:
     ue_north_m: np.ndarray
     mean_rate_mbps: np.ndarray  # (K,) the team's mean UE rate, NaN where no score
     fence_en_m: np.ndarray | None  # (P, 2) east, north of the fence polygon's vertices
-    # Hook for the policy's memory of place (issue 25, "what it remembered"): when the observation
-    # carries one and the log holds it, the reader fills this and picture.draw_memory draws it.
-    memory: object | None = None
     notes: list[str] = field(default_factory=list)  # what the log lacked, said in the picture
 
     @property
