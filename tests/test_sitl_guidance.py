@@ -108,8 +108,8 @@ def test_orbit_limits_and_geometry():
     vn, ve = o.velocity(20.0, 0.0)  # north of the centre: clockwise heads east
     assert (vn, ve) == pytest.approx((0.0, 5.0))
     assert o.velocity(30.0, 0.0)[0] < 0  # outside the circle: pulled in
-    assert o.yaw(20.0, 0.0, 0.0) == pytest.approx(-math.pi)  # front to the centre: south
-    assert Orbit(0, 0, -10, 20, 5, YAW_FRONT_TANGENT).yaw(20.0, 0.0, 0.0) == pytest.approx(math.pi / 2)
+    assert o.yaw(20.0, 0.0) == pytest.approx(-math.pi)  # front to the centre: south
+    assert Orbit(0, 0, -10, 20, 5, YAW_FRONT_TANGENT).yaw(20.0, 0.0) == pytest.approx(math.pi / 2)
     assert o.signed_radius_m == 20.0 and Orbit(0, 0, -10, 20, -5).signed_radius_m == -20.0
 
 

@@ -16,7 +16,7 @@ from sitl_stub.mavlink.ftp import ERR_FILE_NOT_FOUND, OP_ACK, OP_NAK, ftp_reply
 from sitl_stub.mavlink.streams import StreamScheduler
 from sitl_stub.sim.clock import SimClock
 from sitl_stub.sim.payload import check_payload
-from uavlink.mavlink.connection import is_listening, normalize_connection
+from uavlink.mavlink.connection import normalize_connection
 from uavlink.mavlink.px4_modes import decode_custom_mode, encode_custom_mode, px4_mode_name
 
 pytestmark = pytest.mark.timeout(30)
@@ -104,10 +104,6 @@ def test_bad_connections_are_one_line_errors(bad):
     with pytest.raises(ValueError) as err:
         normalize_connection(bad)
     assert "\n" not in str(err.value)
-
-
-def test_is_listening():
-    assert is_listening("udpin:0.0.0.0:1") and not is_listening("udpout:1.2.3.4:1")
 
 
 # -------------------------------------------------------------------- geo

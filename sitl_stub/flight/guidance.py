@@ -81,7 +81,7 @@ class Orbit:
         radial = POS_GAIN * (self.radius_m - dist)
         return self.speed_mps * tn + radial * un, self.speed_mps * te + radial * ue
 
-    def yaw(self, north_m: float, east_m: float, yaw_now_rad: float) -> float | None:
+    def yaw(self, north_m: float, east_m: float) -> float | None:
         """Heading target for the yaw behaviour (None: uncontrolled)."""
         rn, re = north_m - self.center_n, east_m - self.center_e
         if self.yaw_behaviour == YAW_HOLD_INITIAL:
@@ -166,7 +166,7 @@ class Guidance:
         return xy
 
     def command(self, mode: FlightMode, pos: list[float], target: tuple[float, float, float],
-                yaw_target: float | None, yaw_rad: float, fence_m: float, ceiling_m: float,
+                yaw_target: float | None, fence_m: float, ceiling_m: float,
                 acc_xy_mps2: float) -> ControlCommand:
         """The control command for ``mode``; velocities are braked before the hard fence
         (``|north|, |east| <= fence_m``, ``-ceiling_m <= down <= 0``)."""
@@ -175,7 +175,7 @@ class Guidance:
             vn, ve = o.velocity(pos[0], pos[1])
             ff = (brake_before(pos[0], vn, -fence_m, fence_m, acc_xy_mps2),
                   brake_before(pos[1], ve, -fence_m, fence_m, acc_xy_mps2), 0.0)
-            return ControlCommand((NAN, NAN, o.down_m), ff, o.yaw(pos[0], pos[1], yaw_rad))
+            return ControlCommand((NAN, NAN, o.down_m), ff, o.yaw(pos[0], pos[1]))
         if mode is FlightMode.OFFBOARD and self.motion is not None:
             m = self.motion
             tgt = tuple(NAN if free else t for free, t in zip(m.free_axes, target, strict=True))

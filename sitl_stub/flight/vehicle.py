@@ -317,8 +317,8 @@ class Vehicle:
                 or (self.mode is FlightMode.MISSION and self._leg is not None and self._leg.landing))
 
     def _command(self) -> ControlCommand:
-        return self.guidance.command(self.mode, self.pos, self._target, self._yaw_target, self.yaw,
-                                     self.fence_m, MAX_ALTITUDE_M, self.params["MPC_ACC_HOR_MAX"])
+        return self.guidance.command(self.mode, self.pos, self._target, self._yaw_target, self.fence_m,
+                                     MAX_ALTITUDE_M, self.params["MPC_ACC_HOR_MAX"])
 
     def _control(self, h: float) -> None:
         cmd = self._command()

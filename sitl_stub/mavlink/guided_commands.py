@@ -17,7 +17,13 @@ from sitl_stub.core.geo import GeoOrigin
 from sitl_stub.core.modes import FlightMode
 from sitl_stub.core.vehicle_state import ACCEPTED, Outcome, Result
 from sitl_stub.flight.failures import FAILURE_TYPE_OFF
-from sitl_stub.flight.guidance import YAW_FRONT_TO_CENTER, Orbit, sanitize_orbit
+from sitl_stub.flight.guidance import (
+    ORBIT_DEFAULT_SPEED_MPS,
+    ORBIT_RADIUS_MIN_M,
+    YAW_FRONT_TO_CENTER,
+    Orbit,
+    sanitize_orbit,
+)
 from sitl_stub.flight.vehicle import Vehicle
 from uavlink.mavlink.frames import LOCAL_NED, RELATIVE_ALT_FRAMES
 
@@ -102,10 +108,11 @@ def orbit(v: Vehicle, origin: GeoOrigin, p: Sequence[float], frame: int | None) 
     if math.isfinite(p[2]) and int(p[2]) not in ORBIT_YAW_BEHAVIOURS:
         return Outcome(Result.DENIED, f"Orbit denied: yaw behaviour {p[2]:g} unknown")
     old = v.guidance.orbit if s.mode is FlightMode.ORBIT else None
-    radius = abs(p[0]) if math.isfinite(p[0]) and p[0] != 0 else (old.radius_m if old else 1.0)
+    # A new orbit starts as PX4's FlightTaskOrbit does: at its smallest radius and default speed.
+    radius = abs(p[0]) if math.isfinite(p[0]) and p[0] != 0 else (old.radius_m if old else ORBIT_RADIUS_MIN_M)
     clockwise = p[0] > 0 if math.isfinite(p[0]) and p[0] != 0 else (
         old.speed_mps >= 0 if old else True)
-    speed = abs(p[1]) if math.isfinite(p[1]) else (abs(old.speed_mps) if old else 1.0)
+    speed = abs(p[1]) if math.isfinite(p[1]) else (abs(old.speed_mps) if old else ORBIT_DEFAULT_SPEED_MPS)
     radius, speed = sanitize_orbit(radius, speed if clockwise else -speed,
                                    v.params["MPC_XY_VEL_MAX"], v.params["MPC_ACC_HOR_MAX"])
     yaw_mode = int(p[2]) if math.isfinite(p[2]) else (old.yaw_behaviour if old else YAW_FRONT_TO_CENTER)

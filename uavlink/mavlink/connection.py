@@ -44,11 +44,6 @@ def normalize_connection(url: str) -> str:
     return f"{(_LISTEN if listen else _SEND)[scheme]}:{host}:{port}"
 
 
-def is_listening(normalized: str) -> bool:
-    """True when a normalised connection waits for peers (udpin/tcpin)."""
-    return normalized.startswith(("udpin:", "tcpin:"))
-
-
 def free_udp_port(host: str = "127.0.0.1") -> int:
     """A UDP port that was free a moment ago (for tests and embedding)."""
     with socket.socket(socket.AF_INET, socket.SOCK_DGRAM) as s:

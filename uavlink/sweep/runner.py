@@ -60,10 +60,6 @@ class SweepOutcome:
     cpu_s: list[float] = field(default_factory=list)  # and its process CPU time
     written: set[str] = field(default_factory=set)  # job folders written by this run
 
-    @property
-    def complete(self) -> bool:
-        return self.skipped + self.finished == self.jobs
-
 
 def plan(spec: SweepSpec, out_root: Path, done_keys: Collection[str] = ()) -> tuple[Path, list[Job], list[Job]]:
     """(sweep folder, all jobs, jobs without a result.json whose key is not in ``done_keys``);
@@ -107,7 +103,7 @@ def run_sweep(spec: SweepSpec, out_root: Path, scheduler: str | None = None, wor
     else:
         begin()
         if pending:
-            _run_in_process(pending, sweep_dir, outcome, progress, log)
+            _run_in_process(pending, sweep_dir, outcome, progress)
     outcome.wall_s = time.perf_counter() - start
     return outcome
 
@@ -127,8 +123,7 @@ def _check_address(scheduler: str) -> None:
         raise EngineError(f"--scheduler {scheduler!r} is not a Dask address ({exc}); e.g. tcp://HOST:8786") from None
 
 
-def _run_in_process(pending: list[Job], sweep_dir: Path, outcome: SweepOutcome, progress: bool,
-                    log: Callable[[str], None]) -> None:
+def _run_in_process(pending: list[Job], sweep_dir: Path, outcome: SweepOutcome, progress: bool) -> None:
     outcome.engine = "in-process, sequential"
     bar = _bar(len(pending), progress)
     try:
