@@ -175,7 +175,7 @@ def test_config_and_overrides() -> None:
 def test_missing_pettingzoo_is_a_user_error_and_import_stays_light(monkeypatch) -> None:
     monkeypatch.setitem(sys.modules, "pettingzoo", None)
     monkeypatch.delitem(sys.modules, "uavlink.fleet.parallel", raising=False)
-    with pytest.raises(UserError, match="pip install 'pettingzoo>=1.24'"):
+    with pytest.raises(UserError, match=r"pip install 'uavlink\[fleet\]'"):
         parallel_env()
     code = "import sys, uavlink, uavlink.fleet\nprint('pettingzoo' in sys.modules)"
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=60, check=True)

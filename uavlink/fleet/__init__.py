@@ -13,7 +13,7 @@ from __future__ import annotations
 import importlib
 from typing import TYPE_CHECKING, Any
 
-from uavlink.errors import UserError
+from uavlink.errors import require
 
 if TYPE_CHECKING:
     from uavlink.config import EnvConfig
@@ -23,13 +23,8 @@ __all__ = ["FleetParallelEnv", "parallel_env"]
 
 
 def _parallel_module() -> Any:
-    try:
-        return importlib.import_module("uavlink.fleet.parallel")
-    except ModuleNotFoundError as err:
-        if err.name != "pettingzoo":
-            raise
-        raise UserError("the fleet's PettingZoo env needs pettingzoo: "
-                        "pip install 'pettingzoo>=1.24' (or 'uavlink[fleet]')") from None
+    require("pettingzoo")  # else a UserError with its install line
+    return importlib.import_module("uavlink.fleet.parallel")
 
 
 def parallel_env(scenario: str | None = None, n_uavs: int | None = None,

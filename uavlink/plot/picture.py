@@ -16,10 +16,10 @@ from pathlib import Path
 
 import numpy as np
 
+from uavlink.errors import missing_extra
 from uavlink.plot.tlog import FlightData
 
 UAV_COLOURS = ("#1f4e9c", "#c0392b", "#1e8449", "#7d3c98", "#d35400", "#17a589", "#5d6d7e", "#b7950b")
-PLOT_INSTALL_HINT = "pip install 'uavlink[plot]'"
 
 
 class PlotUnavailable(RuntimeError):
@@ -53,9 +53,8 @@ def new_figure(width_in: float, height_in: float, dpi: float):
     try:
         from matplotlib.backends.backend_agg import FigureCanvasAgg
         from matplotlib.figure import Figure
-    except ModuleNotFoundError:
-        raise PlotUnavailable(f"matplotlib is not installed: {PLOT_INSTALL_HINT} for flight "
-                              "pictures") from None
+    except ModuleNotFoundError as exc:
+        raise PlotUnavailable(missing_extra(exc) or str(exc)) from None
     fig = Figure(figsize=(width_in, height_in), dpi=dpi)
     FigureCanvasAgg(fig)
     return fig

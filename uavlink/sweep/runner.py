@@ -27,6 +27,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
+from uavlink.errors import require
 from uavlink.sweep.jobs import run_job, write_job
 from uavlink.sweep.spec import Job, SweepSpec
 
@@ -39,11 +40,9 @@ LOCAL_CLUSTER_CONFIG = {"distributed.scheduler.worker-saturation": 1.0,
                         "distributed.nanny.pre-spawn-environ.MALLOC_TRIM_THRESHOLD_": None}
 
 
-NEEDS_DASK = "sweeps need Dask: pip install 'uavlink[train,sweep]'"
-
-
 class EngineError(RuntimeError):
-    """The engine could not start (dask missing, scheduler unreachable); one-line message."""
+    """The engine could not start (scheduler malformed or unreachable); one-line message. A missing
+    Dask is ``require``'s UserError, with its install line."""
 
 
 @dataclass
@@ -111,10 +110,9 @@ def run_sweep(spec: SweepSpec, out_root: Path, scheduler: str | None = None, wor
 def _check_address(scheduler: str) -> None:
     """A malformed scheduler address fails here, in one line: ``Client`` raises deep inside and its
     half-built instance then waits in ``__del__`` for a connection that never was."""
-    try:
-        from distributed.comm.addressing import parse_address, parse_host_port
-    except ImportError:
-        raise EngineError(NEEDS_DASK) from None
+    require("distributed")
+    from distributed.comm.addressing import parse_address, parse_host_port
+
     try:
         scheme, location = parse_address(scheduler)
         if scheme in ("tcp", "tls"):
@@ -146,11 +144,9 @@ def _run_on_dask(pending: list[Job], sweep_dir: Path, outcome: SweepOutcome, sch
                  workers: int | None, retries: int, progress: bool, log: Callable[[str], None],
                  begin: Callable[[], None]) -> None:
     """The jobs on Dask; ``begin`` runs once the engine is up (and never when it cannot start)."""
-    try:
-        import dask
-        from distributed import Client, LocalCluster, as_completed
-    except ImportError:
-        raise EngineError(NEEDS_DASK) from None
+    require("distributed")
+    import dask
+    from distributed import Client, LocalCluster, as_completed
 
     cluster = None
     try:
