@@ -231,12 +231,13 @@ def main(argv: Sequence[str] | None = None, payload_factory: PayloadFactory | No
 
 def _fleet(args: argparse.Namespace, base: ServerConfig, options: PayloadOptions):
     """``--fleet D``: D vehicles around one radio world (:mod:`sitl_stub.fleet`)."""
-    from sitl_stub.fleet import FleetServer, FleetWorld, fleet_configs, fleet_env, spawn_points_ne
+    from sitl_stub.fleet import FleetServer, FleetWorld, fleet_configs, spawn_points_ne
+    from sitl_stub.sim.radio_payload import payload_env
 
     if args.instance + args.fleet - 1 > MAX_INSTANCE:
         raise ValueError(f"--instance {args.instance} --fleet {args.fleet} needs instances up to "
                          f"{args.instance + args.fleet - 1}, more than {MAX_INSTANCE}")
-    cfg = fleet_env(options, args.fleet)
+    cfg = payload_env(options, args.fleet)
     world = None if args.no_payload else FleetWorld(
         cfg, args.seed, options.home if options.ue_truth else None, options.lockstep)
     return FleetServer(fleet_configs(base, args.fleet, spawn_points_ne(cfg)), world)

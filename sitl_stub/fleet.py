@@ -40,34 +40,14 @@ from sitl_stub.core.vehicle_state import VehicleState
 from sitl_stub.mavlink.server import LOOP_WAIT_S, ServerConfig, SitlServer, step_vehicles
 from sitl_stub.sim.clock import SimClock
 from sitl_stub.sim.lockstep import FrameHold
-from sitl_stub.sim.payload import MAV_AUTOPILOT_INVALID, PayloadOptions
 from sitl_stub.sim.radio_episodes import RadioEpisodes
-from sitl_stub.sim.ue_truth import send_ue_truth
+from sitl_stub.sim.radio_payload import HEARTBEAT, publish_frame
 from uavlink.config import EnvConfig
 from uavlink.mavlink.geo import GeoOrigin
-from uavlink.mavlink.radio_codec import (
-    RADIO_COMPONENT_ID,
-    READINGS_NAME,
-    SCORE_NAME,
-    encode_readings,
-    encode_score,
-)
+from uavlink.mavlink.radio_codec import RADIO_COMPONENT_ID, encode_readings, encode_score
 from uavlink.mobility.fleet import start_positions_m
 
 log = logging.getLogger("sitl_stub.fleet")
-
-MAV_TYPE_ONBOARD_CONTROLLER = 18
-MAV_STATE_ACTIVE = 4
-READINGS_COPIES = 2  # as the single vehicle's payload: a copy against packet loss
-
-
-def fleet_env(options: PayloadOptions, n_uavs: int) -> EnvConfig:
-    """The shared world's env: the payload options' settings with ``n_uavs`` UAVs."""
-    cfg = EnvConfig().replace(**dict(options.settings))
-    if cfg.n_uavs not in (1, n_uavs):
-        raise ValueError(f"--set n_uavs={cfg.n_uavs} disagrees with --fleet {n_uavs}; drop one")
-    return cfg.replace(scenario=options.scenario, aoa_noise_deg=options.aoa_noise_deg,
-                       n_uavs=n_uavs).validate()
 
 
 def spawn_points_ne(cfg: EnvConfig) -> list[tuple[float, float]]:
@@ -122,20 +102,14 @@ class FleetRadioView:
         return self.fleet.hold.on_command(msg, self.uav)
 
     def heartbeat(self) -> tuple[int, int, int, int, int]:
-        return (MAV_TYPE_ONBOARD_CONTROLLER, MAV_AUTOPILOT_INVALID, 0, 0, MAV_STATE_ACTIVE)
+        return HEARTBEAT
 
     def on_frame(self, sim_time_s: float, state: VehicleState, mav: Any) -> None:
         episodes = self.fleet.episodes
-        frame, usec = episodes.world.frame, int(sim_time_s * 1e6)
-        if self.fleet.score is not None:
-            mav.debug_float_array_send(usec, SCORE_NAME.encode(), frame, self.fleet.score)
-        episodes.send_episode(mav, sim_time_s)
         r = episodes.world.readings(self.uav)
-        data = encode_readings(r.sinr_db, r.aoa_deg, episodes.started, r.serves)
-        for _ in range(READINGS_COPIES):
-            mav.debug_float_array_send(usec, READINGS_NAME.encode(), frame, data)
-        if self.uav == 0 and self.fleet.truth_origin is not None:
-            send_ue_truth(mav, episodes.world, self.fleet.truth_origin)
+        publish_frame(mav, sim_time_s, episodes, self.fleet.score,
+                      encode_readings(r.sinr_db, r.aoa_deg, episodes.started, r.serves),
+                      self.fleet.truth_origin if self.uav == 0 else None)  # the UEs once for the fleet
 
     def summary(self) -> dict[str, Any]:
         return {"uav": self.uav, **self.fleet.summary()}

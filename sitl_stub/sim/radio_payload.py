@@ -32,6 +32,7 @@ from sitl_stub.sim.payload import MAV_AUTOPILOT_INVALID, PayloadOptions
 from sitl_stub.sim.radio_episodes import RadioEpisodes
 from sitl_stub.sim.ue_truth import send_ue_truth
 from uavlink.config import EnvConfig
+from uavlink.mavlink.geo import GeoOrigin
 from uavlink.mavlink.radio_codec import (
     RADIO_COMPONENT_ID,
     READINGS_NAME,
@@ -42,18 +43,45 @@ from uavlink.mavlink.radio_codec import (
 
 MAV_TYPE_ONBOARD_CONTROLLER = 18
 MAV_STATE_ACTIVE = 4
+# The payload component's HEARTBEAT (type, autopilot, base mode, custom mode, state): a companion
+# computer's, never an autopilot's, so a ground link does not take it for the vehicle.
+HEARTBEAT = (MAV_TYPE_ONBOARD_CONTROLLER, MAV_AUTOPILOT_INVALID, 0, 0, MAV_STATE_ACTIVE)
+READINGS_COPIES = 2  # each frame's readings, sent this many times against packet loss
+
+
+def payload_env(options: PayloadOptions, n_uavs: int = 1) -> EnvConfig:
+    """The radio world's env: the options' ``--set`` settings, scenario and AoA noise, with ``n_uavs``
+    UAVs (a fleet's shared world; ``--set n_uavs`` may only agree)."""
+    cfg = EnvConfig().replace(**dict(options.settings))
+    if cfg.n_uavs not in (1, n_uavs):
+        raise ValueError(f"--set n_uavs={cfg.n_uavs} disagrees with --fleet {n_uavs}; drop one"
+                         if n_uavs > 1 else f"n_uavs={cfg.n_uavs} needs a fleet of vehicles: use --fleet "
+                         f"{cfg.n_uavs} (one vehicle serves one UAV)")
+    return cfg.replace(scenario=options.scenario, aoa_noise_deg=options.aoa_noise_deg, n_uavs=n_uavs).validate()
+
+
+def publish_frame(mav: Any, sim_time_s: float, episodes: RadioEpisodes, score: list[float] | None,
+                  readings: list[float], truth_origin: GeoOrigin | None) -> None:
+    """One frame of a payload's messages: the encoded score (None before the episode starts), the
+    episode's seed and count, the encoded readings ``READINGS_COPIES`` times, and the UEs' positions
+    when ``truth_origin`` is given."""
+    frame, usec = episodes.world.frame, int(sim_time_s * 1e6)
+    if score is not None:
+        mav.debug_float_array_send(usec, SCORE_NAME.encode(), frame, score)
+    episodes.send_episode(mav, sim_time_s)
+    for _ in range(READINGS_COPIES):
+        mav.debug_float_array_send(usec, READINGS_NAME.encode(), frame, readings)
+    if truth_origin is not None:
+        send_ue_truth(mav, episodes.world, truth_origin)
 
 
 class RadioPayload:
-    component_id = RADIO_COMPONENT_ID
-    READINGS_COPIES = 2
+    """One vehicle's radio payload, serving one UAV's world."""
 
-    def __init__(self, options: PayloadOptions, cfg: EnvConfig | None = None) -> None:
-        base = cfg or EnvConfig().replace(**dict(options.settings))
-        self.cfg = base.replace(scenario=options.scenario, aoa_noise_deg=options.aoa_noise_deg).validate()
-        if self.cfg.n_uavs != 1:
-            raise ValueError(f"n_uavs={self.cfg.n_uavs} needs a fleet of vehicles: use --fleet "
-                             f"{self.cfg.n_uavs} (one vehicle serves one UAV)")
+    component_id = RADIO_COMPONENT_ID
+
+    def __init__(self, options: PayloadOptions) -> None:
+        self.cfg = payload_env(options)
         self.frame_s = self.cfg.frame_s
         self.episodes = RadioEpisodes(self.cfg, options.seed)
         self.truth_origin = options.home if options.ue_truth else None
@@ -61,20 +89,15 @@ class RadioPayload:
         self.hold = FrameHold()
 
     def heartbeat(self) -> tuple[int, int, int, int, int]:
-        return (MAV_TYPE_ONBOARD_CONTROLLER, MAV_AUTOPILOT_INVALID, 0, 0, MAV_STATE_ACTIVE)
+        return HEARTBEAT
 
     def on_frame(self, sim_time_s: float, state: VehicleState, mav: Any) -> None:
         episodes = self.episodes
-        score = episodes.tick([state])
-        if score is not None:
-            self._send(mav, sim_time_s, SCORE_NAME, encode_score(score.rate_bps, score.fair_rate))
-        episodes.send_episode(mav, sim_time_s)
+        result = episodes.tick([state])
         readings = episodes.world.readings()
-        data = encode_readings(readings.sinr_db, readings.aoa_deg, episodes.started)
-        for _ in range(self.READINGS_COPIES):
-            self._send(mav, sim_time_s, READINGS_NAME, data)
-        if self.truth_origin is not None:
-            send_ue_truth(mav, episodes.world, self.truth_origin)
+        publish_frame(mav, sim_time_s, episodes,
+                      None if result is None else encode_score(result.rate_bps, result.fair_rate),
+                      encode_readings(readings.sinr_db, readings.aoa_deg, episodes.started), self.truth_origin)
         if self.lockstep and episodes.awaits_decision([state]):
             self.hold.hold(episodes.world.frame)
 
@@ -87,6 +110,3 @@ class RadioPayload:
     def summary(self) -> dict[str, Any]:
         lockstep = {"lockstep_timeouts": self.hold.timeouts} if self.lockstep else {}
         return {**self.episodes.summary(), **lockstep}
-
-    def _send(self, mav: Any, sim_time_s: float, name: str, data: list[float]) -> None:
-        mav.debug_float_array_send(int(sim_time_s * 1e6), name.encode(), self.episodes.world.frame, data)
