@@ -20,6 +20,7 @@ from typing import TYPE_CHECKING
 
 from uavlink.config import MIXED, EnvConfig
 from uavlink.env.radio_world import episode_scenario
+from uavlink.mavlink.radio_codec import RADIO_COMPONENT_ID
 from uavlink.plot.command import picture_after_flight
 
 if TYPE_CHECKING:
@@ -51,8 +52,9 @@ def judge(result: MissionResult, frames: int) -> None:
         why = f"{result.failure}; {fix}, then fly again"
     elif result.ended_by == EndedBy.NO_RADIO_REPORTS or first is None:
         where = "no" if first is None else f"no more (after frame {last})"
-        why = (f"{where} radio reports from the vehicle's radio payload (component 158) in OFFBOARD: "
-               "run the vehicle with its radio payload (sitl_stub without --no-payload) and fly again")
+        why = (f"{where} radio reports from the vehicle's radio payload (component "
+               f"{RADIO_COMPONENT_ID}) in OFFBOARD: run the vehicle with its radio payload (sitl_stub "
+               "without --no-payload) and fly again")
     elif first >= frames:
         why = (f"the vehicle's radio episode was already at frame {first}, past the {frames} frames "
                "to fly: restart the vehicle (a current sitl_stub begins an episode per arming)")

@@ -140,6 +140,6 @@ def message_kind(msg) -> str | None:
     if msg.get_type() != "DEBUG_FLOAT_ARRAY":
         return None
     name = _name(msg).rstrip("\x00")
-    return {"UL_RADIO": "readings", "UL_SCORE": "score"}.get(name)
+    return {READINGS_NAME: "readings", SCORE_NAME: "score"}.get(name)
 
 
