@@ -22,6 +22,8 @@ from uavlink.policies.registry import make_baseline
 FLEET_BASELINES = ("static", "oracle", "aoa", "kmeans", "genie")
 FLEET_SIZES = (1, 2, 3)
 POLICY_UAVS = 2  # the shipped fleet policies' D
+# Results are keyed "D<d> <baseline>"; the fleet policies' and the single-UAV policies' keys:
+FLEET_PPO, SINGLE_PPO = f"D{POLICY_UAVS} ppo", "D1 ppo"
 # The issue's bars for the D = 2 policies: share of the fleet oracle, share of one UAV's policy.
 ORACLE_SHARE = {"straight_90": 0.95, "straight_180": 0.95, "hotspot": 0.95}
 SINGLE_SHARE = {"no_move": 0.98, "straight": 0.98, "circular": 0.98, "straight_180": 1.6}
@@ -38,7 +40,7 @@ def _fmt(ratio: tuple[float, float, float]) -> str:
 
 def evaluate_fleet(fleet_folder: Path, single_folder: Path, episodes: int, seed: int, overrides: EnvOverrides,
                    progress: Callable[[str], None] = lambda _: None) -> dict[str, dict[str, EvalResult]]:
-    """Per scenario, results keyed ``"D<d> <baseline>"``, ``"D2 ppo"`` and ``"D1 ppo"``."""
+    """Per scenario, results keyed ``"D<d> <baseline>"``, ``FLEET_PPO`` and ``SINGLE_PPO``."""
     on_spatial = spatial_overrides(overrides)
     out = {}
     for scenario in SCENARIOS:
@@ -51,27 +53,29 @@ def evaluate_fleet(fleet_folder: Path, single_folder: Path, episodes: int, seed:
                 progress(f"fleet {scenario}: D={d} {name}")
                 results[f"D{d} {name}"] = evaluate_policy(make_baseline(name, cfg), cfg, episodes, seed)
         progress(f"fleet {scenario}: policies")
-        results[f"D{POLICY_UAVS} ppo"] = evaluate_policy(fleet, cfg2, episodes, seed, record_trajectory=True)
-        results["D1 ppo"] = evaluate_policy(single, cfg1, episodes, seed)
+        results[FLEET_PPO] = evaluate_policy(fleet, cfg2, episodes, seed, record_trajectory=True)
+        results[SINGLE_PPO] = evaluate_policy(single, cfg1, episodes, seed)
         out[scenario] = results
     return out
 
 
 def throughput_table(rows: dict[str, dict[str, EvalResult]]) -> tuple[list[str], list[list[str]]]:
     columns = [f"D{d} {b}" for d in FLEET_SIZES for b in FLEET_BASELINES]
-    columns.insert(columns.index("D2 static"), "D1 ppo")
-    columns.insert(columns.index("D3 static"), "D2 ppo")
+    # Each policy's column after the baselines with its number of UAVs.
+    columns.insert(columns.index(f"D1 {FLEET_BASELINES[-1]}") + 1, SINGLE_PPO)
+    columns.insert(columns.index(f"D{POLICY_UAVS} {FLEET_BASELINES[-1]}") + 1, FLEET_PPO)
     header = ["scenario", *[c.replace("ppo", "PPO") for c in columns]]
     return header, [[s, *(f"{r[c].mean_rate_mbps:.2f}" for c in columns)] for s, r in rows.items()]
 
 
 def ratio_table(rows: dict[str, dict[str, EvalResult]]) -> tuple[list[str], list[list[str]]]:
-    """The D = 2 policies against the fleet oracle, the fleet aoa rule and one UAV's policy."""
+    """The fleet policies against the fleet oracle, the fleet aoa rule and one UAV's policy."""
     header = ["scenario", "PPO / oracle", "PPO / aoa", "PPO / one UAV's PPO", "target", "met", "PPO / genie"]
     body = []
     for scenario, r in rows.items():
-        ppo = r["D2 ppo"]
-        vs_oracle, vs_aoa, vs_single = _ratio(ppo, r["D2 oracle"]), _ratio(ppo, r["D2 aoa"]), _ratio(ppo, r["D1 ppo"])
+        ppo, fleet = r[FLEET_PPO], f"D{POLICY_UAVS}"
+        vs_oracle, vs_aoa = _ratio(ppo, r[f"{fleet} oracle"]), _ratio(ppo, r[f"{fleet} aoa"])
+        vs_single = _ratio(ppo, r[SINGLE_PPO])
         bars = [("vs aoa", 1.0, vs_aoa)]
         if scenario in ORACLE_SHARE:
             bars.append(("vs oracle", ORACLE_SHARE[scenario], vs_oracle))
@@ -80,18 +84,18 @@ def ratio_table(rows: dict[str, dict[str, EvalResult]]) -> tuple[list[str], list
         target = ", ".join(f"{what} >= {bar:g}" for what, bar, _ in bars)
         met = "yes" if all(ratio[0] >= bar for _, bar, ratio in bars) else "no"
         body.append([scenario, _fmt(vs_oracle), _fmt(vs_aoa), _fmt(vs_single), target, met,
-                     _fmt(_ratio(ppo, r["D2 genie"]))])
+                     _fmt(_ratio(ppo, r[f"{fleet} genie"]))])
     return header, body
 
 
 def metrics_table(rows: dict[str, dict[str, EvalResult]]) -> tuple[list[str], list[list[str]]]:
-    """The fleet metrics of the D = 2 policies and baselines."""
-    header = ["scenario", "policy (D = 2)", "Mbps", "R_fair", "Jain", "5th pct UE Mbps", "UEs per UAV"]
+    """The fleet metrics of the fleet policies and the baselines with as many UAVs."""
+    header = ["scenario", f"policy (D = {POLICY_UAVS})", "Mbps", "R_fair", "Jain", "5th pct UE Mbps", "UEs per UAV"]
     body = []
     for scenario, r in rows.items():
-        for key in ("D2 ppo", *(f"D2 {b}" for b in FLEET_BASELINES)):
+        for key in (FLEET_PPO, *(f"D{POLICY_UAVS} {b}" for b in FLEET_BASELINES)):
             x = r[key]
-            body.append([scenario, key[3:].replace("ppo", "PPO"), f"{x.mean_rate_mbps:.2f}", f"{x.mean_fair_rate:.2f}",
+            body.append([scenario, key.split(" ", 1)[1].replace("ppo", "PPO"), f"{x.mean_rate_mbps:.2f}", f"{x.mean_fair_rate:.2f}",
                          f"{x.jain_index:.3f}", f"{x.p5_ue_rate_mbps:.2f}",
                          " / ".join(f"{n:.1f}" for n in x.ues_per_uav)])
     return header, body
@@ -134,12 +138,13 @@ def fleet_sections(run: ReportRun, fleet_folder: Path, single_folder: Path, half
     for name, (header, body) in tables.items():
         write_csv(out / f"{name}.csv", header, body)
     for scenario, r in rows.items():
-        plot_fleet_trajectory(scenario, r[f"D{POLICY_UAVS} ppo"], half_width_m, out / f"fleet_trajectory_{scenario}.png")
-    n = len(next(iter(rows.values()))["D2 ppo"].episode_rate_mbps)
+        plot_fleet_trajectory(scenario, r[FLEET_PPO], half_width_m, out / f"fleet_trajectory_{scenario}.png")
+    n = len(next(iter(rows.values()))[FLEET_PPO].episode_rate_mbps)
     return [
         "## A fleet of UAVs (spatial channel)", "",
         f"Mean UE throughput (Mbps) over {n} episodes (seed {seed}) on the spatial channel, D UAVs sharing the "
-        "band with full reuse (SPEC \"A fleet\"); every column flies the same UE trajectories. `D2 PPO` is "
+        "band with full reuse (SPEC \"A fleet\"); every column flies the same UE trajectories. "
+        f"`D{POLICY_UAVS} PPO` is "
         f"`{fleet_folder}/<scenario>.zip`, `D1 PPO` the single-UAV spatial policy `{single_folder}/<scenario>.zip`; "
         "oracle and kmeans know the UEs' positions (GPS), aoa and PPO do not; genie knows the episode's future "
         "(UE paths, shadowing field) and plans each UAV's path given the others' (docs/design.md), the limit.", "",
@@ -149,7 +154,7 @@ def fleet_sections(run: ReportRun, fleet_folder: Path, single_folder: Path, half
         ">= 98 % of one UAV's policy where they stay together (a second UAV must not hurt) and 1.6x on "
         "straight_180. PPO / genie: how far from the full-knowledge limit the fleet policy flies.", "",
         markdown_table(*tables["fleet_ratios"]), "",
-        "Fleet metrics, D = 2: Jain's index of the UE rates (mean over frames), the 5th percentile of the "
+        f"Fleet metrics, D = {POLICY_UAVS}: Jain's index of the UE rates (mean over frames), the 5th percentile of the "
         "UEs' episode rates, the mean number of UEs each UAV serves.", "",
         markdown_table(*tables["fleet_metrics"]), "",
         *[f"![{s} fleet]({rel / f'fleet_trajectory_{s}.png'})" for s in SCENARIOS], "",
