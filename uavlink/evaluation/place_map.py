@@ -21,12 +21,10 @@ import numpy as np
 from uavlink.config import EnvConfig
 from uavlink.policies.base import Policy
 from uavlink.policies.genie.grid import Grid, grid_rx_dbm, one_uav_rate_mbps
-from uavlink.policies.genie.policy import env_field
+from uavlink.policies.genie.policy import GENIE_GRID_M, env_field
 from uavlink.radio.spatial_shadowing import SpatialShadowField
 from uavlink.rollout import chunks
 from uavlink.seeding import EVAL
-
-FIELD_GRID_M = 4.0  # the genie's grid spacing
 
 
 @dataclass(frozen=True)
@@ -60,7 +58,7 @@ def fly_place_map(policy: Policy, cfg: EnvConfig, seed: int) -> PlaceMapEpisode:
         rates.append(frame.result.mean_rate_mbps[0])
     truth = env.ground_truth()
     per_ue_mbps = cfg.radio.bandwidth_hz / cfg.n_ues * 1e-6
-    grid = Grid.over_area(cfg.area.half_width_m, FIELD_GRID_M, cfg.r_max_m)
+    grid = Grid.over_area(cfg.area.half_width_m, GENIE_GRID_M, cfg.r_max_m)
     field = env_field(truth.shadow_field, 0, 1)
     rx_dbm = grid_rx_dbm(grid, truth.ue_xy_m[:1], field, cfg.radio, cfg.area.uav_altitude_m)  # (1, U, n, n)
     memory = env.place_memory

@@ -39,6 +39,7 @@ from uavlink.radio.spatial_shadowing import SpatialShadowField
 
 SEPARATION_SLACK_M = 1e-6  # planned moves keep this much more than the minimum: the filter never cuts
 REFERENCES = ("static", "oracle", "kmeans")  # the baselines whose paths a fleet plan starts from
+GENIE_GRID_M = 4.0  # the grid the genie plans on (its default); the place map draws the truth on it
 
 
 def future_ues(mobility: MobilityState, frames: int, frame_s: float, half_width_m: float) -> tuple[np.ndarray, np.ndarray]:
@@ -256,7 +257,7 @@ class GeniePolicy(RulePolicy):
     needs_truth = True
     privilege = "knows the episode's future (the UEs' paths and the shadowing field), is for evaluation only"
 
-    def __init__(self, cfg: EnvConfig, references: list, grid_m: float = 4.0, tolerance: float = 1e-3,
+    def __init__(self, cfg: EnvConfig, references: list, grid_m: float = GENIE_GRID_M, tolerance: float = 1e-3,
                  max_rounds: int = 4, workers: int | None = None) -> None:
         """``references``: the baselines of ``REFERENCES`` for ``cfg`` (a fleet's plan starts from the
         best of their paths); ``uavlink.policies.registry.make_baseline("genie", cfg)`` passes them.
