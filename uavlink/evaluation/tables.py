@@ -13,10 +13,11 @@ from pathlib import Path
 
 import numpy as np
 
-from uavlink.config import EnvConfig
+from uavlink.config import MIXED, EnvConfig
 from uavlink.evaluation.core import EvalResult, evaluate_policy, paired_ratio_ci
 from uavlink.mobility import SCENARIOS
 from uavlink.policies.contract import EnvOverrides, load_with_env
+from uavlink.policies.loader import policy_file
 
 
 @dataclass(frozen=True)
@@ -69,7 +70,7 @@ def evaluate_scenarios(policy_folder: Path, episodes: int, seed: int, overrides:
     """Per scenario: its policy, the baselines in that policy's env (and the ``extra`` ones, e.g. the
     genie on the spatial channel), and the mixed policy if any."""
     rows = []
-    mixed = next((p for p in (policy_folder / "mixed.zip", policy_folder / "mixed.onnx") if p.is_file()), None)
+    mixed = policy_file(policy_folder, MIXED)
     columns = {"ppo": policy_folder, "static": "static", "oracle": "oracle", "aoa": "aoa",
                **{name: name for name in extra}, **({"ppo_mixed": mixed} if mixed is not None else {})}
     for scenario in SCENARIOS:

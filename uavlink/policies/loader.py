@@ -4,7 +4,7 @@ from __future__ import annotations
 
 from pathlib import Path
 
-from uavlink.config import EnvConfig
+from uavlink.config import MIXED, EnvConfig
 from uavlink.policies.base import Policy
 from uavlink.policies.manifest import PolicyFileError
 from uavlink.policies.registry import BASELINES, make_baseline
@@ -32,10 +32,13 @@ def load_policy(spec: str | Path, cfg: EnvConfig) -> Policy:
 
 
 def policy_for_scenario(folder: Path, scenario: str) -> Path:
-    """``folder/<scenario>.zip`` (or .onnx), falling back to ``folder/mixed.zip``."""
-    for name in (scenario, "mixed"):
-        for suffix in (".zip", ".onnx"):
-            candidate = folder / f"{name}{suffix}"
-            if candidate.is_file():
-                return candidate
-    raise PolicyFileError(f"{folder}: no {scenario}.zip, {scenario}.onnx or mixed.zip policy in this folder")
+    """``folder/<scenario>.zip`` (or .onnx), falling back to the mixed policy (``folder/mixed.zip``)."""
+    found = policy_file(folder, scenario) or policy_file(folder, MIXED)
+    if found is None:
+        raise PolicyFileError(f"{folder}: no {scenario}.zip, {scenario}.onnx or {MIXED}.zip policy in this folder")
+    return found
+
+
+def policy_file(folder: Path, name: str) -> Path | None:
+    """``folder/<name>.zip``, else ``folder/<name>.onnx``; None when neither is a file."""
+    return next((p for p in (folder / f"{name}.zip", folder / f"{name}.onnx") if p.is_file()), None)
