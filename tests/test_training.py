@@ -114,11 +114,47 @@ def test_train_cli_resumes_from_checkpoint(tmp_path: Path) -> None:
     checkpoint = run / "checkpoint.zip"
     out.replace(checkpoint)  # a policy zip is a valid SB3 checkpoint
     second = subprocess.run([sys.executable, "-m", "uavlink.cli", *args, "--episodes", "16", "--resume",
-                             str(checkpoint)],
+                             str(checkpoint), "--learning-rate", "0.01", "--batch-size", "512"],
                             capture_output=True, text=True, timeout=120)
     assert second.returncode == 0, second.stderr
     assert "\r" not in second.stderr, "no progress bar when stderr is not a terminal"
-    assert read_zip_manifest(out)["training"]["total_timesteps"] == 16 * 128
+    assert "no_move: " in second.stdout and " Mbps " in second.stdout  # its evaluation, printed
+    training = read_zip_manifest(out)["training"]
+    assert training["total_timesteps"] == 16 * 128
+    # the resumed model trained with this command's PPO settings, which its manifest records
+    from stable_baselines3 import PPO
+
+    resumed = PPO.load(out, device="cpu")
+    assert (resumed.learning_rate, resumed.batch_size) == (0.01, 512)
+    assert (training["hyperparameters"]["learning_rate"], training["hyperparameters"]["batch_size"]) == (0.01, 512)
+    # a checkpoint of another observation: one line, before anything starts
+    other = subprocess.run([sys.executable, "-m", "uavlink.cli", *args, "--episodes", "16", "--resume",
+                            str(checkpoint), "--set", "place_cell_m=12", "--run-dir", str(tmp_path / "other")],
+                           capture_output=True, text=True, timeout=120)
+    assert other.returncode == 2 and other.stderr.count("\n") == 1, other.stderr
+    assert "its observation has 60 values, this env's 112" in other.stderr
+    assert not (tmp_path / "other").exists()
+
+
+def test_ctrl_c_leaves_a_whole_checkpoint_to_resume_from(tmp_path: Path) -> None:
+    """KeyboardInterrupt mid-training (here from a callback, as Ctrl-C would arrive) saves the run's
+    checkpoint whole and says where it is; nothing of the policy file is written."""
+    from stable_baselines3 import PPO
+    from stable_baselines3.common.callbacks import BaseCallback
+
+    class CtrlC(BaseCallback):
+        def _on_step(self) -> bool:
+            if self.num_timesteps >= 1024:
+                raise KeyboardInterrupt
+            return True
+
+    cfg, run = EnvConfig(scenario="no_move"), tmp_path / "run"
+    tc = TrainConfig(episodes=64, n_envs=4, batch_size=256, n_epochs=1)
+    with pytest.raises(KeyboardInterrupt, match=r"checkpoint at 1,024 steps in .*checkpoint.zip; --resume"):
+        train(cfg, tc, tmp_path / "p.zip", run, progress=False, callbacks=[CtrlC()])
+    assert PPO.load(run / "checkpoint.zip", device="cpu").num_timesteps == 1024
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["run"]
+    assert not (run / "checkpoint.partial.zip").exists()
 
 
 def test_budget_is_in_episodes_of_the_envs_length(tmp_path: Path, capsys) -> None:

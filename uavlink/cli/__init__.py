@@ -59,7 +59,7 @@ def main(argv: Sequence[str] | None = None) -> int:
         return 1
     except BrokenPipeError:  # e.g. piped into head
         return 0
-    except KeyboardInterrupt:
-        print(f"uavlink {args.command}: interrupted", file=sys.stderr)
+    except KeyboardInterrupt as exc:  # its message, if any, says what was kept
+        print(f"uavlink {args.command}: interrupted" + (f"; {exc}" if str(exc) else ""), file=sys.stderr)
         return 130
 

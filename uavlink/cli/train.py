@@ -15,45 +15,35 @@ from uavlink.policies.contract import EnvOverrides, apply_overrides
 
 
 def cmd_train(args: argparse.Namespace) -> int:
-    from uavlink.learn.training import train
+    from uavlink.learn.training import check_checkpoint, train
 
     cfg = apply_overrides(EnvConfig(), EnvOverrides.from_command_line(args.scenario, args.aoa_noise_deg, args.overrides))
     tc = from_options(TrainConfig, args).validate(cfg, name=lambda path: flag_of(TrainConfig, path))
     if args.eval_episodes < 0:
         raise UserError(f"--eval-episodes must be >= 0 (0: skip), got {args.eval_episodes}")
-    if args.resume is not None:
-        _check_checkpoint(args.resume)
     from uavlink.policies.manifest import read_zip_manifest
 
     for file in (tc.warm_start.policy, tc.warm_start.leader_policy):  # the loader's checks, before any output
         if file:
             read_zip_manifest(Path(file))
     require("stable_baselines3")
+    if args.resume is not None:
+        check_checkpoint(args.resume, cfg, tc)
     run_dir = args.run_dir or Path("runs") / f"{args.out.stem}-seed{tc.seed}"
     print(f"training PPO on {cfg.scenario!r} for {tc.total_timesteps(cfg):,} env steps; "
           f"TensorBoard logs and checkpoint in {run_dir}", file=sys.stderr)
     training = train(cfg, tc, args.out, run_dir, resume=args.resume, progress=not args.no_progress)
-    if args.eval_episodes:
-        _attach_evaluation(args.out, cfg, args.eval_episodes)
     print(f"saved {args.out} ({training['total_timesteps']:,} steps in {training['wall_time_s']:.0f} s)")
+    if args.eval_episodes:
+        print(f"evaluating {args.out} on {args.eval_episodes} episodes (seed 0) into its manifest", file=sys.stderr)
+        for scenario, figures in _attach_evaluation(args.out, cfg, args.eval_episodes).items():
+            print(f"{scenario}: {figures['mean_rate_mbps']:.3f} Mbps +- {figures['ci95_mbps']:.3f} (95 %), "
+                  f"R_fair {figures['mean_fair_rate']:.3f}")
     return 0
 
 
-def _check_checkpoint(path: Path) -> None:
-    """A checkpoint is an SB3 zip: its ``data`` member holds the model's settings."""
-    import zipfile
-
-    if not path.is_file():
-        raise UserError(f"--resume {path}: no such checkpoint")
-    if zipfile.is_zipfile(path):
-        with zipfile.ZipFile(path) as archive:
-            if "data" in archive.namelist():
-                return
-    raise UserError(f"--resume {path}: not a checkpoint (an SB3 zip such as RUN_DIR/checkpoint.zip)")
-
-
-def _attach_evaluation(path: Path, cfg: EnvConfig, episodes: int) -> None:
-    """Evaluate the saved policy (seed 0) and store the figures in its manifest."""
+def _attach_evaluation(path: Path, cfg: EnvConfig, episodes: int) -> dict[str, dict]:
+    """Evaluate the saved policy (seed 0) and store the figures in its manifest; the figures by scenario."""
     from uavlink.evaluation import evaluate_policy
     from uavlink.policies.manifest import read_zip_manifest, write_zip_manifest
     from uavlink.policies.sb3_policy import SB3Policy
@@ -66,6 +56,7 @@ def _attach_evaluation(path: Path, cfg: EnvConfig, episodes: int) -> None:
     manifest = read_zip_manifest(path)
     manifest["evaluation"] = figures
     write_zip_manifest(path, manifest)
+    return figures
 
 
 def add_train_parser(sub) -> None:
@@ -76,7 +67,10 @@ def add_train_parser(sub) -> None:
     p.add_argument("--out", type=Path, required=True, help="policy zip to write")
     add_options(p, TrainConfig)
     p.add_argument("--run-dir", type=Path, default=None, help="TensorBoard logs and checkpoint (default runs/OUT-seedN)")
-    p.add_argument("--resume", type=Path, default=None, help="continue from a checkpoint zip")
+    p.add_argument("--resume", type=Path, default=None,
+                   help="continue from a checkpoint (RUN_DIR/checkpoint.zip, written every --checkpoint-every-steps "
+                        "and on Ctrl-C) or a policy zip this command saved; the PPO settings are this "
+                        "command's")
     p.add_argument("--eval-episodes", type=int, default=100,
                    help="evaluate after training into the manifest (default 100; 0: skip)")
     p.add_argument("--no-progress", action="store_true", help="no progress bar")

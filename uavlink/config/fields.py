@@ -140,7 +140,7 @@ def check_fields(config: Any, name: Namer) -> None:
             bound = "positive" if positive else f"{'>' if low_open else '>='} {low:g}"
             raise ConfigError(f"{name(path)} must be {bound}, got {value!r}")
         if high is not None and value > high:
-            raise ConfigError(f"{name(path)} must be <= {high:g}, got {value!r}")
+            raise ConfigError(f"{name(path)} must be <= {high if isinstance(high, int) else format(high, 'g')}, got {value!r}")
 
 
 def with_changes(config: Any, changes: dict[str, Any]) -> Any:

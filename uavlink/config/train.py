@@ -163,6 +163,10 @@ class TrainConfig:
         check_fields(self, name)
         if self.n_envs * self.n_steps < 2:
             raise ConfigError(f"{name('n_envs')} x {name('n_steps')} must be >= 2 (PPO's rollout buffer)")
+        rollout = self.n_envs * self.n_steps
+        if self.batch_size > rollout or rollout % self.batch_size:
+            raise ConfigError(f"{name('batch_size')} must divide a rollout of {name('n_envs')} x {name('n_steps')} "
+                              f"= {rollout} steps into whole minibatches, got {self.batch_size}")
         self.warm_start.validate(name)
         if env is not None:
             self.warm_start.check_env(env, name)

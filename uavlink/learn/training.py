@@ -18,7 +18,7 @@ import numpy as np
 
 from uavlink.config import PAPER_HYPERPARAMETERS, EnvConfig, TrainConfig
 
-__all__ = ["make_model", "time_to_fraction", "train", "training_env_config"]
+__all__ = ["check_checkpoint", "make_model", "save_checkpoint", "time_to_fraction", "train", "training_env_config"]
 
 
 def training_env_config(cfg: EnvConfig, tc: TrainConfig) -> EnvConfig:
@@ -56,6 +56,55 @@ def make_model(cfg: EnvConfig, tc: TrainConfig, run_dir: Path | None):
     )
 
 
+# The PPO settings a resumed model takes from TrainConfig rather than from its checkpoint.
+RESUMED_SETTINGS = ("learning_rate", "n_steps", "batch_size", "n_epochs", "gamma", "gae_lambda", "clip_range",
+                    "ent_coef", "vf_coef", "max_grad_norm")
+
+
+def check_checkpoint(resume: Path, cfg: EnvConfig, tc: TrainConfig) -> dict[str, Any]:
+    """The SB3 data of checkpoint ``resume`` (a file ``model.save`` wrote), refused in one line when it
+    is not one, or when its observation or network is not what ``cfg`` and ``tc`` build."""
+    import zipfile
+
+    from stable_baselines3.common.save_util import load_from_zip_file
+
+    from uavlink.env.observation import ObservationLayout
+    from uavlink.errors import UserError
+
+    if not resume.is_file():
+        raise UserError(f"--resume {resume}: no such checkpoint")
+    if not zipfile.is_zipfile(resume) or "data" not in zipfile.ZipFile(resume).namelist():
+        raise UserError(f"--resume {resume}: not a checkpoint (an SB3 zip such as RUN_DIR/checkpoint.zip)")
+    data, _, _ = load_from_zip_file(resume, device="cpu", load_data=True)
+    size, ours = data["observation_space"].shape[0], ObservationLayout.for_config(cfg).size
+    if size != ours:
+        raise UserError(f"--resume {resume}: its observation has {size} values, this env's {ours}: "
+                        f"resume in the env it was trained in (the same --scenario family and --set)")
+    arch = list((data.get("policy_kwargs") or {}).get("net_arch", {}).get("pi", []))
+    if arch != list(tc.net_arch):
+        raise UserError(f"--resume {resume}: its network is {arch}, not --net-arch {list(tc.net_arch)}")
+    return data
+
+
+def _resumed(model: Any, resume: Path, cfg: EnvConfig, tc: TrainConfig, run_dir: Path | None) -> Any:
+    """The checkpoint ``resume`` loaded into ``model``'s env with ``tc``'s PPO settings (SB3 keeps the
+    checkpoint's own unless told; the manifest records ``tc``'s)."""
+    from stable_baselines3 import PPO
+
+    check_checkpoint(resume, cfg, tc)
+    settings = {name: getattr(tc, name) for name in RESUMED_SETTINGS}
+    return PPO.load(resume, env=model.get_env(), device="cpu", custom_objects=settings,
+                    tensorboard_log=str(run_dir) if run_dir else None)
+
+
+def save_checkpoint(model: Any, run_dir: Path) -> Path:
+    """``run_dir``/checkpoint.zip, written whole (to a partial file, then renamed)."""
+    checkpoint, partial = run_dir / "checkpoint.zip", run_dir / "checkpoint.partial.zip"
+    model.save(partial)
+    partial.replace(checkpoint)
+    return checkpoint
+
+
 def _callback(total: int, run_dir: Path | None, checkpoint_every: int, progress: bool):
     from stable_baselines3.common.callbacks import BaseCallback
 
@@ -90,7 +139,7 @@ def _callback(total: int, run_dir: Path | None, checkpoint_every: int, progress:
                 self._bar.n = min(self.num_timesteps, total)
                 self._bar.refresh() if self.num_timesteps % 4096 < self.training_env.num_envs else None
             if run_dir is not None and self.num_timesteps >= self._next_checkpoint:
-                self.model.save(run_dir / "checkpoint.zip")
+                save_checkpoint(self.model, run_dir)
                 self._next_checkpoint += checkpoint_every
             return True
 
@@ -151,14 +200,13 @@ def train(cfg: EnvConfig, tc: TrainConfig, out: Path, run_dir: Path | None = Non
     """Train, save ``out`` (SB3 zip with manifest) and return the manifest's training section.
     ``tc`` is validated against ``cfg`` here, so a bad setting fails before any work. ``callbacks``:
     extra SB3 callbacks that only observe (benchmarks/train_throughput.py times the loop with one)."""
-    from stable_baselines3 import PPO
 
     from uavlink.policies.manifest import build_manifest, write_zip_manifest
 
     tc.validate(cfg)
     model = make_model(cfg, tc, run_dir)
     if resume is not None:
-        model = PPO.load(resume, env=model.get_env(), device="cpu", tensorboard_log=str(run_dir) if run_dir else None)
+        model = _resumed(model, resume, cfg, tc, run_dir)
     start = time.perf_counter()  # the wall time counts the warm start too
     cloned = None
     if (tc.warm_start.teacher or tc.warm_start.policy) and resume is None:
@@ -177,9 +225,16 @@ def train(cfg: EnvConfig, tc: TrainConfig, out: Path, run_dir: Path | None = Non
         from uavlink.learn.imitation import critic_warmup_callback
 
         callbacks.append(critic_warmup_callback(tc.warm_start.critic_rollouts))
-    with _without_distribution_checks():
-        model.learn(total_timesteps=total_timesteps - model.num_timesteps, callback=callbacks,
-                    reset_num_timesteps=resume is None, tb_log_name="ppo")
+    try:
+        with _without_distribution_checks():
+            model.learn(total_timesteps=total_timesteps - model.num_timesteps, callback=callbacks,
+                        reset_num_timesteps=resume is None, tb_log_name="ppo")
+    except KeyboardInterrupt:
+        if run_dir is None:
+            raise
+        checkpoint = save_checkpoint(model, run_dir)
+        raise KeyboardInterrupt(f"checkpoint at {model.num_timesteps:,} steps in {checkpoint}; "
+                                f"--resume {checkpoint} continues") from None
     wall_s = time.perf_counter() - start
     out.parent.mkdir(parents=True, exist_ok=True)
     tmp = out.with_name(out.stem + ".partial.zip")
