@@ -193,7 +193,7 @@ class Fanout:
 
 
 def socket_free(port: int, host: str = LOCALHOST) -> bool:
-    """True when a UDP socket can bind ``host:port`` now (for tests and error hints)."""
+    """True when a UDP socket can bind ``host:port`` now (for tests: they skip when PX4's ports are taken)."""
     with socket.socket(socket.AF_INET, socket.SOCK_DGRAM) as s:
         try:
             s.bind((host, port))

@@ -16,7 +16,7 @@ others away from). When its link returns, the loop asks it to re-enter OFFBOARD 
 about once a second, without waiting, so the others' decisions are not held up) and it flies the
 policy again.
 
-As for one vehicle (:func:`~uavlink.flight.mission.judge`), the result says whether the flight flew
+As for one vehicle (:func:`~uavlink.flight.outcome.judge`), the result says whether the flight flew
 the frames it set out to, and if not, why.
 """
 
