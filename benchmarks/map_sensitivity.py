@@ -31,14 +31,19 @@ def main(argv: list[str] | None = None) -> int:
     if args.episodes < 2:
         parser.error("--episodes must be >= 2 (a paired interval)")
     from uavlink.errors import UserError
-    from uavlink.evaluation.map_sensitivity import SCENARIOS, sensitivity, sensitivity_table
+    from uavlink.evaluation.map_sensitivity import (
+        SENSITIVITY_SCENARIOS,
+        sensitivity,
+        sensitivity_table,
+    )
 
     def progress(line: str) -> None:
         if sys.stderr.isatty():
             print(line, file=sys.stderr, flush=True)
 
     try:
-        report = sensitivity(args.map, args.spatial, args.episodes, args.seed, args.scenarios or SCENARIOS, progress)
+        report = sensitivity(args.map, args.spatial, args.episodes, args.seed,
+                             args.scenarios or SENSITIVITY_SCENARIOS, progress)
     except UserError as exc:  # a scenario without a map or spatial policy, a bad override
         parser.error(str(exc))
     report = {"benchmark": "map_sensitivity", **report}

@@ -42,11 +42,11 @@ class ActionMapping:
         """The mapping an env config asks for (``r_max_m``, ``action_mapping``)."""
         return cls(cfg.r_max_m, cfg.action_mapping)
 
-    def validate(self, action: np.ndarray, n_envs: int) -> np.ndarray:
-        """Check shape (n_envs, 2) and finiteness, then clip into the box."""
+    def validate(self, action: np.ndarray, rows: int) -> np.ndarray:
+        """Check shape (rows, 2), a row per agent (env x UAV), and finiteness, then clip into the box."""
         action = np.asarray(action, dtype=float)
-        if action.shape != (n_envs, 2):
-            raise ValueError(f"action must have shape ({n_envs}, 2), got {action.shape}")
+        if action.shape != (rows, 2):
+            raise ValueError(f"action must have shape ({rows}, 2), one row per agent, got {action.shape}")
         if not np.isfinite(action).all():
             raise ValueError("action contains NaN or infinity")
         return np.clip(action, -1.0, 1.0)

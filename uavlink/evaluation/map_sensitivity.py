@@ -23,11 +23,11 @@ from uavlink.policies.loader import policy_for_scenario
 SIGMAS_DB = (4.0, 8.0)
 UAV_DECORRELATIONS_M = (25.0, 50.0, 100.0)
 POLICIES = ("genie", "explore", "map", "spatial")
-SCENARIOS = ("no_move", "circular")
+SENSITIVITY_SCENARIOS = ("no_move", "circular")
 
 
 def sensitivity(map_folder: Path, spatial_folder: Path, episodes: int, seed: int,
-                scenarios: tuple[str, ...] | list[str] = SCENARIOS,
+                scenarios: tuple[str, ...] | list[str] = SENSITIVITY_SCENARIOS,
                 progress: Callable[[str], None] = lambda _: None, base: EnvOverrides | None = None) -> dict:
     """One row per (scenario, sigma, decorrelation): static's Mbps and each policy's over static's;
     ``base`` is what else the command line overrides (the channel's two settings win)."""

@@ -17,8 +17,7 @@ from pathlib import Path
 
 from uavlink.config import SCENARIO_NAMES, EnvConfig
 from uavlink.evaluation import EvalResult, evaluate_policy, paired_ratio_ci
-from uavlink.evaluation.map_sensitivity import SCENARIOS as SENSITIVITY_SCENARIOS
-from uavlink.evaluation.map_sensitivity import sensitivity, sensitivity_table
+from uavlink.evaluation.map_sensitivity import SENSITIVITY_SCENARIOS, sensitivity, sensitivity_table
 from uavlink.evaluation.place_map import draw_place_map, fly_place_map
 from uavlink.evaluation.tables import (
     ReportRun,

@@ -57,7 +57,7 @@ from uavlink.policies.base import Policy
 log = logging.getLogger(__name__)
 
 LIVE_S = 0.5  # wall seconds: a vehicle not heard for longer is not waited for
-GATHER_FRAMES = 0.3  # of a frame's wall time: the longest wait for the other vehicles' reports
+GATHER_FRAME_FRACTION = 0.3  # of a frame's wall time: the longest wait for the other vehicles' reports
 
 
 def fleet_setpoints(current_xy_m: np.ndarray, moves_m: np.ndarray, cfg: EnvConfig,
@@ -282,7 +282,7 @@ class _Loop:
         have = [r.frame == frame for r in self.newest]
         frame_wall_s = self.cfg.frame_s / self.links[0].speed_factor()
         if all(h or not alive for h, alive in zip(have, live, strict=True)) or \
-                now - self.seen_at[frame] > GATHER_FRAMES * frame_wall_s:
+                now - self.seen_at[frame] > GATHER_FRAME_FRACTION * frame_wall_s:
             return frame
         return None
 
