@@ -255,3 +255,18 @@ def test_map_table_gives_every_map_policy_and_mixed_its_row_as_json() -> None:
     assert sorted(scenarios) == sorted(p.stem for p in (ROOT / "policies" / "map").glob("*.zip"))
     assert scenarios[-1] == "mixed" and result["episodes"] == 2
     assert all("genie" not in row and row["map vs spatial PPO"].endswith("]") for row in result["rows"])
+
+
+def test_clone_gap_fits_then_adds_dagger_rounds_and_flies_each_copy() -> None:
+    result = run_json("clone_gap.py", "--sweep", str(ROOT / "sweeps" / "map.toml"), "--scenario", "straight_90",
+                      "--rounds", "1", "--epochs", "2", "--clone-episodes", "2", "--episodes", "3",
+                      "--policy", str(ROOT / "policies" / "map" / "straight_90.zip"))
+    stages = [row["stage"] for row in result["rows"]]
+    assert stages == ["clone", "dagger 1", f"policy {ROOT / 'policies' / 'map' / 'straight_90.zip'}"]
+    clone, dagger, policy = result["rows"]
+    assert dagger["samples"] == 2 * clone["samples"] == 2 * 2 * 128  # the copy's flying added to the teacher's
+    assert clone["mbps"] != dagger["mbps"] or clone["mse"] != dagger["mse"]  # refitted
+    for row in result["rows"]:
+        lo, hi = row["ci95"]
+        assert lo <= row["vs_teacher"] <= hi
+    assert policy["mbps"] > 0 and result["teacher_mbps"] > 0
