@@ -273,3 +273,16 @@ def test_evaluate_against_pairs_a_fleet_with_one_uav_on_the_same_episodes():
         payload["results"][0]["mean_rate_mbps"] / alone["mean_rate_mbps"], rel=1e-5)
     assert_user_error(run_uavlink_in_process(*args, "--policy", fleet, "--against", "policies/straight.zip"),
                       "radio.shadowing_model")
+
+
+def test_a_fleets_table_adds_jain_the_cell_edge_rate_and_ues_per_uav(capsys):
+    """The README promises these for a fleet; one UAV's table keeps its six columns."""
+    fleet = ["evaluate", "--policy", "static", "--scenario", "no_move", "--set", "n_uavs=2", "--episodes", "2"]
+    assert main(fleet) == 0
+    header, row = capsys.readouterr().out.strip().splitlines()[-2:]
+    assert header.split()[-6:] == ["Jain", "p5", "Mbps", "UEs", "per", "UAV"]
+    result = cli_json(*fleet, "--json")
+    assert row.split()[-4:] == [f"{result['jain_index']:.3f}", f"{result['p5_ue_rate_mbps']:.3f}",
+                                *(f"{n:.1f}" for n in result["ues_per_uav"])]
+    assert main(["evaluate", "--policy", "static", "--scenario", "no_move", "--episodes", "2"]) == 0
+    assert capsys.readouterr().out.strip().splitlines()[-2].split()[-1] == "R_fair"

@@ -9,7 +9,7 @@ import json
 import sys
 from pathlib import Path
 
-from uavlink.cli.options import add_env_options, scenario_list, seed
+from uavlink.cli.options import add_env_options, command_line, scenario_list, seed
 from uavlink.config import BASELINE_NAMES, EnvConfig
 from uavlink.errors import UserError, require
 from uavlink.policies.contract import OVERRIDES_HELP, EnvOverrides, apply_overrides, load_with_env
@@ -74,7 +74,7 @@ def _write_results_folder(args: argparse.Namespace) -> int:
     require("matplotlib")  # the report's figures come last: without it the tables would stand alone
     overrides = EnvOverrides.from_command_line(None, args.aoa_noise_deg, args.overrides)
     apply_overrides(EnvConfig(), overrides.on("no_move"))  # a bad --set fails before the long run
-    command = "uavlink " + " ".join(sys.argv[1:]) if sys.argv[1:2] == ["evaluate"] else "uavlink evaluate ..."
+    command = command_line("evaluate", "uavlink evaluate ...")
     markdown = args.markdown or args.out / "results.md"
 
     if args.spatial is not None and not args.spatial.is_dir():
@@ -85,7 +85,7 @@ def _write_results_folder(args: argparse.Namespace) -> int:
         raise UserError(f"--map {args.map}: needs a folder of map policies and --spatial (today's, to compare)")
 
     def kind(spec) -> str:
-        env = spec.jobs()[0].env_config()
+        env = spec.jobs()[0].env
         return "fleet" if env.n_uavs > 1 else "map" if env.place_cell_m > 0 else env.radio.shadowing_model
 
     def shipped(spec) -> Path:
@@ -139,11 +139,21 @@ class StatusLine:
 
 
 def format_table(results) -> str:
+    """One row per result; a fleet's (more than one UAV) adds Jain's index, the
+    5th-percentile UE rate and the UEs each UAV serves."""
     width = max([16, *(len(r.policy) for r in results)])
-    lines = [f"{'scenario':<13} {'policy':<{width}} {'episodes':>8} {'Mbps':>7} {'±95%':>6} {'R_fair':>7}"]
+    def is_fleet(r) -> bool:
+        return r.episode_ues_per_uav is not None and len(r.ues_per_uav) > 1
+
+    fleet = any(is_fleet(r) for r in results)
+    head = f"{'scenario':<13} {'policy':<{width}} {'episodes':>8} {'Mbps':>7} {'±95%':>6} {'R_fair':>7}"
+    lines = [head + (f" {'Jain':>5} {'p5 Mbps':>7}  UEs per UAV" if fleet else "")]
     for r in results:
-        lines.append(f"{r.scenario:<13} {r.policy:<{width}} {r.episodes:>8} {r.mean_rate_mbps:>7.3f} "
-                     f"{r.ci95_mbps:>6.3f} {r.mean_fair_rate:>7.3f}")
+        row = (f"{r.scenario:<13} {r.policy:<{width}} {r.episodes:>8} {r.mean_rate_mbps:>7.3f} "
+               f"{r.ci95_mbps:>6.3f} {r.mean_fair_rate:>7.3f}")
+        if is_fleet(r):
+            row += f" {r.jain_index:>5.3f} {r.p5_ue_rate_mbps:>7.3f}  {' '.join(f'{n:.1f}' for n in r.ues_per_uav)}"
+        lines.append(row)
     return "\n".join(lines)
 
 
