@@ -282,7 +282,7 @@ def test_job_keys_are_stable_and_grid_expands() -> None:
                        "train": {"episodes": 4, "learning_rate": 1e-4}, "env": {"r_max_m": 10,
                                                                                "aoa_noise_deg": 5.0}})
     assert same.jobs()[0].key == jobs[0].key
-    assert jobs[0].env_config().radio.aoa_noise_deg == 5.0 and jobs[0].train_config().seed == 0
+    assert jobs[0].env.radio.aoa_noise_deg == 5.0 and jobs[0].train.seed == 0
     # The default 12.0 written out is the same job as leaving r_max_m alone.
     assert parse_spec({"seeds": [0], "env": {"r_max_m": 12}}).jobs()[0].key == \
         parse_spec({"seeds": [0]}).jobs()[0].key
@@ -295,12 +295,12 @@ def test_scenario_train_overrides_reach_only_their_scenario() -> None:
         "teacher": "aoa", "shadow_gate_db": 1, "epochs": 80}}}})
     jobs = {j.scenario: j for j in spec.jobs()}
     assert jobs["straight"].key == plain["straight"].key  # untouched scenario: same job
-    hotspot = jobs["hotspot"].train_config()
+    hotspot = jobs["hotspot"].train
     assert jobs["hotspot"].key != plain["hotspot"].key
     assert (hotspot.n_envs, hotspot.episodes, hotspot.warm_start.shadow_gate_db) == (8, 4, 1.0)
     assert hotspot.warm_start.epochs == 80 and isinstance(hotspot.warm_start.epochs, int)
     assert isinstance(hotspot.warm_start.shadow_gate_db, float)  # an optional number: 1 becomes 1.0
-    assert jobs["straight"].train_config().n_envs == TrainConfig().n_envs
+    assert jobs["straight"].train.n_envs == TrainConfig().n_envs
     # The old flat keys name the same fields: the same jobs.
     old = parse_spec({**base, "scenario_train": {"hotspot": {"n_envs": 8, "warm_start_teacher": "aoa",
                                                              "warm_start_shadow_gate_db": 1.0,
@@ -317,7 +317,7 @@ def test_shipped_sweeps_and_their_old_spelling(tmp_path: Path, capsys) -> None:
     (tmp_path / "table1.toml").write_text(old)
     assert [j.key for j in load_spec(tmp_path / "table1.toml").jobs()] == \
         [j.key for j in load_spec("sweeps/table1.toml").jobs()]
-    hotspot = load_spec("sweeps/table1.toml").jobs()[-1].train_config()
+    hotspot = load_spec("sweeps/table1.toml").jobs()[-1].train
     assert hotspot.warm_start == WarmStartConfig("aoa", 1024, 80, -3.0, 10, 2.0, 8.0, 512)
     assert len(load_spec("sweeps/tiny.toml").jobs()) == 8
 
@@ -325,26 +325,26 @@ def test_shipped_sweeps_and_their_old_spelling(tmp_path: Path, capsys) -> None:
 def test_job_keys_are_versioned_hashes_of_the_full_configs() -> None:
     job = parse_spec({"name": "a", "scenarios": ["straight"], "seeds": [0]}).jobs()[0]
     assert job.settings()["key_version"] == KEY_VERSION
-    full = job.train_config().to_dict()
+    full = job.train.to_dict()
     for later in NEUTRAL_WARM_START_DEFAULTS:  # fields added later, out of the key at their defaults
         del full["warm_start"][later]
     assert job.settings()["train"] == full  # nothing else left out, nothing bent
     assert Job.from_dict(json.loads(json.dumps(job.to_dict()))).key == job.key
     # Reordering keys changes nothing; changing any setting changes the key.
     reordered = Job(job.sweep, job.scenario, job.seed, {}, EnvConfig.from_dict(
-        dict(reversed(job.env_config().to_dict().items()))), TrainConfig.from_dict(
-        dict(reversed(job.train_config().to_dict().items()))), dict(reversed(job.eval.items())))
+        dict(reversed(job.env.to_dict().items()))), TrainConfig.from_dict(
+        dict(reversed(job.train.to_dict().items()))), dict(reversed(job.eval.items())))
     assert reordered.key == job.key
     keys = {job.key}
-    for path, value in _changed_train_fields(job.train_config()):
-        keys.add(Job(job.sweep, job.scenario, job.seed, {}, job.env_config(),
-                     with_changes(job.train_config(), {path: value}), job.eval).key)
+    for path, value in _changed_train_fields(job.train):
+        keys.add(Job(job.sweep, job.scenario, job.seed, {}, job.env,
+                     with_changes(job.train, {path: value}), job.eval).key)
     for changes in ({"r_max_m": 8.0}, {"radio.shadowing": False}, {"area.half_width_m": 150.0}):
-        keys.add(Job(job.sweep, job.scenario, job.seed, {}, job.env_config().replace(**changes),
-                     job.train_config(), job.eval).key)
-    keys.add(Job(job.sweep, job.scenario, job.seed, {}, job.env_config(), job.train_config(),
+        keys.add(Job(job.sweep, job.scenario, job.seed, {}, job.env.replace(**changes),
+                     job.train, job.eval).key)
+    keys.add(Job(job.sweep, job.scenario, job.seed, {}, job.env, job.train,
                  {**job.eval, "episodes": 7}).key)
-    assert len(keys) == 1 + len(_changed_train_fields(job.train_config())) + 3 + 1
+    assert len(keys) == 1 + len(_changed_train_fields(job.train)) + 3 + 1
 
 
 def _changed_train_fields(tc: TrainConfig) -> list[tuple[str, object]]:
@@ -514,7 +514,7 @@ def test_the_fast_ppo_defaults_leave_the_shipped_jobs_as_they_were() -> None:
     assert keys["table1", "hotspot", 0] == "5a1875c9e4c8"  # a [scenario_train] recipe: 256 envs, 128 steps
     assert keys["table1_spatial", "straight", 0] == "618c70d06377"
     assert keys["tiny", "straight", 0] in ("1d48d5ec3402", "77c334c765b2")  # the grid's two points
-    job = load_spec(Path("sweeps/table1.toml")).jobs()[0].train_config()
+    job = load_spec(Path("sweeps/table1.toml")).jobs()[0].train
     assert (job.n_envs, job.n_steps, job.batch_size, job.n_epochs) == (32, 128, 512, 10) != (
         TrainConfig().n_envs, TrainConfig().n_steps, TrainConfig().batch_size, TrainConfig().n_epochs)
 
@@ -526,8 +526,8 @@ def test_scenario_env_overrides_reach_only_their_scenario() -> None:
     jobs = {j.scenario: j for j in parse_spec({**base, "scenario_env": {"no_move": {"place_model": "kriging"}}}).jobs()}
     assert jobs["straight"].key == plain["straight"].key
     assert jobs["no_move"].key != plain["no_move"].key
-    assert jobs["no_move"].env_config().place_model == "kriging"
-    assert jobs["straight"].env_config().place_model == "cells"
+    assert jobs["no_move"].env.place_model == "kriging"
+    assert jobs["straight"].env.place_model == "cells"
     with pytest.raises(SweepSpecError, match="place_model .*scenario no_move"):
         parse_spec({**base, "scenario_env": {"no_move": {"place_model": "gp"}}})
     with pytest.raises(SweepSpecError, match="scenario_env"):

@@ -1,9 +1,11 @@
 """Options more than one command shares: the scenario names, the env overrides (``--scenario``,
-``--aoa-noise-deg``, ``--set``) that ``uavlink.policies.contract.EnvOverrides`` reads, and seeds."""
+``--aoa-noise-deg``, ``--set``) that ``uavlink.policies.contract.EnvOverrides`` reads, and seeds;
+and the command line a report names."""
 
 from __future__ import annotations
 
 import argparse
+import sys
 
 from uavlink.config import SCENARIO_NAMES, SCENARIOS, check_seed
 from uavlink.errors import ConfigError, UserError
@@ -45,3 +47,9 @@ def add_env_options(p: argparse.ArgumentParser, for_policy: bool = False) -> Non
                    help="override an env config field, e.g. --set r_max_m=10 --set radio.shadowing=false"
                         + (f"; under a policy file radio fields may change, {', '.join(BUILT_FOR)} may not"
                            if for_policy else ""))
+
+
+def command_line(command: str, otherwise: str) -> str:
+    """The command that made a report, for the report to name: this process's arguments when it is
+    ``uavlink COMMAND ...``, else ``otherwise`` (the command run from Python, e.g. a test)."""
+    return "uavlink " + " ".join(sys.argv[1:]) if sys.argv[1:2] == [command] else otherwise

@@ -7,6 +7,7 @@ import argparse
 import sys
 from pathlib import Path
 
+from uavlink.cli.options import command_line
 from uavlink.errors import UserError
 
 
@@ -40,7 +41,7 @@ def cmd_sweep(args: argparse.Namespace) -> int:
                             retries=args.retries, progress=not args.no_progress, done_keys=record.keys())
     except EngineError as exc:
         raise UserError(str(exc)) from None
-    command = "uavlink " + " ".join(sys.argv[1:]) if sys.argv[1:2] == ["sweep"] else f"uavlink sweep {args.file}"
+    command = command_line("sweep", f"uavlink sweep {args.file}")
     markdown, table = write_summary(spec, outcome.sweep_dir, command, record)
     print(table)
     done = outcome.skipped + outcome.finished

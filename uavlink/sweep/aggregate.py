@@ -19,7 +19,7 @@ from typing import Any
 
 from uavlink.errors import UserError
 from uavlink.evaluation.tables import markdown_table, write_csv
-from uavlink.sweep.jobs import RUN_FIELDS, read_result
+from uavlink.sweep.jobs import RUN_FIELDS, read_result, result_path
 from uavlink.sweep.plots import plot_learning_curves, plot_throughput
 from uavlink.sweep.spec import BASELINE_COLUMNS, Job, SweepSpec, describe_point
 
@@ -218,7 +218,7 @@ def write_summary(spec: SweepSpec, sweep_dir: Path, command: str = "",
 
 def training_episodes(spec: SweepSpec) -> str:
     """The jobs' training episodes: one figure, or the range where recipes differ."""
-    counts = sorted({job.train_config().episodes for job in spec.jobs()})
+    counts = sorted({job.train.episodes for job in spec.jobs()})
     return f"{counts[0]:,}" if len(counts) == 1 else f"{counts[0]:,} to {counts[-1]:,}"
 
 
@@ -335,7 +335,7 @@ def export_median_policies(spec: SweepSpec, sweep_dir: Path, dest: Path) -> list
 def jobs_table(jobs: list[Job], sweep_dir: Path, recorded: Collection[str] = ()) -> str:
     """One line per job with its status (``recorded``: keys of a shipped record's jobs), for --dry-run."""
     def status(job: Job) -> str:
-        if (sweep_dir / job.name / "result.json").is_file():
+        if result_path(sweep_dir, job).is_file():
             return "done"
         return "done (record)" if job.key in recorded else "to run"
 

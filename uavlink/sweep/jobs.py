@@ -45,7 +45,7 @@ def run_job(job_data: dict[str, Any]) -> dict[str, Any]:
     from uavlink.policies.contract import EnvOverrides, load_with_env
     from uavlink.policies.manifest import read_zip_manifest
 
-    cfg, tc = job.env_config(), job.train_config()
+    cfg, tc = job.env, job.train
     for name, digest in job.file_sha256.items():
         path = getattr(tc.warm_start, name)
         if file_sha256(Path(path)) != digest:
@@ -107,6 +107,8 @@ def write_job(sweep_dir: Path, payload: dict[str, Any]) -> Path:
 
 
 def result_path(sweep_dir: Path, job: Job) -> Path:
+    """The job's result.json: once it is a file, the job is done (``write_job`` moves the whole folder
+    into place)."""
     return sweep_dir / job.name / "result.json"
 
 

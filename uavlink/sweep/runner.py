@@ -28,7 +28,7 @@ from pathlib import Path
 from typing import Any
 
 from uavlink.errors import require
-from uavlink.sweep.jobs import run_job, write_job
+from uavlink.sweep.jobs import result_path, run_job, write_job
 from uavlink.sweep.spec import Job, SweepSpec
 
 # The embedded cluster's settings: one job per worker at a time (none waits behind a long one);
@@ -65,7 +65,7 @@ def plan(spec: SweepSpec, out_root: Path, done_keys: Collection[str] = ()) -> tu
     writes nothing."""
     sweep_dir = out_root / spec.name
     jobs = spec.jobs()
-    pending = [j for j in jobs if j.key not in done_keys and not (sweep_dir / j.name / "result.json").is_file()]
+    pending = [j for j in jobs if j.key not in done_keys and not result_path(sweep_dir, j).is_file()]
     return sweep_dir, jobs, pending
 
 

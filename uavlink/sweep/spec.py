@@ -77,12 +77,6 @@ class Job:
         """What seeds are averaged over: the scenario and the grid point."""
         return self.scenario, tuple((k, _hashable(v)) for k, v in self.point.items())
 
-    def env_config(self) -> EnvConfig:
-        return self.env
-
-    def train_config(self) -> TrainConfig:
-        return self.train
-
     def settings(self) -> dict[str, Any]:
         """Everything that determines the job's figures; the key is its hash."""
         env = {k: v for k, v in self.env.to_dict().items()
