@@ -22,7 +22,7 @@ from uavlink.env.observation import ObservationBuilder, ObservationLayout, fleet
 from uavlink.env.place_memory import PlaceMemory
 from uavlink.env.reward import RewardBounds
 from uavlink.mobility import MobilityState, draw_scenarios, init_mobility, step_mobility
-from uavlink.mobility.fleet import separate, start_positions_m
+from uavlink.mobility.fleet import apply_moves, start_positions_m
 from uavlink.mobility.uav_motion import PX4_MOTION
 from uavlink.radio.channel import RadioChannel, RadioReadings
 from uavlink.radio.rates import fair_rate
@@ -118,11 +118,9 @@ class BatchedUavEnv:
             position, self.uav_velocity_mps = PX4_MOTION.fly(self.uav_xy_m, self.uav_velocity_mps,
                                                              self.setpoint_xy_m, self.cfg.frame_s)
             return self.step_to(position)
-        target = np.clip(self.uav_xy_m + self.actions.to_displacement_m(action), -half, half)
-        if self.n_uavs > 1:
-            target = separate(self._per_env(self.uav_xy_m), self._per_env(target),
-                              self.cfg.uav_separation_m).reshape(self.n_rows, 2)
-        return self.step_to(target)
+        moves = self._per_env(self.actions.to_displacement_m(action))
+        target = apply_moves(self._per_env(self.uav_xy_m), moves, half, self.cfg.uav_separation_m)
+        return self.step_to(target.reshape(self.n_rows, 2))
 
     def step_to(self, uav_xy_m: np.ndarray) -> StepResult:
         """Advance one frame with the UAVs at the given positions (N D, 2), clipped to the area.

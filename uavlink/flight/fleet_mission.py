@@ -51,7 +51,7 @@ from uavlink.flight.transit import guard_transit
 from uavlink.mavlink.dialect import mavlink
 from uavlink.mavlink.px4_modes import PX4_MAIN_OFFBOARD
 from uavlink.mavlink.radio_codec import RadioReport, ScoreReport, send_frame_decided
-from uavlink.mobility.fleet import min_separation_m, separate, start_positions_m
+from uavlink.mobility.fleet import apply_moves, min_separation_m, start_positions_m
 from uavlink.policies.base import Policy
 
 log = logging.getLogger(__name__)
@@ -71,8 +71,7 @@ def fleet_setpoints(current_xy_m: np.ndarray, moves_m: np.ndarray, cfg: EnvConfi
     (:func:`~uavlink.flight.transit.guard_transit`)."""
     half = cfg.area.half_width_m
     moves = np.where(movable[:, None], moves_m, 0.0) if movable is not None else moves_m
-    target = np.clip(current_xy_m + moves, -half, half)
-    target = separate(current_xy_m[None], target[None], cfg.uav_separation_m)[0]
+    target = apply_moves(current_xy_m[None], moves[None], half, cfg.uav_separation_m)[0]
     if actual_xy_m is None:
         return target
     return guard_transit(actual_xy_m, current_xy_m, target, cfg.uav_separation_m)

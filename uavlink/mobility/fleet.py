@@ -1,8 +1,9 @@
 """Where a fleet's UAVs start and how they are kept apart (SPEC "A fleet").
 
 Pure numpy over batches: positions (N, D, 2) in metres, x east, y north. The separation filter is
-the one piece of code that keeps two UAVs at least ``min_separation_m`` apart horizontally; the env
-applies it to every move and the flight loop to every setpoint, so what was trained is what flies.
+the one piece of code that keeps two UAVs at least ``min_separation_m`` apart horizontally; the env,
+the genie's replays and the flight loop move UAVs through ``apply_moves``, so what was trained is
+what flies.
 """
 
 from __future__ import annotations
@@ -61,6 +62,14 @@ def separate(current_m: np.ndarray, target_m: np.ndarray, min_separation_m: floa
         short = (np.einsum("njk,njk->nj", new[:, None, :] - others, new[:, None, :] - others) < s2).any(axis=1)
         out[:, d] = np.where(short[:, None] & ~inside.any(axis=1)[:, None], start, new)
     return out
+
+
+def apply_moves(current_m: np.ndarray, moves_m: np.ndarray, half_width_m: float,
+                min_separation_m: float) -> np.ndarray:
+    """Where UAVs (N, D, 2) at ``current_m`` go for ``moves_m`` (N, D, 2): clipped into the area
+    (``|x|, |y| <= half_width_m``), then kept apart by :func:`separate`."""
+    target = np.clip(current_m + moves_m, -half_width_m, half_width_m)
+    return separate(current_m, target, min_separation_m)
 
 
 def min_separation_m(xy_m: np.ndarray) -> np.ndarray:

@@ -28,7 +28,7 @@ from uavlink.config import EnvConfig, RadioConfig
 from uavlink.env.actions import ActionMapping
 from uavlink.env.core import GroundTruth
 from uavlink.mobility import MobilityState, step_mobility
-from uavlink.mobility.fleet import separate
+from uavlink.mobility.fleet import apply_moves
 from uavlink.policies.base import RulePolicy
 from uavlink.policies.fleet_baselines import moves_to
 from uavlink.policies.genie.grid import Grid, best_grid_path, grid_rx_dbm, one_uav_rate_mbps
@@ -314,6 +314,6 @@ class GeniePolicy(RulePolicy):
             now = path[-1].reshape(rows, 2)
             truth = GroundTruth(now, ue[t], velocity[t], scenario_ids)
             action = self.mapping.validate(policy.act(np.zeros((rows, 0), np.float32), truth), rows)
-            target = np.clip(now + self.mapping.to_displacement_m(action), -half, half).reshape(n_envs, n_uavs, 2)
-            path.append(separate(path[-1], target, self.cfg.uav_separation_m) if n_uavs > 1 else target)
+            moves = self.mapping.to_displacement_m(action).reshape(n_envs, n_uavs, 2)
+            path.append(apply_moves(path[-1], moves, half, self.cfg.uav_separation_m))
         return np.array(path)
