@@ -270,3 +270,9 @@ def test_clone_gap_fits_then_adds_dagger_rounds_and_flies_each_copy() -> None:
         lo, hi = row["ci95"]
         assert lo <= row["vs_teacher"] <= hi
     assert policy["mbps"] > 0 and result["teacher_mbps"] > 0
+
+
+def test_gc_pause_a_frozen_heap_makes_a_full_collection_short() -> None:
+    result = run_json("gc_pause.py", "--passes", "3", "--allocate", "1000")
+    assert result["tracked_objects"] > 50_000  # torch, SB3 and pymavlink loaded
+    assert result["frozen_median_ms"] < result["median_ms"] / 5

@@ -184,3 +184,16 @@ def test_fly_without_the_key_against_a_signed_vehicle_says_to_pass_it(tmp_path: 
     reason = json.loads((tmp_path / "fly" / "summary.json").read_text())["reason"]
     assert "the vehicle signs its link: pass --signing-key FILE" in reason, reason
     assert "check the vehicle is running" not in reason and reason in proc.stderr
+
+
+def test_the_flight_loop_freezes_the_heap_and_unfreezes_it_after() -> None:
+    """A full collection over a loaded policy stalls 0.2-0.4 s, longer than a vehicle at 20x waits for
+    setpoints; frozen, it scans only what the flight allocates (benchmarks/gc_pause.py)."""
+    import gc
+
+    from uavlink.flight.steady import steady_heap
+
+    assert gc.get_freeze_count() == 0
+    with steady_heap():
+        assert gc.get_freeze_count() > 1000
+    assert gc.get_freeze_count() == 0
