@@ -6,8 +6,7 @@ import math
 from dataclasses import dataclass
 
 from uavlink.config import EnvConfig
-from uavlink.radio.noise import noise_power_dbm
-from uavlink.radio.pathloss import mean_rx_power_dbm
+from uavlink.radio.noise import mean_snr_db
 
 
 @dataclass(frozen=True)
@@ -23,8 +22,7 @@ class RewardBounds:
         far_corner_m = 2.0 * math.sqrt(2.0) * cfg.area.half_width_m  # 566 m across the diagonal
 
         def fair_rate_at(horizontal_m: float) -> float:
-            snr_db = mean_rx_power_dbm(math.hypot(horizontal_m, alt), radio) - noise_power_dbm(
-                radio.bandwidth_hz, radio)
+            snr_db = mean_snr_db(math.hypot(horizontal_m, alt), radio)
             rate = radio.bandwidth_hz / cfg.n_ues * math.log2(1.0 + 10.0 ** (snr_db / 10.0))
             return cfg.n_ues * math.log10(rate)
 

@@ -9,7 +9,7 @@ from uavlink.env.actions import ActionMapping
 from uavlink.env.core import GroundTruth
 from uavlink.env.observation import ObservationLayout
 from uavlink.policies.base import RulePolicy
-from uavlink.radio.noise import noise_power_dbm
+from uavlink.radio.noise import mean_snr_db, noise_power_dbm
 from uavlink.radio.pathloss import mean_rx_power_dbm
 from uavlink.radio.rates import fair_rate, rate_bps
 
@@ -17,7 +17,7 @@ from uavlink.radio.rates import fair_rate, rate_bps
 def hover_sinr_db(cfg: EnvConfig) -> float:
     """The aoa rule's hover level: the SINR of a UE straight below its UAV on the mean channel (the
     link budget overhead, no shadowing or fading), dB."""
-    return float(mean_rx_power_dbm(cfg.area.uav_altitude_m, cfg.radio) - noise_power_dbm(cfg.radio.bandwidth_hz, cfg.radio))
+    return float(mean_snr_db(cfg.area.uav_altitude_m, cfg.radio))
 
 
 class StaticPolicy(RulePolicy):
