@@ -1,6 +1,11 @@
 """Where a copy loses against its teacher: a sweep job's behaviour clone alone, after each DAgger
 round, and (optionally) trained policies, each against the teacher on the same fresh episodes.
 
+A DAgger round (Ross et al. 2011, "A reduction of imitation learning ... to no-regret online
+learning"): the copy flies, the teacher labels the frames it meets, and the copy is fitted again on
+everything gathered so far; a copy fitted on the teacher's own flying errs most where the teacher
+never goes, and its small errors take it there.
+
 The job (a scenario and training seed of a sweep file) gives the env, the teacher and the cloning
 recipe, as ``uavlink sweep`` would train it; the copy is SB3's deterministic action, as a policy file
 flies. docs/experiments.md, "DAgger on hotspot", runs:
@@ -18,6 +23,34 @@ from pathlib import Path
 from typing import Any
 
 
+def student_dataset(sb3_policy: Any, cfg: Any, teacher: Any, episodes: int, seed: int,
+                    round_index: int) -> tuple[Any, Any]:
+    """(observations, the teacher's actions) float32 from ``episodes`` seeded episodes flown by the
+    copy in ``sb3_policy`` (SB3's deterministic action): round ``round_index``'s sibling of the DAGGER
+    stream."""
+    import numpy as np
+    import torch
+
+    from uavlink.env.observation import ObservationLayout
+    from uavlink.policies.sb3_policy import deterministic_actor
+    from uavlink.rollout import rollout
+    from uavlink.seeding import DAGGER
+
+    class LabelledFlight:
+        name, needs_truth = "dagger", bool(getattr(teacher, "needs_truth", False))
+        layout, actor, labels = ObservationLayout.for_config(cfg), deterministic_actor(sb3_policy), []
+
+        def act(self, obs, truth=None):
+            self.labels.append(teacher.act(obs, truth))
+            with torch.no_grad():
+                return self.actor(torch.as_tensor(obs, dtype=torch.float32)).numpy()
+
+    flight = LabelledFlight()
+    stream = DAGGER.sibling(f"dagger-round-{round_index}", round_index)
+    observations = [frame.observation for frame in rollout(flight, cfg, stream, episodes, seed)]
+    return np.concatenate(observations).astype(np.float32), np.concatenate(flight.labels).astype(np.float32)
+
+
 def run(sweep: Path, scenario: str, seed: int, rounds: int, epochs: int | None, clone_episodes: int | None,
         episodes: int, eval_seed: int, policy_paths: list[Path]) -> dict[str, Any]:
     import numpy as np
@@ -26,7 +59,7 @@ def run(sweep: Path, scenario: str, seed: int, rounds: int, epochs: int | None, 
     from uavlink.env.observation import ObservationLayout
     from uavlink.errors import UserError
     from uavlink.evaluation import evaluate_policy, paired_ratio_ci
-    from uavlink.learn.imitation import clone_actor, student_dataset, teacher_dataset
+    from uavlink.learn.imitation import clone_actor, teacher_dataset
     from uavlink.learn.teachers import warm_start_teacher
     from uavlink.learn.training import make_model, training_env_config
     from uavlink.policies.contract import EnvOverrides, load_with_env

@@ -36,7 +36,7 @@ class Stream:
 EVAL = Stream("eval", (), 128)
 # A rule's flying that the warm start clones (uavlink/learn/imitation.py).
 TEACHER = Stream("teacher", (0xB0,), 64)
-# The student's flying that the teacher labels, one sibling per round (DAgger; uavlink/learn/imitation.py).
+# A copy's flying that its teacher labels, one sibling per DAgger round (benchmarks/clone_gap.py).
 DAGGER = Stream("dagger", (0xDA,), 64)
 # The shadowing estimator's fitting data, and its held-out check (uavlink/learn/shadow_estimation.py);
 # the data's rule hovers at random, drawn per chunk from the *_HOVERS siblings.

@@ -23,12 +23,11 @@ from uavlink.config.fields import (
 )
 from uavlink.errors import ConfigError
 
-# The rules a warm start can copy; uavlink.policies.baselines implements them by these names.
+# The rules a warm start can copy; uavlink.policies.registry builds them by these names.
 BASELINE_NAMES = ("static", "oracle", "aoa", "kmeans", "explore", "kriging")
 # What a warm start may imitate: a baseline, or a fleet-only teacher (uavlink.learn.teachers: solo;
 # uavlink.learn.lead_teacher: lead).
 TEACHER_NAMES = (*BASELINE_NAMES, "solo", "lead")
-_INF = float("inf")
 
 
 def config_name(path: str) -> str:
@@ -70,19 +69,12 @@ class WarmStartConfig:
         "some of this env's fields (e.g. policies/spatial/hotspot.zip for a map policy); its inputs keep "
         "their weights and the new ones start at zero, so PPO starts from its actions exactly "
         "(uavlink/learn/policy_transfer.py; ours)", flag="--start-from", metavar="FILE")
-    dagger_rounds: int = setting(0, "after the first fit, this many rounds in which the copy flies "
-                                 "the same number of episodes, the teacher labels the frames it meets and the "
-                                 "copy is fitted again on all the data (DAgger, Ross et al. 2011; ours; "
-                                 "default: off)", low=0, metavar="N")
 
     def validate(self, name: Namer = config_name) -> WarmStartConfig:
         check_fields(self, lambda path: name(f"warm_start.{path}"))
         for knob in ("shadow_gate_db", "sinr_span_db", "shadow_estimator_episodes"):
             if getattr(self, knob) is not None and self.teacher != "aoa":
                 raise ConfigError(f"{name('warm_start.' + knob)} needs {name('warm_start.teacher')} aoa")
-        if self.dagger_rounds and not self.teacher:
-            raise ConfigError(f"{name('warm_start.dagger_rounds')} needs a {name('warm_start.teacher')} to label "
-                              f"the copy's flying")
         if self.policy and self.teacher:
             raise ConfigError(f"{name('warm_start.policy')} starts from a policy's weights: it takes no "
                               f"{name('warm_start.teacher')} (leave it empty)")

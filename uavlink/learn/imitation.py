@@ -10,11 +10,6 @@ action head) is fitted to the teacher's actions by mean squared error, and its e
 reset. The critic knows nothing yet, and PPO's first updates with its random advantages would undo
 the copy, so the actor stays frozen for the first few rollouts while the critic learns the cloned
 policy's values (``critic_warmup_callback``). Imports torch.
-
-A copy fitted on the teacher's own flying errs most where the teacher never goes, and the copy's
-small errors take it there (Ross et al. 2011, "A reduction of imitation learning ... to no-regret
-online learning"). ``dagger_rounds`` adds DAgger's remedy: the copy flies, the teacher labels the
-frames it meets, and the copy is fitted again on everything gathered so far.
 """
 
 from __future__ import annotations
@@ -25,11 +20,9 @@ from typing import Any
 import numpy as np
 
 from uavlink.config import EnvConfig
-from uavlink.env.core import GroundTruth
-from uavlink.env.observation import ObservationLayout
 from uavlink.learn.teachers import make_teacher
 from uavlink.rollout import Actor, rollout
-from uavlink.seeding import DAGGER, TEACHER
+from uavlink.seeding import TEACHER
 
 CLONE_EPOCHS = 20  # passes over the cloning data unless TrainConfig.warm_start.epochs says otherwise
 
@@ -40,12 +33,10 @@ class CloneReport:
     samples: int
     epochs: int
     final_mse: float
-    dagger_rounds: int = 0
 
     def to_dict(self) -> dict[str, Any]:
-        rounds = {"dagger_rounds": self.dagger_rounds} if self.dagger_rounds else {}
         return {"teacher": self.teacher, "samples": self.samples, "epochs": self.epochs,
-                "final_mse": round(self.final_mse, 6), **rounds}
+                "final_mse": round(self.final_mse, 6)}
 
 
 def teacher_dataset(cfg: EnvConfig, teacher: str | Actor, episodes: int, seed: int) -> tuple[np.ndarray, np.ndarray]:
@@ -57,39 +48,6 @@ def teacher_dataset(cfg: EnvConfig, teacher: str | Actor, episodes: int, seed: i
         observations.append(frame.observation)
         actions.append(frame.action)
     return np.concatenate(observations).astype(np.float32), np.concatenate(actions).astype(np.float32)
-
-
-class _LabelledFlight:
-    """The copy flies (SB3's deterministic action) while the teacher says what it would do in each
-    frame: DAgger's data. Asks for ground truth when the teacher needs it."""
-
-    name = "dagger"
-
-    def __init__(self, sb3_policy: Any, teacher: Actor, cfg: EnvConfig) -> None:
-        from uavlink.policies.sb3_policy import deterministic_actor
-
-        self.actor = deterministic_actor(sb3_policy)
-        self.teacher = teacher
-        self.needs_truth = bool(getattr(teacher, "needs_truth", False))
-        self.layout = ObservationLayout.for_config(cfg)
-        self.labels: list[np.ndarray] = []
-
-    def act(self, obs: np.ndarray, truth: GroundTruth | None = None) -> np.ndarray:
-        import torch
-
-        self.labels.append(self.teacher.act(obs, truth))
-        with torch.no_grad():
-            return self.actor(torch.as_tensor(obs, dtype=torch.float32)).numpy()
-
-
-def student_dataset(sb3_policy: Any, cfg: EnvConfig, teacher: Actor, episodes: int, seed: int,
-                    round_index: int) -> tuple[np.ndarray, np.ndarray]:
-    """(observations, the teacher's actions) float32 from ``episodes`` seeded episodes flown by the
-    copy in ``sb3_policy``: DAgger round ``round_index``, on its own sibling of the DAGGER stream."""
-    flight = _LabelledFlight(sb3_policy, teacher, cfg)
-    stream = DAGGER.sibling(f"dagger-round-{round_index}", round_index)
-    observations = [frame.observation for frame in rollout(flight, cfg, stream, episodes, seed)]
-    return np.concatenate(observations).astype(np.float32), np.concatenate(flight.labels).astype(np.float32)
 
 
 def clone_actor(sb3_policy: Any, observations: np.ndarray, actions: np.ndarray, epochs: int = CLONE_EPOCHS,
@@ -120,19 +78,13 @@ def clone_actor(sb3_policy: Any, observations: np.ndarray, actions: np.ndarray, 
 
 
 def warm_start(sb3_policy: Any, cfg: EnvConfig, teacher: str | Actor, episodes: int, seed: int,
-               epochs: int = CLONE_EPOCHS, log_std: float = -1.0, dagger_rounds: int = 0) -> CloneReport:
+               epochs: int = CLONE_EPOCHS, log_std: float = -1.0) -> CloneReport:
     """Clone ``teacher`` (a rule's name, or a policy from ``make_teacher``) into the policy's actor
-    from ``episodes`` of its own flying; then ``dagger_rounds`` times, ``episodes`` of the copy's
-    flying labelled by the teacher are added and the copy is fitted again on all of it."""
+    from ``episodes`` of its own flying."""
     policy = make_teacher(cfg, teacher) if isinstance(teacher, str) else teacher
     observations, actions = teacher_dataset(cfg, policy, episodes, seed)
     mse = clone_actor(sb3_policy, observations, actions, epochs=epochs, log_std=log_std, seed=seed)
-    for round_index in range(dagger_rounds):
-        more_obs, more_actions = student_dataset(sb3_policy, cfg, policy, episodes, seed, round_index)
-        observations = np.concatenate([observations, more_obs])
-        actions = np.concatenate([actions, more_actions])
-        mse = clone_actor(sb3_policy, observations, actions, epochs=epochs, log_std=log_std, seed=seed)
-    return CloneReport(policy.name, len(observations), epochs, mse, dagger_rounds)
+    return CloneReport(policy.name, len(observations), epochs, mse)
 
 
 def critic_warmup_callback(rollouts: int):

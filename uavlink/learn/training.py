@@ -189,7 +189,7 @@ def _warm_start(sb3_policy: Any, cfg: EnvConfig, tc: TrainConfig) -> dict[str, A
     teacher, estimator = warm_start_teacher(cfg, tc)
     epochs = CLONE_EPOCHS if ws.epochs is None else ws.epochs
     report = warm_start(sb3_policy, cfg, teacher, ws.episodes, tc.seed, epochs=epochs,
-                        log_std=ws.log_std, dagger_rounds=ws.dagger_rounds).to_dict()
+                        log_std=ws.log_std).to_dict()
     if estimator is not None:
         report["shadow_estimator_r2"] = round(estimator.r2, 4)
     return report

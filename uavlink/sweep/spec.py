@@ -31,7 +31,7 @@ NEUTRAL_ENV_DEFAULTS: dict[str, Any] = {"n_uavs": 1, "fleet_reuse": "full", "uav
                                         "fleet_start_radius_m": 100.0, "place_cell_m": 0.0,
                                         "uav_motion": "instant", "place_model": "cells"}
 # The same for the training's (nested) warm-start fields.
-NEUTRAL_WARM_START_DEFAULTS: dict[str, Any] = {"leader_policy": "", "policy": "", "dagger_rounds": 0}
+NEUTRAL_WARM_START_DEFAULTS: dict[str, Any] = {"leader_policy": "", "policy": ""}
 # Warm-start fields that name a policy file: a job's key holds the file's bytes (its sha256), not only
 # its path, so a re-shipped file makes the job (and a sweep record's figures of it) another one.
 POLICY_FILE_FIELDS = ("leader_policy", "policy")
