@@ -31,8 +31,8 @@ from uavlink.policies.registry import flying_baselines
 
 # ------------------------------------------------------------------ numbers, refused up front (fast)
 @pytest.mark.parametrize("option,value,fragment", [
-    ("--seed", "-1", "--seed must be an integer in 0..2147483647"),
-    ("--seed", str(2**31), "--seed must be an integer in 0..2147483647"),
+    ("--seed", "-1", "argument --seed: a seed must be an integer in 0..2147483647"),
+    ("--seed", str(2**31), "argument --seed: a seed must be an integer in 0..2147483647"),
     ("--speed", "0", "--speed must be a number > 0"),
     ("--speed", "-3", "--speed must be a number > 0"),
     ("--speed", "nan", "--speed must be a number > 0"),

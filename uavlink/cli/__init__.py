@@ -1,8 +1,8 @@
 """The uavlink command line: train | evaluate | fly | plot | export | sweep | keygen.
 
-A module per command (``evaluate``, ``train``, ``export``, ``sweep``, ``keygen`` here; ``fly`` in
-``uavlink.flight.fly``, ``plot`` in ``uavlink.plot.command``) and the options they share
-(``options``).
+A module per command (``evaluate``, ``train``, ``export``, ``sweep``, ``keygen``, ``fly``, ``plot``:
+each declares its options and imports what runs it, such as ``uavlink.flight.fly``, when it runs)
+and the options they share (``options``).
 
 User errors (bad arguments, unknown scenarios, unusable policy files, a missing optional package)
 print one line on stderr and exit with status 2, without a traceback. Heavy modules are imported
@@ -29,11 +29,11 @@ def build_parser() -> argparse.ArgumentParser:
 
     from uavlink.cli.evaluate import add_evaluate_parser
     from uavlink.cli.export import add_export_parser
+    from uavlink.cli.fly import add_fly_parser
     from uavlink.cli.keygen import add_keygen_parser
+    from uavlink.cli.plot import add_plot_parser
     from uavlink.cli.sweep import add_sweep_parser
     from uavlink.cli.train import add_train_parser
-    from uavlink.flight.fly import add_fly_parser
-    from uavlink.plot.command import add_plot_parser
 
     for add in (add_evaluate_parser, add_train_parser, add_export_parser, add_sweep_parser, add_keygen_parser,
                 add_fly_parser, add_plot_parser):

@@ -3,7 +3,8 @@ and the picture ``uavlink fly`` draws after every flight. Both read the log with
 :func:`~uavlink.plot.tlog.read_flight` and draw with
 :func:`~uavlink.plot.picture.draw_flight`, so they draw the same picture.
 
-pymavlink and matplotlib are imported when a picture is drawn, not when the CLI is built.
+pymavlink and matplotlib are imported when a picture is drawn; the command's options are
+``uavlink.cli.plot``'s.
 """
 
 from __future__ import annotations
@@ -82,24 +83,3 @@ def run_plot(args: argparse.Namespace) -> int:
               f"track(s), {drawn['ue_tracks']} UE track(s), {drawn['decision_frames']} decision "
               f"frames{frames}" + (f"; {'; '.join(drawn['notes'])}" if drawn["notes"] else ""))
     return 0
-
-
-def add_plot_parser(sub) -> None:
-    p = sub.add_parser("plot", help="draw a flight from its telemetry log (.tlog): PNG, or --gif",
-                       description="Draw the picture `uavlink fly` draws (flight.png) from any MAVLink "
-                                   "telemetry log: one written by `uavlink fly`, or by MAVProxy or "
-                                   "QGroundControl while a vehicle with the radio payload flew. The "
-                                   "map shows the fence, every UAV's track, the UEs' tracks (the "
-                                   "simulation's truth, ADSB_VEHICLE) coloured by serving UAV and "
-                                   "the bearings sensed; below, the mean UE throughput and each UE's "
-                                   "SINR per radio frame, decision frames marked. A log without radio "
-                                   "messages gives the tracks. Needs matplotlib: "
-                                   "pip install 'uavlink[plot]'.")
-    p.add_argument("tlog", type=Path, metavar="FLIGHT.tlog", help="the telemetry log")
-    p.add_argument("--out", type=Path, default=None,
-                   help="file to write (default: the log's name with .png, or .gif with --gif)")
-    p.add_argument("--gif", action="store_true",
-                   help="an animation instead: one GIF frame per decision frame (a few hundred KB)")
-    p.add_argument("--title", default=None, help="title above the picture (default: the log's name)")
-    p.add_argument("--json", action="store_true", help="print what was drawn as JSON")
-    p.set_defaults(func=run_plot)
