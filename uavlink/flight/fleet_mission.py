@@ -47,7 +47,6 @@ from uavlink.flight.mission import (
 from uavlink.flight.outcome import EndedBy, judge, signing_hint
 from uavlink.flight.radio_source import MavlinkRadioSource
 from uavlink.flight.start_point import fly_to_starts
-from uavlink.flight.steady import steady_heap
 from uavlink.flight.transit import guard_transit
 from uavlink.mavlink.dialect import mavlink
 from uavlink.mavlink.px4_modes import PX4_MAIN_OFFBOARD
@@ -154,8 +153,7 @@ def fly_fleet(links: Sequence[VehicleLink], pilot: FleetPilot, cfg: EnvConfig, m
     raises LinkError: the result says what went wrong."""
     result = FleetResult()
     try:
-        with steady_heap():  # before any vehicle waits on this process's setpoints
-            _fly_fleet(links, pilot, cfg, mission, status, result)
+        _fly_fleet(links, pilot, cfg, mission, status, result)
     except LinkError as exc:
         result.failure, result.fix = str(exc), next(filter(None, map(signing_hint, links)), "")
     except KeyboardInterrupt:  # before the episode's loop (which lands by itself)

@@ -11,32 +11,19 @@ from pathlib import Path
 
 import numpy as np
 
-from uavlink.config import EnvConfig
 from uavlink.errors import UserError
 from uavlink.flight.fly_fleet import (
     check_vehicle_options,
+    embedded_vehicles,
     run_fleet_fly,
     split_urls,
-    started_vehicle,
-    vehicle_args,
 )
 from uavlink.flight.outcome import episode_fields, finish, flown_name
-from uavlink.mavlink.connection import free_udp_port
+from uavlink.flight.steady import steady_heap
 from uavlink.policies.contract import EnvOverrides, load_with_env
 from uavlink.policies.registry import flying_baselines
 
 log = logging.getLogger("uavlink.fly")
-
-
-@contextlib.contextmanager
-def embedded_sitl(cfg: EnvConfig, seed: int, speed: float, log_path: Path,
-                  signing_key_file: Path | None = None, lockstep: bool = False):
-    """Start the SITL vehicle (:func:`started_vehicle`) on a free loopback port, its radio
-    payload simulating ``cfg`` (:func:`vehicle_args`); yields the URL to listen on."""
-    port = free_udp_port()
-    args = vehicle_args(cfg, seed, lockstep, signing_key_file)
-    with started_vehicle(f"udpout:127.0.0.1:{port}", speed, args, log_path):
-        yield f"udpin:127.0.0.1:{port}"
 
 
 def run_fly(args: argparse.Namespace) -> int:
@@ -80,11 +67,11 @@ def run_fly(args: argparse.Namespace) -> int:
         print(f"\rframe {frame + 1:4d}/{args.frames}  target E {target[0]:7.1f} N {target[1]:7.1f} m  "
               f"{rate_text}", end="", file=sys.stderr, flush=True)
 
-    sitl = (embedded_sitl(cfg, args.seed, args.speed, out_dir / "sitl.log",
-                          Path(args.signing_key) if key else None, args.lockstep)
-            if args.connect is None else contextlib.nullcontext(args.connect))
+    sitl = (embedded_vehicles(cfg, args.seed, args.speed, out_dir / "sitl.log",
+                              Path(args.signing_key) if key else None, args.lockstep)
+            if args.connect is None else contextlib.nullcontext([args.connect]))
     start = time.monotonic()
-    with sitl as url:
+    with steady_heap(), sitl as [url]:  # frozen before the vehicle talks to us
         link = VehicleLink(url, tlog=tlog, signing_key=key)
         try:
             result = fly_mission(link, pilot, cfg, mission, status=status)
@@ -108,4 +95,4 @@ def run_fly(args: argparse.Namespace) -> int:
                   f"mean UE throughput {summary['mean_rate_mbps']} Mbps; decision latency p50 "
                   f"{summary['latency_ms_p50']} ms, p99 {summary['latency_ms_p99']} ms; "
                   f"log {tlog}, summary {out_dir / 'summary.json'}",
-                  picture=not getattr(args, "no_picture", False))
+                  picture=not args.no_picture)

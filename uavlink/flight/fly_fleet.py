@@ -75,10 +75,11 @@ def vehicle_args(cfg: EnvConfig, seed: int, lockstep: bool = False,
 
 
 @contextlib.contextmanager
-def embedded_fleet(cfg: EnvConfig, seed: int, speed: float, log_path: Path,
-                   signing_key_file: Path | None = None, lockstep: bool = False) -> Iterator[list[str]]:
-    """``sitl_stub --fleet D`` with vehicle i sending to free loopback port i; yields the URLs to
-    listen on, in vehicle (UAV) order."""
+def embedded_vehicles(cfg: EnvConfig, seed: int, speed: float, log_path: Path,
+                      signing_key_file: Path | None = None, lockstep: bool = False) -> Iterator[list[str]]:
+    """The embedded SITL (:func:`started_vehicle`), its radio payload simulating ``cfg``
+    (:func:`vehicle_args`; ``sitl_stub --fleet D`` for ``n_uavs`` = D > 1), vehicle i sending to free
+    loopback port i; yields the URLs to listen on, in vehicle (UAV) order."""
     ports = [free_udp_port() for _ in range(cfg.n_uavs)]
     args = vehicle_args(cfg, seed, lockstep, signing_key_file)
     with started_vehicle([f"udpout:127.0.0.1:{p}" for p in ports], speed, args, log_path):
@@ -89,17 +90,18 @@ def run_fleet_fly(args: argparse.Namespace, policy: Policy, cfg: EnvConfig, key:
                   mission: MissionConfig) -> int:
     from uavlink.flight.fleet_mission import FleetPilot, fly_fleet
     from uavlink.flight.link.group import open_fleet_links
+    from uavlink.flight.steady import steady_heap
 
     pilot = FleetPilot(policy, cfg)  # layout checks before anything is armed
     urls: Sequence[str] | None = split_urls(args.connect) if args.connect else None
     out_dir = args.out
     out_dir.mkdir(parents=True, exist_ok=True)
     tlog = out_dir / "flight.tlog"
-    sitl = (embedded_fleet(cfg, args.seed, args.speed, out_dir / "sitl.log",
-                           Path(args.signing_key) if key else None, args.lockstep)
+    sitl = (embedded_vehicles(cfg, args.seed, args.speed, out_dir / "sitl.log",
+                              Path(args.signing_key) if key else None, args.lockstep)
             if urls is None else contextlib.nullcontext(urls))
     start = time.monotonic()
-    with sitl as vehicle_urls:
+    with steady_heap(), sitl as vehicle_urls:  # frozen before the vehicles talk to us
         group, tlog_file = open_fleet_links(vehicle_urls, cfg.n_uavs, tlog, key)
         try:
             result = fly_fleet(group.links, pilot, cfg, mission)
@@ -119,4 +121,4 @@ def run_fleet_fly(args: argparse.Namespace, policy: Policy, cfg: EnvConfig, key:
                   f"{cfg.n_uavs} vehicles: mean UE throughput {summary['mean_rate_mbps']} Mbps; "
                   f"min separation flown {summary['min_separation_flown_m']} m; {per}; "
                   f"log {tlog}, summary {out_dir / 'summary.json'}",
-                  picture=not getattr(args, "no_picture", False))
+                  picture=not args.no_picture)

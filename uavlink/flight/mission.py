@@ -48,7 +48,6 @@ from uavlink.flight.link import STREAM_PERIOD_VEHICLE_S, LinkError, VehicleLink
 from uavlink.flight.outcome import EndedBy, judge, signing_hint
 from uavlink.flight.radio_source import MavlinkRadioSource, RadioSource
 from uavlink.flight.start_point import fly_to_starts
-from uavlink.flight.steady import steady_heap
 from uavlink.mavlink.dialect import mavlink
 from uavlink.mavlink.px4_modes import (
     PX4_MAIN_AUTO,
@@ -185,8 +184,7 @@ def fly_mission(link: VehicleLink, pilot: PolicyPilot, cfg: EnvConfig, mission: 
     flight. Ctrl-C lands too. Never raises LinkError: the result says what went wrong."""
     result = MissionResult()
     try:
-        with steady_heap():  # before the vehicle waits on this process's setpoints
-            _fly(link, pilot, cfg, mission, radio, status, result)
+        _fly(link, pilot, cfg, mission, radio, status, result)
     except LinkError as exc:
         result.failure, result.fix = str(exc), signing_hint(link)
     except KeyboardInterrupt:  # before the episode's loop (which lands by itself)

@@ -15,7 +15,9 @@ from contextlib import contextmanager
 def steady_heap() -> Iterator[None]:
     """Collect once, then freeze every object there is into the collector's permanent generation
     for the flight (``gc.freeze``): its later passes scan only what the flight allocates. Unfrozen
-    after, so the objects are collected as usual again."""
+    after, so the objects are collected as usual again. Enter it before any vehicle sends to this
+    process: the collection itself pauses it as long, and messages queued meanwhile arrive together
+    (``uavlink.flight.link.vehicle_status.CLOCK_WINDOW_S``)."""
     gc.collect()
     gc.freeze()
     try:

@@ -6,6 +6,7 @@ from __future__ import annotations
 
 import math
 import time
+from collections import deque
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -14,6 +15,11 @@ from uavlink.mavlink.px4_modes import PX4_MAIN_OFFBOARD, decode_custom_mode
 from uavlink.mavlink.rejects import RejectLog
 
 REBOOT_BACKSTEP_S = 5.0  # LOCAL_POSITION_NED time going back more than this: the vehicle rebooted
+# The vehicle's clock is read over this much of our wall time: a pause of this process (a busy
+# machine) queues the vehicle's messages and they then arrive together, which a window of a few
+# dozen samples (80 ms of wall time at 20x) reads as a vehicle many times faster than it is, and a
+# wait sized by that speed ends too soon.
+CLOCK_WINDOW_S = 2.0
 
 
 @dataclass
@@ -33,8 +39,8 @@ class VehicleStatus:
     heartbeats: int = 0
     landed_known: bool = False
     home: Any = None  # the last HOME_POSITION: where the local frame sits on Earth
-    # (wall s, vehicle s) of recent LOCAL_POSITION_NED: the vehicle's clock, for the speed factor
-    boot_samples: list[tuple[float, float]] = field(default_factory=list)
+    # (wall s, vehicle s) of the last CLOCK_WINDOW_S of LOCAL_POSITION_NED: the vehicle's clock
+    boot_samples: deque[tuple[float, float]] = field(default_factory=deque)
 
     @property
     def in_air(self) -> bool:
@@ -70,8 +76,10 @@ class VehicleStatus:
                 return  # a late (reordered) sample: the vehicle has moved on since
             self.north_m, self.east_m, self.down_m = msg.x, msg.y, msg.z
             self.time_boot_ms = msg.time_boot_ms
-            samples.append((time.monotonic(), msg.time_boot_ms * 1e-3))
-            del samples[:-50]
+            now = time.monotonic()
+            samples.append((now, msg.time_boot_ms * 1e-3))
+            while samples[0][0] < now - CLOCK_WINDOW_S:
+                samples.popleft()
         elif kind == "EXTENDED_SYS_STATE":
             self.landed_state = msg.landed_state
             self.landed_known = True
