@@ -6,6 +6,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
+from sitl_stub.core.params import ParamStore
 from sitl_stub.flight.pos_control import track
 from sitl_stub.flight.vehicle import SUBSTEP_S
 from uavlink.config import EnvConfig
@@ -22,6 +23,9 @@ def test_the_position_loop_is_sitl_stubs() -> None:
     setpoint = pos + rng.uniform(-30, 30, (20, 2))
     got_pos, got_vel = PX4_MOTION.fly(pos, vel, setpoint, 1.0)
     assert PX4_MOTION.substep_s == SUBSTEP_S
+    # the limits are the vehicle's default parameters (the gain and braking are track()'s own, below)
+    params = ParamStore()
+    assert (PX4_MOTION.max_speed_mps, PX4_MOTION.max_accel_mps2) == (params["MPC_XY_VEL_MAX"], params["MPC_ACC_HOR_MAX"])
     for i in range(len(pos)):
         p, v = [pos[i, 0], pos[i, 1], -95.0], [vel[i, 0], vel[i, 1], 0.0]
         for _ in range(round(1.0 / SUBSTEP_S)):
