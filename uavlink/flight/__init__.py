@@ -1,6 +1,7 @@
 """Flying a policy over MAVLink (``uavlink fly``): ``link`` (the MAVLink ground end: one vehicle's
 link, what it knows of each system, a fleet's links as one group), ``radio_source`` (the
-payload's radio readings), ``mission`` and ``fleet_mission`` (the fly loop for one UAV and a fleet),
+payload's radio readings), ``vehicle_control`` (wait until ready, take off, OFFBOARD, land), ``mission`` and
+``fleet_mission`` (the fly loop for one UAV and a fleet), ``steady`` (a frozen heap while flying),
 ``fence``, ``transit``, and ``fly`` / ``fly_fleet`` (the command: an embedded SITL vehicle or a given
 connection). Layer: the top, below only the CLI.
 

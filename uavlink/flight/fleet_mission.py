@@ -31,28 +31,25 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from uavlink.config import EnvConfig
-from uavlink.env.actions import ActionMapping
-from uavlink.env.observation import ObservationBuilder, ObservationLayout, fleet_quantities
+from uavlink.env.observation import fleet_quantities
 from uavlink.flight.link import LinkError, VehicleLink
-from uavlink.flight.mission import (
-    MissionConfig,
-    MissionResult,
-    _ending_mode,
-    _enter_offboard,
-    _land,
-    _mode_name,
-    _take_off_or_resume,
-    _wait_ready,
-)
+from uavlink.flight.mission import MissionConfig, MissionResult, PolicyPilot
 from uavlink.flight.outcome import EndedBy, judge, signing_hint
 from uavlink.flight.radio_source import MavlinkRadioSource
 from uavlink.flight.start_point import fly_to_starts
 from uavlink.flight.transit import guard_transit
+from uavlink.flight.vehicle_control import (
+    ending_mode,
+    enter_offboard,
+    land,
+    mode_name,
+    take_off_or_resume,
+    wait_ready,
+)
 from uavlink.mavlink.dialect import mavlink
 from uavlink.mavlink.px4_modes import PX4_MAIN_OFFBOARD
 from uavlink.mavlink.radio_codec import RadioReport, ScoreReport, send_frame_decided
 from uavlink.mobility.fleet import apply_moves, min_separation_m, start_positions_m
-from uavlink.policies.base import Policy
 
 log = logging.getLogger(__name__)
 
@@ -77,18 +74,8 @@ def fleet_setpoints(current_xy_m: np.ndarray, moves_m: np.ndarray, cfg: EnvConfi
     return guard_transit(actual_xy_m, current_xy_m, target, cfg.uav_separation_m)
 
 
-class FleetPilot:
+class FleetPilot(PolicyPilot):
     """The policy on a fleet's D agent rows: observation rows as the env builds them."""
-
-    def __init__(self, policy: Policy, cfg: EnvConfig) -> None:
-        self.policy, self.cfg, self.n_uavs = policy, cfg, cfg.n_uavs
-        self.layout = ObservationLayout.for_config(cfg)
-        if policy.layout is not None:
-            policy.layout.check_matches(self.layout, what=f"policy {policy.name!r}")
-        self.mapping = ActionMapping.for_config(cfg)
-        self.builder = ObservationBuilder(self.layout, cfg.n_uavs)
-        self.guarded = 0
-        self.inference_s: list[float] = []
 
     def decide(self, reports: Sequence[RadioReport], uav_xy_m: np.ndarray, first: bool) -> np.ndarray:
         """East/north moves (D, 2), m; holds (zero moves) if the policy misbehaves."""
@@ -100,16 +87,7 @@ class FleetPilot:
         fleet = fleet_quantities(uav_xy_m[None], serving[None])
         step = self.builder.reset if first else self.builder.push
         obs = step(uav_xy_m, sinr, np.stack([r.aoa_deg for r in reports]), **fleet)
-        started = time.perf_counter()
-        action = np.asarray(self.policy.act(obs), dtype=float)
-        self.inference_s.append(time.perf_counter() - started)
-        if action.shape != (self.n_uavs, 2) or not np.isfinite(action).all() or (
-                np.abs(action) > 1.0 + 1e-6).any():
-            self.guarded += 1
-            log.warning("policy output guard: frame %d: unusable action %s: holding every UAV",
-                        reports[0].frame, action.tolist())
-            return np.zeros((self.n_uavs, 2))
-        return self.mapping.to_displacement_m(action)
+        return self.guarded_moves(obs, reports[0].frame)
 
 
 @dataclass
@@ -128,7 +106,7 @@ class VehicleRecord:
         st = link.status
         return {"system_id": self.system_id, "url": link.url, "decisions": self.decisions,
                 "holds": self.holds, "offboard_reentries": self.offboard_reentries,
-                "max_link_silence_s": round(self.max_silence_s, 2), "mode": _mode_name(st),
+                "max_link_silence_s": round(self.max_silence_s, 2), "mode": mode_name(st),
                 "released": self.released or None,
                 "last_position_en_m": [round(st.east_m, 2), round(st.north_m, 2)]}
 
@@ -159,8 +137,8 @@ def fly_fleet(links: Sequence[VehicleLink], pilot: FleetPilot, cfg: EnvConfig, m
     except KeyboardInterrupt:  # before the episode's loop (which lands by itself)
         result.interrupted, result.ended_by = True, EndedBy.INTERRUPTED
         for link in links:
-            if mission.land and link.status.armed and not _ending_mode(link.status):
-                _land(link)
+            if mission.land and link.status.armed and not ending_mode(link.status):
+                land(link)
     judge(result, mission.frames)
     return result
 
@@ -172,9 +150,11 @@ def _fly_fleet(links, pilot, cfg, mission, status, result: FleetResult) -> None:
         link.on_radio = source.feed
         link.on_score = lambda s: scores.setdefault(s.frame, s)
     for link in links:  # every vehicle ready before any arms: the first arming begins the episode
-        _wait_ready(link, mission)
+        wait_ready(link, mission.takeoff, mission.landing_wait_vehicle_s)
     for link in links:
-        _take_off_or_resume(link, mission, cfg.area, result)
+        resumed = take_off_or_resume(link, cfg.area.uav_altitude_m,
+                                     cfg.area.half_width_m if mission.fence else None, mission.takeoff)
+        result.resumed = result.resumed or resumed
     if not result.resumed:  # what came before (an earlier episode, the wait) is not this flight's
         fly_to_starts(links, start_positions_m(cfg.n_uavs, cfg.fleet_start_radius_m))
         befores = [source.take_reports() for source in sources]
@@ -194,7 +174,7 @@ def _fly_fleet(links, pilot, cfg, mission, status, result: FleetResult) -> None:
     for _ in range(5):
         links[0].poll(mission.stream_period_vehicle_s / links[0].speed_factor())
     for link in links:
-        _enter_offboard(link, mission.offboard_entry_s)
+        enter_offboard(link, mission.offboard_entry_s)
     _Loop(links, pilot, cfg, mission, result, sources, scores, targets, send, status).run()
 
 
@@ -247,9 +227,9 @@ class _Loop:
             result.rejected_reports = sum(s.rejected for s in self.sources)
             for link, record in zip(links, result.vehicles, strict=True):
                 st = link.status
-                if mission.land and st.armed and not _ending_mode(st) and not record.released \
+                if mission.land and st.armed and not ending_mode(st) and not record.released \
                         and time.monotonic() - link.last_rx_wall < LIVE_S * 4:
-                    _land(link)
+                    land(link)
                 link.stream_ned = None
 
     def _take_reports(self, now: float) -> None:
@@ -328,11 +308,11 @@ class _Loop:
             record.max_silence_s = max(record.max_silence_s, now - link.last_rx_wall)
             if record.released:
                 continue
-            if not st.armed or _ending_mode(st):
-                record.released = f"vehicle in {_mode_name(st)}"
+            if not st.armed or ending_mode(st):
+                record.released = f"vehicle in {mode_name(st)}"
                 link.stream_ned = None
                 log.warning("system %s is now %s (operator or failsafe): leaving it alone",
-                            link.target_system, _mode_name(st))
+                            link.target_system, mode_name(st))
                 continue
             if st.offboard != self.was_offboard[i]:
                 if st.offboard:
@@ -341,7 +321,7 @@ class _Loop:
                 else:
                     record.holds += 1
                     log.warning("system %s left OFFBOARD (now %s): asking it back", link.target_system,
-                                _mode_name(st))
+                                mode_name(st))
                 self.was_offboard[i] = st.offboard
             if not st.offboard and now - self.last_request[i] >= self.mission.reenter_interval_s:
                 self.last_request[i] = now

@@ -43,19 +43,20 @@ from uavlink.config import AreaConfig, EnvConfig
 from uavlink.env.actions import ActionMapping
 from uavlink.env.observation import ObservationBuilder, ObservationLayout
 from uavlink.errors import UserError
-from uavlink.flight.fence import upload_area_fence
 from uavlink.flight.link import STREAM_PERIOD_VEHICLE_S, LinkError, VehicleLink
 from uavlink.flight.outcome import EndedBy, judge, signing_hint
 from uavlink.flight.radio_source import MavlinkRadioSource, RadioSource
 from uavlink.flight.start_point import fly_to_starts
-from uavlink.mavlink.dialect import mavlink
+from uavlink.flight.vehicle_control import (
+    ending_mode,
+    enter_offboard,
+    land,
+    mode_name,
+    take_off_or_resume,
+    wait_ready,
+)
 from uavlink.mavlink.px4_modes import (
-    PX4_MAIN_AUTO,
     PX4_MAIN_OFFBOARD,
-    PX4_SUB_AUTO_LAND,
-    PX4_SUB_AUTO_LOITER,
-    PX4_SUB_AUTO_RTL,
-    px4_mode_name,
 )
 from uavlink.mavlink.radio_codec import RadioReport, ScoreReport, send_frame_decided
 from uavlink.mobility.fleet import start_positions_m
@@ -137,7 +138,8 @@ class MissionResult:
 
 
 class PolicyPilot:
-    """Turns radio reports into position targets: observation builder + policy + output guard."""
+    """Turns radio reports into position targets: observation builder + policy + output guard, for
+    the ``cfg.n_uavs`` rows of one vehicle (here) or a fleet (``fleet_mission.FleetPilot``)."""
 
     def __init__(self, policy: Policy, cfg: EnvConfig) -> None:
         self.policy = policy
@@ -146,7 +148,7 @@ class PolicyPilot:
         if policy.layout is not None:
             policy.layout.check_matches(self.layout, what=f"policy {policy.name!r}")
         self.mapping = ActionMapping.for_config(cfg)
-        self.builder = ObservationBuilder(self.layout, 1)
+        self.builder = ObservationBuilder(self.layout, cfg.n_uavs)
         self.guarded = 0
         self.inference_s: list[float] = []
 
@@ -158,21 +160,25 @@ class PolicyPilot:
 
     def decide(self, report: RadioReport, uav_east_north_m: np.ndarray, first: bool) -> np.ndarray:
         """East/north displacement (m) for this frame; a hold (zero move) if the policy misbehaves."""
-        obs = self.observe(report, uav_east_north_m, first)
+        return self.guarded_moves(self.observe(report, uav_east_north_m, first), report.frame)[0]
+
+    def guarded_moves(self, obs: np.ndarray, frame: int) -> np.ndarray:
+        """The policy's east/north moves (rows, 2), m, for ``obs``; every row holds (zero moves) when
+        its action is unusable (wrong shape, not finite, outside [-1, 1]), logged and counted."""
+        rows = self.cfg.n_uavs
         started = time.perf_counter()
         action = np.asarray(self.policy.act(obs), dtype=float)
         self.inference_s.append(time.perf_counter() - started)
-        why = ("wrong shape" if action.shape != (1, 2) else
+        why = ("wrong shape" if action.shape != (rows, 2) else
                "NaN/infinite" if not np.isfinite(action).all() else
                "outside [-1, 1]" if (np.abs(action) > 1.0 + 1e-6).any() else None)
-        if why is not None:
-            self.guarded += 1
-            log.warning("policy output guard: frame %d: policy %r returned an unusable action %s "
-                        "(%s): holding position (hold setpoint, no move); %d guarded so far",
-                        report.frame, getattr(self.policy, "name", "?"), action.tolist(), why,
-                        self.guarded)
-            return np.zeros(2)
-        return self.mapping.to_displacement_m(action)[0]
+        if why is None:
+            return self.mapping.to_displacement_m(action)
+        self.guarded += 1
+        log.warning("policy output guard: frame %d: policy %r returned an unusable action %s (%s): "
+                    "holding position (hold setpoint, no move); %d guarded so far", frame,
+                    getattr(self.policy, "name", "?"), action.tolist(), why, self.guarded)
+        return np.zeros((rows, 2))
 
 
 def fly_mission(link: VehicleLink, pilot: PolicyPilot, cfg: EnvConfig, mission: MissionConfig,
@@ -189,8 +195,8 @@ def fly_mission(link: VehicleLink, pilot: PolicyPilot, cfg: EnvConfig, mission: 
         result.failure, result.fix = str(exc), signing_hint(link)
     except KeyboardInterrupt:  # before the episode's loop (which lands by itself)
         result.interrupted, result.ended_by = True, EndedBy.INTERRUPTED
-        if mission.land and link.status.armed and not _ending_mode(link.status):
-            _land(link)
+        if mission.land and link.status.armed and not ending_mode(link.status):
+            land(link)
     judge(result, mission.frames)
     return result
 
@@ -223,7 +229,7 @@ def _fly(link, pilot, cfg, mission, radio, status, result: MissionResult) -> Non
     send()
     for _ in range(5):
         link.poll(mission.stream_period_vehicle_s / link.speed_factor())
-    _enter_offboard(link, mission.offboard_entry_s)
+    enter_offboard(link, mission.offboard_entry_s)
 
     frames = _FrameTracker()
     last_reentry = -math.inf
@@ -258,10 +264,10 @@ def _fly(link, pilot, cfg, mission, radio, status, result: MissionResult) -> Non
                     frames.last >= mission.frames and len(scores) >= mission.frames):
                 result.ended_by = EndedBy.EPISODE_DONE
                 break
-            if not st.armed or _ending_mode(st):
-                result.ended_by = f"vehicle in {_mode_name(st)}"
+            if not st.armed or ending_mode(st):
+                result.ended_by = f"vehicle in {mode_name(st)}"
                 log.warning("vehicle is now %s (operator or failsafe): ending the mission, "
-                            "leaving the vehicle alone", _mode_name(st))
+                            "leaving the vehicle alone", mode_name(st))
                 break
             now = time.monotonic()
             if now - last_radio > mission.radio_timeout_s:
@@ -284,8 +290,8 @@ def _fly(link, pilot, cfg, mission, radio, status, result: MissionResult) -> Non
         result.guarded_actions = pilot.guarded
         result.inference_s = pilot.inference_s
         result.rejected_reports = getattr(source, "rejected", 0)
-        if mission.land and st.armed and not _ending_mode(st) and result.ended_by != EndedBy.LINK_LOST:
-            _land(link)
+        if mission.land and st.armed and not ending_mode(st) and result.ended_by != EndedBy.LINK_LOST:
+            land(link)
         link.stream_ned = None
 
 
@@ -313,44 +319,16 @@ class _FrameTracker:
 
 
 def _take_control(link: VehicleLink, mission: MissionConfig, area: AreaConfig, result: MissionResult) -> None:
-    """Wait for the vehicle to be ready (:func:`_wait_ready`), give it the operating area as its
-    geofence, then arm and take off, or resume a vehicle already flying."""
-    _wait_ready(link, mission)
-    _take_off_or_resume(link, mission, area, result)
-
-
-def _wait_ready(link: VehicleLink, mission: MissionConfig) -> None:
-    """Wait for the vehicle's heartbeat, position and landed state; a vehicle still landing or
-    returning (an earlier flight ending) is waited for until it has landed and disarmed, and one
-    landed but armed is disarmed, so that this flight begins with an arming (a fresh episode)."""
-    link.wait_vehicle()
-    st = link.status
-    if st.armed and (_ending_mode(st) or st.landed_state == mavlink.MAV_LANDED_STATE_LANDING):
-        log.warning("vehicle is %s (an earlier flight ending): waiting until it has landed and "
-                    "disarmed", _mode_name(st))
-        link.wait_until(lambda: not st.armed, mission.landing_wait_vehicle_s,
-                        "the earlier flight's landing and disarm")
-    if st.armed and not st.in_air and mission.takeoff:
-        link.arm(False)
-
-
-def _take_off_or_resume(link: VehicleLink, mission: MissionConfig, area: AreaConfig,
-                        result: MissionResult) -> None:
-    st = link.status
-    if mission.fence:
-        upload_area_fence(link, area.half_width_m)
-    if st.armed and st.in_air:
-        result.resumed = True
-        log.warning("vehicle already armed and in the air (%s, %.0f m): resuming without take-off",
-                    _mode_name(st), -st.down_m)
-    elif mission.takeoff:
-        link.arm()
-        link.takeoff(area.uav_altitude_m)
+    """Wait for the vehicle to be ready, give it the operating area as its geofence, then arm and
+    take off, or resume a vehicle already flying (``uavlink.flight.vehicle_control``)."""
+    wait_ready(link, mission.takeoff, mission.landing_wait_vehicle_s)
+    result.resumed = take_off_or_resume(link, area.uav_altitude_m, area.half_width_m if mission.fence else None,
+                                        mission.takeoff)
 
 
 def _reenter_offboard(link: VehicleLink, result: MissionResult) -> None:
     """The vehicle left OFFBOARD (a failsafe hold, say) but is still ours: ask for it back once."""
-    log.warning("vehicle left OFFBOARD (now %s, failsafe hold?): re-entering", _mode_name(link.status))
+    log.warning("vehicle left OFFBOARD (now %s, failsafe hold?): re-entering", mode_name(link.status))
     try:
         link.set_mode(PX4_MAIN_OFFBOARD, tries=3)
         result.offboard_reentries += 1
@@ -358,38 +336,3 @@ def _reenter_offboard(link: VehicleLink, result: MissionResult) -> None:
         log.warning("could not re-enter OFFBOARD yet: %s", exc)
 
 
-def _land(link: VehicleLink) -> None:
-    """Hold (still streaming until the hold is taken), then land."""
-    try:
-        link.set_mode(PX4_MAIN_AUTO, PX4_SUB_AUTO_LOITER)
-        link.stream_ned = None
-        link.land()
-    except LinkError as exc:
-        log.error("landing command failed: %s", exc)
-
-
-def _enter_offboard(link: VehicleLink, within_s: float) -> None:
-    """DO_SET_MODE OFFBOARD until the heartbeat shows it (the setpoint stream is already running);
-    a refusal or a lost ACK or heartbeat is tried again until ``within_s`` of wall time pass."""
-    st = link.status
-    deadline = time.monotonic() + within_s
-    while not st.offboard:
-        try:
-            link.set_mode(PX4_MAIN_OFFBOARD, tries=3)
-            if link.wait_wall(lambda: st.offboard, 2.0):
-                return
-            problem = "the heartbeat does not show OFFBOARD"
-        except LinkError as exc:
-            problem = str(exc)
-        if time.monotonic() > deadline:
-            raise LinkError(f"could not enter OFFBOARD within {within_s:g} s: {problem}")
-        log.warning("entering OFFBOARD: %s; trying again", problem)
-
-
-def _ending_mode(st) -> bool:
-    """AUTO.LAND or AUTO.RTL: the flight is being ended (by an operator or a failsafe)."""
-    return st.main_mode == PX4_MAIN_AUTO and st.sub_mode in (PX4_SUB_AUTO_LAND, PX4_SUB_AUTO_RTL)
-
-
-def _mode_name(st) -> str:
-    return px4_mode_name(st.main_mode, st.sub_mode) + ("" if st.armed else ", disarmed")
