@@ -182,6 +182,13 @@ def test_oracle_needs_ground_truth_and_unknown_baseline_is_rejected():
         evaluate_policy(make_baseline("static", cfg), cfg, episodes=0)
 
 
+def test_the_registry_holds_every_teacher_config_names_then_the_genie() -> None:
+    """Config names the warm start's teachers without importing policies; the registry builds them."""
+    from uavlink.policies.registry import BASELINES
+
+    assert (*BASELINE_NAMES, "genie") == BASELINES
+
+
 @pytest.mark.parametrize("name", [*BASELINE_NAMES, "genie"])
 def test_every_rule_takes_a_single_observation_as_a_batch_of_one(name: str) -> None:
     """A Gymnasium env's observation (obs,) is a batch of one: actions (1, 2), as SB3Policy and

@@ -10,9 +10,10 @@ import sys
 from pathlib import Path
 
 from uavlink.cli.options import add_env_options, command_line, scenario_list, seed
-from uavlink.config import BASELINE_NAMES, EnvConfig
+from uavlink.config import EnvConfig
 from uavlink.errors import UserError, require
 from uavlink.policies.contract import OVERRIDES_HELP, EnvOverrides, apply_overrides, load_with_env
+from uavlink.policies.registry import BASELINES
 
 
 def cmd_evaluate(args: argparse.Namespace) -> int:
@@ -160,10 +161,10 @@ def format_table(results) -> str:
 def add_evaluate_parser(sub) -> None:
     p = sub.add_parser("evaluate", help="evaluate a policy or baseline, print a table",
                        description=f"Evaluate a policy file, a folder of them, or a baseline "
-                                   f"({', '.join(BASELINE_NAMES)}, genie). " + OVERRIDES_HELP)
+                                   f"({', '.join(BASELINES)}). " + OVERRIDES_HELP)
     add_env_options(p, for_policy=True)
     p.add_argument("--policy", default="static",
-                   help=f"{' | '.join(BASELINE_NAMES)} | genie (evaluation only: plans on the episode's "
+                   help=f"{' | '.join(BASELINES)} (genie: evaluation only, it plans on the episode's "
                         "future) | FILE.zip | FILE.onnx | FOLDER (default static)")
     p.add_argument("--against", action="append", default=None, metavar="POLICY",
                    help="also fly this policy (same forms; repeatable) on the same episodes and print --policy's paired "

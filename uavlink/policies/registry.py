@@ -5,56 +5,68 @@ it from here or from ``uavlink.policies``."""
 
 from __future__ import annotations
 
+from collections.abc import Callable
+from dataclasses import dataclass
 from functools import cache
 
-from uavlink.config import BASELINE_NAMES, EnvConfig
+from uavlink.config import EnvConfig
 from uavlink.errors import UserError
+from uavlink.policies.base import Policy
 from uavlink.policies.baselines import AoaPolicy, OraclePolicy, StaticPolicy
 from uavlink.policies.explore import ExplorePolicy, explore_env
 from uavlink.policies.fleet_baselines import FleetAoaPolicy, FleetOraclePolicy, KMeansPolicy
 from uavlink.policies.genie import REFERENCES, GeniePolicy
 from uavlink.policies.kriging import KrigingPolicy, kriging_env
 
-# The warm start's teachers are declared in config; the genie is for evaluation only (it plans on the
-# episode's future: uavlink.policies.genie), so no policy learns from it by accident.
-BASELINES = (*BASELINE_NAMES, "genie")
+
+@dataclass(frozen=True)
+class Baseline:
+    """A baseline by name: the env it flies in a world's env (``env``; the world's own by default),
+    and how it is built for that env (``build``)."""
+
+    build: Callable[[EnvConfig], Policy]
+    env: Callable[[EnvConfig], EnvConfig] = lambda cfg: cfg
+
+
+def _genie(cfg: EnvConfig) -> Policy:
+    """The genie plans on the episode's future, for any D, a fleet from the best of its references."""
+    return GeniePolicy(cfg, [make_baseline(reference, cfg) for reference in REFERENCES])
+
+
+def _instant(cfg: EnvConfig) -> EnvConfig:
+    """The genie moves at once: its plan is over instant moves of up to r_max, which every path PX4's
+    position loop flies (``uav_motion="px4"``) also keeps to, so on the same episodes it still bounds them."""
+    return cfg.replace(uav_motion="instant").validate()
+
+
+# Every baseline, in the order the CLI lists them: the warm start's teachers (config's BASELINE_NAMES,
+# so that config can name them without importing policies), then the genie, for evaluation only (it
+# plans on the episode's future), so no policy learns from it by accident. A fleet (n_uavs > 1) gets
+# the fleet versions of the rules; static hovers every UAV at its start; explore gets a memory of
+# place and kriging the model of the field when the world's env has none.
+REGISTRY: dict[str, Baseline] = {
+    "static": Baseline(StaticPolicy),
+    "oracle": Baseline(lambda cfg: FleetOraclePolicy(cfg) if cfg.n_uavs > 1 else OraclePolicy(cfg)),
+    "aoa": Baseline(lambda cfg: FleetAoaPolicy(cfg) if cfg.n_uavs > 1 else AoaPolicy(cfg)),
+    "kmeans": Baseline(KMeansPolicy),
+    "explore": Baseline(ExplorePolicy, explore_env),
+    "kriging": Baseline(KrigingPolicy, kriging_env),
+    "genie": Baseline(_genie, _instant),
+}
+BASELINES = tuple(REGISTRY)
 
 
 def baseline_env(name: str, cfg: EnvConfig) -> EnvConfig:
-    """The env the baseline ``name`` flies in ``cfg``'s world: ``cfg``, except that ``explore``
-    gets a memory of place when ``cfg`` has none (``uavlink.policies.explore.explore_env``),
-    ``kriging`` the model of the field (``uavlink.policies.kriging.kriging_env``), and the
-    genie moves at once: its plan is over instant moves of up to r_max, which every path PX4's
-    position loop flies (``uav_motion="px4"``) also keeps to, so on the same episodes it still bounds them."""
-    if name == "genie":
-        return cfg.replace(uav_motion="instant").validate()
-    if name == "kriging":
-        return kriging_env(cfg)
-    return explore_env(cfg) if name == "explore" else cfg
+    """The env the baseline ``name`` flies in ``cfg``'s world (``REGISTRY[name].env``)."""
+    return REGISTRY[name].env(cfg) if name in REGISTRY else cfg
 
 
-def make_baseline(name: str, cfg: EnvConfig):
-    """The baseline ``name`` for ``cfg``: a fleet (``n_uavs`` > 1) gets the fleet versions of the
-    rules (``uavlink.policies.fleet_baselines``); ``static`` hovers every UAV at its start;
-    ``genie`` plans on the episode's future, for any D, a fleet from the best of its references;
-    ``explore`` is built for ``baseline_env(name, cfg)``, and flies in that env."""
-    fleet = cfg.n_uavs > 1
-    if name == "explore":
-        return ExplorePolicy(baseline_env(name, cfg))
-    if name == "kriging":
-        return KrigingPolicy(baseline_env(name, cfg))
-    if name == "static":
-        return StaticPolicy(cfg)
-    if name == "aoa":
-        return FleetAoaPolicy(cfg) if fleet else AoaPolicy(cfg)
-    if name == "oracle":
-        return FleetOraclePolicy(cfg) if fleet else OraclePolicy(cfg)
-    if name == "kmeans":
-        return KMeansPolicy(cfg)
-    if name == "genie":
-        cfg = baseline_env(name, cfg)
-        return GeniePolicy(cfg, [make_baseline(reference, cfg) for reference in REFERENCES])
-    raise UserError(f"unknown baseline {name!r}; choose from {', '.join(BASELINES)}")
+def make_baseline(name: str, cfg: EnvConfig) -> Policy:
+    """The baseline ``name`` for ``cfg``'s world, built for the env it flies there (``baseline_env``)."""
+    if name not in REGISTRY:
+        raise UserError(f"unknown baseline {name!r}; choose from {', '.join(BASELINES)}")
+    baseline = REGISTRY[name]
+    return baseline.build(baseline.env(cfg))
 
 
 @cache
