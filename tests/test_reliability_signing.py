@@ -17,6 +17,7 @@ import time
 from pathlib import Path
 
 import pytest
+from conftest import run_uavlink_in_process
 from mavlink_gcs import FAST_TAKEOFF, Gcs, parse_vehicle_stats, wait_for_vehicle
 
 from sitl_stub.launcher import vehicle_process
@@ -299,3 +300,20 @@ def test_signed_flight_ignores_ground_stations_without_the_key(tmp_path: Path) -
     assert stats["signing"]["rejected_unsigned"] >= attacks * 4
     assert stats["signing"]["rejected_bad_signature"] >= attacks * 4
     assert stats["vehicle"]["offboard_failsafes"] == 0
+
+
+@pytest.mark.slow
+@pytest.mark.timeout(60)
+def test_a_flight_with_another_key_than_the_vehicles_fails_at_once(tmp_path: Path) -> None:
+    """Every packet of a vehicle signing with another key fails its check: `fly` says so within
+    seconds (it waited out the 30 s heartbeat wait before), with what to do."""
+    ours, theirs = write_key(tmp_path / "ours"), write_key(tmp_path / "theirs")
+    port = free_udp_port()
+    with vehicle_process(f"udpout:127.0.0.1:{port}", 10.0, ["--signing-key", str(theirs)]):
+        started = time.monotonic()
+        proc = run_uavlink_in_process("fly", "--policy", "aoa", "--connect", f"udpin:127.0.0.1:{port}",
+                                      "--signing-key", str(ours), "--frames", "3", "--out", str(tmp_path / "fly"))
+        elapsed = time.monotonic() - started
+    assert proc.returncode == 1 and elapsed < 15.0, (elapsed, proc.stderr)
+    assert "no heartbeat accepted from" in proc.stderr and "signed with another key" in proc.stderr
+    assert "pass the key it was started with" in proc.stderr

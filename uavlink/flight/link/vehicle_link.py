@@ -52,6 +52,7 @@ ACK_WAIT_S = 0.5  # wall time to wait for a COMMAND_ACK before sending the comma
 COMMAND_TRIES = 10
 PARAM_TRIES = 10
 MAX_RX_PER_POLL = 2000  # messages/datagrams handled per poll: a flood cannot stall the loop
+WRONG_KEY_PACKETS = 20  # packets signed with another key, none accepted: the heartbeat wait gives up
 
 log = logging.getLogger(__name__)
 
@@ -240,6 +241,11 @@ class VehicleLink:
         while self.status.heartbeats == 0:
             if time.monotonic() > deadline:
                 raise LinkError(f"no heartbeat from a vehicle on {self.url} within {timeout_s:.0f} s")
+            guard = self.signing
+            if guard is not None and not guard.accepted and guard.rejected["bad_signature"] >= WRONG_KEY_PACKETS:
+                # a vehicle signing with another key: none of its packets will ever pass, so say so now
+                raise LinkError(f"no heartbeat accepted from {self.url}: its packets "
+                                f"({guard.rejected['bad_signature']} so far) are all signed with another key")
             self.poll(0.2)
         hb = self.status.heartbeat
         if hb.autopilot != MAV.MAV_AUTOPILOT_PX4 or hb.type not in MULTIROTOR_TYPES:
