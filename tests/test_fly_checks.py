@@ -21,6 +21,7 @@ from sitl_stub.launcher import VehicleExited, VehicleProcess, vehicle_process
 from uavlink.cli import main
 from uavlink.config import BASELINE_NAMES, EnvConfig
 from uavlink.env.radio_world import episode_scenario
+from uavlink.flight.link import VehicleLink
 from uavlink.flight.mission import MissionResult
 from uavlink.flight.outcome import judge, signing_hint
 from uavlink.mavlink.connection import free_udp_port
@@ -107,7 +108,9 @@ def _heard(vehicle_key: bytes | None, ground_key: bytes | None) -> SimpleNamespa
         guard = SigningGuard(ground_key)
         guard.attach(ground)
     ground.parse_buffer(packet)
-    return SimpleNamespace(conn=SimpleNamespace(mav=ground), signing=guard)
+    link = SimpleNamespace(conn=SimpleNamespace(mav=ground), signing=guard)
+    link.unsigned_to_a_signing_vehicle = VehicleLink.unsigned_to_a_signing_vehicle.fget(link)
+    return link
 
 
 def test_signing_hint_says_how_the_link_and_the_vehicle_disagree() -> None:
@@ -184,6 +187,9 @@ def test_fly_without_the_key_against_a_signed_vehicle_says_to_pass_it(tmp_path: 
     reason = json.loads((tmp_path / "fly" / "summary.json").read_text())["reason"]
     assert "the vehicle signs its link: pass --signing-key FILE" in reason, reason
     assert "check the vehicle is running" not in reason and reason in proc.stderr
+    # the unanswered fence upload ends it (not a warning, then ten arm tries)
+    assert "geofence not uploaded" in reason and "the vehicle ignores our unsigned packets" in reason
+    assert "flying on" not in proc.stderr
 
 
 def test_the_flight_loop_freezes_the_heap_and_unfreezes_it_after() -> None:

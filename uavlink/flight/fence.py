@@ -19,7 +19,7 @@ from __future__ import annotations
 
 import logging
 
-from uavlink.flight.link import VehicleLink
+from uavlink.flight.link import LinkError, VehicleLink
 from uavlink.mavlink.dialect import mavlink
 from uavlink.mavlink.geo import GeoOrigin
 from uavlink.mavlink.mission import FENCE, MissionClient, MissionItem, MissionTransferError
@@ -73,6 +73,8 @@ def upload_area_fence(link: VehicleLink, half_width_m: float) -> bool:
     try:
         client.upload(area_fence(origin, half_width_m), FENCE)
     except MissionTransferError as exc:
+        if link.unsigned_to_a_signing_vehicle:  # nothing we send will be taken: no use flying on
+            raise LinkError(f"geofence not uploaded ({exc}): the vehicle ignores our unsigned packets") from None
         log.warning("geofence not uploaded: %s; flying on (the flight loop keeps its targets "
                     "inside the area)", exc)
         return False

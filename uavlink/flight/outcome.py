@@ -71,13 +71,11 @@ def judge(result: MissionResult, frames: int) -> None:
 
 def signing_hint(link) -> str:
     """What to do when a flight failed on a link whose signing disagrees with the vehicle's, or "":
-    without a key of ours, the vehicle's packets arrived signed (pymavlink counts every packet that
-    carries a signature, MAVLINK_IFLAG_SIGNED, in ``signing.sig_count`` even when it has no key to
-    check it with: the vehicle heard fine, then dropped our unsigned commands); with one, nothing
-    of the vehicle's was accepted and its packets were unsigned or signed with another key."""
-    mav = link.conn.mav
-    if mav.signing.secret_key is None:
-        return "the vehicle signs its link: pass --signing-key FILE (its key)" if mav.signing.sig_count else ""
+    without a key of ours, the vehicle's packets arrived signed (``unsigned_to_a_signing_vehicle``:
+    the vehicle heard fine, then dropped our unsigned commands); with one, nothing of the vehicle's
+    was accepted and its packets were unsigned or signed with another key."""
+    if link.conn.mav.signing.secret_key is None:
+        return "the vehicle signs its link: pass --signing-key FILE (its key)" if link.unsigned_to_a_signing_vehicle else ""
     guard = link.signing
     if guard is None or guard.accepted:
         return ""

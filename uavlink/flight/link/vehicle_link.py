@@ -206,6 +206,14 @@ class VehicleLink:
                     return
                 self.on_score(score)
 
+    @property
+    def unsigned_to_a_signing_vehicle(self) -> bool:
+        """We send unsigned packets while the vehicle's arrive signed: pymavlink counts every packet
+        that carries a signature (MAVLINK_IFLAG_SIGNED) in ``signing.sig_count`` even without a key to
+        check it, so the vehicle is heard, and it drops what we send."""
+        signing = self.conn.mav.signing
+        return signing.secret_key is None and bool(signing.sig_count)
+
     def close(self) -> None:
         if self._tlog and self._owns_tlog:
             self._tlog.close()
