@@ -107,6 +107,8 @@ def draw_map(ax, data: FlightData, upto: int | None = None, bearings: bool = Tru
         poly = np.vstack([data.fence_en_m, data.fence_en_m[:1]])
         ax.plot(poly[:, 0], poly[:, 1], "k--", lw=1.2, label="fence")
     serving = data.serving_uav()
+    if len(data.vehicles) < 2:  # one UAV serves every UE: its colour would only blur its own track
+        serving = np.full_like(serving, -1)
     ue_colour = ue_colours(max(data.ue_east_m.shape[1], data.n_ues))
     ue_tracks, segments, colours, ends = 0, [], [], []
     for ue in range(data.ue_east_m.shape[1]):
@@ -166,8 +168,9 @@ def _legend_handles(data: FlightData):
         handles.append(Line2D([], [], color=uav_colour(d), lw=1.8, marker="^", ms=7, mec="black",
                               label=f"UAV {d + 1} (system {v.system_id}): track, decisions, end"))
     if data.ue_east_m.shape[1]:
+        by_uav = " (colour: serving UAV)" if len(data.vehicles) > 1 else ""
         handles.append(Line2D([], [], color="0.45", lw=1, marker="o", ms=6, mec="white", alpha=0.8,
-                              label="UE track, now (colour: serving UAV)"))
+                              label=f"UE track, now{by_uav}"))
     if data.n_ues:
         handles.append(Line2D([], [], color="0.3", lw=0.9, label="sensed bearing (AoA), last frame"))
     return handles
