@@ -20,7 +20,7 @@ def add_plot_parser(sub) -> None:
                                    "telemetry log: one written by `uavlink fly`, or by MAVProxy or "
                                    "QGroundControl while a vehicle with the radio payload flew. The "
                                    "map shows the fence, every UAV's track, the UEs' tracks (the "
-                                   "simulation's truth, ADSB_VEHICLE) coloured by serving UAV and "
+                                   "simulation's truth, ADSB_VEHICLE; a fleet's coloured by serving UAV) and "
                                    "the bearings sensed; below, the mean UE throughput and each UE's "
                                    "SINR per radio frame, decision frames marked. A log without radio "
                                    "messages gives the tracks. Needs matplotlib: "
