@@ -53,10 +53,11 @@ def payload_env(options: PayloadOptions, n_uavs: int = 1) -> EnvConfig:
     """The radio world's env: the options' ``--set`` settings, scenario and AoA noise, with ``n_uavs``
     UAVs (a fleet's shared world; ``--set n_uavs`` may only agree)."""
     cfg = EnvConfig().replace(**dict(options.settings))
+    if n_uavs == 1 and cfg.n_uavs != 1:
+        raise ValueError(f"n_uavs={cfg.n_uavs} needs a fleet of vehicles: use --fleet {cfg.n_uavs} "
+                         "(one vehicle serves one UAV)")
     if cfg.n_uavs not in (1, n_uavs):
-        raise ValueError(f"--set n_uavs={cfg.n_uavs} disagrees with --fleet {n_uavs}; drop one"
-                         if n_uavs > 1 else f"n_uavs={cfg.n_uavs} needs a fleet of vehicles: use --fleet "
-                         f"{cfg.n_uavs} (one vehicle serves one UAV)")
+        raise ValueError(f"--set n_uavs={cfg.n_uavs} disagrees with --fleet {n_uavs}; drop one")
     return cfg.replace(scenario=options.scenario, aoa_noise_deg=options.aoa_noise_deg, n_uavs=n_uavs).validate()
 
 

@@ -1,6 +1,8 @@
 """``uavlink fly`` for a fleet (the policy's env has ``n_uavs`` > 1): the embedded
 ``sitl_stub --fleet D`` (one vehicle per free loopback port) or ``--connect URL1,URL2,...`` (one
-URL per vehicle, or one URL carrying every system); :mod:`uavlink.flight.fleet_mission` flies it."""
+URL per vehicle, or one URL carrying every system); :mod:`uavlink.flight.fleet_mission` flies it.
+What ``uavlink.flight.fly`` shares with it for one vehicle lives here too: the checks of
+``--seed``, ``--speed`` and ``--connect``, and the embedded vehicle (``embedded_vehicles``)."""
 
 from __future__ import annotations
 
@@ -13,8 +15,9 @@ from pathlib import Path
 from typing import TYPE_CHECKING
 
 from uavlink.config import EnvConfig, changed_settings, check_seed
-from uavlink.errors import UserError
+from uavlink.errors import LinkError, UserError
 from uavlink.flight.outcome import episode_fields, finish, flown_name
+from uavlink.flight.steady import steady_heap
 from uavlink.mavlink.connection import free_udp_port, normalize_connection
 from uavlink.policies.base import Policy
 
@@ -38,7 +41,6 @@ def started_vehicle(connect: str | list[str], speed: float, args: list[str], log
     links are open: one that exits at start (a bad argument) ends ``fly`` at once with the
     vehicle's own error line (LinkError), not after a heartbeat wait that cannot succeed."""
     from sitl_stub.launcher import VehicleExited, vehicle_process
-    from uavlink.flight.link import LinkError
 
     with vehicle_process(connect, speed, args, log_path=log_path) as vehicle:
         try:
@@ -90,7 +92,6 @@ def run_fleet_fly(args: argparse.Namespace, policy: Policy, cfg: EnvConfig, key:
                   mission: MissionConfig) -> int:
     from uavlink.flight.fleet_mission import FleetPilot, fly_fleet
     from uavlink.flight.link.group import open_fleet_links
-    from uavlink.flight.steady import steady_heap
 
     pilot = FleetPilot(policy, cfg)  # layout checks before anything is armed
     urls: Sequence[str] | None = split_urls(args.connect) if args.connect else None

@@ -55,9 +55,7 @@ from uavlink.flight.vehicle_control import (
     take_off_or_resume,
     wait_ready,
 )
-from uavlink.mavlink.px4_modes import (
-    PX4_MAIN_OFFBOARD,
-)
+from uavlink.mavlink.px4_modes import PX4_MAIN_OFFBOARD
 from uavlink.mavlink.radio_codec import RadioReport, ScoreReport, send_frame_decided
 from uavlink.mobility.fleet import start_positions_m
 from uavlink.policies.base import Policy

@@ -74,8 +74,8 @@ def signing_hint(link) -> str:
     without a key of ours, the vehicle's packets arrived signed (``unsigned_to_a_signing_vehicle``:
     the vehicle heard fine, then dropped our unsigned commands); with one, nothing of the vehicle's
     was accepted and its packets were unsigned or signed with another key."""
-    if link.conn.mav.signing.secret_key is None:
-        return "the vehicle signs its link: pass --signing-key FILE (its key)" if link.unsigned_to_a_signing_vehicle else ""
+    if link.unsigned_to_a_signing_vehicle:
+        return "the vehicle signs its link: pass --signing-key FILE (its key)"
     guard = link.signing
     if guard is None or guard.accepted:
         return ""

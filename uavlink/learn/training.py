@@ -61,9 +61,9 @@ RESUMED_SETTINGS = ("learning_rate", "n_steps", "batch_size", "n_epochs", "gamma
                     "ent_coef", "vf_coef", "max_grad_norm")
 
 
-def check_checkpoint(resume: Path, cfg: EnvConfig, tc: TrainConfig) -> dict[str, Any]:
-    """The SB3 data of checkpoint ``resume`` (a file ``model.save`` wrote), refused in one line when it
-    is not one, or when its observation or network is not what ``cfg`` and ``tc`` build."""
+def check_checkpoint(resume: Path, cfg: EnvConfig, tc: TrainConfig) -> None:
+    """Refuse checkpoint ``resume`` (a file ``model.save`` wrote) in one line when it is not one, or
+    when its observation or network is not what ``cfg`` and ``tc`` build."""
     import zipfile
 
     from stable_baselines3.common.save_util import load_from_zip_file
@@ -73,7 +73,11 @@ def check_checkpoint(resume: Path, cfg: EnvConfig, tc: TrainConfig) -> dict[str,
 
     if not resume.is_file():
         raise UserError(f"--resume {resume}: no such checkpoint")
-    if not zipfile.is_zipfile(resume) or "data" not in zipfile.ZipFile(resume).namelist():
+    if not zipfile.is_zipfile(resume):
+        raise UserError(f"--resume {resume}: not a checkpoint (an SB3 zip such as RUN_DIR/checkpoint.zip)")
+    with zipfile.ZipFile(resume) as archive:
+        members = archive.namelist()
+    if "data" not in members:
         raise UserError(f"--resume {resume}: not a checkpoint (an SB3 zip such as RUN_DIR/checkpoint.zip)")
     data, _, _ = load_from_zip_file(resume, device="cpu", load_data=True)
     size, ours = data["observation_space"].shape[0], ObservationLayout.for_config(cfg).size
@@ -83,7 +87,6 @@ def check_checkpoint(resume: Path, cfg: EnvConfig, tc: TrainConfig) -> dict[str,
     arch = list((data.get("policy_kwargs") or {}).get("net_arch", {}).get("pi", []))
     if arch != list(tc.net_arch):
         raise UserError(f"--resume {resume}: its network is {arch}, not --net-arch {list(tc.net_arch)}")
-    return data
 
 
 def _resumed(model: Any, resume: Path, cfg: EnvConfig, tc: TrainConfig, run_dir: Path | None) -> Any:
@@ -200,7 +203,6 @@ def train(cfg: EnvConfig, tc: TrainConfig, out: Path, run_dir: Path | None = Non
     """Train, save ``out`` (SB3 zip with manifest) and return the manifest's training section.
     ``tc`` is validated against ``cfg`` here, so a bad setting fails before any work. ``callbacks``:
     extra SB3 callbacks that only observe (benchmarks/train_throughput.py times the loop with one)."""
-
     from uavlink.policies.manifest import build_manifest, write_zip_manifest
 
     tc.validate(cfg)
