@@ -276,3 +276,17 @@ def test_gc_pause_a_frozen_heap_makes_a_full_collection_short() -> None:
     result = run_json("gc_pause.py", "--passes", "3", "--allocate", "1000")
     assert result["tracked_objects"] > 50_000  # torch, SB3 and pymavlink loaded
     assert result["frozen_median_ms"] < result["median_ms"] / 5
+
+
+def test_gc_watch_flies_and_places_each_long_pass_against_the_mission(tmp_path: Path) -> None:
+    # its own options first: what follows "--" is fly's (run_json would append --json there)
+    main = runpy.run_path(str(ROOT / "benchmarks" / "gc_watch.py"), run_name="gc_watch")["main"]
+    out = io.StringIO()
+    with contextlib.redirect_stdout(out):
+        assert main(["--json", "--min-ms", "0", "--", "--policy", "aoa", "--frames", "3",
+                     "--out", str(tmp_path / "fly"), "--no-picture"]) == 0
+    result = json.loads(out.getvalue())
+    assert result["exit_status"] == 0 and result["frozen_heap"] is True
+    assert result["vehicles"] == [{"decisions": 3, "offboard_reentries": 0}]
+    assert result["passes"] and all(isinstance(p["in_mission"], bool) for p in result["passes"])
+    assert any(p["in_mission"] for p in result["passes"])  # at --min-ms 0 even the small passes count
