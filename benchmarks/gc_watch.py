@@ -60,7 +60,8 @@ def watch(fly_args: list[str], min_ms: float, freeze: bool) -> dict:
         p["s_from_mission_end"] = round(ended - mission["end"], 2)
     out = Path(fly_args[fly_args.index("--out") + 1]) if "--out" in fly_args else Path("runs/fly")
     summary = json.loads((out / "summary.json").read_text())
-    counts = ("decisions", "holds", "offboard_reentries")  # holds: a fleet's vehicles count them
+    # holds: a fleet's vehicles count them; stale reports: frames a held-up loop observed, not decided
+    counts = ("decisions", "stale_radio_reports", "holds", "offboard_reentries")
     vehicles = [{k: v[k] for k in counts if k in v} for v in summary.get("vehicles") or [summary]]
     return {"benchmark": "gc_watch", "fly": fly_args, "frozen_heap": freeze, "exit_status": code,
             "min_ms": min_ms, "passes": passes, "episode_wall_s": summary.get("episode_wall_s"),

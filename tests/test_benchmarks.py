@@ -287,6 +287,8 @@ def test_gc_watch_flies_and_places_each_long_pass_against_the_mission(tmp_path: 
                      "--out", str(tmp_path / "fly"), "--no-picture"]) == 0
     result = json.loads(out.getvalue())
     assert result["exit_status"] == 0 and result["frozen_heap"] is True
-    assert result["vehicles"] == [{"decisions": 3, "offboard_reentries": 0}]
+    (vehicle,) = result["vehicles"]  # a loop held up by a loaded machine observes a frame it does not decide
+    assert vehicle["decisions"] + vehicle["stale_radio_reports"] == 3 and vehicle["decisions"] >= 1
+    assert vehicle["offboard_reentries"] == 0
     assert result["passes"] and all(isinstance(p["in_mission"], bool) for p in result["passes"])
     assert any(p["in_mission"] for p in result["passes"])  # at --min-ms 0 even the small passes count
