@@ -47,7 +47,7 @@ def test_teacher_dataset_flies_what_the_teacher_says_it_is() -> None:
 def test_cloned_actor_flies_like_its_teacher() -> None:
     """After cloning, the untrained PPO actor acts like the aoa rule on episodes it never saw, and
     flies about as well as the rule, far from what the random initial actor does."""
-    model = make_model(CFG, TrainConfig(n_envs=2), None)
+    model = make_model(CFG, TrainConfig(n_envs=2, batch_size=256), None)
     obs, actions = teacher_dataset(CFG, "aoa", episodes=24, seed=0)
     mse = clone_actor(model.policy, obs, actions, epochs=30, log_std=-1.5)
     assert mse < 0.01
@@ -73,7 +73,7 @@ def test_train_with_warm_start_records_it_and_starts_from_the_rule(tmp_path: Pat
 
     policy = PPO.load(out, device="cpu").policy
     assert np.allclose(policy.log_std.detach().numpy(), TrainConfig().warm_start.log_std)
-    fresh = make_model(CFG, TrainConfig(n_envs=2), None).policy  # same seed: the same initial critic
+    fresh = make_model(CFG, TrainConfig(n_envs=2, batch_size=256), None).policy  # same seed: the same initial critic
     assert not np.allclose(policy.value_net.weight.detach().numpy(), fresh.value_net.weight.detach().numpy())
 
 
