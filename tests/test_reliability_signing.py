@@ -83,6 +83,10 @@ def test_keygen_writes_a_private_32_byte_key_and_never_overwrites(tmp_path: Path
                            timeout=60, cwd=ROOT)
     assert again.returncode == 2 and "refusing to overwrite" in again.stderr
     assert out.read_bytes() == key
+    nowhere = subprocess.run([*UAVLINK, "keygen", "--out", str(tmp_path / "none" / "k.key")], capture_output=True,
+                             text=True, timeout=60, cwd=ROOT)
+    assert nowhere.returncode == 2 and "does not exist (create it first)" in nowhere.stderr
+    assert "Traceback" not in nowhere.stderr and not (tmp_path / "none").exists()
     assert write_key(tmp_path / "other.key").read_bytes() != key  # os.urandom, not a constant
     short = tmp_path / "short.key"
     short.write_bytes(b"x" * 16)

@@ -18,6 +18,9 @@ def cmd_keygen(args: argparse.Namespace) -> int:
         path = write_key(args.out)
     except FileExistsError:
         raise UserError(f"{args.out} exists; refusing to overwrite a key (delete it first)") from None
+    except FileNotFoundError:  # as ssh-keygen: a key's folder is made on purpose, with its own mode
+        raise UserError(f"cannot write {args.out}: its folder {args.out.parent} does not exist (create it "
+                        "first)") from None
     except OSError as exc:
         raise UserError(f"cannot write {args.out}: {exc.strerror or exc}") from None
     print(f"wrote a 32-byte MAVLink signing key to {path} (mode 0600, fingerprint "

@@ -190,7 +190,11 @@ def fleet_quantities(uav_xy_m: np.ndarray, serving: np.ndarray) -> dict[str, np.
 
 @dataclass(frozen=True)
 class ObservationLayout:
-    """Describes the observation vector; a policy file carries it and env and policy must agree."""
+    """Describes the observation vector; a policy file carries it and env and policy must agree.
+
+    The defaults are what a record that omits a field means (``to_dict`` drops n_uavs, the place
+    and the model fields where they are off), so they are the layouts' own and not read from
+    ``EnvConfig``: a change of the env's defaults must not change what a shipped policy sees."""
 
     version: int = OBS_LAYOUT_VERSION
     n_ues: int = 10
