@@ -37,8 +37,9 @@ from uavlink.policies.registry import flying_baselines
     ("--speed", "0", "--speed must be a number > 0"),
     ("--speed", "-3", "--speed must be a number > 0"),
     ("--speed", "nan", "--speed must be a number > 0"),
-    ("--frames", "0", "--frames must be at least 1"),
-    ("--frames", "-5", "--frames must be at least 1"),
+    ("--frames", "0", "--frames must be 1..128"),
+    ("--frames", "-5", "--frames must be 1..128"),
+    ("--frames", "129", "--frames must be 1..128"),  # past the episode: the policy's clock and the replay end
 ])
 def test_fly_refuses_bad_numbers_before_starting_or_writing_anything(tmp_path: Path, option: str, value: str,
                                                                      fragment: str) -> None:
@@ -172,6 +173,20 @@ def test_a_mixed_policy_flies_its_seeds_scenario_and_matches_its_replay(tmp_path
     evaluated = cli_json(*replay[1:], "--json")["mean_rate_mbps"]
     print(f"\nmixed seed {seed} ({expected}): flown {flown['mean_rate_mbps']:.6f}, replay {evaluated:.6f} Mbps")
     assert abs(flown["mean_rate_mbps"] - evaluated) <= 0.02 * evaluated
+
+
+@pytest.mark.slow
+@pytest.mark.timeout(120)
+def test_fly_flies_the_envs_episode_by_default(tmp_path: Path) -> None:
+    """Without --frames, one episode of the env's own length (here --set episode_frames=6), and its
+    replay evaluates that episode: the flight's frames and the replay's are the same ones."""
+    flown = cli_json("fly", "--policy", "aoa", "--set", "episode_frames=6", "--lockstep", "--out", str(tmp_path),
+                     "--json", "--no-picture")
+    assert flown["completed"] and flown["frames"] == flown["decisions"] == 6, flown
+    replay = shlex.split(flown["replay"])
+    assert "episode_frames=6" in replay
+    evaluated = cli_json(*replay[1:], "--json")["mean_rate_mbps"]
+    assert abs(flown["mean_rate_mbps"] - evaluated) <= 1e-4 * evaluated  # lockstep: float32 positions apart
 
 
 @pytest.mark.slow

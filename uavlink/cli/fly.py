@@ -58,7 +58,8 @@ def add_fly_parser(sub) -> None:
                         "each frame's decision, so the flight replays exactly and follows `uavlink "
                         "evaluate --episodes 1 --seed S --set uav_motion=px4` (the summary's replay) "
                         "up to MAVLink's float32 positions")
-    p.add_argument("--frames", type=int, default=128, help="decision frames to fly, >= 1 (one episode: 128)")
+    p.add_argument("--frames", type=int, default=None,
+                   help="decision frames to fly, 1 to the env's episode_frames (default: one episode, 128)")
     p.add_argument("--out", type=Path, default=Path("runs/fly"),
                    help="folder for flight.tlog, summary.json, flight.png (the flight's picture, "
                         f"as `uavlink plot` draws it; needs pip install 'uavlink[{EXTRA_OF_MODULE['matplotlib']}]') and, "

@@ -33,13 +33,14 @@ def run_fly(args: argparse.Namespace) -> int:
 
     logging.basicConfig(level=logging.INFO if args.verbose else logging.WARNING,
                         format="%(levelname)s %(name)s: %(message)s")
-    mission = MissionConfig(frames=args.frames).validate()
     check_vehicle_options(args.seed, args.speed)
     key = load_key(args.signing_key) if args.signing_key else None  # before anything flies
     if args.connect is not None:
         split_urls(args.connect)  # every URL checked before anything else
     overrides = EnvOverrides.from_command_line(args.scenario, args.aoa_noise_deg, args.overrides)
     [(policy, cfg)] = load_with_env([args.policy], overrides)
+    frames = cfg.episode_frames if args.frames is None else args.frames
+    mission = MissionConfig(frames=frames).validate(cfg.episode_frames)
     if policy.needs_truth:
         privilege = getattr(policy, "privilege", "needs UE positions (GPS)")
         raise UserError(f"{policy.name} {privilege} and cannot fly; use a policy file or one of "
@@ -64,7 +65,7 @@ def run_fly(args: argparse.Namespace) -> int:
         if not live:
             return
         rate_text = f"{rate:5.2f} Mbps" if rate is not None else "  --- Mbps"
-        print(f"\rframe {frame + 1:4d}/{args.frames}  target E {target[0]:7.1f} N {target[1]:7.1f} m  "
+        print(f"\rframe {frame + 1:4d}/{mission.frames}  target E {target[0]:7.1f} N {target[1]:7.1f} m  "
               f"{rate_text}", end="", file=sys.stderr, flush=True)
 
     sitl = (embedded_vehicles(cfg, args.seed, args.speed, out_dir / "sitl.log",

@@ -76,10 +76,12 @@ class MissionConfig:
     radio_timeout_s: float = 10.0  # wall seconds in OFFBOARD without a fresh radio frame: give up
     landing_wait_vehicle_s: float = 300.0  # vehicle seconds to wait for an earlier flight's landing
 
-    def validate(self) -> MissionConfig:
-        """UserError for frames no flight can fly (checked before anything starts or is written)."""
-        if self.frames < 1:
-            raise UserError(f"--frames must be at least 1 (decision frames to fly), got {self.frames}")
+    def validate(self, episode_frames: int) -> MissionConfig:
+        """UserError for frames no flight can fly (checked before anything starts or is written):
+        under 1, or past the env's episode, where the policy's clock and the flight's replay end."""
+        if not 1 <= self.frames <= episode_frames:
+            raise UserError(f"--frames must be 1..{episode_frames} (decision frames to fly, at most the env's "
+                            f"episode: --set episode_frames=N for longer), got {self.frames}")
         return self
 
 
