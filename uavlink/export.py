@@ -72,11 +72,11 @@ def verification_observations(sb3_policy: Any, n: int, seed: int) -> np.ndarray:
     """``n`` observations (n, obs) float32 met by the policy itself in seeded episodes of its env
     (the ``EXPORT`` stream), step-major: every env's first observation, then every env's next one,
     so any prefix holds every env's first frames. Steps no further than it needs."""
-    from uavlink.config import EnvConfig
+    from uavlink.policies.contract import manifest_env
     from uavlink.rollout import chunks
     from uavlink.seeding import EXPORT
 
-    cfg = EnvConfig.from_dict(sb3_policy.manifest["env_config"])
+    cfg = manifest_env(sb3_policy.manifest)
     episodes = max(1, math.ceil(n / (cfg.episode_frames + 1)))
     batches, collected = [], 0
     for chunk in chunks(cfg, EXPORT, episodes, seed):

@@ -144,7 +144,7 @@ def format_table(results) -> str:
     5th-percentile UE rate and the UEs each UAV serves."""
     width = max([16, *(len(r.policy) for r in results)])
     def is_fleet(r) -> bool:
-        return r.episode_ues_per_uav is not None and len(r.ues_per_uav) > 1
+        return len(r.ues_per_uav) > 1
 
     fleet = any(is_fleet(r) for r in results)
     head = f"{'scenario':<13} {'policy':<{width}} {'episodes':>8} {'Mbps':>7} {'±95%':>6} {'R_fair':>7}"

@@ -74,10 +74,10 @@ class EvalResult:
     aoa_noise_deg: float
     episode_rate_mbps: np.ndarray
     episode_fair_rate: np.ndarray
+    episode_jain: np.ndarray  # (E,) Jain's index of the UE rates, mean over frames
+    ue_rate_mbps: np.ndarray  # (E, U) each UE's mean rate over its episode
+    episode_ues_per_uav: np.ndarray  # (E, D) UEs each UAV serves, mean over frames
     trajectory: Trajectory | None = field(default=None, repr=False)
-    episode_jain: np.ndarray | None = None  # (E,) Jain's index of the UE rates, mean over frames
-    ue_rate_mbps: np.ndarray | None = None  # (E, U) each UE's mean rate over its episode
-    episode_ues_per_uav: np.ndarray | None = None  # (E, D) UEs each UAV serves, mean over frames
 
     @property
     def mean_rate_mbps(self) -> float:
@@ -111,17 +111,15 @@ class EvalResult:
         return self.episode_ues_per_uav.mean(axis=0)
 
     def to_dict(self) -> dict[str, Any]:
-        out = {
+        return {
             "scenario": self.scenario, "policy": self.policy, "episodes": self.episodes,
             "seed": self.seed, "aoa_noise_deg": self.aoa_noise_deg,
             "mean_rate_mbps": round(self.mean_rate_mbps, 6), "ci95_mbps": round(self.ci95_mbps, 6),
             "mean_fair_rate": round(self.mean_fair_rate, 6),
             "episode_rate_mbps": [round(float(x), 6) for x in self.episode_rate_mbps],
+            "jain_index": round(self.jain_index, 6), "p5_ue_rate_mbps": round(self.p5_ue_rate_mbps, 6),
+            "ues_per_uav": [round(float(x), 4) for x in self.ues_per_uav],
         }
-        if self.episode_jain is not None:
-            out.update({"jain_index": round(self.jain_index, 6), "p5_ue_rate_mbps": round(self.p5_ue_rate_mbps, 6),
-                        "ues_per_uav": [round(float(x), 4) for x in self.ues_per_uav]})
-        return out
 
 
 def evaluate_policy(policy: Policy, cfg: EnvConfig, episodes: int = 100, seed: int = 0,
@@ -149,8 +147,8 @@ def evaluate_policy(policy: Policy, cfg: EnvConfig, episodes: int = 100, seed: i
             trajectory = Trajectory(np.array(uav), np.array(ue), rate, np.array(serving))
     joined = {k: np.concatenate([c[k] for c in per_chunk]) for k in per_chunk[0]}
     return EvalResult(cfg.scenario, policy.name, episodes, seed, cfg.radio.aoa_noise_deg,
-                      joined["rate_mbps"], joined["fair"], trajectory, joined["jain"],
-                      joined["ue_rate_mbps"], joined["cell_size"])
+                      joined["rate_mbps"], joined["fair"], joined["jain"], joined["ue_rate_mbps"],
+                      joined["cell_size"], trajectory)
 
 
 def paired_ratio_ci(num: np.ndarray, den: np.ndarray, n_boot: int = 2000) -> tuple[float, float, float]:

@@ -64,6 +64,11 @@ class ScenarioRow:
         return max(min(paper_ppo, 0.95 * oracle), 0.9 * oracle), "min(paper PPO, 95% oracle)"
 
 
+# Table I's baselines (SPEC; the paper's static and oracle, and our aoa rule), in its column order:
+# the report's table and a sweep's evaluate the same ones.
+TABLE_ONE_BASELINES = ("static", "oracle", "aoa")
+
+
 def evaluate_scenarios(policy_folder: Path, episodes: int, seed: int, overrides: EnvOverrides,
                        progress: Callable[[str], None] = lambda _: None,
                        extra: tuple[str, ...] = ()) -> list[ScenarioRow]:
@@ -71,8 +76,7 @@ def evaluate_scenarios(policy_folder: Path, episodes: int, seed: int, overrides:
     genie on the spatial channel), and the mixed policy if any."""
     rows = []
     mixed = policy_file(policy_folder, MIXED)
-    columns = {"ppo": policy_folder, "static": "static", "oracle": "oracle", "aoa": "aoa",
-               **{name: name for name in extra}, **({"ppo_mixed": mixed} if mixed is not None else {})}
+    columns = {"ppo": policy_folder, **{name: name for name in (*TABLE_ONE_BASELINES, *extra)}, **({"ppo_mixed": mixed} if mixed is not None else {})}
     for scenario in SCENARIOS:
         loaded = load_with_env(list(columns.values()), overrides.on(scenario))
         results = {}
@@ -86,7 +90,7 @@ def evaluate_scenarios(policy_folder: Path, episodes: int, seed: int, overrides:
 
 def table_one(rows: list[ScenarioRow]) -> tuple[list[str], list[list[str]]]:
     has_mixed, has_genie = "ppo_mixed" in rows[0].results, "genie" in rows[0].results
-    header = ["scenario", "PPO", "static", "oracle", "aoa", *(["genie"] if has_genie else []),
+    header = ["scenario", "PPO", *TABLE_ONE_BASELINES, *(["genie"] if has_genie else []),
               *(["PPO mixed"] if has_mixed else []), "gain over static", "paper gain", "PPO / oracle",
               *(["PPO / genie"] if has_genie else []), "PPO vs aoa",
               "R_fair PPO / static / oracle / aoa", "target", "met"]
@@ -104,14 +108,14 @@ def table_one(rows: list[ScenarioRow]) -> tuple[list[str], list[list[str]]]:
             return f"{r[key].mean_rate_mbps:.2f} ± {r[key].ci95_mbps:.2f}"
 
         body.append([
-            row.scenario, cell("ppo"), cell("static"), cell("oracle"), cell("aoa"),
+            row.scenario, cell("ppo"), *(cell(b) for b in TABLE_ONE_BASELINES),
             *([cell("genie")] if has_genie else []), *([cell("ppo_mixed")] if has_mixed else []),
             gain_cell(gain, glo, ghi),
             f"{100 * (paper_ppo / paper_static - 1):+.1f} %",
             share_cell(share, slo, shi),
             *([_share(ppo, r["genie"].episode_rate_mbps)] if has_genie else []),
             gain_cell(vs_aoa, alo, ahi),
-            " / ".join(f"{r[k].mean_fair_rate:.2f}" for k in ("ppo", "static", "oracle", "aoa")),
+            " / ".join(f"{r[k].mean_fair_rate:.2f}" for k in ("ppo", *TABLE_ONE_BASELINES)),
             f"{target:.2f} ({rule})",
             "yes" if r["ppo"].mean_rate_mbps >= target else "no",
         ])

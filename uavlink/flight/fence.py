@@ -50,9 +50,7 @@ def local_origin(link: VehicleLink) -> GeoOrigin | None:
     none came within :data:`HOME_WAIT_S`); None when the vehicle sends none."""
     st = link.status
     if not link.wait_wall(lambda: st.home is not None, HOME_WAIT_S):
-        link.conn.mav.command_long_send(link.target_system, link.target_component,
-                                        mavlink.MAV_CMD_REQUEST_MESSAGE, 0,
-                                        mavlink.MAVLINK_MSG_ID_HOME_POSITION, 0, 0, 0, 0, 0, 0)
+        link.send_command(mavlink.MAV_CMD_REQUEST_MESSAGE, mavlink.MAVLINK_MSG_ID_HOME_POSITION)
         if not link.wait_wall(lambda: st.home is not None, HOME_WAIT_S):
             return None
     home = st.home

@@ -46,7 +46,6 @@ from uavlink.flight.vehicle_control import (
     take_off_or_resume,
     wait_ready,
 )
-from uavlink.mavlink.dialect import mavlink
 from uavlink.mavlink.px4_modes import PX4_MAIN_OFFBOARD
 from uavlink.mavlink.radio_codec import RadioReport, ScoreReport, send_frame_decided
 from uavlink.mobility.fleet import apply_moves, min_separation_m, start_positions_m
@@ -98,7 +97,6 @@ class VehicleRecord:
     decisions: int = 0
     holds: int = 0  # times it left OFFBOARD during the episode (a failsafe hold, say)
     offboard_reentries: int = 0
-    reentry_requests: int = 0
     released: str = ""  # why the loop stopped commanding it ("" while it flies)
     max_silence_s: float = 0.0
 
@@ -325,9 +323,5 @@ class _Loop:
                 self.was_offboard[i] = st.offboard
             if not st.offboard and now - self.last_request[i] >= self.mission.reenter_interval_s:
                 self.last_request[i] = now
-                record.reentry_requests += 1
-                base = mavlink.MAV_MODE_FLAG_CUSTOM_MODE_ENABLED | mavlink.MAV_MODE_FLAG_SAFETY_ARMED
-                link.conn.mav.command_long_send(link.target_system, link.target_component,
-                                                mavlink.MAV_CMD_DO_SET_MODE, 0, base, PX4_MAIN_OFFBOARD,
-                                                0, 0, 0, 0, 0)
+                link.request_mode(PX4_MAIN_OFFBOARD)
         result.offboard_reentries = sum(v.offboard_reentries for v in result.vehicles)

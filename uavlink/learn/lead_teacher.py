@@ -26,7 +26,6 @@ from uavlink.env.core import GroundTruth
 from uavlink.env.observation import FIELDS, OBS_LAYOUT_VERSION, ObservationLayout
 from uavlink.errors import UserError
 from uavlink.policies.baselines import hover_sinr_db
-from uavlink.policies.fleet_baselines import moves_to
 from uavlink.rollout import Actor
 
 
@@ -115,7 +114,7 @@ class LeadTeacher:
         frame = self.layout.newest_frame(obs)
         me = frame["uav_xy_m"]
         target = away_target_m(self.corners, me, leader_xy_m, (frame["served_by"] == 0).any(axis=1))
-        return moves_to(me, target, self.mapping).astype(np.float32)
+        return self.mapping.towards(target - me, 1.0).astype(np.float32)
 
 
 def area_corners_m(cfg: EnvConfig) -> np.ndarray:

@@ -25,7 +25,7 @@ from uavlink.env.observation import ObservationLayout
 from uavlink.errors import UserError
 from uavlink.learn.lead_teacher import area_corners_m, away_target_m, make_lead_teacher
 from uavlink.policies.baselines import AoaPolicy
-from uavlink.policies.fleet_baselines import FleetAoaPolicy, moves_to
+from uavlink.policies.fleet_baselines import FleetAoaPolicy
 from uavlink.policies.registry import make_baseline
 from uavlink.radio.aoa import circular_mean_std_deg, true_aoa_deg
 
@@ -172,4 +172,4 @@ class SoloTeacher:
         centroids = np.repeat(centroid[:, 0], n_uavs, axis=0)  # agent rows
         away = away_target_m(self.corners, truth.uav_xy_m, centroids, serving)
         target = np.where(leader.reshape(-1, 1), centroids, away)
-        return moves_to(truth.uav_xy_m, target, self.mapping)
+        return self.mapping.towards(target - truth.uav_xy_m, 1.0)

@@ -48,17 +48,19 @@ def make_model(cfg: EnvConfig, tc: TrainConfig, run_dir: Path | None):
         env = VecNormalize(env, norm_obs=False, norm_reward=True, gamma=tc.gamma)
     arch = list(tc.net_arch)
     return PPO(
-        "MlpPolicy", env, learning_rate=tc.learning_rate, n_steps=tc.n_steps, batch_size=tc.batch_size,
-        n_epochs=tc.n_epochs, gamma=tc.gamma, gae_lambda=tc.gae_lambda, clip_range=tc.clip_range,
-        ent_coef=tc.ent_coef, vf_coef=tc.vf_coef, max_grad_norm=tc.max_grad_norm,
-        policy_kwargs={"net_arch": {"pi": arch, "vf": arch}}, seed=tc.seed, device="cpu",
-        tensorboard_log=str(run_dir) if run_dir else None, verbose=0,
+        "MlpPolicy", env, **ppo_settings(tc), policy_kwargs={"net_arch": {"pi": arch, "vf": arch}}, seed=tc.seed,
+        device="cpu", tensorboard_log=str(run_dir) if run_dir else None, verbose=0,
     )
 
 
-# The PPO settings a resumed model takes from TrainConfig rather than from its checkpoint.
-RESUMED_SETTINGS = ("learning_rate", "n_steps", "batch_size", "n_epochs", "gamma", "gae_lambda", "clip_range",
-                    "ent_coef", "vf_coef", "max_grad_norm")
+# PPO's settings from TrainConfig (same names on both): a new model's, and what a resumed model takes
+# from the command rather than from its checkpoint.
+PPO_SETTINGS = ("learning_rate", "n_steps", "batch_size", "n_epochs", "gamma", "gae_lambda", "clip_range",
+                "ent_coef", "vf_coef", "max_grad_norm")
+
+
+def ppo_settings(tc: TrainConfig) -> dict[str, float | int]:
+    return {name: getattr(tc, name) for name in PPO_SETTINGS}
 
 
 def check_checkpoint(resume: Path, cfg: EnvConfig, tc: TrainConfig) -> None:
@@ -95,8 +97,7 @@ def _resumed(model: Any, resume: Path, cfg: EnvConfig, tc: TrainConfig, run_dir:
     from stable_baselines3 import PPO
 
     check_checkpoint(resume, cfg, tc)
-    settings = {name: getattr(tc, name) for name in RESUMED_SETTINGS}
-    return PPO.load(resume, env=model.get_env(), device="cpu", custom_objects=settings,
+    return PPO.load(resume, env=model.get_env(), device="cpu", custom_objects=ppo_settings(tc),
                     tensorboard_log=str(run_dir) if run_dir else None)
 
 

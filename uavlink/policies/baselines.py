@@ -9,8 +9,7 @@ from uavlink.env.actions import ActionMapping
 from uavlink.env.core import GroundTruth
 from uavlink.env.observation import ObservationLayout
 from uavlink.policies.base import RulePolicy
-from uavlink.radio.noise import mean_snr_db, noise_power_dbm
-from uavlink.radio.pathloss import mean_rx_power_dbm
+from uavlink.radio.noise import mean_snr_db
 from uavlink.radio.rates import fair_rate, rate_bps
 
 
@@ -86,7 +85,6 @@ class OraclePolicy(RulePolicy):
         self.cand_dist = np.concatenate([[0.0], grid_r.ravel()])
         rad = np.radians(self.cand_angle)
         self.cand_move = self.cand_dist[:, None] * np.stack([np.cos(rad), np.sin(rad)], axis=1)
-        self.noise_dbm = noise_power_dbm(cfg.radio.bandwidth_hz, cfg.radio)
 
     def act(self, obs: np.ndarray, truth: GroundTruth | None = None) -> np.ndarray:
         if truth is None:
@@ -96,10 +94,8 @@ class OraclePolicy(RulePolicy):
         uav_cand = np.clip(truth.uav_xy_m[:, None, :] + self.cand_move[None], -half, half)  # (N, C, 2)
         delta = ue_next[:, None, :, :] - uav_cand[:, :, None, :]  # (N, C, U, 2)
         dist = np.sqrt((delta**2).sum(-1) + self.cfg.area.uav_altitude_m**2)
-        snr = 10.0 ** ((mean_rx_power_dbm(dist, self.cfg.radio) - self.noise_dbm) / 10.0)
+        snr = 10.0 ** (mean_snr_db(dist, self.cfg.radio) / 10.0)
         score = fair_rate(rate_bps(snr, self.cfg.radio.bandwidth_hz, self.cfg.n_ues))  # (N, C)
         best = np.argmax(score, axis=1)
         # Re-derive the actual move after the geofence clip so the action lands where scored.
-        move = uav_cand[np.arange(len(best)), best] - truth.uav_xy_m
-        angle = np.degrees(np.arctan2(move[:, 1], move[:, 0]))
-        return self.mapping.from_polar(angle, np.hypot(move[:, 0], move[:, 1]))
+        return self.mapping.towards(uav_cand[np.arange(len(best)), best] - truth.uav_xy_m, 1.0)

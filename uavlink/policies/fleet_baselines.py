@@ -17,7 +17,7 @@ from uavlink.env.core import GroundTruth
 from uavlink.env.observation import ObservationLayout
 from uavlink.mobility.fleet import separate
 from uavlink.policies.base import RulePolicy
-from uavlink.policies.baselines import hover_sinr_db
+from uavlink.policies.baselines import AoaPolicy, hover_sinr_db
 from uavlink.radio.cells import mean_channel_rate_bps
 from uavlink.radio.pathloss import distance_3d_m, mean_rx_power_dbm
 from uavlink.radio.rates import fair_rate
@@ -29,7 +29,7 @@ class FleetAoaPolicy(RulePolicy):
 
     name = "aoa"
     needs_truth = False
-    sinr_span_db = 10.0  # as the single-UAV rule (uavlink.policies.baselines.AoaPolicy)
+    sinr_span_db = AoaPolicy.sinr_span_db  # full speed this far below the hover SINR, as one UAV's rule
 
     def __init__(self, cfg: EnvConfig, sinr_span_db: float = sinr_span_db) -> None:
         self.sinr_span_db = sinr_span_db  # a warm start's teacher may change it (uavlink.learn.teachers)
@@ -46,12 +46,6 @@ class FleetAoaPolicy(RulePolicy):
         gap = np.nan_to_num((self.hover_sinr_db - mean_sinr_db) / self.sinr_span_db)  # empty cell: 0, hold
         distance = self.mapping.r_max_m * np.clip(gap, 0.0, 1.0)
         return self.mapping.from_polar(frame["cell_aoa_mean_deg"], distance)
-
-
-def moves_to(truth_xy_m: np.ndarray, target_xy_m: np.ndarray, mapping: ActionMapping) -> np.ndarray:
-    """Actions (rows, 2) that move agent rows from ``truth_xy_m`` towards ``target_xy_m`` (r_max at most)."""
-    move = target_xy_m - truth_xy_m
-    return mapping.from_polar(np.degrees(np.arctan2(move[:, 1], move[:, 0])), np.hypot(move[:, 0], move[:, 1]))
 
 
 def mean_fleet_fair_rate(cfg: EnvConfig, uav_xy_m: np.ndarray, ue_xy_m: np.ndarray) -> np.ndarray:
@@ -96,7 +90,7 @@ class FleetOraclePolicy(RulePolicy):
             cand = flat.reshape(n_envs, n_cand, n_uavs, 2)
             score = mean_fleet_fair_rate(cfg, cand, ue_next[:, None])
             plan[:, d] = cand[np.arange(n_envs), score.argmax(axis=1), d]
-        return moves_to(truth.uav_xy_m, plan.reshape(-1, 2), self.mapping)
+        return self.mapping.towards(plan.reshape(-1, 2) - truth.uav_xy_m, 1.0)
 
 
 class KMeansPolicy(RulePolicy):
@@ -130,4 +124,4 @@ class KMeansPolicy(RulePolicy):
         gap = np.linalg.norm(uav[:, :, None] - centroid[:, None], axis=-1)  # (N, UAV, group)
         cost = gap[:, np.arange(n_uavs), self.matchings].sum(axis=2)  # (N, D!)
         target = centroid[np.arange(len(uav))[:, None], self.matchings[cost.argmin(axis=1)]]
-        return moves_to(truth.uav_xy_m, target.reshape(-1, 2), self.mapping)
+        return self.mapping.towards(target.reshape(-1, 2) - truth.uav_xy_m, 1.0)

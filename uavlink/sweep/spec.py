@@ -19,6 +19,7 @@ from typing import Any
 from uavlink.config import EnvConfig, TrainConfig
 from uavlink.config.fields import with_changes
 from uavlink.errors import UserError
+from uavlink.evaluation.tables import TABLE_ONE_BASELINES
 from uavlink.policies.manifest import file_sha256
 
 # Version of Job.settings(); 2: the full validated configs (1 hashed TrainConfig's flat fields with
@@ -35,7 +36,7 @@ NEUTRAL_WARM_START_DEFAULTS: dict[str, Any] = {"leader_policy": "", "policy": ""
 # Warm-start fields that name a policy file: a job's key holds the file's bytes (its sha256), not only
 # its path, so a re-shipped file makes the job (and a sweep record's figures of it) another one.
 POLICY_FILE_FIELDS = ("leader_policy", "policy")
-BASELINE_COLUMNS = ("static", "oracle", "aoa")
+BASELINE_COLUMNS = TABLE_ONE_BASELINES  # a job evaluates Table I's baselines beside its policy
 
 
 class SweepSpecError(UserError):

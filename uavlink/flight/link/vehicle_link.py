@@ -6,8 +6,8 @@ Every message in either direction is written to a .tlog (8-byte big-endian micro
 raw packet, as MAVProxy writes; readable by ``mavlogdump.py``).
 
 Robustness: the link sends its own HEARTBEAT at 1 Hz (so a listening vehicle learns where to
-answer, and as every MAVLink component should); commands are retried about once per second of
-wall time until acknowledged (the vehicle answers retries idempotently); parameter sets are
+answer, and as every MAVLink component should); commands are retried every half second of wall
+time (``ACK_WAIT_S``) until acknowledged (the vehicle answers retries idempotently); parameter sets are
 retried until the vehicle echoes the value. With a signing key everything sent is signed and
 everything received must be signed by the same key (:mod:`uavlink.mavlink.signing`). Telemetry
 that cannot be used (NaN positions, unusable radio scores, garbage bytes) is counted in
@@ -282,12 +282,10 @@ class VehicleLink:
         """COMMAND_LONG to the autopilot, sent again (confirmation 0, 1, ...) every ``ack_wait_s``
         of wall time until an ACK comes (or ``done()``: the telemetry already shows the effect, so
         a lost ACK costs no retry); LinkError on refusal or after ``tries`` sends."""
-        params = tuple(params) + (math.nan,) * (7 - len(params))
         name = enum_name("MAV_CMD", command)
         self._acks.pop(command, None)
         for confirmation in range(tries):
-            self.conn.mav.command_long_send(self.target_system, self.target_component, command,
-                                            min(confirmation, 255), *params)
+            self.send_command(command, *params, confirmation=confirmation)
             if not self.wait_wall(lambda: command in self._acks or (done is not None and done()),
                                   ack_wait_s):
                 continue
@@ -298,6 +296,13 @@ class VehicleLink:
                 raise LinkError(f"vehicle refused {name} (MAV_RESULT {result})")
             return
         raise LinkError(f"no ACK for {name} after {tries} tries")
+
+    def send_command(self, command: int, *params: float, confirmation: int = 0) -> None:
+        """One COMMAND_LONG to the autopilot, unused params NaN; no wait for its ACK (``command``
+        waits)."""
+        params = tuple(params) + (math.nan,) * (7 - len(params))
+        self.conn.mav.command_long_send(self.target_system, self.target_component, command,
+                                        min(confirmation, 255), *params)
 
     def set_param(self, name: str, value: float, tries: int = PARAM_TRIES) -> None:
         """PARAM_SET, sent again until the vehicle's PARAM_VALUE shows the value (REAL32 only)."""
@@ -323,18 +328,25 @@ class VehicleLink:
         self.command(MAV.MAV_CMD_NAV_TAKEOFF)
         self.wait_until(lambda: -self.status.down_m >= altitude_m - 1.0, 120.0, f"take-off to {altitude_m:g} m")
 
+    def _mode_params(self, main: int, sub: int) -> tuple[float, float, float]:
+        """DO_SET_MODE's params for PX4's custom mode ``main``/``sub`` (base mode: custom, armed as now)."""
+        base = MAV.MAV_MODE_FLAG_CUSTOM_MODE_ENABLED | (MAV.MAV_MODE_FLAG_SAFETY_ARMED if self.status.armed else 0)
+        return float(base), float(main), float(sub)
+
+    def request_mode(self, main: int, sub: int = 0) -> None:
+        """DO_SET_MODE sent once, no wait: a loop that flies other vehicles meanwhile asks again."""
+        self.send_command(MAV.MAV_CMD_DO_SET_MODE, *self._mode_params(main, sub))
+
     def set_mode(self, main: int, sub: int = 0, tries: int = COMMAND_TRIES) -> None:
         """DO_SET_MODE; done when ACKed or when a heartbeat received after sending shows the mode."""
         st = self.status
-        base = MAV.MAV_MODE_FLAG_CUSTOM_MODE_ENABLED | (MAV.MAV_MODE_FLAG_SAFETY_ARMED if st.armed else 0)
         beats = st.heartbeats
 
         def shows_mode() -> bool:
             in_mode = st.main_mode == main and (main == PX4_MAIN_OFFBOARD or st.sub_mode == sub)
             return st.heartbeats > beats and in_mode
 
-        self.command(MAV.MAV_CMD_DO_SET_MODE, float(base), float(main), float(sub), tries=tries,
-                     done=shows_mode)
+        self.command(MAV.MAV_CMD_DO_SET_MODE, *self._mode_params(main, sub), tries=tries, done=shows_mode)
 
     def send_setpoint(self, north_m: float, east_m: float, down_m: float) -> None:
         self._last_stream = time.monotonic()

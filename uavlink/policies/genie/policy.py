@@ -30,7 +30,6 @@ from uavlink.env.core import GroundTruth
 from uavlink.mobility import MobilityState, step_mobility
 from uavlink.mobility.fleet import apply_moves
 from uavlink.policies.base import RulePolicy
-from uavlink.policies.fleet_baselines import moves_to
 from uavlink.policies.genie.grid import Grid, best_grid_path, grid_rx_dbm, one_uav_rate_mbps
 from uavlink.radio.cells import mean_channel_rate_bps
 from uavlink.radio.noise import noise_power_dbm
@@ -284,7 +283,7 @@ class GeniePolicy(RulePolicy):
                 or not np.allclose(self.path_m[step], now, atol=1e-6)):
             self.plan(truth)
             step = 0
-        return moves_to(truth.uav_xy_m, self.path_m[step + 1].reshape(-1, 2), self.mapping)
+        return self.mapping.towards(self.path_m[step + 1].reshape(-1, 2) - truth.uav_xy_m, 1.0)
 
     def plan(self, truth: GroundTruth) -> None:
         """Plan every env of the batch from its present state to the episode's end."""
