@@ -177,9 +177,9 @@ def test_a_mixed_policy_flies_its_seeds_scenario_and_matches_its_replay(tmp_path
 
 @pytest.mark.slow
 @pytest.mark.timeout(120)
-def test_fly_flies_the_envs_episode_by_default(tmp_path: Path) -> None:
-    """Without --frames, one episode of the env's own length (here --set episode_frames=6), and its
-    replay evaluates that episode: the flight's frames and the replay's are the same ones."""
+def test_fly_flies_the_envs_episode_by_default_and_replays_what_it_flew(tmp_path: Path) -> None:
+    """Without --frames, one episode of the env's own length (here --set episode_frames=6); with
+    fewer, the episode's first frames; each replay evaluates the frames flown."""
     flown = cli_json("fly", "--policy", "aoa", "--set", "episode_frames=6", "--lockstep", "--out", str(tmp_path),
                      "--json", "--no-picture")
     assert flown["completed"] and flown["frames"] == flown["decisions"] == 6, flown
@@ -187,6 +187,13 @@ def test_fly_flies_the_envs_episode_by_default(tmp_path: Path) -> None:
     assert "episode_frames=6" in replay
     evaluated = cli_json(*replay[1:], "--json")["mean_rate_mbps"]
     assert abs(flown["mean_rate_mbps"] - evaluated) <= 1e-4 * evaluated  # lockstep: float32 positions apart
+    # --frames 5 flies the first 5 frames of a 128-frame episode; its replay, an episode that long
+    short = cli_json("fly", "--policy", "aoa", "--frames", "5", "--lockstep", "--out", str(tmp_path / "short"),
+                     "--json", "--no-picture")
+    replay = shlex.split(short["replay"])
+    assert short["completed"] and short["frames"] == 5 and "episode_frames=5" in replay, short
+    evaluated = cli_json(*replay[1:], "--json")["mean_rate_mbps"]
+    assert abs(short["mean_rate_mbps"] - evaluated) <= 1e-4 * evaluated
 
 
 @pytest.mark.slow

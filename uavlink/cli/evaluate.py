@@ -9,7 +9,14 @@ import json
 import sys
 from pathlib import Path
 
-from uavlink.cli.options import add_env_options, command_line, scenario_list, seed
+from uavlink.cli.options import (
+    add_env_options,
+    command_line,
+    output_file,
+    output_folder,
+    scenario_list,
+    seed,
+)
 from uavlink.config import EnvConfig
 from uavlink.errors import UserError, require
 from uavlink.policies.contract import OVERRIDES_HELP, EnvOverrides, apply_overrides, load_with_env
@@ -76,7 +83,8 @@ def _write_results_folder(args: argparse.Namespace) -> int:
     overrides = EnvOverrides.from_command_line(None, args.aoa_noise_deg, args.overrides)
     apply_overrides(EnvConfig(), overrides.on("no_move"))  # a bad --set fails before the long run
     command = command_line("evaluate", "uavlink evaluate ...")
-    markdown = args.markdown or args.out / "results.md"
+    output_folder(args.out, "--out")  # both checked before the long run, which writes them last
+    markdown = output_file(args.markdown or args.out / "results.md", "--markdown")
 
     if args.spatial is not None and not args.spatial.is_dir():
         raise UserError(f"--spatial {args.spatial}: not a folder of policies")

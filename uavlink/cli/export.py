@@ -6,16 +6,14 @@ import argparse
 import json
 from pathlib import Path
 
-from uavlink.cli.options import seed
+from uavlink.cli.options import output_file, seed
 from uavlink.errors import UserError
 
 
 def cmd_export(args: argparse.Namespace) -> int:
     from uavlink.export import export_onnx, format_report
 
-    out = args.out if args.out is not None else args.policy.with_suffix(".onnx")
-    if out.suffix != ".onnx":
-        raise UserError(f"--out {out}: an exported policy must end in .onnx")
+    out = output_file(args.out if args.out is not None else args.policy.with_suffix(".onnx"), "--out", (".onnx",))
     if args.n_verify < 1:
         raise UserError("--n-verify must be a positive integer")
     from uavlink.policies.registry import BASELINES

@@ -5,7 +5,7 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
-from uavlink.cli.options import seed
+from uavlink.cli.options import output_folder, seed
 from uavlink.errors import EXTRA_OF_MODULE
 from uavlink.policies.contract import OVERRIDES_HELP
 from uavlink.policies.registry import flying_baselines
@@ -14,6 +14,7 @@ from uavlink.policies.registry import flying_baselines
 def cmd_fly(args: argparse.Namespace) -> int:
     from uavlink.flight.fly import run_fly
 
+    output_folder(args.out, "--out")
     return run_fly(args)
 
 

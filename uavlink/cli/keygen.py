@@ -14,6 +14,8 @@ def cmd_keygen(args: argparse.Namespace) -> int:
 
     from uavlink.mavlink.signing import write_key
 
+    if args.out.is_dir():
+        raise UserError(f"--out {args.out} is a folder; give the key file's name")
     try:
         path = write_key(args.out)
     except FileExistsError:

@@ -1,11 +1,12 @@
 """Options more than one command shares: the scenario names, the env overrides (``--scenario``,
-``--aoa-noise-deg``, ``--set``) that ``uavlink.policies.contract.EnvOverrides`` reads, and seeds;
-and the command line a report names."""
+``--aoa-noise-deg``, ``--set``) that ``uavlink.policies.contract.EnvOverrides`` reads, seeds, the
+checks of output paths made before any work, and the command line a report names."""
 
 from __future__ import annotations
 
 import argparse
 import sys
+from pathlib import Path
 
 from uavlink.config import SCENARIO_NAMES, SCENARIOS, check_seed
 from uavlink.errors import ConfigError, UserError
@@ -53,3 +54,27 @@ def command_line(command: str, otherwise: str) -> str:
     """The command that made a report, for the report to name: this process's arguments when it is
     ``uavlink COMMAND ...``, else ``otherwise`` (the command run from Python, e.g. a test)."""
     return "uavlink " + " ".join(sys.argv[1:]) if sys.argv[1:2] == [command] else otherwise
+
+
+def output_folder(path: Path, option: str) -> Path:
+    """``path`` checked as a folder to write into (made later, by the command, once it has work to
+    write): UserError when it or a folder above it is a file. Checked before any work, so a long run
+    does not end in a traceback at its first write."""
+    for above in (path, *path.parents):
+        if above.exists():
+            if not above.is_dir():
+                where = "is a file" if above == path else f"lies under {above}, a file"
+                raise UserError(f"{option} {path} {where}; give a folder")
+            break
+    return path
+
+
+def output_file(path: Path, option: str, suffixes: tuple[str, ...] = ()) -> Path:
+    """``path`` checked as a file to write (its folder made later): UserError when it is a folder,
+    a folder above it is a file, or its suffix is not one of ``suffixes`` (when given)."""
+    if path.is_dir():
+        raise UserError(f"{option} {path} is a folder; give a file name")
+    if suffixes and path.suffix.lower() not in suffixes:
+        raise UserError(f"{option} {path} must end in {' or '.join(suffixes)}")
+    output_folder(path.parent, f"{option} {path}: its folder")
+    return path

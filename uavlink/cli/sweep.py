@@ -7,7 +7,7 @@ import argparse
 import sys
 from pathlib import Path
 
-from uavlink.cli.options import command_line
+from uavlink.cli.options import command_line, output_folder
 from uavlink.errors import UserError
 
 
@@ -26,6 +26,9 @@ def cmd_sweep(args: argparse.Namespace) -> int:
         raise UserError("--workers must be >= 0 (0: run in this process without Dask)")
     if args.retries < 0:
         raise UserError("--retries must be >= 0")
+    output_folder(args.out_root, "--out-root")
+    if args.policies_out is not None:
+        output_folder(args.policies_out, "--policies-out")
     if args.policies_out is not None and len(spec.points()) > 1:
         raise UserError(f"--policies-out needs one setting per scenario; {args.file} has a grid of "
                         f"{len(spec.points())} points")

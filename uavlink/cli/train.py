@@ -7,7 +7,7 @@ import argparse
 import sys
 from pathlib import Path
 
-from uavlink.cli.options import add_env_options
+from uavlink.cli.options import add_env_options, output_file, output_folder
 from uavlink.config import MIXED, SCENARIOS, EnvConfig, TrainConfig
 from uavlink.config.fields import add_options, flag_of, from_options
 from uavlink.errors import UserError, require
@@ -16,6 +16,8 @@ from uavlink.policies.contract import EnvOverrides, apply_overrides
 
 def cmd_train(args: argparse.Namespace) -> int:
     from uavlink.learn.training import check_checkpoint, train
+
+    output_file(args.out, "--out", (".zip",))  # the policy's place, checked before hours of training
 
     cfg = apply_overrides(EnvConfig(), EnvOverrides.from_command_line(args.scenario, args.aoa_noise_deg, args.overrides))
     tc = from_options(TrainConfig, args).validate(cfg, name=lambda path: flag_of(TrainConfig, path))
@@ -29,7 +31,7 @@ def cmd_train(args: argparse.Namespace) -> int:
     require("stable_baselines3")
     if args.resume is not None:
         check_checkpoint(args.resume, cfg, tc)
-    run_dir = args.run_dir or Path("runs") / f"{args.out.stem}-seed{tc.seed}"
+    run_dir = output_folder(args.run_dir or Path("runs") / f"{args.out.stem}-seed{tc.seed}", "--run-dir")
     print(f"training PPO on {cfg.scenario!r} for {tc.total_timesteps(cfg):,} env steps; "
           f"TensorBoard logs and checkpoint in {run_dir}", file=sys.stderr)
     training = train(cfg, tc, args.out, run_dir, resume=args.resume, progress=not args.no_progress)
@@ -64,7 +66,7 @@ def add_train_parser(sub) -> None:
                        description="Train PPO on the batched env. Defaults are the paper's; the training "
                                    "options are TrainConfig's fields (uavlink/config/train.py).")
     add_env_options(p)
-    p.add_argument("--out", type=Path, required=True, help="policy zip to write")
+    p.add_argument("--out", type=Path, required=True, help="policy zip to write (FILE.zip)")
     add_options(p, TrainConfig)
     p.add_argument("--run-dir", type=Path, default=None, help="TensorBoard logs and checkpoint (default runs/OUT-seedN)")
     p.add_argument("--resume", type=Path, default=None,

@@ -182,5 +182,6 @@ def write_results(run: ReportRun, policy_folder: Path, command: str,
         *spatial,
         *fleet,
     ]
+    run.markdown.parent.mkdir(parents=True, exist_ok=True)
     run.markdown.write_text("\n".join(text))
     return run.markdown

@@ -85,7 +85,7 @@ def run_fly(args: argparse.Namespace) -> int:
     if live:
         print(file=sys.stderr)
     summary = {
-        **episode_fields(args, cfg, result.episode), "policy": str(args.policy),
+        **episode_fields(args, cfg, result.episode, mission.frames), "policy": str(args.policy),
         "connect": args.connect or "embedded sitl_stub", "speed_factor": round(speed, 2),
         **result.summary(), "wall_s": round(time.monotonic() - start, 2), "tlog": str(tlog),
         "signing": link.signing.stats() if link.signing else None,

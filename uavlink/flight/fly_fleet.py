@@ -112,7 +112,7 @@ def run_fleet_fly(args: argparse.Namespace, policy: Policy, cfg: EnvConfig, key:
             group.close()
             if tlog_file:
                 tlog_file.close()
-    summary = {**episode_fields(args, cfg, result.episode), "policy": str(args.policy),
+    summary = {**episode_fields(args, cfg, result.episode, mission.frames), "policy": str(args.policy),
                "connect": args.connect or "embedded sitl_stub --fleet", "speed_factor": round(speed, 2),
                **fleet, "wall_s": round(time.monotonic() - start, 2), "tlog": str(tlog)}
     per = "; ".join(f"system {v['system_id']}: {v['decisions']} decisions, {v['holds']} holds"

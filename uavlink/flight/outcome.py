@@ -87,26 +87,30 @@ def signing_hint(link) -> str:
     return ""
 
 
-def episode_fields(args: argparse.Namespace, cfg: EnvConfig, episode: dict[str, int]) -> dict:
+def episode_fields(args: argparse.Namespace, cfg: EnvConfig, episode: dict[str, int], frames: int) -> dict:
     """Which radio episode was flown, its scenario and how to replay it: the vehicle's payload names
     it (its UL_EP_SEED / UL_EPISODE messages); an embedded vehicle serves episode 0 of ``--seed``.
     ``mixed`` draws the episode's scenario from its seed, as the replay's evaluation does: the
     summary names the one flown. A lockstep flight of one UAV is replayed with the vehicle's
-    motion (``uav_motion=px4``)."""
+    motion (``uav_motion=px4``); a flight of the first ``frames`` of the episode, with an episode that
+    long (none for a policy that plans over the episode's length: the model of the field's)."""
     seed = episode.get("seed", args.seed if args.connect is None else None)
     scenario = {"scenario": cfg.scenario}
     if cfg.scenario == MIXED and seed is not None:
         scenario = {"scenario": episode_scenario(cfg, seed), "scenario_drawn_from": MIXED}
     replay = None
-    if seed is not None:
+    short = frames < cfg.episode_frames
+    if seed is not None and not (short and cfg.place_model == "kriging"):
         words = ["uavlink", "evaluate", "--policy", str(args.policy), "--scenario", cfg.scenario,
                  "--seed", str(seed), "--episodes", "1"]
         if args.aoa_noise_deg is not None:
             words += ["--aoa-noise-deg", repr(float(args.aoa_noise_deg))]
         for pair in args.overrides:
             words += ["--set", pair]
-        if getattr(args, "lockstep", False) and cfg.n_uavs == 1 and cfg.uav_motion != "px4":
+        if args.lockstep and cfg.n_uavs == 1 and cfg.uav_motion != "px4":
             words += ["--set", "uav_motion=px4"]
+        if short:  # the episode's first frames are the same in a shorter episode
+            words += ["--set", f"episode_frames={frames}"]
         replay = shlex.join(words)
     return {**scenario, "seed": seed,
             "episode": {"seed": seed, "index": 0, "on_vehicle": episode.get("count")}, "replay": replay}
@@ -121,7 +125,8 @@ def flown_name(summary: dict) -> str:
 def finish(summary: dict, out_dir: Path, as_json: bool, flown_line: str, picture: bool = True) -> int:
     """Draw flight.png from the flight's tlog (unless ``picture`` is off; complete or not), write
     summary.json and print the summary (``--json``); then ``flown_line`` (stdout) for a complete
-    flight, one line on stderr for one that is not; returns the exit status."""
+    flight, one line on stderr for one that is not; then why there is no picture, if there is none
+    (after: the flight's own outcome is the first thing to read). Returns the exit status."""
     if picture:
         summary.update(picture_after_flight(Path(summary["tlog"]), out_dir / "flight.png"))
         flown_line += f", picture {summary['picture']}" if summary.get("picture") else ""
@@ -131,7 +136,11 @@ def finish(summary: dict, out_dir: Path, as_json: bool, flown_line: str, picture
     if summary["completed"]:
         if not as_json:
             print(flown_line)
-        return EXIT_COMPLETE
-    print(f"uavlink fly: flight incomplete ({summary['decisions']} decisions, {summary['frames']} "
-          f"scored frames): {summary['reason']}", file=sys.stderr)
-    return EXIT_INTERRUPTED if summary["interrupted"] else EXIT_INCOMPLETE
+        status = EXIT_COMPLETE
+    else:
+        print(f"uavlink fly: flight incomplete ({summary['decisions']} decisions, {summary['frames']} "
+              f"scored frames): {summary['reason']}", file=sys.stderr)
+        status = EXIT_INTERRUPTED if summary["interrupted"] else EXIT_INCOMPLETE
+    if summary.get("picture_skipped"):
+        print(f"uavlink fly: no flight picture: {summary['picture_skipped']}", file=sys.stderr)
+    return status

@@ -12,7 +12,6 @@ from __future__ import annotations
 import argparse
 import json
 import os
-import sys
 import time
 from dataclasses import asdict
 from pathlib import Path
@@ -52,13 +51,12 @@ def render(tlog: Path, out: Path, gif: bool = False, title: str | None = None) -
 
 def picture_after_flight(tlog: Path, out: Path) -> dict:
     """``uavlink fly``'s picture: ``{"picture": path, "picture_s": seconds}``, or
-    ``{"picture": None, "picture_skipped": why}`` (one line on stderr) when it cannot be drawn; a
-    flight never fails for its picture."""
+    ``{"picture": None, "picture_skipped": why}`` when it cannot be drawn; a flight never fails for
+    its picture."""
     started = time.perf_counter()
     try:
         render(tlog, out)
     except UserError as exc:
-        print(f"uavlink fly: no flight picture: {exc}", file=sys.stderr)
         return {"picture": None, "picture_skipped": str(exc)}
     return {"picture": str(out), "picture_s": round(time.perf_counter() - started, 3)}
 
