@@ -71,7 +71,8 @@ def test_set_overrides_reach_the_env():
 
 @pytest.mark.parametrize(("args", "fragments"), [
     (("--scenario", "zigzag"), ("unknown scenario 'zigzag'", "circular")),
-    (("--set", "warp_drive=1"), ("unknown config key 'warp_drive'",)),
+    (("--set", "warp_drive=1"), ("unknown config key 'warp_drive' (the keys: the fields of uavlink.config.env.EnvConfig)",)),
+    (("--set", "r_max=10"), ("unknown config key 'r_max' (did you mean r_max_m?)",)),
     (("--set", "no_equals_sign"), ("--set expects key=value",)),
     (("--set", "radio.bandwidth_hz=-1"), ("radio.bandwidth_hz must be positive",)),
     (("--set", "n_ues=0"), ("env.n_ues must be a positive integer",)),

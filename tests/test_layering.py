@@ -49,6 +49,7 @@ MAY_IMPORT: dict[str, set[str]] = {
     "uavlink": {"uavlink.config", "uavlink.env"},  # the package itself: registers the Gymnasium id
 }
 MAY_IMPORT["uavlink.cli"] = {u for u in MAY_IMPORT if u.startswith("uavlink")}
+MAY_IMPORT["uavlink.__main__"] = {"uavlink.cli"}  # python -m uavlink
 
 
 @cache

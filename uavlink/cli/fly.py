@@ -53,7 +53,7 @@ def add_fly_parser(sub) -> None:
                    help="override a field of the policy's env (the embedded SITL simulates it too), "
                         "e.g. --set radio.shadowing=false")
     p.add_argument("--speed", type=float, default=20.0,
-                   help="embedded SITL speed factor, > 0 (simulated seconds per wall second)")
+                   help="embedded SITL speed factor, > 0 (simulated seconds per wall second; default 20)")
     p.add_argument("--lockstep", action="store_true",
                    help="run the embedded SITL in lockstep (sitl-stub --lockstep): its time waits for "
                         "each frame's decision, so the flight replays exactly and follows `uavlink "
@@ -65,7 +65,7 @@ def add_fly_parser(sub) -> None:
                    help="folder for flight.tlog, summary.json, flight.png (the flight's picture, "
                         f"as `uavlink plot` draws it; needs pip install 'uavlink[{EXTRA_OF_MODULE['matplotlib']}]') and, "
                         "with the "
-                        "embedded SITL, sitl.log (the vehicle's output)")
+                        "embedded SITL, sitl.log (the vehicle's output) (default runs/fly)")
     p.add_argument("--no-picture", action="store_true", help="do not draw flight.png")
     p.add_argument("--json", action="store_true", help="print the summary as JSON")
     p.add_argument("--quiet", action="store_true", help="no live status line")

@@ -39,7 +39,7 @@ def cmd_train(args: argparse.Namespace) -> int:
     if args.eval_episodes:
         print(f"evaluating {args.out} on {args.eval_episodes} episodes (seed 0) into its manifest", file=sys.stderr)
         for scenario, figures in _attach_evaluation(args.out, cfg, args.eval_episodes).items():
-            print(f"{scenario}: {figures['mean_rate_mbps']:.3f} Mbps +- {figures['ci95_mbps']:.3f} (95 %), "
+            print(f"{scenario}: {figures['mean_rate_mbps']:.3f} Mbps ± {figures['ci95_mbps']:.3f} (95 %), "
                   f"R_fair {figures['mean_fair_rate']:.3f}")
     return 0
 

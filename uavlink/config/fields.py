@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import argparse
 import dataclasses
+import difflib
 import math
 import types
 from collections.abc import Callable
@@ -70,6 +71,15 @@ def config_fields(cls: type) -> list[tuple[dataclasses.Field, Any]]:
     return [(f, _hints(cls)[f.name]) for f in dataclasses.fields(cls)]
 
 
+def field_paths(cls: type, prefix: str = "") -> list[str]:
+    """Every settable dotted path of a config dataclass (``radio.shadowing``), in declaration order."""
+    paths = []
+    for f, hint in config_fields(cls):
+        nested_cls = hint if dataclasses.is_dataclass(hint) else None
+        paths += field_paths(nested_cls, f"{prefix}{f.name}.") if nested_cls else [prefix + f.name]
+    return paths
+
+
 def resolve(cls: type, path: str) -> tuple[type, str] | None:
     """(the dataclass that owns it, field name) for a dotted field path, or None if there is none."""
     head, _, tail = path.partition(".")
@@ -95,7 +105,9 @@ def coerce(cls: type, path: str, value: Any, label: str) -> Any:
             first = dataclasses.fields(group)[0].name
             raise ConfigError(f"{label} is a nested config: pass {_a(group)}, or set its fields one by one "
                               f"({label}.{first}=...), got {value!r}")
-        raise ConfigError(f"unknown config key {label!r}")
+        near = difflib.get_close_matches(path, field_paths(cls), n=3, cutoff=0.6)
+        hint = f"did you mean {' or '.join(near)}?" if near else f"the keys: the fields of {cls.__module__}.{cls.__name__}"
+        raise ConfigError(f"unknown config key {label!r} ({hint})")
     base, optional = kind(_hints(owner)[name])
     if value is None and optional:
         return None
