@@ -321,3 +321,19 @@ def test_a_flight_with_another_key_than_the_vehicles_fails_at_once(tmp_path: Pat
     assert proc.returncode == 1 and elapsed < 15.0, (elapsed, proc.stderr)
     assert "no heartbeat accepted from" in proc.stderr and "signed with another key" in proc.stderr
     assert "pass the key it was started with" in proc.stderr
+
+
+@pytest.mark.slow
+@pytest.mark.timeout(120)
+def test_a_signed_fleet_flight_reports_each_links_signing(tmp_path: Path) -> None:
+    """`fly` of a fleet with a key (the embedded `sitl_stub --fleet 2` signs too): each vehicle's part
+    of the summary says what its link accepted and refused, as one vehicle's summary does."""
+    from conftest import cli_json
+
+    key = write_key(tmp_path / "fleet.key")
+    flown = cli_json("fly", "--policy", "aoa", "--set", "n_uavs=2", "--frames", "4", "--lockstep",
+                     "--signing-key", str(key), "--out", str(tmp_path / "fly"), "--json", "--no-picture")
+    assert flown["completed"] and [v["system_id"] for v in flown["vehicles"]] == [1, 2], flown
+    for vehicle in flown["vehicles"]:
+        assert vehicle["signing"]["accepted"] > 100 and vehicle["link_rejected"] == {}, vehicle
+        assert not any(n for k, n in vehicle["signing"].items() if k.startswith("rejected_")), vehicle

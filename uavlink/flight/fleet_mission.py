@@ -34,7 +34,7 @@ from uavlink.config import EnvConfig
 from uavlink.env.observation import fleet_quantities
 from uavlink.flight.link import LinkError, VehicleLink
 from uavlink.flight.mission import MissionConfig, MissionResult, PolicyPilot
-from uavlink.flight.outcome import EndedBy, judge, signing_hint
+from uavlink.flight.outcome import EndedBy, judge, link_fields, signing_hint
 from uavlink.flight.radio_source import MavlinkRadioSource
 from uavlink.flight.start_point import fly_to_starts
 from uavlink.flight.transit import guard_transit
@@ -106,7 +106,7 @@ class VehicleRecord:
                 "holds": self.holds, "offboard_reentries": self.offboard_reentries,
                 "max_link_silence_s": round(self.max_silence_s, 2), "mode": mode_name(st),
                 "released": self.released or None,
-                "last_position_en_m": [round(st.east_m, 2), round(st.north_m, 2)]}
+                "last_position_en_m": [round(st.east_m, 2), round(st.north_m, 2)], **link_fields(link)}
 
 
 @dataclass

@@ -5,11 +5,8 @@ from __future__ import annotations
 import argparse
 import contextlib
 import logging
-import sys
 import time
 from pathlib import Path
-
-import numpy as np
 
 from uavlink.errors import UserError
 from uavlink.flight.fly_fleet import (
@@ -18,12 +15,10 @@ from uavlink.flight.fly_fleet import (
     run_fleet_fly,
     split_urls,
 )
-from uavlink.flight.outcome import episode_fields, finish, flown_name
+from uavlink.flight.outcome import StatusLine, episode_fields, finish, flown_name, link_fields
 from uavlink.flight.steady import steady_heap
 from uavlink.policies.contract import EnvOverrides, load_with_env
 from uavlink.policies.registry import flying_baselines
-
-log = logging.getLogger("uavlink.fly")
 
 
 def run_fly(args: argparse.Namespace) -> int:
@@ -45,7 +40,6 @@ def run_fly(args: argparse.Namespace) -> int:
         privilege = getattr(policy, "privilege", "needs UE positions (GPS)")
         raise UserError(f"{policy.name} {privilege} and cannot fly; use a policy file or one of "
                         f"{', '.join(flying_baselines())}")
-    live = not (args.quiet or args.json) and sys.stderr.isatty()
     if args.lockstep and args.connect is not None:
         raise UserError("--lockstep sets up the embedded SITL; a vehicle you connect to runs in "
                         "lockstep when started so (sitl-stub --lockstep), and `uavlink fly` answers "
@@ -59,14 +53,7 @@ def run_fly(args: argparse.Namespace) -> int:
     out_dir = args.out
     out_dir.mkdir(parents=True, exist_ok=True)
     tlog = out_dir / "flight.tlog"
-
-
-    def status(frame: int, target: np.ndarray, rate: float | None) -> None:
-        if not live:
-            return
-        rate_text = f"{rate:5.2f} Mbps" if rate is not None else "  --- Mbps"
-        print(f"\rframe {frame + 1:4d}/{mission.frames}  target E {target[0]:7.1f} N {target[1]:7.1f} m  "
-              f"{rate_text}", end="", file=sys.stderr, flush=True)
+    status = StatusLine(args, mission.frames)
 
     sitl = (embedded_vehicles(cfg, args.seed, args.speed, out_dir / "sitl.log",
                               Path(args.signing_key) if key else None, args.lockstep)
@@ -79,17 +66,12 @@ def run_fly(args: argparse.Namespace) -> int:
             speed = link.speed_factor()
         finally:
             link.close()
-            if link.signing is not None and link.signing.rejected_total:
-                log.warning("signing: refused %d packets from the vehicle side (%s)",
-                            link.signing.rejected_total, link.signing.stats())
-    if live:
-        print(file=sys.stderr)
+    status.end()
     summary = {
         **episode_fields(args, cfg, result.episode, mission.frames), "policy": str(args.policy),
         "connect": args.connect or "embedded sitl_stub", "speed_factor": round(speed, 2),
         **result.summary(), "wall_s": round(time.monotonic() - start, 2), "tlog": str(tlog),
-        "signing": link.signing.stats() if link.signing else None,
-        "link_rejected": link.rejects.as_dict(),
+        **link_fields(link),
     }
     return finish(summary, out_dir, args.json,
                   f"flew {summary['frames']} frames of {flown_name(summary)} with {args.policy}: "

@@ -16,7 +16,7 @@ from typing import TYPE_CHECKING
 
 from uavlink.config import EnvConfig, changed_settings, check_seed
 from uavlink.errors import LinkError, UserError
-from uavlink.flight.outcome import episode_fields, finish, flown_name
+from uavlink.flight.outcome import StatusLine, episode_fields, finish, flown_name
 from uavlink.flight.steady import steady_heap
 from uavlink.mavlink.connection import free_udp_port, normalize_connection
 from uavlink.policies.base import Policy
@@ -101,17 +101,19 @@ def run_fleet_fly(args: argparse.Namespace, policy: Policy, cfg: EnvConfig, key:
     sitl = (embedded_vehicles(cfg, args.seed, args.speed, out_dir / "sitl.log",
                               Path(args.signing_key) if key else None, args.lockstep)
             if urls is None else contextlib.nullcontext(urls))
+    status = StatusLine(args, mission.frames)
     start = time.monotonic()
     with steady_heap(), sitl as vehicle_urls:  # frozen before the vehicles talk to us
         group, tlog_file = open_fleet_links(vehicle_urls, cfg.n_uavs, tlog, key)
         try:
-            result = fly_fleet(group.links, pilot, cfg, mission)
+            result = fly_fleet(group.links, pilot, cfg, mission, status=status)
             speed = group.links[0].speed_factor()
             fleet = result.fleet_summary(group.links)
         finally:
             group.close()
             if tlog_file:
                 tlog_file.close()
+    status.end()
     summary = {**episode_fields(args, cfg, result.episode, mission.frames), "policy": str(args.policy),
                "connect": args.connect or "embedded sitl_stub --fleet", "speed_factor": round(speed, 2),
                **fleet, "wall_s": round(time.monotonic() - start, 2), "tlog": str(tlog)}

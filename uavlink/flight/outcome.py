@@ -1,5 +1,6 @@
-"""How ``uavlink fly`` ends: the episode it flew (and the command that replays it), the summary
-file, one line for the user, and the exit status.
+"""What ``uavlink fly`` tells its user: the live status line while it flies; how it ends: the
+episode it flew (and the command that replays it), what each link refused, the summary file, one
+line for the user, and the exit status.
 
 Exit status: 0 when the flight flew every frame it set out to (``completed: true`` in
 summary.json); 1 when it did not (``completed: false`` and ``reason``: no radio reports, an
@@ -13,10 +14,13 @@ from __future__ import annotations
 
 import argparse
 import json
+import logging
 import shlex
 import sys
 from pathlib import Path
 from typing import TYPE_CHECKING
+
+import numpy as np
 
 from uavlink.config import MIXED, EnvConfig
 from uavlink.env.radio_world import episode_scenario
@@ -27,6 +31,35 @@ if TYPE_CHECKING:
     from uavlink.flight.mission import MissionResult
 
 EXIT_COMPLETE, EXIT_INCOMPLETE, EXIT_INTERRUPTED = 0, 1, 130
+log = logging.getLogger("uavlink.fly")
+
+
+class StatusLine:
+    """The live status line, one frame at a time, rewritten in place on stderr (the first UAV's
+    target for a fleet); silent with --quiet or --json or when stderr is not a terminal."""
+
+    def __init__(self, args: argparse.Namespace, frames: int) -> None:
+        self.on = not (args.quiet or args.json) and sys.stderr.isatty()
+        self.frames = frames
+
+    def __call__(self, frame: int, target: np.ndarray, rate: float | None) -> None:
+        if self.on:
+            rate_text = f"{rate:5.2f} Mbps" if rate is not None else "  --- Mbps"
+            print(f"\rframe {frame + 1:4d}/{self.frames}  target E {target[0]:7.1f} N {target[1]:7.1f} m  "
+                  f"{rate_text}", end="", file=sys.stderr, flush=True)
+
+    def end(self) -> None:
+        if self.on:
+            print(file=sys.stderr)
+
+
+def link_fields(link) -> dict:
+    """What a closed link refused, for the summary: signing's counts (None on an unsigned link) and
+    unusable telemetry by kind; refused signed packets are also logged as a warning."""
+    if link.signing is not None and link.signing.rejected_total:
+        log.warning("signing: refused %d packets from system %s's side (%s)", link.signing.rejected_total,
+                    link.target_system, link.signing.stats())
+    return {"signing": link.signing.stats() if link.signing else None, "link_rejected": link.rejects.as_dict()}
 
 
 class EndedBy:
