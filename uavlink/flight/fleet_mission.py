@@ -33,14 +33,19 @@ import numpy as np
 from uavlink.config import EnvConfig
 from uavlink.env.observation import fleet_quantities
 from uavlink.flight.link import LinkError, VehicleLink
-from uavlink.flight.mission import MissionConfig, MissionResult, PolicyPilot
+from uavlink.flight.mission import (
+    MissionConfig,
+    MissionResult,
+    PolicyPilot,
+    episode_over,
+    stream_then_offboard,
+    to_start,
+)
 from uavlink.flight.outcome import EndedBy, judge, link_fields, signing_hint
 from uavlink.flight.radio_source import MavlinkRadioSource
-from uavlink.flight.start_point import fly_to_starts
 from uavlink.flight.transit import guard_transit
 from uavlink.flight.vehicle_control import (
     ending_mode,
-    enter_offboard,
     land,
     mode_name,
     take_off_or_resume,
@@ -48,7 +53,7 @@ from uavlink.flight.vehicle_control import (
 )
 from uavlink.mavlink.px4_modes import PX4_MAIN_OFFBOARD
 from uavlink.mavlink.radio_codec import RadioReport, ScoreReport, send_frame_decided
-from uavlink.mobility.fleet import apply_moves, min_separation_m, start_positions_m
+from uavlink.mobility.fleet import apply_moves, min_separation_m
 
 log = logging.getLogger(__name__)
 
@@ -153,10 +158,8 @@ def _fly_fleet(links, pilot, cfg, mission, status, result: FleetResult) -> None:
         resumed = take_off_or_resume(link, cfg.area.uav_altitude_m,
                                      cfg.area.half_width_m if mission.fence else None, mission.takeoff)
         result.resumed = result.resumed or resumed
-    if not result.resumed:  # what came before (an earlier episode, the wait) is not this flight's
-        fly_to_starts(links, start_positions_m(cfg.n_uavs, cfg.fleet_start_radius_m))
-        befores = [source.take_reports() for source in sources]
-        result.met_start = all(before and not before[-1].running for before in befores)
+    if not result.resumed:
+        result.met_start = to_start(links, sources, cfg)
         scores.clear()
     result.vehicles = [VehicleRecord(link.target_system) for link in links]
     targets = np.array([[link.status.east_m, link.status.north_m] for link in links])
@@ -166,13 +169,7 @@ def _fly_fleet(links, pilot, cfg, mission, status, result: FleetResult) -> None:
         links[i].stream_ned = (float(targets[i, 1]), float(targets[i, 0]), down)
         links[i].send_setpoint(*links[i].stream_ned)
 
-    for i, link in enumerate(links):
-        link.stream_period_vehicle_s = mission.stream_period_vehicle_s
-        send(i)
-    for _ in range(5):
-        links[0].poll(mission.stream_period_vehicle_s / links[0].speed_factor())
-    for link in links:
-        enter_offboard(link, mission.offboard_entry_s)
+    stream_then_offboard(links, send, mission)
     _Loop(links, pilot, cfg, mission, result, sources, scores, targets, send, status).run()
 
 
@@ -218,11 +215,7 @@ class _Loop:
             result.interrupted, result.ended_by = True, EndedBy.INTERRUPTED
         finally:
             result.episode_wall_s = time.monotonic() - started if started else 0.0
-            frames = sorted(k for k in self.scores if 1 <= k <= mission.frames)
-            result.frame_rates_mbps = [self.scores[k].mean_rate_mbps for k in frames]
-            result.frames = len(frames)
-            result.guarded_actions, result.inference_s = self.pilot.guarded, self.pilot.inference_s
-            result.rejected_reports = sum(s.rejected for s in self.sources)
+            result.take_scores(self.scores, mission.frames, self.pilot, sum(s.rejected for s in self.sources))
             for link, record in zip(links, result.vehicles, strict=True):
                 st = link.status
                 if mission.land and st.armed and not ending_mode(st) and not record.released \
@@ -290,9 +283,7 @@ class _Loop:
             send_frame_decided(link.conn.mav, link.target_system, frame, moved is not None and bool(moved[i]))
 
     def _episode_done(self) -> bool:
-        last = max((r.frame for r in self.newest if r is not None), default=-1)
-        return self.mission.frames in self.scores or last >= self.mission.frames + 2 or (
-            last >= self.mission.frames and len(self.scores) >= self.mission.frames)
+        return episode_over(self.mission, self.scores, max((r.frame for r in self.newest if r is not None), default=-1))
 
     def _watch(self, now: float, flying: bool) -> None:
         """Per vehicle: its mode (hold, rejoin, released), its silence; the separation flown."""

@@ -35,7 +35,7 @@ from __future__ import annotations
 import logging
 import math
 import time
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -112,6 +112,14 @@ class MissionResult:
 
     inference_s: list[float] = field(default_factory=list)
 
+    def take_scores(self, scores: dict[int, ScoreReport], frames: int, pilot: PolicyPilot, rejected: int) -> None:
+        """The flight's figures at its end: the payload's score of each frame 1..``frames`` it sent,
+        and what the pilot guarded and spent."""
+        self.frame_rates_mbps = [scores[k].mean_rate_mbps for k in sorted(scores) if 1 <= k <= frames]
+        self.frames = len(self.frame_rates_mbps)
+        self.guarded_actions, self.inference_s = pilot.guarded, pilot.inference_s
+        self.rejected_reports = rejected
+
     def summary(self) -> dict:
         lat_ms = np.array(self.latencies_s) * 1e3 if self.latencies_s else np.array([np.nan])
         inf_us = np.array(self.inference_s) * 1e6 if self.inference_s else np.array([np.nan])
@@ -182,6 +190,34 @@ class PolicyPilot:
         return np.zeros((rows, 2))
 
 
+def to_start(links: Sequence[VehicleLink], sources: Sequence[MavlinkRadioSource], cfg: EnvConfig) -> bool:
+    """Fly each vehicle to its UAV's start (a later flight took off where the last one landed) and
+    drop the reports of what came before (an earlier episode, the wait); whether every payload's
+    episode was still waiting for OFFBOARD, i.e. this flight meets the episode's start."""
+    fly_to_starts(links, start_positions_m(cfg.n_uavs, cfg.fleet_start_radius_m))
+    befores = [source.take_reports() for source in sources]
+    return all(before and not before[-1].running for before in befores)
+
+
+def stream_then_offboard(links: Sequence[VehicleLink], send: Callable[[int], None], mission: MissionConfig) -> None:
+    """PX4 refuses OFFBOARD without a setpoint stream: stream each vehicle's target (``send(i)``) for
+    a moment, then switch each."""
+    for i, link in enumerate(links):
+        link.stream_period_vehicle_s = mission.stream_period_vehicle_s
+        send(i)
+    for _ in range(5):
+        links[0].poll(mission.stream_period_vehicle_s / links[0].speed_factor())
+    for link in links:
+        enter_offboard(link, mission.offboard_entry_s)
+
+
+def episode_over(mission: MissionConfig, scores: dict[int, ScoreReport], last_frame: int) -> bool:
+    """The flight's frames are flown: the last one scored, or the reports two frames past it (its
+    score lost), or past it with every frame scored."""
+    return mission.frames in scores or last_frame >= mission.frames + 2 or (
+        last_frame >= mission.frames and len(scores) >= mission.frames)
+
+
 def fly_mission(link: VehicleLink, pilot: PolicyPilot, cfg: EnvConfig, mission: MissionConfig,
                 radio: RadioSource | None = None,
                 status: Callable[[int, np.ndarray, float | None], None] | None = None) -> MissionResult:
@@ -212,25 +248,18 @@ def _fly(link, pilot, cfg, mission, radio, status, result: MissionResult) -> Non
     half = cfg.area.half_width_m
 
     _take_control(link, mission, cfg.area, result)
-    if not result.resumed:  # what came before (an earlier episode, the wait) is not this flight's
-        fly_to_starts([link], start_positions_m(1, cfg.fleet_start_radius_m))
-        before = source.take_reports()
-        result.met_start = bool(before) and not before[-1].running
+    if not result.resumed:
+        result.met_start = to_start([link], [source], cfg)
         scores.clear()
     st = link.status
     target = np.array([st.east_m, st.north_m])  # env frame: x east, y north
     down = -cfg.area.uav_altitude_m
 
-    def send() -> None:
+    def send(_: int = 0) -> None:
         link.stream_ned = (float(target[1]), float(target[0]), down)
         link.send_setpoint(*link.stream_ned)
 
-    # PX4 refuses OFFBOARD without a setpoint stream: stream for a moment, then switch.
-    link.stream_period_vehicle_s = mission.stream_period_vehicle_s
-    send()
-    for _ in range(5):
-        link.poll(mission.stream_period_vehicle_s / link.speed_factor())
-    enter_offboard(link, mission.offboard_entry_s)
+    stream_then_offboard([link], send, mission)
 
     frames = _FrameTracker()
     last_reentry = -math.inf
@@ -261,8 +290,7 @@ def _fly(link, pilot, cfg, mission, radio, status, result: MissionResult) -> Non
                 if simulated:  # after the setpoint: a lockstep vehicle's time may go on
                     send_frame_decided(link.conn.mav, link.target_system, report.frame,
                                        report.frame < mission.frames)
-            if mission.frames in scores or frames.last >= mission.frames + 2 or (
-                    frames.last >= mission.frames and len(scores) >= mission.frames):
+            if episode_over(mission, scores, frames.last):
                 result.ended_by = EndedBy.EPISODE_DONE
                 break
             if not st.armed or ending_mode(st):
@@ -286,11 +314,7 @@ def _fly(link, pilot, cfg, mission, radio, status, result: MissionResult) -> Non
         result.ended_by = EndedBy.INTERRUPTED
     finally:
         result.episode_wall_s = time.monotonic() - frames.started_wall if frames.started_wall else 0.0
-        result.frame_rates_mbps = [scores[k].mean_rate_mbps for k in sorted(scores) if 1 <= k <= mission.frames]
-        result.frames = len(result.frame_rates_mbps)
-        result.guarded_actions = pilot.guarded
-        result.inference_s = pilot.inference_s
-        result.rejected_reports = getattr(source, "rejected", 0)
+        result.take_scores(scores, mission.frames, pilot, getattr(source, "rejected", 0))
         if mission.land and st.armed and not ending_mode(st) and result.ended_by != EndedBy.LINK_LOST:
             land(link)
         link.stream_ned = None
