@@ -26,7 +26,7 @@ from pathlib import Path
 from typing import BinaryIO
 
 from uavlink.errors import UserError
-from uavlink.flight.link.vehicle_link import MAX_RX_PER_POLL, LinkError, VehicleLink
+from uavlink.flight.link.vehicle_link import LinkError, VehicleLink
 
 DISCOVERY_S = 30.0  # wall seconds to hear every system on a shared URL
 
@@ -52,16 +52,8 @@ class LinkGroup:
                 select.select([m[0].conn.fd for m in members], [], [], timeout_s)
             except (OSError, ValueError):
                 time.sleep(timeout_s)
-        for links in members:
-            owner = links[0]
-            for _ in range(MAX_RX_PER_POLL):
-                msg = owner._recv(blocking=False)
-                if msg is None:
-                    if not owner._readable():
-                        break
-                    continue
-                for i, link in enumerate(links):
-                    link._handle(msg, first=i == 0)
+        for owner, *sharing in members:
+            owner.drain(sharing)
 
     def close(self) -> None:
         for link in reversed(self.links):  # the owners of shared connections last

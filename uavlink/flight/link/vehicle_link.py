@@ -28,7 +28,7 @@ import select
 import struct
 import time
 from collections import deque
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 from pathlib import Path
 from typing import Any, BinaryIO
 
@@ -127,12 +127,22 @@ class VehicleLink:
             return self.group.poll(timeout_s)
         timeout_s = min(timeout_s, self.keep_alive(time.monotonic()))
         msg = self._recv(blocking=True, timeout=timeout_s) if timeout_s > 0 else None
+        if msg is not None:
+            self._handle(msg)
+        self.drain()
+
+    def drain(self, sharing: Sequence[VehicleLink] = ()) -> None:
+        """Handle what waits on this link's connection (at most ``MAX_RX_PER_POLL`` messages), each
+        message also by the links in ``sharing``: others on the same connection (``LinkGroup``)."""
         for _ in range(MAX_RX_PER_POLL):
-            if msg is not None:
-                self._handle(msg)
-            elif not self._readable():  # nothing waiting (a None can also be a garbage datagram)
-                return
             msg = self._recv(blocking=False)
+            if msg is None:
+                if not self._readable():  # nothing waiting (a None can also be a garbage datagram)
+                    return
+                continue
+            self._handle(msg)
+            for link in sharing:
+                link._handle(msg, first=False)
 
     def keep_alive(self, now: float) -> float:
         """Send our HEARTBEAT and the offboard keep-alive setpoint when due; wall seconds until
