@@ -1,5 +1,5 @@
 """The vehicle's global origin (home): :class:`uavlink.mavlink.geo.GeoOrigin`, shared with the flight side."""
 
-from uavlink.mavlink.geo import EARTH_RADIUS_M, GeoOrigin
+from uavlink.mavlink.geo import GeoOrigin
 
-__all__ = ["EARTH_RADIUS_M", "GeoOrigin"]
+__all__ = ["GeoOrigin"]

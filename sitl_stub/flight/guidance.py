@@ -56,8 +56,8 @@ class Orbit:
     """A PX4 orbit: centre (north, east), down of the circle, radius (> 0), signed speed
     (positive = clockwise seen from above, MAVLink's sign convention) and yaw behaviour."""
 
-    center_n: float
-    center_e: float
+    center_north_m: float
+    center_east_m: float
     down_m: float
     radius_m: float
     speed_mps: float
@@ -72,7 +72,7 @@ class Orbit:
     def velocity(self, north_m: float, east_m: float) -> tuple[float, float]:
         """Horizontal velocity that follows the circle: tangential at the orbit speed plus a
         radial P correction towards the circle, limited to |speed| + the radial part."""
-        rn, re = north_m - self.center_n, east_m - self.center_e
+        rn, re = north_m - self.center_north_m, east_m - self.center_east_m
         dist = math.hypot(rn, re)
         if dist < 1e-6:  # at the centre: head out north
             return POS_GAIN * self.radius_m, 0.0
@@ -83,7 +83,7 @@ class Orbit:
 
     def yaw(self, north_m: float, east_m: float) -> float | None:
         """Heading target for the yaw behaviour (None: uncontrolled)."""
-        rn, re = north_m - self.center_n, east_m - self.center_e
+        rn, re = north_m - self.center_north_m, east_m - self.center_east_m
         if self.yaw_behaviour == YAW_HOLD_INITIAL:
             return self.initial_yaw_rad
         if self.yaw_behaviour == YAW_UNCONTROLLED or math.hypot(rn, re) < 1e-6:

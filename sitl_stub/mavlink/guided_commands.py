@@ -119,7 +119,7 @@ def orbit(v: Vehicle, origin: GeoOrigin, p: Sequence[float], frame: int | None) 
     if point is not None:
         cn, ce = origin.to_local(*point)
     else:
-        cn, ce = (old.center_n, old.center_e) if old else (s.north_m, s.east_m)
+        cn, ce = (old.center_north_m, old.center_east_m) if old else (s.north_m, s.east_m)
     height = height_m(p[6], frame, origin)
     down = (old.down_m if old else s.down_m) if height is None else -height
     if yaw_mode == ORBIT_YAW_RC_CONTROLLED:  # no RC here: PX4's default behaviour

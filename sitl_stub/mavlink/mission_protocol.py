@@ -60,8 +60,7 @@ PROTOCOL_TIMEOUT_S = 5.0  # MAVLINK_MISSION_PROTOCOL_TIMEOUT_DEFAULT (wall)
 # PX4's dataman capacity (dataman.h: 64 fence points, 32 safe points; missions
 # CONFIG_NUM_MISSION_ITMES_SUPPORTED, 1000 here)
 MAX_COUNT = {MISSION: 1000, FENCE: 64, RALLY: 32}
-MAV_MISSION_TYPE_ALL = 255
-MISSION_PLANNER_COMPONENT = 190  # MAV_COMP_ID_MISSIONPLANNER: PX4 accepts it as a target
+MISSION_PLANNER_COMPONENT = mavlink.MAV_COMP_ID_MISSIONPLANNER  # PX4 accepts it as a target
 CRITICAL = mavlink.MAV_SEVERITY_CRITICAL
 
 
@@ -341,7 +340,7 @@ class MissionProtocol:
             self._refuse("clear", "busy", "MISSION_CLEAR_ALL during a transfer: Busy")
             return
         self._last_recv = wall
-        types = MISSION_TYPES if msg.mission_type == MAV_MISSION_TYPE_ALL else (
+        types = MISSION_TYPES if msg.mission_type == mavlink.MAV_MISSION_TYPE_ALL else (
             (msg.mission_type,) if msg.mission_type in MISSION_TYPES else ())
         for mission_type in types:
             self.store.replace(mission_type, ())

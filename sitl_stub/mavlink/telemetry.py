@@ -196,7 +196,7 @@ class TelemetrySender:
         o = s.orbit
         if o is None:
             return
-        lat, lon = self.origin.to_global(o.center_n, o.center_e)
+        lat, lon = self.origin.to_global(o.center_north_m, o.center_east_m)
         self.mav.orbit_execution_status_send(_us(s.time_s), o.signed_radius_m,
                                              mavlink.MAV_FRAME_GLOBAL, _e7(lat), _e7(lon),
                                              self.origin.alt_amsl_m - o.down_m)

@@ -35,9 +35,10 @@ from dataclasses import dataclass
 from typing import Any, Protocol, runtime_checkable
 
 from sitl_stub.core.vehicle_state import VehicleState
+from uavlink.mavlink.dialect import mavlink
 from uavlink.mavlink.geo import GeoOrigin
 
-MAV_AUTOPILOT_INVALID = 8
+MAV_AUTOPILOT_INVALID = mavlink.MAV_AUTOPILOT_INVALID
 
 
 @runtime_checkable

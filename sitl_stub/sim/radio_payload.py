@@ -32,6 +32,7 @@ from sitl_stub.sim.payload import MAV_AUTOPILOT_INVALID, PayloadOptions
 from sitl_stub.sim.radio_episodes import RadioEpisodes
 from sitl_stub.sim.ue_truth import send_ue_truth
 from uavlink.config import EnvConfig
+from uavlink.mavlink.dialect import mavlink
 from uavlink.mavlink.geo import GeoOrigin
 from uavlink.mavlink.radio_codec import (
     RADIO_COMPONENT_ID,
@@ -41,11 +42,9 @@ from uavlink.mavlink.radio_codec import (
     encode_score,
 )
 
-MAV_TYPE_ONBOARD_CONTROLLER = 18
-MAV_STATE_ACTIVE = 4
 # The payload component's HEARTBEAT (type, autopilot, base mode, custom mode, state): a companion
 # computer's, never an autopilot's, so a ground link does not take it for the vehicle.
-HEARTBEAT = (MAV_TYPE_ONBOARD_CONTROLLER, MAV_AUTOPILOT_INVALID, 0, 0, MAV_STATE_ACTIVE)
+HEARTBEAT = (mavlink.MAV_TYPE_ONBOARD_CONTROLLER, MAV_AUTOPILOT_INVALID, 0, 0, mavlink.MAV_STATE_ACTIVE)
 READINGS_COPIES = 2  # each frame's readings, sent this many times against packet loss
 
 

@@ -50,6 +50,11 @@ def teacher_dataset(cfg: EnvConfig, teacher: str | Actor, episodes: int, seed: i
     return np.concatenate(observations).astype(np.float32), np.concatenate(actions).astype(np.float32)
 
 
+def actor_mean_parameters(sb3_policy: Any) -> list:
+    """The parameters of the actor's mean (its MLP and action head; not the log std, not the critic)."""
+    return [*sb3_policy.mlp_extractor.policy_net.parameters(), *sb3_policy.action_net.parameters()]
+
+
 def clone_actor(sb3_policy: Any, observations: np.ndarray, actions: np.ndarray, epochs: int = CLONE_EPOCHS,
                 batch_size: int = 1024, learning_rate: float = 1e-3, log_std: float = -1.0,
                 seed: int = 0) -> float:
@@ -59,8 +64,7 @@ def clone_actor(sb3_policy: Any, observations: np.ndarray, actions: np.ndarray, 
 
     generator = torch.Generator().manual_seed(seed)
     obs_t, act_t = torch.as_tensor(observations), torch.as_tensor(actions)
-    params = [*sb3_policy.mlp_extractor.policy_net.parameters(), *sb3_policy.action_net.parameters()]
-    optimizer = torch.optim.Adam(params, lr=learning_rate)
+    optimizer = torch.optim.Adam(actor_mean_parameters(sb3_policy), lr=learning_rate)
     loss_sum = 0.0
     for _ in range(epochs):
         loss_sum, order = 0.0, torch.randperm(len(obs_t), generator=generator)
@@ -97,13 +101,8 @@ def critic_warmup_callback(rollouts: int):
             super().__init__()
             self.rollouts_done = 0
 
-        def _actor_parameters(self):
-            policy = self.model.policy
-            return [*policy.mlp_extractor.policy_net.parameters(), *policy.action_net.parameters(),
-                    policy.log_std]
-
         def _set_frozen(self, frozen: bool) -> None:
-            for param in self._actor_parameters():
+            for param in [*actor_mean_parameters(self.model.policy), self.model.policy.log_std]:
                 param.requires_grad_(not frozen)
 
         def _on_training_start(self) -> None:
