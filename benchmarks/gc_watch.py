@@ -22,12 +22,11 @@ from pathlib import Path
 def watch(fly_args: list[str], min_ms: float, freeze: bool) -> dict:
     import uavlink.flight.fleet_mission
     import uavlink.flight.fly
-    import uavlink.flight.fly_fleet
     import uavlink.flight.mission
     from uavlink.cli import main
 
     if not freeze:  # fly as before the freeze: both entry points' heap left as it is
-        uavlink.flight.fly.steady_heap = uavlink.flight.fly_fleet.steady_heap = contextlib.nullcontext
+        uavlink.flight.fly.steady_heap = contextlib.nullcontext
     passes, started, mission = [], {}, {}
 
     def timed(fly):  # the mission's window, take-off to landing

@@ -56,7 +56,7 @@ def soak(policy: str, scenario: str, seed: int, flights: int, speed: float, loss
     """``flights`` consecutive flights of ``policy`` against one vehicle process started with
     ``seed``; a row per flight and the pass criteria."""
     from sitl_stub.launcher import vehicle_process
-    from uavlink.flight.fly_fleet import vehicle_args
+    from uavlink.flight.vehicles import vehicle_args
     from uavlink.mavlink.connection import free_udp_port
     from uavlink.policies.contract import EnvOverrides, load_with_env
 

@@ -15,7 +15,7 @@ import pytest
 from conftest import ROOT, UAVLINK, cli_json, run_uavlink
 
 from sitl_stub.launcher import vehicle_process
-from uavlink.flight.fly_fleet import vehicle_args
+from uavlink.flight.vehicles import vehicle_args
 from uavlink.mavlink.connection import free_udp_port
 from uavlink.mavlink.dialect import mavlink, mavutil
 from uavlink.policies.contract import EnvOverrides, load_with_env

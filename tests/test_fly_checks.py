@@ -140,10 +140,10 @@ def test_judge_puts_the_fix_in_place_of_check_the_vehicle_is_running() -> None:
 def test_fly_reports_an_embedded_vehicle_that_exits_at_start_at_once(tmp_path: Path, monkeypatch) -> None:
     """A vehicle that refuses its arguments: fly ends within seconds with the vehicle's own line,
     not after 30 s of waiting for a heartbeat."""
-    import uavlink.flight.fly_fleet as fly_fleet
+    import uavlink.flight.vehicles as vehicles
 
-    given = fly_fleet.vehicle_args
-    monkeypatch.setattr(fly_fleet, "vehicle_args", lambda *a, **k: [*given(*a, **k), "--scenario", "nowhere"])
+    given = vehicles.vehicle_args
+    monkeypatch.setattr(vehicles, "vehicle_args", lambda *a, **k: [*given(*a, **k), "--scenario", "nowhere"])
     started = time.monotonic()
     proc = run_uavlink_in_process("fly", "--policy", "aoa", "--frames", "3", "--out", str(tmp_path))
     assert time.monotonic() - started < 15.0

@@ -165,7 +165,7 @@ def test_the_graph_sees_imports_inside_functions_and_skips_type_checking() -> No
     # uavlink.cli's commands import what runs them inside the functions that run them
     cli = set().union(*(targets for name, targets in graph.items() if _unit(name) == "uavlink.cli"))
     assert {"uavlink.learn.training", "uavlink.evaluation.report", "uavlink.flight.fly"} <= cli
-    assert "sitl_stub.launcher" in graph["uavlink.flight.fly_fleet"]  # inside started_vehicle()
+    assert "sitl_stub.launcher" in graph["uavlink.flight.vehicles"]  # inside started_vehicle()
     assert _cycles({"a": {"b"}, "b": {"c"}, "c": {"a"}, "d": {"a"}}) == [["a", "b", "c"]]
 
 

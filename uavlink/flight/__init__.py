@@ -3,8 +3,8 @@ link, what it knows of each system, a fleet's links as one group), ``radio_sourc
 radio readings), ``vehicle_control`` (wait until ready, take off, OFFBOARD, land), ``mission`` and
 ``fleet_mission`` (the fly loop for one UAV and a fleet), ``outcome`` (was the flight complete, and
 if not why and what to do), ``steady`` (a frozen heap while flying), ``start_point`` (a later flight
-flies to the episode's start first), ``fence``, ``transit``, and ``fly`` / ``fly_fleet`` (the
-command: an embedded SITL vehicle or a given connection). Layer: the top, below only the CLI.
+flies to the episode's start first), ``fence``, ``transit``, ``vehicles`` (the embedded SITL or
+the vehicles ``--connect`` names) and ``fly`` (the command). Layer: the top, below only the CLI.
 
 May import: ``config``, ``errors``, ``mobility``, ``env``, ``mavlink``, ``policies``, ``plot`` (the
 flight picture) and ``sitl_stub.launcher`` (the vehicle as a child process); never ``learn``,

@@ -1,4 +1,6 @@
-"""The ``uavlink fly`` command: policy + link + (optionally) an embedded SITL vehicle."""
+"""The ``uavlink fly`` command: a policy, its vehicle(s) (``uavlink.flight.vehicles``: the embedded
+SITL or ``--connect``) and the loop that flies one vehicle (``mission``) or a fleet, the policy's env
+having ``n_uavs`` > 1 (``fleet_mission``); then the summary and the picture (``outcome``)."""
 
 from __future__ import annotations
 
@@ -6,19 +8,21 @@ import argparse
 import contextlib
 import logging
 import time
+from collections.abc import Sequence
 from pathlib import Path
+from typing import TYPE_CHECKING
 
+from uavlink.config import EnvConfig
 from uavlink.errors import UserError
-from uavlink.flight.fly_fleet import (
-    check_vehicle_options,
-    embedded_vehicles,
-    run_fleet_fly,
-    split_urls,
-)
 from uavlink.flight.outcome import StatusLine, episode_fields, finish, flown_name, link_fields
 from uavlink.flight.steady import steady_heap
+from uavlink.flight.vehicles import check_vehicle_options, embedded_vehicles, split_urls
 from uavlink.policies.contract import EnvOverrides, load_with_env
 from uavlink.policies.registry import flying_baselines
+
+if TYPE_CHECKING:
+    from uavlink.flight.mission import MissionConfig
+    from uavlink.policies.base import Policy
 
 
 def run_fly(args: argparse.Namespace) -> int:
@@ -77,5 +81,45 @@ def run_fly(args: argparse.Namespace) -> int:
                   f"flew {summary['frames']} frames of {flown_name(summary)} with {args.policy}: "
                   f"mean UE throughput {summary['mean_rate_mbps']} Mbps; decision latency p50 "
                   f"{summary['latency_ms_p50']} ms, p99 {summary['latency_ms_p99']} ms; "
+                  f"log {tlog}, summary {out_dir / 'summary.json'}",
+                  picture=not args.no_picture)
+
+
+def run_fleet_fly(args: argparse.Namespace, policy: Policy, cfg: EnvConfig, key: bytes | None,
+                  mission: MissionConfig) -> int:
+    """``run_fly`` for a fleet: the options checked there, one vehicle per UAV."""
+    from uavlink.flight.fleet_mission import FleetPilot, fly_fleet
+    from uavlink.flight.link.group import open_fleet_links
+
+    pilot = FleetPilot(policy, cfg)  # layout checks before anything is armed
+    urls: Sequence[str] | None = split_urls(args.connect) if args.connect else None
+    out_dir = args.out
+    out_dir.mkdir(parents=True, exist_ok=True)
+    tlog = out_dir / "flight.tlog"
+    sitl = (embedded_vehicles(cfg, args.seed, args.speed, out_dir / "sitl.log",
+                              Path(args.signing_key) if key else None, args.lockstep)
+            if urls is None else contextlib.nullcontext(urls))
+    status = StatusLine(args, mission.frames)
+    start = time.monotonic()
+    with steady_heap(), sitl as vehicle_urls:  # frozen before the vehicles talk to us
+        group, tlog_file = open_fleet_links(vehicle_urls, cfg.n_uavs, tlog, key)
+        try:
+            result = fly_fleet(group.links, pilot, cfg, mission, status=status)
+            speed = group.links[0].speed_factor()
+            fleet = result.fleet_summary(group.links)
+        finally:
+            group.close()
+            if tlog_file:
+                tlog_file.close()
+    status.end()
+    summary = {**episode_fields(args, cfg, result.episode, mission.frames), "policy": str(args.policy),
+               "connect": args.connect or "embedded sitl_stub --fleet", "speed_factor": round(speed, 2),
+               **fleet, "wall_s": round(time.monotonic() - start, 2), "tlog": str(tlog)}
+    per = "; ".join(f"system {v['system_id']}: {v['decisions']} decisions, {v['holds']} holds"
+                    for v in summary["vehicles"])
+    return finish(summary, out_dir, args.json,
+                  f"flew {summary['frames']} frames of {flown_name(summary)} with {args.policy} and "
+                  f"{cfg.n_uavs} vehicles: mean UE throughput {summary['mean_rate_mbps']} Mbps; "
+                  f"min separation flown {summary['min_separation_flown_m']} m; {per}; "
                   f"log {tlog}, summary {out_dir / 'summary.json'}",
                   picture=not args.no_picture)

@@ -1,28 +1,18 @@
-"""``uavlink fly`` for a fleet (the policy's env has ``n_uavs`` > 1): the embedded
-``sitl_stub --fleet D`` (one vehicle per free loopback port) or ``--connect URL1,URL2,...`` (one
-URL per vehicle, or one URL carrying every system); :mod:`uavlink.flight.fleet_mission` flies it.
-What ``uavlink.flight.fly`` shares with it for one vehicle lives here too: the checks of
-``--seed``, ``--speed`` and ``--connect``, and the embedded vehicle (``embedded_vehicles``)."""
+"""The vehicles a flight flies: the embedded ``sitl_stub`` (``--fleet D`` for a fleet; one vehicle
+per free loopback port) started for the flight, or those ``--connect URL1,URL2,...`` names (one URL
+per vehicle, or one URL carrying every system); the checks of ``--seed``, ``--speed`` and
+``--connect`` made before anything starts."""
 
 from __future__ import annotations
 
-import argparse
 import contextlib
 import math
-import time
-from collections.abc import Iterator, Sequence
+from collections.abc import Iterator
 from pathlib import Path
-from typing import TYPE_CHECKING
 
 from uavlink.config import EnvConfig, changed_settings, check_seed
 from uavlink.errors import LinkError, UserError
-from uavlink.flight.outcome import StatusLine, episode_fields, finish, flown_name
-from uavlink.flight.steady import steady_heap
 from uavlink.mavlink.connection import free_udp_port, normalize_connection
-from uavlink.policies.base import Policy
-
-if TYPE_CHECKING:
-    from uavlink.flight.mission import MissionConfig
 
 VEHICLE_START_S = 30.0  # wall seconds for the embedded vehicle to open its links (as the heartbeat wait)
 
@@ -86,42 +76,3 @@ def embedded_vehicles(cfg: EnvConfig, seed: int, speed: float, log_path: Path,
     args = vehicle_args(cfg, seed, lockstep, signing_key_file)
     with started_vehicle([f"udpout:127.0.0.1:{p}" for p in ports], speed, args, log_path):
         yield [f"udpin:127.0.0.1:{p}" for p in ports]
-
-
-def run_fleet_fly(args: argparse.Namespace, policy: Policy, cfg: EnvConfig, key: bytes | None,
-                  mission: MissionConfig) -> int:
-    from uavlink.flight.fleet_mission import FleetPilot, fly_fleet
-    from uavlink.flight.link.group import open_fleet_links
-
-    pilot = FleetPilot(policy, cfg)  # layout checks before anything is armed
-    urls: Sequence[str] | None = split_urls(args.connect) if args.connect else None
-    out_dir = args.out
-    out_dir.mkdir(parents=True, exist_ok=True)
-    tlog = out_dir / "flight.tlog"
-    sitl = (embedded_vehicles(cfg, args.seed, args.speed, out_dir / "sitl.log",
-                              Path(args.signing_key) if key else None, args.lockstep)
-            if urls is None else contextlib.nullcontext(urls))
-    status = StatusLine(args, mission.frames)
-    start = time.monotonic()
-    with steady_heap(), sitl as vehicle_urls:  # frozen before the vehicles talk to us
-        group, tlog_file = open_fleet_links(vehicle_urls, cfg.n_uavs, tlog, key)
-        try:
-            result = fly_fleet(group.links, pilot, cfg, mission, status=status)
-            speed = group.links[0].speed_factor()
-            fleet = result.fleet_summary(group.links)
-        finally:
-            group.close()
-            if tlog_file:
-                tlog_file.close()
-    status.end()
-    summary = {**episode_fields(args, cfg, result.episode, mission.frames), "policy": str(args.policy),
-               "connect": args.connect or "embedded sitl_stub --fleet", "speed_factor": round(speed, 2),
-               **fleet, "wall_s": round(time.monotonic() - start, 2), "tlog": str(tlog)}
-    per = "; ".join(f"system {v['system_id']}: {v['decisions']} decisions, {v['holds']} holds"
-                    for v in summary["vehicles"])
-    return finish(summary, out_dir, args.json,
-                  f"flew {summary['frames']} frames of {flown_name(summary)} with {args.policy} and "
-                  f"{cfg.n_uavs} vehicles: mean UE throughput {summary['mean_rate_mbps']} Mbps; "
-                  f"min separation flown {summary['min_separation_flown_m']} m; {per}; "
-                  f"log {tlog}, summary {out_dir / 'summary.json'}",
-                  picture=not args.no_picture)
