@@ -20,9 +20,7 @@ from pathlib import Path
 
 
 def watch(fly_args: list[str], min_ms: float, freeze: bool) -> dict:
-    import uavlink.flight.fleet_mission
     import uavlink.flight.fly
-    import uavlink.flight.mission
     from uavlink.cli import main
 
     if not freeze:  # fly as before the freeze: both entry points' heap left as it is
@@ -38,8 +36,8 @@ def watch(fly_args: list[str], min_ms: float, freeze: bool) -> dict:
                 mission["end"] = time.perf_counter()
         return run
 
-    uavlink.flight.mission.fly_mission = timed(uavlink.flight.mission.fly_mission)
-    uavlink.flight.fleet_mission.fly_fleet = timed(uavlink.flight.fleet_mission.fly_fleet)
+    uavlink.flight.fly.fly_mission = timed(uavlink.flight.fly.fly_mission)
+    uavlink.flight.fly.fly_fleet = timed(uavlink.flight.fly.fly_fleet)
 
     def on_gc(phase: str, info: dict) -> None:
         if phase == "start":
