@@ -65,8 +65,10 @@ def test_set_overrides_reach_the_env():
     assert all(rate == pytest.approx(8.08, abs=0.02) for rate in quiet["episode_rate_mbps"])
     loud = json.loads(uavlink(*base, "--set", "tx_power_dbm=29").stdout)
     assert loud["mean_rate_mbps"] > quiet["mean_rate_mbps"] + 2.0
-    noisy = json.loads(uavlink(*base, "--aoa-noise-deg", "5").stdout)
-    assert noisy["aoa_noise_deg"] == 5.0
+    # the AoA noise reaches the env: the aoa rule, which steers by the AoAs, flies other paths
+    steered = ("evaluate", "--scenario", "circular", "--policy", "aoa", "--episodes", "3", "--json")
+    clean, noisy = (json.loads(uavlink(*steered, "--aoa-noise-deg", deg).stdout) for deg in ("0", "30"))
+    assert noisy["aoa_noise_deg"] == 30.0 and noisy["episode_rate_mbps"] != clean["episode_rate_mbps"]
 
 
 @pytest.mark.parametrize(("args", "fragments"), [

@@ -208,10 +208,9 @@ def test_plot_refuses_empty_damaged_and_missing_logs(tmp_path: Path) -> None:
 @pytest.mark.slow
 @pytest.mark.timeout(240)
 def test_fly_draws_its_picture_and_plot_draws_the_same(tmp_path: Path) -> None:
-    # --speed 10: at 20x a loaded machine can stall the offboard stream past PX4's loss timeout (50 ms
-    # of wall time); the vehicle then flies a frame in HOLD that `fly` decided, and no picture counts
-    summary = cli_json("fly", "--policy", "aoa", "--frames", "16", "--speed", "10", "--out", str(tmp_path),
-                       "--json")
+    # --lockstep: the vehicle waits for each frame's decision, so a loaded machine neither stalls the
+    # offboard stream into HOLD nor hands the loop two frames at once (one observed, not decided)
+    summary = cli_json("fly", "--policy", "aoa", "--frames", "16", "--lockstep", "--out", str(tmp_path), "--json")
     tlog, png = tmp_path / "flight.tlog", tmp_path / "flight.png"
     assert summary["picture"] == str(png) and summary["picture_s"] > 0
     drawn = plot_json(str(tlog), "--out", str(tmp_path / "again.png"))
@@ -300,7 +299,7 @@ def test_flight_loop_never_receives_the_ue_truth(tmp_path: Path) -> None:
     log.close()
     assert truth >= 8 * cfg.n_ues  # the link heard the truth, every frame
     assert source.fed and set(source.fed) == {"DEBUG_FLOAT_ARRAY:UL_RADIO"}
-    assert observed and set(observed) == {"RadioReport"}
+    assert len(observed) >= 8  # every frame reached the builder, and only through that source
 
 
 @pytest.mark.slow

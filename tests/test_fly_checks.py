@@ -146,7 +146,7 @@ def test_fly_reports_an_embedded_vehicle_that_exits_at_start_at_once(tmp_path: P
     monkeypatch.setattr(vehicles, "vehicle_args", lambda *a, **k: [*given(*a, **k), "--scenario", "nowhere"])
     started = time.monotonic()
     proc = run_uavlink_in_process("fly", "--policy", "aoa", "--frames", "3", "--out", str(tmp_path))
-    assert time.monotonic() - started < 15.0
+    assert time.monotonic() - started < 25.0  # not the 30 s heartbeat wait (a child's start under load: seconds)
     assert proc.returncode == 1 and "Traceback" not in proc.stderr
     [line] = proc.stderr.strip().splitlines()
     assert line.startswith("uavlink fly: error: the embedded vehicle (sitl-stub) exited with status 2: "

@@ -6,6 +6,7 @@ whole flights of the shipped map policy through `uavlink fly --lockstep`.
 
 from __future__ import annotations
 
+import json
 import shlex
 import time
 from typing import Any
@@ -160,6 +161,9 @@ def test_a_lockstep_flight_replays_and_matches_the_px4_motion_evaluation(tmp_pat
     flown = [f["mean_rate_mbps"] for f in flights]
     print(f"\n{policy} on no_move seed {seed}: flown in lockstep {flown} Mbps, evaluated (px4 motion) {evaluated:.6f}")
     assert all(f["frames"] == 128 and f["decisions"] == 128 and f["completed"] for f in flights)
+    for k in range(2):  # the vehicle waited for every decision (a timeout would part the two runs)
+        stats = json.loads((tmp_path / str(k) / "sitl.log").read_text().split("sitl-stub: stats ")[-1])
+        assert set(_found(stats, "lockstep_timeouts")) == {0}, stats
     assert flown[0] == flown[1]
     assert abs(flown[0] - evaluated) <= 0.05 * evaluated
 
@@ -173,5 +177,15 @@ def test_a_fleet_flies_in_lockstep_and_replays(tmp_path) -> None:
                         "--policy", "aoa", "--set", "n_uavs=2", "--scenario", "circular", "--frames", "30")
                for k in range(2)]
     assert all(f["frames"] == 30 and f["completed"] for f in flights)
+    assert all(v["decisions"] == 30 for f in flights for v in f["vehicles"]), [f["vehicles"] for f in flights]
     assert flights[0]["mean_rate_mbps"] == flights[1]["mean_rate_mbps"]
-    assert '"lockstep_timeouts": 0' in (tmp_path / "0" / "sitl.log").read_text()
+    for k in range(2):  # every vehicle's world waited for each decision; none timed out
+        stats = json.loads((tmp_path / str(k) / "sitl.log").read_text().split("sitl-stub: stats ")[-1])
+        assert _found(stats, "lockstep_timeouts") and set(_found(stats, "lockstep_timeouts")) == {0}, stats
+
+
+def _found(tree, key: str) -> list:
+    """Every value of ``key`` anywhere in a JSON tree."""
+    if isinstance(tree, dict):
+        return [v for k, v in tree.items() if k == key] + [x for v in tree.values() for x in _found(v, key)]
+    return [x for v in tree for x in _found(v, key)] if isinstance(tree, list) else []

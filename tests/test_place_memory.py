@@ -147,8 +147,10 @@ def test_explore_beats_hovering_on_no_move_and_flies_a_fleet() -> None:
     fleet = SPATIAL.replace(n_uavs=2, scenario="straight_180")
     policy = make_baseline("explore", fleet)
     assert policy.layout.version == 4
-    result = evaluate_policy(policy, baseline_env("explore", fleet), 2, 0)
-    assert result.mean_rate_mbps > 0
+    result = evaluate_policy(policy, baseline_env("explore", fleet), 2, 0, record_trajectory=True)
+    # each UAV searches its own cross: both fly its 48 m arms from their starts
+    reach_m = np.abs(result.trajectory.uav_xy_m - result.trajectory.uav_xy_m[0]).max(axis=(0, 2))
+    assert reach_m.shape == (2,) and (reach_m >= 40.0).all(), reach_m
 
 
 def test_evaluate_explore_from_the_command_line() -> None:

@@ -10,6 +10,7 @@ import logging
 import re
 import subprocess
 import sys
+import time
 from pathlib import Path
 
 import pytest
@@ -96,15 +97,22 @@ def test_log_lines_carry_the_programs_prefix() -> None:
 
 
 def test_a_log_line_before_the_ready_line_is_not_taken_for_it(tmp_path: Path) -> None:
-    log = tmp_path / "vehicle.log"
+    log, go = tmp_path / "vehicle.log", tmp_path / "go"
+    # the ready line only once the test says so (the flag file): no race with a loaded machine
     script = ("echo 'sitl-stub: rejected input: bad MAVLink data (counted as bad_data; logged once)'; "
-              "sleep 0.5; echo 'sitl-stub: fleet of 2 vehicles (one shared radio world) on "
-              "udpout:127.0.0.1:1, udpout:127.0.0.1:2, 20x real time, 1 payload(s), signing off'; sleep 5")
+              f"while [ ! -e {go} ]; do sleep 0.05; done; echo 'sitl-stub: fleet of 2 vehicles (one shared "
+              "radio world) on udpout:127.0.0.1:1, udpout:127.0.0.1:2, 20x real time, 1 payload(s), "
+              "signing off'; sleep 5")
     with open(log, "wb") as out:
         proc = subprocess.Popen(["sh", "-c", script], stdout=out, stderr=subprocess.STDOUT)
     child = VehicleProcess(proc, log)
     try:
-        assert child.wait_started(0.2) is False  # only the log line so far
+        deadline = time.monotonic() + 10.0
+        while "rejected input" not in log.read_text() and time.monotonic() < deadline:
+            time.sleep(0.02)
+        assert "rejected input" in log.read_text()
+        assert child.wait_started(0.2) is False  # the log line is there, the ready line not yet
+        go.touch()
         assert child.wait_started(10.0) is True
     finally:
         child.stop()

@@ -137,6 +137,6 @@ def test_unknown_command_is_unsupported_at_once(flying):
     assert gcs.command(31000, 1, 2, 3) == U  # MAV_CMD_USER_1
     assert command_int(gcs, mavlink.MAV_CMD_DO_SET_ROI_LOCATION, mavlink.MAV_FRAME_GLOBAL_INT,
                        (NAN, NAN, NAN, NAN), 0, 0, NAN) == U
-    assert time.monotonic() - t0 < 1.0
+    assert time.monotonic() - t0 < 2.0  # answered, not left to the 3 s ACK waits (a loaded machine's margin)
     gcs.wait(lambda: server.report()["rejected"].get("command_unsupported") == 2, 2,
              "both counted")  # counted just after the ACK is sent

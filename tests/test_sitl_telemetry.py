@@ -149,10 +149,16 @@ def test_streams_arrive_at_their_rates_and_the_battery_drains_in_flight() -> Non
             # delayed ATTITUDE on a loaded machine (0.75 then 1.37 s seen)
             _assert_period(_stamped_intervals_s(before, "GPS_RAW_INT"), 1.0)
             assert {m.battery_remaining for m in before if m.get_type() == "BATTERY_STATUS"} == {100}
-            # HOME_POSITION on request (MAVSDK asks until it comes), before the next periodic one
+            # HOME_POSITION on request (MAVSDK asks until it comes): with its periodic stream off,
+            # exactly one arrives, and only once asked
+            assert _command(gcs, mavlink.MAV_CMD_SET_MESSAGE_INTERVAL, mavlink.MAVLINK_MSG_ID_HOME_POSITION,
+                            -1) == mavlink.MAV_RESULT_ACCEPTED
+            assert not [m for m in _collect(gcs, 6.0 / SPEED) if m.get_type() == "HOME_POSITION"][1:]
+            assert not [m for m in _collect(gcs, 6.0 / SPEED) if m.get_type() == "HOME_POSITION"]
             assert _command(gcs, mavlink.MAV_CMD_REQUEST_MESSAGE,
                             mavlink.MAVLINK_MSG_ID_HOME_POSITION) == mavlink.MAV_RESULT_ACCEPTED
-            assert gcs.recv_match(type="HOME_POSITION", blocking=True, timeout=1.0) is not None
+            asked = [m for m in _collect(gcs, 6.0 / SPEED) if m.get_type() == "HOME_POSITION"]
+            assert len(asked) == 1
 
             assert _command(gcs, mavlink.MAV_CMD_COMPONENT_ARM_DISARM, 1) == 0
             assert _command(gcs, mavlink.MAV_CMD_NAV_TAKEOFF, *[float("nan")] * 7) == 0
