@@ -65,7 +65,7 @@ def add_fly_parser(sub) -> None:
                    help="folder for flight.tlog, summary.json, flight.png (the flight's picture, "
                         f"as `uavlink plot` draws it; needs pip install 'uavlink[{EXTRA_OF_MODULE['matplotlib']}]') and, "
                         "with the "
-                        "embedded SITL, sitl.log (the vehicle's output) (default runs/fly)")
+                        "embedded SITL, sitl.log (the vehicle's output); default runs/fly")
     p.add_argument("--no-picture", action="store_true", help="do not draw flight.png")
     p.add_argument("--json", action="store_true", help="print the summary as JSON")
     p.add_argument("--quiet", action="store_true", help="no live status line")

@@ -29,9 +29,9 @@ def cmd_sweep(args: argparse.Namespace) -> int:
     output_folder(args.out_root, "--out-root")
     if args.policies_out is not None:
         output_folder(args.policies_out, "--policies-out")
-    if args.policies_out is not None and len(spec.points()) > 1:
-        raise UserError(f"--policies-out needs one setting per scenario; {args.file} has a grid of "
-                        f"{len(spec.points())} points")
+        if len(spec.points()) > 1:
+            raise UserError(f"--policies-out needs one setting per scenario; {args.file} has a grid of "
+                            f"{len(spec.points())} points")
     # Jobs in the record shipped with the policies are done: only a changed recipe's jobs run again.
     record = read_record(record_path(args.policies_out, spec)) if args.policies_out is not None else {}
     if args.dry_run:

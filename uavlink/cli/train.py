@@ -18,7 +18,6 @@ def cmd_train(args: argparse.Namespace) -> int:
     from uavlink.learn.training import check_checkpoint, train
 
     output_file(args.out, "--out", (".zip",))  # the policy's place, checked before hours of training
-
     cfg = apply_overrides(EnvConfig(), EnvOverrides.from_command_line(args.scenario, args.aoa_noise_deg, args.overrides))
     tc = from_options(TrainConfig, args).validate(cfg, name=lambda path: flag_of(TrainConfig, path))
     if args.eval_episodes < 0:

@@ -76,7 +76,8 @@ def evaluate_scenarios(policy_folder: Path, episodes: int, seed: int, overrides:
     genie on the spatial channel), and the mixed policy if any."""
     rows = []
     mixed = policy_file(policy_folder, MIXED)
-    columns = {"ppo": policy_folder, **{name: name for name in (*TABLE_ONE_BASELINES, *extra)}, **({"ppo_mixed": mixed} if mixed is not None else {})}
+    columns = {"ppo": policy_folder, **{name: name for name in (*TABLE_ONE_BASELINES, *extra)},
+               **({"ppo_mixed": mixed} if mixed is not None else {})}
     for scenario in SCENARIOS:
         loaded = load_with_env(list(columns.values()), overrides.on(scenario))
         results = {}

@@ -283,7 +283,8 @@ class _Loop:
             send_frame_decided(link.conn.mav, link.target_system, frame, moved is not None and bool(moved[i]))
 
     def _episode_done(self) -> bool:
-        return episode_over(self.mission, self.scores, max((r.frame for r in self.newest if r is not None), default=-1))
+        last = max((r.frame for r in self.newest if r is not None), default=-1)
+        return episode_over(self.mission, self.scores, last)
 
     def _watch(self, now: float, flying: bool) -> None:
         """Per vehicle: its mode (hold, rejoin, released), its silence; the separation flown."""
