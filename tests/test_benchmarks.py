@@ -300,3 +300,25 @@ def test_gc_watch_flies_and_places_each_long_pass_against_the_mission(tmp_path: 
     outside = [p for p in result["passes"] if not p["in_mission"]]
     assert sum(p["generation"] == 0 for p in inside) >= vehicle["decisions"]
     assert any(p["generation"] == 2 and p["s_from_mission_end"] < 0 for p in outside)  # the freeze's
+
+
+def test_figures_fingerprint_finds_the_same_figures_and_a_moved_one(tmp_path: Path) -> None:
+    main = runpy.run_path(str(ROOT / "benchmarks" / "figures_fingerprint.py"), run_name="figures_fingerprint")["main"]
+    assert len(main.__globals__["commands"]()) >= 40  # every shipped policy and baseline
+    main.__globals__["commands"] = lambda: [["--policy", "policies/circular.zip"],
+                                            ["--policy", "aoa", "--scenario", "no_move"],
+                                            ["--policy", "nowhere.zip"]]  # a refusal is an output too
+    out = io.StringIO()
+    with contextlib.redirect_stdout(out):
+        assert main(["--out", str(tmp_path / "a"), "--json"]) == 0
+        assert main(["--out", str(tmp_path / "b"), "--against", str(tmp_path / "a"), "--json"]) == 0
+    first, again = (json.loads(chunk) for chunk in out.getvalue().replace("}\n{", "}\n\x00{").split("\x00"))
+    assert first["commands"] == again["commands"] == 3 and again["differ"] == []
+    figures = json.loads((tmp_path / "a" / "00.txt").read_text().split("\n--- stderr\n")[0])
+    assert figures["episodes"] == 3 and figures["seed"] == 0 and figures["mean_rate_mbps"] > 0
+    assert "uavlink evaluate: error" in (tmp_path / "a" / "02.txt").read_text()
+    moved = tmp_path / "a" / "01.txt"
+    moved.write_text(moved.read_text().replace('"mean_rate_mbps": ', '"mean_rate_mbps": 1'))
+    with contextlib.redirect_stdout(io.StringIO()) as out:
+        assert main(["--out", str(tmp_path / "c"), "--against", str(tmp_path / "a"), "--json"]) == 1
+    assert json.loads(out.getvalue())["differ"] == ["01.txt"]
