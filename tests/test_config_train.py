@@ -184,3 +184,15 @@ def test_config_imports_nothing_from_the_layers_above() -> None:
     loaded = eval(out.stdout)
     allowed = ("uavlink.config", "uavlink.errors", "uavlink.env", "uavlink.env.registration")
     assert loaded and all(m.startswith(allowed[:2]) or m in allowed for m in loaded), loaded
+
+
+def test_warm_start_off_is_the_empty_default_and_not_offered_as_a_choice(capsys) -> None:
+    """`--warm-start ''` (off, the default) parses; a wrong rule's error lists the rules only."""
+    parser = argparse.ArgumentParser()
+    add_options(parser, TrainConfig)
+    assert from_options(TrainConfig, parser.parse_args(["--warm-start", ""])).warm_start.teacher == ""
+    assert from_options(TrainConfig, parser.parse_args([])).warm_start.teacher == ""
+    with pytest.raises(SystemExit):
+        parser.parse_args(["--warm-start", "nope"])
+    err = capsys.readouterr().err
+    assert "invalid choice: 'nope' (choose from 'static'" in err and "''" not in err

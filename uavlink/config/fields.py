@@ -179,6 +179,14 @@ def flag_of(cls: type, path: str, prefix: str = "") -> str:
     return field.metadata.get("flag") or "--" + (prefix + head).replace("_", "-")
 
 
+class _OrOff(tuple):
+    """argparse choices that also take ``""`` (a field's "off", its default) without naming it where
+    argparse lists the choices (``invalid choice: 'x' (choose from 'aoa', ...)``)."""
+
+    def __contains__(self, value: object) -> bool:
+        return value == "" or tuple.__contains__(self, value)
+
+
 def add_options(parser: argparse.ArgumentParser, cls: type, prefix: str = "") -> None:
     """One option per field of ``cls`` (nested configs' fields prefixed), with the field's default
     and help; ``from_options`` turns the parsed namespace back into the config."""
@@ -200,6 +208,8 @@ def add_options(parser: argparse.ArgumentParser, cls: type, prefix: str = "") ->
         for key in ("metavar", "choices"):
             if meta.get(key) is not None:
                 options[key] = meta[key]
+        if "" in options.get("choices", ()):
+            options["choices"] = _OrOff(c for c in options["choices"] if c)
         parser.add_argument(meta.get("flag") or "--" + (prefix + f.name).replace("_", "-"), **options)
 
 
