@@ -5,6 +5,7 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
+from uavlink.cli.options import output_file
 from uavlink.errors import UserError
 
 
@@ -14,8 +15,7 @@ def cmd_keygen(args: argparse.Namespace) -> int:
 
     from uavlink.mavlink.signing import write_key
 
-    if args.out.is_dir():
-        raise UserError(f"--out {args.out} is a folder; give the key file's name")
+    output_file(args.out, "--out")
     try:
         path = write_key(args.out)
     except FileExistsError:

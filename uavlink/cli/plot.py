@@ -6,14 +6,12 @@ import argparse
 from pathlib import Path
 
 from uavlink.cli.options import output_file
-from uavlink.errors import EXTRA_OF_MODULE, UserError
+from uavlink.errors import EXTRA_OF_MODULE
 
 
 def cmd_plot(args: argparse.Namespace) -> int:
     from uavlink.plot.command import run_plot
 
-    if args.tlog.is_dir():
-        raise UserError(f"{args.tlog} is a folder; give a telemetry log (FLIGHT.tlog)")
     if args.out is not None:  # what --gif or not writes, under a name that says so
         output_file(args.out, "--out", (".gif",) if args.gif else (".png",))
     return run_plot(args)

@@ -32,8 +32,7 @@ def run_fly(args: argparse.Namespace) -> int:
                         format="%(levelname)s %(name)s: %(message)s")
     check_vehicle_options(args.seed, args.speed)
     key = load_key(args.signing_key) if args.signing_key else None  # before anything flies
-    if args.connect is not None:
-        split_urls(args.connect)  # every URL checked before anything else
+    urls = None if args.connect is None else split_urls(args.connect)  # checked before anything else
     overrides = EnvOverrides.from_command_line(args.scenario, args.aoa_noise_deg, args.overrides)
     [(policy, cfg)] = load_with_env([args.policy], overrides)
     frames = cfg.episode_frames if args.frames is None else args.frames
@@ -56,7 +55,7 @@ def run_fly(args: argparse.Namespace) -> int:
     tlog = out_dir / "flight.tlog"
     sitl = (embedded_vehicles(cfg, args.seed, args.speed, out_dir / "sitl.log",
                               Path(args.signing_key) if key else None, args.lockstep)
-            if args.connect is None else contextlib.nullcontext(split_urls(args.connect)))
+            if urls is None else contextlib.nullcontext(urls))
     status = StatusLine(args, mission.frames)
     start = time.monotonic()
     with steady_heap(), sitl as urls:  # frozen before the vehicles talk to us

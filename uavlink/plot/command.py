@@ -63,6 +63,8 @@ def picture_after_flight(tlog: Path, out: Path) -> dict:
 
 def run_plot(args: argparse.Namespace) -> int:
     tlog: Path = args.tlog
+    if tlog.is_dir():
+        raise UserError(f"{tlog} is a folder; give a telemetry log (FLIGHT.tlog)")
     if not tlog.is_file():
         raise UserError(f"{tlog}: no such file")
     out = args.out or tlog.with_suffix(".gif" if args.gif else ".png")
