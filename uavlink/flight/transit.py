@@ -21,8 +21,7 @@ from __future__ import annotations
 
 import numpy as np
 
-SWEEP_STEPS = 32  # samples of a move before bisection: 12 m / 32 < 0.4 m, far below a 20 m disk
-BISECT_STEPS = 16  # then to 12 m / 32 / 2^16 < 0.01 mm
+BISECT_STEPS = 21  # a 12 m move to 12 m / 2^21 < 0.01 mm
 
 
 def _point_segment_m(p: np.ndarray, a: np.ndarray, b: np.ndarray) -> float:
@@ -58,9 +57,14 @@ def guard_transit(actual_m: np.ndarray, current_m: np.ndarray, new_m: np.ndarray
         regions = [[(actual[j], current[j]), (current[j], out[j]), (actual[j], out[j])] if j < d
                    else [(actual[j], current[j])] for j in range(n) if j != d]
 
-        def gaps(t: float, regions: list = regions, d: int = d) -> list[float]:
+        # d sweeps the triangle P, S, E(t) (E(t) on S -> S'): its edge P -> S is the same for every t,
+        # and the triangle only grows with t, so each gap only shrinks and a bisection finds the cut
+        fixed = [min(segment_distance_m(actual[d], current[d], a, b) for a, b in region) for region in regions]
+
+        def gaps(t: float, regions: list = regions, fixed: list = fixed, d: int = d) -> list[float]:
             end = current[d] + t * (out[d] - current[d])
-            return [min(segment_distance_m(actual[d], end, a, b) for a, b in region) for region in regions]
+            return [min(f, *(segment_distance_m(p, end, a, b) for p in (actual[d], current[d]) for a, b in region))
+                    for f, region in zip(fixed, regions, strict=True)]
 
         # a pair already closer than the minimum keeps at least its present gap (moves apart only)
         need = [min(min_separation_m, g) for g in gaps(0.0)]
@@ -70,16 +74,10 @@ def guard_transit(actual_m: np.ndarray, current_m: np.ndarray, new_m: np.ndarray
 
         if not regions or clear(1.0):
             continue
-        last_ok = 0.0
-        for k in range(1, SWEEP_STEPS + 1):
-            if not clear(k / SWEEP_STEPS):
-                lo, hi = last_ok, k / SWEEP_STEPS
-                for _ in range(BISECT_STEPS):
-                    mid = 0.5 * (lo + hi)
-                    lo, hi = (mid, hi) if clear(mid) else (lo, mid)
-                last_ok = lo
-                break
-            last_ok = k / SWEEP_STEPS
-        out[d] = current[d] + last_ok * (out[d] - current[d])
+        lo, hi = 0.0, 1.0
+        for _ in range(BISECT_STEPS):
+            mid = 0.5 * (lo + hi)
+            lo, hi = (mid, hi) if clear(mid) else (lo, mid)
+        out[d] = current[d] + lo * (out[d] - current[d])
     return out
 
