@@ -40,6 +40,7 @@ from uavlink.sweep.jobs import figures  # noqa: E402
 from uavlink.sweep.runner import run_sweep  # noqa: E402
 from uavlink.sweep.spec import (  # noqa: E402
     KEY_VERSION,
+    NEUTRAL_TRAIN_DEFAULTS,
     NEUTRAL_WARM_START_DEFAULTS,
     POLICY_FILE_FIELDS,
     Job,
@@ -286,6 +287,10 @@ def test_job_keys_are_stable_and_grid_expands() -> None:
     # The default 12.0 written out is the same job as leaving r_max_m alone.
     assert parse_spec({"seeds": [0], "env": {"r_max_m": 12}}).jobs()[0].key == \
         parse_spec({"seeds": [0]}).jobs()[0].key
+    # A training field added after the key's version, at its default, is the same job; set, another.
+    plain = parse_spec({"seeds": [0]}).jobs()[0].key
+    assert parse_spec({"seeds": [0], "train": {"validation_episodes": 0}}).jobs()[0].key == plain
+    assert parse_spec({"seeds": [0], "train": {"validation_episodes": 64}}).jobs()[0].key != plain
 
 
 def test_scenario_train_overrides_reach_only_their_scenario() -> None:
@@ -328,6 +333,8 @@ def test_job_keys_are_versioned_hashes_of_the_full_configs() -> None:
     full = job.train.to_dict()
     for later in NEUTRAL_WARM_START_DEFAULTS:  # fields added later, out of the key at their defaults
         del full["warm_start"][later]
+    for later in NEUTRAL_TRAIN_DEFAULTS:
+        del full[later]
     assert job.settings()["train"] == full  # nothing else left out, nothing bent
     assert Job.from_dict(json.loads(json.dumps(job.to_dict()))).key == job.key
     # Reordering keys changes nothing; changing any setting changes the key.

@@ -35,6 +35,10 @@ def cmd_train(args: argparse.Namespace) -> int:
           f"TensorBoard logs and checkpoint in {run_dir}", file=sys.stderr)
     training = train(cfg, tc, args.out, run_dir, resume=args.resume, progress=not args.no_progress)
     print(f"saved {args.out} ({training['total_timesteps']:,} steps in {training['wall_time_s']:.0f} s)")
+    if training["validation"]:
+        kept = training["validation"]
+        print(f"kept the weights after {kept['kept_steps']:,} steps: {kept['kept_mbps']:.3f} Mbps on "
+              f"{kept['episodes']} validation episodes (the last: {kept['curve'][-1][1]:.3f})")
     if args.eval_episodes:
         print(f"evaluating {args.out} on {args.eval_episodes} episodes (seed 0) into its manifest", file=sys.stderr)
         for scenario, figures in _attach_evaluation(args.out, cfg, args.eval_episodes).items():

@@ -228,6 +228,12 @@ def train(cfg: EnvConfig, tc: TrainConfig, out: Path, run_dir: Path | None = Non
         from uavlink.learn.imitation import critic_warmup_callback
 
         callbacks.append(critic_warmup_callback(tc.warm_start.critic_rollouts))
+    keep_best = None
+    if tc.validation_episodes:
+        from uavlink.learn.selection import keep_best_callback
+
+        keep_best = keep_best_callback(cfg, tc.validation_episodes, tc.seed)
+        callbacks.append(keep_best)  # last: the weights it leaves are the ones saved
     try:
         with _without_distribution_checks():
             model.learn(total_timesteps=total_timesteps - model.num_timesteps, callback=callbacks,
@@ -252,6 +258,7 @@ def train(cfg: EnvConfig, tc: TrainConfig, out: Path, run_dir: Path | None = Non
         "steps_to_95pct_final": t95,
         "resumed_from": str(resume) if resume else None,
         "warm_start": cloned,
+        "validation": keep_best.report() if keep_best is not None else None,
         "learning_curve": monitor.curve[:: max(1, len(monitor.curve) // 200)],
     }
     write_zip_manifest(tmp, build_manifest(cfg, training))

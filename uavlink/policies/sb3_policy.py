@@ -62,7 +62,28 @@ class _NoOptimizer:
         pass
 
 
-class SB3Policy:
+class ActorPolicy:
+    """An SB3 PPO policy's deterministic actor behind the Policy interface, as ``SB3Policy`` decides:
+    also for a policy in memory (training's validation episodes, ``uavlink.learn.selection``). The
+    actor is a copy, so later updates of ``sb3_policy`` do not reach it."""
+
+    needs_truth = False
+
+    def __init__(self, sb3_policy: Any, layout: ObservationLayout, name: str) -> None:
+        import torch
+
+        self._torch, self.layout, self.name = torch, layout, name
+        self.actor = deterministic_actor(sb3_policy)
+
+    def act(self, obs: np.ndarray, truth: GroundTruth | None = None) -> np.ndarray:
+        """Actions (N, 2) float32 in the box for observations (N, obs); a single (obs,) is N=1.
+        SB3's ``predict(obs, deterministic=True)`` in float64, without its per-call input checks."""
+        obs = np.asarray(obs, dtype=np.float32).reshape(-1, self.layout.size)
+        with self._torch.inference_mode():
+            return self.actor(self._torch.as_tensor(obs)).numpy()
+
+
+class SB3Policy(ActorPolicy):
     """A PPO ``MlpPolicy`` from a uavlink policy zip, acting as SB3's deterministic ``predict`` does.
 
     Loads only the policy network from the zip (SB3's ``load_from_zip_file``, no optimizer, no
@@ -76,21 +97,17 @@ class SB3Policy:
     foreign or damaged file.
     """
 
-    needs_truth = False
-
     def __init__(self, path: str | Path) -> None:
         path = Path(path)
         self.path = path
         self.manifest = read_zip_manifest(path)
-        self.layout = ObservationLayout.from_dict(self.manifest["observation_layout"])
-        self.name = path.stem
+        layout = ObservationLayout.from_dict(self.manifest["observation_layout"])
         import torch
         from stable_baselines3.common.save_util import load_from_zip_file
 
         # One thread: a 3 x 128 MLP on one observation gains nothing from more, and in flight the
         # loop shares the CPU with the vehicle (and, in SITL, the simulator).
         torch.set_num_threads(1)
-        self._torch = torch
 
         # SB3's own reader and policy class with the saved settings, as PPO.load builds them, but
         # without the algorithm around the policy and its optimizer, which running it never needs.
@@ -102,11 +119,11 @@ class SB3Policy:
             policy.load_state_dict(params["policy"])
         except Exception as exc:  # SB3 raises many kinds on a damaged archive
             raise PolicyFileError(f"{path}: cannot load the SB3 model ({type(exc).__name__}: {exc})") from None
-        if data["observation_space"].shape != (self.layout.size,):
+        if data["observation_space"].shape != (layout.size,):
             raise PolicyFileError(f"{path}: model input {data['observation_space'].shape} does not "
-                                  f"match its manifest's layout {self.layout.describe()}")
+                                  f"match its manifest's layout {layout.describe()}")
         try:
-            self.actor = deterministic_actor(policy)
+            super().__init__(policy, layout, path.stem)
         except PolicyFileError as exc:
             raise PolicyFileError(f"{path}: {exc}") from None
 
@@ -116,10 +133,3 @@ class SB3Policy:
         from stable_baselines3 import PPO
 
         return PPO.load(self.path, device="cpu")
-
-    def act(self, obs: np.ndarray, truth: GroundTruth | None = None) -> np.ndarray:
-        """Actions (N, 2) float32 in the box for observations (N, obs); a single (obs,) is N=1.
-        SB3's ``predict(obs, deterministic=True)`` in float64, without its per-call input checks."""
-        obs = np.asarray(obs, dtype=np.float32).reshape(-1, self.layout.size)
-        with self._torch.inference_mode():
-            return self.actor(self._torch.as_tensor(obs)).numpy()

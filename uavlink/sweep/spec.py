@@ -33,6 +33,8 @@ NEUTRAL_ENV_DEFAULTS: dict[str, Any] = {"n_uavs": 1, "fleet_reuse": "full", "uav
                                         "uav_motion": "instant", "place_model": "cells"}
 # The same for the training's (nested) warm-start fields.
 NEUTRAL_WARM_START_DEFAULTS: dict[str, Any] = {"leader_policy": "", "policy": ""}
+# The same for the training's own fields.
+NEUTRAL_TRAIN_DEFAULTS: dict[str, Any] = {"validation_episodes": 0}
 # Warm-start fields that name a policy file: a job's key holds the file's bytes (its sha256), not only
 # its path, so a re-shipped file makes the job (and a sweep record's figures of it) another one.
 POLICY_FILE_FIELDS = ("leader_policy", "policy")
@@ -82,7 +84,8 @@ class Job:
         """Everything that determines the job's figures; the key is its hash."""
         env = {k: v for k, v in self.env.to_dict().items()
                if k not in NEUTRAL_ENV_DEFAULTS or v != NEUTRAL_ENV_DEFAULTS[k]}
-        train = self.train.to_dict()
+        train = {k: v for k, v in self.train.to_dict().items()
+                 if k not in NEUTRAL_TRAIN_DEFAULTS or v != NEUTRAL_TRAIN_DEFAULTS[k]}
         train["warm_start"] = {k: v for k, v in train["warm_start"].items()
                                if k not in NEUTRAL_WARM_START_DEFAULTS or v != NEUTRAL_WARM_START_DEFAULTS[k]}
         for name, digest in self.file_sha256.items():
