@@ -137,10 +137,11 @@ class TrainConfig:
     # the manifest keeps the env without it, so evaluation and flight run without it unless asked.
     aoa_noise_max_deg: float = setting(0.0, "train with each episode's AoA noise std drawn from "
                                        "[--aoa-noise-deg, this] (ours; 0: off)", low=0)
-    validation_episodes: int = setting(0, "score the deterministic policy on this many validation episodes "
-                                   "(a stream apart from every evaluation seed) before the first update, after "
-                                   "each and at the end, and ship the best weights (ours; uavlink/learn/"
-                                   "selection.py; 0: off, the last weights)", low=0, metavar="N")
+    validation_episodes: int = setting(0, "score the deterministic policy on this many validation "
+                                       "episodes (a stream apart from every evaluation seed) before the "
+                                       "first update, after each and at the end, and ship the best weights "
+                                       "(ours; uavlink/learn/selection.py; 0: off, the last weights)",
+                                       low=0, metavar="N")
     warm_start: WarmStartConfig = nested(WarmStartConfig, "behaviour-cloning warm start (ours)")
     seed: int = setting(0, "seed of the envs, the network and the warm start", low=0, high=SEED_MAX)
     torch_threads: int = setting(1, "torch CPU threads (1 is fastest for 3x128 MLPs)", low=1)

@@ -67,7 +67,7 @@ def keep_best_callback(cfg: EnvConfig, episodes: int, seed: int):
             self.model.policy.load_state_dict(self._best_state)
 
         def report(self) -> dict[str, Any]:
-            """The manifest's ``training.selection``."""
+            """The manifest's ``training.validation``."""
             return {"episodes": episodes, "stream": VALIDATION.name, "seed": seed,
                     "kept_steps": self.kept[0], "kept_mbps": self.kept[1],
                     "curve": [list(point) for point in self.curve]}
