@@ -57,3 +57,13 @@ def test_train_cli_says_which_weights_it_kept(tmp_path: Path, capsys) -> None:
     kept = json.loads(out.with_suffix(".json").read_text())["training"]["validation"]
     assert (f"kept the weights after {kept['kept_steps']:,} steps: {kept['kept_mbps']:.3f} Mbps on 8 "
             f"validation episodes") in capsys.readouterr().out
+
+
+def test_a_fleet_keeps_its_best_weights_too(tmp_path: Path) -> None:
+    """A fleet's agent rows fly the same actor: the scoring flies the whole fleet."""
+    cfg = EnvConfig(scenario="straight_180", n_uavs=2)
+    tc = TrainConfig(episodes=32, n_envs=16, batch_size=256, validation_episodes=4)
+    report = train(cfg, tc, tmp_path / "fleet.zip", None, progress=False)["validation"]
+    assert len(report["curve"]) == 3  # the start, after the first of two updates, the end
+    shipped = validation_rate_mbps(SB3Policy(tmp_path / "fleet.zip"), cfg, 4, tc.seed)
+    assert shipped == pytest.approx(report["kept_mbps"], abs=1e-6)
