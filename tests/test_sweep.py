@@ -27,6 +27,7 @@ from uavlink.config import EnvConfig, TrainConfig, WarmStartConfig  # noqa: E402
 from uavlink.config.fields import config_fields, with_changes  # noqa: E402
 from uavlink.errors import UserError  # noqa: E402
 from uavlink.sweep.aggregate import (  # noqa: E402
+    SettingRow,
     collect,
     export_median_policies,
     finished_rows,
@@ -539,3 +540,23 @@ def test_scenario_env_overrides_reach_only_their_scenario() -> None:
         parse_spec({**base, "scenario_env": {"no_move": {"place_model": "gp"}}})
     with pytest.raises(SweepSpecError, match="scenario_env"):
         parse_spec({**base, "scenario_env": {"no_move": {"r_max_m": 10.0}}, "grid": {"r_max_m": [10.0]}})
+
+
+def test_learning_curves_show_a_jobs_validation_curve_and_the_kept_point(tmp_path: Path, monkeypatch) -> None:
+    import matplotlib.pyplot as plt
+
+    from uavlink.sweep.plots import plot_learning_curves
+
+    kept = []
+    monkeypatch.setattr(plt, "close", kept.append)  # keep the figure to read it back
+    validation = {"curve": [[0, 6.3], [100, 6.35], [200, 6.2]], "kept_steps": 100, "kept_mbps": 6.35}
+    results = [{"seed": 0, "training": {"learning_curve": [[50, 6.1], [200, 6.3]], "validation": validation}},
+               {"seed": 1, "training": {"learning_curve": [[50, 6.0], [200, 6.2]]}}]  # a record before it
+    plot_learning_curves([SettingRow("hotspot", {}, 2, results)], [], tmp_path / "curves.png")
+    assert (tmp_path / "curves.png").stat().st_size > 0
+    lines = kept[0].axes[0].get_lines()
+    dashed = [line for line in lines if line.get_linestyle() == "--"]
+    assert len(dashed) == 1 and list(dashed[0].get_xydata().tolist()) == validation["curve"]
+    (star,) = [line for line in lines if line.get_marker() == "*"]
+    assert star.get_xydata().tolist() == [[100, 6.35]]
+    assert star.get_color() == dashed[0].get_color() == lines[0].get_color()  # the seed's colour

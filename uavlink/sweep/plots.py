@@ -46,7 +46,9 @@ def plot_throughput(rows: list[SettingRow], grid_keys: list[str], path: Path) ->
 
 
 def plot_learning_curves(rows: list[SettingRow], grid_keys: list[str], path: Path, max_panels: int = 12) -> None:
-    """Training-episode throughput against env steps, one panel per setting, one line per seed."""
+    """Training-episode throughput against env steps, one panel per setting, one line per seed; where
+    a job kept its best weights on validation episodes (``train.validation_episodes``), that
+    deterministic curve dashed in the seed's colour and the kept point starred."""
     import matplotlib
 
     matplotlib.use("Agg")
@@ -59,8 +61,16 @@ def plot_learning_curves(rows: list[SettingRow], grid_keys: list[str], path: Pat
     for ax, row in zip(axes.flat, shown, strict=False):
         for result in row.results:
             curve = result["training"]["learning_curve"]
+            color = None
             if curve:
-                ax.plot([s for s, _ in curve], [r for _, r in curve], lw=0.9, label=f"seed {result['seed']}")
+                (line,) = ax.plot([s for s, _ in curve], [r for _, r in curve], lw=0.9,
+                                  label=f"seed {result['seed']}")
+                color = line.get_color()
+            validation = result["training"].get("validation")  # records before it have none
+            if validation:
+                ax.plot(*zip(*validation["curve"], strict=True), ls="--", lw=0.8, color=color,
+                        label=f"seed {result['seed']}, validation")
+                ax.plot(validation["kept_steps"], validation["kept_mbps"], marker="*", ms=8, color=color)
         ax.set_title(_label(row, grid_keys).replace("\n", ", "), fontsize=8)
         ax.set_xlabel("env steps", fontsize=8)
         ax.grid(alpha=0.3)
