@@ -36,8 +36,9 @@ class Stream:
 EVAL = Stream("eval", (), 128)
 # A rule's flying that the warm start clones (uavlink/learn/imitation.py).
 TEACHER = Stream("teacher", (0xB0,), 64)
-# The episodes training keeps its best weights on (uavlink/learn/selection.py; TrainConfig.select_episodes),
-# apart from every evaluation seed, so a policy chosen on them is scored on episodes it never met.
+# The episodes training keeps its best weights on (uavlink/learn/selection.py;
+# TrainConfig.validation_episodes), apart from every evaluation seed's, so a policy chosen on them is
+# scored on episodes it never met.
 VALIDATION = Stream("validation", (0x5E1,), 128)
 # A copy's flying that its teacher labels, one sibling per DAgger round (benchmarks/clone_gap.py).
 DAGGER = Stream("dagger", (0xDA,), 64)
