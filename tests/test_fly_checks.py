@@ -49,6 +49,15 @@ def test_fly_refuses_bad_numbers_before_starting_or_writing_anything(tmp_path: P
     assert not out.exists()  # made only once the checks pass, before the vehicle starts
 
 
+
+def test_fly_refuses_several_urls_for_one_vehicle(tmp_path: Path) -> None:
+    out = tmp_path / "out"
+    proc = run_uavlink_in_process("fly", "--policy", "aoa", "--connect",
+                                  "udpin:127.0.0.1:14550,udpin:127.0.0.1:14551", "--out", str(out))
+    assert_user_error(proc, "uavlink fly: error: ", "--connect with several URLs is for a fleet")
+    assert not out.exists()
+
+
 # ------------------------------------------------------------------ which baselines fly (fast)
 def test_the_baselines_that_fly_are_those_that_read_no_truth_in_help_and_refusals(tmp_path: Path) -> None:
     assert {"static", "aoa", "explore", "kriging"} <= set(flying_baselines()) <= set(BASELINE_NAMES)

@@ -46,7 +46,7 @@ def run_fly(args: argparse.Namespace) -> int:
                         "lockstep when started so (sitl-stub --lockstep), and `uavlink fly` answers "
                         "it either way")
     fleet = cfg.n_uavs > 1
-    if not fleet and args.connect and "," in args.connect:
+    if not fleet and urls is not None and len(urls) > 1:
         raise UserError("--connect with several URLs is for a fleet (a policy with n_uavs > 1, or "
                         "--set n_uavs=D); give one URL for one vehicle")
     pilot = (FleetPilot if fleet else PolicyPilot)(policy, cfg)  # layout checks, before anything is armed
