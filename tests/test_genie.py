@@ -156,6 +156,21 @@ def test_fleet_flies_its_plan_apart() -> None:
         assert (rates >= evaluate_policy(make_baseline(name, cfg), cfg, 2, 0).episode_rate_mbps - 1e-9).all()
 
 
+def test_one_genie_plans_each_batch_of_an_evaluation_afresh() -> None:
+    """An evaluation flies batch after batch with one policy, and every episode starts at the centre,
+    where the last batch's plan began: the genie flies each batch on its own plan (it flew the first
+    batch's plan again, below static, at 1,000 episodes)."""
+    cfg = small("no_move")
+    genie = make_baseline("genie", cfg)
+    flown = []
+    for seed in (0, 1):  # two batches, as evaluate_policy's chunks
+        [chunk] = list(chunks(cfg, EVAL, 2, seed))
+        flown.append(np.mean([frame.result.mean_rate_mbps for frame in chunk.frames(genie)], axis=0))
+    _, _, fresh = fly(cfg, 2, seed=1)  # a genie that met only the second batch
+    np.testing.assert_allclose(flown[1], fresh, rtol=1e-9)
+    assert not np.allclose(flown[0], flown[1])
+
+
 def test_episodes_planned_side_by_side_are_the_ones_planned_in_turn() -> None:
     """Threads plan a batch's episodes (numpy releases the GIL); the plans are the serial ones."""
     cfg = small("circular", n_uavs=2, episode_frames=8)

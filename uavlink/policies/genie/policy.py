@@ -279,8 +279,10 @@ class GeniePolicy(RulePolicy):
             raise ValueError("the genie needs the episode's ground truth; it cannot fly from MAVLink data")
         now = truth.uav_xy_m.reshape(-1, self.cfg.n_uavs, 2)
         step = truth.frame - self.planned_at
-        if (self.path_m is None or not 0 <= step < len(self.path_m) - 1 or self.path_m.shape[1] != len(now)
-                or not np.allclose(self.path_m[step], now, atol=1e-6)):
+        # Frame 0 is a new episode even where the UAVs stand where the last plan began (every
+        # episode starts at the centre): the next batch of an evaluation must not fly this one's plan.
+        if (truth.frame == 0 or self.path_m is None or not 0 <= step < len(self.path_m) - 1
+                or self.path_m.shape[1] != len(now) or not np.allclose(self.path_m[step], now, atol=1e-6)):
             self.plan(truth)
             step = 0
         return self.mapping.towards(self.path_m[step + 1].reshape(-1, 2) - truth.uav_xy_m, 1.0)
