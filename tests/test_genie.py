@@ -159,7 +159,7 @@ def test_fleet_flies_its_plan_apart() -> None:
 def test_one_genie_plans_each_batch_of_an_evaluation_afresh() -> None:
     """An evaluation flies batch after batch with one policy, and every episode starts at the centre,
     where the last batch's plan began: the genie flies each batch on its own plan (it flew the first
-    batch's plan again, below static, at 1,000 episodes)."""
+    batch's plan again, level with static over 1,000 no_move episodes)."""
     cfg = small("no_move")
     genie = make_baseline("genie", cfg)
     flown = []
