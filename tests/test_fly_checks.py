@@ -49,7 +49,6 @@ def test_fly_refuses_bad_numbers_before_starting_or_writing_anything(tmp_path: P
     assert not out.exists()  # made only once the checks pass, before the vehicle starts
 
 
-
 def test_fly_refuses_several_urls_for_one_vehicle(tmp_path: Path) -> None:
     out = tmp_path / "out"
     proc = run_uavlink_in_process("fly", "--policy", "aoa", "--connect",
