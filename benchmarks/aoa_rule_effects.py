@@ -66,10 +66,18 @@ def clone_of_the_rule(cfg: EnvConfig) -> ClonedActor:
     from uavlink.learn.imitation import warm_start
     from uavlink.learn.training import make_model, training_env_config
 
-    tc = TrainConfig(warm_start=WarmStartConfig(teacher="aoa"), aoa_noise_max_deg=TRAIN_AOA_NOISE_MAX_DEG)
+    tc = TrainConfig(
+        warm_start=WarmStartConfig(teacher="aoa"), aoa_noise_max_deg=TRAIN_AOA_NOISE_MAX_DEG
+    )
     model = make_model(cfg, tc, None)
-    warm_start(model.policy, training_env_config(cfg, tc), tc.warm_start.teacher, tc.warm_start.episodes,
-               tc.seed, log_std=tc.warm_start.log_std)
+    warm_start(
+        model.policy,
+        training_env_config(cfg, tc),
+        tc.warm_start.teacher,
+        tc.warm_start.episodes,
+        tc.seed,
+        log_std=tc.warm_start.log_std,
+    )
     return ClonedActor(model)
 
 
@@ -80,13 +88,24 @@ def measure(episodes: int, seed: int) -> dict[str, Any]:
     shadowing = {}
     for scenario in SHADOWING_SCENARIOS:
         cfg = EnvConfig(scenario=scenario)
-        shadowing[scenario] = {"static": mbps(make_baseline("static", cfg), cfg),
-                               "zigzag": mbps(ZigZag(), cfg), "aoa": mbps(make_baseline("aoa", cfg), cfg)}
+        shadowing[scenario] = {
+            "static": mbps(make_baseline("static", cfg), cfg),
+            "zigzag": mbps(ZigZag(), cfg),
+            "aoa": mbps(make_baseline("aoa", cfg), cfg),
+        }
     clone = {}
     for scenario in CLONE_SCENARIOS:
         cfg = EnvConfig(scenario=scenario)
-        clone[scenario] = {"clone": mbps(clone_of_the_rule(cfg), cfg), "aoa": mbps(make_baseline("aoa", cfg), cfg)}
-    return {"episodes": episodes, "seed": seed, "shadowing_mbps": shadowing, "clone_before_ppo_mbps": clone}
+        clone[scenario] = {
+            "clone": mbps(clone_of_the_rule(cfg), cfg),
+            "aoa": mbps(make_baseline("aoa", cfg), cfg),
+        }
+    return {
+        "episodes": episodes,
+        "seed": seed,
+        "shadowing_mbps": shadowing,
+        "clone_before_ppo_mbps": clone,
+    }
 
 
 def main(argv: list[str] | None = None) -> int:

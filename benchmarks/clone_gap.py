@@ -23,8 +23,9 @@ from pathlib import Path
 from typing import Any
 
 
-def student_dataset(sb3_policy: Any, cfg: Any, teacher: Any, episodes: int, seed: int,
-                    round_index: int) -> tuple[Any, Any]:
+def student_dataset(
+    sb3_policy: Any, cfg: Any, teacher: Any, episodes: int, seed: int, round_index: int
+) -> tuple[Any, Any]:
     """(observations, the teacher's actions) float32 from ``episodes`` seeded episodes flown by the
     copy in ``sb3_policy`` (SB3's deterministic action): round ``round_index``'s sibling of the DAGGER
     stream."""
@@ -38,7 +39,11 @@ def student_dataset(sb3_policy: Any, cfg: Any, teacher: Any, episodes: int, seed
 
     class LabelledFlight:
         name, needs_truth = "dagger", bool(getattr(teacher, "needs_truth", False))
-        layout, actor, labels = ObservationLayout.for_config(cfg), deterministic_actor(sb3_policy), []
+        layout, actor, labels = (
+            ObservationLayout.for_config(cfg),
+            deterministic_actor(sb3_policy),
+            [],
+        )
 
         def act(self, obs, truth=None):
             self.labels.append(teacher.act(obs, truth))
@@ -48,11 +53,22 @@ def student_dataset(sb3_policy: Any, cfg: Any, teacher: Any, episodes: int, seed
     flight = LabelledFlight()
     stream = DAGGER.sibling(f"dagger-round-{round_index}", round_index)
     observations = [frame.observation for frame in rollout(flight, cfg, stream, episodes, seed)]
-    return np.concatenate(observations).astype(np.float32), np.concatenate(flight.labels).astype(np.float32)
+    return np.concatenate(observations).astype(np.float32), np.concatenate(flight.labels).astype(
+        np.float32
+    )
 
 
-def run(sweep: Path, scenario: str, seed: int, rounds: int, epochs: int | None, clone_episodes: int | None,
-        episodes: int, eval_seed: int, policy_paths: list[Path]) -> dict[str, Any]:
+def run(
+    sweep: Path,
+    scenario: str,
+    seed: int,
+    rounds: int,
+    epochs: int | None,
+    clone_episodes: int | None,
+    episodes: int,
+    eval_seed: int,
+    policy_paths: list[Path],
+) -> dict[str, Any]:
     import numpy as np
     import torch
 
@@ -82,7 +98,10 @@ def run(sweep: Path, scenario: str, seed: int, rounds: int, epochs: int | None, 
         needs_truth, name = False, "copy"
 
         def __init__(self) -> None:
-            self.net, self.layout = deterministic_actor(model.policy), ObservationLayout.for_config(cfg)
+            self.net, self.layout = (
+                deterministic_actor(model.policy),
+                ObservationLayout.for_config(cfg),
+            )
 
         def act(self, obs, truth=None):
             with torch.no_grad():
@@ -97,18 +116,26 @@ def run(sweep: Path, scenario: str, seed: int, rounds: int, epochs: int | None, 
     def row(stage: str, flier: Any, **extra: Any) -> dict[str, Any]:
         result = evaluate_policy(flier, cfg, episodes, eval_seed)
         ratio, lo, hi = paired_ratio_ci(result.episode_rate_mbps, reference.episode_rate_mbps)
-        return {"stage": stage, **extra, "mbps": round(result.mean_rate_mbps, 4),
-                "vs_teacher": round(ratio - 1, 4), "ci95": [round(lo - 1, 4), round(hi - 1, 4)],
-                "elapsed_s": round(time.perf_counter() - start, 1)}
+        return {
+            "stage": stage,
+            **extra,
+            "mbps": round(result.mean_rate_mbps, 4),
+            "vs_teacher": round(ratio - 1, 4),
+            "ci95": [round(lo - 1, 4), round(hi - 1, 4)],
+            "elapsed_s": round(time.perf_counter() - start, 1),
+        }
 
     obs, actions = teacher_dataset(train_cfg, teacher, clone_episodes, tc.seed)
     rows = []
     for round_index in range(rounds + 1):
         if round_index:
-            more_obs, more_actions = student_dataset(model.policy, train_cfg, teacher, clone_episodes, tc.seed,
-                                                     round_index - 1)
+            more_obs, more_actions = student_dataset(
+                model.policy, train_cfg, teacher, clone_episodes, tc.seed, round_index - 1
+            )
             obs, actions = np.concatenate([obs, more_obs]), np.concatenate([actions, more_actions])
-        mse = clone_actor(model.policy, obs, actions, epochs=epochs, log_std=ws.log_std, seed=tc.seed)
+        mse = clone_actor(
+            model.policy, obs, actions, epochs=epochs, log_std=ws.log_std, seed=tc.seed
+        )
         stage = "clone" if round_index == 0 else f"dagger {round_index}"
         rows.append(row(stage, Copy(), samples=len(obs), mse=round(mse, 6)))
     for path in policy_paths:
@@ -116,45 +143,82 @@ def run(sweep: Path, scenario: str, seed: int, rounds: int, epochs: int | None, 
         if policy_cfg.to_dict() != cfg.to_dict():
             raise UserError(f"{path} flies another env than {sweep}'s {scenario} job")
         rows.append(row(f"policy {path}", policy))
-    return {"benchmark": "clone_gap", "sweep": str(sweep), "scenario": scenario, "seed": seed, "epochs": epochs,
-            "clone_episodes": clone_episodes, "episodes": episodes, "eval_seed": eval_seed,
-            "teacher_mbps": round(reference.mean_rate_mbps, 4), "rows": rows}
+    return {
+        "benchmark": "clone_gap",
+        "sweep": str(sweep),
+        "scenario": scenario,
+        "seed": seed,
+        "epochs": epochs,
+        "clone_episodes": clone_episodes,
+        "episodes": episodes,
+        "eval_seed": eval_seed,
+        "teacher_mbps": round(reference.mean_rate_mbps, 4),
+        "rows": rows,
+    }
 
 
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--sweep", type=Path, required=True, help="the sweep file whose job to copy")
+    parser.add_argument(
+        "--sweep", type=Path, required=True, help="the sweep file whose job to copy"
+    )
     parser.add_argument("--scenario", required=True)
     parser.add_argument("--seed", type=int, default=0, help="the job's training seed")
     parser.add_argument("--rounds", type=int, default=2, help="DAgger rounds after the first fit")
-    parser.add_argument("--epochs", type=int, default=None, help="passes per fit (default: the job's)")
-    parser.add_argument("--clone-episodes", type=int, default=None,
-                        help="episodes of flying per fit's new data (default: the job's warm_start.episodes)")
-    parser.add_argument("--policy", type=Path, action="append", default=[],
-                        help="also a trained policy of that job's env (repeatable)")
+    parser.add_argument(
+        "--epochs", type=int, default=None, help="passes per fit (default: the job's)"
+    )
+    parser.add_argument(
+        "--clone-episodes",
+        type=int,
+        default=None,
+        help="episodes of flying per fit's new data (default: the job's warm_start.episodes)",
+    )
+    parser.add_argument(
+        "--policy",
+        type=Path,
+        action="append",
+        default=[],
+        help="also a trained policy of that job's env (repeatable)",
+    )
     parser.add_argument("--episodes", type=int, default=500, help="evaluation episodes")
     parser.add_argument("--eval-seed", type=int, default=7)
-    parser.add_argument("--json", action="store_true", help="print one JSON object instead of a table")
+    parser.add_argument(
+        "--json", action="store_true", help="print one JSON object instead of a table"
+    )
     args = parser.parse_args(argv)
     if args.episodes < 2 or args.rounds < 0:
         parser.error("--episodes must be >= 2 (a paired interval) and --rounds >= 0")
     from uavlink.errors import UserError
 
     try:
-        report = run(args.sweep, args.scenario, args.seed, args.rounds, args.epochs, args.clone_episodes,
-                     args.episodes, args.eval_seed, args.policy)
+        report = run(
+            args.sweep,
+            args.scenario,
+            args.seed,
+            args.rounds,
+            args.epochs,
+            args.clone_episodes,
+            args.episodes,
+            args.eval_seed,
+            args.policy,
+        )
     except UserError as exc:
         parser.error(str(exc))
     if args.json:
         print(json.dumps(report, indent=2))
         return 0
-    print(f"{args.scenario}, job seed {args.seed}: teacher {report['teacher_mbps']:.4f} Mbps on {args.episodes} "
-          f"episodes (seed {args.eval_seed})\n")
+    print(
+        f"{args.scenario}, job seed {args.seed}: teacher {report['teacher_mbps']:.4f} Mbps on {args.episodes} "
+        f"episodes (seed {args.eval_seed})\n"
+    )
     print("| stage | samples | clone MSE | Mbps | vs teacher |\n|---|---:|---:|---:|---|")
     for r in report["rows"]:
         lo, hi = r["ci95"]
-        print(f"| {r['stage']} | {r.get('samples', '')} | {r.get('mse', '')} | {r['mbps']:.4f} | "
-              f"{100 * r['vs_teacher']:+.2f} % [{100 * lo:+.2f}, {100 * hi:+.2f}] |")
+        print(
+            f"| {r['stage']} | {r.get('samples', '')} | {r.get('mse', '')} | {r['mbps']:.4f} | "
+            f"{100 * r['vs_teacher']:+.2f} % [{100 * lo:+.2f}, {100 * hi:+.2f}] |"
+        )
     return 0
 
 

@@ -43,13 +43,31 @@ VARIANTS = {  # name: ExploreVariant's settings (the rest as explore)
     "stop 12, again 9": {"stop_bits": 12.0, "again_bits": 9.0},
     "probe": {"probe": True},
     "probe, full return": {"probe": True, "approach_gain": 1.0},
-    "stop 11, again 9, probe, full return": {"stop_bits": 11.0, "again_bits": 9.0, "probe": True,
-                                             "approach_gain": 1.0},
-    "leg 3, stop 12, again 9, probe, full return": {"stop_bits": 12.0, "again_bits": 9.0, "probe": True,
-                                                    "approach_gain": 1.0, "search_leg_frames": 3},
-    "leg 2, stop 12, again 9.5, probe, full return": {"stop_bits": 12.0, "again_bits": 9.5, "probe": True,
-                                                      "approach_gain": 1.0, "search_leg_frames": 2},
-    "leg 3, stop 12, spiral 12 x 6 m": {"stop_bits": 12.0, "search_leg_frames": 3, "spiral_frames": 12},
+    "stop 11, again 9, probe, full return": {
+        "stop_bits": 11.0,
+        "again_bits": 9.0,
+        "probe": True,
+        "approach_gain": 1.0,
+    },
+    "leg 3, stop 12, again 9, probe, full return": {
+        "stop_bits": 12.0,
+        "again_bits": 9.0,
+        "probe": True,
+        "approach_gain": 1.0,
+        "search_leg_frames": 3,
+    },
+    "leg 2, stop 12, again 9.5, probe, full return": {
+        "stop_bits": 12.0,
+        "again_bits": 9.5,
+        "probe": True,
+        "approach_gain": 1.0,
+        "search_leg_frames": 2,
+    },
+    "leg 3, stop 12, spiral 12 x 6 m": {
+        "stop_bits": 12.0,
+        "search_leg_frames": 3,
+        "spiral_frames": 12,
+    },
 }
 
 
@@ -70,9 +88,17 @@ class ExploreVariant(ExplorePolicy):
     cells around the best spot, or a small square spiral (``spiral_step_m`` a frame) from where the
     UAV is 8 frames after the search, which a multicopter flies without reversals; one UAV."""
 
-    def __init__(self, cfg: EnvConfig, stop_bits: float | None = None, again_bits: float | None = None,
-                 probe: bool = False, approach_gain: float = 0.5, search_leg_frames: int = 4,
-                 spiral_frames: int = 0, spiral_step_m: float = 6.0) -> None:
+    def __init__(
+        self,
+        cfg: EnvConfig,
+        stop_bits: float | None = None,
+        again_bits: float | None = None,
+        probe: bool = False,
+        approach_gain: float = 0.5,
+        search_leg_frames: int = 4,
+        spiral_frames: int = 0,
+        spiral_step_m: float = 6.0,
+    ) -> None:
         super().__init__(cfg, search_leg_frames=search_leg_frames, approach_gain=approach_gain)
         self.stop_bits, self.again_bits, self.probe = stop_bits, again_bits, probe
         self.spiral_deg, self.spiral_step_m = square_spiral_deg(spiral_frames), spiral_step_m
@@ -82,7 +108,9 @@ class ExploreVariant(ExplorePolicy):
         action = super().act(obs, truth)
         frame = self.layout.newest_frame(obs)
         index = np.rint(frame["place_frames"]).astype(int) - 1
-        best_bits = sensed_value_bits(frame["sinr_db"]) + np.maximum(frame["place_best_gain_bits"], 0.0)
+        best_bits = sensed_value_bits(frame["sinr_db"]) + np.maximum(
+            frame["place_best_gain_bits"], 0.0
+        )
         r_max = self.mapping.r_max_m
         offset = frame["place_best_offset_m"]
         go = frame["place_best_gain_bits"] > self.margin_bits
@@ -95,20 +123,26 @@ class ExploreVariant(ExplorePolicy):
             second = (j >= 0) & (j < self.search_frames) & (best_bits < self.again_bits)
             out = (j % (4 * leg) < leg) | (j % (4 * leg) >= 3 * leg)
             heading = np.where(j < 4 * leg, np.where(out, 45.0, 225.0), np.where(out, 135.0, -45.0))
-            action = np.where(second[:, None], self.mapping.from_polar(heading, np.full(len(index), r_max)),
-                              action)
+            action = np.where(
+                second[:, None],
+                self.mapping.from_polar(heading, np.full(len(index), r_max)),
+                action,
+            )
         if self.probe:
             on_best = np.hypot(offset[:, 0], offset[:, 1]) < self.cell_m / 2
             unknown = frame["place_neighbour_known"] < 0.5  # (rows, 4): east, north, west, south
             probe = (index >= self.search_frames) & on_best & unknown.any(axis=1)
-            step = self.mapping.from_polar(90.0 * np.argmax(unknown, axis=1),
-                                           np.full(len(index), min(self.cell_m, r_max)))
+            step = self.mapping.from_polar(
+                90.0 * np.argmax(unknown, axis=1), np.full(len(index), min(self.cell_m, r_max))
+            )
             action = np.where(probe[:, None], step, action)
         if len(self.spiral_deg):
             j = index - (self.search_frames + 8)
             spiral = (j >= 0) & (j < len(self.spiral_deg))
-            step = self.mapping.from_polar(self.spiral_deg[np.clip(j, 0, len(self.spiral_deg) - 1)],
-                                           np.full(len(index), self.spiral_step_m))
+            step = self.mapping.from_polar(
+                self.spiral_deg[np.clip(j, 0, len(self.spiral_deg) - 1)],
+                np.full(len(index), self.spiral_step_m),
+            )
             action = np.where(spiral[:, None], step, action)
         return action
 
@@ -117,55 +151,98 @@ def no_move_references(settings: list[str], episodes: int, seed: int) -> dict[st
     """Today's spatial no_move policy and explore on the same episodes, with ``settings``."""
     on_spatial = EnvOverrides.from_command_line("no_move", None, settings)
     loaded = load_with_env(["policies/spatial/no_move.zip", "explore"], on_spatial)
-    return {name: evaluate_policy(policy, cfg, episodes, seed)
-            for name, (policy, cfg) in zip(("spatial", "explore"), loaded, strict=True)}
+    return {
+        name: evaluate_policy(policy, cfg, episodes, seed)
+        for name, (policy, cfg) in zip(("spatial", "explore"), loaded, strict=True)
+    }
 
 
 def versus(result: EvalResult, references: dict[str, EvalResult]) -> dict[str, list[float]]:
     """``vs_<name>``: ``result`` over each reference, paired, with its 95 % interval."""
-    return {f"vs_{name}": [round(x, 4) for x in paired_ratio_ci(result.episode_rate_mbps, base.episode_rate_mbps)]
-            for name, base in references.items()}
+    return {
+        f"vs_{name}": [
+            round(x, 4) for x in paired_ratio_ci(result.episode_rate_mbps, base.episode_rate_mbps)
+        ]
+        for name, base in references.items()
+    }
 
 
-def print_summary(episodes: int, seed: int, settings: list[str], references: dict[str, EvalResult],
-                  rows: list[dict], as_json: bool) -> bool:
+def print_summary(
+    episodes: int,
+    seed: int,
+    settings: list[str],
+    references: dict[str, EvalResult],
+    rows: list[dict],
+    as_json: bool,
+) -> bool:
     """Print the run as JSON (then True: nothing more to print) or the references' heading line."""
-    summary = {"episodes": episodes, "seed": seed, "settings": settings,
-               **{f"{name}_mbps": round(r.mean_rate_mbps, 4) for name, r in references.items()}, "rows": rows}
+    summary = {
+        "episodes": episodes,
+        "seed": seed,
+        "settings": settings,
+        **{f"{name}_mbps": round(r.mean_rate_mbps, 4) for name, r in references.items()},
+        "rows": rows,
+    }
     if as_json:
         print(json.dumps(summary, indent=1))
         return True
-    print(f"spatial policy {summary['spatial_mbps']:.3f} Mbps, explore {summary['explore_mbps']:.3f} Mbps "
-          f"({episodes} episodes, seed {seed}, {' '.join(settings)})\n")
+    print(
+        f"spatial policy {summary['spatial_mbps']:.3f} Mbps, explore {summary['explore_mbps']:.3f} Mbps "
+        f"({episodes} episodes, seed {seed}, {' '.join(settings)})\n"
+    )
     return False
 
 
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--cell-m", type=float, nargs="+", default=[12.0, 6.0], help="memory grids to try (m)")
+    parser.add_argument(
+        "--cell-m", type=float, nargs="+", default=[12.0, 6.0], help="memory grids to try (m)"
+    )
     parser.add_argument("--episodes", type=int, default=100)
-    parser.add_argument("--seed", type=int, default=1, help="evaluation seed (1: validation episodes)")
-    parser.add_argument("--set", dest="overrides", action="append", default=[], metavar="KEY=VALUE",
-                        help="env overrides for every run, e.g. uav_motion=px4")
+    parser.add_argument(
+        "--seed", type=int, default=1, help="evaluation seed (1: validation episodes)"
+    )
+    parser.add_argument(
+        "--set",
+        dest="overrides",
+        action="append",
+        default=[],
+        metavar="KEY=VALUE",
+        help="env overrides for every run, e.g. uav_motion=px4",
+    )
     parser.add_argument("--json", action="store_true")
     args = parser.parse_args(argv)
     settings = ["radio.shadowing_model=spatial", *args.overrides]
     references = no_move_references(settings, args.episodes, args.seed)
     rows = []
     for cell_m in args.cell_m:
-        [(_, cfg)] = load_with_env(["explore"], EnvOverrides.from_command_line(
-            "no_move", None, [*settings, f"place_cell_m={cell_m:g}"]))
+        [(_, cfg)] = load_with_env(
+            ["explore"],
+            EnvOverrides.from_command_line(
+                "no_move", None, [*settings, f"place_cell_m={cell_m:g}"]
+            ),
+        )
         for name, variant in VARIANTS.items():
             result = evaluate_policy(ExploreVariant(cfg, **variant), cfg, args.episodes, args.seed)
-            rows.append({"cell_m": cell_m, "variant": name, "mean_rate_mbps": round(result.mean_rate_mbps, 4),
-                         **versus(result, references)})
+            rows.append(
+                {
+                    "cell_m": cell_m,
+                    "variant": name,
+                    "mean_rate_mbps": round(result.mean_rate_mbps, 4),
+                    **versus(result, references),
+                }
+            )
     if print_summary(args.episodes, args.seed, settings, references, rows, args.json):
         return 0
     print("| cell (m) | variant | Mbps | vs explore | vs spatial policy |\n|---|---|---:|---|---|")
     for r in rows:
-        cells = [f"{(x[0] - 1) * 100:+.1f} % [{(x[1] - 1) * 100:+.1f}, {(x[2] - 1) * 100:+.1f}]"
-                 for x in (r["vs_explore"], r["vs_spatial"])]
-        print(f"| {r['cell_m']:g} | {r['variant']} | {r['mean_rate_mbps']:.3f} | {cells[0]} | {cells[1]} |")
+        cells = [
+            f"{(x[0] - 1) * 100:+.1f} % [{(x[1] - 1) * 100:+.1f}, {(x[2] - 1) * 100:+.1f}]"
+            for x in (r["vs_explore"], r["vs_spatial"])
+        ]
+        print(
+            f"| {r['cell_m']:g} | {r['variant']} | {r['mean_rate_mbps']:.3f} | {cells[0]} | {cells[1]} |"
+        )
     return 0
 
 

@@ -28,9 +28,23 @@ ROOT = Path(__file__).resolve().parents[1]
 
 
 def fly(policy: str, scenario: str, seed: int, lockstep: bool, out: Path) -> float:
-    cmd = [sys.executable, "-m", "uavlink.cli", "fly", "--policy", policy, "--scenario", scenario,
-           "--seed", str(seed), "--out", str(out), "--json", "--no-picture",
-           *(["--lockstep"] if lockstep else [])]
+    cmd = [
+        sys.executable,
+        "-m",
+        "uavlink.cli",
+        "fly",
+        "--policy",
+        policy,
+        "--scenario",
+        scenario,
+        "--seed",
+        str(seed),
+        "--out",
+        str(out),
+        "--json",
+        "--no-picture",
+        *(["--lockstep"] if lockstep else []),
+    ]
     proc = subprocess.run(cmd, capture_output=True, text=True, cwd=ROOT, timeout=600)
     if proc.returncode != 0:
         raise SystemExit(f"fly failed at seed {seed}: {proc.stderr.strip()[-500:]}")
@@ -38,7 +52,9 @@ def fly(policy: str, scenario: str, seed: int, lockstep: bool, out: Path) -> flo
 
 
 def evaluate(policy: str, scenario: str, seed: int, settings: list[str]) -> float:
-    [(actor, cfg)] = load_with_env([policy], EnvOverrides.from_command_line(scenario, None, settings))
+    [(actor, cfg)] = load_with_env(
+        [policy], EnvOverrides.from_command_line(scenario, None, settings)
+    )
     return float(evaluate_policy(actor, cfg, episodes=1, seed=seed).mean_rate_mbps)
 
 
@@ -59,12 +75,15 @@ def main(argv: list[str] | None = None) -> int:
     rows = []
     with tempfile.TemporaryDirectory() as tmp:
         for seed in args.seeds:
-            row = {"seed": seed,
-                   "evaluated_instant": evaluate(args.policy, args.scenario, seed, []),
-                   "evaluated_px4": evaluate(args.policy, args.scenario, seed, ["uav_motion=px4"])}
+            row = {
+                "seed": seed,
+                "evaluated_instant": evaluate(args.policy, args.scenario, seed, []),
+                "evaluated_px4": evaluate(args.policy, args.scenario, seed, ["uav_motion=px4"]),
+            }
             for mode, lockstep in modes.items():
-                row[f"flown_{mode}"] = fly(args.policy, args.scenario, seed, lockstep,
-                                           Path(tmp) / f"{mode}{seed}")
+                row[f"flown_{mode}"] = fly(
+                    args.policy, args.scenario, seed, lockstep, Path(tmp) / f"{mode}{seed}"
+                )
             rows.append(row)
     column = {k: [r[k] for r in rows] for k in rows[0]}
     summary = {}
@@ -73,10 +92,13 @@ def main(argv: list[str] | None = None) -> int:
         for ev in ("instant", "px4"):
             diff = np.array(flown) / np.array(column[f"evaluated_{ev}"]) - 1
             summary[f"{mode}_vs_{ev}"] = {
-                "within_5pct": within(flown, column[f"evaluated_{ev}"]), "flights": len(flown),
+                "within_5pct": within(flown, column[f"evaluated_{ev}"]),
+                "flights": len(flown),
                 "max_abs_diff_pct": round(float(np.abs(diff).max()) * 100, 2),
                 "mean_of_flights_vs_mean_evaluated_pct": round(
-                    (float(np.mean(flown)) / float(np.mean(column[f"evaluated_{ev}"])) - 1) * 100, 2)}
+                    (float(np.mean(flown)) / float(np.mean(column[f"evaluated_{ev}"])) - 1) * 100, 2
+                ),
+            }
     result = {"policy": args.policy, "scenario": args.scenario, "rows": rows, "summary": summary}
     if args.json:
         print(json.dumps(result, indent=2))
@@ -85,11 +107,17 @@ def main(argv: list[str] | None = None) -> int:
     print("| " + " | ".join(keys) + " |")
     print("|" + "---|" * len(keys))
     for r in rows:
-        print("| " + " | ".join(f"{r[k]:.3f}" if isinstance(r[k], float) else str(r[k]) for k in keys) + " |")
+        print(
+            "| "
+            + " | ".join(f"{r[k]:.3f}" if isinstance(r[k], float) else str(r[k]) for k in keys)
+            + " |"
+        )
     print()
     for name, s in summary.items():
-        print(f"{name}: {s['within_5pct']} of {s['flights']} flights within 5 %, largest difference "
-              f"{s['max_abs_diff_pct']} %, mean of the flights {s['mean_of_flights_vs_mean_evaluated_pct']:+} %")
+        print(
+            f"{name}: {s['within_5pct']} of {s['flights']} flights within 5 %, largest difference "
+            f"{s['max_abs_diff_pct']} %, mean of the flights {s['mean_of_flights_vs_mean_evaluated_pct']:+} %"
+        )
     return 0
 
 

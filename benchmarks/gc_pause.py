@@ -45,18 +45,31 @@ def run(policy: Path, passes: int, allocate: int) -> dict:
     plain = full_pass_ms(passes, allocate)
     with steady_heap():
         frozen = full_pass_ms(passes, allocate)
-    return {"benchmark": "gc_pause", "policy": str(policy), "tracked_objects": objects, "passes": passes,
-            "allocated_cycles_per_pass": allocate, "full_pass_ms": [round(t, 2) for t in plain],
-            "frozen_full_pass_ms": [round(t, 2) for t in frozen],
-            "median_ms": round(sorted(plain)[passes // 2], 2), "frozen_median_ms": round(sorted(frozen)[passes // 2], 2)}
+    return {
+        "benchmark": "gc_pause",
+        "policy": str(policy),
+        "tracked_objects": objects,
+        "passes": passes,
+        "allocated_cycles_per_pass": allocate,
+        "full_pass_ms": [round(t, 2) for t in plain],
+        "frozen_full_pass_ms": [round(t, 2) for t in frozen],
+        "median_ms": round(sorted(plain)[passes // 2], 2),
+        "frozen_median_ms": round(sorted(frozen)[passes // 2], 2),
+    }
 
 
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--policy", type=Path, default=ROOT / "policies" / "fleet" / "straight_180.zip")
+    parser.add_argument(
+        "--policy", type=Path, default=ROOT / "policies" / "fleet" / "straight_180.zip"
+    )
     parser.add_argument("--passes", type=int, default=5, help="timed full collections each way")
-    parser.add_argument("--allocate", type=int, default=10_000, help="new small cycles before each pass")
-    parser.add_argument("--json", action="store_true", help="print one JSON object instead of a line")
+    parser.add_argument(
+        "--allocate", type=int, default=10_000, help="new small cycles before each pass"
+    )
+    parser.add_argument(
+        "--json", action="store_true", help="print one JSON object instead of a line"
+    )
     args = parser.parse_args(argv)
     if args.passes < 1 or args.allocate < 0:
         parser.error("--passes must be >= 1 and --allocate >= 0")
@@ -64,9 +77,11 @@ def main(argv: list[str] | None = None) -> int:
     if args.json:
         print(json.dumps(report, indent=2))
     else:
-        print(f"{report['tracked_objects']:,} objects tracked with {args.policy} loaded: a full collection takes "
-              f"{report['median_ms']:.1f} ms (median of {args.passes}), {report['frozen_median_ms']:.1f} ms with "
-              f"the heap frozen as the flight loop freezes it")
+        print(
+            f"{report['tracked_objects']:,} objects tracked with {args.policy} loaded: a full collection takes "
+            f"{report['median_ms']:.1f} ms (median of {args.passes}), {report['frozen_median_ms']:.1f} ms with "
+            f"the heap frozen as the flight loop freezes it"
+        )
     return 0
 
 

@@ -34,16 +34,23 @@ def watch(fly_args: list[str], min_ms: float, freeze: bool) -> dict:
                 return fly(*args, **kwargs)
             finally:
                 mission["end"] = time.perf_counter()
+
         return run
 
-    uavlink.flight.fly.fly_mission = timed(uavlink.flight.fly.fly_mission)
+    uavlink.flight.fly.fly_vehicle = timed(uavlink.flight.fly.fly_vehicle)
     uavlink.flight.fly.fly_fleet = timed(uavlink.flight.fly.fly_fleet)
 
     def on_gc(phase: str, info: dict) -> None:
         if phase == "start":
             started["t"] = time.perf_counter()
         elif (ms := 1e3 * (time.perf_counter() - started["t"])) > min_ms:
-            passes.append({"generation": info["generation"], "ms": round(ms, 1), "ended_at": time.perf_counter()})
+            passes.append(
+                {
+                    "generation": info["generation"],
+                    "ms": round(ms, 1),
+                    "ended_at": time.perf_counter(),
+                }
+            )
 
     gc.callbacks.append(on_gc)
     try:
@@ -60,16 +67,29 @@ def watch(fly_args: list[str], min_ms: float, freeze: bool) -> dict:
     # holds: a fleet's vehicles count them; stale reports: frames a held-up loop observed, not decided
     counts = ("decisions", "stale_radio_reports", "holds", "offboard_reentries")
     vehicles = [{k: v[k] for k in counts if k in v} for v in summary.get("vehicles") or [summary]]
-    return {"benchmark": "gc_watch", "fly": fly_args, "frozen_heap": freeze, "exit_status": code,
-            "min_ms": min_ms, "passes": passes, "episode_wall_s": summary.get("episode_wall_s"),
-            "vehicles": vehicles}
+    return {
+        "benchmark": "gc_watch",
+        "fly": fly_args,
+        "frozen_heap": freeze,
+        "exit_status": code,
+        "min_ms": min_ms,
+        "passes": passes,
+        "episode_wall_s": summary.get("episode_wall_s"),
+        "vehicles": vehicles,
+    }
 
 
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--no-freeze", action="store_true", help="fly without the frozen heap, as before")
-    parser.add_argument("--min-ms", type=float, default=20.0, help="log passes longer than this (default 20)")
-    parser.add_argument("--json", action="store_true", help="print one JSON object instead of lines")
+    parser.add_argument(
+        "--no-freeze", action="store_true", help="fly without the frozen heap, as before"
+    )
+    parser.add_argument(
+        "--min-ms", type=float, default=20.0, help="log passes longer than this (default 20)"
+    )
+    parser.add_argument(
+        "--json", action="store_true", help="print one JSON object instead of lines"
+    )
     parser.add_argument("fly", nargs=argparse.REMAINDER, help="-- then `uavlink fly`'s arguments")
     args = parser.parse_args(argv)
     fly_args = args.fly[1:] if args.fly[:1] == ["--"] else args.fly
@@ -77,12 +97,16 @@ def main(argv: list[str] | None = None) -> int:
     if args.json:
         print(json.dumps(report, indent=2))
         return 0
-    print(f"frozen heap: {report['frozen_heap']}; episode {report['episode_wall_s']} s wall; vehicles "
-          + ", ".join(" / ".join(f"{n} {k}" for k, n in v.items()) for v in report["vehicles"]))
+    print(
+        f"frozen heap: {report['frozen_heap']}; episode {report['episode_wall_s']} s wall; vehicles "
+        + ", ".join(" / ".join(f"{n} {k}" for k, n in v.items()) for v in report["vehicles"])
+    )
     for p in report["passes"]:
         where = "in the mission" if p["in_mission"] else "outside the mission"
-        print(f"  generation {p['generation']}: {p['ms']} ms, {where}, ended {p['s_from_mission_end']:+} s "
-              "from its end")
+        print(
+            f"  generation {p['generation']}: {p['ms']} ms, {where}, ended {p['s_from_mission_end']:+} s "
+            "from its end"
+        )
     return 0
 
 

@@ -28,8 +28,9 @@ from uavlink.policies.registry import make_baseline
 TARGET_100_MIN = 10.0  # "minutes, not hours"
 
 
-def timed(name: str, cfg: EnvConfig, episodes: int, seed: int,
-          workers: int | None = None) -> tuple[float, float, float, object]:
+def timed(
+    name: str, cfg: EnvConfig, episodes: int, seed: int, workers: int | None = None
+) -> tuple[float, float, float, object]:
     """(wall s, CPU s, mean Mbps, the policy) of evaluating baseline ``name`` over ``episodes`` (the
     genie on ``workers`` threads, its default when None)."""
     policy = make_baseline(name, cfg)
@@ -41,27 +42,37 @@ def timed(name: str, cfg: EnvConfig, episodes: int, seed: int,
 
 
 def measure(scenario: str, n_uavs: int, episodes: int, seed: int) -> dict:
-    cfg = EnvConfig(scenario=scenario).replace(**{"radio.shadowing_model": "spatial", "n_uavs": n_uavs}).validate()
+    cfg = (
+        EnvConfig(scenario=scenario)
+        .replace(**{"radio.shadowing_model": "spatial", "n_uavs": n_uavs})
+        .validate()
+    )
     static_wall, static_cpu, _, _ = timed("static", cfg, episodes, seed)
     serial_wall, serial_cpu, serial_mbps, _ = timed("genie", cfg, episodes, seed, workers=1)
     wall, cpu, mbps, genie = timed("genie", cfg, episodes, seed)
     if mbps != serial_mbps:
         raise AssertionError(f"the threaded plan flew {mbps} Mbps, the serial one {serial_mbps}")
-    return {"scenario": scenario, "n_uavs": n_uavs, "episodes": episodes, "seed": seed,
-            "threads": genie.workers,
-            "genie_wall_s_per_episode": round(wall / episodes, 3), "genie_cpu_s_per_episode": round(cpu / episodes, 3),
-            "genie_one_thread_wall_s_per_episode": round(serial_wall / episodes, 3),
-            "genie_one_thread_cpu_s_per_episode": round(serial_cpu / episodes, 3),
-            "thread_speedup": round(serial_wall / wall, 2),
-            "static_wall_s_per_episode": round(static_wall / episodes, 4),
-            "static_cpu_s_per_episode": round(static_cpu / episodes, 4),
-            "projected_100_episodes_min": round(100 * wall / episodes / 60, 2), "genie_mbps": round(mbps, 3)}
+    return {
+        "scenario": scenario,
+        "n_uavs": n_uavs,
+        "episodes": episodes,
+        "seed": seed,
+        "threads": genie.workers,
+        "genie_wall_s_per_episode": round(wall / episodes, 3),
+        "genie_cpu_s_per_episode": round(cpu / episodes, 3),
+        "genie_one_thread_wall_s_per_episode": round(serial_wall / episodes, 3),
+        "genie_one_thread_cpu_s_per_episode": round(serial_cpu / episodes, 3),
+        "thread_speedup": round(serial_wall / wall, 2),
+        "static_wall_s_per_episode": round(static_wall / episodes, 4),
+        "static_cpu_s_per_episode": round(static_cpu / episodes, 4),
+        "projected_100_episodes_min": round(100 * wall / episodes / 60, 2),
+        "genie_mbps": round(mbps, 3),
+    }
 
 
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--episodes", type=int, default=8,
-                        help="per run (default 8)")
+    parser.add_argument("--episodes", type=int, default=8, help="per run (default 8)")
     parser.add_argument("--seed", type=int, default=0)
     parser.add_argument("--scenario", default="straight_180")
     parser.add_argument("--uavs", nargs="+", type=int, default=[1, 2])
@@ -69,18 +80,28 @@ def main(argv: list[str] | None = None) -> int:
     args = parser.parse_args(argv)
     rows = [measure(args.scenario, d, args.episodes, args.seed) for d in args.uavs]
     one = next((r for r in rows if r["n_uavs"] == 1), None)
-    out = {"rows": rows, "target_100_min": TARGET_100_MIN,
-           "met": None if one is None else one["projected_100_episodes_min"] <= TARGET_100_MIN,
-           "machine": {"cpus": os.cpu_count(), "load_1min": round(os.getloadavg()[0], 2), "python": platform.python_version()},
-           "command": "python benchmarks/genie_cost.py " + " ".join(sys.argv[1:] if argv is None else argv)}
+    out = {
+        "rows": rows,
+        "target_100_min": TARGET_100_MIN,
+        "met": None if one is None else one["projected_100_episodes_min"] <= TARGET_100_MIN,
+        "machine": {
+            "cpus": os.cpu_count(),
+            "load_1min": round(os.getloadavg()[0], 2),
+            "python": platform.python_version(),
+        },
+        "command": "python benchmarks/genie_cost.py "
+        + " ".join(sys.argv[1:] if argv is None else argv),
+    }
     if args.json:
         print(json.dumps(out, indent=2))
     else:
         for r in rows:
-            print(f"D={r['n_uavs']}: genie {r['genie_wall_s_per_episode']:.2f} s/episode wall on {r['threads']} "
-                  f"threads, {r['genie_one_thread_wall_s_per_episode']:.2f} s on one ({r['thread_speedup']:.2f}x; "
-                  f"static {r['static_wall_s_per_episode']:.3f} s); 100 episodes ~ "
-                  f"{r['projected_100_episodes_min']:.1f} min")
+            print(
+                f"D={r['n_uavs']}: genie {r['genie_wall_s_per_episode']:.2f} s/episode wall on {r['threads']} "
+                f"threads, {r['genie_one_thread_wall_s_per_episode']:.2f} s on one ({r['thread_speedup']:.2f}x; "
+                f"static {r['static_wall_s_per_episode']:.3f} s); 100 episodes ~ "
+                f"{r['projected_100_episodes_min']:.1f} min"
+            )
     return 0
 
 

@@ -1,7 +1,7 @@
 """Throughput of a flown episode under link faults: clean, 10 % and 30 % loss, 200 ms delay.
 
 Each row flies 128-frame episodes with `uavlink fly` (a child process) against
-`python -m sitl_stub` (another) through the test relay `tests/udp_relay.py` on loopback, which
+`python -m sitl_stub` (another) through the test relay `tests/support/udp_relay.py` on loopback, which
 drops / delays datagrams in both directions (seeded). Throughput is the vehicle's own truth (its
 radio payload's mean UE rate over the episode's 128 frames), so lost score messages do not bias
 it; fly's own view is reported too. Loss rows run at --speed (default 20, as `uavlink fly`),
@@ -28,8 +28,8 @@ ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT / "tests"))
 sys.path.insert(0, str(ROOT))
 
-from relay_flight import fly_through_relay, format_table, table_row  # noqa: E402
-from udp_relay import CLEAN, Faults  # noqa: E402
+from support.relay_flight import fly_through_relay, format_table, table_row  # noqa: E402
+from support.udp_relay import CLEAN, Faults  # noqa: E402
 
 
 def main() -> None:
@@ -37,9 +37,15 @@ def main() -> None:
     parser.add_argument("--policy", default="policies/circular.zip")
     parser.add_argument("--scenario", default="circular")
     parser.add_argument("--seed", type=int, default=0, help="scenario seed (the UEs' episode)")
-    parser.add_argument("--relay-seed", type=int, default=0, help="first seed of the relay's faults")
-    parser.add_argument("--runs", type=int, default=3,
-                        help="flights per loss row, relay seeds relay-seed, relay-seed + 1, ...")
+    parser.add_argument(
+        "--relay-seed", type=int, default=0, help="first seed of the relay's faults"
+    )
+    parser.add_argument(
+        "--runs",
+        type=int,
+        default=3,
+        help="flights per loss row, relay seeds relay-seed, relay-seed + 1, ...",
+    )
     parser.add_argument("--speed", type=float, default=20.0, help="--speed of the loss rows")
     parser.add_argument("--delay-speed", type=float, default=1.0, help="--speed of the delay rows")
     parser.add_argument("--delay-ms", type=float, default=200.0, help="one-way delay, ms")
@@ -49,11 +55,20 @@ def main() -> None:
 
     def run(faults: Faults, speed: float, relay_seed: int | None = None) -> dict:
         started = time.monotonic()
-        result = fly_through_relay(faults, policy=args.policy, scenario=args.scenario,
-                                   seed=args.seed, speed=speed, timeout_s=60 + 400 / speed,
-                                   relay_seed=args.relay_seed if relay_seed is None else relay_seed)
-        print(f"  {faults.describe()} at --speed {speed:g}: {time.monotonic() - started:.0f} s",
-              file=sys.stderr, flush=True)
+        result = fly_through_relay(
+            faults,
+            policy=args.policy,
+            scenario=args.scenario,
+            seed=args.seed,
+            speed=speed,
+            timeout_s=60 + 400 / speed,
+            relay_seed=args.relay_seed if relay_seed is None else relay_seed,
+        )
+        print(
+            f"  {faults.describe()} at --speed {speed:g}: {time.monotonic() - started:.0f} s",
+            file=sys.stderr,
+            flush=True,
+        )
         return result
 
     rows = []
@@ -70,11 +85,23 @@ def main() -> None:
         delayed = run(Faults(delay_s=args.delay_ms / 1e3), args.delay_speed)
         rows.append(table_row(f"{args.delay_ms:.0f} ms delay each way", delayed, slow_base))
     if args.json:
-        print(json.dumps({"policy": args.policy, "scenario": args.scenario, "seed": args.seed,
-                          "relay_seed": args.relay_seed, "rows": rows}, indent=2))
+        print(
+            json.dumps(
+                {
+                    "policy": args.policy,
+                    "scenario": args.scenario,
+                    "seed": args.seed,
+                    "relay_seed": args.relay_seed,
+                    "rows": rows,
+                },
+                indent=2,
+            )
+        )
     else:
-        print(f"policy {args.policy}, scenario {args.scenario} seed {args.seed}, 128 frames, "
-              f"relay seeds from {args.relay_seed}")
+        print(
+            f"policy {args.policy}, scenario {args.scenario} seed {args.seed}, 128 frames, "
+            f"relay seeds from {args.relay_seed}"
+        )
         print(format_table(rows))
 
 

@@ -30,21 +30,34 @@ def check(folder: Path) -> list[dict]:
         if not isinstance(manifest.get("evaluation"), dict) or not policy.exists():
             continue  # a sweep record, not a policy's manifest
         for recorded in manifest["evaluation"].values():
-            overrides = EnvOverrides.from_command_line(recorded["scenario"], recorded.get("aoa_noise_deg"), [])
+            overrides = EnvOverrides.from_command_line(
+                recorded["scenario"], recorded.get("aoa_noise_deg"), []
+            )
             [(actor, cfg)] = load_with_env([str(policy)], overrides)
             now = evaluate_policy(actor, cfg, recorded["episodes"], recorded["seed"]).mean_rate_mbps
-            rows.append({"policy": str(policy), "scenario": recorded["scenario"],
-                         "channel": cfg.radio.shadowing_model, "episodes": recorded["episodes"],
-                         "seed": recorded["seed"], "recorded_mbps": recorded["mean_rate_mbps"],
-                         "now_mbps": round(float(now), 6),
-                         "diff_pct": round((float(now) / recorded["mean_rate_mbps"] - 1) * 100, 3)})
+            rows.append(
+                {
+                    "policy": str(policy),
+                    "scenario": recorded["scenario"],
+                    "channel": cfg.radio.shadowing_model,
+                    "episodes": recorded["episodes"],
+                    "seed": recorded["seed"],
+                    "recorded_mbps": recorded["mean_rate_mbps"],
+                    "now_mbps": round(float(now), 6),
+                    "diff_pct": round((float(now) / recorded["mean_rate_mbps"] - 1) * 100, 3),
+                }
+            )
     return rows
 
 
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--policies", type=Path, default=ROOT / "policies",
-                        help="folder of shipped policies, searched recursively (default: the repository's)")
+    parser.add_argument(
+        "--policies",
+        type=Path,
+        default=ROOT / "policies",
+        help="folder of shipped policies, searched recursively (default: the repository's)",
+    )
     parser.add_argument("--json", action="store_true")
     args = parser.parse_args(argv)
     rows = check(args.policies)
@@ -56,8 +69,10 @@ def main(argv: list[str] | None = None) -> int:
     print("| policy | scenario | channel | recorded (Mbps) | now (Mbps) | difference |")
     print("|---|---|---|---:|---:|---:|")
     for r in rows:
-        print(f"| {r['policy']} | {r['scenario']} | {r['channel']} | {r['recorded_mbps']:.6f} | "
-              f"{r['now_mbps']:.6f} | {r['diff_pct']:+.3f} % |")
+        print(
+            f"| {r['policy']} | {r['scenario']} | {r['channel']} | {r['recorded_mbps']:.6f} | "
+            f"{r['now_mbps']:.6f} | {r['diff_pct']:+.3f} % |"
+        )
     return 0
 
 

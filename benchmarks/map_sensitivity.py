@@ -21,12 +21,20 @@ ROOT = Path(__file__).resolve().parents[1]
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--scenarios", nargs="+", help="default: no_move circular")
-    parser.add_argument("--map", type=Path, default=ROOT / "policies" / "map", help="the map policies' folder")
-    parser.add_argument("--spatial", type=Path, default=ROOT / "policies" / "spatial",
-                        help="the spatial policies' folder")
+    parser.add_argument(
+        "--map", type=Path, default=ROOT / "policies" / "map", help="the map policies' folder"
+    )
+    parser.add_argument(
+        "--spatial",
+        type=Path,
+        default=ROOT / "policies" / "spatial",
+        help="the spatial policies' folder",
+    )
     parser.add_argument("--episodes", type=int, default=50, help="episodes per cell (default 50)")
     parser.add_argument("--seed", type=int, default=0)
-    parser.add_argument("--json", action="store_true", help="print one JSON object instead of a table")
+    parser.add_argument(
+        "--json", action="store_true", help="print one JSON object instead of a table"
+    )
     args = parser.parse_args(argv)
     if args.episodes < 2:
         parser.error("--episodes must be >= 2 (a paired interval)")
@@ -42,16 +50,24 @@ def main(argv: list[str] | None = None) -> int:
             print(line, file=sys.stderr, flush=True)
 
     try:
-        report = sensitivity(args.map, args.spatial, args.episodes, args.seed,
-                             args.scenarios or SENSITIVITY_SCENARIOS, progress)
+        report = sensitivity(
+            args.map,
+            args.spatial,
+            args.episodes,
+            args.seed,
+            args.scenarios or SENSITIVITY_SCENARIOS,
+            progress,
+        )
     except UserError as exc:  # a scenario without a map or spatial policy, a bad override
         parser.error(str(exc))
     report = {"benchmark": "map_sensitivity", **report}
     if args.json:
         print(json.dumps(report, indent=2))
     else:
-        print(f"memory of place by channel ({report['episodes']} episodes, seed {report['seed']}; "
-              f"throughput over static's, 95 % paired interval)\n\n{sensitivity_table(report)}")
+        print(
+            f"memory of place by channel ({report['episodes']} episodes, seed {report['seed']}; "
+            f"throughput over static's, 95 % paired interval)\n\n{sensitivity_table(report)}"
+        )
     return 0
 
 

@@ -22,18 +22,33 @@ ROOT = Path(__file__).resolve().parents[1]
 
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--map", type=Path, default=ROOT / "policies" / "map", help="the map policies' folder")
-    parser.add_argument("--spatial", type=Path, default=ROOT / "policies" / "spatial",
-                        help="the spatial policies' folder")
+    parser.add_argument(
+        "--map", type=Path, default=ROOT / "policies" / "map", help="the map policies' folder"
+    )
+    parser.add_argument(
+        "--spatial",
+        type=Path,
+        default=ROOT / "policies" / "spatial",
+        help="the spatial policies' folder",
+    )
     parser.add_argument("--episodes", type=int, default=100)
     parser.add_argument("--seed", type=int, default=0)
     parser.add_argument("--no-genie", action="store_true", help="leave out the genie's columns")
     parser.add_argument("--csv", type=Path, default=None, help="also write the table here")
-    parser.add_argument("--json", action="store_true",
-                        help="print one JSON object (the table's rows by column, as the report writes the cells)")
-    parser.add_argument("--set", dest="settings", action="append", default=[], metavar="KEY=VALUE",
-                        help="an env override for every column, e.g. uav_motion=px4 (the genie keeps "
-                             "instant moves: its plan bounds a PX4-flown UAV); repeatable")
+    parser.add_argument(
+        "--json",
+        action="store_true",
+        help="print one JSON object (the table's rows by column, as the report writes the cells)",
+    )
+    parser.add_argument(
+        "--set",
+        dest="settings",
+        action="append",
+        default=[],
+        metavar="KEY=VALUE",
+        help="an env override for every column, e.g. uav_motion=px4 (the genie keeps "
+        "instant moves: its plan bounds a PX4-flown UAV); repeatable",
+    )
     args = parser.parse_args(argv)
     if args.episodes < 2:
         parser.error("--episodes must be >= 2 (a paired interval)")
@@ -49,19 +64,39 @@ def main(argv: list[str] | None = None) -> int:
 
     try:
         overrides = EnvOverrides.from_command_line(None, None, args.settings)
-        header, body = map_table(args.map, args.spatial, args.episodes, args.seed, overrides, policy_teacher, progress,
-                                 with_genie=not args.no_genie)
+        header, body = map_table(
+            args.map,
+            args.spatial,
+            args.episodes,
+            args.seed,
+            overrides,
+            policy_teacher,
+            progress,
+            with_genie=not args.no_genie,
+        )
     except UserError as exc:
         parser.error(str(exc))
     if args.csv is not None:
         write_csv(args.csv, header, body)
     if args.json:
-        print(json.dumps({"benchmark": "map_table", "episodes": args.episodes, "seed": args.seed,
-                          "settings": args.settings, "rows": [dict(zip(header, row, strict=True)) for row in body]},
-                         indent=2))
+        print(
+            json.dumps(
+                {
+                    "benchmark": "map_table",
+                    "episodes": args.episodes,
+                    "seed": args.seed,
+                    "settings": args.settings,
+                    "rows": [dict(zip(header, row, strict=True)) for row in body],
+                },
+                indent=2,
+            )
+        )
         return 0
-    print(f"{args.episodes} episodes, seed {args.seed}, spatial channel"
-          + "".join(f", {pair}" for pair in args.settings) + "\n")
+    print(
+        f"{args.episodes} episodes, seed {args.seed}, spatial channel"
+        + "".join(f", {pair}" for pair in args.settings)
+        + "\n"
+    )
     print(markdown_table(header, body))
     return 0
 

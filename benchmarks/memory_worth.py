@@ -38,7 +38,7 @@ def remembered_picks(values: np.ndarray, window: int) -> np.ndarray:
     picks = np.empty(len(values), dtype=int)
     for t in range(len(values)):
         lo = max(0, t - window + 1)
-        picks[t] = lo + int(np.argmax(values[lo:t + 1]))
+        picks[t] = lo + int(np.argmax(values[lo : t + 1]))
     return picks
 
 
@@ -46,7 +46,10 @@ def frame_rates_mbps(planner, path_m: np.ndarray) -> np.ndarray:
     """Mean UE rate (T,) at each frame of ``path_m`` (T + 1, 2), on the mean channel, Mbps."""
     from uavlink.radio.cells import mean_channel_rate_bps
 
-    return mean_channel_rate_bps(planner.rx_dbm(path_m[:, None]), planner.cfg.radio).mean(axis=-1) * 1e-6
+    return (
+        mean_channel_rate_bps(planner.rx_dbm(path_m[:, None]), planner.cfg.radio).mean(axis=-1)
+        * 1e-6
+    )
 
 
 def episode_sums(planner, path_m: np.ndarray) -> dict[int, tuple[float, float, float, float]]:
@@ -60,7 +63,12 @@ def episode_sums(planner, path_m: np.ndarray) -> dict[int, tuple[float, float, f
         at_pick[1:] = path_m[1:][picks]  # the UAV put back on its pick, every frame
         now = frame_rates_mbps(planner, at_pick)
         age = np.arange(len(here)) - picks
-        sums[window] = (float(here.sum()), float(here[picks].sum()), float(now.sum()), float(age.sum()))
+        sums[window] = (
+            float(here.sum()),
+            float(here[picks].sum()),
+            float(now.sum()),
+            float(age.sum()),
+        )
     return sums
 
 
@@ -90,20 +98,32 @@ def run(scenarios: list[str], episodes: int, seed: int, progress: bool) -> dict:
             for name, v in (("claimed", claimed), ("now", now)):
                 r, lo, hi = paired_ratio_ci(v, here)
                 ratios[name] = {"ratio": round(r, 4), "ci95": [round(lo, 4), round(hi, 4)]}
-            row["windows"][str(window)] = {**ratios, "here_mbps": round(float(here.sum() / frames), 4),
-                                           "mean_age_frames": round(float(age.sum() / frames), 1)}
+            row["windows"][str(window)] = {
+                **ratios,
+                "here_mbps": round(float(here.sum() / frames), 4),
+                "mean_age_frames": round(float(age.sum() / frames), 1),
+            }
         rows.append(row)
-    return {"benchmark": "memory_worth", "episodes": episodes, "seed": seed, "windows_frames": list(WINDOWS_FRAMES),
-            "statistic": "the memory's pick (best value sensed over the last A frames) against the value here: "
-                         "as sensed then (claimed) and as it would be now (now); mean-channel rates of the "
-                         "spatial policy's path, ratio of episode sums with a 95 % paired bootstrap interval",
-            "rows": rows}
+    return {
+        "benchmark": "memory_worth",
+        "episodes": episodes,
+        "seed": seed,
+        "windows_frames": list(WINDOWS_FRAMES),
+        "statistic": "the memory's pick (best value sensed over the last A frames) against the value here: "
+        "as sensed then (claimed) and as it would be now (now); mean-channel rates of the "
+        "spatial policy's path, ratio of episode sums with a 95 % paired bootstrap interval",
+        "rows": rows,
+    }
 
 
 def markdown(result: dict) -> str:
-    head = " | ".join(f"last {w}: claimed | last {w}: now | last {w}: age" for w in result["windows_frames"])
-    lines = [f"| scenario | here (Mbps) | {head} |",
-             "|---|---:|" + "---:|---:|---:|" * len(result["windows_frames"])]
+    head = " | ".join(
+        f"last {w}: claimed | last {w}: now | last {w}: age" for w in result["windows_frames"]
+    )
+    lines = [
+        f"| scenario | here (Mbps) | {head} |",
+        "|---|---:|" + "---:|---:|---:|" * len(result["windows_frames"]),
+    ]
     for row in result["rows"]:
         cells = []
         for w in result["windows_frames"]:
@@ -130,15 +150,24 @@ def plot(result: dict, path: Path) -> None:
     for i, row in enumerate(result["rows"]):
         colour = f"C{i}"
         for name, style in (("claimed", ":"), ("now", "-")):
-            ax.plot(windows, [row["windows"][str(w)][name]["ratio"] for w in windows], style, color=colour,
-                    marker="o", label=row["scenario"] if name == "now" else None)
+            ax.plot(
+                windows,
+                [row["windows"][str(w)][name]["ratio"] for w in windows],
+                style,
+                color=colour,
+                marker="o",
+                label=row["scenario"] if name == "now" else None,
+            )
     ax.axhline(1.0, color="grey", lw=0.8)
     ax.set_xscale("log", base=2)
     ax.set_xticks(windows, [str(w) for w in windows])
     ax.set_xlabel("memory length (frames): the pick is the best spot sensed over the last ones")
     ax.set_ylabel("pick / here (mean-channel throughput)")
-    ax.set_title(f"The remembered best spot: claimed (dotted) and worth now (solid), "
-                 f"{result['episodes']} episodes", fontsize=9)
+    ax.set_title(
+        f"The remembered best spot: claimed (dotted) and worth now (solid), "
+        f"{result['episodes']} episodes",
+        fontsize=9,
+    )
     ax.legend(fontsize=8, ncol=2)
     fig.tight_layout()
     fig.savefig(path)
@@ -147,8 +176,13 @@ def plot(result: dict, path: Path) -> None:
 def main(argv: list[str] | None = None) -> int:
     from uavlink.mobility import SCENARIOS
 
-    args = scenario_args(__doc__, argv, list(SCENARIOS), 50,
-                         plot_help="also draw the ratios against the memory's length into this PNG")
+    args = scenario_args(
+        __doc__,
+        argv,
+        list(SCENARIOS),
+        50,
+        plot_help="also draw the ratios against the memory's length into this PNG",
+    )
     result = run(args.scenarios, args.episodes, args.seed, progress=sys.stderr.isatty())
     print(json.dumps(result, indent=1) if args.json else markdown(result))
     if args.plot is not None:

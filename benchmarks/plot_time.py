@@ -56,18 +56,41 @@ print(json.dumps({"total_s": t3 - t0, "read_s": t1 - t0, "import_s": t2 - t1, "d
 
 
 def _child(tlog: Path, out: Path, gif: bool) -> dict:
-    env = dict(os.environ, PYTHONPATH=os.pathsep.join(p for p in (str(ROOT), os.environ.get("PYTHONPATH")) if p))
-    proc = subprocess.run([sys.executable, "-c", CHILD, str(tlog), str(out), "1" if gif else "0"],
-                          capture_output=True, text=True, cwd=ROOT, timeout=600, env=env)
+    env = dict(
+        os.environ,
+        PYTHONPATH=os.pathsep.join(p for p in (str(ROOT), os.environ.get("PYTHONPATH")) if p),
+    )
+    proc = subprocess.run(
+        [sys.executable, "-c", CHILD, str(tlog), str(out), "1" if gif else "0"],
+        capture_output=True,
+        text=True,
+        cwd=ROOT,
+        timeout=600,
+        env=env,
+    )
     if proc.returncode != 0:
         raise SystemExit(f"drawing failed: {proc.stderr.strip()[-2000:]}")
     return json.loads(proc.stdout)
 
 
 def _fly(frames: int, speed: float, out: Path) -> dict:
-    cmd = [sys.executable, "-m", "uavlink.cli", "fly", "--policy", "aoa", "--frames", str(frames),
-           "--speed", f"{speed:g}",
-           "--out", str(out), "--no-picture", "--json", "--quiet"]
+    cmd = [
+        sys.executable,
+        "-m",
+        "uavlink.cli",
+        "fly",
+        "--policy",
+        "aoa",
+        "--frames",
+        str(frames),
+        "--speed",
+        f"{speed:g}",
+        "--out",
+        str(out),
+        "--no-picture",
+        "--json",
+        "--quiet",
+    ]
     proc = subprocess.run(cmd, capture_output=True, text=True, cwd=ROOT, timeout=600)
     if proc.returncode != 0:
         raise SystemExit(f"fly failed: {proc.stderr.strip()[-2000:]}")
@@ -76,11 +99,19 @@ def _fly(frames: int, speed: float, out: Path) -> dict:
 
 def main(argv: Sequence[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--tlog", type=Path, default=None, help="a flight's tlog (default: fly one)")
+    parser.add_argument(
+        "--tlog", type=Path, default=None, help="a flight's tlog (default: fly one)"
+    )
     parser.add_argument("--frames", type=int, default=128, help="frames to fly without --tlog")
-    parser.add_argument("--speed", type=float, default=20.0,
-                        help="the flight's speed factor (lower it on a loaded machine)")
-    parser.add_argument("--repeats", type=int, default=3, help="pictures drawn, each in a new process")
+    parser.add_argument(
+        "--speed",
+        type=float,
+        default=20.0,
+        help="the flight's speed factor (lower it on a loaded machine)",
+    )
+    parser.add_argument(
+        "--repeats", type=int, default=3, help="pictures drawn, each in a new process"
+    )
     parser.add_argument("--gif", action="store_true", help="time the animation too (once)")
     parser.add_argument("--json", action="store_true")
     args = parser.parse_args(argv)
@@ -95,29 +126,51 @@ def main(argv: Sequence[str] | None = None) -> int:
         runs = [_child(tlog, Path(tmp) / f"p{i}.png", False) for i in range(args.repeats)]
         gif = _child(tlog, Path(tmp) / "flight.gif", True) if args.gif else None
         load_after = os.getloadavg()[0]
-    median = {k: round(statistics.median(r[k] for r in runs), 3)
-              for k in ("total_s", "read_s", "import_s", "draw_s", "total_cpu_s", "read_cpu_s",
-                        "import_cpu_s", "draw_cpu_s")}
-    result = {"tlog": str(args.tlog) if args.tlog else f"uavlink fly --policy aoa --frames {args.frames}",
-              "tlog_bytes": tlog_bytes, "frames": runs[0]["frames"],
-              "decision_frames": runs[0]["decision_frames"], "repeats": args.repeats,
-              "picture_s_median": median["total_s"], "picture_cpu_s_median": median["total_cpu_s"],
-              "parts_s_median": median,
-              "picture_s_all": [round(r["total_s"], 3) for r in runs],
-              "flight_wall_s": None if flight is None else flight["wall_s"],
-              "cpu_count": os.cpu_count(), "load_avg_1min": [round(load_before, 2), round(load_after, 2)],
-              "target_s": 2.0}
+    median = {
+        k: round(statistics.median(r[k] for r in runs), 3)
+        for k in (
+            "total_s",
+            "read_s",
+            "import_s",
+            "draw_s",
+            "total_cpu_s",
+            "read_cpu_s",
+            "import_cpu_s",
+            "draw_cpu_s",
+        )
+    }
+    result = {
+        "tlog": str(args.tlog) if args.tlog else f"uavlink fly --policy aoa --frames {args.frames}",
+        "tlog_bytes": tlog_bytes,
+        "frames": runs[0]["frames"],
+        "decision_frames": runs[0]["decision_frames"],
+        "repeats": args.repeats,
+        "picture_s_median": median["total_s"],
+        "picture_cpu_s_median": median["total_cpu_s"],
+        "parts_s_median": median,
+        "picture_s_all": [round(r["total_s"], 3) for r in runs],
+        "flight_wall_s": None if flight is None else flight["wall_s"],
+        "cpu_count": os.cpu_count(),
+        "load_avg_1min": [round(load_before, 2), round(load_after, 2)],
+        "target_s": 2.0,
+    }
     if gif is not None:
-        result["gif"] = {"seconds": round(gif["total_s"], 2), "frames": gif["gif_frames"],
-                         "bytes": gif["gif_bytes"]}
+        result["gif"] = {
+            "seconds": round(gif["total_s"], 2),
+            "frames": gif["gif_frames"],
+            "bytes": gif["gif_bytes"],
+        }
     if args.json:
         print(json.dumps(result, indent=2))
     else:
-        print(f"picture of {result['frames']} frames: median {median['total_s']:.2f} s wall, "
-              f"{median['total_cpu_s']:.2f} s CPU (read "
-              f"{median['read_s']:.2f}, import matplotlib {median['import_s']:.2f}, draw "
-              f"{median['draw_s']:.2f}); target < 2 s; load average {result['load_avg_1min']} on "
-              f"{result['cpu_count']} CPUs" + (f"; flight {result['flight_wall_s']} s" if flight else ""))
+        print(
+            f"picture of {result['frames']} frames: median {median['total_s']:.2f} s wall, "
+            f"{median['total_cpu_s']:.2f} s CPU (read "
+            f"{median['read_s']:.2f}, import matplotlib {median['import_s']:.2f}, draw "
+            f"{median['draw_s']:.2f}); target < 2 s; load average {result['load_avg_1min']} on "
+            f"{result['cpu_count']} CPUs"
+            + (f"; flight {result['flight_wall_s']} s" if flight else "")
+        )
     return 0
 
 

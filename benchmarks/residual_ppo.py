@@ -34,7 +34,9 @@ from uavlink.policies.baselines import AoaPolicy
 def compose(rule_action: np.ndarray, residual: np.ndarray) -> np.ndarray:
     """The rule's cartesian action plus the residual, cut back to the unit disc (a full move)."""
     action = rule_action + np.clip(residual, -1.0, 1.0)
-    return (action / np.maximum(1.0, np.hypot(action[:, 0], action[:, 1]))[:, None]).astype(np.float32)
+    return (action / np.maximum(1.0, np.hypot(action[:, 0], action[:, 1]))[:, None]).astype(
+        np.float32
+    )
 
 
 class RuleResidualVecEnv(VecEnvWrapper):
@@ -72,8 +74,16 @@ class ResidualPolicy:
         return compose(self.rule.act(obs), self.model.predict(obs, deterministic=True)[0])
 
 
-def measure(scenarios: list[str], train_episodes: int, episodes: int, seed: int, n_envs: int,
-            batch_size: int, log_std: float, **train_overrides: float) -> dict[str, Any]:
+def measure(
+    scenarios: list[str],
+    train_episodes: int,
+    episodes: int,
+    seed: int,
+    n_envs: int,
+    batch_size: int,
+    log_std: float,
+    **train_overrides: float,
+) -> dict[str, Any]:
     import torch
     from stable_baselines3.common.logger import Logger
 
@@ -87,12 +97,23 @@ def measure(scenarios: list[str], train_episodes: int, episodes: int, seed: int,
     for scenario in scenarios:
         cfg = EnvConfig(scenario=scenario)
         # 128 steps x 10 epochs: the PPO loop of the figures in docs/ (TrainConfig's defaults then)
-        tc = TrainConfig(episodes=train_episodes, seed=seed, n_envs=n_envs, batch_size=batch_size,
-                         **{"n_steps": 128, "n_epochs": 10, **train_overrides})
+        tc = TrainConfig(
+            episodes=train_episodes,
+            seed=seed,
+            n_envs=n_envs,
+            batch_size=batch_size,
+            **{"n_steps": 128, "n_epochs": 10, **train_overrides},
+        )
         rule = AoaPolicy(cfg)
         model = make_model(cfg, tc, None)
-        model.set_env(VecNormalize(RuleResidualVecEnv(UavVecEnv(cfg, n_envs=tc.n_envs, seed=tc.seed), rule),
-                                   norm_obs=False, norm_reward=tc.normalize_reward, gamma=tc.gamma))
+        model.set_env(
+            VecNormalize(
+                RuleResidualVecEnv(UavVecEnv(cfg, n_envs=tc.n_envs, seed=tc.seed), rule),
+                norm_obs=False,
+                norm_reward=tc.normalize_reward,
+                gamma=tc.gamma,
+            )
+        )
         model.set_logger(Logger(folder=None, output_formats=[]))
         with torch.no_grad():
             model.policy.log_std.fill_(log_std)
@@ -102,13 +123,23 @@ def measure(scenarios: list[str], train_episodes: int, episodes: int, seed: int,
         row["train_wall_s"] = round(time.perf_counter() - start, 1)
         row["residual_after"] = score(ResidualPolicy(model, rule), cfg)
         rows[scenario] = row
-    return {"train_episodes": train_episodes, "n_envs": n_envs, "batch_size": batch_size,
-            "log_std_init": log_std, **train_overrides, "episodes": episodes, "seed": seed, "scenarios": rows}
+    return {
+        "train_episodes": train_episodes,
+        "n_envs": n_envs,
+        "batch_size": batch_size,
+        "log_std_init": log_std,
+        **train_overrides,
+        "episodes": episodes,
+        "seed": seed,
+        "scenarios": rows,
+    }
 
 
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--scenarios", nargs="+", default=["straight_90", "straight_180", "hotspot"])
+    parser.add_argument(
+        "--scenarios", nargs="+", default=["straight_90", "straight_180", "hotspot"]
+    )
     parser.add_argument("--train-episodes", type=int, default=4000, help="PPO budget per scenario")
     parser.add_argument("--n-envs", type=int, default=256, help="envs per rollout (default 256)")
     parser.add_argument("--batch-size", type=int, default=4096, help="minibatch (default 4096)")
@@ -121,17 +152,33 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--seed", type=int, default=0)
     parser.add_argument("--json", action="store_true", help="print JSON")
     args = parser.parse_args(argv)
-    result = measure(args.scenarios, args.train_episodes, args.episodes, args.seed, args.n_envs,
-                     args.batch_size, args.log_std, learning_rate=args.learning_rate, gamma=args.gamma,
-                     gae_lambda=args.gae_lambda)
+    result = measure(
+        args.scenarios,
+        args.train_episodes,
+        args.episodes,
+        args.seed,
+        args.n_envs,
+        args.batch_size,
+        args.log_std,
+        learning_rate=args.learning_rate,
+        gamma=args.gamma,
+        gae_lambda=args.gae_lambda,
+    )
     if args.json:
         print(json.dumps(result, indent=2))
         return 0
-    print(f"residual PPO on the aoa rule: {args.train_episodes} training episodes, evaluation "
-          f"{args.episodes} episodes seed {args.seed}; Mbps / R_fair")
-    print("| scenario | aoa | residual, before PPO | residual, after PPO | training |\n|---|---:|---:|---:|---:|")
+    print(
+        f"residual PPO on the aoa rule: {args.train_episodes} training episodes, evaluation "
+        f"{args.episodes} episodes seed {args.seed}; Mbps / R_fair"
+    )
+    print(
+        "| scenario | aoa | residual, before PPO | residual, after PPO | training |\n|---|---:|---:|---:|---:|"
+    )
     for scenario, row in result["scenarios"].items():
-        cells = [f"{row[k]['mbps']:.3f} / {row[k]['r_fair']:.3f}" for k in ("aoa", "residual_before", "residual_after")]
+        cells = [
+            f"{row[k]['mbps']:.3f} / {row[k]['r_fair']:.3f}"
+            for k in ("aoa", "residual_before", "residual_after")
+        ]
         print(f"| {scenario} | {' | '.join(cells)} | {row['train_wall_s']:.0f} s |")
     return 0
 

@@ -39,24 +39,37 @@ TARGET_SPEEDUP = 1.6
 
 
 def _spec(jobs: int, episodes: int):
-    return parse_spec({
-        "name": "bench", "scenarios": ["straight"], "seeds": jobs,
-        "train": {"episodes": episodes, "n_envs": 8, "batch_size": 256, "n_epochs": 4},
-        "eval": {"episodes": 8, "seed": 0},
-    })
+    return parse_spec(
+        {
+            "name": "bench",
+            "scenarios": ["straight"],
+            "seeds": jobs,
+            "train": {"episodes": episodes, "n_envs": 8, "batch_size": 256, "n_epochs": 4},
+            "eval": {"episodes": 8, "seed": 0},
+        }
+    )
 
 
-def _run(label: str, workers: int, jobs: int, episodes: int, root: Path, quiet: bool) -> dict[str, Any]:
+def _run(
+    label: str, workers: int, jobs: int, episodes: int, root: Path, quiet: bool
+) -> dict[str, Any]:
     log = (lambda _: None) if quiet else (lambda msg: print(f"[{label}] {msg}", file=sys.stderr))
-    outcome: SweepOutcome = run_sweep(_spec(jobs, episodes), root / label, workers=workers,
-                                      progress=False, log=log)
+    outcome: SweepOutcome = run_sweep(
+        _spec(jobs, episodes), root / label, workers=workers, progress=False, log=log
+    )
     if outcome.finished != jobs:
-        raise SystemExit(f"{label}: only {outcome.finished}/{jobs} jobs finished ({outcome.failed})")
+        raise SystemExit(
+            f"{label}: only {outcome.finished}/{jobs} jobs finished ({outcome.failed})"
+        )
     jobs_s = sum(outcome.job_s)
     parallel = max(workers, 1)
     return {
-        "label": label, "workers": workers, "jobs": jobs, "wall_s": round(outcome.wall_s, 3),
-        "jobs_summed_s": round(jobs_s, 3), "job_s_mean": round(jobs_s / jobs, 3),
+        "label": label,
+        "workers": workers,
+        "jobs": jobs,
+        "wall_s": round(outcome.wall_s, 3),
+        "jobs_summed_s": round(jobs_s, 3),
+        "job_s_mean": round(jobs_s / jobs, 3),
         # Wall time beyond the jobs' own, per job (with P workers the jobs' own share is sum / P).
         "overhead_per_job_s": round((outcome.wall_s - jobs_s / parallel) / jobs, 3),
         # CPU time / wall time of the jobs: 1.0 when each job had a core to itself.
@@ -68,7 +81,9 @@ def _run(label: str, workers: int, jobs: int, episodes: int, root: Path, quiet: 
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--jobs", type=int, default=8, help="jobs per run (default 8)")
-    parser.add_argument("--episodes", type=int, default=256, help="training episodes per job (default 256)")
+    parser.add_argument(
+        "--episodes", type=int, default=256, help="training episodes per job (default 256)"
+    )
     parser.add_argument("--json", action="store_true", help="print one JSON object")
     args = parser.parse_args()
 
@@ -81,28 +96,47 @@ def main() -> None:
     speedup = sequential["wall_s"] / two["wall_s"]
     report = {
         "benchmark": "sweep_overhead",
-        "machine": {"cpus": os.cpu_count(), "python": platform.python_version(),
-                    "load_avg_before": [round(x, 2) for x in load_before],
-                    "load_avg_after": [round(x, 2) for x in os.getloadavg()]},
-        "job": {"scenario": "straight", "train_episodes": args.episodes, "env_steps": args.episodes * 128,
-                "eval_episodes_per_policy": 8},
+        "machine": {
+            "cpus": os.cpu_count(),
+            "python": platform.python_version(),
+            "load_avg_before": [round(x, 2) for x in load_before],
+            "load_avg_after": [round(x, 2) for x in os.getloadavg()],
+        },
+        "job": {
+            "scenario": "straight",
+            "train_episodes": args.episodes,
+            "env_steps": args.episodes * 128,
+            "eval_episodes_per_policy": 8,
+        },
         "runs": [sequential, one, two],
         "engine_overhead_per_job_s": one["overhead_per_job_s"],
         "speedup_2_workers": round(speedup, 3),
-        "targets": {"overhead_per_job_s_below": TARGET_OVERHEAD_S, "speedup_at_least": TARGET_SPEEDUP},
-        "met": {"overhead": one["overhead_per_job_s"] < TARGET_OVERHEAD_S, "speedup": speedup >= TARGET_SPEEDUP},
+        "targets": {
+            "overhead_per_job_s_below": TARGET_OVERHEAD_S,
+            "speedup_at_least": TARGET_SPEEDUP,
+        },
+        "met": {
+            "overhead": one["overhead_per_job_s"] < TARGET_OVERHEAD_S,
+            "speedup": speedup >= TARGET_SPEEDUP,
+        },
     }
     if args.json:
         print(json.dumps(report, indent=2))
         return
-    print(f"{args.jobs} jobs of {args.episodes * 128:,} PPO env steps each on {os.cpu_count()} CPUs "
-          f"(load {load_before[0]:.1f} before)\n")
+    print(
+        f"{args.jobs} jobs of {args.episodes * 128:,} PPO env steps each on {os.cpu_count()} CPUs "
+        f"(load {load_before[0]:.1f} before)\n"
+    )
     print("| run | wall (s) | jobs' own, summed (s) | overhead per job (s) | job CPU share |")
     print("|---|---|---|---|---|")
     for run in report["runs"]:
-        print(f"| {run['label']} | {run['wall_s']:.1f} | {run['jobs_summed_s']:.1f} | "
-              f"{run['overhead_per_job_s']:.2f} | {run['job_cpu_share']:.2f} |")
-    print(f"\nengine overhead per job (1 worker): {one['overhead_per_job_s']:.2f} s (target < {TARGET_OVERHEAD_S} s)")
+        print(
+            f"| {run['label']} | {run['wall_s']:.1f} | {run['jobs_summed_s']:.1f} | "
+            f"{run['overhead_per_job_s']:.2f} | {run['job_cpu_share']:.2f} |"
+        )
+    print(
+        f"\nengine overhead per job (1 worker): {one['overhead_per_job_s']:.2f} s (target < {TARGET_OVERHEAD_S} s)"
+    )
     print(f"speed-up of 2 workers over sequential: {speedup:.2f}x (target >= {TARGET_SPEEDUP}x)")
 
 

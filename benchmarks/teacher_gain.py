@@ -31,10 +31,18 @@ def run(paths: list[str], episodes: int, seed: int) -> dict:
         ppo = evaluate_policy(policy, cfg, episodes, seed)
         rule = evaluate_policy(teacher, cfg, episodes, seed)
         ratio, lo, hi = paired_ratio_ci(ppo.episode_rate_mbps, rule.episode_rate_mbps)
-        rows.append({"policy": path, "scenario": cfg.scenario, "teacher": name,
-                     "ppo_mbps": round(ppo.mean_rate_mbps, 4), "teacher_mbps": round(rule.mean_rate_mbps, 4),
-                     "gain": round(ratio - 1, 4), "ci95": [round(lo - 1, 4), round(hi - 1, 4)],
-                     "beats_teacher": lo > 1})
+        rows.append(
+            {
+                "policy": path,
+                "scenario": cfg.scenario,
+                "teacher": name,
+                "ppo_mbps": round(ppo.mean_rate_mbps, 4),
+                "teacher_mbps": round(rule.mean_rate_mbps, 4),
+                "gain": round(ratio - 1, 4),
+                "ci95": [round(lo - 1, 4), round(hi - 1, 4)],
+                "beats_teacher": lo > 1,
+            }
+        )
     return {"benchmark": "teacher_gain", "episodes": episodes, "seed": seed, "rows": rows}
 
 
@@ -43,7 +51,9 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("policies", nargs="+", help="policy files (.zip with a manifest)")
     parser.add_argument("--episodes", type=int, default=100)
     parser.add_argument("--seed", type=int, default=0)
-    parser.add_argument("--json", action="store_true", help="print one JSON object instead of a table")
+    parser.add_argument(
+        "--json", action="store_true", help="print one JSON object instead of a table"
+    )
     args = parser.parse_args(argv)
     if args.episodes < 2:
         parser.error("--episodes must be >= 2 (a paired interval)")
@@ -57,11 +67,15 @@ def main(argv: list[str] | None = None) -> int:
         print(json.dumps(report, indent=2))
         return 0
     print(f"{args.episodes} episodes, seed {args.seed}\n")
-    print("| policy | scenario | teacher | PPO Mbps | teacher Mbps | PPO vs teacher |\n|---|---|---|---:|---:|---|")
+    print(
+        "| policy | scenario | teacher | PPO Mbps | teacher Mbps | PPO vs teacher |\n|---|---|---|---:|---:|---|"
+    )
     for r in report["rows"]:
         lo, hi = r["ci95"]
-        print(f"| {r['policy']} | {r['scenario']} | {r['teacher']} | {r['ppo_mbps']:.3f} | {r['teacher_mbps']:.3f} "
-              f"| {100 * r['gain']:+.1f} % [{100 * lo:+.1f}, {100 * hi:+.1f}] |")
+        print(
+            f"| {r['policy']} | {r['scenario']} | {r['teacher']} | {r['ppo_mbps']:.3f} | {r['teacher_mbps']:.3f} "
+            f"| {100 * r['gain']:+.1f} % [{100 * lo:+.1f}, {100 * hi:+.1f}] |"
+        )
     return 0
 
 

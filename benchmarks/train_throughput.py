@@ -69,7 +69,12 @@ class Setting:
 
 
 def default_setting() -> Setting:
-    return Setting("default", EnvConfig().replace(scenario="circular").validate(), TrainConfig(), ["uavlink train"])
+    return Setting(
+        "default",
+        EnvConfig().replace(scenario="circular").validate(),
+        TrainConfig(),
+        ["uavlink train"],
+    )
 
 
 def variant_setting(spec: str) -> Setting:
@@ -93,9 +98,10 @@ def variant_setting(spec: str) -> Setting:
 
 def _speed_key(cfg: EnvConfig, tc: TrainConfig) -> tuple:
     flat_env = {**cfg.to_dict(), **{f"radio.{k}": v for k, v in cfg.to_dict()["radio"].items()}}
-    return (tuple(str(getattr(tc, k)) for k in SPEED_TRAIN)
-            + tuple(str(bool(v) if k.endswith("noise_max_deg") else v) for k, v in
-                    ((k, flat_env[k]) for k in SPEED_ENV)))
+    return tuple(str(getattr(tc, k)) for k in SPEED_TRAIN) + tuple(
+        str(bool(v) if k.endswith("noise_max_deg") else v)
+        for k, v in ((k, flat_env[k]) for k in SPEED_ENV)
+    )
 
 
 def recipe_settings(sweep_dir: Path) -> list[Setting]:
@@ -121,9 +127,13 @@ class LoopTimer:
     Built as an SB3 callback so ``train`` installs it on its own model; it only observes."""
 
     def __init__(self) -> None:
-        self.totals = dict.fromkeys(("core", "observation", "vecenv", "policy", "buffer", "update"), 0.0)
+        self.totals = dict.fromkeys(
+            ("core", "observation", "vecenv", "policy", "buffer", "update"), 0.0
+        )
         self.rollouts = 0
-        self.marks: list[tuple[int, float, float, dict[str, float]]] = []  # (steps, wall, cpu, totals)
+        self.marks: list[
+            tuple[int, float, float, dict[str, float]]
+        ] = []  # (steps, wall, cpu, totals)
         self._wrapped: list[tuple[Any, str]] = []
         self.update_start: float | None = None
 
@@ -199,13 +209,21 @@ class LoopTimer:
         (s0, w0, c0, t0), (s1, w1, c1, t1) = self.marks[0], self.marks[-1]
         env_steps, wall, cpu = (s1 - s0) / n_uavs, w1 - w0, c1 - c0
         d = {k: t1[k] - t0[k] for k in t1}
-        phases = {"env": d["core"] - d["observation"], "observation": d["observation"],
-                  "vecenv": d["vecenv"] - d["core"], "policy": d["policy"], "buffer": d["buffer"],
-                  "update": d["update"]}
+        phases = {
+            "env": d["core"] - d["observation"],
+            "observation": d["observation"],
+            "vecenv": d["vecenv"] - d["core"],
+            "policy": d["policy"],
+            "buffer": d["buffer"],
+            "update": d["update"],
+        }
         phases["other"] = wall - sum(phases.values())
         return {
-            "env_steps": int(env_steps), "rollouts": self.rollouts - 1, "seconds": round(wall, 3),
-            "env_steps_per_s": round(env_steps / wall, 1), "env_steps_per_cpu_s": round(env_steps / cpu, 1),
+            "env_steps": int(env_steps),
+            "rollouts": self.rollouts - 1,
+            "seconds": round(wall, 3),
+            "env_steps_per_s": round(env_steps / wall, 1),
+            "env_steps_per_cpu_s": round(env_steps / cpu, 1),
             "us_per_env_step": {k: round(1e6 * v / env_steps, 3) for k, v in phases.items()},
             "share": {k: round(v / wall, 4) for k, v in phases.items()},
         }
@@ -222,8 +240,14 @@ def measure_training(setting: Setting, min_steps: int) -> dict[str, Any]:
     tc = dataclasses.replace(tc, episodes=episodes, warm_start=WarmStartConfig())
     timer = LoopTimer()
     with tempfile.TemporaryDirectory(prefix="uavlink-train-throughput-") as tmp:
-        train(cfg, tc, Path(tmp) / "policy.zip", run_dir=Path(tmp) / "run", progress=False,
-              callbacks=[timer.callback()])
+        train(
+            cfg,
+            tc,
+            Path(tmp) / "policy.zip",
+            run_dir=Path(tmp) / "run",
+            progress=False,
+            callbacks=[timer.callback()],
+        )
     return timer.report(cfg.n_uavs)
 
 
@@ -239,28 +263,44 @@ def run(settings: list[Setting], min_steps: int, env_seconds: float, seed: int) 
         before = len(env.us_per_call) - 1
         row = measure_training(setting, min_steps)
         env.measure(env_seconds)
-        bracket = env.us_per_call[before:before + 2]
-        bracket_cpu = env.cpu_us_per_call[before:before + 2]
+        bracket = env.us_per_call[before : before + 2]
+        bracket_cpu = env.cpu_us_per_call[before : before + 2]
         env_rate = 1e6 * TARGET_BATCHED_N / float(np.mean(bracket))
         env_cpu_rate = 1e6 * TARGET_BATCHED_N / float(np.mean(bracket_cpu))
         tc, cfg = setting.tc, setting.cfg
-        rows.append({
-            "setting": setting.name, "covers": setting.covers, "scenario": cfg.scenario,
-            "n_envs": tc.n_envs, "n_steps": tc.n_steps, "batch_size": tc.batch_size, "n_epochs": tc.n_epochs,
-            "n_uavs": cfg.n_uavs, "shadowing_model": cfg.radio.shadowing_model, **row,
-            "env_n256_steps_per_s": round(env_rate, 1), "env_n256_steps_per_cpu_s": round(env_cpu_rate, 1),
-            "ratio": round(row["env_steps_per_s"] / env_rate, 4),
-            "ratio_cpu": round(row["env_steps_per_cpu_s"] / env_cpu_rate, 4),
-        })
+        rows.append(
+            {
+                "setting": setting.name,
+                "covers": setting.covers,
+                "scenario": cfg.scenario,
+                "n_envs": tc.n_envs,
+                "n_steps": tc.n_steps,
+                "batch_size": tc.batch_size,
+                "n_epochs": tc.n_epochs,
+                "n_uavs": cfg.n_uavs,
+                "shadowing_model": cfg.radio.shadowing_model,
+                **row,
+                "env_n256_steps_per_s": round(env_rate, 1),
+                "env_n256_steps_per_cpu_s": round(env_cpu_rate, 1),
+                "ratio": round(row["env_steps_per_s"] / env_rate, 4),
+                "ratio_cpu": round(row["env_steps_per_cpu_s"] / env_cpu_rate, 4),
+            }
+        )
     report: dict[str, Any] = {
         "benchmark": "train_throughput",
         "statistic": "marginal wall-time rate from the end of the first rollout's update to the end of "
-                     "training; the env's N = 256 rate is the mean of its measurements just before and just "
-                     "after (env_throughput.py's batched env, circular, random actions); CPU-time rates alongside",
-        "min_steps": min_steps, "env_seconds": env_seconds, "seed": seed,
+        "training; the env's N = 256 rate is the mean of its measurements just before and just "
+        "after (env_throughput.py's batched env, circular, random actions); CPU-time rates alongside",
+        "min_steps": min_steps,
+        "env_seconds": env_seconds,
+        "seed": seed,
         "load_average": list(os.getloadavg()) if hasattr(os, "getloadavg") else None,
-        "machine": {"python": platform.python_version(), "numpy": np.__version__, "cpus": os.cpu_count(),
-                    "platform": platform.platform()},
+        "machine": {
+            "python": platform.python_version(),
+            "numpy": np.__version__,
+            "cpus": os.cpu_count(),
+            "platform": platform.platform(),
+        },
         "env_n256": Bench.row(env),
         "results": rows,
         "target_ratio": TARGET_RATIO,
@@ -277,7 +317,8 @@ def markdown(report: dict[str, Any]) -> str:
     load = report.get("load_average")
     lines = [
         f"training throughput (marginal rate after the first rollout, >= {report['min_steps']:,} env steps "
-        f"per setting; {report['machine']['cpus']} CPUs" + (f", load average {load[0]:.1f} at the start)" if load else ")"),
+        f"per setting; {report['machine']['cpus']} CPUs"
+        + (f", load average {load[0]:.1f} at the start)" if load else ")"),
         "",
         "| setting | N | n_steps | batch | epochs | D | env steps/s | per CPU-s | env N=256/s | ratio | ratio (CPU) "
         "| µs/step: " + " / ".join(PHASES) + " |",
@@ -285,32 +326,58 @@ def markdown(report: dict[str, Any]) -> str:
     ]
     for r in report["results"]:
         us = " / ".join(f"{r['us_per_env_step'][p]:.1f}" for p in PHASES)
-        lines.append(f"| {r['setting']} | {r['n_envs']} | {r['n_steps']} | {r['batch_size']} | {r['n_epochs']} "
-                     f"| {r['n_uavs']} | {r['env_steps_per_s']:,.0f} | {r['env_steps_per_cpu_s']:,.0f} "
-                     f"| {r['env_n256_steps_per_s']:,.0f} | {r['ratio']:.3f} | {r['ratio_cpu']:.3f} | {us} |")
+        lines.append(
+            f"| {r['setting']} | {r['n_envs']} | {r['n_steps']} | {r['batch_size']} | {r['n_epochs']} "
+            f"| {r['n_uavs']} | {r['env_steps_per_s']:,.0f} | {r['env_steps_per_cpu_s']:,.0f} "
+            f"| {r['env_n256_steps_per_s']:,.0f} | {r['ratio']:.3f} | {r['ratio_cpu']:.3f} | {us} |"
+        )
     lines.append("")
     for r in report["results"]:
         lines.append(f"- {r['setting']}: {', '.join(r['covers'])}")
     if "meets_target" in report:
         ok = "meets" if report["meets_target"] else "MISSES"
-        lines += ["", f"default `uavlink train`: {report['default_ratio']:.3f}x the env's N = 256 rate "
-                  f"({report['default_ratio_cpu']:.3f}x in CPU time; {ok} the target of >= {TARGET_RATIO}x)"]
+        lines += [
+            "",
+            f"default `uavlink train`: {report['default_ratio']:.3f}x the env's N = 256 rate "
+            f"({report['default_ratio_cpu']:.3f}x in CPU time; {ok} the target of >= {TARGET_RATIO}x)",
+        ]
     return "\n".join(lines)
 
 
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--min-steps", type=int, default=65_536,
-                        help="env steps timed per setting, after the first rollout (default 65536)")
-    parser.add_argument("--env-seconds", type=float, default=1.0,
-                        help="wall time of each measurement of the env's N = 256 rate (default 1)")
-    parser.add_argument("--sweeps", type=Path, default=ROOT / "sweeps",
-                        help="folder of the sweep files whose recipes are measured (default: sweeps/)")
-    parser.add_argument("--no-recipes", action="store_true", help="measure the default settings only")
-    parser.add_argument("--variant", action="append", default=[], metavar="KEY=VALUE[,...]",
-                        help="also measure the default settings with these TrainConfig overrides (repeatable)")
+    parser.add_argument(
+        "--min-steps",
+        type=int,
+        default=65_536,
+        help="env steps timed per setting, after the first rollout (default 65536)",
+    )
+    parser.add_argument(
+        "--env-seconds",
+        type=float,
+        default=1.0,
+        help="wall time of each measurement of the env's N = 256 rate (default 1)",
+    )
+    parser.add_argument(
+        "--sweeps",
+        type=Path,
+        default=ROOT / "sweeps",
+        help="folder of the sweep files whose recipes are measured (default: sweeps/)",
+    )
+    parser.add_argument(
+        "--no-recipes", action="store_true", help="measure the default settings only"
+    )
+    parser.add_argument(
+        "--variant",
+        action="append",
+        default=[],
+        metavar="KEY=VALUE[,...]",
+        help="also measure the default settings with these TrainConfig overrides (repeatable)",
+    )
     parser.add_argument("--seed", type=int, default=0)
-    parser.add_argument("--json", action="store_true", help="print one JSON object instead of a table")
+    parser.add_argument(
+        "--json", action="store_true", help="print one JSON object instead of a table"
+    )
     args = parser.parse_args(argv)
     if args.min_steps < 1 or args.env_seconds <= 0:
         parser.error("--min-steps and --env-seconds must be positive")

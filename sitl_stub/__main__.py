@@ -81,7 +81,8 @@ def _param(text: str) -> tuple[str, float]:
     names = {d.name for d in PARAM_DEFS}
     if not sep or name not in names:
         raise argparse.ArgumentTypeError(
-            f"expected NAME=VALUE with NAME one of {', '.join(sorted(names))}, got {text!r}")
+            f"expected NAME=VALUE with NAME one of {', '.join(sorted(names))}, got {text!r}"
+        )
     return name, _finite(value)
 
 
@@ -102,64 +103,137 @@ def _int_in(low: int, high: int) -> Callable[[str], int]:
         if not low <= v <= high:
             raise argparse.ArgumentTypeError(f"must be in {low}..{high}, got {text}")
         return v
+
     return parse
 
 
 def build_parser() -> argparse.ArgumentParser:
-    p = OneLineParser(prog=PROG, description="A lightweight PX4-style SITL multicopter speaking "
-                "MAVLink 2, with a radio payload component.")
-    p.add_argument("--connect", type=_connection, action="append", default=None, metavar="URL",
-                   help="talk on this connection instead of PX4's ports (repeatable: one link "
-                   "each): udpout:HOST:PORT sends; udp:HOST:PORT or udp:PORT listens; "
-                   "MAVSDK-style udpin:// and udpout:// URLs and tcp:/tcpin: work too. Default: "
-                   "PX4 SITL's links, API from UDP 14580+N to 127.0.0.1:14540+N and GCS from "
-                   "18570+N to 127.0.0.1:14550")
-    p.add_argument("--instance", "-i", type=_int_in(0, MAX_INSTANCE), default=0, metavar="N",
-                   help="PX4 SITL instance number, as PX4's -i N: the ports above and system id "
-                   "N+1 (default 0)")
-    p.add_argument("--fleet", type=_int_in(1, 16), default=None, metavar="D",
-                   help="run D vehicles in this process around one shared radio world (n_uavs = D), "
-                   "as PX4's multi-vehicle SITL: vehicle i is instance N+i, system N+i+1, on that "
-                   "instance's ports (all GCS links to 14550), spawning at the fleet's start "
-                   "position i (its home); with --connect, give D URLs, vehicle i on the i-th")
-    p.add_argument("--speed", type=_positive, default=1.0,
-                   help="simulated seconds per wall second (default 1)")
-    p.add_argument("--scenario", choices=SCENARIO_NAMES, default="circular",
-                   help="UE mobility scenario for the radio payload (default circular); "
-                   f"{MIXED}: each flight's episode draws one, as `uavlink evaluate --episodes 1 "
-                   "--seed S` draws it for the same seed")
+    p = OneLineParser(
+        prog=PROG,
+        description="A lightweight PX4-style SITL multicopter speaking "
+        "MAVLink 2, with a radio payload component.",
+    )
+    p.add_argument(
+        "--connect",
+        type=_connection,
+        action="append",
+        default=None,
+        metavar="URL",
+        help="talk on this connection instead of PX4's ports (repeatable: one link "
+        "each): udpout:HOST:PORT sends; udp:HOST:PORT or udp:PORT listens; "
+        "MAVSDK-style udpin:// and udpout:// URLs and tcp:/tcpin: work too. Default: "
+        "PX4 SITL's links, API from UDP 14580+N to 127.0.0.1:14540+N and GCS from "
+        "18570+N to 127.0.0.1:14550",
+    )
+    p.add_argument(
+        "--instance",
+        "-i",
+        type=_int_in(0, MAX_INSTANCE),
+        default=0,
+        metavar="N",
+        help="PX4 SITL instance number, as PX4's -i N: the ports above and system id "
+        "N+1 (default 0)",
+    )
+    p.add_argument(
+        "--fleet",
+        type=_int_in(1, 16),
+        default=None,
+        metavar="D",
+        help="run D vehicles in this process around one shared radio world (n_uavs = D), "
+        "as PX4's multi-vehicle SITL: vehicle i is instance N+i, system N+i+1, on that "
+        "instance's ports (all GCS links to 14550), spawning at the fleet's start "
+        "position i (its home); with --connect, give D URLs, vehicle i on the i-th",
+    )
+    p.add_argument(
+        "--speed", type=_positive, default=1.0, help="simulated seconds per wall second (default 1)"
+    )
+    p.add_argument(
+        "--scenario",
+        choices=SCENARIO_NAMES,
+        default="circular",
+        help="UE mobility scenario for the radio payload (default circular); "
+        f"{MIXED}: each flight's episode draws one, as `uavlink evaluate --episodes 1 "
+        "--seed S` draws it for the same seed",
+    )
     p.add_argument("--seed", type=int, default=0, help="radio payload seed (default 0)")
-    p.add_argument("--aoa-noise-deg", type=_non_negative, default=0.0,
-                   help="AoA noise std of the radio payload, degrees (default 0)")
-    p.add_argument("--set", dest="settings", type=_setting, action="append", default=[],
-                   metavar="KEY=VALUE", help="env config field of the radio payload, as uavlink's "
-                   "--set, e.g. action_mapping=polar-v1 or radio.shadowing=false (repeatable)")
-    p.add_argument("--home-lat", type=_finite, default=GeoOrigin.lat_deg,
-                   help=f"home / LOCAL_NED origin latitude, deg (default {GeoOrigin.lat_deg})")
-    p.add_argument("--home-lon", type=_finite, default=GeoOrigin.lon_deg,
-                   help=f"home / LOCAL_NED origin longitude, deg (default {GeoOrigin.lon_deg})")
-    p.add_argument("--home-alt", type=_finite, default=GeoOrigin.alt_amsl_m,
-                   help=f"home altitude AMSL, m (default {GeoOrigin.alt_amsl_m})")
-    p.add_argument("--duration-s", type=_positive, default=None,
-                   help="stop after this many simulated seconds (default: run until signalled)")
-    p.add_argument("--param", type=_param, action="append", default=[], metavar="NAME=VALUE",
-                   help="override a parameter default, e.g. MIS_TAKEOFF_ALT=10 (repeatable)")
-    p.add_argument("--system-id", type=_int_in(1, 255), default=None,
-                   help="MAVLink system id of the vehicle and its payloads (PX4's MAV_SYS_ID; "
-                   "default: instance + 1)")
+    p.add_argument(
+        "--aoa-noise-deg",
+        type=_non_negative,
+        default=0.0,
+        help="AoA noise std of the radio payload, degrees (default 0)",
+    )
+    p.add_argument(
+        "--set",
+        dest="settings",
+        type=_setting,
+        action="append",
+        default=[],
+        metavar="KEY=VALUE",
+        help="env config field of the radio payload, as uavlink's "
+        "--set, e.g. action_mapping=polar-v1 or radio.shadowing=false (repeatable)",
+    )
+    p.add_argument(
+        "--home-lat",
+        type=_finite,
+        default=GeoOrigin.lat_deg,
+        help=f"home / LOCAL_NED origin latitude, deg (default {GeoOrigin.lat_deg})",
+    )
+    p.add_argument(
+        "--home-lon",
+        type=_finite,
+        default=GeoOrigin.lon_deg,
+        help=f"home / LOCAL_NED origin longitude, deg (default {GeoOrigin.lon_deg})",
+    )
+    p.add_argument(
+        "--home-alt",
+        type=_finite,
+        default=GeoOrigin.alt_amsl_m,
+        help=f"home altitude AMSL, m (default {GeoOrigin.alt_amsl_m})",
+    )
+    p.add_argument(
+        "--duration-s",
+        type=_positive,
+        default=None,
+        help="stop after this many simulated seconds (default: run until signalled)",
+    )
+    p.add_argument(
+        "--param",
+        type=_param,
+        action="append",
+        default=[],
+        metavar="NAME=VALUE",
+        help="override a parameter default, e.g. MIS_TAKEOFF_ALT=10 (repeatable)",
+    )
+    p.add_argument(
+        "--system-id",
+        type=_int_in(1, 255),
+        default=None,
+        help="MAVLink system id of the vehicle and its payloads (PX4's MAV_SYS_ID; "
+        "default: instance + 1)",
+    )
     p.add_argument("--no-payload", action="store_true", help="run without the radio payload")
-    p.add_argument("--no-ue-truth", action="store_true",
-                   help="do not send the simulated UE positions (one ADSB_VEHICLE per UE per frame "
-                   "from the radio payload, the simulation's truth that ground stations draw as "
-                   "traffic and `uavlink plot` draws as UE tracks)")
-    p.add_argument("--signing-key", metavar="FILE", default=None,
-                   help="MAVLink 2 signing key (32 raw bytes, e.g. from `uavlink keygen`): sign "
-                   "everything sent, drop every unsigned, wrongly signed or replayed packet")
-    p.add_argument("--lockstep", action="store_true",
-                   help="hold simulated time at each radio frame of a running episode until the "
-                   "flight computer has decided it (`uavlink fly` says so after each setpoint), "
-                   "at most 2 s of wall time: a flight decides every frame at the instant the env "
-                   "does and replays exactly (needs the radio payload: not with --no-payload)")
+    p.add_argument(
+        "--no-ue-truth",
+        action="store_true",
+        help="do not send the simulated UE positions (one ADSB_VEHICLE per UE per frame "
+        "from the radio payload, the simulation's truth that ground stations draw as "
+        "traffic and `uavlink plot` draws as UE tracks)",
+    )
+    p.add_argument(
+        "--signing-key",
+        metavar="FILE",
+        default=None,
+        help="MAVLink 2 signing key (32 raw bytes, e.g. from `uavlink keygen`): sign "
+        "everything sent, drop every unsigned, wrongly signed or replayed packet",
+    )
+    p.add_argument(
+        "--lockstep",
+        action="store_true",
+        help="hold simulated time at each radio frame of a running episode until the "
+        "flight computer has decided it (`uavlink fly` says so after each setpoint), "
+        "at most 2 s of wall time: a flight decides every frame at the instant the env "
+        "does and replays exactly (needs the radio payload: not with --no-payload)",
+    )
     p.add_argument("-v", "--verbose", action="store_true", help="log every event")
     return p
 
@@ -177,23 +251,43 @@ def main(argv: Sequence[str] | None = None, payload_factory: PayloadFactory | No
     parser = build_parser()
     args = parser.parse_args(argv)
     if args.lockstep and args.no_payload:
-        parser.error("--lockstep holds the radio payload's frames: it does nothing with --no-payload")
+        parser.error(
+            "--lockstep holds the radio payload's frames: it does nothing with --no-payload"
+        )
     handler = logging.StreamHandler(sys.stderr)
     handler.setFormatter(_LogFormat())
     logging.basicConfig(level=logging.INFO if args.verbose else logging.WARNING, handlers=[handler])
     home = GeoOrigin(args.home_lat, args.home_lon, args.home_alt)
     try:
         home.validate()
-        options = PayloadOptions(args.scenario, args.seed, args.aoa_noise_deg, tuple(args.settings),
-                                 home, not args.no_ue_truth, args.lockstep)
-        payloads = [] if args.no_payload or args.fleet else as_payload_list(
-            (payload_factory or radio_payload)(options))
+        options = PayloadOptions(
+            args.scenario,
+            args.seed,
+            args.aoa_noise_deg,
+            tuple(args.settings),
+            home,
+            not args.no_ue_truth,
+            args.lockstep,
+        )
+        payloads = (
+            []
+            if args.no_payload or args.fleet
+            else as_payload_list((payload_factory or radio_payload)(options))
+        )
         key = load_key(args.signing_key) if args.signing_key else None
-        config = ServerConfig(connect=args.connect, instance=args.instance, speed=args.speed,
-                              home=home, params=dict(args.param), system_id=args.system_id,
-                              duration_s=args.duration_s, signing_key=key)
-        server = (SitlServer(config, payloads) if args.fleet is None
-                  else _fleet(args, config, options))
+        config = ServerConfig(
+            connect=args.connect,
+            instance=args.instance,
+            speed=args.speed,
+            home=home,
+            params=dict(args.param),
+            system_id=args.system_id,
+            duration_s=args.duration_s,
+            signing_key=key,
+        )
+        server = (
+            SitlServer(config, payloads) if args.fleet is None else _fleet(args, config, options)
+        )
     except ValueError as exc:
         parser.error(str(exc))
     try:
@@ -202,10 +296,12 @@ def main(argv: Sequence[str] | None = None, payload_factory: PayloadFactory | No
         hint = "" if args.connect else " (another vehicle on these ports? try --instance)"
         print(f"{PROG}: error: cannot open {exc.strerror or exc}{hint}", file=sys.stderr)
         return 1
-    signing = (f"signing on (key {hashlib.sha256(key).hexdigest()[:8]})" if key
-               else "signing off")
-    who = (f"vehicle {server.system_id}" if args.fleet is None
-           else f"fleet of {args.fleet} vehicles ({'no' if args.no_payload else 'one shared'} radio world)")
+    signing = f"signing on (key {hashlib.sha256(key).hexdigest()[:8]})" if key else "signing off"
+    who = (
+        f"vehicle {server.system_id}"
+        if args.fleet is None
+        else f"fleet of {args.fleet} vehicles ({'no' if args.no_payload else 'one shared'} radio world)"
+    )
     count = len(payloads) if args.fleet is None else len(server.world.views) if server.world else 0
     stop = threading.Event()
 
@@ -218,14 +314,21 @@ def main(argv: Sequence[str] | None = None, payload_factory: PayloadFactory | No
             signal.signal(sig, _on_signal)
     lockstep = ", lockstep" if args.lockstep and count else ""
     # the ready line: sitl_stub.launcher's READY_LINE recognises it
-    print(f"{PROG}: {who} on {server.connection}, {args.speed:g}x real time{lockstep}, "
-          f"{count} payload(s), {signing}", file=sys.stderr, flush=True)
+    print(
+        f"{PROG}: {who} on {server.connection}, {args.speed:g}x real time{lockstep}, "
+        f"{count} payload(s), {signing}",
+        file=sys.stderr,
+        flush=True,
+    )
     try:
         server.run(stop)
     finally:
         server.close()
-        print(f"{PROG}: stats {json.dumps(server.report(), sort_keys=True)}", file=sys.stderr,
-              flush=True)
+        print(
+            f"{PROG}: stats {json.dumps(server.report(), sort_keys=True)}",
+            file=sys.stderr,
+            flush=True,
+        )
     return 0
 
 
@@ -235,11 +338,18 @@ def _fleet(args: argparse.Namespace, base: ServerConfig, options: PayloadOptions
     from sitl_stub.sim.radio_payload import payload_env
 
     if args.instance + args.fleet - 1 > MAX_INSTANCE:
-        raise ValueError(f"--instance {args.instance} --fleet {args.fleet} needs instances up to "
-                         f"{args.instance + args.fleet - 1}, more than {MAX_INSTANCE}")
+        raise ValueError(
+            f"--instance {args.instance} --fleet {args.fleet} needs instances up to "
+            f"{args.instance + args.fleet - 1}, more than {MAX_INSTANCE}"
+        )
     cfg = payload_env(options, args.fleet)
-    world = None if args.no_payload else FleetWorld(
-        cfg, args.seed, options.home if options.ue_truth else None, options.lockstep)
+    world = (
+        None
+        if args.no_payload
+        else FleetWorld(
+            cfg, args.seed, options.home if options.ue_truth else None, options.lockstep
+        )
+    )
     return FleetServer(fleet_configs(base, args.fleet, spawn_points_ne(cfg)), world)
 
 

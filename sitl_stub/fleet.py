@@ -61,11 +61,18 @@ class FleetWorld:
     ``truth_origin``: the fleet's LOCAL_NED origin, where the first vehicle's payload places the
     UEs it sends as ADSB_VEHICLE (:mod:`sitl_stub.sim.ue_truth`; once for the fleet); None: not sent."""
 
-    def __init__(self, cfg: EnvConfig, seed: int, truth_origin: GeoOrigin | None = None,
-                 lockstep: bool = False) -> None:
+    def __init__(
+        self,
+        cfg: EnvConfig,
+        seed: int,
+        truth_origin: GeoOrigin | None = None,
+        lockstep: bool = False,
+    ) -> None:
         self.cfg = cfg
         self.truth_origin = truth_origin
-        self.lockstep = lockstep  # each frame waits for the FRAME_DECIDED of every vehicle in OFFBOARD
+        self.lockstep = (
+            lockstep  # each frame waits for the FRAME_DECIDED of every vehicle in OFFBOARD
+        )
         self.hold = FrameHold()
         self.frame_s = self.cfg.frame_s
         self.episodes = RadioEpisodes(cfg, seed)
@@ -78,9 +85,13 @@ class FleetWorld:
         result = self.episodes.tick(states)
         self.score = None if result is None else encode_score(result.rate_bps, result.fair_rate)
         self.next_frame += 1
-        if self.lockstep and self.episodes.awaits_decision(states):  # each vehicle flying it decides
-            self.hold.hold(self.episodes.world.frame,
-                           {i for i, s in enumerate(states) if s.mode is FlightMode.OFFBOARD})
+        if self.lockstep and self.episodes.awaits_decision(
+            states
+        ):  # each vehicle flying it decides
+            self.hold.hold(
+                self.episodes.world.frame,
+                {i for i, s in enumerate(states) if s.mode is FlightMode.OFFBOARD},
+            )
 
     def summary(self) -> dict[str, Any]:
         lockstep = {"lockstep_timeouts": self.hold.timeouts} if self.lockstep else {}
@@ -107,28 +118,48 @@ class FleetRadioView:
     def on_frame(self, sim_time_s: float, state: VehicleState, mav: Any) -> None:
         episodes = self.fleet.episodes
         r = episodes.world.readings(self.uav)
-        publish_frame(mav, sim_time_s, episodes, self.fleet.score,
-                      encode_readings(r.sinr_db, r.aoa_deg, episodes.started, r.serves),
-                      self.fleet.truth_origin if self.uav == 0 else None)  # the UEs once for the fleet
+        publish_frame(
+            mav,
+            sim_time_s,
+            episodes,
+            self.fleet.score,
+            encode_readings(r.sinr_db, r.aoa_deg, episodes.started, r.serves),
+            self.fleet.truth_origin if self.uav == 0 else None,
+        )  # the UEs once for the fleet
 
     def summary(self) -> dict[str, Any]:
         return {"uav": self.uav, **self.fleet.summary()}
 
 
-def fleet_configs(base: ServerConfig, n_vehicles: int,
-                  homes_ne: Sequence[tuple[float, float]]) -> list[ServerConfig]:
+def fleet_configs(
+    base: ServerConfig, n_vehicles: int, homes_ne: Sequence[tuple[float, float]]
+) -> list[ServerConfig]:
     """Vehicle i: PX4 instance ``base.instance + i`` (system id + 1), or ``base.connect[i]`` when
     connections are given (exactly one per vehicle), spawning at ``homes_ne[i]``."""
-    urls = None if base.connect is None else (
-        [base.connect] if isinstance(base.connect, str) else list(base.connect))
+    urls = (
+        None
+        if base.connect is None
+        else ([base.connect] if isinstance(base.connect, str) else list(base.connect))
+    )
     if urls is not None and len(urls) != n_vehicles:
-        raise ValueError(f"--fleet {n_vehicles} with --connect needs {n_vehicles} --connect URLs, "
-                         f"one per vehicle in order (got {len(urls)}); or drop --connect for PX4's "
-                         "ports")
+        raise ValueError(
+            f"--fleet {n_vehicles} with --connect needs {n_vehicles} --connect URLs, "
+            f"one per vehicle in order (got {len(urls)}); or drop --connect for PX4's "
+            "ports"
+        )
     if base.system_id is not None:
-        raise ValueError("--system-id does not go with --fleet: vehicle i is system instance + i + 1")
-    return [replace(base, instance=base.instance + i, connect=None if urls is None else urls[i],
-                    home_ne=homes_ne[i]) for i in range(n_vehicles)]
+        raise ValueError(
+            "--system-id does not go with --fleet: vehicle i is system instance + i + 1"
+        )
+    return [
+        replace(
+            base,
+            instance=base.instance + i,
+            connect=None if urls is None else urls[i],
+            home_ne=homes_ne[i],
+        )
+        for i in range(n_vehicles)
+    ]
 
 
 class FleetServer:
@@ -138,7 +169,9 @@ class FleetServer:
         if world is not None and len(world.views) != len(configs):
             raise ValueError("one radio view per vehicle")
         self.world = world
-        self.servers = [SitlServer(c, [world.views[i]] if world else []) for i, c in enumerate(configs)]
+        self.servers = [
+            SitlServer(c, [world.views[i]] if world else []) for i, c in enumerate(configs)
+        ]
         self.speed = configs[0].speed
         self.duration_s = configs[0].duration_s
         self.clock: SimClock | None = None
@@ -190,9 +223,12 @@ class FleetServer:
                     server._tick(server._slots[0], boundary)
                 continue
             if world is not None and world.hold.holding(
-                    flying=any(v.mode is FlightMode.OFFBOARD for v in vehicles)):
+                flying=any(v.mode is FlightMode.OFFBOARD for v in vehicles)
+            ):
                 return True
-            if not step_vehicles(vehicles, min(target_s, boundary), world is not None and world.lockstep):
+            if not step_vehicles(
+                vehicles, min(target_s, boundary), world is not None and world.lockstep
+            ):
                 return False
 
     def run(self, stop: threading.Event | None = None) -> None:
@@ -223,5 +259,7 @@ class FleetServer:
 
     def report(self) -> dict[str, Any]:
         """Each vehicle's :meth:`SitlServer.report`, and the shared world's episode."""
-        return {"vehicles": {str(s.system_id): s.report() for s in self.servers},
-                "world": self.world.summary() if self.world else None}
+        return {
+            "vehicles": {str(s.system_id): s.report() for s in self.servers},
+            "world": self.world.summary() if self.world else None,
+        }

@@ -31,8 +31,9 @@ PACKAGE_ROOT = Path(__file__).resolve().parent.parent
 # links are open it prints the ready line, "sitl-stub: vehicle 1 on ..., 20x real time, ..." or
 # "sitl-stub: fleet of 2 vehicles (...) on ..." (sitl_stub/__main__.py), matched by READY_LINE.
 PROG = "sitl-stub"
-READY_LINE = re.compile(re.escape(f"{PROG}: ")
-                        + r"(vehicle \d+|fleet of \d+ vehicles \([^)]*\)) on .*x real time")
+READY_LINE = re.compile(
+    re.escape(f"{PROG}: ") + r"(vehicle \d+|fleet of \d+ vehicles \([^)]*\)) on .*x real time"
+)
 
 
 class VehicleExited(RuntimeError):
@@ -65,7 +66,9 @@ class VehicleProcess:
             if any(READY_LINE.match(line) for line in lines):
                 return True
             if status is not None:
-                raise VehicleExited(status, next((ln.strip() for ln in reversed(lines) if ln.strip()), ""))
+                raise VehicleExited(
+                    status, next((ln.strip() for ln in reversed(lines) if ln.strip()), "")
+                )
             if time.monotonic() > deadline:
                 return False
             time.sleep(poll_s)
@@ -82,8 +85,9 @@ class VehicleProcess:
         return int(self.proc.returncode)
 
 
-def vehicle_command(connect: str | Sequence[str] | None, speed: float,
-                    extra_args: Sequence[str] = ()) -> list[str]:
+def vehicle_command(
+    connect: str | Sequence[str] | None, speed: float, extra_args: Sequence[str] = ()
+) -> list[str]:
     """The child's command line."""
     urls = [] if connect is None else [connect] if isinstance(connect, str) else list(connect)
     links = [arg for url in urls for arg in ("--connect", url)]
@@ -91,8 +95,12 @@ def vehicle_command(connect: str | Sequence[str] | None, speed: float,
 
 
 @contextmanager
-def vehicle_process(connect: str | Sequence[str] | None, speed: float = 5.0, extra_args: Sequence[str] = (),
-                    log_path: Path | None = None) -> Iterator[VehicleProcess]:
+def vehicle_process(
+    connect: str | Sequence[str] | None,
+    speed: float = 5.0,
+    extra_args: Sequence[str] = (),
+    log_path: Path | None = None,
+) -> Iterator[VehicleProcess]:
     """Run the vehicle with ``--connect connect --speed speed extra_args`` for the block (no
     ``--connect`` when ``connect`` is None)."""
     if log_path is None:
@@ -104,8 +112,12 @@ def vehicle_process(connect: str | Sequence[str] | None, speed: float = 5.0, ext
     python_path = os.pathsep.join(p for p in (str(PACKAGE_ROOT), os.environ.get("PYTHONPATH")) if p)
     env = dict(os.environ, PYTHONUNBUFFERED="1", PYTHONPATH=python_path)
     with log_file:
-        proc = subprocess.Popen(vehicle_command(connect, speed, extra_args), stdout=log_file,
-                                stderr=subprocess.STDOUT, env=env)
+        proc = subprocess.Popen(
+            vehicle_command(connect, speed, extra_args),
+            stdout=log_file,
+            stderr=subprocess.STDOUT,
+            env=env,
+        )
     vehicle = VehicleProcess(proc, path)
     try:
         yield vehicle

@@ -22,8 +22,14 @@ from uavlink.policies.baselines import AoaPolicy
 from uavlink.policies.registry import baseline_env, make_baseline
 
 # Table I of the paper, "static" column (Mbps).
-PAPER_STATIC = {"no_move": 7.95, "straight": 4.59, "circular": 3.59, "straight_90": 5.33,
-                "straight_180": 5.31, "hotspot": 4.77}
+PAPER_STATIC = {
+    "no_move": 7.95,
+    "straight": 4.59,
+    "circular": 3.59,
+    "straight_90": 5.33,
+    "straight_180": 5.31,
+    "hotspot": 4.77,
+}
 STRAIGHT_FAMILY = ("straight", "straight_90", "straight_180")
 CALIBRATION_EPISODES = 100
 COMPARISON_EPISODES = 32  # paired comparisons: every policy meets the same UE trajectories
@@ -43,8 +49,10 @@ def static_results() -> dict[str, EvalResult]:
 @pytest.fixture(scope="module")
 def paired() -> dict[str, dict[str, EvalResult]]:
     """Every baseline but the genie on the same seeded episodes of every scenario but no_move."""
-    return {p: {s: evaluate(p, s, COMPARISON_EPISODES) for s in SCENARIOS if s != "no_move"}
-            for p in BASELINE_NAMES}  # the genie has its own tests (tests/test_genie.py)
+    return {
+        p: {s: evaluate(p, s, COMPARISON_EPISODES) for s in SCENARIOS if s != "no_move"}
+        for p in BASELINE_NAMES
+    }  # the genie has its own tests (tests/test_genie.py)
 
 
 @pytest.mark.slow
@@ -58,12 +66,16 @@ def test_static_calibration_against_paper(static_results):
     for scenario in SCENARIOS:
         ours, paper = static_results[scenario].mean_rate_mbps, PAPER_STATIC[scenario]
         check = "expected: see straight mean" if scenario == "straight" else "within 10 %"
-        lines.append(f"| {scenario:<13}| {ours:6.3f} | {static_results[scenario].ci95_mbps:5.3f} | "
-                     f"{paper:5.2f} | {100 * (ours / paper - 1):+5.1f}% | {check:<30} |")
+        lines.append(
+            f"| {scenario:<13}| {ours:6.3f} | {static_results[scenario].ci95_mbps:5.3f} | "
+            f"{paper:5.2f} | {100 * (ours / paper - 1):+5.1f}% | {check:<30} |"
+        )
     family = np.array([static_results[s].mean_rate_mbps for s in STRAIGHT_FAMILY])
     paper_family = np.mean([PAPER_STATIC[s] for s in STRAIGHT_FAMILY])
-    lines.append(f"| {'straight mean':<13}| {family.mean():6.3f} | {'':>5} | {paper_family:5.2f} | "
-                 f"{100 * (family.mean() / paper_family - 1):+5.1f}% | {'3 straights: within 10 %':<30} |")
+    lines.append(
+        f"| {'straight mean':<13}| {family.mean():6.3f} | {'':>5} | {paper_family:5.2f} | "
+        f"{100 * (family.mean() / paper_family - 1):+5.1f}% | {'3 straights: within 10 %':<30} |"
+    )
     print("\n".join(lines))
 
     for scenario in SCENARIOS:
@@ -141,7 +153,11 @@ def test_aoa_rule_is_the_specs_rule_without_teacher_knobs():
     variants are uavlink.learn.teachers)."""
     cfg = EnvConfig(scenario="straight_180")
     rule = AoaPolicy(cfg)
-    assert not rule.needs_truth and not hasattr(rule, "act_on_true_aoa") and not hasattr(rule, "shadow_gate_db")
+    assert (
+        not rule.needs_truth
+        and not hasattr(rule, "act_on_true_aoa")
+        and not hasattr(rule, "shadow_gate_db")
+    )
     with pytest.raises(TypeError):
         AoaPolicy(cfg, shadow_gate_db=1.0)
 
@@ -150,8 +166,10 @@ def test_aoa_rule_is_the_specs_rule_without_teacher_knobs():
 def test_oracle_gain_is_large_where_the_paper_says(paired):
     # The paper's big PPO gains are on straight (+71 %) and circular (+97 %): the oracle's head room
     # over static must be large there, larger than on the two-cluster scenarios.
-    gain = {s: paired["oracle"][s].mean_rate_mbps / paired["static"][s].mean_rate_mbps - 1
-            for s in paired["static"]}
+    gain = {
+        s: paired["oracle"][s].mean_rate_mbps / paired["static"][s].mean_rate_mbps - 1
+        for s in paired["static"]
+    }
     assert gain["straight"] > 0.4 and gain["circular"] > 0.6
     assert min(gain["straight"], gain["circular"]) > max(gain["straight_90"], gain["straight_180"])
 
@@ -164,7 +182,9 @@ def test_evaluation_is_seeded_and_uses_common_random_numbers():
     np.testing.assert_array_equal(a.episode_rate_mbps, b.episode_rate_mbps)
     assert not np.array_equal(a.episode_rate_mbps, c.episode_rate_mbps)
     # Another policy with the same seed meets the same UEs (its own flight differs).
-    s = evaluate_policy(make_baseline("static", cfg), cfg, episodes=3, seed=5, record_trajectory=True)
+    s = evaluate_policy(
+        make_baseline("static", cfg), cfg, episodes=3, seed=5, record_trajectory=True
+    )
     np.testing.assert_array_equal(s.trajectory.ue_xy_m, a.trajectory.ue_xy_m)
     assert not np.allclose(s.trajectory.uav_xy_m, a.trajectory.uav_xy_m)
     np.testing.assert_array_equal(s.trajectory.uav_xy_m, 0.0)  # static never leaves the centre
@@ -199,7 +219,10 @@ def test_every_rule_takes_a_single_observation_as_a_batch_of_one(name: str) -> N
     truth = env.ground_truth() if make_baseline(name, cfg).needs_truth else None
     one = make_baseline(name, cfg).act(obs[0], truth)
     batch = make_baseline(name, cfg).act(obs, truth)
-    assert obs.shape == (1, ObservationLayout.for_config(cfg).size) and one.shape == batch.shape == (1, 2)
+    assert obs.shape == (
+        1,
+        ObservationLayout.for_config(cfg).size,
+    ) and one.shape == batch.shape == (1, 2)
     np.testing.assert_array_equal(one, batch)
 
 

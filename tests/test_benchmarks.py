@@ -34,8 +34,19 @@ def run_json(script: str, *args: str) -> dict:
 
 
 def test_residual_ppo_starts_as_the_rule_and_trains() -> None:
-    result = run_json("residual_ppo.py", "--scenarios", "hotspot", "--train-episodes", "8",
-                      "--n-envs", "8", "--batch-size", "256", "--episodes", "6")
+    result = run_json(
+        "residual_ppo.py",
+        "--scenarios",
+        "hotspot",
+        "--train-episodes",
+        "8",
+        "--n-envs",
+        "8",
+        "--batch-size",
+        "256",
+        "--episodes",
+        "6",
+    )
     row = result["scenarios"]["hotspot"]
     # Before any update the action head outputs ~1e-3 of a full move: the policy is the rule.
     assert abs(row["residual_before"]["mbps"] - row["aoa"]["mbps"]) < 0.01
@@ -52,25 +63,57 @@ def test_residual_composition_stays_a_legal_move() -> None:
     rule = np.array([[0.6, 0.8], [0.0, 0.0], [0.3, 0.0]])
     residual = np.array([[0.6, 0.8], [0.5, -0.25], [3.0, 0.0]])  # the last is clipped to 1.0
     action = compose(rule, residual)
-    np.testing.assert_allclose(action[0], [0.6, 0.8], atol=1e-7)  # same direction, cut to a full move
+    np.testing.assert_allclose(
+        action[0], [0.6, 0.8], atol=1e-7
+    )  # same direction, cut to a full move
     np.testing.assert_allclose(action[1], [0.5, -0.25], atol=1e-7)  # inside the disc: unchanged
     np.testing.assert_allclose(action[2], [1.0, 0.0], atol=1e-7)
     assert np.all(np.hypot(action[:, 0], action[:, 1]) <= 1.0 + 1e-6)
 
 
-def test_teacher_search_compares_variants_with_the_rule_and_picks_one_that_loses_no_throughput() -> None:
-    result = run_json("aoa_teacher_search.py", "--scenarios", "straight_180", "--episodes", "8",
-                      "--spans-db", "10", "4", "--jump-gates-db", "0", "--estimate-gates-db", "1",
-                      "--estimator-episodes", "16", "--clone", "4x2")
+def test_teacher_search_compares_variants_with_the_rule_and_picks_one_that_loses_no_throughput() -> (
+    None
+):
+    result = run_json(
+        "aoa_teacher_search.py",
+        "--scenarios",
+        "straight_180",
+        "--episodes",
+        "8",
+        "--spans-db",
+        "10",
+        "4",
+        "--jump-gates-db",
+        "0",
+        "--estimate-gates-db",
+        "1",
+        "--estimator-episodes",
+        "16",
+        "--clone",
+        "4x2",
+    )
     row = result["scenarios"]["straight_180"]
-    assert len(row["variants"]) == 6 and {v["gate_on"] for v in row["variants"]} == {"off", "jump", "estimate"}
+    assert len(row["variants"]) == 6 and {v["gate_on"] for v in row["variants"]} == {
+        "off",
+        "jump",
+        "estimate",
+    }
     assert 0.0 < row["shadow_estimator_r2"] < 1.0
     baseline = next(v for v in row["variants"] if v["sinr_span_db"] == 10 and v["gate_on"] == "off")
-    assert baseline["d_r_fair"] == [0.0, 0.0] and baseline["d_mbps_pct"] == [0.0, 0.0]  # the rule itself
+    assert baseline["d_r_fair"] == [0.0, 0.0] and baseline["d_mbps_pct"] == [
+        0.0,
+        0.0,
+    ]  # the rule itself
     assert (baseline["mbps"], baseline["r_fair"]) == (row["rule"]["mbps"], row["rule"]["r_fair"])
     gaining = [v for v in row["variants"] if v["d_mbps_pct"][0] - v["d_mbps_pct"][1] > 0.0]
-    pick = row["pick"]  # with these settings a variant gains, so there is a pick (and its clone below)
-    assert gaining and pick in gaining and all(pick["d_r_fair"][0] >= v["d_r_fair"][0] for v in gaining)
+    pick = row[
+        "pick"
+    ]  # with these settings a variant gains, so there is a pick (and its clone below)
+    assert (
+        gaining
+        and pick in gaining
+        and all(pick["d_r_fair"][0] >= v["d_r_fair"][0] for v in gaining)
+    )
     assert set(row["true_shadow_gate_mbps_r_fair"]) == {"0", "1.5", "3", "4.5"}
     (clone,) = row["clones_of_pick"]
     assert (clone["teacher_episodes"], clone["epochs"]) == (4, 2) and np.isfinite(clone["mbps"])
@@ -103,24 +146,36 @@ def test_train_throughput_times_every_phase_of_the_loop_and_covers_every_recipe(
     folder = str(ROOT / "benchmarks")
     sys.path.insert(0, folder)
     try:
-        bench = runpy.run_path(str(ROOT / "benchmarks" / "train_throughput.py"), run_name="train_throughput")
+        bench = runpy.run_path(
+            str(ROOT / "benchmarks" / "train_throughput.py"), run_name="train_throughput"
+        )
     finally:
         sys.path.remove(folder)
     from uavlink.config import EnvConfig, TrainConfig
     from uavlink.sweep.sweep_file import load_spec
 
-    covered = {label.split()[0] for s in bench["recipe_settings"](ROOT / "sweeps") for label in s.covers}
+    covered = {
+        label.split()[0] for s in bench["recipe_settings"](ROOT / "sweeps") for label in s.covers
+    }
     specs = [load_spec(p) for p in sorted((ROOT / "sweeps").glob("*.toml"))]
     assert covered == {f"{spec.name}:{scenario}" for spec in specs for scenario in spec.scenarios}
-    tiny = bench["Setting"]("tiny", EnvConfig(scenario="straight"),
-                            TrainConfig(n_envs=4, n_steps=16, batch_size=32, n_epochs=1), ["test"])
+    tiny = bench["Setting"](
+        "tiny",
+        EnvConfig(scenario="straight"),
+        TrainConfig(n_envs=4, n_steps=16, batch_size=32, n_epochs=1),
+        ["test"],
+    )
     row = bench["run"]([tiny], 100, 0.05, 0)["results"][0]
     # k >= 2 rollouts after the first (more where the budget rounds up to whole episodes)
     assert row["rollouts"] >= 2 and row["env_steps"] == row["rollouts"] * 4 * 16
     measured = {k: v for k, v in row["us_per_env_step"].items() if k != "other"}
     assert all(v > 0 for v in measured.values()), measured  # every wrapper was hit
-    assert row["us_per_env_step"]["other"] >= 0  # the phases do not overlap: they fit in the wall time
-    assert row["env_steps_per_s"] > 0 and row["ratio"] == round(row["env_steps_per_s"] / row["env_n256_steps_per_s"], 4)
+    assert (
+        row["us_per_env_step"]["other"] >= 0
+    )  # the phases do not overlap: they fit in the wall time
+    assert row["env_steps_per_s"] > 0 and row["ratio"] == round(
+        row["env_steps_per_s"] / row["env_n256_steps_per_s"], 4
+    )
 
 
 @pytest.mark.slow
@@ -130,14 +185,18 @@ def test_map_sensitivity_puts_every_policy_over_static_on_each_channel() -> None
     inside its interval."""
     result = run_json("map_sensitivity.py", "--scenarios", "no_move", "--episodes", "2")
     assert [(r["shadowing_std_db"], r["uav_decorrelation_m"]) for r in result["rows"]] == [
-        (s, d) for s in (4.0, 8.0) for d in (25.0, 50.0, 100.0)]
+        (s, d) for s in (4.0, 8.0) for d in (25.0, 50.0, 100.0)
+    ]
     for row in result["rows"]:
         assert row["genie"]["over_static"] > 1, row
         for name in ("genie", "explore", "map", "spatial"):
             lo, hi = row[name]["ci95"]
             assert lo <= row[name]["over_static"] <= hi, row
     # a larger sigma leaves more to find: the genie's gain grows with it at every decorrelation
-    by_cell = {(r["shadowing_std_db"], r["uav_decorrelation_m"]): r["genie"]["over_static"] for r in result["rows"]}
+    by_cell = {
+        (r["shadowing_std_db"], r["uav_decorrelation_m"]): r["genie"]["over_static"]
+        for r in result["rows"]
+    }
     assert all(by_cell[(8.0, d)] > by_cell[(4.0, d)] for d in (25.0, 50.0, 100.0))
 
 
@@ -154,17 +213,30 @@ def test_genie_reach_keeps_each_plan_within_its_radius_below_the_next() -> None:
         assert 0 < row["shares"][name]["of_genie"] <= 1.0, row["shares"][name]
 
 
-def test_memory_worth_scores_the_remembered_spot_now_and_a_still_team_keeps_its_word(tmp_path: Path) -> None:
+def test_memory_worth_scores_the_remembered_spot_now_and_a_still_team_keeps_its_word(
+    tmp_path: Path,
+) -> None:
     """benchmarks/memory_worth.py, 3 episodes: where the team stands still a spot reads now what it
     read then (claimed == now, the SPEC's "identical value on return"); where it moves, what the whole
     episode's memory claims is more than its pick is worth now. --plot draws the figure."""
     figure = tmp_path / "memory_worth.png"
-    result = run_json("memory_worth.py", "--scenarios", "no_move", "straight", "--episodes", "3", "--plot", str(figure))
+    result = run_json(
+        "memory_worth.py",
+        "--scenarios",
+        "no_move",
+        "straight",
+        "--episodes",
+        "3",
+        "--plot",
+        str(figure),
+    )
     assert figure.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
     still, moving = result["rows"]
     for row in (still, moving):
         for w in result["windows_frames"]:
-            assert row["windows"][str(w)]["claimed"]["ratio"] >= 1.0  # the best of a window includes now
+            assert (
+                row["windows"][str(w)]["claimed"]["ratio"] >= 1.0
+            )  # the best of a window includes now
     for w in result["windows_frames"]:
         assert still["windows"][str(w)]["claimed"] == still["windows"][str(w)]["now"]
     whole = moving["windows"][str(max(result["windows_frames"]))]
@@ -175,8 +247,13 @@ def test_memory_worth_scores_the_remembered_spot_now_and_a_still_team_keeps_its_
 def test_teacher_gain_rebuilds_each_policys_own_teacher_from_its_manifest() -> None:
     """benchmarks/teacher_gain.py: the map policy of straight_90 faces the aoa variant its manifest
     names (span 3 dB, gate 2 dB), no_move's the kriging rule; the gain is the ratio of the two."""
-    result = run_json("teacher_gain.py", str(ROOT / "policies" / "map" / "straight_90.zip"),
-                      str(ROOT / "policies" / "map" / "no_move.zip"), "--episodes", "3")
+    result = run_json(
+        "teacher_gain.py",
+        str(ROOT / "policies" / "map" / "straight_90.zip"),
+        str(ROOT / "policies" / "map" / "no_move.zip"),
+        "--episodes",
+        "3",
+    )
     teachers = {row["scenario"]: row["teacher"] for row in result["rows"]}
     assert teachers == {"straight_90": "aoa (span 3, gate 2)", "no_move": "kriging"}
     for row in result["rows"]:
@@ -185,7 +262,9 @@ def test_teacher_gain_rebuilds_each_policys_own_teacher_from_its_manifest() -> N
         assert abs(row["ppo_mbps"] / row["teacher_mbps"] - 1 - row["gain"]) < 1e-3
 
 
-def test_manifest_check_gives_back_a_paper_channel_policys_figure_to_the_last_digit(tmp_path: Path) -> None:
+def test_manifest_check_gives_back_a_paper_channel_policys_figure_to_the_last_digit(
+    tmp_path: Path,
+) -> None:
     """benchmarks/manifest_check.py on a folder with one paper-channel policy: its recorded figure
     comes back exactly (no transcendental numpy kernel in its loop differs between CPUs)."""
     import shutil
@@ -209,7 +288,9 @@ def test_explore_search_pairs_every_variant_with_explore_and_the_spatial_policy(
     result = run_json("explore_search.py", "--episodes", "4", "--cell-m", "12")
     rows = result["rows"]
     assert [r["variant"] for r in rows][0] == "explore" and len(rows) > 1
-    assert rows[0]["mean_rate_mbps"] == pytest.approx(result["explore_mbps"], abs=1e-4)  # 12 m: the baseline
+    assert rows[0]["mean_rate_mbps"] == pytest.approx(
+        result["explore_mbps"], abs=1e-4
+    )  # 12 m: the baseline
     for row in rows:
         for ref in ("vs_explore", "vs_spatial"):
             ratio, low, high = row[ref]
@@ -223,10 +304,16 @@ def test_kriging_search_flies_the_chosen_rule_and_restores_the_model_s_optimism(
     from uavlink.evaluation import evaluate_policy
     from uavlink.policies.contract import EnvOverrides, load_with_env
 
-    result = run_json("kriging_search.py", "--episodes", "3", "--seed", "0", "--beta", str(field_model.BETA), "1")
-    [(rule, cfg)] = load_with_env(["kriging"], EnvOverrides.from_command_line(
-        "no_move", None, ["radio.shadowing_model=spatial"]))
-    chosen = evaluate_policy(rule, cfg, 3, 0).mean_rate_mbps  # after the run: beta 1 was the last tried
+    result = run_json(
+        "kriging_search.py", "--episodes", "3", "--seed", "0", "--beta", str(field_model.BETA), "1"
+    )
+    [(rule, cfg)] = load_with_env(
+        ["kriging"],
+        EnvOverrides.from_command_line("no_move", None, ["radio.shadowing_model=spatial"]),
+    )
+    chosen = evaluate_policy(
+        rule, cfg, 3, 0
+    ).mean_rate_mbps  # after the run: beta 1 was the last tried
     assert [r["beta"] for r in result["rows"]] == [field_model.BETA, 1.0]
     assert result["rows"][0]["mean_rate_mbps"] == pytest.approx(chosen, abs=1e-4)
     assert result["rows"][1]["mean_rate_mbps"] != result["rows"][0]["mean_rate_mbps"]
@@ -240,7 +327,11 @@ def test_kriging_search_flies_the_chosen_rule_and_restores_the_model_s_optimism(
 def test_spiral_ppo_trains_from_the_spiral_rule_and_pairs_it_with_the_spatial_policy() -> None:
     result = run_json("spiral_ppo.py", "--seeds", "0", "--train-episodes", "256", "--episodes", "2")
     assert [(r["motion"], r["policy"]) for r in result["rows"]] == [
-        ("instant", "rule"), ("instant", "PPO seed 0"), ("px4", "rule"), ("px4", "PPO seed 0")]
+        ("instant", "rule"),
+        ("instant", "PPO seed 0"),
+        ("px4", "rule"),
+        ("px4", "PPO seed 0"),
+    ]
     for row in result["rows"]:
         ratio, low, high = row["vs_spatial"]
         assert low <= ratio <= high
@@ -251,17 +342,39 @@ def test_map_table_gives_every_map_policy_and_mixed_its_row_as_json() -> None:
     scenarios = [row["scenario"] for row in result["rows"]]
     assert sorted(scenarios) == sorted(p.stem for p in (ROOT / "policies" / "map").glob("*.zip"))
     assert scenarios[-1] == "mixed" and result["episodes"] == 2
-    assert all("genie" not in row and row["map vs spatial PPO"].endswith("]") for row in result["rows"])
+    assert all(
+        "genie" not in row and row["map vs spatial PPO"].endswith("]") for row in result["rows"]
+    )
 
 
 def test_clone_gap_fits_then_adds_dagger_rounds_and_flies_each_copy() -> None:
-    result = run_json("clone_gap.py", "--sweep", str(ROOT / "sweeps" / "map.toml"), "--scenario", "straight_90",
-                      "--rounds", "1", "--epochs", "2", "--clone-episodes", "2", "--episodes", "3",
-                      "--policy", str(ROOT / "policies" / "map" / "straight_90.zip"))
+    result = run_json(
+        "clone_gap.py",
+        "--sweep",
+        str(ROOT / "sweeps" / "map.toml"),
+        "--scenario",
+        "straight_90",
+        "--rounds",
+        "1",
+        "--epochs",
+        "2",
+        "--clone-episodes",
+        "2",
+        "--episodes",
+        "3",
+        "--policy",
+        str(ROOT / "policies" / "map" / "straight_90.zip"),
+    )
     stages = [row["stage"] for row in result["rows"]]
-    assert stages == ["clone", "dagger 1", f"policy {ROOT / 'policies' / 'map' / 'straight_90.zip'}"]
+    assert stages == [
+        "clone",
+        "dagger 1",
+        f"policy {ROOT / 'policies' / 'map' / 'straight_90.zip'}",
+    ]
     clone, dagger, policy = result["rows"]
-    assert dagger["samples"] == 2 * clone["samples"] == 2 * 2 * 128  # the copy's flying added to the teacher's
+    assert (
+        dagger["samples"] == 2 * clone["samples"] == 2 * 2 * 128
+    )  # the copy's flying added to the teacher's
     assert clone["mbps"] != dagger["mbps"] or clone["mse"] != dagger["mse"]  # refitted
     for row in result["rows"]:
         lo, hi = row["ci95"]
@@ -275,44 +388,74 @@ def test_gc_pause_a_frozen_heap_makes_a_full_collection_short() -> None:
     assert result["frozen_median_ms"] < result["median_ms"] / 5
 
 
-def test_gc_watch_flies_and_places_each_long_pass_against_the_mission(tmp_path: Path, monkeypatch) -> None:
+def test_gc_watch_flies_and_places_each_long_pass_against_the_mission(
+    tmp_path: Path, monkeypatch
+) -> None:
     import gc
 
-    from uavlink.flight.mission import PolicyPilot
+    from uavlink.flight.loop import PolicyPilot
 
     # A young-generation pass at every decision, so the mission surely has passes: a flight of 3
     # frames may allocate too little for the collector to run by itself (it failed CI so). The
     # frozen heap's full collection comes before the vehicle starts: outside the mission.
     decide = PolicyPilot.decide
-    monkeypatch.setattr(PolicyPilot, "decide", lambda self, *a: (gc.collect(0), decide(self, *a))[1])
+    monkeypatch.setattr(
+        PolicyPilot, "decide", lambda self, *a: (gc.collect(0), decide(self, *a))[1]
+    )
     # its own options first: what follows "--" is fly's (run_json would append --json there)
     main = runpy.run_path(str(ROOT / "benchmarks" / "gc_watch.py"), run_name="gc_watch")["main"]
     out = io.StringIO()
     with contextlib.redirect_stdout(out):
-        assert main(["--json", "--min-ms", "0", "--", "--policy", "aoa", "--frames", "3",
-                     "--out", str(tmp_path / "fly"), "--no-picture"]) == 0
+        assert (
+            main(
+                [
+                    "--json",
+                    "--min-ms",
+                    "0",
+                    "--",
+                    "--policy",
+                    "aoa",
+                    "--frames",
+                    "3",
+                    "--out",
+                    str(tmp_path / "fly"),
+                    "--no-picture",
+                ]
+            )
+            == 0
+        )
     result = json.loads(out.getvalue())
     assert result["exit_status"] == 0 and result["frozen_heap"] is True
-    (vehicle,) = result["vehicles"]  # a loop held up by a loaded machine observes a frame it does not decide
+    (vehicle,) = result[
+        "vehicles"
+    ]  # a loop held up by a loaded machine observes a frame it does not decide
     assert vehicle["decisions"] + vehicle["stale_radio_reports"] == 3 and vehicle["decisions"] >= 1
     assert vehicle["offboard_reentries"] == 0
     inside = [p for p in result["passes"] if p["in_mission"]]
     outside = [p for p in result["passes"] if not p["in_mission"]]
     assert sum(p["generation"] == 0 for p in inside) >= vehicle["decisions"]
-    assert any(p["generation"] == 2 and p["s_from_mission_end"] < 0 for p in outside)  # the freeze's
+    assert any(
+        p["generation"] == 2 and p["s_from_mission_end"] < 0 for p in outside
+    )  # the freeze's
 
 
 def test_figures_fingerprint_finds_the_same_figures_and_a_moved_one(tmp_path: Path) -> None:
-    main = runpy.run_path(str(ROOT / "benchmarks" / "figures_fingerprint.py"), run_name="figures_fingerprint")["main"]
+    main = runpy.run_path(
+        str(ROOT / "benchmarks" / "figures_fingerprint.py"), run_name="figures_fingerprint"
+    )["main"]
     assert len(main.__globals__["commands"]()) >= 40  # every shipped policy and baseline
-    main.__globals__["commands"] = lambda: [["--policy", "policies/circular.zip"],
-                                            ["--policy", "aoa", "--scenario", "no_move"],
-                                            ["--policy", "nowhere.zip"]]  # a refusal is an output too
+    main.__globals__["commands"] = lambda: [
+        ["--policy", "policies/circular.zip"],
+        ["--policy", "aoa", "--scenario", "no_move"],
+        ["--policy", "nowhere.zip"],
+    ]  # a refusal is an output too
     out = io.StringIO()
     with contextlib.redirect_stdout(out):
         assert main(["--out", str(tmp_path / "a"), "--json"]) == 0
         assert main(["--out", str(tmp_path / "b"), "--against", str(tmp_path / "a"), "--json"]) == 0
-    first, again = (json.loads(chunk) for chunk in out.getvalue().replace("}\n{", "}\n\x00{").split("\x00"))
+    first, again = (
+        json.loads(chunk) for chunk in out.getvalue().replace("}\n{", "}\n\x00{").split("\x00")
+    )
     assert first["commands"] == again["commands"] == 3 and again["differ"] == []
     figures = json.loads((tmp_path / "a" / "00.txt").read_text().split("\n--- stderr\n")[0])
     assert figures["episodes"] == 3 and figures["seed"] == 0 and figures["mean_rate_mbps"] > 0

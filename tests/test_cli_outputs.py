@@ -8,7 +8,7 @@ from __future__ import annotations
 from pathlib import Path
 
 import pytest
-from conftest import assert_user_error, run_uavlink_in_process
+from support.cli import assert_user_error, run_uavlink_in_process
 
 ROOT = Path(__file__).resolve().parents[1]
 
@@ -26,9 +26,14 @@ CASES = [  # (arguments with {t} for the temporary folder, what the one line say
     ("train --out {t}/afile/b.zip --episodes 1", "its folder {t}/afile is a file"),
     ("train --out {t}/b.txt --episodes 1", "--out {t}/b.txt must end in .zip"),
     ("train --out {t}/b.zip --run-dir {t}/afile --episodes 1", "--run-dir {t}/afile is a file"),
-    ("evaluate --scenario all --policy policies/ --episodes 1 --out {t}/afile", "--out {t}/afile is a file"),
-    ("evaluate --scenario all --policy policies/ --episodes 1 --out {t}/res --markdown {t}/adir",
-     "--markdown {t}/adir is a folder"),
+    (
+        "evaluate --scenario all --policy policies/ --episodes 1 --out {t}/afile",
+        "--out {t}/afile is a file",
+    ),
+    (
+        "evaluate --scenario all --policy policies/ --episodes 1 --out {t}/res --markdown {t}/adir",
+        "--markdown {t}/adir is a folder",
+    ),
     ("fly --policy aoa --out {t}/afile", "--out {t}/afile is a file; give a folder"),
     ("fly --policy aoa --out {t}/afile/sub", "--out {t}/afile/sub lies under {t}/afile, a file"),
     ("plot {t}/adir", "{t}/adir is a folder; give a telemetry log"),
@@ -37,14 +42,20 @@ CASES = [  # (arguments with {t} for the temporary folder, what the one line say
     ("export policies/circular.zip --out {t}/afile/x.onnx", "its folder {t}/afile is a file"),
     ("export policies/circular.zip --out {t}/x.zip", "--out {t}/x.zip must end in .onnx"),
     ("sweep sweeps/tiny.toml --out-root {t}/afile --workers 0", "--out-root {t}/afile is a file"),
-    ("sweep sweeps/tiny.toml --policies-out {t}/afile --workers 0", "--policies-out {t}/afile is a file"),
+    (
+        "sweep sweeps/tiny.toml --policies-out {t}/afile --workers 0",
+        "--policies-out {t}/afile is a file",
+    ),
     ("keygen --out {t}/adir", "--out {t}/adir is a folder"),
 ]
 
 
-@pytest.mark.parametrize("args,fragment", CASES, ids=[c[0].split()[0] + f"-{i}" for i, c in enumerate(CASES)])
-def test_a_bad_output_path_is_refused_before_any_work(places: Path, monkeypatch, args: str,
-                                                      fragment: str) -> None:
+@pytest.mark.parametrize(
+    "args,fragment", CASES, ids=[c[0].split()[0] + f"-{i}" for i, c in enumerate(CASES)]
+)
+def test_a_bad_output_path_is_refused_before_any_work(
+    places: Path, monkeypatch, args: str, fragment: str
+) -> None:
     monkeypatch.chdir(ROOT)  # the shipped policies and sweeps, by the README's relative paths
     before = sorted(places.rglob("*"))
     runs = sorted((ROOT / "runs").glob("b-seed*")) if (ROOT / "runs").exists() else []
@@ -52,4 +63,3 @@ def test_a_bad_output_path_is_refused_before_any_work(places: Path, monkeypatch,
     assert_user_error(proc, fragment.format(t=places))
     assert sorted(places.rglob("*")) == before  # nothing made, nothing half-written
     assert (sorted((ROOT / "runs").glob("b-seed*")) if (ROOT / "runs").exists() else []) == runs
-

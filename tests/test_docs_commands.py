@@ -11,12 +11,15 @@ import re
 import shlex
 
 import pytest
-from conftest import ROOT, cli_json
+from support.cli import ROOT, cli_json
 
 from sitl_stub.__main__ import build_parser as sitl_parser
 from uavlink.cli import build_parser as uavlink_parser
 
-DOCS = ["README.md", *(f"docs/{name}" for name in ("results.md", "design.md", "sitl.md", "sweeps.md", "safety.md"))]
+DOCS = [
+    "README.md",
+    *(f"docs/{name}" for name in ("results.md", "design.md", "sitl.md", "sweeps.md", "safety.md")),
+]
 PROGRAMS = {"uavlink": uavlink_parser, "sitl-stub": sitl_parser}
 PLACEHOLDER = re.compile(r"^[A-Z][A-Z0-9_]*$|\.\.\.|[<>\[\]{}|]|^-?[A-Z]$|^[A-Z]\+")
 
@@ -87,7 +90,15 @@ def test_the_readmes_python_runs_and_prints_what_the_cli_prints(monkeypatch) -> 
             exec(compile(block, "README.md", "exec"), {})  # noqa: S102 - the README's own code
     printed = out.getvalue().split()
     # the figure the README's comment gives, and what the CLI gives for the same episodes
-    [quoted] = re.findall(r"mean_rate_mbps\)  # (\d+\.\d{6}) to 6 decimals", (ROOT / "README.md").read_text())
-    cli = cli_json("evaluate", "--policy", "policies/circular.zip", "--episodes", "3", "--seed", "0", "--json")
-    assert round(float(printed[0]), 6) == float(quoted) == cli["mean_rate_mbps"], (printed, quoted, cli)
+    [quoted] = re.findall(
+        r"mean_rate_mbps\)  # (\d+\.\d{6}) to 6 decimals", (ROOT / "README.md").read_text()
+    )
+    cli = cli_json(
+        "evaluate", "--policy", "policies/circular.zip", "--episodes", "3", "--seed", "0", "--json"
+    )
+    assert round(float(printed[0]), 6) == float(quoted) == cli["mean_rate_mbps"], (
+        printed,
+        quoted,
+        cli,
+    )
     assert 4.0 < float(printed[1]) < 8.0, printed

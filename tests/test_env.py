@@ -35,14 +35,17 @@ def fresh(env: gym.Env) -> UavBsEnv:
 # --- action mapping ----------------------------------------------------------------------------
 
 
-@pytest.mark.parametrize(("action", "angle_deg", "distance_m"), [
-    ((-1.0, -1.0), -180.0, 0.0),
-    ((1.0, 1.0), -180.0, 12.0),  # +180 wraps to -180
-    ((0.0, 1.0), 0.0, 12.0),  # east, full step
-    ((0.5, 0.0), 90.0, 6.0),  # north, half step
-    ((-0.5, -0.5), -90.0, 3.0),  # south
-    ((3.0, -7.0), -180.0, 0.0),  # outside the box: clipped first
-])
+@pytest.mark.parametrize(
+    ("action", "angle_deg", "distance_m"),
+    [
+        ((-1.0, -1.0), -180.0, 0.0),
+        ((1.0, 1.0), -180.0, 12.0),  # +180 wraps to -180
+        ((0.0, 1.0), 0.0, 12.0),  # east, full step
+        ((0.5, 0.0), 90.0, 6.0),  # north, half step
+        ((-0.5, -0.5), -90.0, 3.0),  # south
+        ((3.0, -7.0), -180.0, 0.0),  # outside the box: clipped first
+    ],
+)
 def test_polar_mapping_corners(action, angle_deg, distance_m):
     mapping = polar()
     clipped = mapping.validate(np.array([action]), 1)
@@ -52,14 +55,17 @@ def test_polar_mapping_corners(action, angle_deg, distance_m):
     assert -180.0 <= angle[0] < 180.0
 
 
-@pytest.mark.parametrize(("action", "angle_deg", "distance_m"), [
-    ((0.0, 0.0), 0.0, 0.0),
-    ((1.0, 0.0), 0.0, 12.0),
-    ((0.0, 0.5), 90.0, 6.0),
-    ((-1.0, 0.0), -180.0, 12.0),
-    ((0.0, -0.25), -90.0, 3.0),
-    ((1.0, 1.0), 45.0, 12.0),  # |a| > 1 saturates at r_max
-])
+@pytest.mark.parametrize(
+    ("action", "angle_deg", "distance_m"),
+    [
+        ((0.0, 0.0), 0.0, 0.0),
+        ((1.0, 0.0), 0.0, 12.0),
+        ((0.0, 0.5), 90.0, 6.0),
+        ((-1.0, 0.0), -180.0, 12.0),
+        ((0.0, -0.25), -90.0, 3.0),
+        ((1.0, 1.0), 45.0, 12.0),  # |a| > 1 saturates at r_max
+    ],
+)
 def test_cartesian_mapping(action, angle_deg, distance_m):
     mapping = cartesian()
     angle, distance = mapping.to_polar(mapping.validate(np.array([action]), 1))
@@ -159,8 +165,10 @@ def _check_all(env: gym.Env) -> list[str]:
     return [str(w.message) for w in caught]
 
 
-@pytest.mark.parametrize(("scenario", "aoa_noise_deg"),
-                         [(s, 0.0) for s in SCENARIO_NAMES] + [("straight", 5.0), (MIXED, 5.0)])
+@pytest.mark.parametrize(
+    ("scenario", "aoa_noise_deg"),
+    [(s, 0.0) for s in SCENARIO_NAMES] + [("straight", 5.0), (MIXED, 5.0)],
+)
 def test_gymnasium_and_sb3_env_checkers_pass(scenario, aoa_noise_deg):
     env = gym.make(ENV_ID, scenario=scenario, aoa_noise_deg=aoa_noise_deg)
     messages = _check_all(env)
@@ -230,7 +238,9 @@ def test_gym_env_applies_named_arguments_over_a_config_and_refuses_what_it_canno
     assert fresh(gym.make(ENV_ID, config=cfg)).config == cfg.validate()
     assert fresh(gym.make(ENV_ID, render_mode=None)).render() is None
     with pytest.raises(UserError, match="render_mode 'rgb_array' is not supported"):
-        UavBsEnv(render_mode="rgb_array")  # (gym.make would warn first that it is not in render_modes)
+        UavBsEnv(
+            render_mode="rgb_array"
+        )  # (gym.make would warn first that it is not in render_modes)
     with pytest.raises(UserError, match="n_uavs=2.*parallel_env"):
         gym.make(ENV_ID, n_uavs=2)
 
@@ -297,7 +307,9 @@ def test_vec_env_auto_reset_contract():
         assert episode["mean_rate_mbps"] == pytest.approx(rates[i] / 128, rel=1e-9)
     new_frames = obs.reshape(3, 4, -1)
     np.testing.assert_array_equal(new_frames, new_frames[:, :1].repeat(4, axis=1))
-    np.testing.assert_allclose(venv.core.layout.newest_frame(obs)["uav_xy_m"], 0.0)  # back at centre
+    np.testing.assert_allclose(
+        venv.core.layout.newest_frame(obs)["uav_xy_m"], 0.0
+    )  # back at centre
     assert venv.core.frame == 0
     assert not np.array_equal(obs, first_obs)  # the next episode is a new draw, not a replay
 
@@ -330,7 +342,9 @@ def test_vec_env_sb3_api_and_wrappers():
 
 
 def test_unknown_scenario_is_rejected():
-    with pytest.raises(ValueError, match=r"unknown scenario 'zigzag'; choose from no_move, straight"):
+    with pytest.raises(
+        ValueError, match=r"unknown scenario 'zigzag'; choose from no_move, straight"
+    ):
         EnvConfig(scenario="zigzag").validate()
     with pytest.raises(ValueError, match="unknown scenario 'zigzag'"):
         gym.make(ENV_ID, scenario="zigzag")
@@ -343,16 +357,19 @@ def test_negative_aoa_noise_is_rejected():
         gym.make(ENV_ID, scenario="straight", aoa_noise_deg=-1.0)
 
 
-@pytest.mark.parametrize(("changes", "message"), [
-    ({"bandwidth_hz": -10e6}, r"radio\.bandwidth_hz must be positive"),
-    ({"n_resource_blocks": 0}, r"radio\.n_resource_blocks must be a positive integer, got 0"),
-    ({"cluster_size_m": 500.0}, r"cluster_size_m must be smaller than the area"),
-    ({"n_ues": 0}, r"env\.n_ues must be a positive integer, got 0"),
-    ({"tx_power_dbm": float("nan")}, r"radio\.tx_power_dbm must be a finite number"),
-    ({"uav_altitude_m": 0.0}, r"area\.uav_altitude_m must be positive"),
-    ({"episode_frames": 0}, r"env\.episode_frames must be a positive integer"),
-    ({"scenario": "straight_90", "n_ues": 1}, r"needs at least 2 UEs"),
-])
+@pytest.mark.parametrize(
+    ("changes", "message"),
+    [
+        ({"bandwidth_hz": -10e6}, r"radio\.bandwidth_hz must be positive"),
+        ({"n_resource_blocks": 0}, r"radio\.n_resource_blocks must be a positive integer, got 0"),
+        ({"cluster_size_m": 500.0}, r"cluster_size_m must be smaller than the area"),
+        ({"n_ues": 0}, r"env\.n_ues must be a positive integer, got 0"),
+        ({"tx_power_dbm": float("nan")}, r"radio\.tx_power_dbm must be a finite number"),
+        ({"uav_altitude_m": 0.0}, r"area\.uav_altitude_m must be positive"),
+        ({"episode_frames": 0}, r"env\.episode_frames must be a positive integer"),
+        ({"scenario": "straight_90", "n_ues": 1}, r"needs at least 2 UEs"),
+    ],
+)
 def test_non_physical_config_is_rejected(changes, message):
     cfg = EnvConfig().replace(**changes)
     with pytest.raises(ValueError, match=message):
@@ -361,11 +378,14 @@ def test_non_physical_config_is_rejected(changes, message):
         BatchedUavEnv(cfg)
 
 
-@pytest.mark.parametrize(("key", "value", "message"), [
-    ("n_resource_blocks", 2.5, r"radio\.n_resource_blocks must be an integer, got 2\.5"),
-    ("n_ues", "ten", r"n_ues must be an integer, got 'ten'"),
-    ("radio.fast_fading", "maybe", r"radio\.fast_fading must be true or false, got 'maybe'"),
-])
+@pytest.mark.parametrize(
+    ("key", "value", "message"),
+    [
+        ("n_resource_blocks", 2.5, r"radio\.n_resource_blocks must be an integer, got 2\.5"),
+        ("n_ues", "ten", r"n_ues must be an integer, got 'ten'"),
+        ("radio.fast_fading", "maybe", r"radio\.fast_fading must be true or false, got 'maybe'"),
+    ],
+)
 def test_a_value_of_the_wrong_type_is_refused_naming_its_key(key, value, message):
     with pytest.raises(ValueError, match=message):
         EnvConfig().replace(**{key: value})

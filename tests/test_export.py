@@ -111,7 +111,9 @@ def test_clip_to_the_action_box_is_in_the_graph(policy_zip: Path, tmp_path: Path
 
     model = PPO.load(policy_zip, device="cpu")
     with torch.no_grad():
-        model.policy.action_net.bias += torch.tensor([1.0, -1.0])  # push part of the means out of the box
+        model.policy.action_net.bias += torch.tensor(
+            [1.0, -1.0]
+        )  # push part of the means out of the box
     biased = tmp_path / "biased.zip"
     model.save(biased)
     write_zip_manifest(biased, read_zip_manifest(policy_zip))
@@ -138,7 +140,11 @@ def test_manifest_round_trips_through_metadata(policy_zip: Path, exported) -> No
     source = read_zip_manifest(policy_zip)
     meta = {p.key: p.value for p in onnx.load(str(path)).metadata_props}
     embedded = json.loads(meta[METADATA_KEY])
-    assert embedded["source_policy_sha256"] == file_sha256(policy_zip) == report["source_policy_sha256"]
+    assert (
+        embedded["source_policy_sha256"]
+        == file_sha256(policy_zip)
+        == report["source_policy_sha256"]
+    )
     assert embedded["exported_from"] == "tiny.zip"
     for key, value in source.items():
         assert embedded[key] == value, key
@@ -165,8 +171,9 @@ def _tiny_model(n_inputs: int, metadata: dict[str, str]) -> onnx.ModelProto:
     obs = helper.make_tensor_value_info("obs", TensorProto.FLOAT, ["batch", n_inputs])
     action = helper.make_tensor_value_info("action", TensorProto.FLOAT, ["batch", 2])
     weight = helper.make_tensor("w", TensorProto.FLOAT, [n_inputs, 2], [0.0] * (2 * n_inputs))
-    graph = helper.make_graph([helper.make_node("MatMul", ["obs", "w"], ["action"])], "tiny",
-                              [obs], [action], [weight])
+    graph = helper.make_graph(
+        [helper.make_node("MatMul", ["obs", "w"], ["action"])], "tiny", [obs], [action], [weight]
+    )
     model = helper.make_model(graph, opset_imports=[helper.make_opsetid("", 17)])
     helper.set_model_props(model, metadata)
     return model
@@ -184,7 +191,9 @@ def test_wrong_input_shape_is_refused(exported, tmp_path: Path) -> None:
     onnx.save(_tiny_model(60, {METADATA_KEY: manifest}), str(tmp_path / "right.onnx"))
     assert OnnxPolicy(tmp_path / "right.onnx").act(np.zeros((1, 60), np.float32)).shape == (1, 2)
     onnx.save(_tiny_model(59, {METADATA_KEY: manifest}), str(tmp_path / "wrong.onnx"))
-    with pytest.raises(PolicyFileError, match=r"wrong.onnx: model input 'obs' .*59.* layout .*size=60"):
+    with pytest.raises(
+        PolicyFileError, match=r"wrong.onnx: model input 'obs' .*59.* layout .*size=60"
+    ):
         OnnxPolicy(tmp_path / "wrong.onnx")
 
 
@@ -224,7 +233,9 @@ def test_failed_verification_leaves_nothing(policy_zip: Path, tmp_path: Path, mo
     monkeypatch.setattr(export, "_to_onnx_bytes", skewed)
     out = tmp_path / "kept.onnx"
     out.write_bytes(b"previous export")
-    with pytest.raises(ExportVerificationError, match=r"differ from SB3's by up to .* \(tolerance 1e-05\)"):
+    with pytest.raises(
+        ExportVerificationError, match=r"differ from SB3's by up to .* \(tolerance 1e-05\)"
+    ):
         export_onnx(policy_zip, out, n_verify=100)
     assert out.read_bytes() == b"previous export"
     assert sorted(p.name for p in tmp_path.iterdir()) == ["kept.onnx"]
@@ -243,15 +254,25 @@ def test_cli_default_out_and_help(policy_zip: Path, tmp_path: Path, capsys) -> N
     assert info.value.code == 0 and "--no-verify" in capsys.readouterr().out
 
 
-def _run(args: list[str], env: dict | None = None, cwd: Path | None = None) -> subprocess.CompletedProcess:
-    return subprocess.run([sys.executable, *args], capture_output=True, text=True, timeout=180,
-                          env=env, cwd=cwd or ROOT)
+def _run(
+    args: list[str], env: dict | None = None, cwd: Path | None = None
+) -> subprocess.CompletedProcess:
+    return subprocess.run(
+        [sys.executable, *args],
+        capture_output=True,
+        text=True,
+        timeout=180,
+        env=env,
+        cwd=cwd or ROOT,
+    )
 
 
 @pytest.mark.slow
 def test_cli_export_prints_what_it_checked(policy_zip: Path, tmp_path: Path, capsys) -> None:
     out = tmp_path / "cli.onnx"
-    assert main(["export", str(policy_zip), "--out", str(out)]) == 0  # in this process: no torch import
+    assert (
+        main(["export", str(policy_zip), "--out", str(out)]) == 0
+    )  # in this process: no torch import
     done = capsys.readouterr()
     assert "verified: 1000 observations" in done.out and "tolerance 1e-05" in done.out
     assert "opset 17" in done.out and f"{out.stat().st_size:,} bytes" in done.out
@@ -266,7 +287,11 @@ def test_onnx_policy_runs_with_torch_and_sb3_blocked(exported, tmp_path: Path) -
     path = exported[0]
     (tmp_path / "sitecustomize.py").write_text(BLOCKER)
     log = tmp_path / "blocked.log"
-    env = {**os.environ, "PYTHONPATH": f"{tmp_path}{os.pathsep}{ROOT}", "UAVLINK_BLOCK_LOG": str(log)}
+    env = {
+        **os.environ,
+        "PYTHONPATH": f"{tmp_path}{os.pathsep}{ROOT}",
+        "UAVLINK_BLOCK_LOG": str(log),
+    }
     snippet = textwrap.dedent(f"""
         import sys
         import numpy as np
@@ -296,9 +321,24 @@ def test_onnx_policy_runs_with_torch_and_sb3_blocked(exported, tmp_path: Path) -
 
     script = Path(sys.executable).with_name("uavlink")  # the installed console script
     command = [str(script)] if script.is_file() else [sys.executable, "-m", "uavlink.cli"]
-    cli = subprocess.run([*command, "evaluate", "--policy", str(path), "--scenario", "no_move",
-                          "--episodes", "2", "--json"],
-                         capture_output=True, text=True, timeout=180, env=env, cwd=tmp_path)
+    cli = subprocess.run(
+        [
+            *command,
+            "evaluate",
+            "--policy",
+            str(path),
+            "--scenario",
+            "no_move",
+            "--episodes",
+            "2",
+            "--json",
+        ],
+        capture_output=True,
+        text=True,
+        timeout=180,
+        env=env,
+        cwd=tmp_path,
+    )
     assert cli.returncode == 0, cli.stderr
     assert json.loads(cli.stdout)["policy"] == "tiny"
     assert log.read_text() == "", f"tried to import: {log.read_text()}"
@@ -321,8 +361,10 @@ def test_every_shipped_policy_exports_with_parity(zip_path: Path, tmp_path: Path
         cfg = cfg.replace(scenario="hotspot")
     onnx_result = evaluate_policy(OnnxPolicy(tmp_path / "p.onnx"), cfg, episodes=100, seed=0)
     zip_result = evaluate_policy(SB3Policy(zip_path), cfg, episodes=100, seed=0)
-    print(f"\n{zip_path.stem}: zip {zip_result.mean_rate_mbps:.3f} Mbps, onnx {onnx_result.mean_rate_mbps:.3f} "
-          f"Mbps, max |onnx - sb3 predict| {check['max_abs_diff']:.1e}")
+    print(
+        f"\n{zip_path.stem}: zip {zip_result.mean_rate_mbps:.3f} Mbps, onnx {onnx_result.mean_rate_mbps:.3f} "
+        f"Mbps, max |onnx - sb3 predict| {check['max_abs_diff']:.1e}"
+    )
     np.testing.assert_array_equal(onnx_result.episode_rate_mbps, zip_result.episode_rate_mbps)
     np.testing.assert_array_equal(onnx_result.episode_fair_rate, zip_result.episode_fair_rate)
 
@@ -336,7 +378,9 @@ def test_verification_observations_are_the_export_streams_frames_step_major() ->
 
     sb3 = SB3Policy(ROOT / "policies" / "circular.zip")
     obs = verification_observations(sb3, 300, seed=4)
-    env = BatchedUavEnv(EnvConfig.from_dict(sb3.manifest["env_config"]), n_envs=3, seed=EXPORT.seed(4))
+    env = BatchedUavEnv(
+        EnvConfig.from_dict(sb3.manifest["env_config"]), n_envs=3, seed=EXPORT.seed(4)
+    )
     first = env.reset()
     np.testing.assert_array_equal(obs[:3], first)
     np.testing.assert_array_equal(obs[3:6], env.step(sb3.act(first)).observation)

@@ -18,12 +18,19 @@ SPATIAL = EnvConfig(scenario="no_move").replace(**{"radio.shadowing_model": "spa
 KRIGING = SPATIAL.replace(place_cell_m=12.0, place_model="kriging")
 
 
-def _batch_posterior(x: np.ndarray, y: np.ndarray, spots: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+def _batch_posterior(
+    x: np.ndarray, y: np.ndarray, spots: np.ndarray
+) -> tuple[np.ndarray, np.ndarray]:
     """The textbook GP posterior (Rasmussen & Williams eq. 2.25-2.26) with the model's covariance."""
+
     def cov(a: np.ndarray, b: np.ndarray) -> np.ndarray:
         d = np.linalg.norm(a[:, None] - b[None], axis=-1)
-        return field_model.SIGMA_BITS ** 2 * np.exp(-d / field_model.DECORRELATION_M) + field_model.MEAN_SIGMA_BITS ** 2
-    k = cov(x, x) + field_model.NUGGET_BITS ** 2 * np.eye(len(x))
+        return (
+            field_model.SIGMA_BITS**2 * np.exp(-d / field_model.DECORRELATION_M)
+            + field_model.MEAN_SIGMA_BITS**2
+        )
+
+    k = cov(x, x) + field_model.NUGGET_BITS**2 * np.eye(len(x))
     ks = cov(x, spots)
     mean = ks.T @ np.linalg.solve(k, y)
     var = cov(spots[:1], spots[:1])[0, 0] - np.einsum("nk,nk->k", ks, np.linalg.solve(k, ks))
@@ -66,15 +73,22 @@ def test_layout_v5_is_recorded_and_older_records_are_unchanged() -> None:
     v3 = ObservationLayout.for_config(SPATIAL.replace(place_cell_m=12.0))
     assert v3.version == 3 and not {"place_model", "episode_frames", "r_max_m"} & set(v3.to_dict())
     assert layout.frame_size == v3.frame_size + 4
-    assert layout.feature_names()[v3.frame_size:layout.frame_size] == [
-        "t-0:place_pick_dx", "t-0:place_pick_dy", "t-0:place_pick_gain", "t-0:place_pick_std"]
+    assert layout.feature_names()[v3.frame_size : layout.frame_size] == [
+        "t-0:place_pick_dx",
+        "t-0:place_pick_dy",
+        "t-0:place_pick_gain",
+        "t-0:place_pick_std",
+    ]
 
 
-@pytest.mark.parametrize("changes, message", [
-    ({"place_model": "gp"}, "unknown place_model"),
-    ({"place_model": "kriging"}, "place_cell_m > 0"),
-    ({"place_model": "kriging", "place_cell_m": 12.0, "n_uavs": 2}, "n_uavs = 1"),
-])
+@pytest.mark.parametrize(
+    "changes, message",
+    [
+        ({"place_model": "gp"}, "unknown place_model"),
+        ({"place_model": "kriging"}, "place_cell_m > 0"),
+        ({"place_model": "kriging", "place_cell_m": 12.0, "n_uavs": 2}, "n_uavs = 1"),
+    ],
+)
 def test_bad_place_models_are_refused_in_one_line(changes: dict, message: str) -> None:
     with pytest.raises(ConfigError, match=message):
         SPATIAL.replace(**changes).validate()
@@ -88,20 +102,28 @@ def test_the_kriging_rule_refuses_a_fleet() -> None:
 def test_the_kriging_rule_beats_explore_on_no_move() -> None:
     """The model's point: it finds better spots than explore's fixed cross (seed 1, the validation
     episodes the constants were chosen on, so this guards the code, not the choice)."""
-    kriging = evaluate_policy(make_baseline("kriging", SPATIAL), baseline_env("kriging", SPATIAL), 16, seed=1)
-    explore = evaluate_policy(make_baseline("explore", SPATIAL), baseline_env("explore", SPATIAL), 16, seed=1)
+    kriging = evaluate_policy(
+        make_baseline("kriging", SPATIAL), baseline_env("kriging", SPATIAL), 16, seed=1
+    )
+    explore = evaluate_policy(
+        make_baseline("explore", SPATIAL), baseline_env("explore", SPATIAL), 16, seed=1
+    )
     ratio, low, _ = paired_ratio_ci(kriging.episode_rate_mbps, explore.episode_rate_mbps)
     assert low > 1.0, ratio
 
 
-def test_the_shipped_no_move_map_policy_sees_the_model_and_its_teacher_is_the_kriging_rule() -> None:
+def test_the_shipped_no_move_map_policy_sees_the_model_and_its_teacher_is_the_kriging_rule() -> (
+    None
+):
     """The report's "map vs its teacher" column flies the kriging rule for it, in its own env."""
-    from conftest import ROOT
+    from support.cli import ROOT
 
     from uavlink.learn.teachers import policy_teacher
     from uavlink.policies.contract import EnvOverrides, load_with_env
 
-    [(policy, cfg)] = load_with_env([str(ROOT / "policies" / "map" / "no_move.zip")], EnvOverrides())
+    [(policy, cfg)] = load_with_env(
+        [str(ROOT / "policies" / "map" / "no_move.zip")], EnvOverrides()
+    )
     assert ObservationLayout.for_config(cfg).version == KRIGING_LAYOUT_VERSION
     teacher, label = policy_teacher(policy, cfg)
     assert label == "kriging" and teacher.name == "kriging"

@@ -5,7 +5,7 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-from conftest import ROOT, cli_json
+from support.cli import ROOT, cli_json
 
 from uavlink.config import EnvConfig
 from uavlink.env.core import BatchedUavEnv
@@ -17,8 +17,21 @@ from uavlink.policies.registry import make_baseline
 @pytest.mark.slow
 @pytest.mark.parametrize("policy", ["static", "aoa", str(ROOT / "policies" / "straight.zip")])
 def test_n_uavs_1_gives_exactly_todays_episodes(policy):
-    args = ["evaluate", "--scenario", "straight", "--policy", policy, "--episodes", "8", "--seed", "3", "--json"]
-    assert cli_json(*args, "--set", "n_uavs=1") == cli_json(*args)  # in this process: no torch import per run
+    args = [
+        "evaluate",
+        "--scenario",
+        "straight",
+        "--policy",
+        policy,
+        "--episodes",
+        "8",
+        "--seed",
+        "3",
+        "--json",
+    ]
+    assert cli_json(*args, "--set", "n_uavs=1") == cli_json(
+        *args
+    )  # in this process: no torch import per run
 
 
 def test_a_fleet_policy_file_refuses_another_fleet_size():
@@ -28,15 +41,21 @@ def test_a_fleet_policy_file_refuses_another_fleet_size():
 
 
 def test_fleet_aoa_rule_follows_its_cell_and_an_empty_cell_holds():
-    cfg = EnvConfig(scenario="no_move", n_uavs=2).replace(**{"radio.shadowing": False, "radio.fast_fading": False})
+    cfg = EnvConfig(scenario="no_move", n_uavs=2).replace(
+        **{"radio.shadowing": False, "radio.fast_fading": False}
+    )
     env = BatchedUavEnv(cfg, n_envs=1, seed=0)
     env.reset()
-    env.mobility.position_m[:] = [[120.0, 40.0]] * cfg.n_ues  # every UE near UAV 0 (start at (100, 0))
+    env.mobility.position_m[:] = [
+        [120.0, 40.0]
+    ] * cfg.n_ues  # every UE near UAV 0 (start at (100, 0))
     obs = env.step_to(env.uav_xy_m).observation  # re-read the channel with the UEs moved
     action = FleetAoaPolicy(cfg).act(obs)
     move = env.actions.to_displacement_m(action)
     heading = np.degrees(np.arctan2(move[0, 1], move[0, 0]))
-    assert np.hypot(*move[0]) > 1.0 and heading == pytest.approx(np.degrees(np.arctan2(40.0, 20.0)), abs=1.0)
+    assert np.hypot(*move[0]) > 1.0 and heading == pytest.approx(
+        np.degrees(np.arctan2(40.0, 20.0)), abs=1.0
+    )
     np.testing.assert_allclose(move[1], 0.0, atol=1e-9)  # UAV 1 serves nobody: it holds
 
 
@@ -58,8 +77,13 @@ def test_mean_fleet_fair_rate_reduces_to_one_uav_and_rewards_splitting():
     cfg = EnvConfig(n_uavs=2)
     ue = np.array([[[-100.0, 0.0]] * 5 + [[100.0, 0.0]] * 5])
     one = np.zeros((1, 1, 2))
-    snr = 10 ** ((mean_rx_power_dbm(distance_3d_m(one, ue, 95.0), cfg.radio)[..., 0]
-                  - noise_power_dbm(cfg.radio.bandwidth_hz, cfg.radio)) / 10)
+    snr = 10 ** (
+        (
+            mean_rx_power_dbm(distance_3d_m(one, ue, 95.0), cfg.radio)[..., 0]
+            - noise_power_dbm(cfg.radio.bandwidth_hz, cfg.radio)
+        )
+        / 10
+    )
     expected = fair_rate(rate_bps(snr, cfg.radio.bandwidth_hz, 10))
     np.testing.assert_allclose(mean_fleet_fair_rate(cfg, one, ue), expected, rtol=1e-12)
     split = mean_fleet_fair_rate(cfg, np.array([[[-100.0, 0.0], [100.0, 0.0]]]), ue)
@@ -69,7 +93,9 @@ def test_mean_fleet_fair_rate_reduces_to_one_uav_and_rewards_splitting():
 @pytest.mark.slow
 def test_fleet_baselines_on_straight_180_follow_the_two_groups():
     cfg = EnvConfig(scenario="straight_180", n_uavs=2)
-    rates = {name: evaluate_policy(make_baseline(name, cfg), cfg, episodes=16, seed=0).mean_rate_mbps
-             for name in ("static", "aoa", "oracle", "kmeans")}
+    rates = {
+        name: evaluate_policy(make_baseline(name, cfg), cfg, episodes=16, seed=0).mean_rate_mbps
+        for name in ("static", "aoa", "oracle", "kmeans")
+    }
     assert rates["oracle"] > 1.2 * rates["static"] and rates["kmeans"] > 1.2 * rates["static"]
     assert rates["aoa"] > rates["static"]

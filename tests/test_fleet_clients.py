@@ -25,10 +25,10 @@ import time
 from pathlib import Path
 
 import pytest
-from conftest import PX4_PORTS, ROOT, UAVLINK
-from mavlink_gcs import FAST_TAKEOFF
-from mavproxy_console import MAVPROXY, mavproxy
-from mavsdk_apps import first, run_app, sitl_vehicle, stub_has_px4_ports
+from support.cli import PX4_PORTS, ROOT, UAVLINK
+from support.mavlink_gcs import FAST_TAKEOFF
+from support.mavproxy_console import MAVPROXY, mavproxy
+from support.mavsdk_apps import first, run_app, sitl_vehicle, stub_has_px4_ports
 
 from sitl_stub.mavlink.links import socket_free
 from uavlink.mavlink.dialect import mavutil
@@ -44,8 +44,10 @@ def _require_free(*ports: int) -> None:
         pytest.skip("this sitl_stub has no PX4 ports (--instance)")
     taken = [p for p in (*VEHICLE_PORTS, *ports) if not socket_free(p)]
     if taken:
-        pytest.skip(f"PX4 SITL port(s) {taken} on 127.0.0.1 are in use (a PX4 SITL, ground "
-                    "station or another vehicle is running)")
+        pytest.skip(
+            f"PX4 SITL port(s) {taken} on 127.0.0.1 are in use (a PX4 SITL, ground "
+            "station or another vehicle is running)"
+        )
 
 
 def test_mavsdk4_sees_two_vehicles_and_commands_each() -> None:
@@ -71,12 +73,19 @@ def test_mavsdk4_sees_two_vehicles_and_commands_each() -> None:
             assert sorted(drones) == [1, 2]
             one, two = drones[1], drones[2]
             for drone in (one, two):
-                await first(TelemetryAsync(drone).subscribe_health(), lambda h: h.is_global_position_ok
-                            and h.is_home_position_ok, what="global position and home ok")
+                await first(
+                    TelemetryAsync(drone).subscribe_health(),
+                    lambda h: h.is_global_position_ok and h.is_home_position_ok,
+                    what="global position and home ok",
+                )
             await ActionAsync(two).arm()
             await ActionAsync(two).takeoff()
-            await first(TelemetryAsync(two).subscribe_position(), lambda p: p.relative_altitude_m > 5.0,
-                        timeout=60.0, what="vehicle 2 above 5 m")
+            await first(
+                TelemetryAsync(two).subscribe_position(),
+                lambda p: p.relative_altitude_m > 5.0,
+                timeout=60.0,
+                what="vehicle 2 above 5 m",
+            )
             assert not await first(TelemetryAsync(one).subscribe_armed()), "vehicle 1 armed too"
             ground = await first(TelemetryAsync(one).subscribe_position())
             assert abs(ground.relative_altitude_m) < 0.5, ground
@@ -119,9 +128,14 @@ def test_mavproxy_sees_two_vehicles_and_commands_each(tmp_path: Path) -> None:
             assert time.monotonic() < deadline, f"waited {timeout} s for {what}:\n{text[-3000:]}"
             time.sleep(0.2)
 
-    with mavproxy(["--master=udp:127.0.0.1:14550"], tmp_path, out_path) as type_in, \
-            sitl_vehicle(["--fleet", "2"], speed=5.0) as vehicle:
-        wait("both vehicles", lambda t, _: "Detected vehicle 1:1" in t and "Detected vehicle 2:1" in t)
+    with (
+        mavproxy(["--master=udp:127.0.0.1:14550"], tmp_path, out_path) as type_in,
+        sitl_vehicle(["--fleet", "2"], speed=5.0) as vehicle,
+    ):
+        wait(
+            "both vehicles",
+            lambda t, _: "Detected vehicle 1:1" in t and "Detected vehicle 2:1" in t,
+        )
         type_in("vehicle 2")
         wait("vehicle 2 selected", lambda t, _: "Set vehicle 2" in t)
         type_in("arm throttle")
@@ -142,16 +156,39 @@ def test_fly_one_url_carrying_both_systems(tmp_path: Path) -> None:
     _require_free(14550)
     frames = 40
     # FAST_TAKEOFF: fly takes off one vehicle after the other (95 m at 1.5 m/s each: 13 s of wall time)
-    with sitl_vehicle(["--fleet", "2", "--scenario", "straight_180", *FAST_TAKEOFF], speed=10.0) as vehicle:
+    with sitl_vehicle(
+        ["--fleet", "2", "--scenario", "straight_180", *FAST_TAKEOFF], speed=10.0
+    ) as vehicle:
         proc = subprocess.run(
-            [*UAVLINK, "fly", "--policy", "aoa", "--set", "n_uavs=2", "--scenario", "straight_180",
-             "--connect", "udp:14550", "--frames", str(frames), "--out", str(tmp_path), "--json"],
-            capture_output=True, text=True, timeout=240, cwd=ROOT)
+            [
+                *UAVLINK,
+                "fly",
+                "--policy",
+                "aoa",
+                "--set",
+                "n_uavs=2",
+                "--scenario",
+                "straight_180",
+                "--connect",
+                "udp:14550",
+                "--frames",
+                str(frames),
+                "--out",
+                str(tmp_path),
+                "--json",
+            ],
+            capture_output=True,
+            text=True,
+            timeout=240,
+            cwd=ROOT,
+        )
         assert proc.returncode == 0, proc.stderr[-3000:] + vehicle.output()[-2000:]
     flown = json.loads(proc.stdout)
     assert flown["frames"] == frames and flown["ended_by"] == "episode done", flown
     assert [v["system_id"] for v in flown["vehicles"]] == [1, 2]
-    assert all(v["decisions"] >= frames - 3 and v["holds"] == 0 and v["url"] == "udpin:0.0.0.0:14550"
-               for v in flown["vehicles"]), flown["vehicles"]
+    assert all(
+        v["decisions"] >= frames - 3 and v["holds"] == 0 and v["url"] == "udpin:0.0.0.0:14550"
+        for v in flown["vehicles"]
+    ), flown["vehicles"]
     assert flown["min_separation_flown_m"] >= 20.0
     assert set(_tlog_by_system(tmp_path / "flight.tlog")) == {1, 2}  # one tlog, both systems

@@ -12,17 +12,17 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from conftest import ROOT, TINY_TRAINING, UAVLINK, cli_json
 from hypothesis import given, settings
 from hypothesis import strategies as st
-from mavlink_gcs import FAST_TAKEOFF, parse_vehicle_stats
-from relay_flight import ModeWatch
-from udp_relay import BLACKOUT, CLEAN, UdpRelay
+from support.cli import ROOT, TINY_TRAINING, UAVLINK, cli_json
+from support.mavlink_gcs import FAST_TAKEOFF, parse_vehicle_stats
+from support.relay_flight import ModeWatch
+from support.udp_relay import BLACKOUT, CLEAN, UdpRelay
 
 from sitl_stub.launcher import vehicle_process
 from uavlink.config import EnvConfig
 from uavlink.env.actions import ActionMapping
-from uavlink.flight.fleet_mission import fleet_setpoints
+from uavlink.flight.fleet_loop import fleet_setpoints
 from uavlink.mavlink.connection import free_udp_port
 from uavlink.mavlink.dialect import mavutil
 from uavlink.mobility.fleet import min_separation_m, start_positions_m
@@ -33,7 +33,9 @@ SHIPPED = ROOT / "policies" / "fleet" / "straight_180.zip"
 
 @settings(max_examples=60, deadline=None)
 @given(n_uavs=st.integers(2, 3), seed=st.integers(0, 2**31 - 1), frames=st.integers(1, 40))
-def test_flight_setpoints_never_bring_two_uavs_within_20_m(n_uavs: int, seed: int, frames: int) -> None:
+def test_flight_setpoints_never_bring_two_uavs_within_20_m(
+    n_uavs: int, seed: int, frames: int
+) -> None:
     """Whatever the policy asks (and whichever vehicles cannot be told), the setpoints the flight
     loop sends keep every pair at least uav_separation_m (20 m) apart."""
     cfg = EnvConfig(n_uavs=n_uavs)
@@ -43,8 +45,12 @@ def test_flight_setpoints_never_bring_two_uavs_within_20_m(n_uavs: int, seed: in
     centre = rng.uniform(-150, 150, 2)
     for _ in range(frames):
         # the hardest case: every UAV driven at one point, plus random moves and dropped vehicles
-        toward = np.where(rng.random((n_uavs, 1)) < 0.7, centre - targets, rng.normal(size=(n_uavs, 2)))
-        action = np.clip(toward / np.maximum(np.abs(toward).max(axis=1, keepdims=True), 1e-9), -1, 1)
+        toward = np.where(
+            rng.random((n_uavs, 1)) < 0.7, centre - targets, rng.normal(size=(n_uavs, 2))
+        )
+        action = np.clip(
+            toward / np.maximum(np.abs(toward).max(axis=1, keepdims=True), 1e-9), -1, 1
+        )
         moves = mapping.to_displacement_m(action * rng.uniform(0, 1, (n_uavs, 1)))
         movable = rng.random(n_uavs) < 0.8
         new = fleet_setpoints(targets, moves, cfg, movable)
@@ -64,7 +70,9 @@ def fleet_policy(tmp_path_factory: pytest.TempPathFactory) -> Path:
     from uavlink.learn.training import train
 
     out = tmp_path_factory.mktemp("fleet_policy") / "straight_180.zip"
-    cfg = EnvConfig(scenario="straight_180", n_uavs=2).replace(**{"radio.shadowing_model": "spatial"})
+    cfg = EnvConfig(scenario="straight_180", n_uavs=2).replace(
+        **{"radio.shadowing_model": "spatial"}
+    )
     train(cfg, TrainConfig(**TINY_TRAINING), out, None, progress=False)
     return out
 
@@ -94,10 +102,15 @@ def test_embedded_fleet_flight_matches_its_evaluation(tmp_path: Path, fleet_poli
     simulated = cli_json("evaluate", *common, "--episodes", "1", "--json")["mean_rate_mbps"]
     flown = cli_json("fly", *common, "--out", str(tmp_path), "--json", "--speed", "20")
     assert flown["n_uavs"] == 2 and flown["frames"] == 128, flown
-    assert abs(flown["mean_rate_mbps"] - simulated) <= 0.05 * simulated, (flown["mean_rate_mbps"], simulated)
+    assert abs(flown["mean_rate_mbps"] - simulated) <= 0.05 * simulated, (
+        flown["mean_rate_mbps"],
+        simulated,
+    )
     assert flown["min_separation_setpoints_m"] >= 20.0 - 1e-6
     assert [v["system_id"] for v in flown["vehicles"]] == [1, 2]
-    assert all(v["decisions"] >= 120 and v["holds"] == 0 for v in flown["vehicles"]), flown["vehicles"]
+    assert all(v["decisions"] >= 120 and v["holds"] == 0 for v in flown["vehicles"]), flown[
+        "vehicles"
+    ]
     assert _systems_in_tlog(tmp_path / "flight.tlog") == {1, 2}
 
 
@@ -111,11 +124,33 @@ def test_cut_vehicle_holds_while_the_other_flies_on_then_rejoins(tmp_path: Path)
     watch = ModeWatch()  # vehicle 2's heartbeats and radio frames, as they pass the relay
     relay = UdpRelay(("127.0.0.1", ports[1]), CLEAN, max_duration_s=240, tap=watch).start()
     speed, frames = 5.0, 60
-    sitl_args = ["--fleet", "2", "--scenario", "straight_180", "--set", "radio.shadowing_model=\"spatial\"",
-                 *FAST_TAKEOFF]  # fly takes off one vehicle after the other: 95 m at 5 m/s, not 1.5
-    fly = [*UAVLINK, "fly", "--policy", "aoa", "--set", "n_uavs=2", *SPATIAL, "--scenario", "straight_180",
-           "--connect", f"udpin:127.0.0.1:{ports[0]},udpin:127.0.0.1:{ports[1]}", "--frames", str(frames),
-           "--out", str(tmp_path), "--json"]
+    sitl_args = [
+        "--fleet",
+        "2",
+        "--scenario",
+        "straight_180",
+        "--set",
+        'radio.shadowing_model="spatial"',
+        *FAST_TAKEOFF,
+    ]  # fly takes off one vehicle after the other: 95 m at 5 m/s, not 1.5
+    fly = [
+        *UAVLINK,
+        "fly",
+        "--policy",
+        "aoa",
+        "--set",
+        "n_uavs=2",
+        *SPATIAL,
+        "--scenario",
+        "straight_180",
+        "--connect",
+        f"udpin:127.0.0.1:{ports[0]},udpin:127.0.0.1:{ports[1]}",
+        "--frames",
+        str(frames),
+        "--out",
+        str(tmp_path),
+        "--json",
+    ]
     cut_at: list[float] = []
 
     def cut_mid_flight(proc: subprocess.Popen) -> None:
@@ -132,9 +167,12 @@ def test_cut_vehicle_holds_while_the_other_flies_on_then_rejoins(tmp_path: Path)
         relay.set_faults(CLEAN)
 
     try:
-        with vehicle_process([f"udpout:127.0.0.1:{ports[0]}", f"udpout:127.0.0.1:{relay.port}"], speed,
-                             sitl_args) as vehicle:
-            proc = subprocess.Popen(fly, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, cwd=ROOT)
+        with vehicle_process(
+            [f"udpout:127.0.0.1:{ports[0]}", f"udpout:127.0.0.1:{relay.port}"], speed, sitl_args
+        ) as vehicle:
+            proc = subprocess.Popen(
+                fly, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, cwd=ROOT
+            )
             cutter = threading.Thread(target=cut_mid_flight, args=(proc,), daemon=True)
             cutter.start()
             out, err = proc.communicate(timeout=240)
@@ -177,8 +215,13 @@ def test_fleet_vehicles_spawn_apart_with_their_own_home(tmp_path: Path) -> None:
 
 
 def test_sitl_fleet_refuses_connect_count_mismatch() -> None:
-    proc = subprocess.run([sys.executable, "-m", "sitl_stub", "--fleet", "2", "--connect", "udpout:127.0.0.1:9"],
-                          capture_output=True, text=True, timeout=60, cwd=ROOT)
+    proc = subprocess.run(
+        [sys.executable, "-m", "sitl_stub", "--fleet", "2", "--connect", "udpout:127.0.0.1:9"],
+        capture_output=True,
+        text=True,
+        timeout=60,
+        cwd=ROOT,
+    )
     assert proc.returncode == 2
     assert "--fleet 2 with --connect needs 2 --connect URLs" in proc.stderr
     assert len(proc.stderr.strip().splitlines()) == 1

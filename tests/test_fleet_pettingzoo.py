@@ -31,7 +31,9 @@ def _api_test(env: FleetParallelEnv) -> None:
 def test_parallel_api_test_circular_two_uavs() -> None:
     env = parallel_env("circular", 2)
     assert env.possible_agents == ["uav_0", "uav_1"]
-    assert env.metadata == {"name": "uavlink_fleet_v0", "render_modes": []} and env.render_mode is None
+    assert (
+        env.metadata == {"name": "uavlink_fleet_v0", "render_modes": []} and env.render_mode is None
+    )
     _api_test(env)
     parallel_seed_test(lambda: parallel_env("hotspot", 3, episode_frames=8), num_cycles=8)
 
@@ -67,7 +69,9 @@ def test_spaces_and_observations() -> None:
     for obs in _rollout(env, seed=3, frames=6):
         assert all(env.observation_space(a).contains(o) for a, o in obs.items())
         assert env.state_space.contains(env.state())
-    np.testing.assert_array_equal(env.state(), np.concatenate([obs[a] for a in env.possible_agents]))
+    np.testing.assert_array_equal(
+        env.state(), np.concatenate([obs[a] for a in env.possible_agents])
+    )
 
 
 def test_seeded_reset_is_reproducible_and_unseeded_draws() -> None:
@@ -95,11 +99,15 @@ def test_agents_see_the_core_rows_and_share_the_team_reward() -> None:
         obs, rewards, terms, truncs, infos = env.step(actions)
         result = core.step(np.stack([actions[a] for a in env.possible_agents]))
         core_obs = result.observation
-        assert len(set(rewards.values())) == 1 and rewards["uav_0"] == pytest.approx(result.reward[0])
+        assert len(set(rewards.values())) == 1 and rewards["uav_0"] == pytest.approx(
+            result.reward[0]
+        )
         assert not any(terms.values())
         for info in infos.values():
-            assert info == {"mean_rate_mbps": pytest.approx(result.mean_rate_mbps[0]),
-                            "fair_rate": pytest.approx(result.fair_rate[0])}
+            assert info == {
+                "mean_rate_mbps": pytest.approx(result.mean_rate_mbps[0]),
+                "fair_rate": pytest.approx(result.fair_rate[0]),
+            }
 
 
 def test_episode_truncates_at_the_last_frame_and_empties_agents() -> None:
@@ -137,8 +145,12 @@ def test_separation_holds_over_random_actions_towards_each_other() -> None:
     while env.agents:  # each UAV heads for the centre, with noise: the filter must keep 20 m
         xy = env.core.uav_xy_m
         towards = -xy / np.maximum(np.linalg.norm(xy, axis=1, keepdims=True), 1e-9)
-        env.step({a: np.clip(towards[d] + rng.normal(0, 0.5, 2), -1, 1)
-                  for d, a in enumerate(env.agents)})
+        env.step(
+            {
+                a: np.clip(towards[d] + rng.normal(0, 0.5, 2), -1, 1)
+                for d, a in enumerate(env.agents)
+            }
+        )
         gaps = np.linalg.norm(env.core.uav_xy_m[:, None] - env.core.uav_xy_m[None], axis=-1)
         closest = min(closest, gaps[np.triu_indices(3, 1)].min())
     assert env.config.uav_separation_m - 1e-9 <= closest < 40.0  # they did come close
@@ -178,5 +190,7 @@ def test_missing_pettingzoo_is_a_user_error_and_import_stays_light(monkeypatch) 
     with pytest.raises(UserError, match=r"pip install 'uavlink\[fleet\]'"):
         parallel_env()
     code = "import sys, uavlink, uavlink.fleet\nprint('pettingzoo' in sys.modules)"
-    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=60, check=True)
+    out = subprocess.run(
+        [sys.executable, "-c", code], capture_output=True, text=True, timeout=60, check=True
+    )
     assert out.stdout.strip() == "False"

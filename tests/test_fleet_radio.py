@@ -53,10 +53,15 @@ def test_two_active_cells_interfere_on_every_rb():
     # One UE under each UAV, 100 m apart: S / (I + N) per RB, each UE alone in its cell (B / 1).
     read = _read([[0.0, 0.0], [100.0, 0.0]], [[0.0, 0.0], [100.0, 0.0]])
     np.testing.assert_array_equal(read.serving, [[0, 1]])
-    s, i = _snr(0.0), _snr(100.0)  # per-RB ratios equal the whole-band ones: power and noise split alike
+    s, i = (
+        _snr(0.0),
+        _snr(100.0),
+    )  # per-RB ratios equal the whole-band ones: power and noise split alike
     expected_db = 10 * math.log10(s / (i + 1.0))
     np.testing.assert_allclose(read.sinr_db[0], expected_db, atol=1e-9)
-    np.testing.assert_allclose(read.rate_bps[0], QUIET.bandwidth_hz * math.log2(1 + s / (i + 1)), rtol=1e-12)
+    np.testing.assert_allclose(
+        read.rate_bps[0], QUIET.bandwidth_hz * math.log2(1 + s / (i + 1)), rtol=1e-12
+    )
 
 
 def test_per_cell_round_robin_shares_the_band_among_the_cells_ues():
@@ -65,23 +70,32 @@ def test_per_cell_round_robin_shares_the_band_among_the_cells_ues():
     read = _read([[0.0, 0.0], [5000.0, 0.0]], ue)
     np.testing.assert_array_equal(read.serving, [[0, 0, 0, 1]])
     shares = read.rate_bps[0] / np.log2(1 + 10 ** (read.sinr_db[0] / 10))
-    np.testing.assert_allclose(shares, [QUIET.bandwidth_hz / 3] * 3 + [QUIET.bandwidth_hz], rtol=1e-12)
+    np.testing.assert_allclose(
+        shares, [QUIET.bandwidth_hz / 3] * 3 + [QUIET.bandwidth_hz], rtol=1e-12
+    )
 
 
 def test_orthogonal_reuse_has_no_interference_and_splits_the_band():
     read = _read([[0.0, 0.0], [100.0, 0.0]], [[0.0, 0.0], [100.0, 0.0]], reuse="orthogonal")
     # Each UAV puts its power on K / 2 RBs: per-RB SNR doubles, bandwidth halves.
     np.testing.assert_allclose(read.sinr_db[0], 10 * math.log10(2 * _snr(0.0)), atol=1e-9)
-    np.testing.assert_allclose(read.rate_bps[0], QUIET.bandwidth_hz / 2 * math.log2(1 + 2 * _snr(0.0)), rtol=1e-12)
+    np.testing.assert_allclose(
+        read.rate_bps[0], QUIET.bandwidth_hz / 2 * math.log2(1 + 2 * _snr(0.0)), rtol=1e-12
+    )
 
 
 def test_each_uav_hears_every_ue_and_measures_its_aoa():
     read = _read([[0.0, 0.0], [100.0, 0.0]], [[0.0, 50.0], [100.0, -50.0]])
     assert read.heard_sinr_db.shape == (1, 2, 2) and read.heard_aoa_deg.shape == (1, 2, 2)
     np.testing.assert_allclose(read.heard_sinr_db[0, 0, 0], 10 * math.log10(_snr(50.0)), atol=1e-9)
-    np.testing.assert_allclose(read.heard_sinr_db[0, 0, 1], 10 * math.log10(_snr(math.hypot(100, 50))), atol=1e-9)
-    np.testing.assert_allclose(read.heard_aoa_deg[0], [[90.0, math.degrees(math.atan2(-50, 100))],
-                                                       [math.degrees(math.atan2(50, -100)), -90.0]], atol=1e-9)
+    np.testing.assert_allclose(
+        read.heard_sinr_db[0, 0, 1], 10 * math.log10(_snr(math.hypot(100, 50))), atol=1e-9
+    )
+    np.testing.assert_allclose(
+        read.heard_aoa_deg[0],
+        [[90.0, math.degrees(math.atan2(-50, 100))], [math.degrees(math.atan2(50, -100)), -90.0]],
+        atol=1e-9,
+    )
     np.testing.assert_allclose(read.aoa_deg[0], [90.0, -90.0], atol=1e-9)  # at each UE's server
 
 
@@ -91,7 +105,11 @@ def test_full_reuse_fading_statistics_match_the_single_uav_path():
     radio = RadioConfig(shadowing=False)
     n = 5_000
     ue = np.zeros((n, 10, 2))
-    one = RadioChannel(radio, AREA, 10).reset(np.random.default_rng(16), np.zeros((n, 1, 2)), ue).sinr_db
+    one = (
+        RadioChannel(radio, AREA, 10)
+        .reset(np.random.default_rng(16), np.zeros((n, 1, 2)), ue)
+        .sinr_db
+    )
     far = np.concatenate([np.zeros((n, 1, 2)), np.full((n, 1, 2), 1e6)], axis=1)
     two = RadioChannel(radio, AREA, 10).reset(np.random.default_rng(17), far, ue).sinr_db
     assert two.mean() == pytest.approx(one.mean(), abs=0.02)
@@ -108,13 +126,17 @@ def test_fleet_env_rows_rewards_and_separation(n_uavs):
     for _ in range(cfg.episode_frames):
         result = env.step(rng.uniform(-1, 1, (8 * n_uavs, 2)))
         rewards = result.reward.reshape(8, n_uavs)
-        np.testing.assert_array_equal(rewards, rewards[:, :1].repeat(n_uavs, axis=1))  # one team reward
+        np.testing.assert_array_equal(
+            rewards, rewards[:, :1].repeat(n_uavs, axis=1)
+        )  # one team reward
         assert (min_separation_m(env.uav_xy_m.reshape(8, n_uavs, 2)) >= cfg.uav_separation_m).all()
     assert result.truncated.all() and result.mean_rate_mbps.shape == (8,)
     frame = env.layout.newest_frame(result.observation)
     np.testing.assert_allclose(frame["uav_xy_m"], env.uav_xy_m, atol=1e-4)
     served = frame["served_by"].reshape(8, n_uavs, -1)
-    np.testing.assert_array_equal((served[:, 0] + 0) % n_uavs, env.readings.serving)  # UAV 0 counts from 0
+    np.testing.assert_array_equal(
+        (served[:, 0] + 0) % n_uavs, env.readings.serving
+    )  # UAV 0 counts from 0
     np.testing.assert_array_equal((served[:, 1] + 1) % n_uavs, env.readings.serving)
 
 

@@ -16,7 +16,9 @@ SEP_M = 20.0
 
 def test_start_positions_spread_on_the_circle():
     np.testing.assert_allclose(start_positions_m(1, 100.0), [[0.0, 0.0]])
-    np.testing.assert_allclose(start_positions_m(2, 100.0), [[100.0, 0.0], [-100.0, 0.0]], atol=1e-12)
+    np.testing.assert_allclose(
+        start_positions_m(2, 100.0), [[100.0, 0.0], [-100.0, 0.0]], atol=1e-12
+    )
     three = start_positions_m(3, 100.0)
     np.testing.assert_allclose(np.linalg.norm(three, axis=1), 100.0)
     assert min_separation_m(three[None])[0] == pytest.approx(100.0 * np.sqrt(3.0))
@@ -38,8 +40,12 @@ def test_moves_that_keep_apart_are_untouched():
 
 
 @settings(max_examples=60, deadline=None)
-@given(n_uavs=st.integers(2, 4), seed=st.integers(0, 2**31 - 1), steps=st.integers(1, 40),
-       reach=st.sampled_from([12.0, 40.0]))
+@given(
+    n_uavs=st.integers(2, 4),
+    seed=st.integers(0, 2**31 - 1),
+    steps=st.integers(1, 40),
+    reach=st.sampled_from([12.0, 40.0]),
+)
 def test_no_action_sequence_brings_two_uavs_closer_than_the_minimum(n_uavs, seed, steps, reach):
     """Random moves, many aimed straight at another UAV: the minimum holds after every frame."""
     rng = np.random.default_rng(seed)

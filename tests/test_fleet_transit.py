@@ -10,15 +10,15 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from conftest import ROOT, UAVLINK
 from hypothesis import given, settings
 from hypothesis import strategies as st
-from mavlink_gcs import FAST_TAKEOFF
+from support.cli import ROOT, UAVLINK
+from support.mavlink_gcs import FAST_TAKEOFF
 
 from sitl_stub.launcher import vehicle_process
 from uavlink.config import EnvConfig
 from uavlink.env.actions import ActionMapping
-from uavlink.flight.fleet_mission import fleet_setpoints
+from uavlink.flight.fleet_loop import fleet_setpoints
 from uavlink.flight.transit import guard_transit, segment_distance_m
 from uavlink.mavlink.connection import free_udp_port
 from uavlink.mobility.fleet import min_separation_m, separate, start_positions_m
@@ -27,15 +27,20 @@ from uavlink.mobility.fleet import min_separation_m, separate, start_positions_m
 def _paths_gap_m(start: np.ndarray, end: np.ndarray) -> float:
     """Smallest distance between two vehicles' straight paths start -> end, whatever their timing."""
     n = len(start)
-    return min(segment_distance_m(start[i], end[i], start[j], end[j])
-               for i in range(n) for j in range(i + 1, n))
+    return min(
+        segment_distance_m(start[i], end[i], start[j], end[j])
+        for i in range(n)
+        for j in range(i + 1, n)
+    )
 
 
 def test_segment_distance() -> None:
     p = [np.array(v, dtype=float) for v in ((0, 0), (10, 0), (5, -5), (5, 5), (0, 3), (10, 3))]
     assert segment_distance_m(p[0], p[1], p[2], p[3]) == 0.0  # they cross
     assert segment_distance_m(p[0], p[1], p[4], p[5]) == pytest.approx(3.0)  # parallel
-    assert segment_distance_m(p[0], p[1], np.array([13.0, 4.0]), np.array([20.0, 4.0])) == pytest.approx(5.0)
+    assert segment_distance_m(
+        p[0], p[1], np.array([13.0, 4.0]), np.array([20.0, 4.0])
+    ) == pytest.approx(5.0)
 
 
 def test_crossing_moves_that_the_env_filter_lets_through_are_cut() -> None:
@@ -72,8 +77,12 @@ def test_lagging_vehicles_paths_keep_20_m(n_uavs: int, seed: int, frames: int) -
     actual = setpoints.copy()
     centre = rng.uniform(-100, 100, 2)
     for _ in range(frames):
-        toward = np.where(rng.random((n_uavs, 1)) < 0.6, centre - setpoints, rng.normal(size=(n_uavs, 2)))
-        action = np.clip(toward / np.maximum(np.abs(toward).max(axis=1, keepdims=True), 1e-9), -1, 1)
+        toward = np.where(
+            rng.random((n_uavs, 1)) < 0.6, centre - setpoints, rng.normal(size=(n_uavs, 2))
+        )
+        action = np.clip(
+            toward / np.maximum(np.abs(toward).max(axis=1, keepdims=True), 1e-9), -1, 1
+        )
         movable = rng.random(n_uavs) < 0.8
         new = fleet_setpoints(setpoints, mapping.to_displacement_m(action), cfg, movable, actual)
         assert np.all(new[~movable] == setpoints[~movable])
@@ -95,19 +104,52 @@ def test_fleet_aoa_flight_keeps_20_m_in_transit(tmp_path: Path) -> None:
     # off one after the other (95 m at 1.5 m/s each: 6 s of wall time at 20x). At 20x PX4's 1 s
     # offboard-loss time is 50 ms of wall time, which a loaded CI machine can stall the client for
     # (one CI run: a hold); 5 s keeps this test on separation, test_reliability_* on failsafes.
-    sitl_args = ["--fleet", "2", "--scenario", "circular", "--seed", "0", *settings, *FAST_TAKEOFF,
-                 "--param", "COM_OF_LOSS_T=5"]
+    sitl_args = [
+        "--fleet",
+        "2",
+        "--scenario",
+        "circular",
+        "--seed",
+        "0",
+        *settings,
+        *FAST_TAKEOFF,
+        "--param",
+        "COM_OF_LOSS_T=5",
+    ]
     with vehicle_process([f"udpout:127.0.0.1:{p}" for p in ports], 20.0, sitl_args) as vehicle:
         proc = subprocess.run(
-            [*UAVLINK, "fly", "--policy", "aoa", "--set", "n_uavs=2", *settings, "--scenario", "circular",
-             "--seed", "0", "--frames", "80", "--connect", ",".join(f"udpin:127.0.0.1:{p}" for p in ports),
-             "--out", str(tmp_path), "--json"],
-            capture_output=True, text=True, timeout=240, cwd=ROOT)
+            [
+                *UAVLINK,
+                "fly",
+                "--policy",
+                "aoa",
+                "--set",
+                "n_uavs=2",
+                *settings,
+                "--scenario",
+                "circular",
+                "--seed",
+                "0",
+                "--frames",
+                "80",
+                "--connect",
+                ",".join(f"udpin:127.0.0.1:{p}" for p in ports),
+                "--out",
+                str(tmp_path),
+                "--json",
+            ],
+            capture_output=True,
+            text=True,
+            timeout=240,
+            cwd=ROOT,
+        )
         assert proc.returncode == 0, proc.stderr[-3000:] + vehicle.output()[-2000:]
     flown = json.loads(proc.stdout)
     # every frame flown; on a loaded machine a frame can reach the loop in a backlog with the next
     # (then only the newest is decided), so most, not all, are decisions
     assert flown["frames"] == 80 and flown["radio_frames_missed"] == 0, flown
-    assert all(v["decisions"] >= 0.85 * 80 and v["holds"] == 0 for v in flown["vehicles"]), flown["vehicles"]
+    assert all(v["decisions"] >= 0.85 * 80 and v["holds"] == 0 for v in flown["vehicles"]), flown[
+        "vehicles"
+    ]
     assert flown["min_separation_setpoints_m"] >= 20.0
     assert flown["min_separation_flown_m"] >= 20.0, flown

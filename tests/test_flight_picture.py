@@ -12,9 +12,9 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from conftest import assert_user_error, cli_json, run_uavlink_in_process
-from mavlink_gcs import FAST_CLIMB_PARAMS
-from mavproxy_console import MAVPROXY, mavproxy
+from support.cli import assert_user_error, cli_json, run_uavlink_in_process
+from support.mavlink_gcs import FAST_CLIMB_PARAMS
+from support.mavproxy_console import MAVPROXY, mavproxy
 
 from sitl_stub.__main__ import build_parser
 from sitl_stub.launcher import vehicle_process
@@ -23,7 +23,7 @@ from sitl_stub.sim.payload import PayloadOptions
 from sitl_stub.sim.radio_payload import RadioPayload
 from uavlink.config import EnvConfig
 from uavlink.flight.link import VehicleLink
-from uavlink.flight.mission import MissionConfig, PolicyPilot, fly_mission
+from uavlink.flight.loop import LoopConfig, PolicyPilot, fly_vehicle
 from uavlink.flight.radio_source import MavlinkRadioSource
 from uavlink.mavlink.connection import free_udp_port
 from uavlink.mavlink.dialect import mavlink, mavutil
@@ -91,14 +91,25 @@ def test_sitl_stub_no_ue_truth_option_reaches_the_payload() -> None:
     from sitl_stub.__main__ import main
 
     for argv in (["--no-ue-truth"], []):
-        main([*argv, "--connect", f"udpout:127.0.0.1:{free_udp_port()}", "--duration-s", "0.01",
-              "--speed", "100"], payload_factory=lambda o: seen.append(o))
+        main(
+            [
+                *argv,
+                "--connect",
+                f"udpout:127.0.0.1:{free_udp_port()}",
+                "--duration-s",
+                "0.01",
+                "--speed",
+                "100",
+            ],
+            payload_factory=lambda o: seen.append(o),
+        )
     assert [o.ue_truth for o in seen] == [False, True]
 
 
 def test_other_adsb_traffic_is_not_a_ue() -> None:
-    plane = mavlink.MAVLink_adsb_vehicle_message(0xABCDEF, 473977420, 85455940, 1, 500000, 0, 0, 0,
-                                                 b"SWR123", 3, 0, 1 | 64, 0)  # an airliner
+    plane = mavlink.MAVLink_adsb_vehicle_message(
+        0xABCDEF, 473977420, 85455940, 1, 500000, 0, 0, 0, b"SWR123", 3, 0, 1 | 64, 0
+    )  # an airliner
     assert decode_ue_fix(plane) is None
 
 
@@ -115,7 +126,9 @@ def test_a_log_cut_anywhere_reads_up_to_the_cut() -> None:
     assert len(list(_records(record + record))) == 2
 
 
-def test_a_frame_is_a_decision_frame_when_offboard_shows_before_the_next_one(tmp_path: Path) -> None:
+def test_a_frame_is_a_decision_frame_when_offboard_shows_before_the_next_one(
+    tmp_path: Path,
+) -> None:
     """The heartbeat trails a mode change by up to its period: the first frame of the episode (in
     OFFBOARD on the vehicle, its heartbeat still LOITER in the log) is a decision frame; the frame
     after the vehicle was handed back is not (CI saw frame 0 dropped: 15 decision frames of 16)."""
@@ -132,22 +145,38 @@ def test_a_frame_is_a_decision_frame_when_offboard_shows_before_the_next_one(tmp
     data = encode_readings(np.full(2, 10.0), np.zeros(2), running=True)
 
     def beat(main: int, sub: int = 0):
-        return vehicle.heartbeat_encode(mavlink.MAV_TYPE_QUADROTOR, mavlink.MAV_AUTOPILOT_PX4,
-                                        mavlink.MAV_MODE_FLAG_CUSTOM_MODE_ENABLED, encode_custom_mode(main, sub), 4)
+        return vehicle.heartbeat_encode(
+            mavlink.MAV_TYPE_QUADROTOR,
+            mavlink.MAV_AUTOPILOT_PX4,
+            mavlink.MAV_MODE_FLAG_CUSTOM_MODE_ENABLED,
+            encode_custom_mode(main, sub),
+            4,
+        )
 
     loiter, offboard = beat(PX4_MAIN_AUTO, PX4_SUB_AUTO_LOITER), beat(PX4_MAIN_OFFBOARD)
     log = [loiter]
-    for frame, after in enumerate([offboard, offboard, loiter, loiter]):  # frames 0-3, then a heartbeat
-        log += [vehicle.local_position_ned_encode(1000 * frame, 0.0, 0.0, -95.0, 0, 0, 0),
-                radio.debug_float_array_encode(frame * 1_000_000, READINGS_NAME.encode(), frame, data), after]
+    for frame, after in enumerate(
+        [offboard, offboard, loiter, loiter]
+    ):  # frames 0-3, then a heartbeat
+        log += [
+            vehicle.local_position_ned_encode(1000 * frame, 0.0, 0.0, -95.0, 0, 0, 0),
+            radio.debug_float_array_encode(frame * 1_000_000, READINGS_NAME.encode(), frame, data),
+            after,
+        ]
     tlog = tmp_path / "flight.tlog"
-    tlog.write_bytes(b"".join((k).to_bytes(8, "big") + m.pack(vehicle if m.get_srcComponent() == 1 else radio)
-                              for k, m in enumerate(log)))
+    tlog.write_bytes(
+        b"".join(
+            (k).to_bytes(8, "big") + m.pack(vehicle if m.get_srcComponent() == 1 else radio)
+            for k, m in enumerate(log)
+        )
+    )
     [track] = read_flight(tlog).vehicles
     assert track.frames[track.decided].tolist() == [0, 1]
 
 
-def test_the_grounds_frame_decided_names_the_decision_frames_as_fly_counts_them(tmp_path: Path) -> None:
+def test_the_grounds_frame_decided_names_the_decision_frames_as_fly_counts_them(
+    tmp_path: Path,
+) -> None:
     """fly decides frames 0..N-1 and scores 1..N; frame N's readings arrive while the vehicle is
     still in OFFBOARD, but nobody decides them (FRAME_DECIDED param2 0): N decision frames, as fly's
     summary says (the OFFBOARD rule alone counted N + 1), drawn over frames 0..N with fly's mean."""
@@ -167,23 +196,45 @@ def test_the_grounds_frame_decided_names_the_decision_frames_as_fly_counts_them(
     sent: list = []
     ground.set_send_callback(sent.append)
     data = encode_readings(np.full(2, 10.0), np.zeros(2), running=True)
-    offboard = vehicle.heartbeat_encode(mavlink.MAV_TYPE_QUADROTOR, mavlink.MAV_AUTOPILOT_PX4,
-                                        mavlink.MAV_MODE_FLAG_CUSTOM_MODE_ENABLED,
-                                        encode_custom_mode(PX4_MAIN_OFFBOARD, 0), 4)
+    offboard = vehicle.heartbeat_encode(
+        mavlink.MAV_TYPE_QUADROTOR,
+        mavlink.MAV_AUTOPILOT_PX4,
+        mavlink.MAV_MODE_FLAG_CUSTOM_MODE_ENABLED,
+        encode_custom_mode(PX4_MAIN_OFFBOARD, 0),
+        4,
+    )
     records = [(vehicle, offboard)]
     for frame in range(n + 2):  # the vehicle stays in OFFBOARD two frames past the flight's
-        records += [(vehicle, vehicle.local_position_ned_encode(1000 * frame, 0.0, 0.0, -95.0, 0, 0, 0)),
-                    (radio, radio.debug_float_array_encode(frame * 1_000_000, READINGS_NAME.encode(), frame, data))]
+        records += [
+            (vehicle, vehicle.local_position_ned_encode(1000 * frame, 0.0, 0.0, -95.0, 0, 0, 0)),
+            (
+                radio,
+                radio.debug_float_array_encode(
+                    frame * 1_000_000, READINGS_NAME.encode(), frame, data
+                ),
+            ),
+        ]
         if frame:
             score = encode_score(np.full(2, frame * 1e6), 0.5)
-            records.append((radio, radio.debug_float_array_encode(frame * 1_000_000, SCORE_NAME.encode(), frame, score)))
+            records.append(
+                (
+                    radio,
+                    radio.debug_float_array_encode(
+                        frame * 1_000_000, SCORE_NAME.encode(), frame, score
+                    ),
+                )
+            )
         if frame <= n:
             send_frame_decided(ground, 1, frame, frame < n)
             records.append((None, sent[-1]))
         records.append((vehicle, offboard))
     tlog = tmp_path / "flight.tlog"
-    tlog.write_bytes(b"".join(k.to_bytes(8, "big") + (bytes(m.get_msgbuf()) if mav is None else m.pack(mav))
-                              for k, (mav, m) in enumerate(records)))
+    tlog.write_bytes(
+        b"".join(
+            k.to_bytes(8, "big") + (bytes(m.get_msgbuf()) if mav is None else m.pack(mav))
+            for k, (mav, m) in enumerate(records)
+        )
+    )
     data_read = read_flight(tlog)
     [track] = data_read.vehicles
     assert track.frames[track.decided].tolist() == list(range(n)) and data_read.decision_frames == n
@@ -197,11 +248,16 @@ def test_plot_refuses_empty_damaged_and_missing_logs(tmp_path: Path) -> None:
     empty.write_bytes(b"")
     garbage = tmp_path / "garbage.tlog"
     garbage.write_bytes(np.random.default_rng(0).bytes(50_000))
-    for path, fragment in ((empty, "empty file"), (garbage, "no MAVLink message could be read"),
-                           (tmp_path / "none.tlog", "no such file")):
+    for path, fragment in (
+        (empty, "empty file"),
+        (garbage, "no MAVLink message could be read"),
+        (tmp_path / "none.tlog", "no such file"),
+    ):
         proc = run_uavlink_in_process("plot", str(path), "--out", str(tmp_path / "x.png"))
         assert_user_error(proc, str(path), fragment)
-    assert not list(tmp_path.glob("*.png")) and not list(tmp_path.glob(".*"))  # nothing half-written
+    assert not list(tmp_path.glob("*.png")) and not list(
+        tmp_path.glob(".*")
+    )  # nothing half-written
 
 
 # ------------------------------------------------------------------ real flights (slow)
@@ -210,7 +266,9 @@ def test_plot_refuses_empty_damaged_and_missing_logs(tmp_path: Path) -> None:
 def test_fly_draws_its_picture_and_plot_draws_the_same(tmp_path: Path) -> None:
     # --lockstep: the vehicle waits for each frame's decision, so a loaded machine neither stalls the
     # offboard stream into HOLD nor hands the loop two frames at once (one observed, not decided)
-    summary = cli_json("fly", "--policy", "aoa", "--frames", "16", "--lockstep", "--out", str(tmp_path), "--json")
+    summary = cli_json(
+        "fly", "--policy", "aoa", "--frames", "16", "--lockstep", "--out", str(tmp_path), "--json"
+    )
     tlog, png = tmp_path / "flight.tlog", tmp_path / "flight.png"
     assert summary["picture"] == str(png) and summary["picture_s"] > 0
     drawn = plot_json(str(tlog), "--out", str(tmp_path / "again.png"))
@@ -236,8 +294,20 @@ def test_fly_draws_its_picture_and_plot_draws_the_same(tmp_path: Path) -> None:
 @pytest.mark.timeout(240)
 def test_fleet_picture_one_colour_per_vehicle_ues_by_serving_uav(tmp_path: Path) -> None:
     # --speed 10: on a loaded machine two vehicles at 20x can miss their offboard streams
-    summary = cli_json("fly", "--policy", "aoa", "--set", "n_uavs=2", "--frames", "12", "--speed", "10",
-                       "--out", str(tmp_path), "--json")
+    summary = cli_json(
+        "fly",
+        "--policy",
+        "aoa",
+        "--set",
+        "n_uavs=2",
+        "--frames",
+        "12",
+        "--speed",
+        "10",
+        "--out",
+        str(tmp_path),
+        "--json",
+    )
     assert summary["picture"] == str(tmp_path / "flight.png")
     data = read_flight(tmp_path / "flight.tlog")
     assert [v.system_id for v in data.vehicles] == [1, 2] and data.n_ues == 10
@@ -259,8 +329,11 @@ class _SpySource(MavlinkRadioSource):
         self.fed: list[str] = []
 
     def feed(self, msg) -> None:
-        self.fed.append(f"{msg.get_type()}:{msg.name}" if msg.get_type() == "DEBUG_FLOAT_ARRAY"
-                        else msg.get_type())
+        self.fed.append(
+            f"{msg.get_type()}:{msg.name}"
+            if msg.get_type() == "DEBUG_FLOAT_ARRAY"
+            else msg.get_type()
+        )
         super().feed(msg)
 
 
@@ -270,8 +343,10 @@ def test_flight_loop_never_receives_the_ue_truth(tmp_path: Path) -> None:
     """Over a real flight, the vehicle sends every UE as ADSB_VEHICLE from the radio payload's own
     component, and the observation builder still only ever gets UL_RADIO readings."""
     cfg = EnvConfig().replace(scenario="straight").validate()
-    server = SitlServer(ServerConfig(connect="udpin:127.0.0.1:0", speed=20.0, params=FAST_CLIMB_PARAMS),
-                        [RadioPayload(PayloadOptions("straight", 0))]).start()
+    server = SitlServer(
+        ServerConfig(connect="udpin:127.0.0.1:0", speed=20.0, params=FAST_CLIMB_PARAMS),
+        [RadioPayload(PayloadOptions("straight", 0))],
+    ).start()
     pilot = PolicyPilot(make_baseline("aoa", cfg), cfg)
     observed: list[tuple] = []
     observe = pilot.observe
@@ -282,9 +357,13 @@ def test_flight_loop_never_receives_the_ue_truth(tmp_path: Path) -> None:
         host, port = server.address
         link = VehicleLink(f"udpout:{host}:{port}", tlog=tmp_path / "flight.tlog")
         done: dict = {}
-        t = threading.Thread(target=lambda: done.setdefault(
-            "r", fly_mission(link, pilot, cfg, MissionConfig(frames=8, land=False), radio=source)),
-            daemon=True)
+        t = threading.Thread(
+            target=lambda: done.setdefault(
+                "r",
+                fly_vehicle(link, pilot, cfg, LoopConfig(frames=8, land=False), radio=source),
+            ),
+            daemon=True,
+        )
         t.start()
         t.join(60)
         assert "r" in done, "the flight did not finish"
@@ -307,7 +386,9 @@ def test_flight_loop_never_receives_the_ue_truth(tmp_path: Path) -> None:
 def test_plot_a_log_without_radio_messages_gives_the_tracks(tmp_path: Path, monkeypatch) -> None:
     """A vehicle without the radio payload, armed and taken off over a real link: tracks only; the
     same log cut mid-record still plots; without matplotlib fly would say how to get pictures."""
-    server = SitlServer(ServerConfig(connect="udpin:127.0.0.1:0", speed=20.0, params=FAST_CLIMB_PARAMS)).start()
+    server = SitlServer(
+        ServerConfig(connect="udpin:127.0.0.1:0", speed=20.0, params=FAST_CLIMB_PARAMS)
+    ).start()
     tlog = tmp_path / "flight.tlog"
     link = None
     try:
@@ -334,7 +415,9 @@ def test_plot_a_log_without_radio_messages_gives_the_tracks(tmp_path: Path, monk
     for name in ("matplotlib.figure", "matplotlib.backends.backend_agg"):
         monkeypatch.setitem(__import__("sys").modules, name, None)
     skipped = picture_after_flight(tlog, tmp_path / "none.png")
-    assert skipped["picture"] is None and "pip install 'uavlink[plot]'" in skipped["picture_skipped"]
+    assert (
+        skipped["picture"] is None and "pip install 'uavlink[plot]'" in skipped["picture_skipped"]
+    )
 
 
 @pytest.mark.slow
@@ -344,12 +427,36 @@ def test_plot_a_mavproxy_session_log(tmp_path: Path) -> None:
     """The vehicle talks to MAVProxy, `uavlink fly` flies through MAVProxy's output; MAVProxy's own
     mav.tlog gives the picture: track, UEs, readings, fence."""
     p_master, p_out = free_udp_port(), free_udp_port()
-    with mavproxy([f"--master=udp:127.0.0.1:{p_master}", f"--out=udpout:127.0.0.1:{p_out}",
-                   "--non-interactive"], tmp_path, tmp_path / "mavproxy.out", typed=False), \
-            vehicle_process(f"udpout:127.0.0.1:{p_master}", 10.0,
-                            ["--param", "MPC_TKO_SPEED=5", "--param", "MPC_Z_VEL_MAX_UP=5"]):
-        flown = cli_json("fly", "--connect", f"udpin:127.0.0.1:{p_out}", "--policy", "aoa",
-                         "--frames", "12", "--out", str(tmp_path / "fly"), "--no-picture", "--json")
+    with (
+        mavproxy(
+            [
+                f"--master=udp:127.0.0.1:{p_master}",
+                f"--out=udpout:127.0.0.1:{p_out}",
+                "--non-interactive",
+            ],
+            tmp_path,
+            tmp_path / "mavproxy.out",
+            typed=False,
+        ),
+        vehicle_process(
+            f"udpout:127.0.0.1:{p_master}",
+            10.0,
+            ["--param", "MPC_TKO_SPEED=5", "--param", "MPC_Z_VEL_MAX_UP=5"],
+        ),
+    ):
+        flown = cli_json(
+            "fly",
+            "--connect",
+            f"udpin:127.0.0.1:{p_out}",
+            "--policy",
+            "aoa",
+            "--frames",
+            "12",
+            "--out",
+            str(tmp_path / "fly"),
+            "--no-picture",
+            "--json",
+        )
         time.sleep(1.0)  # MAVProxy writes its log behind the link
     assert flown["frames"] >= 10
     drawn = plot_json(str(tmp_path / "mav.tlog"), "--out", str(tmp_path / "mavproxy.png"))

@@ -9,10 +9,10 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from conftest import ROOT, UAVLINK, cli_json
+from support.cli import ROOT, UAVLINK, cli_json
 
 from uavlink.config import EnvConfig
-from uavlink.flight.mission import PolicyPilot
+from uavlink.flight.loop import PolicyPilot
 from uavlink.mavlink.connection import free_udp_port
 from uavlink.mavlink.radio_codec import RadioReport
 
@@ -28,25 +28,52 @@ def fly_json(tmp_path: Path, *extra: str) -> dict:
 
 
 def evaluate_one(policy: str, scenario: str, seed: int) -> float:
-    return cli_json("evaluate", "--policy", str(ROOT / policy), "--scenario", scenario, "--episodes", "1",
-                    "--seed", str(seed), "--json")["mean_rate_mbps"]
+    return cli_json(
+        "evaluate",
+        "--policy",
+        str(ROOT / policy),
+        "--scenario",
+        scenario,
+        "--episodes",
+        "1",
+        "--seed",
+        str(seed),
+        "--json",
+    )["mean_rate_mbps"]
 
 
 @pytest.mark.slow
 @pytest.mark.timeout(180)
-@pytest.mark.parametrize("policy,scenario,seed", [("policies/circular.zip", "circular", 3),
-                                                  ("policies/straight.zip", "straight", 5),
-                                                  ("policies/spatial/circular.zip", "circular", 0)])
+@pytest.mark.parametrize(
+    "policy,scenario,seed",
+    [
+        ("policies/circular.zip", "circular", 3),
+        ("policies/straight.zip", "straight", 5),
+        ("policies/spatial/circular.zip", "circular", 0),
+    ],
+)
 def test_sim_to_sitl_parity(tmp_path: Path, policy: str, scenario: str, seed: int) -> None:
     """Flown through the SITL (whose payload simulates the policy's channel: the spatial policy's
     manifest carries radio.shadowing_model to it), a policy scores within 5 % of its evaluation."""
     # fly's loop and the evaluation in this process (the vehicle is a child as always): the policy's
     # torch and SB3 are imported once, not in two children (~8 s each on a loaded 2-core machine)
-    flown = cli_json("fly", "--out", str(tmp_path), "--json", "--policy", str(ROOT / policy), "--scenario",
-                     scenario, "--seed", str(seed))
+    flown = cli_json(
+        "fly",
+        "--out",
+        str(tmp_path),
+        "--json",
+        "--policy",
+        str(ROOT / policy),
+        "--scenario",
+        scenario,
+        "--seed",
+        str(seed),
+    )
     simulated = evaluate_one(policy, scenario, seed)
-    print(f"\n{scenario} seed {seed}: flown through SITL {flown['mean_rate_mbps']:.3f} Mbps, "
-          f"uavlink evaluate {simulated:.3f} Mbps")
+    print(
+        f"\n{scenario} seed {seed}: flown through SITL {flown['mean_rate_mbps']:.3f} Mbps, "
+        f"uavlink evaluate {simulated:.3f} Mbps"
+    )
     assert flown["frames"] == 128
     assert abs(flown["mean_rate_mbps"] - simulated) <= 0.05 * simulated
     assert flown["guarded_actions"] == 0 and flown["rejected_radio_reports"] == 0
@@ -58,8 +85,16 @@ def test_fly_aoa_baseline_writes_tlog_and_summary(tmp_path: Path) -> None:
     summary = fly_json(tmp_path, "--policy", "aoa", "--scenario", "straight", "--frames", "20")
     assert summary["frames"] == 20 and summary["policy"] == "aoa"
     assert json.loads((tmp_path / "summary.json").read_text()) == summary
-    dump = run([sys.executable, "-m", "pymavlink.tools.mavlogdump", "--types",
-                "HEARTBEAT,SET_POSITION_TARGET_LOCAL_NED", str(tmp_path / "flight.tlog")])
+    dump = run(
+        [
+            sys.executable,
+            "-m",
+            "pymavlink.tools.mavlogdump",
+            "--types",
+            "HEARTBEAT,SET_POSITION_TARGET_LOCAL_NED",
+            str(tmp_path / "flight.tlog"),
+        ]
+    )
     assert dump.returncode == 0, dump.stderr
     assert "HEARTBEAT" in dump.stdout and "SET_POSITION_TARGET_LOCAL_NED" in dump.stdout
 
@@ -68,8 +103,20 @@ def test_fly_aoa_baseline_writes_tlog_and_summary(tmp_path: Path) -> None:
 @pytest.mark.timeout(120)
 def test_fly_status_line_quiet_when_piped(tmp_path: Path) -> None:
     """The live `\r` status line is for a terminal; stderr to a pipe (a log, CI) gets none of it."""
-    proc = run([*UAVLINK, "fly", "--policy", "aoa", "--scenario", "straight", "--frames", "3",
-                "--out", str(tmp_path)])
+    proc = run(
+        [
+            *UAVLINK,
+            "fly",
+            "--policy",
+            "aoa",
+            "--scenario",
+            "straight",
+            "--frames",
+            "3",
+            "--out",
+            str(tmp_path),
+        ]
+    )
     assert proc.returncode == 0, proc.stderr
     assert "\r" not in proc.stderr and "frame " not in proc.stderr, proc.stderr
     assert json.loads((tmp_path / "summary.json").read_text())["frames"] == 3
@@ -80,11 +127,28 @@ def test_fly_status_line_quiet_when_piped(tmp_path: Path) -> None:
 def test_fly_bare_port_connect(tmp_path: Path) -> None:
     """The design card's `--connect udp:PORT` (listen on all interfaces) against a separate SITL."""
     port = free_udp_port()
-    sitl = subprocess.Popen([sys.executable, "-m", "sitl_stub", "--scenario", "no_move", "--seed", "1",
-                             "--connect", f"udpout:127.0.0.1:{port}", "--speed", "20"],
-                            stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL, cwd=ROOT)
+    sitl = subprocess.Popen(
+        [
+            sys.executable,
+            "-m",
+            "sitl_stub",
+            "--scenario",
+            "no_move",
+            "--seed",
+            "1",
+            "--connect",
+            f"udpout:127.0.0.1:{port}",
+            "--speed",
+            "20",
+        ],
+        stdout=subprocess.DEVNULL,
+        stderr=subprocess.DEVNULL,
+        cwd=ROOT,
+    )
     try:
-        summary = fly_json(tmp_path, "--policy", "static", "--connect", f"udp:{port}", "--frames", "10")
+        summary = fly_json(
+            tmp_path, "--policy", "static", "--connect", f"udp:{port}", "--frames", "10"
+        )
     finally:
         sitl.terminate()
         sitl.wait(timeout=10)
@@ -92,10 +156,13 @@ def test_fly_bare_port_connect(tmp_path: Path) -> None:
     assert summary["mean_rate_mbps"] > 7.0  # hovering over the no_move cluster
 
 
-@pytest.mark.parametrize("policy,message", [
-    ("missing.zip", "no such policy file"),
-    ("oracle", "cannot fly"),
-])
+@pytest.mark.parametrize(
+    "policy,message",
+    [
+        ("missing.zip", "no such policy file"),
+        ("oracle", "cannot fly"),
+    ],
+)
 def test_fly_refuses_bad_policy_before_arming(tmp_path: Path, policy: str, message: str) -> None:
     proc = run([*UAVLINK, "fly", "--policy", policy, "--out", str(tmp_path)], timeout=60)
     assert proc.returncode == 2

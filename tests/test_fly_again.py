@@ -12,7 +12,7 @@ import time
 from pathlib import Path
 
 import pytest
-from conftest import ROOT, UAVLINK, cli_json, run_uavlink
+from support.cli import ROOT, UAVLINK, cli_json, run_uavlink
 
 from sitl_stub.launcher import vehicle_process
 from uavlink.flight.vehicles import vehicle_args
@@ -49,14 +49,24 @@ def _wait_ready(gcs, within_s: float = 30.0) -> dict:
     seen: dict = {}
     deadline, ready_at = time.monotonic() + within_s, None
     while time.monotonic() < deadline and (ready_at is None or time.monotonic() < ready_at + 1.0):
-        msg = gcs.recv_match(type=["HEARTBEAT", "EXTENDED_SYS_STATE", "BATTERY_STATUS", "HOME_POSITION"],
-                             blocking=True, timeout=0.2)
-        if msg is None or (msg.get_type() == "HEARTBEAT" and msg.autopilot == mavlink.MAV_AUTOPILOT_INVALID):
+        msg = gcs.recv_match(
+            type=["HEARTBEAT", "EXTENDED_SYS_STATE", "BATTERY_STATUS", "HOME_POSITION"],
+            blocking=True,
+            timeout=0.2,
+        )
+        if msg is None or (
+            msg.get_type() == "HEARTBEAT" and msg.autopilot == mavlink.MAV_AUTOPILOT_INVALID
+        ):
             continue
         seen[msg.get_type()] = msg
         hb, ext = seen.get("HEARTBEAT"), seen.get("EXTENDED_SYS_STATE")
-        if ready_at is None and hb and ext and not hb.base_mode & mavlink.MAV_MODE_FLAG_SAFETY_ARMED \
-                and ext.landed_state == mavlink.MAV_LANDED_STATE_ON_GROUND:
+        if (
+            ready_at is None
+            and hb
+            and ext
+            and not hb.base_mode & mavlink.MAV_MODE_FLAG_SAFETY_ARMED
+            and ext.landed_state == mavlink.MAV_LANDED_STATE_ON_GROUND
+        ):
             ready_at = time.monotonic()  # then a second more: every stream's newest
     assert ready_at is not None, f"vehicle not landed and disarmed within {within_s:g} s: {seen}"
     assert {"BATTERY_STATUS", "HOME_POSITION"} <= set(seen), seen
@@ -74,10 +84,21 @@ def test_two_flights_against_one_vehicle_each_fly_a_fresh_episode(tmp_path: Path
     port, gcs_port = free_udp_port(), free_udp_port()
     gcs = mavutil.mavlink_connection(f"udpin:127.0.0.1:{gcs_port}")
     vehicle = [f"udpout:127.0.0.1:{port}", f"udpout:127.0.0.1:{gcs_port}"]
-    fly = ["fly", "--policy", str(policy), "--scenario", "circular", "--connect", f"udpin:127.0.0.1:{port}",
-           "--json", "--quiet"]
+    fly = [
+        "fly",
+        "--policy",
+        str(policy),
+        "--scenario",
+        "circular",
+        "--connect",
+        f"udpin:127.0.0.1:{port}",
+        "--json",
+        "--quiet",
+    ]
     try:
-        with vehicle_process(vehicle, SPEED, [*vehicle_args(_policy_env(policy, "circular"), 3), *PATIENT]):
+        with vehicle_process(
+            vehicle, SPEED, [*vehicle_args(_policy_env(policy, "circular"), 3), *PATIENT]
+        ):
             home = _wait_ready(gcs)["HOME_POSITION"]
             first = cli_json(*fly, "--out", str(tmp_path / "first"))
             between = _wait_ready(gcs)
@@ -91,7 +112,10 @@ def test_two_flights_against_one_vehicle_each_fly_a_fresh_episode(tmp_path: Path
     assert second["episode"] == {"seed": 4, "index": 0, "on_vehicle": 1}
     assert second["replay"].endswith("--scenario circular --seed 4 --episodes 1")
     assert between["BATTERY_STATUS"].battery_remaining == 100  # PX4: full again once disarmed
-    assert (between["HOME_POSITION"].latitude, between["HOME_POSITION"].longitude) == (home.latitude, home.longitude)
+    assert (between["HOME_POSITION"].latitude, between["HOME_POSITION"].longitude) == (
+        home.latitude,
+        home.longitude,
+    )
     log = mavutil.mavlink_connection(str(tmp_path / "second" / "flight.tlog"))
     seeds = set()
     while (msg := log.recv_match(type="NAMED_VALUE_INT")) is not None:
@@ -100,7 +124,9 @@ def test_two_flights_against_one_vehicle_each_fly_a_fresh_episode(tmp_path: Path
     log.close()
     assert 4 in seeds  # the tlog names the episode (and the seed 3 of the flight before, if heard)
     simulated = _replayed(second)
-    print(f"\nsecond flight (seed 4): flown {second['mean_rate_mbps']:.3f} Mbps, evaluated {simulated:.3f} Mbps")
+    print(
+        f"\nsecond flight (seed 4): flown {second['mean_rate_mbps']:.3f} Mbps, evaluated {simulated:.3f} Mbps"
+    )
     assert abs(second["mean_rate_mbps"] - simulated) <= 0.05 * simulated
 
 
@@ -117,18 +143,35 @@ def test_two_flights_against_one_fleet_each_fly_a_fresh_episode(tmp_path: Path) 
     if not policy.exists():
         pytest.skip("no shipped fleet policy")  # test_fleet_flight trains one; not repeated here
     ports = [free_udp_port(), free_udp_port()]
-    fly = ["fly", "--policy", str(policy), "--scenario", "straight_180", "--json", "--quiet",
-           "--connect", ",".join(f"udpin:127.0.0.1:{p}" for p in ports)]
+    fly = [
+        "fly",
+        "--policy",
+        str(policy),
+        "--scenario",
+        "straight_180",
+        "--json",
+        "--quiet",
+        "--connect",
+        ",".join(f"udpin:127.0.0.1:{p}" for p in ports),
+    ]
     args = [*vehicle_args(_policy_env(policy, "straight_180"), 1), *PATIENT]
     with vehicle_process([f"udpout:127.0.0.1:{p}" for p in ports], SPEED, args):
         first = cli_json(*fly, "--out", str(tmp_path / "first"))
         second = cli_json(*fly, "--out", str(tmp_path / "second"))
     for summary in (first, second):
-        assert summary["completed"] is True and summary["frames"] == 128 and summary["n_uavs"] == 2, summary
-    assert first["episode"]["seed"] == 1 and second["episode"] == {"seed": 2, "index": 0, "on_vehicle": 1}
+        assert (
+            summary["completed"] is True and summary["frames"] == 128 and summary["n_uavs"] == 2
+        ), summary
+    assert first["episode"]["seed"] == 1 and second["episode"] == {
+        "seed": 2,
+        "index": 0,
+        "on_vehicle": 1,
+    }
     simulated = _replayed(second)
-    print(f"\nfleet's second flight (seed 2): flown {second['mean_rate_mbps']:.3f} Mbps, "
-          f"evaluated {simulated:.3f} Mbps")
+    print(
+        f"\nfleet's second flight (seed 2): flown {second['mean_rate_mbps']:.3f} Mbps, "
+        f"evaluated {simulated:.3f} Mbps"
+    )
     assert abs(second["mean_rate_mbps"] - simulated) <= 0.05 * simulated
 
 
@@ -142,8 +185,17 @@ def test_fly_against_a_silent_payload_fails_with_one_line(tmp_path: Path) -> Non
     # machine can stall the setpoint stream that long: the vehicle leaves OFFBOARD and `fly` says so
     # on a second line (right, but not this test's subject)
     with vehicle_process(f"udpout:127.0.0.1:{port}", LOADED_SPEED, ["--no-payload"]):
-        proc = run_uavlink("fly", "--policy", "aoa", "--connect", f"udpin:127.0.0.1:{port}", "--frames", "10",
-                           "--out", str(tmp_path))
+        proc = run_uavlink(
+            "fly",
+            "--policy",
+            "aoa",
+            "--connect",
+            f"udpin:127.0.0.1:{port}",
+            "--frames",
+            "10",
+            "--out",
+            str(tmp_path),
+        )
     assert proc.returncode == 1, proc.stderr
     lines = proc.stderr.strip().splitlines()
     assert len(lines) == 1 and "Traceback" not in proc.stderr, proc.stderr
@@ -151,7 +203,11 @@ def test_fly_against_a_silent_payload_fails_with_one_line(tmp_path: Path) -> Non
     assert "--no-payload" in lines[0]  # what to do
     assert proc.stdout == ""  # no "flew ..." line for a flight that did not happen
     summary = json.loads((tmp_path / "summary.json").read_text())
-    assert summary["completed"] is False and summary["frames"] == 0 and "no radio reports" in summary["reason"]
+    assert (
+        summary["completed"] is False
+        and summary["frames"] == 0
+        and "no radio reports" in summary["reason"]
+    )
 
 
 def _heard_radio(tlog: Path) -> bool:
@@ -170,12 +226,21 @@ def _heard_radio(tlog: Path) -> bool:
 def test_ctrl_c_lands_writes_the_summary_and_exits_130(tmp_path: Path) -> None:
     """SIGINT mid-episode (the embedded vehicle): one line on stderr, exit 130, summary.json with
     `completed: false`, `interrupted: true`."""
-    proc = subprocess.Popen([*UAVLINK, "fly", "--policy", "aoa", "--out", str(tmp_path), "--quiet"],
-                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, cwd=ROOT)
+    proc = subprocess.Popen(
+        [*UAVLINK, "fly", "--policy", "aoa", "--out", str(tmp_path), "--quiet"],
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+        text=True,
+        cwd=ROOT,
+    )
     # into the episode: the tlog holds a radio report (a fixed wait after start-up was too short for
     # a take-off on a loaded machine)
     deadline = time.monotonic() + 60
-    while time.monotonic() < deadline and proc.poll() is None and not _heard_radio(tmp_path / "flight.tlog"):
+    while (
+        time.monotonic() < deadline
+        and proc.poll() is None
+        and not _heard_radio(tmp_path / "flight.tlog")
+    ):
         time.sleep(0.2)
     time.sleep(0.5)
     proc.send_signal(signal.SIGINT)

@@ -14,16 +14,15 @@ from pathlib import Path
 from types import SimpleNamespace
 
 import pytest
-from conftest import assert_user_error, cli_json, run_uavlink_in_process
-from mavlink_gcs import FAST_TAKEOFF
+from support.cli import assert_user_error, cli_json, run_uavlink_in_process
+from support.mavlink_gcs import FAST_TAKEOFF
 
 from sitl_stub.launcher import VehicleExited, VehicleProcess, vehicle_process
 from uavlink.cli import main
 from uavlink.config import BASELINE_NAMES, EnvConfig
 from uavlink.env.radio_world import episode_scenario
 from uavlink.flight.link import VehicleLink
-from uavlink.flight.mission import MissionResult
-from uavlink.flight.outcome import judge, signing_hint
+from uavlink.flight.result import FlightResult, judge, signing_hint
 from uavlink.mavlink.connection import free_udp_port
 from uavlink.mavlink.dialect import mavlink
 from uavlink.mavlink.signing import SigningGuard, write_key
@@ -31,18 +30,26 @@ from uavlink.policies.registry import flying_baselines
 
 
 # ------------------------------------------------------------------ numbers, refused up front (fast)
-@pytest.mark.parametrize("option,value,fragment", [
-    ("--seed", "-1", "argument --seed: a seed must be an integer in 0..2147483647"),
-    ("--seed", str(2**31), "argument --seed: a seed must be an integer in 0..2147483647"),
-    ("--speed", "0", "--speed must be a number > 0"),
-    ("--speed", "-3", "--speed must be a number > 0"),
-    ("--speed", "nan", "--speed must be a number > 0"),
-    ("--frames", "0", "--frames must be 1..128"),
-    ("--frames", "-5", "--frames must be 1..128"),
-    ("--frames", "129", "--frames must be 1..128"),  # past the episode: the policy's clock and the replay end
-])
-def test_fly_refuses_bad_numbers_before_starting_or_writing_anything(tmp_path: Path, option: str, value: str,
-                                                                     fragment: str) -> None:
+@pytest.mark.parametrize(
+    "option,value,fragment",
+    [
+        ("--seed", "-1", "argument --seed: a seed must be an integer in 0..2147483647"),
+        ("--seed", str(2**31), "argument --seed: a seed must be an integer in 0..2147483647"),
+        ("--speed", "0", "--speed must be a number > 0"),
+        ("--speed", "-3", "--speed must be a number > 0"),
+        ("--speed", "nan", "--speed must be a number > 0"),
+        ("--frames", "0", "--frames must be 1..128"),
+        ("--frames", "-5", "--frames must be 1..128"),
+        (
+            "--frames",
+            "129",
+            "--frames must be 1..128",
+        ),  # past the episode: the policy's clock and the replay end
+    ],
+)
+def test_fly_refuses_bad_numbers_before_starting_or_writing_anything(
+    tmp_path: Path, option: str, value: str, fragment: str
+) -> None:
     out = tmp_path / "out"
     proc = run_uavlink_in_process("fly", "--policy", "aoa", option, value, "--out", str(out))
     assert_user_error(proc, "uavlink fly: error: ", fragment, value)
@@ -51,14 +58,23 @@ def test_fly_refuses_bad_numbers_before_starting_or_writing_anything(tmp_path: P
 
 def test_fly_refuses_several_urls_for_one_vehicle(tmp_path: Path) -> None:
     out = tmp_path / "out"
-    proc = run_uavlink_in_process("fly", "--policy", "aoa", "--connect",
-                                  "udpin:127.0.0.1:14550,udpin:127.0.0.1:14551", "--out", str(out))
+    proc = run_uavlink_in_process(
+        "fly",
+        "--policy",
+        "aoa",
+        "--connect",
+        "udpin:127.0.0.1:14550,udpin:127.0.0.1:14551",
+        "--out",
+        str(out),
+    )
     assert_user_error(proc, "uavlink fly: error: ", "--connect with several URLs is for a fleet")
     assert not out.exists()
 
 
 # ------------------------------------------------------------------ which baselines fly (fast)
-def test_the_baselines_that_fly_are_those_that_read_no_truth_in_help_and_refusals(tmp_path: Path) -> None:
+def test_the_baselines_that_fly_are_those_that_read_no_truth_in_help_and_refusals(
+    tmp_path: Path,
+) -> None:
     assert {"static", "aoa", "explore", "kriging"} <= set(flying_baselines()) <= set(BASELINE_NAMES)
     assert not {"oracle", "kmeans", "genie"} & set(flying_baselines())
     out = io.StringIO()
@@ -67,8 +83,12 @@ def test_the_baselines_that_fly_are_those_that_read_no_truth_in_help_and_refusal
     help_text = " ".join(out.getvalue().split())
     assert "FILE.zip | FILE.onnx | " + " | ".join(flying_baselines()) in help_text
     for privileged in ("oracle", "kmeans", "genie"):
-        proc = run_uavlink_in_process("fly", "--policy", privileged, "--out", str(tmp_path / privileged))
-        assert_user_error(proc, "cannot fly", "use a policy file or one of " + ", ".join(flying_baselines()))
+        proc = run_uavlink_in_process(
+            "fly", "--policy", privileged, "--out", str(tmp_path / privileged)
+        )
+        assert_user_error(
+            proc, "cannot fly", "use a policy file or one of " + ", ".join(flying_baselines())
+        )
         assert not (tmp_path / privileged).exists()
 
 
@@ -82,17 +102,24 @@ def _child(tmp_path: Path, script: str) -> VehicleProcess:
 
 
 def test_wait_started_reports_a_vehicle_that_exited_with_its_own_last_line(tmp_path: Path) -> None:
-    child = _child(tmp_path, "echo 'usage: sitl-stub [-h] ...'; echo 'sitl-stub: error: argument --x: bad' >&2; exit 2")
+    child = _child(
+        tmp_path,
+        "echo 'usage: sitl-stub [-h] ...'; echo 'sitl-stub: error: argument --x: bad' >&2; exit 2",
+    )
     started = time.monotonic()
     with pytest.raises(VehicleExited) as caught:
         child.wait_started(30.0)
     assert time.monotonic() - started < 5.0  # at once, not after the 30 s a heartbeat would take
-    assert caught.value.status == 2 and caught.value.last_line == "sitl-stub: error: argument --x: bad"
+    assert (
+        caught.value.status == 2 and caught.value.last_line == "sitl-stub: error: argument --x: bad"
+    )
     assert str(caught.value) == "exited with status 2: sitl-stub: error: argument --x: bad"
 
 
 def test_wait_started_returns_at_the_ready_line_or_after_the_timeout(tmp_path: Path) -> None:
-    ready = _child(tmp_path, "echo 'sitl-stub: vehicle 1 on udpout:127.0.0.1:1, 20x real time'; sleep 5")
+    ready = _child(
+        tmp_path, "echo 'sitl-stub: vehicle 1 on udpout:127.0.0.1:1, 20x real time'; sleep 5"
+    )
     try:
         assert ready.wait_started(10.0) is True
     finally:
@@ -124,20 +151,26 @@ def _heard(vehicle_key: bytes | None, ground_key: bytes | None) -> SimpleNamespa
 
 def test_signing_hint_says_how_the_link_and_the_vehicle_disagree() -> None:
     key, other = bytes(range(32)), bytes(32)
-    assert signing_hint(_heard(key, None)) == "the vehicle signs its link: pass --signing-key FILE (its key)"
+    assert (
+        signing_hint(_heard(key, None))
+        == "the vehicle signs its link: pass --signing-key FILE (its key)"
+    )
     assert "with another key" in signing_hint(_heard(other, key))
     assert "does not sign its link" in signing_hint(_heard(None, key))
     assert signing_hint(_heard(None, None)) == signing_hint(_heard(key, key)) == ""  # they agree
 
 
 def test_judge_puts_the_fix_in_place_of_check_the_vehicle_is_running() -> None:
-    result = MissionResult(failure="no ACK for MAV_CMD_COMPONENT_ARM_DISARM after 10 tries",
-                           fix="the vehicle signs its link: pass --signing-key FILE (its key)")
+    result = FlightResult(
+        failure="no ACK for MAV_CMD_COMPONENT_ARM_DISARM after 10 tries",
+        fix="the vehicle signs its link: pass --signing-key FILE (its key)",
+    )
     judge(result, 128)
     assert not result.completed and result.reason == (
         "no ACK for MAV_CMD_COMPONENT_ARM_DISARM after 10 tries; the vehicle signs its link: pass "
-        "--signing-key FILE (its key), then fly again")
-    plain = MissionResult(failure="link lost")
+        "--signing-key FILE (its key), then fly again"
+    )
+    plain = FlightResult(failure="link lost")
     judge(plain, 128)
     assert "check the vehicle is running and reachable" in plain.reason
 
@@ -145,20 +178,28 @@ def test_judge_puts_the_fix_in_place_of_check_the_vehicle_is_running() -> None:
 # ------------------------------------------------------------------ real vehicles (slow)
 @pytest.mark.slow
 @pytest.mark.timeout(60)
-def test_fly_reports_an_embedded_vehicle_that_exits_at_start_at_once(tmp_path: Path, monkeypatch) -> None:
+def test_fly_reports_an_embedded_vehicle_that_exits_at_start_at_once(
+    tmp_path: Path, monkeypatch
+) -> None:
     """A vehicle that refuses its arguments: fly ends within seconds with the vehicle's own line,
     not after 30 s of waiting for a heartbeat."""
     import uavlink.flight.vehicles as vehicles
 
     given = vehicles.vehicle_args
-    monkeypatch.setattr(vehicles, "vehicle_args", lambda *a, **k: [*given(*a, **k), "--scenario", "nowhere"])
+    monkeypatch.setattr(
+        vehicles, "vehicle_args", lambda *a, **k: [*given(*a, **k), "--scenario", "nowhere"]
+    )
     started = time.monotonic()
     proc = run_uavlink_in_process("fly", "--policy", "aoa", "--frames", "3", "--out", str(tmp_path))
-    assert time.monotonic() - started < 25.0  # not the 30 s heartbeat wait (a child's start under load: seconds)
+    assert (
+        time.monotonic() - started < 25.0
+    )  # not the 30 s heartbeat wait (a child's start under load: seconds)
     assert proc.returncode == 1 and "Traceback" not in proc.stderr
     [line] = proc.stderr.strip().splitlines()
-    assert line.startswith("uavlink fly: error: the embedded vehicle (sitl-stub) exited with status 2: "
-                           "sitl-stub: error: argument --scenario: invalid choice: 'nowhere'"), line
+    assert line.startswith(
+        "uavlink fly: error: the embedded vehicle (sitl-stub) exited with status 2: "
+        "sitl-stub: error: argument --scenario: invalid choice: 'nowhere'"
+    ), line
     assert str(tmp_path / "sitl.log") in line and not (tmp_path / "flight.tlog").exists()
 
 
@@ -169,17 +210,31 @@ def test_a_mixed_policy_flies_its_seeds_scenario_and_matches_its_replay(tmp_path
     evaluation does; the summary names it, and a lockstep flight matches its replay (`uavlink
     evaluate --episodes 1 --seed S`, px4 motion)."""
     seed = 1
-    flown = cli_json("fly", "--policy", "policies/mixed.zip", "--seed", str(seed), "--lockstep",
-                     "--out", str(tmp_path), "--json", "--no-picture")
+    flown = cli_json(
+        "fly",
+        "--policy",
+        "policies/mixed.zip",
+        "--seed",
+        str(seed),
+        "--lockstep",
+        "--out",
+        str(tmp_path),
+        "--json",
+        "--no-picture",
+    )
     expected = episode_scenario(EnvConfig().replace(scenario="mixed"), seed)
     assert flown["scenario"] == expected and flown["scenario_drawn_from"] == "mixed", flown
     assert flown["completed"] and flown["frames"] == 128
     stats = json.loads((tmp_path / "sitl.log").read_text().split("sitl-stub: stats ")[-1])
     assert stats["payloads"]["158"]["scenario"] == expected  # the vehicle flew that one
     replay = shlex.split(flown["replay"])
-    assert replay[replay.index("--scenario") + 1] == "mixed" and replay[replay.index("--seed") + 1] == str(seed)
+    assert replay[replay.index("--scenario") + 1] == "mixed" and replay[
+        replay.index("--seed") + 1
+    ] == str(seed)
     evaluated = cli_json(*replay[1:], "--json")["mean_rate_mbps"]
-    print(f"\nmixed seed {seed} ({expected}): flown {flown['mean_rate_mbps']:.6f}, replay {evaluated:.6f} Mbps")
+    print(
+        f"\nmixed seed {seed} ({expected}): flown {flown['mean_rate_mbps']:.6f}, replay {evaluated:.6f} Mbps"
+    )
     assert abs(flown["mean_rate_mbps"] - evaluated) <= 0.02 * evaluated
 
 
@@ -188,16 +243,38 @@ def test_a_mixed_policy_flies_its_seeds_scenario_and_matches_its_replay(tmp_path
 def test_fly_flies_the_envs_episode_by_default_and_replays_what_it_flew(tmp_path: Path) -> None:
     """Without --frames, one episode of the env's own length (here --set episode_frames=6); with
     fewer, the episode's first frames; each replay evaluates the frames flown."""
-    flown = cli_json("fly", "--policy", "aoa", "--set", "episode_frames=6", "--lockstep", "--out", str(tmp_path),
-                     "--json", "--no-picture")
+    flown = cli_json(
+        "fly",
+        "--policy",
+        "aoa",
+        "--set",
+        "episode_frames=6",
+        "--lockstep",
+        "--out",
+        str(tmp_path),
+        "--json",
+        "--no-picture",
+    )
     assert flown["completed"] and flown["frames"] == flown["decisions"] == 6, flown
     replay = shlex.split(flown["replay"])
     assert "episode_frames=6" in replay
     evaluated = cli_json(*replay[1:], "--json")["mean_rate_mbps"]
-    assert abs(flown["mean_rate_mbps"] - evaluated) <= 1e-4 * evaluated  # lockstep: float32 positions apart
+    assert (
+        abs(flown["mean_rate_mbps"] - evaluated) <= 1e-4 * evaluated
+    )  # lockstep: float32 positions apart
     # --frames 5 flies the first 5 frames of a 128-frame episode; its replay, an episode that long
-    short = cli_json("fly", "--policy", "aoa", "--frames", "5", "--lockstep", "--out", str(tmp_path / "short"),
-                     "--json", "--no-picture")
+    short = cli_json(
+        "fly",
+        "--policy",
+        "aoa",
+        "--frames",
+        "5",
+        "--lockstep",
+        "--out",
+        str(tmp_path / "short"),
+        "--json",
+        "--no-picture",
+    )
     replay = shlex.split(short["replay"])
     assert short["completed"] and short["frames"] == 5 and "episode_frames=5" in replay, short
     evaluated = cli_json(*replay[1:], "--json")["mean_rate_mbps"]
@@ -211,14 +288,26 @@ def test_fly_without_the_key_against_a_signed_vehicle_says_to_pass_it(tmp_path: 
     port = free_udp_port()
     args = ["--scenario", "straight", "--signing-key", str(keyfile), *FAST_TAKEOFF]
     with vehicle_process(f"udpout:127.0.0.1:{port}", 20.0, args):
-        proc = run_uavlink_in_process("fly", "--connect", f"udpin:127.0.0.1:{port}", "--policy", "aoa",
-                                      "--frames", "3", "--out", str(tmp_path / "fly"), "--no-picture")
+        proc = run_uavlink_in_process(
+            "fly",
+            "--connect",
+            f"udpin:127.0.0.1:{port}",
+            "--policy",
+            "aoa",
+            "--frames",
+            "3",
+            "--out",
+            str(tmp_path / "fly"),
+            "--no-picture",
+        )
     assert proc.returncode == 1, proc.stderr
     reason = json.loads((tmp_path / "fly" / "summary.json").read_text())["reason"]
     assert "the vehicle signs its link: pass --signing-key FILE" in reason, reason
     assert "check the vehicle is running" not in reason and reason in proc.stderr
     # the unanswered fence upload ends it (not a warning, then ten arm tries)
-    assert "geofence not uploaded" in reason and "the vehicle ignores our unsigned packets" in reason
+    assert (
+        "geofence not uploaded" in reason and "the vehicle ignores our unsigned packets" in reason
+    )
     assert "flying on" not in proc.stderr
 
 

@@ -11,7 +11,7 @@ import itertools
 
 import numpy as np
 import pytest
-from conftest import assert_user_error, run_uavlink_in_process
+from support.cli import assert_user_error, run_uavlink_in_process
 
 from uavlink.config import EnvConfig, RadioConfig
 from uavlink.env.core import BatchedUavEnv
@@ -28,12 +28,20 @@ from uavlink.seeding import EVAL
 
 
 def small(scenario: str = "straight", **changes) -> EnvConfig:
-    settings = {"area.half_width_m": 60.0, "episode_frames": 12, "radio.shadowing_model": "spatial",
-                "radio.fast_fading": False, "fleet_start_radius_m": 30.0, **changes}
+    settings = {
+        "area.half_width_m": 60.0,
+        "episode_frames": 12,
+        "radio.shadowing_model": "spatial",
+        "radio.fast_fading": False,
+        "fleet_start_radius_m": 30.0,
+        **changes,
+    }
     return EnvConfig(scenario=scenario).replace(**settings).validate()
 
 
-def brute_force(reward: np.ndarray, grid: Grid, first: np.ndarray, allowed: np.ndarray | None) -> float:
+def brute_force(
+    reward: np.ndarray, grid: Grid, first: np.ndarray, allowed: np.ndarray | None
+) -> float:
     best = -np.inf
     for start in zip(*np.nonzero(first), strict=True):
         for moves in itertools.product(range(len(grid.offsets)), repeat=len(reward) - 1):
@@ -50,14 +58,18 @@ def brute_force(reward: np.ndarray, grid: Grid, first: np.ndarray, allowed: np.n
     return best
 
 
-@pytest.mark.parametrize("r_max_m,frames,masked", [(4.0, 4, False), (6.0, 3, False), (6.0, 3, True)])
+@pytest.mark.parametrize(
+    "r_max_m,frames,masked", [(4.0, 4, False), (6.0, 3, False), (6.0, 3, True)]
+)
 def test_dp_is_exact_against_brute_force(r_max_m: float, frames: int, masked: bool) -> None:
     grid = Grid.over_area(8.0, 4.0, r_max_m)  # 5 x 5 cells; 5 or 9 moves
     rng = np.random.default_rng(int(r_max_m) * 10 + frames + masked)
     for _ in range(3):
         reward = rng.normal(size=(frames, grid.n, grid.n))
         reward[rng.random(reward.shape) < 0.1] = -np.inf  # forbidden cells
-        allowed = rng.random((frames - 1, len(grid.offsets), grid.n, grid.n)) > 0.3 if masked else None
+        allowed = (
+            rng.random((frames - 1, len(grid.offsets), grid.n, grid.n)) > 0.3 if masked else None
+        )
         first = grid.cells_within(np.array([0.0, 0.0]), r_max_m)
         path, value = best_grid_path(reward, grid, first, allowed)
         assert value == pytest.approx(brute_force(reward, grid, first, allowed))
@@ -82,8 +94,13 @@ def test_grid_powers_are_the_envs() -> None:
     for ix, iy in cells:
         uav = np.broadcast_to(grid.points_m(np.array([ix, iy])), (3, 1, 2))
         want = mean_rx_power_dbm(distance_3d_m(uav, ue, 95.0), radio)[..., 0]
-        one = SpatialShadowField(*(np.broadcast_to(a, (3, *a.shape[1:])) for a in
-                                   (field.ue_wave_per_m, field.uav_wave_per_m, field.phase_rad)), field.amplitude_db)
+        one = SpatialShadowField(
+            *(
+                np.broadcast_to(a, (3, *a.shape[1:]))
+                for a in (field.ue_wave_per_m, field.uav_wave_per_m, field.phase_rad)
+            ),
+            field.amplitude_db,
+        )
         want = want + one.shadow_db(uav, ue)[..., 0]
         np.testing.assert_allclose(rx[:, :, ix, iy], want, atol=2e-3)
 
@@ -92,10 +109,16 @@ def test_grid_powers_are_the_envs() -> None:
 def test_fleet_mean_rates_are_the_mean_channel_rates(n_uavs: int, reuse: str) -> None:
     rng, radio = np.random.default_rng(n_uavs), RadioConfig()
     mine, others = rng.uniform(-90, -60, (3, 10, 40)), rng.uniform(-90, -60, (3, 10, n_uavs - 1))
-    rx = np.concatenate([mine.transpose(0, 2, 1)[..., None], np.repeat(others[:, None], 40, axis=1)], axis=-1)
+    rx = np.concatenate(
+        [mine.transpose(0, 2, 1)[..., None], np.repeat(others[:, None], 40, axis=1)], axis=-1
+    )
     want = mean_channel_rate_bps(rx, radio, reuse).mean(axis=-1)  # (T, G)
-    got = fleet_mean_rate_bps((10 ** (mine / 10)).astype(np.float32), (10 ** (others / 10)).astype(np.float32),
-                              radio, reuse)
+    got = fleet_mean_rate_bps(
+        (10 ** (mine / 10)).astype(np.float32),
+        (10 ** (others / 10)).astype(np.float32),
+        radio,
+        reuse,
+    )
     np.testing.assert_allclose(got, want, rtol=1e-5)
 
 
@@ -110,8 +133,10 @@ def fly(cfg: EnvConfig, episodes: int, seed: int = 0) -> tuple[GeniePolicy, np.n
     return genie, np.array(flown), np.array(rates).mean(axis=0)
 
 
-@pytest.mark.parametrize("scenario,mapping", [("straight", "cartesian-v1"), ("circular", "polar-v1"),
-                                              ("hotspot", "cartesian-v1")])
+@pytest.mark.parametrize(
+    "scenario,mapping",
+    [("straight", "cartesian-v1"), ("circular", "polar-v1"), ("hotspot", "cartesian-v1")],
+)
 def test_one_uav_flies_its_plan_within_the_limits(scenario: str, mapping: str) -> None:
     cfg = small(scenario, action_mapping=mapping)
     genie, flown, rates = fly(cfg, 3)
@@ -132,7 +157,9 @@ def test_plan_beats_the_gps_baselines_and_uses_the_field() -> None:
     for name in ("static", "oracle", "kmeans", "aoa"):
         other = evaluate_policy(make_baseline(name, cfg), cfg, 4, 0).episode_rate_mbps
         assert (rates >= other - 1e-9).all(), name
-    assert rates.mean() > 1.1 * evaluate_policy(make_baseline("oracle", cfg), cfg, 4, 0).mean_rate_mbps
+    assert (
+        rates.mean() > 1.1 * evaluate_policy(make_baseline("oracle", cfg), cfg, 4, 0).mean_rate_mbps
+    )
 
 
 def test_ar1_plans_on_the_mean_channel() -> None:
@@ -148,12 +175,16 @@ def test_ar1_plans_on_the_mean_channel() -> None:
 def test_fleet_flies_its_plan_apart() -> None:
     cfg = small("straight_180", n_uavs=2)
     genie, flown, rates = fly(cfg, 2)
-    np.testing.assert_allclose(flown, genie.path_m, atol=1e-6)  # the separation filter never cut a move
+    np.testing.assert_allclose(
+        flown, genie.path_m, atol=1e-6
+    )  # the separation filter never cut a move
     assert (min_separation_m(flown.reshape(-1, 2, 2)) >= cfg.uav_separation_m).all()
     assert (np.linalg.norm(np.diff(genie.path_m, axis=0), axis=-1) <= cfg.r_max_m + 1e-9).all()
     np.testing.assert_allclose(rates, genie.planned_rate_mbps, rtol=1e-9)
     for name in ("static", "oracle", "kmeans"):
-        assert (rates >= evaluate_policy(make_baseline(name, cfg), cfg, 2, 0).episode_rate_mbps - 1e-9).all()
+        assert (
+            rates >= evaluate_policy(make_baseline(name, cfg), cfg, 2, 0).episode_rate_mbps - 1e-9
+        ).all()
 
 
 def test_one_genie_plans_each_batch_of_an_evaluation_afresh() -> None:
@@ -165,7 +196,9 @@ def test_one_genie_plans_each_batch_of_an_evaluation_afresh() -> None:
     flown = []
     for seed in (0, 1):  # two batches, as evaluate_policy's chunks
         [chunk] = list(chunks(cfg, EVAL, 2, seed))
-        flown.append(np.mean([frame.result.mean_rate_mbps for frame in chunk.frames(genie)], axis=0))
+        flown.append(
+            np.mean([frame.result.mean_rate_mbps for frame in chunk.frames(genie)], axis=0)
+        )
     _, _, fresh = fly(cfg, 2, seed=1)  # a genie that met only the second batch
     np.testing.assert_allclose(flown[1], fresh, rtol=1e-9)
     assert not np.allclose(flown[0], flown[1])

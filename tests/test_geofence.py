@@ -29,16 +29,23 @@ coord = st.floats(-500.0, 500.0, allow_nan=False)
 point = st.tuples(coord, coord)
 
 
-def rectangle(n0: float, e0: float, n1: float, e1: float, inclusion: bool = True,
-              clockwise: bool = False) -> Polygon:
+def rectangle(
+    n0: float, e0: float, n1: float, e1: float, inclusion: bool = True, clockwise: bool = False
+) -> Polygon:
     vs = ((n0, e0), (n0, e1), (n1, e1), (n1, e0))
     return Polygon(vs[::-1] if clockwise else vs, inclusion)
 
 
 def regular(center: tuple[float, float], radius: float, sides: int) -> Polygon:
-    return Polygon(tuple((center[0] + radius * math.cos(2 * math.pi * k / sides),
-                          center[1] + radius * math.sin(2 * math.pi * k / sides))
-                         for k in range(sides)))
+    return Polygon(
+        tuple(
+            (
+                center[0] + radius * math.cos(2 * math.pi * k / sides),
+                center[1] + radius * math.sin(2 * math.pi * k / sides),
+            )
+            for k in range(sides)
+        )
+    )
 
 
 @given(p=point, a=point, b=point, clockwise=st.booleans())
@@ -54,7 +61,8 @@ def test_rectangle_contains_agrees_with_its_bounds(p, a, b, clockwise):
 
 @given(center=point, radius=st.floats(1.0, 300.0), sides=st.integers(3, 12), p=point)
 def test_regular_polygon_lies_between_its_inscribed_and_circumscribed_circles(
-        center, radius, sides, p):
+    center, radius, sides, p
+):
     poly = regular(center, radius, sides)
     d = math.dist(p, center)
     if d <= radius * math.cos(math.pi / sides) - 1e-6:
@@ -88,19 +96,21 @@ def test_px4_rule_inside_some_inclusion_and_outside_every_exclusion(p):
     inc_b = Circle((100.0, 100.0), 80.0)
     exc = Circle((-100.0, -100.0), 30.0, inclusion=False)
     fence = Geofence((inc_a, inc_b, exc))
-    expected = ((inc_a.contains(p) or inc_b.contains(p))
-                and not (exc.contains(p) and exc.boundary_distance(p) > 1e-9))
+    expected = (inc_a.contains(p) or inc_b.contains(p)) and not (
+        exc.contains(p) and exc.boundary_distance(p) > 1e-9
+    )
     assert fence.allows(p) == expected
     assert Geofence().allows(p)  # no fence: everything allowed
     assert Geofence((exc,)).allows(p) == (not exc.contains(p) or exc.boundary_distance(p) <= 1e-9)
 
 
 @pytest.mark.slow  # 60 cases: 2.1 s on an idle 2-core machine
-@settings(max_examples=60, deadline=None)  # a property, not a speed: it ran 0.2-0.5 s per case on a loaded 2-core machine
+@settings(
+    max_examples=60, deadline=None
+)  # a property, not a speed: it ran 0.2-0.5 s per case on a loaded 2-core machine
 @given(end=point)
 def test_last_allowed_stops_on_the_boundary_when_the_end_is_outside(end):
-    fence = Geofence((rectangle(-100, -100, 100, 100),
-                      Circle((50.0, 0.0), 10.0, inclusion=False)))
+    fence = Geofence((rectangle(-100, -100, 100, 100), Circle((50.0, 0.0), 10.0, inclusion=False)))
     start = (0.0, 0.0)
     stop = fence.last_allowed(start, end)
     assert fence.allows(stop)
@@ -116,14 +126,18 @@ def test_fence_from_items_reads_polygons_and_circles_and_skips_broken_runs():
 
     def item(seq: int, cmd: int, n: float, e: float, p1: float) -> MissionItem:
         lat, lon = origin.to_global(n, e)
-        return MissionItem(seq, 0, cmd, param1=p1, x=round(lat * 1e7), y=round(lon * 1e7),
-                           mission_type=FENCE)
+        return MissionItem(
+            seq, 0, cmd, param1=p1, x=round(lat * 1e7), y=round(lon * 1e7), mission_type=FENCE
+        )
 
     items = (
-        item(0, POLYGON_INCLUSION, -100, -100, 4), item(1, POLYGON_INCLUSION, -100, 100, 4),
-        item(2, POLYGON_INCLUSION, 100, 100, 4), item(3, POLYGON_INCLUSION, 100, -100, 4),
+        item(0, POLYGON_INCLUSION, -100, -100, 4),
+        item(1, POLYGON_INCLUSION, -100, 100, 4),
+        item(2, POLYGON_INCLUSION, 100, 100, 4),
+        item(3, POLYGON_INCLUSION, 100, -100, 4),
         item(4, CIRCLE_EXCLUSION, 0, 0, 20),
-        item(5, POLYGON_EXCLUSION, 50, 50, 3), item(6, POLYGON_EXCLUSION, 60, 50, 3),  # 2 of 3
+        item(5, POLYGON_EXCLUSION, 50, 50, 3),
+        item(6, POLYGON_EXCLUSION, 60, 50, 3),  # 2 of 3
         item(7, CIRCLE_INCLUSION, 500, 500, 0),  # radius 0: no zone
     )
     fence = fence_from_items(items, origin)
@@ -141,8 +155,20 @@ def test_fence_guard_rebuilds_on_upload_and_reports_a_breach_once():
     guard = FenceGuard(store, GeoOrigin())
     assert guard.check((0.0, 0.0), (500.0, 0.0)) is None  # no fence yet
     home = GeoOrigin()
-    store.replace(FENCE, (MissionItem(0, 0, CIRCLE_INCLUSION, param1=100.0, x=round(home.lat_deg * 1e7),
-                                      y=round(home.lon_deg * 1e7), mission_type=FENCE),))
+    store.replace(
+        FENCE,
+        (
+            MissionItem(
+                0,
+                0,
+                CIRCLE_INCLUSION,
+                param1=100.0,
+                x=round(home.lat_deg * 1e7),
+                y=round(home.lon_deg * 1e7),
+                mission_type=FENCE,
+            ),
+        ),
+    )
     safe = guard.check((0.0, 0.0), (150.0, 0.0))
     assert safe is not None and guard.breached
     assert safe[0] == pytest.approx(100.0, abs=0.01) and safe[1] == pytest.approx(0.0, abs=1e-6)

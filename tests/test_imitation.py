@@ -22,7 +22,10 @@ CFG = EnvConfig(scenario="hotspot")
 
 def test_teacher_dataset_is_the_rules_own_flying_and_seeded() -> None:
     obs, actions = teacher_dataset(CFG, "aoa", episodes=3, seed=4)
-    assert obs.shape == (3 * CFG.episode_frames, 60) and actions.shape == (3 * CFG.episode_frames, 2)
+    assert obs.shape == (3 * CFG.episode_frames, 60) and actions.shape == (
+        3 * CFG.episode_frames,
+        2,
+    )
     assert obs.dtype == actions.dtype == np.float32
     np.testing.assert_allclose(actions, make_baseline("aoa", CFG).act(obs), atol=1e-6)
     again = teacher_dataset(CFG, "aoa", episodes=3, seed=4)
@@ -60,9 +63,30 @@ def test_cloned_actor_flies_like_its_teacher() -> None:
 @pytest.mark.slow
 def test_train_with_warm_start_records_it_and_starts_from_the_rule(tmp_path: Path) -> None:
     out = tmp_path / "ws.zip"
-    code = main(["train", "--scenario", CFG.scenario, "--out", str(out), "--episodes", "8", "--n-envs", "4",
-                 "--batch-size", "128", "--warm-start", "aoa", "--warm-start-episodes", "16",
-                 "--eval-episodes", "0", "--no-progress", "--run-dir", str(tmp_path / "run")])
+    code = main(
+        [
+            "train",
+            "--scenario",
+            CFG.scenario,
+            "--out",
+            str(out),
+            "--episodes",
+            "8",
+            "--n-envs",
+            "4",
+            "--batch-size",
+            "128",
+            "--warm-start",
+            "aoa",
+            "--warm-start-episodes",
+            "16",
+            "--eval-episodes",
+            "0",
+            "--no-progress",
+            "--run-dir",
+            str(tmp_path / "run"),
+        ]
+    )
     assert code == 0
     warm = read_zip_manifest(out)["training"]["warm_start"]
     assert warm["teacher"] == "aoa" and warm["samples"] == 16 * CFG.episode_frames
@@ -74,11 +98,18 @@ def test_train_with_warm_start_records_it_and_starts_from_the_rule(tmp_path: Pat
     model = PPO.load(out, device="cpu")
     policy = model.policy
     assert np.allclose(policy.log_std.detach().numpy(), TrainConfig().warm_start.log_std)
-    fresh = make_model(CFG, TrainConfig(n_envs=2, batch_size=256), None)  # same seed: the same initial critic
-    assert not np.allclose(policy.value_net.weight.detach().numpy(), fresh.policy.value_net.weight.detach().numpy())
+    fresh = make_model(
+        CFG, TrainConfig(n_envs=2, batch_size=256), None
+    )  # same seed: the same initial critic
+    assert not np.allclose(
+        policy.value_net.weight.detach().numpy(), fresh.policy.value_net.weight.detach().numpy()
+    )
     # and the actor acts as the rule, far closer than the untrained actor does (16 episodes' clone)
     held_out, teacher_actions = teacher_dataset(CFG, "aoa", episodes=2, seed=99)
-    mse = [float(np.mean((m.predict(held_out, deterministic=True)[0] - teacher_actions) ** 2)) for m in (model, fresh)]
+    mse = [
+        float(np.mean((m.predict(held_out, deterministic=True)[0] - teacher_actions) ** 2))
+        for m in (model, fresh)
+    ]
     print(f"\nheld-out action MSE to the rule: warm-started {mse[0]:.4f}, untrained {mse[1]:.4f}")
     assert mse[0] < 0.5 * mse[1], mse
 
@@ -89,30 +120,117 @@ def test_gated_teacher_and_its_settings(tmp_path: Path, capsys) -> None:
     to aoa only, and `uavlink train` records them (and the exploration std PPO restarts from) in the
     manifest."""
     cfg = EnvConfig(scenario="straight_180")
-    obs, actions = teacher_dataset(cfg, make_teacher(cfg, "aoa", shadow_gate_db=0.0, sinr_span_db=2.0),
-                                   episodes=2, seed=3)
-    np.testing.assert_allclose(actions, AoaVariant(cfg, sinr_span_db=2.0, shadow_gate_db=0.0).act(obs), atol=1e-6)
+    obs, actions = teacher_dataset(
+        cfg, make_teacher(cfg, "aoa", shadow_gate_db=0.0, sinr_span_db=2.0), episodes=2, seed=3
+    )
+    np.testing.assert_allclose(
+        actions, AoaVariant(cfg, sinr_span_db=2.0, shadow_gate_db=0.0).act(obs), atol=1e-6
+    )
     assert (np.abs(actions).sum(axis=1) == 0).any()  # the gate made it hover somewhere
-    assert not np.allclose(actions, AoaVariant(cfg, shadow_gate_db=0.0).act(obs), atol=1e-3)  # the span counts
-    for flag in ("--warm-start-shadow-gate-db", "--warm-start-sinr-span-db", "--warm-start-shadow-estimator-episodes"):
-        assert main(["train", "--scenario", "straight_180", "--out", str(tmp_path / "x.zip"), flag, "2"]) == 2
-        assert "needs --warm-start aoa" in capsys.readouterr().err and not (tmp_path / "x.zip").exists()
-    assert main(["train", "--scenario", "straight_180", "--out", str(tmp_path / "x.zip"), "--warm-start", "aoa",
-                 "--warm-start-shadow-estimator-episodes", "8"]) == 2
-    assert "needs --warm-start-shadow-gate-db" in capsys.readouterr().err and not (tmp_path / "x.zip").exists()
-    for flag in ("--warm-start-sinr-span-db", "--warm-start-epochs", "--warm-start-shadow-estimator-episodes"):
-        assert main(["train", "--scenario", "straight_180", "--out", str(tmp_path / "x.zip"), "--warm-start", "aoa",
-                     flag, "0"]) == 2
+    assert not np.allclose(
+        actions, AoaVariant(cfg, shadow_gate_db=0.0).act(obs), atol=1e-3
+    )  # the span counts
+    for flag in (
+        "--warm-start-shadow-gate-db",
+        "--warm-start-sinr-span-db",
+        "--warm-start-shadow-estimator-episodes",
+    ):
+        assert (
+            main(
+                ["train", "--scenario", "straight_180", "--out", str(tmp_path / "x.zip"), flag, "2"]
+            )
+            == 2
+        )
+        assert (
+            "needs --warm-start aoa" in capsys.readouterr().err
+            and not (tmp_path / "x.zip").exists()
+        )
+    assert (
+        main(
+            [
+                "train",
+                "--scenario",
+                "straight_180",
+                "--out",
+                str(tmp_path / "x.zip"),
+                "--warm-start",
+                "aoa",
+                "--warm-start-shadow-estimator-episodes",
+                "8",
+            ]
+        )
+        == 2
+    )
+    assert (
+        "needs --warm-start-shadow-gate-db" in capsys.readouterr().err
+        and not (tmp_path / "x.zip").exists()
+    )
+    for flag in (
+        "--warm-start-sinr-span-db",
+        "--warm-start-epochs",
+        "--warm-start-shadow-estimator-episodes",
+    ):
+        assert (
+            main(
+                [
+                    "train",
+                    "--scenario",
+                    "straight_180",
+                    "--out",
+                    str(tmp_path / "x.zip"),
+                    "--warm-start",
+                    "aoa",
+                    flag,
+                    "0",
+                ]
+            )
+            == 2
+        )
         assert "must be positive" in capsys.readouterr().err and not (tmp_path / "x.zip").exists()
     out = tmp_path / "gated.zip"
-    assert main(["train", "--scenario", "straight_180", "--out", str(out), "--episodes", "4", "--n-envs", "4",
-                 "--batch-size", "128", "--warm-start", "aoa", "--warm-start-episodes", "4",
-                 "--warm-start-shadow-gate-db", "0.5", "--warm-start-sinr-span-db", "3", "--warm-start-log-std", "-3",
-                 "--warm-start-epochs", "2", "--warm-start-shadow-estimator-episodes", "8",
-                 "--eval-episodes", "0", "--no-progress", "--run-dir", str(tmp_path / "run")]) == 0
+    assert (
+        main(
+            [
+                "train",
+                "--scenario",
+                "straight_180",
+                "--out",
+                str(out),
+                "--episodes",
+                "4",
+                "--n-envs",
+                "4",
+                "--batch-size",
+                "128",
+                "--warm-start",
+                "aoa",
+                "--warm-start-episodes",
+                "4",
+                "--warm-start-shadow-gate-db",
+                "0.5",
+                "--warm-start-sinr-span-db",
+                "3",
+                "--warm-start-log-std",
+                "-3",
+                "--warm-start-epochs",
+                "2",
+                "--warm-start-shadow-estimator-episodes",
+                "8",
+                "--eval-episodes",
+                "0",
+                "--no-progress",
+                "--run-dir",
+                str(tmp_path / "run"),
+            ]
+        )
+        == 0
+    )
     training = read_zip_manifest(out)["training"]
     hyper = training["hyperparameters"]["warm_start"]
     assert hyper["shadow_gate_db"] == 0.5 and hyper["log_std"] == -3.0
     assert hyper["sinr_span_db"] == 3.0 and hyper["epochs"] == 2
     assert hyper["shadow_estimator_episodes"] == 8
-    assert training["warm_start"]["epochs"] == 2 and training["warm_start"]["shadow_estimator_r2"] < 1.0
+    assert (
+        training["warm_start"]["epochs"] == 2
+        and training["warm_start"]["shadow_estimator_r2"] < 1.0
+    )

@@ -5,7 +5,15 @@ from __future__ import annotations
 import subprocess
 import sys
 
-HEAVY = ("torch", "stable_baselines3", "pymavlink", "onnxruntime", "matplotlib", "dask", "distributed")
+HEAVY = (
+    "torch",
+    "stable_baselines3",
+    "pymavlink",
+    "onnxruntime",
+    "matplotlib",
+    "dask",
+    "distributed",
+)
 
 
 def test_core_imports_no_heavy_modules() -> None:
@@ -15,7 +23,9 @@ def test_core_imports_no_heavy_modules() -> None:
         "uavlink.policies.registry, uavlink.learn\n"
         f"print(','.join(m for m in {HEAVY!r} if m in sys.modules))"
     )
-    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=60, check=True)
+    out = subprocess.run(
+        [sys.executable, "-c", code], capture_output=True, text=True, timeout=60, check=True
+    )
     assert out.stdout.strip() == ""
 
 

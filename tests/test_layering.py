@@ -1,7 +1,8 @@
 """The code's shape, read from the source with ``ast`` (nothing is imported): no import cycle between
-the project's modules (imports inside functions included, ``if TYPE_CHECKING:`` blocks aside), every
+the project's modules (imports inside functions and ``if TYPE_CHECKING:`` blocks included), every
 import allowed by the layering table below (the table of docs/design.md "Code structure" and the
-packages' docstrings), no module over 400 lines and no folder with more than 12 modules."""
+packages' docstrings; type-only imports aside), no module over 480 lines and no folder with more
+than 12 modules."""
 
 from __future__ import annotations
 
@@ -11,13 +12,22 @@ from pathlib import Path
 
 ROOT = Path(__file__).resolve().parents[1]
 PACKAGES = ("uavlink", "sitl_stub")
-MAX_LINES = 400
+# 400 lines on the hand-wrapped tree; `ruff format` lays calls out one argument a line where they do
+# not fit, which grew uavlink and sitl_stub by 20 % (17,885 -> 21,472 lines): the same cap in
+# formatted lines.
+MAX_LINES = 480
 MAX_MODULES = 12
 
 # Which unit may import which (besides itself). A unit is a package, a top-level module of uavlink,
 # or sitl_stub's own modules (``sitl_stub``: its composition root) apart from ``sitl_stub.launcher``,
 # which uavlink's flight starts and which imports neither side.
-_BELOW_ENV = {"uavlink.config", "uavlink.errors", "uavlink.seeding", "uavlink.radio", "uavlink.mobility"}
+_BELOW_ENV = {
+    "uavlink.config",
+    "uavlink.errors",
+    "uavlink.seeding",
+    "uavlink.radio",
+    "uavlink.mobility",
+}
 _BELOW_POLICIES = _BELOW_ENV | {"uavlink.env", "uavlink.rollout"}
 MAY_IMPORT: dict[str, set[str]] = {
     "uavlink.errors": set(),
@@ -37,15 +47,44 @@ MAY_IMPORT: dict[str, set[str]] = {
     "sitl_stub.launcher": set(),
     "sitl_stub.core": {"uavlink.mavlink"},
     "sitl_stub.flight": {"sitl_stub.core", "uavlink.config", "uavlink.errors"},
-    "sitl_stub.sim": {"sitl_stub.core", "uavlink.config", "uavlink.errors", "uavlink.env", "uavlink.mavlink"},
-    "sitl_stub.mavlink": {"sitl_stub.core", "sitl_stub.flight", "sitl_stub.sim", "uavlink.config",
-                          "uavlink.errors", "uavlink.mavlink"},
-    "sitl_stub": {"sitl_stub.core", "sitl_stub.flight", "sitl_stub.sim", "sitl_stub.mavlink",
-                  "sitl_stub.launcher", "uavlink.config", "uavlink.errors", "uavlink.env",
-                  "uavlink.mavlink", "uavlink.mobility"},
+    "sitl_stub.sim": {
+        "sitl_stub.core",
+        "uavlink.config",
+        "uavlink.errors",
+        "uavlink.env",
+        "uavlink.mavlink",
+    },
+    "sitl_stub.mavlink": {
+        "sitl_stub.core",
+        "sitl_stub.flight",
+        "sitl_stub.sim",
+        "uavlink.config",
+        "uavlink.errors",
+        "uavlink.mavlink",
+    },
+    "sitl_stub": {
+        "sitl_stub.core",
+        "sitl_stub.flight",
+        "sitl_stub.sim",
+        "sitl_stub.mavlink",
+        "sitl_stub.launcher",
+        "uavlink.config",
+        "uavlink.errors",
+        "uavlink.env",
+        "uavlink.mavlink",
+        "uavlink.mobility",
+    },
     "uavlink.plot": {"uavlink.errors", "uavlink.mavlink"},
-    "uavlink.flight": {"uavlink.config", "uavlink.errors", "uavlink.mobility", "uavlink.env",
-                       "uavlink.mavlink", "uavlink.policies", "uavlink.plot", "sitl_stub.launcher"},
+    "uavlink.flight": {
+        "uavlink.config",
+        "uavlink.errors",
+        "uavlink.mobility",
+        "uavlink.env",
+        "uavlink.mavlink",
+        "uavlink.policies",
+        "uavlink.plot",
+        "sitl_stub.launcher",
+    },
     "uavlink": {"uavlink.config", "uavlink.env"},  # the package itself: registers the Gymnasium id
 }
 MAY_IMPORT["uavlink.cli"] = {u for u in MAY_IMPORT if u.startswith("uavlink")}
@@ -72,13 +111,17 @@ def _type_checking_nodes(tree: ast.AST) -> set[int]:
     return skipped
 
 
-def _imports(modules: dict[str, tuple[Path, bool]]) -> dict[str, set[str]]:
-    """Module -> the project modules it imports, anywhere in its body (functions too)."""
-    return _graph(tuple(modules.items()))
+def _imports(modules: dict[str, tuple[Path, bool]], type_only: bool = False) -> dict[str, set[str]]:
+    """Module -> the project modules it imports, anywhere in its body (functions too); with
+    ``type_only``, the imports under ``if TYPE_CHECKING:`` too (a circle there is still two modules
+    that need each other to be read)."""
+    return _graph(tuple(modules.items()), type_only)
 
 
 @cache
-def _graph(items: tuple[tuple[str, tuple[Path, bool]], ...]) -> dict[str, set[str]]:
+def _graph(
+    items: tuple[tuple[str, tuple[Path, bool]], ...], type_only: bool
+) -> dict[str, set[str]]:
     modules = dict(items)
 
     def owner(name: str) -> str | None:  # the project module that ``name`` is or lies in
@@ -89,7 +132,7 @@ def _graph(items: tuple[tuple[str, tuple[Path, bool]], ...]) -> dict[str, set[st
     graph = {}
     for name, (path, is_init) in modules.items():
         tree = ast.parse(path.read_text(), str(path))
-        skipped = _type_checking_nodes(tree)
+        skipped = set() if type_only else _type_checking_nodes(tree)
         targets = set()
         for node in ast.walk(tree):
             if id(node) in skipped:
@@ -100,10 +143,16 @@ def _graph(items: tuple[tuple[str, tuple[Path, bool]], ...]) -> dict[str, set[st
                 base = node.module or ""
                 if node.level:
                     package = name.split(".") if is_init else name.split(".")[:-1]
-                    base = ".".join(package[:len(package) - node.level + 1] + ([base] if base else []))
+                    base = ".".join(
+                        package[: len(package) - node.level + 1] + ([base] if base else [])
+                    )
                 # ``from a.b import c`` imports the module a.b.c where there is one, else a.b
-                targets.update(owner(f"{base}.{alias.name}") if f"{base}.{alias.name}" in modules
-                               else owner(base) for alias in node.names)
+                targets.update(
+                    owner(f"{base}.{alias.name}")
+                    if f"{base}.{alias.name}" in modules
+                    else owner(base)
+                    for alias in node.names
+                )
         graph[name] = {t for t in targets if t is not None and t != name}
     return graph
 
@@ -169,28 +218,40 @@ def test_the_graph_sees_imports_inside_functions_and_skips_type_checking() -> No
     assert _cycles({"a": {"b"}, "b": {"c"}, "c": {"a"}, "d": {"a"}}) == [["a", "b", "c"]]
 
 
-def test_no_import_cycle() -> None:
-    assert _cycles(_imports(_modules())) == []
+def test_no_import_cycle_type_only_ones_included() -> None:
+    assert _cycles(_imports(_modules(), type_only=True)) == []
 
 
 def test_every_import_follows_the_layering() -> None:
     graph = _imports(_modules())
     units = {_unit(m) for m in graph}
-    assert units <= set(MAY_IMPORT), f"place these in MAY_IMPORT (and docs/design.md): {units - set(MAY_IMPORT)}"
+    assert units <= set(MAY_IMPORT), (
+        f"place these in MAY_IMPORT (and docs/design.md): {units - set(MAY_IMPORT)}"
+    )
     assert _cycles(MAY_IMPORT) == []  # the table itself is a layering
-    wrong = sorted(f"{m} -> {t}" for m, targets in graph.items() for t in targets
-                   if _unit(t) != _unit(m) and _unit(t) not in MAY_IMPORT[_unit(m)])
+    wrong = sorted(
+        f"{m} -> {t}"
+        for m, targets in graph.items()
+        for t in targets
+        if _unit(t) != _unit(m) and _unit(t) not in MAY_IMPORT[_unit(m)]
+    )
     assert wrong == []
 
 
 def test_small_modules_and_folders() -> None:
     modules = _modules()
-    long = {name: n for name, (path, _) in modules.items() if (n := len(path.read_text().splitlines())) > MAX_LINES}
+    long = {
+        name: n
+        for name, (path, _) in modules.items()
+        if (n := len(path.read_text().splitlines())) > MAX_LINES
+    }
     assert long == {}
     per_folder: dict[Path, int] = {}
     for path, _ in modules.values():
         per_folder[path.parent] = per_folder.get(path.parent, 0) + 1
-    crowded = {str(folder.relative_to(ROOT)): n for folder, n in per_folder.items() if n > MAX_MODULES}
+    crowded = {
+        str(folder.relative_to(ROOT)): n for folder, n in per_folder.items() if n > MAX_MODULES
+    }
     assert crowded == {}
 
 

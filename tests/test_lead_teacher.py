@@ -24,7 +24,11 @@ from uavlink.learn.teachers import make_teacher
 from uavlink.policies.baselines import AoaPolicy
 from uavlink.policies.registry import make_baseline
 
-FLEET = EnvConfig().replace(scenario="no_move", n_uavs=2, **{"radio.shadowing_model": "spatial"}).validate()
+FLEET = (
+    EnvConfig()
+    .replace(scenario="no_move", n_uavs=2, **{"radio.shadowing_model": "spatial"})
+    .validate()
+)
 SINGLE_POLICY = Path(__file__).resolve().parents[1] / "policies" / "spatial" / "no_move.zip"
 
 
@@ -41,9 +45,14 @@ def test_single_view_is_the_v1_fields_of_every_frame() -> None:
     teacher, obs = _fleet_obs()
     fleet, single = teacher.layout, single_layout(teacher.layout)
     view = single_view(fleet, obs)
-    assert single == ObservationLayout.for_config(FLEET.replace(n_uavs=1)) and view.shape == (len(obs), single.size)
+    assert single == ObservationLayout.for_config(FLEET.replace(n_uavs=1)) and view.shape == (
+        len(obs),
+        single.size,
+    )
     for field in FIELDS:
-        np.testing.assert_array_equal(single.history(view, field.quantity), fleet.history(obs, field.quantity))
+        np.testing.assert_array_equal(
+            single.history(view, field.quantity), fleet.history(obs, field.quantity)
+        )
 
 
 def test_every_uav_of_an_env_picks_the_same_leader_the_one_serving_most() -> None:
@@ -62,19 +71,29 @@ def test_leader_flies_its_single_policy_the_other_heads_for_a_far_corner() -> No
     lead = leader_index(teacher.layout, obs)[0] == 0
     action = teacher.act(obs)
     frame = teacher.layout.newest_frame(obs)
-    near = ((frame["aoa_std_deg"] >= teacher.close_spread_deg)
-            | (frame["sinr_db"].mean(axis=1) >= teacher.hover_sinr_db + teacher.far_sinr_margin_db))
+    near = (frame["aoa_std_deg"] >= teacher.close_spread_deg) | (
+        frame["sinr_db"].mean(axis=1) >= teacher.hover_sinr_db + teacher.far_sinr_margin_db
+    )
     assert (lead & near).any()
-    np.testing.assert_allclose(action[lead & near], teacher.leader.act(single_view(teacher.layout, obs[lead & near])),
-                               rtol=1e-6)
+    np.testing.assert_allclose(
+        action[lead & near],
+        teacher.leader.act(single_view(teacher.layout, obs[lead & near])),
+        rtol=1e-6,
+    )
     far = lead & ~near  # a leader still far from the UEs closes in at full speed
     assert far.any()
-    np.testing.assert_allclose(np.linalg.norm(teacher.mapping.to_displacement_m(action[far]), axis=1),
-                               teacher.mapping.r_max_m, rtol=1e-5)
+    np.testing.assert_allclose(
+        np.linalg.norm(teacher.mapping.to_displacement_m(action[far]), axis=1),
+        teacher.mapping.r_max_m,
+        rtol=1e-5,
+    )
     xy = teacher.layout.newest_frame(obs)["uav_xy_m"]
     step = teacher.mapping.to_displacement_m(action[~lead])
     leader_xy = xy.reshape(-1, 2, 2)[lead.reshape(-1, 2)]  # the away row's env's leader, env order
-    assert (np.linalg.norm(xy[~lead] + step - leader_xy, axis=1) > np.linalg.norm(xy[~lead] - leader_xy, axis=1)).all()
+    assert (
+        np.linalg.norm(xy[~lead] + step - leader_xy, axis=1)
+        > np.linalg.norm(xy[~lead] - leader_xy, axis=1)
+    ).all()
 
 
 @pytest.mark.slow
@@ -96,6 +115,10 @@ def test_make_teacher_and_config_name_the_lead_teacher() -> None:
     with pytest.raises(UserError, match="leader_policy needs train.warm_start.teacher lead"):
         make_teacher(FLEET, "solo", leader_policy=str(SINGLE_POLICY))
     with pytest.raises(UserError, match="leader_policy"):
-        TrainConfig.from_dict({"warm_start": {"teacher": "aoa", "leader_policy": "x.zip"}}).validate()
-    with pytest.raises(UserError, match="layout mismatch"):  # a fleet policy cannot lead: v2, not v1
+        TrainConfig.from_dict(
+            {"warm_start": {"teacher": "aoa", "leader_policy": "x.zip"}}
+        ).validate()
+    with pytest.raises(
+        UserError, match="layout mismatch"
+    ):  # a fleet policy cannot lead: v2, not v1
         LeadTeacher(FLEET, make_baseline("aoa", FLEET))

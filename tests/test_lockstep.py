@@ -12,7 +12,7 @@ import time
 from typing import Any
 
 import pytest
-from conftest import ROOT, assert_user_error, cli_json, run_uavlink_in_process
+from support.cli import ROOT, assert_user_error, cli_json, run_uavlink_in_process
 
 import sitl_stub.sim.lockstep as lockstep
 from sitl_stub.mavlink.server import ServerConfig, SitlServer
@@ -29,10 +29,14 @@ def _offboard_server(in_lockstep: bool = True) -> tuple[SitlServer, RadioPayload
     """A vehicle in OFFBOARD at t = 0 (its one setpoint lasts: COM_OF_LOSS_T 60 s) and a ground
     station that has spoken to it."""
     payload = RadioPayload(PayloadOptions(scenario="no_move", seed=3, lockstep=in_lockstep))
-    server = SitlServer(ServerConfig(connect="udpin:127.0.0.1:0", params={"COM_OF_LOSS_T": 60.0}), [payload])
+    server = SitlServer(
+        ServerConfig(connect="udpin:127.0.0.1:0", params={"COM_OF_LOSS_T": 60.0}), [payload]
+    )
     server.open()
     host, port = server.address
-    gcs = mavutil.mavlink_connection(f"udpout:{host}:{port}", source_system=255, source_component=190)
+    gcs = mavutil.mavlink_connection(
+        f"udpout:{host}:{port}", source_system=255, source_component=190
+    )
     gcs.mav.heartbeat_send(mavlink.MAV_TYPE_GCS, mavlink.MAV_AUTOPILOT_INVALID, 0, 0, 0)
     _receive(server)
     v = server.vehicle
@@ -61,20 +65,45 @@ def test_time_waits_at_each_frame_until_it_is_decided() -> None:
         assert server._advance_to(5.0)  # frame 0 ticked in OFFBOARD: the episode starts, and holds
         assert v.t == 0.0 and payload.episodes.started
         assert server._advance_to(5.0) and v.t == 0.0  # still held: no decision yet
-        gcs.mav.command_long_send(1, radio_codec.RADIO_COMPONENT_ID, radio_codec.FRAME_DECIDED_COMMAND,
-                                  0, 0, 0, 0, 0, 0, 0, 0)
+        gcs.mav.command_long_send(
+            1,
+            radio_codec.RADIO_COMPONENT_ID,
+            radio_codec.FRAME_DECIDED_COMMAND,
+            0,
+            0,
+            0,
+            0,
+            0,
+            0,
+            0,
+            0,
+        )
         _receive(server)
         assert server._advance_to(5.0)  # on to frame 1, held there
         assert v.t == pytest.approx(1.0, abs=1e-9)
         # the vehicle's position at the frame's instant goes out just before the frame's readings
         messages = _frame_messages(gcs)
-        first_readings = next(i for i, m in enumerate(messages)
-                              if m.get_type() == "DEBUG_FLOAT_ARRAY" and m.array_id == 1)
+        first_readings = next(
+            i
+            for i, m in enumerate(messages)
+            if m.get_type() == "DEBUG_FLOAT_ARRAY" and m.array_id == 1
+        )
         before = messages[first_readings - 1]
         assert before.get_type() == "LOCAL_POSITION_NED" and before.time_boot_ms == 1000
         # a decision for an older frame does not let frame 1 go
-        gcs.mav.command_long_send(1, radio_codec.RADIO_COMPONENT_ID, radio_codec.FRAME_DECIDED_COMMAND,
-                                  0, 0, 0, 0, 0, 0, 0, 0)
+        gcs.mav.command_long_send(
+            1,
+            radio_codec.RADIO_COMPONENT_ID,
+            radio_codec.FRAME_DECIDED_COMMAND,
+            0,
+            0,
+            0,
+            0,
+            0,
+            0,
+            0,
+            0,
+        )
         _receive(server)
         assert server._advance_to(5.0) and v.t == pytest.approx(1.0, abs=1e-9)
         assert payload.hold.timeouts == 0
@@ -92,7 +121,10 @@ def test_an_unanswered_frame_is_let_go_after_the_wall_wait(monkeypatch) -> None:
         assert server._advance_to(2.5)  # frame 0 let go; frame 1 held anew
         assert server.vehicle.t == pytest.approx(1.0, abs=1e-9)
         assert payload.hold.timeouts == 1
-        assert server.report()["payloads"][str(radio_codec.RADIO_COMPONENT_ID)]["lockstep_timeouts"] == 1
+        assert (
+            server.report()["payloads"][str(radio_codec.RADIO_COMPONENT_ID)]["lockstep_timeouts"]
+            == 1
+        )
     finally:
         gcs.close()
         server.close()
@@ -116,7 +148,9 @@ def test_a_vehicle_not_in_lockstep_never_holds() -> None:
     server, payload, gcs = _offboard_server(in_lockstep=False)
     try:
         assert not server._advance_to(2.5)
-        assert server.vehicle.t == pytest.approx(2.5) and "lockstep_timeouts" not in payload.summary()
+        assert (
+            server.vehicle.t == pytest.approx(2.5) and "lockstep_timeouts" not in payload.summary()
+        )
     finally:
         gcs.close()
         server.close()
@@ -124,45 +158,82 @@ def test_a_vehicle_not_in_lockstep_never_holds() -> None:
 
 def test_a_fleet_frame_waits_for_each_vehicle_flying_it() -> None:
     hold = lockstep.FrameHold()
-    decided = [mavlink.MAVLink_command_long_message(1, radio_codec.RADIO_COMPONENT_ID,
-                                                    radio_codec.FRAME_DECIDED_COMMAND, 0, k, 0, 0, 0, 0, 0, 0)
-               for k in (2, 3)]
+    decided = [
+        mavlink.MAVLink_command_long_message(
+            1,
+            radio_codec.RADIO_COMPONENT_ID,
+            radio_codec.FRAME_DECIDED_COMMAND,
+            0,
+            k,
+            0,
+            0,
+            0,
+            0,
+            0,
+            0,
+        )
+        for k in (2, 3)
+    ]
     hold.hold(3, {0, 2})  # vehicle 1 is not in OFFBOARD: not waited for
     assert hold.on_command(decided[0], 0) is None and hold.holding()  # frame 2's answer: too old
     hold.on_command(decided[1], 0)
     assert hold.holding() and hold.waiting == {2}
     hold.on_command(decided[1], 2)
     assert not hold.holding() and hold.timeouts == 0
-    other = mavlink.MAVLink_command_long_message(1, radio_codec.RADIO_COMPONENT_ID, mavlink.MAV_CMD_DO_SET_SERVO,
-                                                 0, 1, 1500, 0, 0, 0, 0, 0)
+    other = mavlink.MAVLink_command_long_message(
+        1, radio_codec.RADIO_COMPONENT_ID, mavlink.MAV_CMD_DO_SET_SERVO, 0, 1, 1500, 0, 0, 0, 0, 0
+    )
     assert hold.on_command(other) == mavlink.MAV_RESULT_UNSUPPORTED
 
 
 def test_fly_refuses_lockstep_with_connect() -> None:
-    proc = run_uavlink_in_process("fly", "--policy", "static", "--lockstep", "--connect", "udp:14550")
+    proc = run_uavlink_in_process(
+        "fly", "--policy", "static", "--lockstep", "--connect", "udp:14550"
+    )
     assert_user_error(proc, "--lockstep", "sitl-stub --lockstep")
 
 
 @pytest.mark.slow
 @pytest.mark.timeout(240)
 @pytest.mark.parametrize(("policy", "seed"), [(MAP_NO_MOVE, 0), ("kriging", 0)])
-def test_a_lockstep_flight_replays_and_matches_the_px4_motion_evaluation(tmp_path, policy: str, seed: int) -> None:
+def test_a_lockstep_flight_replays_and_matches_the_px4_motion_evaluation(
+    tmp_path, policy: str, seed: int
+) -> None:
     """A searching flight (the map policy's; the kriging rule's, with the model of the field built in
     flight from LOCAL_POSITION_NED), twice at the same seed: the same throughput, within 5 % of
     `uavlink evaluate --episodes 1 --set uav_motion=px4` (the env moving the UAV as the vehicle does;
     what is left is MAVLink's float32 positions, amplified by the closed loop)."""
     spatial = [] if policy == MAP_NO_MOVE else ["--set", "radio.shadowing_model=spatial"]
-    flights = [cli_json("fly", "--out", str(tmp_path / str(k)), "--json", "--no-picture", "--lockstep",
-                        "--policy", policy, "--scenario", "no_move", "--seed", str(seed), *spatial)
-               for k in range(2)]
+    flights = [
+        cli_json(
+            "fly",
+            "--out",
+            str(tmp_path / str(k)),
+            "--json",
+            "--no-picture",
+            "--lockstep",
+            "--policy",
+            policy,
+            "--scenario",
+            "no_move",
+            "--seed",
+            str(seed),
+            *spatial,
+        )
+        for k in range(2)
+    ]
     replay = shlex.split(flights[0]["replay"])  # the command the flight's summary gives
     assert replay[:2] == ["uavlink", "evaluate"] and replay[-2:] == ["--set", "uav_motion=px4"]
     evaluated = cli_json(*replay[1:], "--json")["mean_rate_mbps"]
     flown = [f["mean_rate_mbps"] for f in flights]
-    print(f"\n{policy} on no_move seed {seed}: flown in lockstep {flown} Mbps, evaluated (px4 motion) {evaluated:.6f}")
+    print(
+        f"\n{policy} on no_move seed {seed}: flown in lockstep {flown} Mbps, evaluated (px4 motion) {evaluated:.6f}"
+    )
     assert all(f["frames"] == 128 and f["decisions"] == 128 and f["completed"] for f in flights)
     for k in range(2):  # the vehicle waited for every decision (a timeout would part the two runs)
-        stats = json.loads((tmp_path / str(k) / "sitl.log").read_text().split("sitl-stub: stats ")[-1])
+        stats = json.loads(
+            (tmp_path / str(k) / "sitl.log").read_text().split("sitl-stub: stats ")[-1]
+        )
         assert set(_found(stats, "lockstep_timeouts")) == {0}, stats
     assert flown[0] == flown[1]
     assert abs(flown[0] - evaluated) <= 0.05 * evaluated
@@ -173,19 +244,43 @@ def test_a_lockstep_flight_replays_and_matches_the_px4_motion_evaluation(tmp_pat
 def test_a_fleet_flies_in_lockstep_and_replays(tmp_path) -> None:
     """Two vehicles of `sitl_stub --fleet 2 --lockstep`: every frame waits for both decisions, none
     times out, and the same seed flies the same throughput twice."""
-    flights = [cli_json("fly", "--out", str(tmp_path / str(k)), "--json", "--no-picture", "--lockstep",
-                        "--policy", "aoa", "--set", "n_uavs=2", "--scenario", "circular", "--frames", "30")
-               for k in range(2)]
+    flights = [
+        cli_json(
+            "fly",
+            "--out",
+            str(tmp_path / str(k)),
+            "--json",
+            "--no-picture",
+            "--lockstep",
+            "--policy",
+            "aoa",
+            "--set",
+            "n_uavs=2",
+            "--scenario",
+            "circular",
+            "--frames",
+            "30",
+        )
+        for k in range(2)
+    ]
     assert all(f["frames"] == 30 and f["completed"] for f in flights)
-    assert all(v["decisions"] == 30 for f in flights for v in f["vehicles"]), [f["vehicles"] for f in flights]
+    assert all(v["decisions"] == 30 for f in flights for v in f["vehicles"]), [
+        f["vehicles"] for f in flights
+    ]
     assert flights[0]["mean_rate_mbps"] == flights[1]["mean_rate_mbps"]
     for k in range(2):  # every vehicle's world waited for each decision; none timed out
-        stats = json.loads((tmp_path / str(k) / "sitl.log").read_text().split("sitl-stub: stats ")[-1])
-        assert _found(stats, "lockstep_timeouts") and set(_found(stats, "lockstep_timeouts")) == {0}, stats
+        stats = json.loads(
+            (tmp_path / str(k) / "sitl.log").read_text().split("sitl-stub: stats ")[-1]
+        )
+        assert _found(stats, "lockstep_timeouts") and set(_found(stats, "lockstep_timeouts")) == {
+            0
+        }, stats
 
 
 def _found(tree, key: str) -> list:
     """Every value of ``key`` anywhere in a JSON tree."""
     if isinstance(tree, dict):
-        return [v for k, v in tree.items() if k == key] + [x for v in tree.values() for x in _found(v, key)]
+        return [v for k, v in tree.items() if k == key] + [
+            x for v in tree.values() for x in _found(v, key)
+        ]
     return [x for v in tree for x in _found(v, key)] if isinstance(tree, list) else []

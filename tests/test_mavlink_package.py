@@ -16,8 +16,15 @@ SOURCE_DIRS = ("uavlink", "sitl_stub", "tests", "benchmarks")
 def _run(code: str) -> str:
     env = dict(os.environ)
     env.pop("MAVLINK20", None)  # a fresh interpreter, as a user's would be
-    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=60,
-                         env=env, cwd=ROOT, check=True)
+    out = subprocess.run(
+        [sys.executable, "-c", code],
+        capture_output=True,
+        text=True,
+        timeout=60,
+        env=env,
+        cwd=ROOT,
+        check=True,
+    )
     return out.stdout.strip()
 
 
@@ -47,9 +54,12 @@ def test_mavlink_package_is_light_and_its_dialect_is_mavlink_2() -> None:
 
 def test_mavlink20_is_set_in_one_place() -> None:
     here = Path(__file__).resolve()
-    setters = [path.relative_to(ROOT).as_posix()
-               for folder in SOURCE_DIRS for path in sorted((ROOT / folder).rglob("*.py"))
-               if path != here and "MAVLINK20" in path.read_text()]
+    setters = [
+        path.relative_to(ROOT).as_posix()
+        for folder in SOURCE_DIRS
+        for path in sorted((ROOT / folder).rglob("*.py"))
+        if path != here and "MAVLINK20" in path.read_text()
+    ]
     assert setters == ["uavlink/mavlink/dialect.py"]
 
 
@@ -57,21 +67,38 @@ def test_the_frame_sets_name_mavlinks_frames_and_give_heights_above_home() -> No
     from uavlink.mavlink import frames
     from uavlink.mavlink.dialect import mavlink
 
-    for name in ("GLOBAL", "LOCAL_NED", "GLOBAL_RELATIVE_ALT", "GLOBAL_INT", "GLOBAL_RELATIVE_ALT_INT",
-                 "GLOBAL_TERRAIN_ALT", "GLOBAL_TERRAIN_ALT_INT"):
+    for name in (
+        "GLOBAL",
+        "LOCAL_NED",
+        "GLOBAL_RELATIVE_ALT",
+        "GLOBAL_INT",
+        "GLOBAL_RELATIVE_ALT_INT",
+        "GLOBAL_TERRAIN_ALT",
+        "GLOBAL_TERRAIN_ALT_INT",
+    ):
         assert getattr(frames, name) == getattr(mavlink, f"MAV_FRAME_{name}"), name
     assert frames.AMSL_FRAMES.isdisjoint(frames.RELATIVE_ALT_FRAMES)
     assert frames.LOCAL_NED not in frames.GLOBAL_FRAMES
     assert set(frames.TO_INT_FRAME) | set(frames.TO_FLOAT_FRAME) <= frames.GLOBAL_FRAMES
     home_amsl_m = 488.0
     assert frames.height_above_home_m(538.0, mavlink.MAV_FRAME_GLOBAL_INT, home_amsl_m) == 50.0
-    assert frames.height_above_home_m(50.0, mavlink.MAV_FRAME_GLOBAL_RELATIVE_ALT_INT, home_amsl_m) == 50.0
-    assert frames.height_above_home_m(50.0, mavlink.MAV_FRAME_GLOBAL_TERRAIN_ALT, home_amsl_m) == 50.0
+    assert (
+        frames.height_above_home_m(50.0, mavlink.MAV_FRAME_GLOBAL_RELATIVE_ALT_INT, home_amsl_m)
+        == 50.0
+    )
+    assert (
+        frames.height_above_home_m(50.0, mavlink.MAV_FRAME_GLOBAL_TERRAIN_ALT, home_amsl_m) == 50.0
+    )
 
 
 def test_enum_name_reads_the_dialect_and_names_an_unknown_value() -> None:
     from uavlink.mavlink.dialect import enum_name, mavlink
 
-    assert enum_name("MAV_CMD", mavlink.MAV_CMD_COMPONENT_ARM_DISARM) == "MAV_CMD_COMPONENT_ARM_DISARM"
-    assert enum_name("MAV_MISSION_RESULT", mavlink.MAV_MISSION_UNSUPPORTED) == "MAV_MISSION_UNSUPPORTED"
+    assert (
+        enum_name("MAV_CMD", mavlink.MAV_CMD_COMPONENT_ARM_DISARM) == "MAV_CMD_COMPONENT_ARM_DISARM"
+    )
+    assert (
+        enum_name("MAV_MISSION_RESULT", mavlink.MAV_MISSION_UNSUPPORTED)
+        == "MAV_MISSION_UNSUPPORTED"
+    )
     assert enum_name("MAV_FRAME", 12345) == "MAV_FRAME 12345"

@@ -11,8 +11,11 @@ from __future__ import annotations
 import pytest
 
 pytest.importorskip("mavsdk_grpc", reason="the 3.x gRPC client: pip install mavsdk-grpc")
-from conftest import PX4_PORTS
-from mavsdk_apps import (  # noqa: E402
+from mavsdk_grpc.failure import FailureError, FailureResult, FailureType, FailureUnit  # noqa: E402
+from mavsdk_grpc.param import ParamError  # noqa: E402
+from mavsdk_grpc.telemetry import FixType, FlightMode  # noqa: E402
+from support.cli import PX4_PORTS
+from support.mavsdk_apps import (  # noqa: E402
     HOME_ALT_M,
     HOME_LAT_DEG,
     HOME_LON_DEG,
@@ -21,9 +24,6 @@ from mavsdk_apps import (  # noqa: E402
     run_app,
     sitl_vehicle,
 )
-from mavsdk_grpc.failure import FailureError, FailureResult, FailureType, FailureUnit  # noqa: E402
-from mavsdk_grpc.param import ParamError  # noqa: E402
-from mavsdk_grpc.telemetry import FixType, FlightMode  # noqa: E402
 
 pytestmark = [pytest.mark.slow, pytest.mark.timeout(300), PX4_PORTS]
 
@@ -106,11 +106,17 @@ def test_failure_injection_needs_sys_failure_en(vehicle):
                 await drone.failure.inject(FailureUnit.SENSOR_GPS, FailureType.OFF, instance=0)
             # MAVSDK refuses by itself (DISABLED) when it has read SYS_FAILURE_EN = 0, else it
             # sends MAV_CMD_INJECT_FAILURE and the vehicle answers DENIED, as PX4's commander
-            assert denied.value._result.result in (FailureResult.Result.DISABLED,
-                                                   FailureResult.Result.DENIED)
+            assert denied.value._result.result in (
+                FailureResult.Result.DISABLED,
+                FailureResult.Result.DENIED,
+            )
             # enabled, it works: test_mavsdk3_flight's failure app (MAVSDK reads the parameter
             # when the plugin starts, so an app enables it before it connects or in a new session)
-            await first(drone.telemetry.health(), lambda h: h.is_global_position_ok, timeout=10.0,
-                        what="GPS still fine: the refused failure did nothing")
+            await first(
+                drone.telemetry.health(),
+                lambda h: h.is_global_position_ok,
+                timeout=10.0,
+                what="GPS still fine: the refused failure did nothing",
+            )
 
     run_app(app, vehicle)

@@ -16,8 +16,11 @@ import math
 import pytest
 
 pytest.importorskip("mavsdk_grpc", reason="the 3.x gRPC client: pip install mavsdk-grpc")
-from conftest import PX4_PORTS
-from mavsdk_apps import (  # noqa: E402
+from mavsdk_grpc import mission_raw  # noqa: E402
+from mavsdk_grpc.geofence import Circle, FenceType, GeofenceData, Point, Polygon  # noqa: E402
+from mavsdk_grpc.mission import MissionItem, MissionPlan  # noqa: E402
+from support.cli import PX4_PORTS
+from support.mavsdk_apps import (  # noqa: E402
     AUTO_SPEED,
     WAYPOINTS_DEG,
     assert_same_raw_items,
@@ -26,9 +29,6 @@ from mavsdk_apps import (  # noqa: E402
     run_app,
     sitl_vehicle,
 )
-from mavsdk_grpc import mission_raw  # noqa: E402
-from mavsdk_grpc.geofence import Circle, FenceType, GeofenceData, Point, Polygon  # noqa: E402
-from mavsdk_grpc.mission import MissionItem, MissionPlan  # noqa: E402
 
 pytestmark = [pytest.mark.slow, pytest.mark.timeout(300), PX4_PORTS]
 
@@ -42,12 +42,27 @@ def vehicle():
 
 
 def mission_item(lat_deg: float, lon_deg: float) -> MissionItem:
-    return MissionItem(lat_deg, lon_deg, 25, 10, True, NAN, NAN, MissionItem.CameraAction.NONE,
-                       NAN, NAN, NAN, NAN, NAN, MissionItem.VehicleAction.NONE)
+    return MissionItem(
+        lat_deg,
+        lon_deg,
+        25,
+        10,
+        True,
+        NAN,
+        NAN,
+        MissionItem.CameraAction.NONE,
+        NAN,
+        NAN,
+        NAN,
+        NAN,
+        NAN,
+        MissionItem.VehicleAction.NONE,
+    )
 
 
 def test_mission_upload_fly_to_the_end_and_download():
     """mission.py: upload, fly it and its return at AUTO_SPEED, download."""
+
     async def app(address: str) -> None:
         async with grpc_drone(address) as drone:
             progress: list[tuple[int, int]] = []
@@ -64,22 +79,30 @@ def test_mission_upload_fly_to_the_end_and_download():
             await drone.action.set_return_to_launch_altitude(30.0)
             print("-- Uploading mission")
             await drone.mission.upload_mission(mission_plan)
-            await first(drone.telemetry.health(), lambda h: h.is_global_position_ok
-                        and h.is_home_position_ok)
+            await first(
+                drone.telemetry.health(),
+                lambda h: h.is_global_position_ok and h.is_home_position_ok,
+            )
             print("-- Arming")
             await drone.action.arm()
             print("-- Starting mission")
             await drone.mission.start_mission()
             await first(drone.telemetry.in_air(), bool, what="take-off")
-            await first(drone.telemetry.in_air(), lambda a: not a, timeout=150.0,
-                        what="landing after the mission and its return")
+            await first(
+                drone.telemetry.in_air(),
+                lambda a: not a,
+                timeout=150.0,
+                what="landing after the mission and its return",
+            )
             progress_task.cancel()
             assert (3, 3) in progress, progress
             assert await drone.mission.is_mission_finished()
 
             downloaded = await drone.mission.download_mission()
             assert len(downloaded.mission_items) == 3, downloaded
-            for item, (lat_deg, lon_deg) in zip(downloaded.mission_items, WAYPOINTS_DEG, strict=True):
+            for item, (lat_deg, lon_deg) in zip(
+                downloaded.mission_items, WAYPOINTS_DEG, strict=True
+            ):
                 assert item.latitude_deg == pytest.approx(lat_deg, abs=1e-7)
                 assert item.longitude_deg == pytest.approx(lon_deg, abs=1e-7)
                 assert item.relative_altitude_m == pytest.approx(25.0)
@@ -90,36 +113,57 @@ def test_mission_upload_fly_to_the_end_and_download():
         run_app(app, vehicle, timeout_s=240.0)
 
 
-def raw_waypoint(seq: int, lat_deg: float, lon_deg: float, mission_type: int = 0,
-                 command: int = 16) -> mission_raw.MissionItem:
+def raw_waypoint(
+    seq: int, lat_deg: float, lon_deg: float, mission_type: int = 0, command: int = 16
+) -> mission_raw.MissionItem:
     """mission_raw.py's item: frame 3 (global, relative altitude), acceptance radius 10 m."""
-    return mission_raw.MissionItem(seq, 3, command, int(seq == 0), 1, 0, 10, 0, NAN,
-                                   int(lat_deg * 10**7), int(lon_deg * 10**7), 30.0, mission_type)
+    return mission_raw.MissionItem(
+        seq,
+        3,
+        command,
+        int(seq == 0),
+        1,
+        0,
+        10,
+        0,
+        NAN,
+        int(lat_deg * 10**7),
+        int(lon_deg * 10**7),
+        30.0,
+        mission_type,
+    )
 
 
 def test_mission_raw_upload_download_clear_mission_fence_rally(vehicle):
     async def app(address: str) -> None:
         async with grpc_drone(address) as drone:
-            items = [raw_waypoint(0, 47.40271757, 8.54285027),
-                     raw_waypoint(1, 47.40271757, 8.54361892)]
+            items = [
+                raw_waypoint(0, 47.40271757, 8.54285027),
+                raw_waypoint(1, 47.40271757, 8.54361892),
+            ]
             print("-- Uploading mission")
             await drone.mission_raw.upload_mission(items)
             assert_same_raw_items(await drone.mission_raw.download_mission(), items)
 
             # an inclusion polygon (NAV_FENCE_POLYGON_VERTEX_INCLUSION, param1 = vertex count)
             corners = ((47.3970, 8.5445), (47.3985, 8.5445), (47.3985, 8.5467), (47.3970, 8.5467))
-            fence = [mission_raw.MissionItem(i, 0, 5001, 0, 1, 4, 0, 0, 0, int(la * 1e7),
-                                             int(lo * 1e7), 0, 1)
-                     for i, (la, lo) in enumerate(corners)]
+            fence = [
+                mission_raw.MissionItem(
+                    i, 0, 5001, 0, 1, 4, 0, 0, 0, int(la * 1e7), int(lo * 1e7), 0, 1
+                )
+                for i, (la, lo) in enumerate(corners)
+            ]
             await drone.mission_raw.upload_geofence(fence)
             got_fence = await drone.mission_raw.download_geofence()
-            assert [(i.command, i.x, i.y, i.mission_type) for i in got_fence] == \
-                [(i.command, i.x, i.y, 1) for i in fence]
+            assert [(i.command, i.x, i.y, i.mission_type) for i in got_fence] == [
+                (i.command, i.x, i.y, 1) for i in fence
+            ]
             rally = [raw_waypoint(0, 47.3979, 8.5458, mission_type=2, command=5100)]
             await drone.mission_raw.upload_rally_points(rally)
             got_rally = await drone.mission_raw.download_rallypoints()
-            assert [(i.command, i.x, i.y, i.mission_type) for i in got_rally] == [(5100, *(
-                (rally[0].x, rally[0].y)), 2)]
+            assert [(i.command, i.x, i.y, i.mission_type) for i in got_rally] == [
+                (5100, *((rally[0].x, rally[0].y)), 2)
+            ]
 
             await drone.mission_raw.clear_mission()
             assert list(await drone.mission_raw.download_mission()) == []
@@ -157,8 +201,7 @@ def test_geofence_upload_download_clear(vehicle):
             assert len(got.circles) == 1, got
             assert got.circles[0].fence_type == FenceType.EXCLUSION
             assert got.circles[0].radius == pytest.approx(20.0)
-            assert math.isclose(got.circles[0].point.latitude_deg, latitude + 0.0005,
-                                abs_tol=1e-7)
+            assert math.isclose(got.circles[0].point.latitude_deg, latitude + 0.0005, abs_tol=1e-7)
 
             await drone.geofence.clear_geofence()
             cleared = await drone.geofence.download_geofence()

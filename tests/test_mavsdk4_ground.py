@@ -11,7 +11,6 @@ from __future__ import annotations
 import pytest
 
 pytest.importorskip("mavsdk.asyncio", reason="MAVSDK 4.x: pip install 'mavsdk>=4.1'")
-from conftest import PX4_PORTS  # noqa: E402
 from mavsdk.asyncio.plugins.failure import (  # noqa: E402
     FailureAsync,
     FailureError,
@@ -22,7 +21,8 @@ from mavsdk.asyncio.plugins.failure import (  # noqa: E402
 from mavsdk.asyncio.plugins.info import InfoAsync  # noqa: E402
 from mavsdk.asyncio.plugins.param import ParamAsync, ParamError  # noqa: E402
 from mavsdk.asyncio.plugins.telemetry import FixType, FlightMode, TelemetryAsync  # noqa: E402
-from mavsdk_apps import (  # noqa: E402
+from support.cli import PX4_PORTS  # noqa: E402
+from support.mavsdk_apps import (  # noqa: E402
     HOME_ALT_M,
     HOME_LAT_DEG,
     HOME_LON_DEG,
@@ -113,8 +113,11 @@ def test_failure_injection_needs_sys_failure_en(vehicle):
             assert denied.value.result in (FailureResult.DISABLED, FailureResult.DENIED)
             # enabled, it works: test_mavsdk4_flight's failure app (MAVSDK reads the parameter
             # once, when the failure plugin is created)
-            await first(TelemetryAsync(drone).subscribe_health(), lambda h: h.is_global_position_ok,
-                        timeout=10.0,
-                        what="GPS still fine: the refused failure did nothing")
+            await first(
+                TelemetryAsync(drone).subscribe_health(),
+                lambda h: h.is_global_position_ok,
+                timeout=10.0,
+                what="GPS still fine: the refused failure did nothing",
+            )
 
     run_app(app, vehicle)

@@ -17,7 +17,6 @@ import math
 import pytest
 
 pytest.importorskip("mavsdk.asyncio", reason="MAVSDK 4.x: pip install 'mavsdk>=4.1'")
-from conftest import PX4_PORTS  # noqa: E402
 from mavsdk.asyncio.plugins import mission_raw  # noqa: E402
 from mavsdk.asyncio.plugins.action import ActionAsync  # noqa: E402
 from mavsdk.asyncio.plugins.geofence import (  # noqa: E402
@@ -30,7 +29,8 @@ from mavsdk.asyncio.plugins.geofence import (  # noqa: E402
 )
 from mavsdk.asyncio.plugins.mission import MissionAsync, MissionItem, MissionPlan  # noqa: E402
 from mavsdk.asyncio.plugins.telemetry import TelemetryAsync  # noqa: E402
-from mavsdk_apps import (  # noqa: E402
+from support.cli import PX4_PORTS  # noqa: E402
+from support.mavsdk_apps import (  # noqa: E402
     AUTO_SPEED,
     WAYPOINTS_DEG,
     assert_same_raw_items,
@@ -52,12 +52,27 @@ def vehicle():
 
 
 def mission_item(lat_deg: float, lon_deg: float) -> MissionItem:
-    return MissionItem(lat_deg, lon_deg, 25, 10, True, NAN, NAN, MissionItem.CameraAction.NONE,
-                       NAN, NAN, NAN, NAN, NAN, MissionItem.VehicleAction.NONE)
+    return MissionItem(
+        lat_deg,
+        lon_deg,
+        25,
+        10,
+        True,
+        NAN,
+        NAN,
+        MissionItem.CameraAction.NONE,
+        NAN,
+        NAN,
+        NAN,
+        NAN,
+        NAN,
+        MissionItem.VehicleAction.NONE,
+    )
 
 
 def test_mission_upload_fly_to_the_end_and_download():
     """mission.py: upload, fly it and its return at AUTO_SPEED, download."""
+
     async def app(address: str) -> None:
         async with mavsdk4_drone(address) as drone:
             tel, action, mission = TelemetryAsync(drone), ActionAsync(drone), MissionAsync(drone)
@@ -75,22 +90,29 @@ def test_mission_upload_fly_to_the_end_and_download():
             await action.set_return_to_launch_altitude(30.0)
             print("-- Uploading mission")
             await mission.upload_mission(mission_plan)
-            await first(tel.subscribe_health(), lambda h: h.is_global_position_ok
-                        and h.is_home_position_ok)
+            await first(
+                tel.subscribe_health(), lambda h: h.is_global_position_ok and h.is_home_position_ok
+            )
             print("-- Arming")
             await action.arm()
             print("-- Starting mission")
             await mission.start_mission()
             await first(tel.subscribe_in_air(), bool, what="take-off")
-            await first(tel.subscribe_in_air(), lambda a: not a, timeout=150.0,
-                        what="landing after the mission and its return")
+            await first(
+                tel.subscribe_in_air(),
+                lambda a: not a,
+                timeout=150.0,
+                what="landing after the mission and its return",
+            )
             progress_task.cancel()
             assert (3, 3) in progress, progress
             assert await mission.is_mission_finished()
 
             downloaded = await mission.download_mission()
             assert len(downloaded.mission_items) == 3, downloaded
-            for item, (lat_deg, lon_deg) in zip(downloaded.mission_items, WAYPOINTS_DEG, strict=True):
+            for item, (lat_deg, lon_deg) in zip(
+                downloaded.mission_items, WAYPOINTS_DEG, strict=True
+            ):
                 assert item.latitude_deg == pytest.approx(lat_deg, abs=1e-7)
                 assert item.longitude_deg == pytest.approx(lon_deg, abs=1e-7)
                 assert item.relative_altitude_m == pytest.approx(25.0)
@@ -101,37 +123,58 @@ def test_mission_upload_fly_to_the_end_and_download():
         run_app(app, vehicle, timeout_s=240.0)
 
 
-def raw_waypoint(seq: int, lat_deg: float, lon_deg: float, mission_type: int = 0,
-                 command: int = 16) -> mission_raw.MissionItem:
+def raw_waypoint(
+    seq: int, lat_deg: float, lon_deg: float, mission_type: int = 0, command: int = 16
+) -> mission_raw.MissionItem:
     """mission_raw.py's item: frame 3 (global, relative altitude), acceptance radius 10 m."""
-    return mission_raw.MissionItem(seq, 3, command, int(seq == 0), 1, 0, 10, 0, NAN,
-                                   int(lat_deg * 10**7), int(lon_deg * 10**7), 30.0, mission_type)
+    return mission_raw.MissionItem(
+        seq,
+        3,
+        command,
+        int(seq == 0),
+        1,
+        0,
+        10,
+        0,
+        NAN,
+        int(lat_deg * 10**7),
+        int(lon_deg * 10**7),
+        30.0,
+        mission_type,
+    )
 
 
 def test_mission_raw_upload_download_clear_mission_fence_rally(vehicle):
     async def app(address: str) -> None:
         async with mavsdk4_drone(address) as drone:
             raw = mission_raw.MissionRawAsync(drone)
-            items = [raw_waypoint(0, 47.40271757, 8.54285027),
-                     raw_waypoint(1, 47.40271757, 8.54361892)]
+            items = [
+                raw_waypoint(0, 47.40271757, 8.54285027),
+                raw_waypoint(1, 47.40271757, 8.54361892),
+            ]
             print("-- Uploading mission")
             await raw.upload_mission(items)
             assert_same_raw_items(await raw.download_mission(), items)
 
             # an inclusion polygon (NAV_FENCE_POLYGON_VERTEX_INCLUSION, param1 = vertex count)
             corners = ((47.3970, 8.5445), (47.3985, 8.5445), (47.3985, 8.5467), (47.3970, 8.5467))
-            fence = [mission_raw.MissionItem(i, 0, 5001, 0, 1, 4, 0, 0, 0, int(la * 1e7),
-                                             int(lo * 1e7), 0, 1)
-                     for i, (la, lo) in enumerate(corners)]
+            fence = [
+                mission_raw.MissionItem(
+                    i, 0, 5001, 0, 1, 4, 0, 0, 0, int(la * 1e7), int(lo * 1e7), 0, 1
+                )
+                for i, (la, lo) in enumerate(corners)
+            ]
             await raw.upload_geofence(fence)
             got_fence = await raw.download_geofence()
-            assert [(i.command, i.x, i.y, i.mission_type) for i in got_fence] == \
-                [(i.command, i.x, i.y, 1) for i in fence]
+            assert [(i.command, i.x, i.y, i.mission_type) for i in got_fence] == [
+                (i.command, i.x, i.y, 1) for i in fence
+            ]
             rally = [raw_waypoint(0, 47.3979, 8.5458, mission_type=2, command=5100)]
             await raw.upload_rally_points(rally)
             got_rally = await raw.download_rallypoints()
-            assert [(i.command, i.x, i.y, i.mission_type) for i in got_rally] == [(5100, *(
-                (rally[0].x, rally[0].y)), 2)]
+            assert [(i.command, i.x, i.y, i.mission_type) for i in got_rally] == [
+                (5100, *((rally[0].x, rally[0].y)), 2)
+            ]
 
             await raw.clear_mission()
             assert list(await raw.download_mission()) == []
@@ -170,8 +213,7 @@ def test_geofence_upload_download_clear(vehicle):
             assert len(got.circles) == 1, got
             assert got.circles[0].fence_type == FenceType.EXCLUSION
             assert got.circles[0].radius == pytest.approx(20.0)
-            assert math.isclose(got.circles[0].point.latitude_deg, latitude + 0.0005,
-                                abs_tol=1e-7)
+            assert math.isclose(got.circles[0].point.latitude_deg, latitude + 0.0005, abs_tol=1e-7)
 
             await geofence.clear_geofence()
             cleared = await geofence.download_geofence()

@@ -42,9 +42,14 @@ def linear_state(position, velocity) -> MobilityState:
     position = np.asarray(position, float)[None]
     n_ues = position.shape[1]
     return MobilityState(
-        position_m=position, velocity_mps=np.asarray(velocity, float)[None],
-        orbiting=np.zeros(1, bool), orbit_angle_rad=np.zeros(1), orbit_radius_m=np.ones(1),
-        orbit_rate_rad_s=np.zeros(1), orbit_offset_m=np.zeros((1, n_ues, 2)))
+        position_m=position,
+        velocity_mps=np.asarray(velocity, float)[None],
+        orbiting=np.zeros(1, bool),
+        orbit_angle_rad=np.zeros(1),
+        orbit_radius_m=np.ones(1),
+        orbit_rate_rad_s=np.zeros(1),
+        orbit_offset_m=np.zeros((1, n_ues, 2)),
+    )
 
 
 def speeds(state: MobilityState) -> np.ndarray:
@@ -58,12 +63,15 @@ def heading_deg(velocity: np.ndarray) -> np.ndarray:
 # --- reflection at the walls -------------------------------------------------------------------
 
 
-@pytest.mark.parametrize(("position", "velocity", "mirrored", "flipped"), [
-    ((197.0, 10.0), (8.0, 0.0), (195.0, 10.0), (-8.0, 0.0)),  # east wall: 205 -> 195
-    ((-197.0, 10.0), (-8.0, 0.0), (-195.0, 10.0), (8.0, 0.0)),  # west wall
-    ((10.0, 199.0), (0.0, 8.0), (10.0, 193.0), (0.0, -8.0)),  # north wall: 207 -> 193
-    ((10.0, -196.0), (0.0, -8.0), (10.0, -196.0), (0.0, 8.0)),  # south wall: -204 -> -196
-])
+@pytest.mark.parametrize(
+    ("position", "velocity", "mirrored", "flipped"),
+    [
+        ((197.0, 10.0), (8.0, 0.0), (195.0, 10.0), (-8.0, 0.0)),  # east wall: 205 -> 195
+        ((-197.0, 10.0), (-8.0, 0.0), (-195.0, 10.0), (8.0, 0.0)),  # west wall
+        ((10.0, 199.0), (0.0, 8.0), (10.0, 193.0), (0.0, -8.0)),  # north wall: 207 -> 193
+        ((10.0, -196.0), (0.0, -8.0), (10.0, -196.0), (0.0, 8.0)),  # south wall: -204 -> -196
+    ],
+)
 def test_reflection_at_each_wall(position, velocity, mirrored, flipped):
     state = linear_state([position], [velocity])
     step_mobility(state, 1.0, HALF)
@@ -94,7 +102,14 @@ def test_no_reflection_away_from_walls():
 
 
 def test_scenario_names_and_index():
-    assert SCENARIOS == ("no_move", "straight", "circular", "straight_90", "straight_180", "hotspot")
+    assert SCENARIOS == (
+        "no_move",
+        "straight",
+        "circular",
+        "straight_90",
+        "straight_180",
+        "hotspot",
+    )
     assert scenario_index("circular") == 2
     with pytest.raises(ValueError, match="unknown scenario 'zigzag'"):
         scenario_index("zigzag")
@@ -181,8 +196,9 @@ def test_hotspot_cluster_plus_independent_ues():
     cluster = state.position_m[:, :5]
     spread = cluster.max(axis=1) - cluster.min(axis=1)
     assert np.all(spread <= CFG.cluster_size_m)  # the five in a 10 m square ...
-    np.testing.assert_allclose(state.velocity_mps[:, :5],
-                               state.velocity_mps[:, :1].repeat(5, axis=1))  # ... moving together
+    np.testing.assert_allclose(
+        state.velocity_mps[:, :5], state.velocity_mps[:, :1].repeat(5, axis=1)
+    )  # ... moving together
     free = state.position_m[:, 5:]
     assert np.all(np.abs(free) <= HALF)
     assert free.std() == pytest.approx(2 * HALF / math.sqrt(12), rel=0.05)  # uniform in the area

@@ -7,11 +7,12 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from conftest import ROOT, cli_json
+from support.cli import ROOT, cli_json
 
 from uavlink.config import EnvConfig
 from uavlink.env.core import BatchedUavEnv
-from uavlink.env.observation import ObservationBuilder, ObservationLayout
+from uavlink.env.observation import ObservationLayout
+from uavlink.env.observation_builder import ObservationBuilder
 from uavlink.env.place_memory import (
     HYSTERESIS_BITS,
     STALE_BITS_PER_FRAME,
@@ -127,10 +128,16 @@ def test_explore_searches_a_cross_then_returns_to_the_best_spot() -> None:
         path.append(env.uav_xy_m.copy())
     path = np.array(path)
     xs = path[..., 0]
-    assert np.allclose(path[3], [48.0, 0.0], atol=1e-3) and np.allclose(path[11], [-48.0, 0.0], atol=1e-3)
-    assert np.allclose(path[19], [0.0, 48.0], atol=1e-3) and np.allclose(path[27], [0.0, -48.0], atol=1e-3)
+    assert np.allclose(path[3], [48.0, 0.0], atol=1e-3) and np.allclose(
+        path[11], [-48.0, 0.0], atol=1e-3
+    )
+    assert np.allclose(path[19], [0.0, 48.0], atol=1e-3) and np.allclose(
+        path[27], [0.0, -48.0], atol=1e-3
+    )
     assert np.allclose(path[31], 0.0, atol=1e-3)
-    assert np.allclose(path[:16, :, 1], 0.0, atol=1e-3) and np.allclose(path[16:32, :, 0], 0.0, atol=1e-3)
+    assert np.allclose(path[:16, :, 1], 0.0, atol=1e-3) and np.allclose(
+        path[16:32, :, 0], 0.0, atol=1e-3
+    )
     # after the search most hover at the best spot they sensed (the no_move team stays put; a spot
     # that reads less on return than remembered sends the UAV on to the next best)
     hovering = np.isclose(xs[-1], xs[-2], atol=1e-3)
@@ -154,8 +161,18 @@ def test_explore_beats_hovering_on_no_move_and_flies_a_fleet() -> None:
 
 
 def test_evaluate_explore_from_the_command_line() -> None:
-    out = cli_json("evaluate", "--policy", "explore", "--scenario", "no_move", "--set",
-                   "radio.shadowing_model=spatial", "--episodes", "2", "--json")
+    out = cli_json(
+        "evaluate",
+        "--policy",
+        "explore",
+        "--scenario",
+        "no_move",
+        "--set",
+        "radio.shadowing_model=spatial",
+        "--episodes",
+        "2",
+        "--json",
+    )
     assert out["policy"] == "explore" and out["episodes"] == 2
 
 
@@ -171,17 +188,28 @@ def test_shipped_policies_keep_their_layouts() -> None:
 
 
 def test_map_report_refuses_without_spatial_and_skips_untrained_scenarios(tmp_path: Path) -> None:
-    from conftest import run_uavlink_in_process
+    from support.cli import run_uavlink_in_process
 
     from uavlink.evaluation.report_map import map_table
     from uavlink.learn.teachers import policy_teacher
     from uavlink.policies.contract import EnvOverrides
 
-    proc = run_uavlink_in_process("evaluate", "--scenario", "all", "--policy", str(ROOT / "policies"),
-                                  "--out", str(tmp_path / "out"), "--map", str(tmp_path))
+    proc = run_uavlink_in_process(
+        "evaluate",
+        "--scenario",
+        "all",
+        "--policy",
+        str(ROOT / "policies"),
+        "--out",
+        str(tmp_path / "out"),
+        "--map",
+        str(tmp_path),
+    )
     assert proc.returncode == 2 and "--map" in proc.stderr and "--spatial" in proc.stderr
     assert not (tmp_path / "out").exists()
-    header, body = map_table(tmp_path, ROOT / "policies" / "spatial", 1, 0, EnvOverrides(), policy_teacher)
+    header, body = map_table(
+        tmp_path, ROOT / "policies" / "spatial", 1, 0, EnvOverrides(), policy_teacher
+    )
     assert body == [] and header[:3] == ["scenario", "map PPO", "spatial PPO"]
 
 
@@ -193,18 +221,32 @@ def test_map_report_rows_put_each_map_policy_beside_explore_and_the_genie(tmp_pa
     from uavlink.learn.teachers import policy_teacher
     from uavlink.policies.contract import EnvOverrides
 
-    header, body = map_table(ROOT / "policies" / "map", ROOT / "policies" / "spatial", 2, 0, EnvOverrides(), policy_teacher)
+    header, body = map_table(
+        ROOT / "policies" / "map",
+        ROOT / "policies" / "spatial",
+        2,
+        0,
+        EnvOverrides(),
+        policy_teacher,
+    )
     from uavlink.config import MIXED, SCENARIO_NAMES
 
     shipped = {p.stem for p in (ROOT / "policies" / "map").glob("*.zip")}
     # a scenario without its own map policy is flown by the mixed one, if shipped
-    assert [row[0] for row in body] == [s for s in SCENARIO_NAMES if s in shipped or MIXED in shipped]
+    assert [row[0] for row in body] == [
+        s for s in SCENARIO_NAMES if s in shipped or MIXED in shipped
+    ]
     col = {name: i for i, name in enumerate(header)}
     # each map policy beside the teacher it copied, knobs and all (not only the rule's name)
     teachers = {row[0]: row[col["map vs its teacher"]] for row in body}
-    assert teachers["no_move"].startswith("kriging: ") and teachers["straight_90"].startswith("aoa (span 3, gate 2): ")
+    assert teachers["no_move"].startswith("kriging: ") and teachers["straight_90"].startswith(
+        "aoa (span 3, gate 2): "
+    )
     for row in body:
-        mbps = {name: float(row[col[name]].split(" ± ")[0]) for name in ("map PPO", "spatial PPO", "genie")}
+        mbps = {
+            name: float(row[col[name]].split(" ± ")[0])
+            for name in ("map PPO", "spatial PPO", "genie")
+        }
         assert mbps["genie"] >= max(mbps["map PPO"], mbps["spatial PPO"]), row
         for share in ("map / genie", "spatial / genie"):
             assert 0 < float(row[col[share]].split(" %")[0]) <= 100, row
@@ -214,9 +256,19 @@ def test_map_report_rows_put_each_map_policy_beside_explore_and_the_genie(tmp_pa
 
     for name in ("no_move.zip", "no_move.json", "circular.zip", "circular.json"):
         shutil.copy(ROOT / "policies" / "map" / name, tmp_path)
-    header_lean, body_lean = map_table(tmp_path, ROOT / "policies" / "spatial", 2, 0, EnvOverrides(), policy_teacher,
-                                       with_genie=False)
-    assert "genie" not in " ".join(header_lean) and [row[0] for row in body_lean] == ["no_move", "circular"]
+    header_lean, body_lean = map_table(
+        tmp_path,
+        ROOT / "policies" / "spatial",
+        2,
+        0,
+        EnvOverrides(),
+        policy_teacher,
+        with_genie=False,
+    )
+    assert "genie" not in " ".join(header_lean) and [row[0] for row in body_lean] == [
+        "no_move",
+        "circular",
+    ]
     lean = {name: i for i, name in enumerate(header_lean)}
     for row_lean in body_lean:
         row = next(r for r in body if r[0] == row_lean[0])
@@ -234,22 +286,31 @@ def test_place_map_holds_the_cells_flown_over_the_fields_truth(tmp_path: Path) -
     from uavlink.radio import distance_3d_m, mean_rx_power_dbm
     from uavlink.radio.cells import mean_channel_rate_bps
 
-    [(policy, cfg)] = load_with_env([str(ROOT / "policies" / "map" / "circular.zip")],
-                                    EnvOverrides.from_command_line("circular", None, []))
+    [(policy, cfg)] = load_with_env(
+        [str(ROOT / "policies" / "map" / "circular.zip")],
+        EnvOverrides.from_command_line("circular", None, []),
+    )
     episode = fly_place_map(policy, cfg, 0)
     assert episode.mean_rate_mbps == evaluate_policy(policy, cfg, 1, 0).mean_rate_mbps
     assert len(episode.uav_path_m) == cfg.episode_frames + 1
     half, cell = episode.half_width_m, episode.cell_m
     side = episode.memory_mbps.shape[0]
-    visited = {tuple(np.clip(np.floor((xy + half) / cell), 0, side - 1).astype(int)) for xy in episode.uav_path_m}
+    visited = {
+        tuple(np.clip(np.floor((xy + half) / cell), 0, side - 1).astype(int))
+        for xy in episode.uav_path_m
+    }
     assert {tuple(ij) for ij in np.argwhere(np.isfinite(episode.memory_mbps))} == visited
     assert tuple(np.floor((episode.best_m + half) / cell).astype(int)) in visited
     for ix, iy in np.random.default_rng(0).integers(0, len(episode.field_x_m), size=(3, 2)):
-        uav, ue = np.array([[[episode.field_x_m[ix], episode.field_x_m[iy]]]]), episode.ue_xy_m[None]
+        uav, ue = (
+            np.array([[[episode.field_x_m[ix], episode.field_x_m[iy]]]]),
+            episode.ue_xy_m[None],
+        )
         rx_dbm = mean_rx_power_dbm(distance_3d_m(uav, ue, cfg.area.uav_altitude_m), cfg.radio)
         rx_dbm = rx_dbm + episode.shadow_field.shadow_db(uav, ue)
-        assert episode.field_mbps[ix, iy] == pytest.approx(mean_channel_rate_bps(rx_dbm, cfg.radio).mean() * 1e-6,
-                                                           rel=2e-3)
+        assert episode.field_mbps[ix, iy] == pytest.approx(
+            mean_channel_rate_bps(rx_dbm, cfg.radio).mean() * 1e-6, rel=2e-3
+        )
     draw_place_map(episode, tmp_path / "map.png")
     assert (tmp_path / "map.png").read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
 
@@ -273,10 +334,17 @@ def test_map_sections_draw_a_place_map_per_scenario_with_a_map_policy(tmp_path: 
     out = tmp_path / "out"
     out.mkdir()
     run = ReportRun(1, 0, EnvOverrides(), out, out.parent / "results.md")  # links out as "out/..."
-    markdown = "\n".join(map_sections(run, folder, ROOT / "policies" / "spatial", [], policy_teacher))
-    assert [row.split(",")[0] for row in (out / "map.csv").read_text().splitlines()[1:]] == ["no_move"]
+    markdown = "\n".join(
+        map_sections(run, folder, ROOT / "policies" / "spatial", [], policy_teacher)
+    )
+    assert [row.split(",")[0] for row in (out / "map.csv").read_text().splitlines()[1:]] == [
+        "no_move"
+    ]
     assert (out / "place_map_no_move.png").read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
     assert "](out/place_map_no_move.png)" in markdown  # linked from the Markdown's folder
-    channels = [line.split(" | ")[1:3] for line in markdown.splitlines() if line.startswith("| no_move | ")
-                and line.count(" | ") == 7]
+    channels = [
+        line.split(" | ")[1:3]
+        for line in markdown.splitlines()
+        if line.startswith("| no_move | ") and line.count(" | ") == 7
+    ]
     assert channels == [[s, d] for s in ("4", "8") for d in ("25", "50", "100")]

@@ -16,7 +16,9 @@ from uavlink.errors import ConfigError, UserError
 
 ROOT = Path(__file__).resolve().parents[1]
 SPATIAL_HOTSPOT = ROOT / "policies" / "spatial" / "hotspot.zip"
-MAP_ENV = EnvConfig(scenario="hotspot", place_cell_m=12.0).replace(**{"radio.shadowing_model": "spatial"})
+MAP_ENV = EnvConfig(scenario="hotspot", place_cell_m=12.0).replace(
+    **{"radio.shadowing_model": "spatial"}
+)
 
 
 def _ppo(cfg: EnvConfig):
@@ -58,16 +60,21 @@ def test_a_map_policy_started_from_a_spatial_one_acts_and_values_as_it_does() ->
 def test_a_start_policy_of_another_observation_is_refused_in_one_line() -> None:
     from uavlink.learn.policy_transfer import start_from_policy
 
-    fleet = ROOT / "policies" / "fleet" / "hotspot.zip"  # two UAVs' observation: not this env's minus fields
-    with pytest.raises(UserError, match=r"warm_start.policy .*fleet/hotspot.zip: its observation") as info:
+    fleet = (
+        ROOT / "policies" / "fleet" / "hotspot.zip"
+    )  # two UAVs' observation: not this env's minus fields
+    with pytest.raises(
+        UserError, match=r"warm_start.policy .*fleet/hotspot.zip: its observation"
+    ) as info:
         start_from_policy(_ppo(MAP_ENV).policy, MAP_ENV, fleet)
     assert "\n" not in str(info.value)
 
 
 def test_a_start_policy_takes_no_teacher() -> None:
     with pytest.raises(ConfigError, match="warm_start.policy .* takes no train.warm_start.teacher"):
-        with_changes(TrainConfig(), {"warm_start.policy": str(SPATIAL_HOTSPOT),
-                                     "warm_start.teacher": "aoa"}).validate(MAP_ENV)
+        with_changes(
+            TrainConfig(), {"warm_start.policy": str(SPATIAL_HOTSPOT), "warm_start.teacher": "aoa"}
+        ).validate(MAP_ENV)
 
 
 def test_a_policy_started_from_weights_has_no_rule_for_a_teacher_and_says_whose() -> None:
@@ -84,7 +91,10 @@ def test_a_policy_started_from_weights_has_no_rule_for_a_teacher_and_says_whose(
         tc = with_changes(TrainConfig(), {f"warm_start.{k}": v for k, v in warm_start.items()})
         return SimpleNamespace(manifest={"training": {"hyperparameters": tc.to_dict()}})
 
-    assert policy_teacher(policy(policy=str(SPATIAL_HOTSPOT)), cfg) == (None, f"the weights of {SPATIAL_HOTSPOT}")
+    assert policy_teacher(policy(policy=str(SPATIAL_HOTSPOT)), cfg) == (
+        None,
+        f"the weights of {SPATIAL_HOTSPOT}",
+    )
     teacher, label = policy_teacher(policy(teacher="explore"), cfg)
     assert label == "explore" and teacher.name == "explore"
     assert policy_teacher(policy(), cfg) == (None, "no warm start")

@@ -45,12 +45,15 @@ def rng(seed: int = 0) -> np.random.Generator:
 # --- path loss, noise, link budget -------------------------------------------------------------
 
 
-@pytest.mark.parametrize(("distance_m", "expected_db"), [
-    (1000.0, 128.1),
-    (100.0, 128.1 - 37.6),  # 90.5 dB
-    (95.0, 128.1 + 37.6 * math.log10(0.095)),
-    (10_000.0, 128.1 + 37.6),
-])
+@pytest.mark.parametrize(
+    ("distance_m", "expected_db"),
+    [
+        (1000.0, 128.1),
+        (100.0, 128.1 - 37.6),  # 90.5 dB
+        (95.0, 128.1 + 37.6 * math.log10(0.095)),
+        (10_000.0, 128.1 + 37.6),
+    ],
+)
 def test_path_loss_known_answers(distance_m, expected_db):
     assert float(path_loss_db(distance_m)) == pytest.approx(expected_db, abs=1e-9)
 
@@ -166,7 +169,6 @@ def test_mean_of_n_draw_matches_n_per_rb_draws(n_rbs):
     assert np.abs(cdf_exact - cdf_explicit).max() < 0.01  # KS critical value at 1e-3: ~0.006
 
 
-
 @pytest.mark.parametrize("k_db", [10.0, 0.0, -300.0, 25.0])
 def test_tabulated_gain_has_the_rician_law(k_db):
     """The table (equiprobable strata, built by integrating the density) has the exact mean and
@@ -185,6 +187,7 @@ def test_tabulated_gain_has_the_rician_law(k_db):
     cdf_exact = np.searchsorted(np.sort(exact), grid) / samples
     assert np.abs(cdf_drawn - cdf_exact).max() < 0.006  # two-sample KS critical value at 1e-3
     np.testing.assert_array_equal(drawn, tabulated_rician_power_gain(rng(7), (samples,), k_db))
+
 
 def test_mean_of_n_draw_broadcasts_rb_counts():
     counts = round_robin_rbs(50, 7)  # 8, 7, 7, ... RBs per UE
@@ -208,8 +211,12 @@ def test_shadowing_std_is_8_db():
 def test_shadowing_update_is_stationary_with_gudmundson_correlation():
     radio = RadioConfig()
     before = initial_shadowing_db(rng(7), (200_000,), radio)
-    for displacement, rho in ((0.0, 1.0), (10.0, math.exp(-0.2)), (50.0, math.exp(-1.0)),
-                              (500.0, math.exp(-10.0))):
+    for displacement, rho in (
+        (0.0, 1.0),
+        (10.0, math.exp(-0.2)),
+        (50.0, math.exp(-1.0)),
+        (500.0, math.exp(-10.0)),
+    ):
         after = update_shadowing_db(rng(8), before, np.full(before.shape, displacement), radio)
         assert after.std() == pytest.approx(8.0, rel=0.01)  # AR(1) keeps the marginal
         assert np.corrcoef(before, after)[0, 1] == pytest.approx(rho, abs=0.01)
@@ -291,7 +298,9 @@ def test_wrap_deg_range():
 def test_circular_mean_across_the_wrap():
     mean, std = circular_mean_std_deg(np.array([179.0, -179.0]))
     assert float(mean) == pytest.approx(-180.0, abs=1e-9)  # not the naive 0
-    assert float(std) == pytest.approx(math.degrees(math.sqrt(-2 * math.log(math.cos(math.radians(1))))))
+    assert float(std) == pytest.approx(
+        math.degrees(math.sqrt(-2 * math.log(math.cos(math.radians(1)))))
+    )
     mean, std = circular_mean_std_deg(np.array([170.0, -170.0, 180.0]))
     assert abs(float(wrap_deg(mean - 180.0))) < 1e-9
     mean, _ = circular_mean_std_deg(np.array([10.0, 350.0]))
@@ -313,7 +322,9 @@ def test_true_aoa_compass():
     aoa = true_aoa_deg(np.zeros(2), ue)
     np.testing.assert_allclose(wrap_deg(aoa), [0.0, 90.0, -180.0, -90.0, 45.0], atol=1e-12)
     # From a UAV that is not at the origin.
-    assert float(true_aoa_deg(np.array([10.0, 10.0]), np.array([10.0, 30.0]))) == pytest.approx(90.0)
+    assert float(true_aoa_deg(np.array([10.0, 10.0]), np.array([10.0, 30.0]))) == pytest.approx(
+        90.0
+    )
 
 
 @pytest.mark.parametrize("sigma", [1.0, 5.0, 50.0])
@@ -336,8 +347,13 @@ def test_aoa_without_noise_is_exact_and_channel_honours_noise():
     uav = np.zeros((20_000, 1, 2))
     exact = RadioChannel(QUIET, AREA, n_ues=3).reset(rng(), uav, ue).aoa_deg
     np.testing.assert_allclose(exact[0], [0.0, 90.0, -180.0], atol=1e-12)
-    noisy = RadioChannel(RadioConfig(shadowing=False, fast_fading=False, aoa_noise_deg=5.0),
-                         AREA, n_ues=3).reset(rng(14), uav, ue).aoa_deg
+    noisy = (
+        RadioChannel(
+            RadioConfig(shadowing=False, fast_fading=False, aoa_noise_deg=5.0), AREA, n_ues=3
+        )
+        .reset(rng(14), uav, ue)
+        .aoa_deg
+    )
     error = wrap_deg(noisy - exact)
     np.testing.assert_allclose(error.std(axis=0), 5.0, rtol=0.03)
 
@@ -353,18 +369,25 @@ def test_aoa_noise_randomised_per_episode():
     from uavlink.radio.aoa import true_aoa_deg, wrap_deg
     from uavlink.radio.channel import RadioChannel
 
-    radio = RadioConfig(aoa_noise_deg=5.0, aoa_noise_max_deg=40.0, shadowing=False, fast_fading=False)
+    radio = RadioConfig(
+        aoa_noise_deg=5.0, aoa_noise_max_deg=40.0, shadowing=False, fast_fading=False
+    )
     channel = RadioChannel(radio, AreaConfig(), n_ues=200)
     rng = np.random.default_rng(3)
     uav = np.zeros((64, 1, 2))
     ue = rng.uniform(-150, 150, size=(64, 200, 2))
     errors = [wrap_deg(channel.reset(rng, uav, ue).aoa_deg - true_aoa_deg(uav, ue))]
-    errors += [wrap_deg(channel.step(rng, uav, ue).aoa_deg - true_aoa_deg(uav, ue)) for _ in range(3)]
+    errors += [
+        wrap_deg(channel.step(rng, uav, ue).aoa_deg - true_aoa_deg(uav, ue)) for _ in range(3)
+    ]
     per_env_std = np.concatenate(errors, axis=1).std(axis=1)
     assert per_env_std.min() > 5.0 * 0.8 and per_env_std.max() < 40.0 * 1.15
     assert per_env_std.std() > 5.0  # the std really differs between episodes
     # Fixed within an episode: the std seen over the first and the last frames agree.
-    first, last = np.concatenate(errors[:2], axis=1).std(axis=1), np.concatenate(errors[2:], axis=1).std(axis=1)
+    first, last = (
+        np.concatenate(errors[:2], axis=1).std(axis=1),
+        np.concatenate(errors[2:], axis=1).std(axis=1),
+    )
     assert np.corrcoef(first, last)[0, 1] > 0.9
     with pytest.raises(ValueError, match="aoa_noise_max_deg"):
         RadioConfig(aoa_noise_deg=10.0, aoa_noise_max_deg=5.0).validate()

@@ -14,7 +14,9 @@ from uavlink.seeding import EVAL
 
 
 @pytest.mark.parametrize("scenario,seed", [("circular", 3), ("hotspot", 0), ("mixed", 4)])
-def test_hovering_in_the_radio_world_scores_the_one_episode_evaluation(scenario: str, seed: int) -> None:
+def test_hovering_in_the_radio_world_scores_the_one_episode_evaluation(
+    scenario: str, seed: int
+) -> None:
     cfg = EnvConfig().replace(scenario=scenario).validate()
     world = RadioWorld(cfg, seed)
     first = world.readings()
@@ -26,8 +28,12 @@ def test_hovering_in_the_radio_world_scores_the_one_episode_evaluation(scenario:
     evaluated = evaluate_policy(StaticPolicy(cfg), cfg, episodes=1, seed=seed)
     # the same UEs and channel draws: equal up to the order of the mean's summation
     rel = 1e-12
-    assert np.mean([s.mean_rate_mbps for s in scores]) == pytest.approx(evaluated.episode_rate_mbps[0], rel=rel)
-    assert np.mean([s.fair_rate for s in scores]) == pytest.approx(evaluated.episode_fair_rate[0], rel=rel)
+    assert np.mean([s.mean_rate_mbps for s in scores]) == pytest.approx(
+        evaluated.episode_rate_mbps[0], rel=rel
+    )
+    assert np.mean([s.fair_rate for s in scores]) == pytest.approx(
+        evaluated.episode_fair_rate[0], rel=rel
+    )
 
 
 def test_mixed_draws_each_seeds_scenario_as_the_evaluation_episode_does() -> None:
@@ -35,7 +41,9 @@ def test_mixed_draws_each_seeds_scenario_as_the_evaluation_episode_does() -> Non
     --seed S` draws for that episode (so a mixed policy's flight is comparable with it)."""
     cfg = EnvConfig().replace(scenario="mixed").validate()
     drawn = [episode_scenario(cfg, seed) for seed in range(12)]
-    evaluated = [SCENARIOS[int(next(chunks(cfg, EVAL, 1, seed)).env.scenario_ids[0])] for seed in range(12)]
+    evaluated = [
+        SCENARIOS[int(next(chunks(cfg, EVAL, 1, seed)).env.scenario_ids[0])] for seed in range(12)
+    ]
     assert drawn == evaluated == [RadioWorld(cfg, seed).scenario for seed in range(12)]
     assert len(set(drawn)) > 2  # drawn per seed, not one for all
     assert episode_scenario(cfg.replace(scenario="hotspot"), 3) == "hotspot"

@@ -1,6 +1,6 @@
 """Link faults between `uavlink fly` and the vehicle: loss, delay, duplicates, reordering, blackouts.
 
-Flights go through the relay of ``tests/udp_relay.py`` (``tests/relay_flight.py``) on loopback (fly and the vehicle are child processes);
+Flights go through the relay of ``tests/support/udp_relay.py`` (``tests/support/relay_flight.py``) on loopback (fly and the vehicle are child processes);
 the vehicle's exit stats give its own truth of the episode's throughput (whatever the link lost)
 and its safety monitors. ``pytest -s`` prints the table; ``benchmarks/link_faults.py`` makes the
 full one (with 200 ms delay at --speed 1).
@@ -12,8 +12,8 @@ import socket
 import time
 
 import pytest
-from relay_flight import fly_through_relay, format_table, table_row
-from udp_relay import BLACKOUT, CLEAN, Faults, UdpRelay
+from support.relay_flight import fly_through_relay, format_table, table_row
+from support.udp_relay import BLACKOUT, CLEAN, Faults, UdpRelay
 
 pytestmark = pytest.mark.slow  # flights through a lossy relay
 
@@ -35,8 +35,10 @@ def _safe(run: dict) -> None:
 @pytest.mark.slow
 @pytest.mark.timeout(30)
 def test_relay_drops_delays_duplicates_and_reorders_and_stops_by_itself() -> None:
-    with socket.socket(socket.AF_INET, socket.SOCK_DGRAM) as dest, \
-            socket.socket(socket.AF_INET, socket.SOCK_DGRAM) as client:
+    with (
+        socket.socket(socket.AF_INET, socket.SOCK_DGRAM) as dest,
+        socket.socket(socket.AF_INET, socket.SOCK_DGRAM) as client,
+    ):
         dest.bind(("127.0.0.1", 0))
         dest.settimeout(0.5)
         faults = Faults(loss=0.3, delay_s=0.05, duplicate=0.1, reorder=0.1, reorder_s=0.02)
@@ -60,7 +62,9 @@ def test_relay_drops_delays_duplicates_and_reorders_and_stops_by_itself() -> Non
             client.settimeout(1.0)
             assert client.recvfrom(64)[0] == b"reply"
             stats = dict(relay.stats)
-            deadline = time.monotonic() + 3.2  # as long as the relay's whole life: it ends by itself
+            deadline = (
+                time.monotonic() + 3.2
+            )  # as long as the relay's whole life: it ends by itself
             while relay.running and time.monotonic() < deadline:
                 time.sleep(0.02)
             assert not relay.running and relay.stats["expired"] == 1  # bounded in time
@@ -96,8 +100,9 @@ def test_throughput_under_10_percent_loss_stays_within_5_percent_of_clean() -> N
 def test_30_percent_loss_and_a_blackout_fail_safe_and_the_loop_recovers() -> None:
     """30 % loss from the start; 2 s into the episode a 1 s blackout (20 s of vehicle time at
     --speed 20: the offboard-loss failsafe must fire); then a clear link."""
-    run = fly_through_relay(Faults(loss=0.30), relay_seed=3, timeout_s=70,
-                            schedule=[(2.0, BLACKOUT), (3.0, CLEAN)])
+    run = fly_through_relay(
+        Faults(loss=0.30), relay_seed=3, timeout_s=70, schedule=[(2.0, BLACKOUT), (3.0, CLEAN)]
+    )
     print("\n" + format_table([table_row("30 % loss + 1 s blackout, then clear", run, None)]))
     _safe(run)
     fly, vehicle = run["fly"], run["vehicle"]["vehicle"]

@@ -18,15 +18,15 @@ import numpy as np
 import pytest
 from hypothesis import given
 from hypothesis import strategies as st
-from mavlink_fuzz import FUZZ, corrupt, mutation
-from mavlink_gcs import FAST_CLIMB_PARAMS
+from support.mavlink_fuzz import FUZZ, corrupt, mutation
+from support.mavlink_gcs import FAST_CLIMB_PARAMS
 
 from sitl_stub.mavlink.server import ServerConfig, SitlServer
 from sitl_stub.sim.payload import PayloadOptions
 from sitl_stub.sim.radio_payload import RadioPayload
 from uavlink.config import EnvConfig
 from uavlink.flight.link import VehicleLink
-from uavlink.flight.mission import MissionConfig, PolicyPilot, fly_mission
+from uavlink.flight.loop import LoopConfig, PolicyPilot, fly_vehicle
 from uavlink.flight.radio_source import MavlinkRadioSource
 from uavlink.mavlink.connection import free_udp_port
 from uavlink.mavlink.dialect import mavlink
@@ -48,8 +48,10 @@ def _vehicle_packets() -> list[bytes]:
         (enc, enc.command_ack_encode(ARM, 0, 0, 0, 255, 191)),
         (enc, enc.param_value_encode(b"MIS_TAKEOFF_ALT", 95.0, 9, 13, 11)),
         (radio, radio.debug_float_array_encode(0, b"UL_RADIO", 3, readings)),
-        (radio, radio.debug_float_array_encode(0, b"UL_SCORE", 3,
-                                               encode_score(np.full(10, 5e6), 0.5))),
+        (
+            radio,
+            radio.debug_float_array_encode(0, b"UL_SCORE", 3, encode_score(np.full(10, 5e6), 0.5)),
+        ),
     ]
     return [bytes(m.pack(e)) for e, m in msgs]
 
@@ -57,7 +59,9 @@ def _vehicle_packets() -> list[bytes]:
 @contextmanager
 def fly_link() -> Iterator[tuple[VehicleLink, MavlinkRadioSource, socket.socket, list]]:
     port = free_udp_port()
-    link = VehicleLink(f"udpin:127.0.0.1:{port}", target_system=1)  # the packets below are system 1's
+    link = VehicleLink(
+        f"udpin:127.0.0.1:{port}", target_system=1
+    )  # the packets below are system 1's
     source = MavlinkRadioSource(10)
     scores: list = []
     link.on_radio, link.on_score = source.feed, scores.append
@@ -86,9 +90,14 @@ def test_random_and_mutated_bytes_into_fly() -> None:
         valid = _vehicle_packets()
 
         @FUZZ
-        @given(st.one_of(st.binary(max_size=300),
-                         st.lists(mutation.map(lambda m: (m[0] % len(valid), *m[1:])),
-                                  min_size=1, max_size=4)))
+        @given(
+            st.one_of(
+                st.binary(max_size=300),
+                st.lists(
+                    mutation.map(lambda m: (m[0] % len(valid), *m[1:])), min_size=1, max_size=4
+                ),
+            )
+        )
         def run(data) -> None:
             if isinstance(data, list):
                 data = b"".join(corrupt(valid[k], pos, flip) + junk for k, pos, flip, junk in data)
@@ -111,7 +120,9 @@ def test_fly_rejects_bad_telemetry_and_radio_reports_counts_and_logs_once(caplog
     with fly_link() as (link, source, sock, scores):
         enc = mavlink.MAVLink(None, 1, 1)
         radio = mavlink.MAVLink(None, 1, RADIO_COMPONENT_ID)
-        _deliver(link, sock, bytes(enc.local_position_ned_encode(1000, 1, 2, -3, 0, 0, 0).pack(enc)))
+        _deliver(
+            link, sock, bytes(enc.local_position_ned_encode(1000, 1, 2, -3, 0, 0, 0).pack(enc))
+        )
         good = encode_readings(np.full(10, 12.0), np.zeros(10), True)
         wrong_count = encode_readings(np.full(7, 12.0), np.zeros(7), True)
         nan_sinr = list(good)
@@ -120,13 +131,32 @@ def test_fly_rejects_bad_telemetry_and_radio_reports_counts_and_logs_once(caplog
         inf_aoa[12] = math.inf
         for _ in range(3):
             for data in (wrong_count, nan_sinr, inf_aoa):
-                _deliver(link, sock, bytes(radio.debug_float_array_encode(0, b"UL_RADIO", 5, data).pack(radio)))
-            _deliver(link, sock, bytes(radio.debug_float_array_encode(
-                0, b"UL_SCORE", 5, encode_score(np.full(10, np.nan), 0.5)).pack(radio)))
-            _deliver(link, sock, bytes(enc.local_position_ned_encode(
-                2000, math.nan, math.inf, -95, 0, 0, 0).pack(enc)))
+                _deliver(
+                    link,
+                    sock,
+                    bytes(radio.debug_float_array_encode(0, b"UL_RADIO", 5, data).pack(radio)),
+                )
+            _deliver(
+                link,
+                sock,
+                bytes(
+                    radio.debug_float_array_encode(
+                        0, b"UL_SCORE", 5, encode_score(np.full(10, np.nan), 0.5)
+                    ).pack(radio)
+                ),
+            )
+            _deliver(
+                link,
+                sock,
+                bytes(
+                    enc.local_position_ned_encode(2000, math.nan, math.inf, -95, 0, 0, 0).pack(enc)
+                ),
+            )
         assert source.rejected == 9 and source.take_reports() == [] and scores == []
-        assert link.rejects.counts["position_not_finite"] == 3 and link.rejects.counts["radio_score"] == 3
+        assert (
+            link.rejects.counts["position_not_finite"] == 3
+            and link.rejects.counts["radio_score"] == 3
+        )
         assert (link.status.north_m, link.status.east_m, link.status.down_m) == (1.0, 2.0, -3.0)
     messages = [r.getMessage() for r in caplog.records]
     assert len([m for m in messages if "policy expects 10" in m]) == 1
@@ -146,18 +176,24 @@ class _NanPolicy:
 @pytest.mark.slow
 @pytest.mark.timeout(60)
 def test_policy_output_guard_in_flight_holds_position_and_logs_clearly(caplog) -> None:
-    caplog.set_level(logging.WARNING, logger="uavlink.flight.mission")
+    caplog.set_level(logging.WARNING, logger="uavlink.flight.loop")
     cfg = EnvConfig().replace(scenario="straight").validate()
-    server = SitlServer(ServerConfig(connect="udpin:127.0.0.1:0", speed=20.0, params=FAST_CLIMB_PARAMS),
-                        [RadioPayload(PayloadOptions("straight", 0))]).start()
+    server = SitlServer(
+        ServerConfig(connect="udpin:127.0.0.1:0", speed=20.0, params=FAST_CLIMB_PARAMS),
+        [RadioPayload(PayloadOptions("straight", 0))],
+    ).start()
     link = None
     try:
         host, port = server.address
         link = VehicleLink(f"udpout:{host}:{port}")
         pilot = PolicyPilot(_NanPolicy(), cfg)
         done: dict = {}
-        t = threading.Thread(target=lambda: done.setdefault(
-            "r", fly_mission(link, pilot, cfg, MissionConfig(frames=8, land=False))), daemon=True)
+        t = threading.Thread(
+            target=lambda: done.setdefault(
+                "r", fly_vehicle(link, pilot, cfg, LoopConfig(frames=8, land=False))
+            ),
+            daemon=True,
+        )
         t.start()
         t.join(45)
         assert "r" in done, "the flight did not finish"
@@ -173,5 +209,7 @@ def test_policy_output_guard_in_flight_holds_position_and_logs_clearly(caplog) -
     assert state.armed and state.max_abs_xy_m < 1.0  # took off at home and held there
     lines = [r.getMessage() for r in caplog.records if "policy output guard" in r.getMessage()]
     assert len(lines) == result.guarded_actions
-    assert "policy 'nan-policy' returned an unusable action [[nan, 0.5]] (NaN/infinite): " \
-           "holding position" in lines[0]
+    assert (
+        "policy 'nan-policy' returned an unusable action [[nan, 0.5]] (NaN/infinite): "
+        "holding position" in lines[0]
+    )

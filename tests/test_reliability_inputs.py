@@ -22,8 +22,8 @@ import numpy as np
 import pytest
 from hypothesis import given
 from hypothesis import strategies as st
-from mavlink_fuzz import FUZZ, corrupt, mutation
-from mavlink_gcs import FAST_CLIMB_PARAMS
+from support.mavlink_fuzz import FUZZ, corrupt, mutation
+from support.mavlink_gcs import FAST_CLIMB_PARAMS
 
 from sitl_stub.core.params import PARAM_DEFS
 from sitl_stub.flight.vehicle import MAX_ALTITUDE_M
@@ -38,8 +38,13 @@ from uavlink.mavlink.signing import SigningGuard
 pytestmark = pytest.mark.timeout(60)
 R = mavlink  # MAV_RESULT_* names
 ARM = mavlink.MAV_CMD_COMPONENT_ARM_DISARM
-RESULTS = {R.MAV_RESULT_ACCEPTED, R.MAV_RESULT_TEMPORARILY_REJECTED, R.MAV_RESULT_DENIED,
-           R.MAV_RESULT_UNSUPPORTED, R.MAV_RESULT_FAILED}
+RESULTS = {
+    R.MAV_RESULT_ACCEPTED,
+    R.MAV_RESULT_TEMPORARILY_REJECTED,
+    R.MAV_RESULT_DENIED,
+    R.MAV_RESULT_UNSUPPORTED,
+    R.MAV_RESULT_FAILED,
+}
 
 
 # --------------------------------------------------------------------------- the harness
@@ -58,7 +63,7 @@ class Vehicle:
     def send(self, data: bytes, chunks: int = 1) -> None:
         step = max(1, math.ceil(len(data) / chunks))
         for i in range(0, max(len(data), 1), step):
-            self.sock.sendto(data[i:i + step], self.server.address)
+            self.sock.sendto(data[i : i + step], self.server.address)
         # Loopback delivery is quick but not instant on a loaded machine: let the datagrams land
         # before the vehicle reads, and give an answer a moment before draining.
         select.select([self.server.conn.port], [], [], 0.05)
@@ -80,8 +85,17 @@ class Vehicle:
     def safe(self) -> None:
         """Nothing crashed and nothing unsafe is being flown."""
         s = self.server.vehicle.state()
-        values = (s.north_m, s.east_m, s.down_m, s.vn_mps, s.ve_mps, s.vd_mps, s.yaw_rad,
-                  s.roll_rad, s.pitch_rad)
+        values = (
+            s.north_m,
+            s.east_m,
+            s.down_m,
+            s.vn_mps,
+            s.ve_mps,
+            s.vd_mps,
+            s.yaw_rad,
+            s.roll_rad,
+            s.pitch_rad,
+        )
         assert all(math.isfinite(v) for v in values), s
         fence = self.server.vehicle.fence_m
         assert abs(s.north_m) <= fence and abs(s.east_m) <= fence and s.max_abs_xy_m <= fence
@@ -97,8 +111,12 @@ class Vehicle:
 @contextmanager
 def vehicle(key: bytes | None = None, payload: bool = False) -> Iterator[Vehicle]:
     payloads = [RadioPayload(PayloadOptions("straight", 0))] if payload else []
-    server = SitlServer(ServerConfig(connect="udpin:127.0.0.1:0", speed=20.0, params=FAST_CLIMB_PARAMS,
-                                     signing_key=key), payloads)
+    server = SitlServer(
+        ServerConfig(
+            connect="udpin:127.0.0.1:0", speed=20.0, params=FAST_CLIMB_PARAMS, signing_key=key
+        ),
+        payloads,
+    )
     server.open()
     v = Vehicle(server)
     try:
@@ -123,8 +141,9 @@ def packets(enc) -> list[bytes]:
         enc.command_long_encode(1, 1, mavlink.MAV_CMD_NAV_TAKEOFF, 0, *[math.nan] * 7),
         enc.command_long_encode(1, 0, mavlink.MAV_CMD_DO_SET_MODE, 0, 129, 6, 0, 0, 0, 0, 0),
         enc.command_int_encode(1, 0, 6, mavlink.MAV_CMD_NAV_LAND, 0, 0, 0, 0, 0, 0, 0, 0, 0),
-        enc.set_position_target_local_ned_encode(0, 1, 0, 1, 0xDF8, 50, -50, -20, 0, 0, 0, 0, 0, 0,
-                                                 0, 0),
+        enc.set_position_target_local_ned_encode(
+            0, 1, 0, 1, 0xDF8, 50, -50, -20, 0, 0, 0, 0, 0, 0, 0, 0
+        ),
         enc.param_set_encode(1, 0, b"MPC_XY_VEL_MAX", 3.0, 9),
         enc.set_mode_encode(1, 1, 4 << 16 | 2 << 24),
         enc.param_request_list_encode(1, 0),
@@ -182,6 +201,7 @@ def test_rescan_puts_a_parser_back_in_frame_after_a_stray_marker() -> None:
 @pytest.mark.slow
 def test_random_bytes_into_the_vehicle() -> None:
     with vehicle() as v:
+
         @FUZZ
         @given(st.binary(max_size=400), st.integers(1, 4))
         def run(data: bytes, chunks: int) -> None:
@@ -204,7 +224,9 @@ def test_mutated_packets_into_the_vehicle_are_counted_and_have_no_effect(caplog)
         @FUZZ
         @given(st.lists(mutation, min_size=1, max_size=4), st.integers(1, 3))
         def run(mutations, chunks: int) -> None:
-            stream = b"".join(corrupt(valid[k], pos, flip) + junk for k, pos, flip, junk in mutations)
+            stream = b"".join(
+                corrupt(valid[k], pos, flip) + junk for k, pos, flip, junk in mutations
+            )
             v.send(stream, chunks)
             v.safe()
 
@@ -233,7 +255,9 @@ def test_mutated_signed_packets_never_pass_the_signing_check() -> None:
         @given(st.lists(mutation, min_size=1, max_size=3))
         def run(mutations) -> None:
             fresh = packets(enc)  # freshly signed: only the corruption can make them fail
-            v.send(b"".join(corrupt(fresh[k], pos, flip) + junk for k, pos, flip, junk in mutations))
+            v.send(
+                b"".join(corrupt(fresh[k], pos, flip) + junk for k, pos, flip, junk in mutations)
+            )
             v.safe()
 
         run()
@@ -245,8 +269,10 @@ def test_mutated_signed_packets_never_pass_the_signing_check() -> None:
         assert [(a.command, a.result) for a in v.acks] == [(ARM, R.MAV_RESULT_ACCEPTED)] * sent
 
 
-finite_or_not = st.one_of(st.floats(allow_nan=True, allow_infinity=True, width=32),
-                          st.sampled_from([math.nan, math.inf, -math.inf, 3.4e38, -3.4e38, 0.0, 1.0]))
+finite_or_not = st.one_of(
+    st.floats(allow_nan=True, allow_infinity=True, width=32),
+    st.sampled_from([math.nan, math.inf, -math.inf, 3.4e38, -3.4e38, 0.0, 1.0]),
+)
 
 
 @pytest.mark.slow
@@ -257,17 +283,29 @@ def test_out_of_range_fields_are_refused_or_clamped(caplog) -> None:
         known = [ARM, 22, 21, 20, 176, 511, 512, 510, 520, 31337, 0, 65535]
 
         @FUZZ
-        @given(st.one_of(st.sampled_from(known), st.integers(0, 65535)),
-               st.lists(finite_or_not, min_size=7, max_size=7), st.sampled_from([0, 1, 158]),
-               st.one_of(st.just(1), st.integers(0, 255)),
-               st.one_of(st.sampled_from([0xDF8, 0x9F8, 0]), st.integers(0, 0xFFFF)),
-               st.lists(finite_or_not, min_size=4, max_size=4), st.booleans())
+        @given(
+            st.one_of(st.sampled_from(known), st.integers(0, 65535)),
+            st.lists(finite_or_not, min_size=7, max_size=7),
+            st.sampled_from([0, 1, 158]),
+            st.one_of(st.just(1), st.integers(0, 255)),
+            st.one_of(st.sampled_from([0xDF8, 0x9F8, 0]), st.integers(0, 0xFFFF)),
+            st.lists(finite_or_not, min_size=4, max_size=4),
+            st.booleans(),
+        )
         def run(command, params, component, frame, type_mask, sp, as_int) -> None:
             if as_int:
-                msg = enc.command_int_encode(1, component, frame, command, 0, 0, *params[:4],
-                                             int(np.clip(np.nan_to_num(params[4]), -2**31, 2**31 - 1)),
-                                             int(np.clip(np.nan_to_num(params[5]), -2**31, 2**31 - 1)),
-                                             params[6])
+                msg = enc.command_int_encode(
+                    1,
+                    component,
+                    frame,
+                    command,
+                    0,
+                    0,
+                    *params[:4],
+                    int(np.clip(np.nan_to_num(params[4]), -(2**31), 2**31 - 1)),
+                    int(np.clip(np.nan_to_num(params[5]), -(2**31), 2**31 - 1)),
+                    params[6],
+                )
             else:
                 msg = enc.command_long_encode(1, component, command, 0, *params)
             before = len(v.acks)
@@ -278,8 +316,9 @@ def test_out_of_range_fields_are_refused_or_clamped(caplog) -> None:
             known_ids = mavlink.enums["MAV_CMD"]
             if component == 158 or command not in known_ids or command in (0, 31337):
                 assert acks[0].result == R.MAV_RESULT_UNSUPPORTED
-            sp_msg = enc.set_position_target_local_ned_encode(0, 1, 0, frame, type_mask, *sp[:3],
-                                                              0, 0, 0, 0, 0, 0, sp[3], 0)
+            sp_msg = enc.set_position_target_local_ned_encode(
+                0, 1, 0, frame, type_mask, *sp[:3], 0, 0, 0, 0, 0, 0, sp[3], 0
+            )
             v.send(bytes(sp_msg.pack(enc)))
             v.safe()
 
@@ -292,19 +331,22 @@ def test_out_of_range_fields_are_refused_or_clamped(caplog) -> None:
     assert len([m for m in logged if "unsupported command 31337" in m]) <= 1
 
 
-@pytest.mark.parametrize("name,params,result", [
-    ("unknown command", (31337, 0, 0, 0, 0, 0, 0, 0), R.MAV_RESULT_UNSUPPORTED),
-    ("arm p1 NaN", (ARM, math.nan, 0, 0, 0, 0, 0, 0), R.MAV_RESULT_DENIED),
-    ("takeoff while disarmed", (22, *[math.nan] * 7), R.MAV_RESULT_DENIED),
-    ("mode with infinite base", (176, math.inf, 4, 3, 0, 0, 0, 0), R.MAV_RESULT_DENIED),
-    ("unknown mode", (176, 1, 99, 0, 0, 0, 0, 0), R.MAV_RESULT_DENIED),
-    ("manual mode (no RC)", (176, 1, 1, 0, 0, 0, 0, 0), R.MAV_RESULT_DENIED),
-    ("message interval infinite", (511, 30, math.inf, 0, 0, 0, 0, 0), R.MAV_RESULT_DENIED),
-    ("message interval negative", (511, 30, -0.5, 0, 0, 0, 0, 0), R.MAV_RESULT_DENIED),
-    ("request unknown message", (512, 1e9, 0, 0, 0, 0, 0, 0), R.MAV_RESULT_DENIED),
-    ("request NaN message", (512, math.nan, 0, 0, 0, 0, 0, 0), R.MAV_RESULT_DENIED),
-    ("arm", (ARM, 1, 0, 0, 0, 0, 0, 0), R.MAV_RESULT_ACCEPTED),
-])
+@pytest.mark.parametrize(
+    "name,params,result",
+    [
+        ("unknown command", (31337, 0, 0, 0, 0, 0, 0, 0), R.MAV_RESULT_UNSUPPORTED),
+        ("arm p1 NaN", (ARM, math.nan, 0, 0, 0, 0, 0, 0), R.MAV_RESULT_DENIED),
+        ("takeoff while disarmed", (22, *[math.nan] * 7), R.MAV_RESULT_DENIED),
+        ("mode with infinite base", (176, math.inf, 4, 3, 0, 0, 0, 0), R.MAV_RESULT_DENIED),
+        ("unknown mode", (176, 1, 99, 0, 0, 0, 0, 0), R.MAV_RESULT_DENIED),
+        ("manual mode (no RC)", (176, 1, 1, 0, 0, 0, 0, 0), R.MAV_RESULT_DENIED),
+        ("message interval infinite", (511, 30, math.inf, 0, 0, 0, 0, 0), R.MAV_RESULT_DENIED),
+        ("message interval negative", (511, 30, -0.5, 0, 0, 0, 0, 0), R.MAV_RESULT_DENIED),
+        ("request unknown message", (512, 1e9, 0, 0, 0, 0, 0, 0), R.MAV_RESULT_DENIED),
+        ("request NaN message", (512, math.nan, 0, 0, 0, 0, 0, 0), R.MAV_RESULT_DENIED),
+        ("arm", (ARM, 1, 0, 0, 0, 0, 0, 0), R.MAV_RESULT_ACCEPTED),
+    ],
+)
 def test_command_ack_results(name: str, params: tuple, result: int, caplog) -> None:
     caplog.set_level(logging.WARNING, logger="sitl_stub")
     with vehicle() as v:
@@ -331,7 +373,13 @@ def test_a_failing_command_handler_answers_failed_and_the_vehicle_flies_on(monke
         monkeypatch.undo()
         v.server.stats["handler_errors"] = 0
         # a command for the radio payload component (it has no command handler)
-        v.send(bytes(enc.command_long_encode(1, RADIO_COMPONENT_ID, ARM, 0, 1, 0, 0, 0, 0, 0, 0).pack(enc)))
+        v.send(
+            bytes(
+                enc.command_long_encode(1, RADIO_COMPONENT_ID, ARM, 0, 1, 0, 0, 0, 0, 0, 0).pack(
+                    enc
+                )
+            )
+        )
         assert (v.acks[-1].command, v.acks[-1].result) == (ARM, R.MAV_RESULT_UNSUPPORTED)
         v.send(bytes(enc.command_long_encode(1, 0, ARM, 0, 1, 0, 0, 0, 0, 0, 0).pack(enc)))
         assert (v.acks[-1].command, v.acks[-1].result) == (ARM, R.MAV_RESULT_ACCEPTED)

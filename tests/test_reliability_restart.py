@@ -15,7 +15,7 @@ import time
 from pathlib import Path
 
 import pytest
-from mavlink_gcs import FAST_TAKEOFF, Gcs, parse_vehicle_stats, wait_for_vehicle
+from support.mavlink_gcs import FAST_TAKEOFF, Gcs, parse_vehicle_stats, wait_for_vehicle
 
 from sitl_stub.launcher import vehicle_process
 from uavlink.mavlink.connection import free_udp_port
@@ -26,7 +26,9 @@ ROOT = Path(__file__).resolve().parents[1]
 SPEED = 20.0
 COM_OF_LOSS_T = 1.0
 HEARTBEAT_SIM_PERIOD_S = 1.0
-POSITION_SIM_PERIOD_S = 0.4  # LOCAL_POSITION_NED: 10 Hz, capped at 50 Hz of wall time = 0.4 s at 20x
+POSITION_SIM_PERIOD_S = (
+    0.4  # LOCAL_POSITION_NED: 10 Hz, capped at 50 Hz of wall time = 0.4 s at 20x
+)
 OFFBOARD = 6 << 16
 LOITER = 4 << 16 | 3 << 24
 TAKEOFF = 4 << 16 | 2 << 24
@@ -34,10 +36,31 @@ TAKEOFF = 4 << 16 | 2 << 24
 
 def _fly(port: int, out: Path) -> subprocess.Popen:
     return subprocess.Popen(
-        [sys.executable, "-m", "uavlink.cli", "fly", "--connect", f"udpout:127.0.0.1:{port}",
-         "--policy", "aoa", "--scenario", "straight", "--seed", "4", "--frames", "128",
-         "--out", str(out), "--json", "--quiet"],
-        stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, cwd=ROOT)
+        [
+            sys.executable,
+            "-m",
+            "uavlink.cli",
+            "fly",
+            "--connect",
+            f"udpout:127.0.0.1:{port}",
+            "--policy",
+            "aoa",
+            "--scenario",
+            "straight",
+            "--seed",
+            "4",
+            "--frames",
+            "128",
+            "--out",
+            str(out),
+            "--json",
+            "--quiet",
+        ],
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+        text=True,
+        cwd=ROOT,
+    )
 
 
 def _frame(gcs: Gcs) -> int:
@@ -47,7 +70,9 @@ def _frame(gcs: Gcs) -> int:
 
 @pytest.mark.slow
 @pytest.mark.timeout(90)
-def test_killed_fly_fails_safe_to_hold_and_a_restart_resumes_without_takeoff(tmp_path: Path) -> None:
+def test_killed_fly_fails_safe_to_hold_and_a_restart_resumes_without_takeoff(
+    tmp_path: Path,
+) -> None:
     port = free_udp_port()
     args = ["--scenario", "straight", "--seed", "4", *FAST_TAKEOFF]
     with vehicle_process(f"udp:127.0.0.1:{port}", SPEED, args) as vehicle:
@@ -56,8 +81,11 @@ def test_killed_fly_fails_safe_to_hold_and_a_restart_resumes_without_takeoff(tmp
         try:
             wait_for_vehicle(gcs, vehicle)
             first = _fly(port, tmp_path / "first")
-            gcs.wait(lambda: gcs.mode == (OFFBOARD, True) and _frame(gcs) >= 20, 60.0,
-                     "20 frames of the episode")
+            gcs.wait(
+                lambda: gcs.mode == (OFFBOARD, True) and _frame(gcs) >= 20,
+                60.0,
+                "20 frames of the episode",
+            )
             gcs.pump(0.0)  # the newest position report that has arrived
             first.send_signal(signal.SIGKILL)
             killed_at = time.monotonic()
@@ -73,9 +101,11 @@ def test_killed_fly_fails_safe_to_hold_and_a_restart_resumes_without_takeoff(tmp
             held_at = gcs.modes[-1][0]
             held_sim = gcs.wait_message("LOCAL_POSITION_NED").time_boot_ms * 1e-3  # >= hold
             bound_sim = COM_OF_LOSS_T + HEARTBEAT_SIM_PERIOD_S + 2 * POSITION_SIM_PERIOD_S
-            print(f"\nfly killed at frame {frame_at_kill}; heartbeat showed AUTO.LOITER "
-                  f"{held_at - killed_at:.3f} s of wall time later (--speed {SPEED:g}); "
-                  f"{held_sim - killed_sim:.2f} s of vehicle time (bound {bound_sim:g} s)")
+            print(
+                f"\nfly killed at frame {frame_at_kill}; heartbeat showed AUTO.LOITER "
+                f"{held_at - killed_at:.3f} s of wall time later (--speed {SPEED:g}); "
+                f"{held_sim - killed_sim:.2f} s of vehicle time (bound {bound_sim:g} s)"
+            )
             assert held_sim - killed_sim <= bound_sim
             assert held_at - killed_at <= 3.0  # and not only in vehicle time
             gcs.wait(lambda: any("offboard lost" in t for t in gcs.texts), 2.0, "failsafe text")
@@ -108,7 +138,9 @@ def test_killed_fly_fails_safe_to_hold_and_a_restart_resumes_without_takeoff(tmp
     assert summary["resumed_in_air"] is True and "resuming without take-off" in err
     assert summary["first_frame"] > frame_at_kill and summary["ended_by"] == "episode done"
     remaining = 128 - summary["first_frame"]
-    accounted = summary["decisions"] + summary["stale_radio_reports"] + summary["radio_frames_missed"]
+    accounted = (
+        summary["decisions"] + summary["stale_radio_reports"] + summary["radio_frames_missed"]
+    )
     assert accounted == remaining and summary["decisions"] >= 0.85 * remaining, summary
     modes_after = [mode for _, mode, _ in gcs.modes[restart_mark:]]
     assert OFFBOARD in modes_after and TAKEOFF not in modes_after, gcs.modes

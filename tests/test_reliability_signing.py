@@ -17,8 +17,8 @@ import time
 from pathlib import Path
 
 import pytest
-from conftest import run_uavlink_in_process
-from mavlink_gcs import FAST_TAKEOFF, Gcs, parse_vehicle_stats, wait_for_vehicle
+from support.cli import run_uavlink_in_process
+from support.mavlink_gcs import FAST_TAKEOFF, Gcs, parse_vehicle_stats, wait_for_vehicle
 
 from sitl_stub.launcher import vehicle_process
 from uavlink.mavlink.connection import free_udp_port
@@ -74,17 +74,32 @@ def _arm_packet(mav) -> bytes:
 @pytest.mark.slow
 def test_keygen_writes_a_private_32_byte_key_and_never_overwrites(tmp_path: Path) -> None:
     out = tmp_path / "vehicle.key"
-    r = subprocess.run([*UAVLINK, "keygen", "--out", str(out)], capture_output=True, text=True,
-                       timeout=60, cwd=ROOT)
+    r = subprocess.run(
+        [*UAVLINK, "keygen", "--out", str(out)],
+        capture_output=True,
+        text=True,
+        timeout=60,
+        cwd=ROOT,
+    )
     assert r.returncode == 0, r.stderr
     assert len(out.read_bytes()) == 32 and stat.S_IMODE(out.stat().st_mode) == 0o600
     key = out.read_bytes()
-    again = subprocess.run([*UAVLINK, "keygen", "--out", str(out)], capture_output=True, text=True,
-                           timeout=60, cwd=ROOT)
+    again = subprocess.run(
+        [*UAVLINK, "keygen", "--out", str(out)],
+        capture_output=True,
+        text=True,
+        timeout=60,
+        cwd=ROOT,
+    )
     assert again.returncode == 2 and "refusing to overwrite" in again.stderr
     assert out.read_bytes() == key
-    nowhere = subprocess.run([*UAVLINK, "keygen", "--out", str(tmp_path / "none" / "k.key")], capture_output=True,
-                             text=True, timeout=60, cwd=ROOT)
+    nowhere = subprocess.run(
+        [*UAVLINK, "keygen", "--out", str(tmp_path / "none" / "k.key")],
+        capture_output=True,
+        text=True,
+        timeout=60,
+        cwd=ROOT,
+    )
     assert nowhere.returncode == 2 and "does not exist (create it first)" in nowhere.stderr
     assert "Traceback" not in nowhere.stderr and not (tmp_path / "none").exists()
     assert write_key(tmp_path / "other.key").read_bytes() != key  # os.urandom, not a constant
@@ -92,8 +107,10 @@ def test_keygen_writes_a_private_32_byte_key_and_never_overwrites(tmp_path: Path
     short.write_bytes(b"x" * 16)
     with pytest.raises(ValueError, match="16 bytes"):
         load_key(short)
-    for cmd in ([sys.executable, "-m", "sitl_stub", "--signing-key", str(short)],
-                [*UAVLINK, "fly", "--signing-key", str(short), "--policy", "static"]):
+    for cmd in (
+        [sys.executable, "-m", "sitl_stub", "--signing-key", str(short)],
+        [*UAVLINK, "fly", "--signing-key", str(short), "--policy", "static"],
+    ):
         r = subprocess.run(cmd, capture_output=True, text=True, timeout=60, cwd=ROOT)
         assert r.returncode == 2 and "32 raw bytes" in r.stderr and "Traceback" not in r.stderr
 
@@ -115,8 +132,13 @@ def test_verifier_refuses_unsigned_wrong_key_replay_and_stale_streams() -> None:
     # ... while one 30 s old is accepted (MAVLink's 60 s window for new streams)
     recent, _ = _endpoint(key, 245, 193, clock=lambda: time.time() - 30)
     assert rx.parse_char(_arm_packet(recent)).get_type() == "COMMAND_LONG"
-    assert guard.stats() == {"accepted": 2, "rejected_unsigned": 1, "rejected_bad_signature": 1,
-                             "rejected_replay": 1, "rejected_stale_stream": 1}
+    assert guard.stats() == {
+        "accepted": 2,
+        "rejected_unsigned": 1,
+        "rejected_bad_signature": 1,
+        "rejected_replay": 1,
+        "rejected_stale_stream": 1,
+    }
 
 
 def test_forged_future_timestamp_does_not_block_the_stream() -> None:
@@ -231,10 +253,31 @@ def test_signed_flight_ignores_ground_stations_without_the_key(tmp_path: Path) -
     with vehicle_process(f"udp:127.0.0.1:{port}", 20.0, args) as vehicle:
         attackers = [Gcs(port, 246, 190), Gcs(port, 247, 190, key=os.urandom(32))]
         fly = subprocess.Popen(
-            [*UAVLINK, "fly", "--connect", f"udpout:127.0.0.1:{port}", "--signing-key", str(keyfile),
-             "--policy", "aoa", "--scenario", "straight", "--seed", "2", "--frames", str(frames),
-             "--out", str(tmp_path / "fly"), "--json", "--quiet"],
-            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, cwd=ROOT)
+            [
+                *UAVLINK,
+                "fly",
+                "--connect",
+                f"udpout:127.0.0.1:{port}",
+                "--signing-key",
+                str(keyfile),
+                "--policy",
+                "aoa",
+                "--scenario",
+                "straight",
+                "--seed",
+                "2",
+                "--frames",
+                str(frames),
+                "--out",
+                str(tmp_path / "fly"),
+                "--json",
+                "--quiet",
+            ],
+            stdout=subprocess.PIPE,
+            stderr=subprocess.PIPE,
+            text=True,
+            cwd=ROOT,
+        )
         low_in_offboard, attacks, last = [], 0, 0.0
         try:
             deadline = time.monotonic() + 60
@@ -249,9 +292,26 @@ def test_signed_flight_ignores_ground_stations_without_the_key(tmp_path: Path) -
                         a.mav.command_long_send(1, 0, ARM, 0, 0, FORCE, 0, 0, 0, 0, 0)
                         a.mav.command_long_send(1, 0, SET_MODE, 0, 129, 4, 6, 0, 0, 0, 0)
                         a.mav.set_position_target_local_ned_send(
-                            0, 1, 0, mavlink.MAV_FRAME_LOCAL_NED, 0xDF8, -195, -195, -5,
-                            0, 0, 0, 0, 0, 0, 0, 0)
-                        a.mav.param_set_send(1, 0, b"MPC_XY_VEL_MAX", 0.5, mavlink.MAV_PARAM_TYPE_REAL32)
+                            0,
+                            1,
+                            0,
+                            mavlink.MAV_FRAME_LOCAL_NED,
+                            0xDF8,
+                            -195,
+                            -195,
+                            -5,
+                            0,
+                            0,
+                            0,
+                            0,
+                            0,
+                            0,
+                            0,
+                            0,
+                        )
+                        a.mav.param_set_send(
+                            1, 0, b"MPC_XY_VEL_MAX", 0.5, mavlink.MAV_PARAM_TYPE_REAL32
+                        )
                     pos = spy.last.get("LOCAL_POSITION_NED")
                     if pos is not None:
                         low_in_offboard.append(-pos.z)
@@ -271,7 +331,10 @@ def test_signed_flight_ignores_ground_stations_without_the_key(tmp_path: Path) -
         assert summary["frames"] == frames and summary["radio_frames_missed"] == 0
         assert summary["decisions"] + summary["stale_radio_reports"] == frames, summary
         assert summary["decisions"] >= 0.9 * frames, summary
-        assert summary["ended_by"] == "episode done" and summary["signing"]["rejected_bad_signature"] == 0
+        assert (
+            summary["ended_by"] == "episode done"
+            and summary["signing"]["rejected_bad_signature"] == 0
+        )
         assert attacks >= 10 and min(low_in_offboard) > 90.0
         offboard_at = next(t for t, mode, _ in attackers[0].modes if mode == OFFBOARD)
         during = [(mode, armed) for t, mode, armed in attackers[0].modes if t >= offboard_at]
@@ -315,8 +378,19 @@ def test_a_flight_with_another_key_than_the_vehicles_fails_at_once(tmp_path: Pat
     port = free_udp_port()
     with vehicle_process(f"udpout:127.0.0.1:{port}", 10.0, ["--signing-key", str(theirs)]):
         started = time.monotonic()
-        proc = run_uavlink_in_process("fly", "--policy", "aoa", "--connect", f"udpin:127.0.0.1:{port}",
-                                      "--signing-key", str(ours), "--frames", "3", "--out", str(tmp_path / "fly"))
+        proc = run_uavlink_in_process(
+            "fly",
+            "--policy",
+            "aoa",
+            "--connect",
+            f"udpin:127.0.0.1:{port}",
+            "--signing-key",
+            str(ours),
+            "--frames",
+            "3",
+            "--out",
+            str(tmp_path / "fly"),
+        )
         elapsed = time.monotonic() - started
     assert proc.returncode == 1 and elapsed < 15.0, (elapsed, proc.stderr)
     assert "no heartbeat accepted from" in proc.stderr and "signed with another key" in proc.stderr
@@ -328,12 +402,28 @@ def test_a_flight_with_another_key_than_the_vehicles_fails_at_once(tmp_path: Pat
 def test_a_signed_fleet_flight_reports_each_links_signing(tmp_path: Path) -> None:
     """`fly` of a fleet with a key (the embedded `sitl_stub --fleet 2` signs too): each vehicle's part
     of the summary says what its link accepted and refused, as one vehicle's summary does."""
-    from conftest import cli_json
+    from support.cli import cli_json
 
     key = write_key(tmp_path / "fleet.key")
-    flown = cli_json("fly", "--policy", "aoa", "--set", "n_uavs=2", "--frames", "4", "--lockstep",
-                     "--signing-key", str(key), "--out", str(tmp_path / "fly"), "--json", "--no-picture")
+    flown = cli_json(
+        "fly",
+        "--policy",
+        "aoa",
+        "--set",
+        "n_uavs=2",
+        "--frames",
+        "4",
+        "--lockstep",
+        "--signing-key",
+        str(key),
+        "--out",
+        str(tmp_path / "fly"),
+        "--json",
+        "--no-picture",
+    )
     assert flown["completed"] and [v["system_id"] for v in flown["vehicles"]] == [1, 2], flown
     for vehicle in flown["vehicles"]:
         assert vehicle["signing"]["accepted"] > 100 and vehicle["link_rejected"] == {}, vehicle
-        assert not any(n for k, n in vehicle["signing"].items() if k.startswith("rejected_")), vehicle
+        assert not any(n for k, n in vehicle["signing"].items() if k.startswith("rejected_")), (
+            vehicle
+        )

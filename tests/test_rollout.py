@@ -72,6 +72,7 @@ def test_a_policy_for_another_layout_and_a_bad_count_are_refused() -> None:
 def test_streams_keep_the_seeds_of_the_loops_they_replaced() -> None:
     """Same seeds, same figures: evaluation's chunks were SeedSequence([seed, chunk]), export's one
     batch SeedSequence([seed, 0xE0]), the shadowing data's hovers default_rng([seed, 0x5AD, 0, chunk, 1])."""
+
     def state(seq: np.random.SeedSequence) -> list[int]:
         return seq.generate_state(4).tolist()
 
@@ -79,5 +80,14 @@ def test_streams_keep_the_seeds_of_the_loops_they_replaced() -> None:
     assert state(EXPORT.seed(5, 0)) == state(np.random.SeedSequence([5, 0xE0]))
     assert state(SHADOW_HOVERS.seed(5, 3)) == state(np.random.SeedSequence([5, 0x5AD, 0, 3, 1]))
     assert SHADOW_HOVERS.chunk_envs == SHADOW.chunk_envs
-    assert len({s.seed(5, 0).entropy if isinstance(s.seed(5, 0).entropy, int) else tuple(s.seed(5, 0).entropy)
-                for s in (EVAL, TEACHER, SHADOW, SHADOW_HOVERS, EXPORT)}) == 5
+    assert (
+        len(
+            {
+                s.seed(5, 0).entropy
+                if isinstance(s.seed(5, 0).entropy, int)
+                else tuple(s.seed(5, 0).entropy)
+                for s in (EVAL, TEACHER, SHADOW, SHADOW_HOVERS, EXPORT)
+            }
+        )
+        == 5
+    )

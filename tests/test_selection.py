@@ -7,7 +7,7 @@ from dataclasses import replace
 from pathlib import Path
 
 import pytest
-from conftest import TINY_TRAINING
+from support.cli import TINY_TRAINING
 
 from uavlink.config import EnvConfig, TrainConfig
 from uavlink.learn.selection import validation_rate_mbps
@@ -22,14 +22,21 @@ EPISODES = 16
 
 def test_training_ships_the_best_scored_weights_and_only_observes_to_choose(tmp_path: Path) -> None:
     plain_tc = TrainConfig(**TINY_TRAINING)
-    chosen = train(CFG, replace(plain_tc, validation_episodes=EPISODES), tmp_path / "chosen.zip", None,
-                   progress=False)
+    chosen = train(
+        CFG,
+        replace(plain_tc, validation_episodes=EPISODES),
+        tmp_path / "chosen.zip",
+        None,
+        progress=False,
+    )
     train(CFG, plain_tc, tmp_path / "last.zip", None, progress=False)
     report = chosen["validation"]
     rollouts = -(-chosen["total_timesteps"] // (plain_tc.n_envs * plain_tc.n_steps))
     steps = [step for step, _ in report["curve"]]
     # scored before the first update (step 0), after each update, and at the end
-    assert steps == [i * plain_tc.n_envs * plain_tc.n_steps for i in range(rollouts)] + [chosen["total_timesteps"]]
+    assert steps == [i * plain_tc.n_envs * plain_tc.n_steps for i in range(rollouts)] + [
+        chosen["total_timesteps"]
+    ]
     scores = [mbps for _, mbps in report["curve"]]
     assert report["kept_mbps"] == max(scores)
     assert report["kept_steps"] == steps[scores.index(max(scores))]  # the earliest of equals
@@ -52,11 +59,33 @@ def test_train_cli_says_which_weights_it_kept(tmp_path: Path, capsys) -> None:
     from uavlink.cli import main
 
     out = tmp_path / "p.zip"
-    assert main(["train", "--scenario", "straight", "--episodes", "32", "--n-envs", "16", "--batch-size", "256",
-                 "--validation-episodes", "8", "--eval-episodes", "0", "--out", str(out)]) == 0
+    assert (
+        main(
+            [
+                "train",
+                "--scenario",
+                "straight",
+                "--episodes",
+                "32",
+                "--n-envs",
+                "16",
+                "--batch-size",
+                "256",
+                "--validation-episodes",
+                "8",
+                "--eval-episodes",
+                "0",
+                "--out",
+                str(out),
+            ]
+        )
+        == 0
+    )
     kept = json.loads(out.with_suffix(".json").read_text())["training"]["validation"]
-    assert (f"kept the weights after {kept['kept_steps']:,} steps: {kept['kept_mbps']:.3f} Mbps on 8 "
-            f"validation episodes") in capsys.readouterr().out
+    assert (
+        f"kept the weights after {kept['kept_steps']:,} steps: {kept['kept_mbps']:.3f} Mbps on 8 "
+        f"validation episodes"
+    ) in capsys.readouterr().out
 
 
 def test_a_fleet_keeps_its_best_weights_too(tmp_path: Path) -> None:

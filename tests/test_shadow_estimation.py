@@ -23,7 +23,9 @@ def test_estimator_explains_most_of_the_links_shadowing_on_held_out_episodes() -
     # Reproducible from its seed; a different seed gives different data.
     again = fit_shadow_estimator(CFG, episodes=64, seed=0)
     np.testing.assert_array_equal(again.weights, estimator.weights)
-    assert not np.array_equal(fit_shadow_estimator(CFG, episodes=64, seed=1).weights, estimator.weights)
+    assert not np.array_equal(
+        fit_shadow_estimator(CFG, episodes=64, seed=1).weights, estimator.weights
+    )
 
 
 def test_estimator_reads_the_observation_only() -> None:
@@ -32,7 +34,9 @@ def test_estimator_reads_the_observation_only() -> None:
     obs = env.reset()
     for _ in range(4):
         obs = env.step(np.zeros((5, 2), np.float32)).observation
-    np.testing.assert_allclose(estimator.predict_db(obs), shadow_features(estimator.layout, obs) @ estimator.weights)
+    np.testing.assert_allclose(
+        estimator.predict_db(obs), shadow_features(estimator.layout, obs) @ estimator.weights
+    )
     assert shadow_features(estimator.layout, obs).shape[0] == 5
     assert not AoaVariant(CFG, shadow_gate_db=2.0, shadow_estimator=estimator).needs_truth
 

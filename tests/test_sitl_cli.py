@@ -14,7 +14,7 @@ import time
 from pathlib import Path
 
 import pytest
-from mavlink_gcs import Gcs, parse_vehicle_stats, wait_for_vehicle
+from support.mavlink_gcs import Gcs, parse_vehicle_stats, wait_for_vehicle
 
 from sitl_stub.__main__ import _LogFormat, build_parser, main
 from sitl_stub.launcher import READY_LINE, VehicleProcess, vehicle_process
@@ -55,8 +55,11 @@ def test_lockstep_without_the_radio_payload_is_refused_in_one_line(capsys, extra
 
 
 def test_the_flag_table_documents_every_flag() -> None:
-    first_cells = " ".join(row.split("|")[1] for row in DOC.splitlines()
-                           if row.startswith("| `-") or row.startswith("| (none)"))
+    first_cells = " ".join(
+        row.split("|")[1]
+        for row in DOC.splitlines()
+        if row.startswith("| `-") or row.startswith("| (none)")
+    )
     documented = set(re.findall(r"-{1,2}[a-z][a-z-]*", first_cells))
     for action in build_parser()._actions:
         if "-h" not in action.option_strings:
@@ -72,7 +75,9 @@ def test_the_payload_options_sentence_names_the_class_fields() -> None:
 def test_the_doc_names_every_kind_of_refused_mission_message() -> None:
     source = (ROOT / "sitl_stub" / "mavlink" / "mission_protocol.py").read_text()
     kinds = {f"mission_{m}_refused" for m in re.findall(r'self\._refuse\("(\w+)"', source)}
-    assert kinds == {f"mission_{m}_refused" for m in ("count", "item", "request", "clear", "current")}
+    assert kinds == {
+        f"mission_{m}_refused" for m in ("count", "item", "request", "clear", "current")
+    }
     stats_paragraph = DOC.split("Bad arguments print one line")[1].split("## Packages")[0]
     for kind in kinds:
         assert f"`{kind}`" in stats_paragraph
@@ -90,7 +95,9 @@ def test_log_lines_carry_the_programs_prefix() -> None:
     try:
         raise ValueError("boom")
     except ValueError:
-        record = logging.LogRecord("sitl_stub", logging.ERROR, __file__, 1, "failed", (), sys.exc_info())
+        record = logging.LogRecord(
+            "sitl_stub", logging.ERROR, __file__, 1, "failed", (), sys.exc_info()
+        )
     text = fmt.format(record)
     assert text.startswith("sitl-stub: failed\nTraceback") and "ValueError: boom" in text
     assert not READY_LINE.match(line("sitl_stub", "vehicle 1 armed"))
@@ -99,10 +106,12 @@ def test_log_lines_carry_the_programs_prefix() -> None:
 def test_a_log_line_before_the_ready_line_is_not_taken_for_it(tmp_path: Path) -> None:
     log, go = tmp_path / "vehicle.log", tmp_path / "go"
     # the ready line only once the test says so (the flag file): no race with a loaded machine
-    script = ("echo 'sitl-stub: rejected input: bad MAVLink data (counted as bad_data; logged once)'; "
-              f"while [ ! -e {go} ]; do sleep 0.05; done; echo 'sitl-stub: fleet of 2 vehicles (one shared "
-              "radio world) on udpout:127.0.0.1:1, udpout:127.0.0.1:2, 20x real time, 1 payload(s), "
-              "signing off'; sleep 5")
+    script = (
+        "echo 'sitl-stub: rejected input: bad MAVLink data (counted as bad_data; logged once)'; "
+        f"while [ ! -e {go} ]; do sleep 0.05; done; echo 'sitl-stub: fleet of 2 vehicles (one shared "
+        "radio world) on udpout:127.0.0.1:1, udpout:127.0.0.1:2, 20x real time, 1 payload(s), "
+        "signing off'; sleep 5"
+    )
     with open(log, "wb") as out:
         proc = subprocess.Popen(["sh", "-c", script], stdout=out, stderr=subprocess.STDOUT)
     child = VehicleProcess(proc, log)
@@ -132,9 +141,23 @@ def test_a_refused_mission_item_is_logged_and_counted_and_every_line_has_one_pre
             wait_for_vehicle(gcs, vehicle, 30.0)
             gcs.mav.mission_count_send(1, 1, 1, mavlink.MAV_MISSION_TYPE_MISSION)
             gcs.wait_message("MISSION_REQUEST_INT")
-            gcs.mav.mission_item_int_send(1, 1, 0, mavlink.MAV_FRAME_GLOBAL_RELATIVE_ALT_INT,
-                                          mavlink.MAV_CMD_NAV_RETURN_TO_LAUNCH, 0, 1, 0, 0, 0, 0,
-                                          0, 0, 0, mavlink.MAV_MISSION_TYPE_MISSION)
+            gcs.mav.mission_item_int_send(
+                1,
+                1,
+                0,
+                mavlink.MAV_FRAME_GLOBAL_RELATIVE_ALT_INT,
+                mavlink.MAV_CMD_NAV_RETURN_TO_LAUNCH,
+                0,
+                1,
+                0,
+                0,
+                0,
+                0,
+                0,
+                0,
+                0,
+                mavlink.MAV_MISSION_TYPE_MISSION,
+            )
             ack = gcs.wait_message("MISSION_ACK")
             assert ack.type == mavlink.MAV_MISSION_UNSUPPORTED
         finally:
@@ -143,9 +166,14 @@ def test_a_refused_mission_item_is_logged_and_counted_and_every_line_has_one_pre
         output = vehicle.output()
     lines = [ln for ln in output.splitlines() if ln.strip()]
     assert all(ln.startswith("sitl-stub: ") for ln in lines), output
-    assert any(ln.startswith("sitl-stub: rejected input: MISSION_ITEM_INT 0: "
-                             "MAV_CMD_NAV_RETURN_TO_LAUNCH in frame MAV_FRAME_GLOBAL_RELATIVE_ALT_INT: "
-                             "MAV_MISSION_UNSUPPORTED") for ln in lines), output
+    assert any(
+        ln.startswith(
+            "sitl-stub: rejected input: MISSION_ITEM_INT 0: "
+            "MAV_CMD_NAV_RETURN_TO_LAUNCH in frame MAV_FRAME_GLOBAL_RELATIVE_ALT_INT: "
+            "MAV_MISSION_UNSUPPORTED"
+        )
+        for ln in lines
+    ), output
     stats = parse_vehicle_stats(output)
     assert stats["rejected"] == {"mission_item_refused": 1}, stats["rejected"]
     assert stats["payloads"]["158"]["episodes"] == 0, stats["payloads"]

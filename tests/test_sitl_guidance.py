@@ -26,13 +26,22 @@ from sitl_stub.mavlink.setpoints import Refusal, Setpoint, read_setpoint
 
 NAN = math.nan
 # MAVSDK offboard_impl.cpp's type masks
-VELOCITY_NED, VELOCITY_BODY, POSITION_VELOCITY, ACCELERATION, POSITION = 0x9C7, 0x5C7, 0x9C0, 0xC3F, 0x9F8
+VELOCITY_NED, VELOCITY_BODY, POSITION_VELOCITY, ACCELERATION, POSITION = (
+    0x9C7,
+    0x5C7,
+    0x9C0,
+    0xC3F,
+    0x9F8,
+)
 ORIGIN = GeoOrigin()
 
 
 def flying(alt_m: float = 10.0, **params: float) -> Vehicle:
-    v = Vehicle(ParamStore({"MIS_TAKEOFF_ALT": alt_m, "MPC_TKO_SPEED": 5.0, "MPC_Z_VEL_MAX_UP": 5.0,
-                            **params}))
+    v = Vehicle(
+        ParamStore(
+            {"MIS_TAKEOFF_ALT": alt_m, "MPC_TKO_SPEED": 5.0, "MPC_Z_VEL_MAX_UP": 5.0, **params}
+        )
+    )
     assert v.arm().ok and v.takeoff().ok
     v.step(alt_m / 5.0 + 5.0)
     assert v.mode is FlightMode.LOITER and abs(v.state().altitude_m - alt_m) < 0.5
@@ -49,11 +58,14 @@ def offboard_velocity(v: Vehicle, velocity_ned: tuple[float, float, float], seco
         v.step(0.05)
 
 
-@pytest.mark.parametrize(("mask", "free", "velocity"), [
-    (VELOCITY_NED, (True, True, True), (1.0, 2.0, -0.5)),
-    (POSITION_VELOCITY, (False, False, False), (1.0, 2.0, -0.5)),
-    (0x9C3, (True, True, False), (1.0, 2.0, -0.5)),  # velocity north/east, position down
-])
+@pytest.mark.parametrize(
+    ("mask", "free", "velocity"),
+    [
+        (VELOCITY_NED, (True, True, True), (1.0, 2.0, -0.5)),
+        (POSITION_VELOCITY, (False, False, False), (1.0, 2.0, -0.5)),
+        (0x9C3, (True, True, False), (1.0, 2.0, -0.5)),  # velocity north/east, position down
+    ],
+)
 def test_masks_mavsdk_sends_become_motions(mask, free, velocity):
     sp = read_setpoint(mask, (5.0, 6.0, -7.0), (1.0, 2.0, -0.5), 0.3, 0.0)
     assert isinstance(sp, Setpoint) and sp.motion is not None
@@ -65,24 +77,33 @@ def test_masks_mavsdk_sends_become_motions(mask, free, velocity):
 def test_position_masks_stay_position_setpoints():
     for mask in (POSITION, 0xDF8, 0x1F8):
         sp = read_setpoint(mask, (5.0, 6.0, -7.0), (9.0, 9.0, 9.0), 0.3, 0.0)
-        assert isinstance(sp, Setpoint) and sp.motion is None and sp.position_ned == (5.0, 6.0, -7.0)
+        assert (
+            isinstance(sp, Setpoint) and sp.motion is None and sp.position_ned == (5.0, 6.0, -7.0)
+        )
     assert read_setpoint(0x1F8 | 0x400, (1, 2, 3), (0, 0, 0), 0.3, 0.0).yaw_rad is None
 
 
 def test_body_velocity_is_rotated_by_heading_and_uses_yaw_rate():
-    sp = read_setpoint(VELOCITY_BODY, (0, 0, 0), (2.0, 1.0, 0.5), 0.0, 0.2, body_yaw_rad=math.pi / 2)
+    sp = read_setpoint(
+        VELOCITY_BODY, (0, 0, 0), (2.0, 1.0, 0.5), 0.0, 0.2, body_yaw_rad=math.pi / 2
+    )
     assert isinstance(sp, Setpoint) and sp.yaw_rad is None and sp.motion.yaw_rate_radps == 0.2
-    assert sp.motion.velocity_ned == pytest.approx((-1.0, 2.0, 0.5))  # forward = east, right = south
+    assert sp.motion.velocity_ned == pytest.approx(
+        (-1.0, 2.0, 0.5)
+    )  # forward = east, right = south
     assert body_to_ned(1.0, 0.0, 0.0, math.pi) == pytest.approx((-1.0, 0.0, 0.0))
 
 
-@pytest.mark.parametrize(("mask", "body", "kind"), [
-    (ACCELERATION, None, "setpoint_type_mask"),  # acceleration only: not flown
-    (0xFFF, None, "setpoint_type_mask"),
-    (0x9C1, None, "setpoint_type_mask"),  # north free, east not
-    (0x9FF & ~0x8, None, "setpoint_type_mask"),  # position ignored, only vx given
-    (POSITION, 0.0, "setpoint_frame"),  # positions in a body frame
-])
+@pytest.mark.parametrize(
+    ("mask", "body", "kind"),
+    [
+        (ACCELERATION, None, "setpoint_type_mask"),  # acceleration only: not flown
+        (0xFFF, None, "setpoint_type_mask"),
+        (0x9C1, None, "setpoint_type_mask"),  # north free, east not
+        (0x9FF & ~0x8, None, "setpoint_type_mask"),  # position ignored, only vx given
+        (POSITION, 0.0, "setpoint_frame"),  # positions in a body frame
+    ],
+)
 def test_unusable_masks_are_refused(mask, body, kind):
     sp = read_setpoint(mask, (1.0, 2.0, 3.0), (0.0, 0.0, 0.0), 0.0, 0.0, body_yaw_rad=body)
     assert isinstance(sp, Refusal) and sp.kind == kind and sp.text
@@ -181,14 +202,21 @@ def test_orbit_circles_at_the_radius_and_speed():
         s = v.state()
         radii.append(math.hypot(s.north_m, s.east_m))
         angles.append(math.atan2(s.east_m, s.north_m))
-    assert min(radii) > 24.5 and max(radii) < 25.5 and s.ground_speed_mps == pytest.approx(4.0, abs=0.05)
+    assert (
+        min(radii) > 24.5
+        and max(radii) < 25.5
+        and s.ground_speed_mps == pytest.approx(4.0, abs=0.05)
+    )
     assert math.remainder(angles[-1] - angles[0], 2 * math.pi) < 0  # azimuth decreasing
     assert s.orbit is not None and s.orbit.signed_radius_m == -25.0
     assert s.altitude_m == pytest.approx(10.0, abs=0.1)
 
 
 def test_orbit_needs_a_flying_vehicle():
-    assert guided.orbit(Vehicle(), ORIGIN, (10.0, 2.0, 0, 0, NAN, NAN, NAN), None).result is Result.DENIED
+    assert (
+        guided.orbit(Vehicle(), ORIGIN, (10.0, 2.0, 0, 0, NAN, NAN, NAN), None).result
+        is Result.DENIED
+    )
 
 
 def test_failure_injection_needs_sys_failure_en():
@@ -208,7 +236,9 @@ def test_failure_injection_needs_sys_failure_en():
 def test_global_points_and_heights():
     assert guided.global_point((0, 0, 0, 0, 2**31 - 1, 2**31 - 1, 0), 5) is None
     assert guided.global_point((0, 0, 0, 0, -(2**31), -(2**31), 0), 5) is None
-    assert guided.global_point((0, 0, 0, 0, 473977420, 85455940, 0), 5) == pytest.approx((47.397742, 8.545594))
+    assert guided.global_point((0, 0, 0, 0, 473977420, 85455940, 0), 5) == pytest.approx(
+        (47.397742, 8.545594)
+    )
     assert isinstance(guided.global_point((0, 0, 0, 0, 95.0, 0.0, 0), None), str)
     assert guided.height_m(508.0, 5, ORIGIN) == 20.0 and guided.height_m(20.0, 6, ORIGIN) == 20.0
     assert guided.height_m(508.0, None, ORIGIN) == 20.0 and guided.height_m(NAN, 6, ORIGIN) is None

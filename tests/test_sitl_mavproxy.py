@@ -12,7 +12,7 @@ import time
 from pathlib import Path
 
 import pytest
-from mavproxy_console import MAVPROXY, mavproxy
+from support.mavproxy_console import MAVPROXY, mavproxy
 
 from sitl_stub.core.params import PARAM_DEFS
 from sitl_stub.launcher import vehicle_process
@@ -50,30 +50,44 @@ def test_mavproxy_shows_mode_and_position(tmp_path: Path):
     out_path = tmp_path / "mavproxy.out"
     client = None
     try:
-        with mavproxy([f"--master=udp:127.0.0.1:{p_master}", f"--out=udpout:127.0.0.1:{p_out}",
-                       "--non-interactive"], tmp_path, out_path, typed=False), \
-                vehicle_process(f"udpout:127.0.0.1:{p_master}", 5.0,
-                                ["--param", "MIS_TAKEOFF_ALT=10"]) as vehicle:
+        with (
+            mavproxy(
+                [
+                    f"--master=udp:127.0.0.1:{p_master}",
+                    f"--out=udpout:127.0.0.1:{p_out}",
+                    "--non-interactive",
+                ],
+                tmp_path,
+                out_path,
+                typed=False,
+            ),
+            vehicle_process(
+                f"udpout:127.0.0.1:{p_master}", 5.0, ["--param", "MIS_TAKEOFF_ALT=10"]
+            ) as vehicle,
+        ):
             _wait_text(out_path, "Detected vehicle 1:1", 20.0)
             _wait_text(out_path, "Mode LOITER", 10.0)
             _wait_text(out_path, "GPS lock at 488 meters", 10.0)
             _wait_text(out_path, f"Received {len(PARAM_DEFS)} parameters", 15.0)
 
-            client = mavutil.mavlink_connection(f"udpin:127.0.0.1:{p_out}", source_system=250,
-                                                source_component=190)
+            client = mavutil.mavlink_connection(
+                f"udpin:127.0.0.1:{p_out}", source_system=250, source_component=190
+            )
             assert client.wait_heartbeat(timeout=10.0) is not None
-            client.mav.command_long_send(1, 0, mavlink.MAV_CMD_COMPONENT_ARM_DISARM, 0,
-                                         1, 0, 0, 0, 0, 0, 0)
+            client.mav.command_long_send(
+                1, 0, mavlink.MAV_CMD_COMPONENT_ARM_DISARM, 0, 1, 0, 0, 0, 0, 0, 0
+            )
             _wait_text(out_path, "ARMED", 10.0)
-            client.mav.command_long_send(1, 0, mavlink.MAV_CMD_NAV_TAKEOFF, 0,
-                                         *[math.nan] * 7)
+            client.mav.command_long_send(1, 0, mavlink.MAV_CMD_NAV_TAKEOFF, 0, *[math.nan] * 7)
             _wait_text(out_path, "Mode TAKEOFF", 10.0)
             _wait_text(out_path, "Takeoff complete", 15.0)
             # MAVProxy writes its log behind its console: on a loaded machine the position at the
             # end of the climb can still be on its way when the console says "Takeoff complete".
             deadline = time.monotonic() + 10.0
-            while max(_logged_altitudes(tmp_path / "mav.tlog"), default=0.0) <= 9.0 \
-                    and time.monotonic() < deadline:
+            while (
+                max(_logged_altitudes(tmp_path / "mav.tlog"), default=0.0) <= 9.0
+                and time.monotonic() < deadline
+            ):
                 time.sleep(0.2)
             assert vehicle.proc.poll() is None, vehicle.output()
     finally:

@@ -13,7 +13,7 @@ import time
 from pathlib import Path
 
 import pytest
-from mavproxy_console import MAVPROXY, mavproxy
+from support.mavproxy_console import MAVPROXY, mavproxy
 
 from sitl_stub.core.params import PARAM_DEFS
 from sitl_stub.launcher import vehicle_process
@@ -24,13 +24,29 @@ pytestmark = [pytest.mark.slow, pytest.mark.timeout(120)]
 
 HOME = "47.3977420\t8.5455940"
 PLANS = {  # module: (file to load, rows: seq current frame command p1-p4 lat lon alt autocontinue)
-    "wp": ("mission.txt", [f"0\t0\t0\t16\t0\t0\t0\t0\t{HOME}\t488.0\t1",
-                           f"1\t0\t3\t22\t0\t0\t0\t0\t{HOME}\t20.0\t1",
-                           "2\t0\t3\t16\t1\t2\t0\t0\t47.3978420\t8.5456940\t20.0\t1",
-                           f"3\t0\t3\t21\t0\t0\t0\t0\t{HOME}\t0.0\t1"]),
-    "fence": ("fence.txt", [f"{i}\t0\t0\t5001\t4\t0\t0\t0\t{lat}\t{lon}\t0\t1" for i, (lat, lon) in
-                            enumerate([(47.3997420, 8.5475940), (47.3957420, 8.5475940),
-                                       (47.3957420, 8.5435940), (47.3997420, 8.5435940)])]),
+    "wp": (
+        "mission.txt",
+        [
+            f"0\t0\t0\t16\t0\t0\t0\t0\t{HOME}\t488.0\t1",
+            f"1\t0\t3\t22\t0\t0\t0\t0\t{HOME}\t20.0\t1",
+            "2\t0\t3\t16\t1\t2\t0\t0\t47.3978420\t8.5456940\t20.0\t1",
+            f"3\t0\t3\t21\t0\t0\t0\t0\t{HOME}\t0.0\t1",
+        ],
+    ),
+    "fence": (
+        "fence.txt",
+        [
+            f"{i}\t0\t0\t5001\t4\t0\t0\t0\t{lat}\t{lon}\t0\t1"
+            for i, (lat, lon) in enumerate(
+                [
+                    (47.3997420, 8.5475940),
+                    (47.3957420, 8.5475940),
+                    (47.3957420, 8.5435940),
+                    (47.3997420, 8.5435940),
+                ]
+            )
+        ],
+    ),
     "rally": ("rally.txt", ["0\t0\t3\t5100\t0\t0\t0\t0\t47.3980000\t8.5450000\t30.0\t1"]),
 }
 SAVED = {"wp": "way.txt", "fence": "fence-items.txt", "rally": "rally-items.txt"}
@@ -57,14 +73,17 @@ def test_mavproxy_round_trips_mission_fence_and_rally(tmp_path: Path):
         (tmp_path / file).write_text("QGC WPL 110\n" + "\n".join(rows) + "\n")
     port = free_udp_port()
     out_path = tmp_path / "mavproxy.out"
-    with mavproxy([f"--master=udp:127.0.0.1:{port}"], tmp_path, out_path) as type_in, \
-            vehicle_process(f"udpout:127.0.0.1:{port}", 1.0, []) as vehicle:
+    with (
+        mavproxy([f"--master=udp:127.0.0.1:{port}"], tmp_path, out_path) as type_in,
+        vehicle_process(f"udpout:127.0.0.1:{port}", 1.0, []) as vehicle,
+    ):
         at = _wait_text(out_path, f"Received {len(PARAM_DEFS)} parameters", 30.0)
         for module, (file, rows) in PLANS.items():
             type_in(f"{module} load {file}")
             at = _wait_text(out_path, "Got MISSION_ACK: TYPE_", 15.0, at)
             assert out_path.read_text(errors="replace")[at:].startswith(
-                f"{'MISSION' if module == 'wp' else module.upper()}: ACCEPTED")
+                f"{'MISSION' if module == 'wp' else module.upper()}: ACCEPTED"
+            )
             type_in(f"{module} list")
             at = _wait_text(out_path, f"Saved {len(rows)} ", 15.0, at)
         assert vehicle.proc.poll() is None, vehicle.output()

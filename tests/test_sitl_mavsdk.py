@@ -31,8 +31,9 @@ pytestmark = [pytest.mark.slow, pytest.mark.waits, pytest.mark.timeout(120)]
 SPEED = 5.0  # MAVSDK streams offboard setpoints at 20 Hz of wall time: keep speed <= 5
 
 
-async def first(gen: AsyncIterator[Any], pred: Callable[[Any], bool] = lambda x: True,
-                timeout: float = 20.0) -> Any:
+async def first(
+    gen: AsyncIterator[Any], pred: Callable[[Any], bool] = lambda x: True, timeout: float = 20.0
+) -> Any:
     """First item of a MAVSDK subscription that satisfies ``pred``."""
 
     async def scan() -> Any:
@@ -84,8 +85,10 @@ async def fly(port: int, vehicle_output: Callable[[], str]) -> None:
         tel, action = TelemetryAsync(drone), ActionAsync(drone)
         offboard, param = OffboardAsync(drone), ParamAsync(drone)
 
-        health = await first(tel.subscribe_health(), lambda h: h.is_global_position_ok
-                             and h.is_home_position_ok and h.is_armable)
+        health = await first(
+            tel.subscribe_health(),
+            lambda h: h.is_global_position_ok and h.is_home_position_ok and h.is_armable,
+        )
         assert health.is_local_position_ok
         pos = await first(tel.subscribe_position())
         assert pos.latitude_deg == pytest.approx(47.397742, abs=1e-6)
@@ -105,19 +108,34 @@ async def fly(port: int, vehicle_output: Callable[[], str]) -> None:
         modes = Recorder(tel.subscribe_flight_mode())
         landed = Recorder(tel.subscribe_landed_state())
         try:
-            await fly_mission(tel, action, offboard, modes, landed)
+            await fly_vehicle(tel, action, offboard, modes, landed)
         finally:
             await modes.close()
             await landed.close()
-        assert modes.seen[:6] == [FlightMode.HOLD, FlightMode.TAKEOFF, FlightMode.HOLD,
-                                  FlightMode.OFFBOARD, FlightMode.HOLD, FlightMode.LAND]
-        assert landed.seen[:4] == [LandedState.ON_GROUND, LandedState.TAKING_OFF,
-                                   LandedState.IN_AIR, LandedState.LANDING]
+        assert modes.seen[:6] == [
+            FlightMode.HOLD,
+            FlightMode.TAKEOFF,
+            FlightMode.HOLD,
+            FlightMode.OFFBOARD,
+            FlightMode.HOLD,
+            FlightMode.LAND,
+        ]
+        assert landed.seen[:4] == [
+            LandedState.ON_GROUND,
+            LandedState.TAKING_OFF,
+            LandedState.IN_AIR,
+            LandedState.LANDING,
+        ]
         assert time.monotonic() - t0 < 60.0
 
 
-async def fly_mission(tel: TelemetryAsync, action: ActionAsync, offboard: OffboardAsync,
-                      modes: Recorder, landed: Recorder) -> None:
+async def fly_vehicle(
+    tel: TelemetryAsync,
+    action: ActionAsync,
+    offboard: OffboardAsync,
+    modes: Recorder,
+    landed: Recorder,
+) -> None:
     """Arm, take off, two offboard setpoints, stop offboard, land, disarm."""
     await action.arm()
     assert await first(tel.subscribe_armed(), bool)
@@ -133,8 +151,12 @@ async def fly_mission(tel: TelemetryAsync, action: ActionAsync, offboard: Offboa
     await first(tel.subscribe_flight_mode(), lambda m: m == FlightMode.OFFBOARD)
     for target in ((25.0, -15.0, -12.0), (-10.0, 20.0, -10.0)):
         await offboard.set_position_ned(PositionNedYaw(*target, 0.0))
-        pv = await first(tel.subscribe_position_velocity_ned(), lambda pv, t=target: math.dist(
-            (pv.position.north_m, pv.position.east_m, pv.position.down_m), t) < 1.0)
+        pv = await first(
+            tel.subscribe_position_velocity_ned(),
+            lambda pv, t=target: (
+                math.dist((pv.position.north_m, pv.position.east_m, pv.position.down_m), t) < 1.0
+            ),
+        )
         assert abs(pv.position.north_m) <= 200.0
     await offboard.stop()
     await first(tel.subscribe_flight_mode(), lambda m: m == FlightMode.HOLD)

@@ -37,13 +37,24 @@ HOME = GeoOrigin()
 REL_ALT = 6  # MAV_FRAME_GLOBAL_RELATIVE_ALT_INT
 
 
-def item(seq: int, command: int, n: float = 0.0, e: float = 0.0, z: float = 0.0, *,
-         p1: float = 0.0, p2: float = 0.0, mission_type: int = MISSION, frame: int = REL_ALT,
-         at_home_xy: bool = False) -> MissionItem:
+def item(
+    seq: int,
+    command: int,
+    n: float = 0.0,
+    e: float = 0.0,
+    z: float = 0.0,
+    *,
+    p1: float = 0.0,
+    p2: float = 0.0,
+    mission_type: int = MISSION,
+    frame: int = REL_ALT,
+    at_home_xy: bool = False,
+) -> MissionItem:
     lat, lon = HOME.to_global(n, e)
     x, y = (0, 0) if at_home_xy else (round(lat * 1e7), round(lon * 1e7))
-    return MissionItem(seq, frame, command, param1=p1, param2=p2, x=x, y=y, z=z,
-                       mission_type=mission_type)
+    return MissionItem(
+        seq, frame, command, param1=p1, param2=p2, x=x, y=y, z=z, mission_type=mission_type
+    )
 
 
 def vehicle(**params: float) -> Vehicle:
@@ -98,13 +109,16 @@ def flying_mission(*items: MissionItem, **params: float) -> Flight:
 
 def test_takeoff_three_waypoints_with_hold_and_land():
     v = vehicle()
-    v.plans.replace(MISSION, (
-        item(0, NAV_TAKEOFF, z=15.0, at_home_xy=True),
-        item(1, NAV_WAYPOINT, 60.0, 0.0, 15.0, p1=3.0, p2=2.0),
-        item(2, NAV_WAYPOINT, 60.0, 60.0, 20.0, p1=3.0, p2=2.0),
-        item(3, NAV_WAYPOINT, 0.0, 60.0, 20.0, p2=2.0),
-        item(4, NAV_LAND, 0.0, 60.0, 0.0),
-    ))
+    v.plans.replace(
+        MISSION,
+        (
+            item(0, NAV_TAKEOFF, z=15.0, at_home_xy=True),
+            item(1, NAV_WAYPOINT, 60.0, 0.0, 15.0, p1=3.0, p2=2.0),
+            item(2, NAV_WAYPOINT, 60.0, 60.0, 20.0, p1=3.0, p2=2.0),
+            item(3, NAV_WAYPOINT, 0.0, 60.0, 20.0, p2=2.0),
+            item(4, NAV_LAND, 0.0, 60.0, 0.0),
+        ),
+    )
     assert v.state().mission_current == (0, 5, NOT_STARTED, 2)
     assert v.arm().ok and v.set_mode(FlightMode.MISSION).ok
     f = Flight(v)
@@ -177,11 +191,14 @@ def test_pause_holds_and_resume_continues_at_the_current_item():
 def test_set_current_moves_the_executor_and_mission_start_picks_the_first_item():
     f = airborne(20.0)
     v = f.v
-    v.plans.replace(MISSION, (
-        item(0, NAV_WAYPOINT, 100.0, 0.0, 20.0, p2=1.0),
-        item(1, NAV_WAYPOINT, 0.0, 40.0, 20.0, p2=1.0),
-        item(2, NAV_WAYPOINT, 0.0, 0.0, 20.0, p2=1.0),
-    ))
+    v.plans.replace(
+        MISSION,
+        (
+            item(0, NAV_WAYPOINT, 100.0, 0.0, 20.0, p2=1.0),
+            item(1, NAV_WAYPOINT, 0.0, 40.0, 20.0, p2=1.0),
+            item(2, NAV_WAYPOINT, 0.0, 0.0, 20.0, p2=1.0),
+        ),
+    )
     assert v.start_mission(7).result is Result.DENIED
     assert v.start_mission(1).ok  # MISSION_START param1
     f.run_until(lambda: f.seqs, 60.0)
@@ -196,8 +213,10 @@ def test_no_mission_is_refused_and_an_rtl_item_hands_over_to_return():
     v = f.v
     outcome = v.set_mode(FlightMode.MISSION)
     assert outcome.result is Result.DENIED and "no mission" in outcome.reason
-    v.plans.replace(MISSION, (item(0, NAV_WAYPOINT, 30.0, 0.0, 20.0, p2=1.0),
-                              item(1, NAV_RETURN_TO_LAUNCH, frame=2)))
+    v.plans.replace(
+        MISSION,
+        (item(0, NAV_WAYPOINT, 30.0, 0.0, 20.0, p2=1.0), item(1, NAV_RETURN_TO_LAUNCH, frame=2)),
+    )
     assert v.set_mode(FlightMode.MISSION).ok
     f.run_until(lambda: v.mode is FlightMode.RTL, 60.0)
     assert f.seqs == [0, 1]
@@ -205,15 +224,23 @@ def test_no_mission_is_refused_and_an_rtl_item_hands_over_to_return():
     assert math.hypot(v.pos[0], v.pos[1]) < 0.6
 
 
-@pytest.mark.parametrize(("rally_ne", "start_ne", "dest_ne"), [
-    ((150.0, 0.0), (120.0, 0.0), (150.0, 0.0)),  # the rally point is nearer than home
-    ((150.0, 0.0), (20.0, 0.0), (0.0, 0.0)),  # home is nearer
-])
+@pytest.mark.parametrize(
+    ("rally_ne", "start_ne", "dest_ne"),
+    [
+        ((150.0, 0.0), (120.0, 0.0), (150.0, 0.0)),  # the rally point is nearer than home
+        ((150.0, 0.0), (20.0, 0.0), (0.0, 0.0)),  # home is nearer
+    ],
+)
 def test_rtl_lands_at_the_nearest_of_home_and_the_rally_points(rally_ne, start_ne, dest_ne):
     f = airborne(20.0, RTL_RETURN_ALT=30.0)
     v = f.v
-    v.plans.replace(RALLY, (item(0, NAV_RALLY_POINT, *rally_ne, 0.0, mission_type=RALLY),
-                            item(1, NAV_RALLY_POINT, -150.0, -150.0, 0.0, mission_type=RALLY)))
+    v.plans.replace(
+        RALLY,
+        (
+            item(0, NAV_RALLY_POINT, *rally_ne, 0.0, mission_type=RALLY),
+            item(1, NAV_RALLY_POINT, -150.0, -150.0, 0.0, mission_type=RALLY),
+        ),
+    )
     v.plans.replace(MISSION, (item(0, NAV_WAYPOINT, *start_ne, 20.0, p2=1.0),))
     assert v.set_mode(FlightMode.MISSION).ok
     f.run_until(lambda: f.seqs, 100.0)
@@ -228,8 +255,13 @@ def test_rtl_lands_at_the_nearest_of_home_and_the_rally_points(rally_ne, start_n
 
 def square_fence(v: Vehicle, half_m: float = 100.0) -> None:
     corners = ((-half_m, -half_m), (-half_m, half_m), (half_m, half_m), (half_m, -half_m))
-    v.plans.replace(FENCE, tuple(item(i, POLYGON_INCLUSION, n, e, p1=4.0, mission_type=FENCE)
-                                 for i, (n, e) in enumerate(corners)))
+    v.plans.replace(
+        FENCE,
+        tuple(
+            item(i, POLYGON_INCLUSION, n, e, p1=4.0, mission_type=FENCE)
+            for i, (n, e) in enumerate(corners)
+        ),
+    )
 
 
 def offboard_to(f: Flight, ned: tuple[float, float, float], seconds: float) -> None:
@@ -265,13 +297,16 @@ def test_a_mission_waypoint_into_an_exclusion_circle_stops_before_it():
     assert v.state().mission_current[2] == PAUSED
 
 
-@pytest.mark.parametrize(("action", "mode", "announced"), [
-    (0, FlightMode.OFFBOARD, None),
-    (1, FlightMode.OFFBOARD, None),
-    (3, FlightMode.RTL, "Failsafe: geofence, activating Return"),
-    (4, FlightMode.LAND, "Failsafe: geofence, activating Land (no termination in SITL)"),
-    (5, FlightMode.LAND, "Failsafe: geofence, activating Land"),
-])
+@pytest.mark.parametrize(
+    ("action", "mode", "announced"),
+    [
+        (0, FlightMode.OFFBOARD, None),
+        (1, FlightMode.OFFBOARD, None),
+        (3, FlightMode.RTL, "Failsafe: geofence, activating Return"),
+        (4, FlightMode.LAND, "Failsafe: geofence, activating Land (no termination in SITL)"),
+        (5, FlightMode.LAND, "Failsafe: geofence, activating Land"),
+    ],
+)
 def test_gf_action_variants(action, mode, announced):
     f = airborne(20.0, GF_ACTION=action)
     v = f.v
@@ -313,5 +348,9 @@ def test_sys_status_and_mission_current_report_the_vehicle_state():
     assert status.onboard_control_sensors_present & mavlink.MAV_SYS_STATUS_GEOFENCE
     assert not status.onboard_control_sensors_health & mavlink.MAV_SYS_STATUS_GEOFENCE
     assert (current.seq, current.total, current.mission_state, current.mission_mode) == (
-        0, 1, mavlink.MISSION_STATE_ACTIVE, 1)
+        0,
+        1,
+        mavlink.MISSION_STATE_ACTIVE,
+        1,
+    )
     assert reached.seq == 7

@@ -49,10 +49,16 @@ class Harness:
         self.store = store or MissionStore()
         self.vehicle = Wire(1, 1)
         self.texts: list[str] = []
-        self.rejects = RejectLog(logging.getLogger("sitl_stub"))  # the server's, as message_handler passes it
-        self.proto = MissionProtocol(self.store, self.vehicle.mav, 1,
-                                     lambda severity, text: self.texts.append(text),
-                                     reject=self.rejects.reject)
+        self.rejects = RejectLog(
+            logging.getLogger("sitl_stub")
+        )  # the server's, as message_handler passes it
+        self.proto = MissionProtocol(
+            self.store,
+            self.vehicle.mav,
+            1,
+            lambda severity, text: self.texts.append(text),
+            reject=self.rejects.reject,
+        )
         self.wall = 100.0
 
     def send(self, name: str, *args: Any, src: tuple[int, int] = GCS) -> list[Any]:
@@ -63,7 +69,9 @@ class Harness:
             self.proto.handle(msg, self.wall)
         return self.vehicle.take()
 
-    def item(self, item: MissionItem, int_mode: bool = True, src: tuple[int, int] = GCS) -> list[Any]:
+    def item(
+        self, item: MissionItem, int_mode: bool = True, src: tuple[int, int] = GCS
+    ) -> list[Any]:
         gcs = Wire(*src)
         send_item(gcs.mav, item, 1, 1, int_mode)
         for msg in gcs.take():
@@ -82,8 +90,22 @@ class Harness:
 
 
 def waypoints(n: int, mission_type: int = MISSION) -> list[MissionItem]:
-    return [MissionItem(i, REL_INT, WP, 0, 2.0, 0, 0, 473977420 + 100 * i, 85455940, 10.0,
-                        mission_type=mission_type) for i in range(n)]
+    return [
+        MissionItem(
+            i,
+            REL_INT,
+            WP,
+            0,
+            2.0,
+            0,
+            0,
+            473977420 + 100 * i,
+            85455940,
+            10.0,
+            mission_type=mission_type,
+        )
+        for i in range(n)
+    ]
 
 
 def kinds(msgs: list[Any]) -> list[str]:
@@ -102,18 +124,39 @@ def upload(h: Harness, items: list[MissionItem], mission_type: int = MISSION) ->
 def test_upload_then_download_round_trip(mission_type):
     h = Harness()
     cmd = {MISSION: WP, FENCE: VERTEX_IN, RALLY: mavlink.MAV_CMD_NAV_RALLY_POINT}[mission_type]
-    items = [MissionItem(i, REL_INT, cmd, 3.0, 0, 0, 0, 473977420 + i, 85455940 - i, 5.0,
-                         mission_type=mission_type) for i in range(3)]
+    items = [
+        MissionItem(
+            i,
+            REL_INT,
+            cmd,
+            3.0,
+            0,
+            0,
+            0,
+            473977420 + i,
+            85455940 - i,
+            5.0,
+            mission_type=mission_type,
+        )
+        for i in range(3)
+    ]
     ack = upload(h, items, mission_type)
     assert kinds(ack) == ["MISSION_ACK"] and ack[0].type == mavlink.MAV_MISSION_ACCEPTED
-    assert ack[0].mission_type == mission_type and (ack[0].target_system, ack[0].target_component) == GCS
+    assert (
+        ack[0].mission_type == mission_type
+        and (ack[0].target_system, ack[0].target_component) == GCS
+    )
     assert h.store.items(mission_type) == tuple(items)
 
     [count] = h.send("mission_request_list", 1, 1, mission_type)
     assert count.count == 3 and count.mission_type == mission_type
     for i in range(3):
         [item] = h.send("mission_request_int", 1, 1, i, mission_type)
-        assert item.get_type() == "MISSION_ITEM_INT" and (item.seq, item.x, item.y) == (i, items[i].x, items[i].y)
+        assert item.get_type() == "MISSION_ITEM_INT" and (item.seq, item.x, item.y) == (
+            i,
+            items[i].x,
+            items[i].y,
+        )
     assert h.send("mission_ack", 1, 1, 0, mission_type) == []
     assert h.proto.state.name == "IDLE"
     assert h.rejects.as_dict() == {}  # a clean round trip refuses nothing
@@ -129,7 +172,9 @@ def test_vehicle_re_requests_a_lost_item_then_gives_up_with_cancelled():
     assert set(kinds(again)) == {"MISSION_REQUEST_INT"} and {m.seq for m in again} == {1}
     assert len(again) == pytest.approx((PROTOCOL_TIMEOUT_S - 0.05) / RETRY_TIMEOUT_S, abs=2)
     end = h.advance(0.2)
-    assert kinds(end)[-1] == "MISSION_ACK" and end[-1].type == mavlink.MAV_MISSION_OPERATION_CANCELLED
+    assert (
+        kinds(end)[-1] == "MISSION_ACK" and end[-1].type == mavlink.MAV_MISSION_OPERATION_CANCELLED
+    )
     assert "Operation timeout" in h.texts
     assert h.store.items(MISSION) == old  # a failed upload leaves the old list
     assert h.advance(1.0) == []
@@ -186,12 +231,21 @@ def test_last_item_sent_again_after_the_ack_is_acknowledged_again():
     assert err.type == mavlink.MAV_MISSION_ERROR and "IGN MISSION_ITEM: No transfer" in h.texts
 
 
-@pytest.mark.parametrize("item,result", [
-    (MissionItem(0, REL_INT, 31337), mavlink.MAV_MISSION_UNSUPPORTED),
-    (MissionItem(0, mavlink.MAV_FRAME_LOCAL_NED, WP), mavlink.MAV_MISSION_UNSUPPORTED_FRAME),
-    (MissionItem(0, REL_INT, VERTEX_IN), mavlink.MAV_MISSION_ERROR),  # a fence item in a mission
-    (MissionItem(0, REL_INT, mavlink.MAV_CMD_DO_SET_ROI, 7.0), mavlink.MAV_MISSION_INVALID_PARAM1),
-])
+@pytest.mark.parametrize(
+    "item,result",
+    [
+        (MissionItem(0, REL_INT, 31337), mavlink.MAV_MISSION_UNSUPPORTED),
+        (MissionItem(0, mavlink.MAV_FRAME_LOCAL_NED, WP), mavlink.MAV_MISSION_UNSUPPORTED_FRAME),
+        (
+            MissionItem(0, REL_INT, VERTEX_IN),
+            mavlink.MAV_MISSION_ERROR,
+        ),  # a fence item in a mission
+        (
+            MissionItem(0, REL_INT, mavlink.MAV_CMD_DO_SET_ROI, 7.0),
+            mavlink.MAV_MISSION_INVALID_PARAM1,
+        ),
+    ],
+)
 def test_item_px4_refuses_ends_the_upload_and_keeps_the_old_list(item, result):
     h = Harness()
     old = tuple(waypoints(2))
@@ -215,8 +269,10 @@ def test_a_refused_item_is_counted_and_logged_once_naming_command_frame_and_resu
         assert ack.type == mavlink.MAV_MISSION_UNSUPPORTED
     assert h.rejects.as_dict() == {"mission_item_refused": 2}
     [line] = [r.getMessage() for r in caplog.records if "rejected input" in r.getMessage()]
-    assert ("MISSION_ITEM_INT 0: MAV_CMD_NAV_RETURN_TO_LAUNCH in frame "
-            "MAV_FRAME_GLOBAL_RELATIVE_ALT_INT: MAV_MISSION_UNSUPPORTED" in line), line
+    assert (
+        "MISSION_ITEM_INT 0: MAV_CMD_NAV_RETURN_TO_LAUNCH in frame "
+        "MAV_FRAME_GLOBAL_RELATIVE_ALT_INT: MAV_MISSION_UNSUPPORTED" in line
+    ), line
     assert "'mission_item_refused'" in line
     h.send("mission_count", 1, 1, 1, MISSION)
     h.item(MissionItem(0, mavlink.MAV_FRAME_MISSION, mavlink.MAV_CMD_NAV_RETURN_TO_LAUNCH))
@@ -239,9 +295,13 @@ def test_every_kind_of_refused_mission_message_is_counted():
     h.item(waypoints(1)[0], src=(246, 190))  # not the uploading station
     h.send("mission_clear_all", 1, 1, MISSION)  # busy
     h.send("mission_set_current", 1, 1, 0)  # busy
-    assert h.rejects.as_dict() == {"mission_clear_refused": 2, "mission_count_refused": 3,
-                                   "mission_current_refused": 2, "mission_item_refused": 2,
-                                   "mission_request_refused": 2}
+    assert h.rejects.as_dict() == {
+        "mission_clear_refused": 2,
+        "mission_count_refused": 3,
+        "mission_current_refused": 2,
+        "mission_item_refused": 2,
+        "mission_request_refused": 2,
+    }
 
 
 def test_feasibility_as_px4():
@@ -274,7 +334,9 @@ def test_download_answers_the_same_seq_again_and_refuses_a_jump():
 
 def test_legacy_float_messages_and_frame_of_the_request_kind():
     h = Harness()
-    item = MissionItem(0, mavlink.MAV_FRAME_GLOBAL_RELATIVE_ALT, WP, 0, 0, 0, 0, 473977420, 85455940, 20.0)
+    item = MissionItem(
+        0, mavlink.MAV_FRAME_GLOBAL_RELATIVE_ALT, WP, 0, 0, 0, 0, 473977420, 85455940, 20.0
+    )
     h.send("mission_count", 1, 1, 1, MISSION)
     [ack] = h.item(item, int_mode=False)  # MAVProxy with wp_use_mission_int off
     assert ack.type == mavlink.MAV_MISSION_ACCEPTED
@@ -283,7 +345,10 @@ def test_legacy_float_messages_and_frame_of_the_request_kind():
     assert abs(stored.x - item.x) <= 40 and abs(stored.y - item.y) <= 40
     h.send("mission_request_list", 1, 1, MISSION)
     [as_float] = h.send("mission_request", 1, 1, 0, MISSION)
-    assert as_float.get_type() == "MISSION_ITEM" and as_float.frame == mavlink.MAV_FRAME_GLOBAL_RELATIVE_ALT
+    assert (
+        as_float.get_type() == "MISSION_ITEM"
+        and as_float.frame == mavlink.MAV_FRAME_GLOBAL_RELATIVE_ALT
+    )
     h.send("mission_request_list", 1, 1, MISSION)
     [as_int] = h.send("mission_request_int", 1, 1, 0, MISSION)
     assert as_int.frame == REL_INT and as_int.current == 1
@@ -315,7 +380,9 @@ def test_clear_all_and_set_current():
     [cur] = h.send("mission_set_current", 1, 1, 2)
     assert cur.get_type() == "MISSION_CURRENT" and (cur.seq, cur.total) == (2, 3)
     assert h.store.current_seq == 2
-    assert h.send("mission_set_current", 1, 1, 9) == [] and "WPM: WP CURR CMD: Not in list" in h.texts
+    assert (
+        h.send("mission_set_current", 1, 1, 9) == [] and "WPM: WP CURR CMD: Not in list" in h.texts
+    )
     [ack] = h.send("mission_clear_all", 1, 1, FENCE)
     assert ack.type == mavlink.MAV_MISSION_ACCEPTED and ack.mission_type == FENCE
     assert h.store.items(FENCE) == () and len(h.store.items(MISSION)) == 3

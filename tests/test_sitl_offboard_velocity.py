@@ -9,8 +9,8 @@ import time
 from collections.abc import Callable, Iterator
 
 import pytest
-from mavlink_gcs import Gcs
-from sitl_hover import LOITER_MODE, hovering
+from support.mavlink_gcs import Gcs
+from support.sitl_hover import LOITER_MODE, hovering
 
 from sitl_stub.mavlink.server import SitlServer
 from uavlink.mavlink.dialect import mavutil
@@ -52,10 +52,18 @@ def flying() -> Iterator[tuple[SitlServer, Gcs, Streamer]]:
         yield server, gcs, Streamer(gcs)
 
 
-def local(gcs: Gcs, frame: int, mask: int, pos=(0.0, 0.0, 0.0), vel=(0.0, 0.0, 0.0),
-          yaw: float = 0.0, yaw_rate: float = 0.0) -> Callable[[], None]:
+def local(
+    gcs: Gcs,
+    frame: int,
+    mask: int,
+    pos=(0.0, 0.0, 0.0),
+    vel=(0.0, 0.0, 0.0),
+    yaw: float = 0.0,
+    yaw_rate: float = 0.0,
+) -> Callable[[], None]:
     return lambda: gcs.mav.set_position_target_local_ned_send(
-        0, 1, 1, frame, mask, *pos, *vel, 0, 0, 0, yaw, yaw_rate)
+        0, 1, 1, frame, mask, *pos, *vel, 0, 0, 0, yaw, yaw_rate
+    )
 
 
 def start_offboard(gcs: Gcs, streamer: Streamer) -> None:
@@ -67,8 +75,9 @@ def start_offboard(gcs: Gcs, streamer: Streamer) -> None:
 
 def test_velocity_ned_moves_at_the_commanded_velocity(flying):
     server, gcs, streamer = flying
-    streamer.send = local(gcs, mavlink.MAV_FRAME_LOCAL_NED, VELOCITY_NED, vel=(2.0, -3.0, -0.5),
-                          yaw=math.radians(90))
+    streamer.send = local(
+        gcs, mavlink.MAV_FRAME_LOCAL_NED, VELOCITY_NED, vel=(2.0, -3.0, -0.5), yaw=math.radians(90)
+    )
     start_offboard(gcs, streamer)
     streamer.run(2.0)  # 8 simulated seconds
     s = server.state()
@@ -93,20 +102,39 @@ def test_velocity_body_follows_the_heading(flying):
     streamer.run(2.0)
     s = server.state()
     assert (s.vn_mps, s.ve_mps) == pytest.approx((0.0, 4.0), abs=0.05)  # forward = east
-    streamer.send = local(gcs, mavlink.MAV_FRAME_BODY_FRD, VELOCITY_BODY, vel=(0.0, 0.0, 0.0),
-                          yaw_rate=math.radians(20))
+    streamer.send = local(
+        gcs,
+        mavlink.MAV_FRAME_BODY_FRD,
+        VELOCITY_BODY,
+        vel=(0.0, 0.0, 0.0),
+        yaw_rate=math.radians(20),
+    )
     streamer.run(1.0)
     assert server.state().yaw_rate_radps == pytest.approx(math.radians(20), abs=1e-3)
 
 
 def test_position_with_velocity_feed_forward_arrives_and_stops(flying):
     server, gcs, streamer = flying
-    streamer.send = local(gcs, mavlink.MAV_FRAME_LOCAL_NED, POSITION_VELOCITY,
-                          pos=(30.0, 20.0, -15.0), vel=(0.0, 0.0, 0.0))
+    streamer.send = local(
+        gcs,
+        mavlink.MAV_FRAME_LOCAL_NED,
+        POSITION_VELOCITY,
+        pos=(30.0, 20.0, -15.0),
+        vel=(0.0, 0.0, 0.0),
+    )
     start_offboard(gcs, streamer)
-    gcs.wait(lambda: (streamer.pump() or True) and math.dist(
-        (server.state().north_m, server.state().east_m, server.state().down_m),
-        (30.0, 20.0, -15.0)) < 0.2, 30, "arrival")
+    gcs.wait(
+        lambda: (
+            (streamer.pump() or True)
+            and math.dist(
+                (server.state().north_m, server.state().east_m, server.state().down_m),
+                (30.0, 20.0, -15.0),
+            )
+            < 0.2
+        ),
+        30,
+        "arrival",
+    )
     assert server.state().setpoints_accepted > 0
 
 
@@ -116,25 +144,68 @@ def test_global_int_setpoint_flies_to_lat_lon(flying):
     lat, lon = home.to_global(-25.0, 35.0)
     # MAVSDK's set_position_global, altitude relative to home
     streamer.send = lambda: gcs.mav.set_position_target_global_int_send(
-        0, 1, 1, mavlink.MAV_FRAME_GLOBAL_RELATIVE_ALT_INT, POSITION, round(lat * 1e7),
-        round(lon * 1e7), 18.0, 0, 0, 0, 0, 0, 0, 0.0, 0.0)
+        0,
+        1,
+        1,
+        mavlink.MAV_FRAME_GLOBAL_RELATIVE_ALT_INT,
+        POSITION,
+        round(lat * 1e7),
+        round(lon * 1e7),
+        18.0,
+        0,
+        0,
+        0,
+        0,
+        0,
+        0,
+        0.0,
+        0.0,
+    )
     start_offboard(gcs, streamer)
-    gcs.wait(lambda: (streamer.pump() or True) and math.dist(
-        (server.state().north_m, server.state().east_m, server.state().altitude_m),
-        (-25.0, 35.0, 18.0)) < 0.2, 30, "arrival at the global setpoint")
+    gcs.wait(
+        lambda: (
+            (streamer.pump() or True)
+            and math.dist(
+                (server.state().north_m, server.state().east_m, server.state().altitude_m),
+                (-25.0, 35.0, 18.0),
+            )
+            < 0.2
+        ),
+        30,
+        "arrival at the global setpoint",
+    )
     # AMSL altitude (MAV_FRAME_GLOBAL_INT)
     streamer.send = lambda: gcs.mav.set_position_target_global_int_send(
-        0, 1, 1, mavlink.MAV_FRAME_GLOBAL_INT, POSITION, round(lat * 1e7), round(lon * 1e7),
-        home.alt_amsl_m + 12.0, 0, 0, 0, 0, 0, 0, 0.0, 0.0)
-    gcs.wait(lambda: (streamer.pump() or True) and abs(server.state().altitude_m - 12.0) < 0.2,
-             20, "12 m above home")
+        0,
+        1,
+        1,
+        mavlink.MAV_FRAME_GLOBAL_INT,
+        POSITION,
+        round(lat * 1e7),
+        round(lon * 1e7),
+        home.alt_amsl_m + 12.0,
+        0,
+        0,
+        0,
+        0,
+        0,
+        0,
+        0.0,
+        0.0,
+    )
+    gcs.wait(
+        lambda: (streamer.pump() or True) and abs(server.state().altitude_m - 12.0) < 0.2,
+        20,
+        "12 m above home",
+    )
 
 
 def test_attitude_setpoints_are_refused(flying):
     server, gcs, streamer = flying
     # MAVSDK's set_attitude: SET_ATTITUDE_TARGET, body rates ignored
-    streamer.send = lambda: gcs.mav.set_attitude_target_send(0, 1, 1, 0x07, [1, 0, 0, 0],
-                                                              0, 0, 0, 0.5)
+    streamer.send = lambda: gcs.mav.set_attitude_target_send(
+        0, 1, 1, 0x07, [1, 0, 0, 0], 0, 0, 0, 0.5
+    )
     streamer.run(0.5)
     assert gcs.command(mavlink.MAV_CMD_DO_SET_MODE, 129, 6, 0) == D  # no usable stream
     gcs.wait(lambda: server.report()["rejected"].get("setpoint_attitude", 0) > 3, 5, "counted")

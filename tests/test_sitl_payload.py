@@ -29,8 +29,13 @@ class CountingPayload:
         self.commands: list[int] = []
 
     def heartbeat(self) -> tuple[int, int, int, int, int]:
-        return (mavlink.MAV_TYPE_ONBOARD_CONTROLLER, MAV_AUTOPILOT_INVALID, 0, 0,
-                mavlink.MAV_STATE_ACTIVE)
+        return (
+            mavlink.MAV_TYPE_ONBOARD_CONTROLLER,
+            MAV_AUTOPILOT_INVALID,
+            0,
+            0,
+            mavlink.MAV_STATE_ACTIVE,
+        )
 
     def on_frame(self, sim_time_s: float, state: VehicleState, mav: Any) -> None:
         self.frames.append((sim_time_s, state))
@@ -60,20 +65,23 @@ def _acks(gcs: Any, command: int, window_s: float) -> list[Any]:
 @pytest.mark.slow
 def test_payload_components_tick_per_frame_and_answer_commands():
     counting, commandable = CountingPayload(), CommandablePayload()
-    server = SitlServer(ServerConfig(connect="udpin:127.0.0.1:0", speed=20.0),
-                        [counting, commandable])
+    server = SitlServer(
+        ServerConfig(connect="udpin:127.0.0.1:0", speed=20.0), [counting, commandable]
+    )
     with server:
         host, port = server.address
-        gcs = mavutil.mavlink_connection(f"udpout:{host}:{port}", source_system=255,
-                                         source_component=190)
+        gcs = mavutil.mavlink_connection(
+            f"udpout:{host}:{port}", source_system=255, source_component=190
+        )
         try:
             gcs.mav.heartbeat_send(mavlink.MAV_TYPE_GCS, mavlink.MAV_AUTOPILOT_INVALID, 0, 0, 0)
             beats: dict[int, Any] = {}
             values: list[float] = []
             deadline = time.monotonic() + 10.0
             while (len(beats) < 3 or not values or values[-1] < 12) and time.monotonic() < deadline:
-                m = gcs.recv_match(type=["HEARTBEAT", "NAMED_VALUE_FLOAT"], blocking=True,
-                                   timeout=0.1)
+                m = gcs.recv_match(
+                    type=["HEARTBEAT", "NAMED_VALUE_FLOAT"], blocking=True, timeout=0.1
+                )
                 if m is None:
                     continue
                 if m.get_type() == "HEARTBEAT":
@@ -88,24 +96,30 @@ def test_payload_components_tick_per_frame_and_answer_commands():
             assert values == [values[0] + i + (values[0] + i >= 10) for i in range(len(values))]
 
             # addressed to a payload without on_command: UNSUPPORTED from that component
-            gcs.mav.command_long_send(1, PAYLOAD_ID, mavlink.MAV_CMD_DO_SET_SERVO, 0,
-                                      1, 1500, 0, 0, 0, 0, 0)
+            gcs.mav.command_long_send(
+                1, PAYLOAD_ID, mavlink.MAV_CMD_DO_SET_SERVO, 0, 1, 1500, 0, 0, 0, 0, 0
+            )
             acks = _acks(gcs, mavlink.MAV_CMD_DO_SET_SERVO, 1.0)
             assert [(a.get_srcComponent(), a.result) for a in acks] == [
-                (PAYLOAD_ID, mavlink.MAV_RESULT_UNSUPPORTED)]
+                (PAYLOAD_ID, mavlink.MAV_RESULT_UNSUPPORTED)
+            ]
             # addressed to a payload with on_command: its own result
-            gcs.mav.command_long_send(1, PAYLOAD_ID + 1, mavlink.MAV_CMD_DO_SET_SERVO, 0,
-                                      1, 1500, 0, 0, 0, 0, 0)
+            gcs.mav.command_long_send(
+                1, PAYLOAD_ID + 1, mavlink.MAV_CMD_DO_SET_SERVO, 0, 1, 1500, 0, 0, 0, 0, 0
+            )
             acks = _acks(gcs, mavlink.MAV_CMD_DO_SET_SERVO, 1.0)
             assert [(a.get_srcComponent(), a.result) for a in acks] == [
-                (PAYLOAD_ID + 1, mavlink.MAV_RESULT_ACCEPTED)]
+                (PAYLOAD_ID + 1, mavlink.MAV_RESULT_ACCEPTED)
+            ]
             assert commandable.commands == [mavlink.MAV_CMD_DO_SET_SERVO]
             # broadcast: the autopilot alone answers
-            gcs.mav.command_long_send(1, 0, mavlink.MAV_CMD_COMPONENT_ARM_DISARM, 0,
-                                      1, 0, 0, 0, 0, 0, 0)
+            gcs.mav.command_long_send(
+                1, 0, mavlink.MAV_CMD_COMPONENT_ARM_DISARM, 0, 1, 0, 0, 0, 0, 0, 0
+            )
             acks = _acks(gcs, mavlink.MAV_CMD_COMPONENT_ARM_DISARM, 1.0)
             assert [(a.get_srcComponent(), a.result) for a in acks] == [
-                (1, mavlink.MAV_RESULT_ACCEPTED)]
+                (1, mavlink.MAV_RESULT_ACCEPTED)
+            ]
             assert server.state().armed
         finally:
             gcs.close()

@@ -15,7 +15,7 @@ from collections.abc import Iterator
 from typing import Any
 
 import pytest
-from conftest import PX4_PORTS
+from support.cli import PX4_PORTS
 
 from sitl_stub.launcher import vehicle_process
 from sitl_stub.mavlink.links import Fanout, Route, px4_links, socket_free
@@ -36,8 +36,9 @@ class Listener:
     QGroundControl (14550) wait for a vehicle; it answers whoever sent to it."""
 
     def __init__(self, port: int, key: bytes | None = None) -> None:
-        self.conn = mavutil.mavlink_connection(f"udpin:127.0.0.1:{port}", source_system=GCS_SYS,
-                                               source_component=GCS_COMP)
+        self.conn = mavutil.mavlink_connection(
+            f"udpin:127.0.0.1:{port}", source_system=GCS_SYS, source_component=GCS_COMP
+        )
         if key is not None:
             self.conn.setup_signing(key, sign_outgoing=True)
         self.seen: list[Any] = []
@@ -75,8 +76,10 @@ class Listener:
 def _require_free(*ports: int) -> None:
     taken = [p for p in ports if not socket_free(p)]
     if taken:
-        pytest.skip(f"PX4 SITL port(s) {taken} on 127.0.0.1 are in use (a PX4 SITL, ground "
-                    "station or another vehicle is running)")
+        pytest.skip(
+            f"PX4 SITL port(s) {taken} on 127.0.0.1 are in use (a PX4 SITL, ground "
+            "station or another vehicle is running)"
+        )
 
 
 @pytest.fixture
@@ -89,8 +92,13 @@ def listeners(request: pytest.FixtureRequest) -> Iterator[list[Listener]]:
 
 
 def _heartbeat_from(listener: Listener, system_id: int) -> Any:
-    return listener.wait("HEARTBEAT", lambda m: (m.get_srcSystem(), m.get_srcComponent())
-                         == (system_id, 1) and m.autopilot == mavlink.MAV_AUTOPILOT_PX4)
+    return listener.wait(
+        "HEARTBEAT",
+        lambda m: (
+            (m.get_srcSystem(), m.get_srcComponent()) == (system_id, 1)
+            and m.autopilot == mavlink.MAV_AUTOPILOT_PX4
+        ),
+    )
 
 
 def test_px4_port_table() -> None:
@@ -98,7 +106,11 @@ def test_px4_port_table() -> None:
     assert (api.local_port, api.connect) == (14580, "udpout:127.0.0.1:14540")
     assert (gcs.local_port, gcs.connect) == (18570, "udpout:127.0.0.1:14550")
     api3, gcs3 = px4_links(3)
-    assert (api3.local_port, api3.connect, gcs3.local_port) == (14583, "udpout:127.0.0.1:14543", 18573)
+    assert (api3.local_port, api3.connect, gcs3.local_port) == (
+        14583,
+        "udpout:127.0.0.1:14543",
+        18573,
+    )
     assert px4_links(12)[0].connect == "udpout:127.0.0.1:14549"  # PX4: instances > 9 share 14549
     with pytest.raises(ValueError, match="instance"):
         px4_links(255)
@@ -115,15 +127,28 @@ def test_no_flags_serves_px4_instance_0_api_and_gcs_links() -> None:
             assert api.senders() == {("127.0.0.1", 14580)}, "the API link sends from 14580"
             assert gcs.senders() == {("127.0.0.1", 18570)}, "the GCS link sends from 18570"
             # MAVSDK's first request on the API link; the ACK and AUTOPILOT_VERSION come back there
-            api.conn.mav.command_long_send(1, 1, mavlink.MAV_CMD_REQUEST_MESSAGE, 0,
-                                           mavlink.MAVLINK_MSG_ID_AUTOPILOT_VERSION, 0, 0, 0, 0, 0, 0)
+            api.conn.mav.command_long_send(
+                1,
+                1,
+                mavlink.MAV_CMD_REQUEST_MESSAGE,
+                0,
+                mavlink.MAVLINK_MSG_ID_AUTOPILOT_VERSION,
+                0,
+                0,
+                0,
+                0,
+                0,
+                0,
+            )
             ack = api.wait("COMMAND_ACK", lambda m: m.command == mavlink.MAV_CMD_REQUEST_MESSAGE)
             assert ack.result == mavlink.MAV_RESULT_ACCEPTED
             assert (ack.target_system, ack.target_component) == (GCS_SYS, GCS_COMP)
             api.wait("AUTOPILOT_VERSION")
             on_gcs = {m.get_type() for m in gcs.drain(2.0)}
             assert "HEARTBEAT" in on_gcs and "GLOBAL_POSITION_INT" in on_gcs  # telemetry on both
-            assert not on_gcs & {"COMMAND_ACK", "AUTOPILOT_VERSION"}, "a reply leaked to the GCS link"
+            assert not on_gcs & {"COMMAND_ACK", "AUTOPILOT_VERSION"}, (
+                "a reply leaked to the GCS link"
+            )
             assert v.proc.poll() is None
             assert "vehicle 1 on api udp 127.0.0.1:14580->127.0.0.1:14540" in v.output()
     finally:
@@ -167,8 +192,13 @@ class FramePayload:
     frame_s = 1.0
 
     def heartbeat(self) -> tuple[int, int, int, int, int]:
-        return (mavlink.MAV_TYPE_ONBOARD_CONTROLLER, mavlink.MAV_AUTOPILOT_INVALID, 0, 0,
-                mavlink.MAV_STATE_ACTIVE)
+        return (
+            mavlink.MAV_TYPE_ONBOARD_CONTROLLER,
+            mavlink.MAV_AUTOPILOT_INVALID,
+            0,
+            0,
+            mavlink.MAV_STATE_ACTIVE,
+        )
 
     def on_frame(self, sim_time_s: float, state: Any, mav: Any) -> None:
         mav.named_value_float_send(int(sim_time_s * 1000), b"frame", sim_time_s)
@@ -177,8 +207,9 @@ class FramePayload:
 @pytest.mark.slow
 def test_repeated_connect_serves_each_link_and_answers_on_the_asking_one() -> None:
     a, b = Listener(free_udp_port()), Listener(free_udp_port())
-    config = ServerConfig(connect=[f"udpout:127.0.0.1:{a.port}", f"udpout:127.0.0.1:{b.port}"],
-                          speed=5.0, system_id=7)
+    config = ServerConfig(
+        connect=[f"udpout:127.0.0.1:{a.port}", f"udpout:127.0.0.1:{b.port}"], speed=5.0, system_id=7
+    )
     try:
         with SitlServer(config, [FramePayload()]) as server:
             for listener in (a, b):  # the autopilot and the payload on every link
@@ -200,8 +231,11 @@ def test_repeated_connect_serves_each_link_and_answers_on_the_asking_one() -> No
 @pytest.mark.slow
 def test_signing_covers_every_link_with_its_own_link_id() -> None:
     a, b = Listener(free_udp_port(), KEY), Listener(free_udp_port(), KEY)
-    config = ServerConfig(connect=[f"udpout:127.0.0.1:{a.port}", f"udpout:127.0.0.1:{b.port}"],
-                          speed=5.0, signing_key=KEY)
+    config = ServerConfig(
+        connect=[f"udpout:127.0.0.1:{a.port}", f"udpout:127.0.0.1:{b.port}"],
+        speed=5.0,
+        signing_key=KEY,
+    )
     try:
         with SitlServer(config) as server:
             link_ids = []
@@ -210,8 +244,19 @@ def test_signing_covers_every_link_with_its_own_link_id() -> None:
                 assert hb.get_signed()
                 link_ids.append(hb.get_link_id())
             assert link_ids == [0, 1]
-            b.conn.mav.command_long_send(1, 0, mavlink.MAV_CMD_REQUEST_MESSAGE, 0,
-                                         mavlink.MAVLINK_MSG_ID_AUTOPILOT_VERSION, 0, 0, 0, 0, 0, 0)
+            b.conn.mav.command_long_send(
+                1,
+                0,
+                mavlink.MAV_CMD_REQUEST_MESSAGE,
+                0,
+                mavlink.MAVLINK_MSG_ID_AUTOPILOT_VERSION,
+                0,
+                0,
+                0,
+                0,
+                0,
+                0,
+            )
             assert b.wait("COMMAND_ACK").result == mavlink.MAV_RESULT_ACCEPTED
             unsigned = mavlink.MAVLink(a.conn, srcSystem=GCS_SYS, srcComponent=GCS_COMP)
             unsigned.command_long_send(1, 0, mavlink.MAV_CMD_NAV_LAND, 0, 0, 0, 0, 0, 0, 0, 0)
@@ -279,6 +324,8 @@ def test_fanout_sends_on_every_link_or_only_the_one_being_answered() -> None:
     with route.answering_link(1):
         fan.send(fan.ping_encode(0, 0, 0, 0))
         fan.everyone().statustext_send(4, b"to all")
-    assert [c.got for c in captures] == [["HEARTBEAT", "STATUSTEXT"],
-                                         ["HEARTBEAT", "PING", "STATUSTEXT"],
-                                         ["HEARTBEAT", "STATUSTEXT"]]
+    assert [c.got for c in captures] == [
+        ["HEARTBEAT", "STATUSTEXT"],
+        ["HEARTBEAT", "PING", "STATUSTEXT"],
+        ["HEARTBEAT", "STATUSTEXT"],
+    ]

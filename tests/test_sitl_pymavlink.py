@@ -36,8 +36,9 @@ class Gcs:
     """A minimal ground station on ``udpout`` to a listening vehicle."""
 
     def __init__(self, port: int) -> None:
-        self.conn = mavutil.mavlink_connection(f"udpout:127.0.0.1:{port}",
-                                               source_system=GCS_SYS, source_component=GCS_COMP)
+        self.conn = mavutil.mavlink_connection(
+            f"udpout:127.0.0.1:{port}", source_system=GCS_SYS, source_component=GCS_COMP
+        )
         self.mav = self.conn.mav
         self.setpoint: tuple[float, float, float] | None = None
         self._last_sp = 0.0
@@ -52,11 +53,30 @@ class Gcs:
             self._last_sp = now
             n, e, d = self.setpoint
             self.mav.set_position_target_local_ned_send(
-                0, 1, 0, mavlink.MAV_FRAME_LOCAL_NED, POSITION_ONLY, n, e, d,
-                0, 0, 0, 0, 0, 0, 0.0, 0.0)
+                0,
+                1,
+                0,
+                mavlink.MAV_FRAME_LOCAL_NED,
+                POSITION_ONLY,
+                n,
+                e,
+                d,
+                0,
+                0,
+                0,
+                0,
+                0,
+                0,
+                0.0,
+                0.0,
+            )
 
-    def wait(self, kind: str | list[str], pred: Callable[[object], bool] = lambda m: True,
-             timeout: float = 10.0):
+    def wait(
+        self,
+        kind: str | list[str],
+        pred: Callable[[object], bool] = lambda m: True,
+        timeout: float = 10.0,
+    ):
         """First message of ``kind`` from the vehicle (system 1) satisfying ``pred``."""
         deadline = time.monotonic() + timeout
         kinds = [kind] if isinstance(kind, str) else kind
@@ -112,8 +132,11 @@ def test_identifies_as_px4_quadrotor_with_healthy_telemetry(gcs: Gcs):
     assert hb.custom_mode == LOITER
     assert mavutil.interpret_px4_mode(hb.base_mode, hb.custom_mode) == "LOITER"
     st = gcs.wait("SYS_STATUS")
-    for bit in (mavlink.MAV_SYS_STATUS_SENSOR_GPS, mavlink.MAV_SYS_STATUS_PREARM_CHECK,
-                mavlink.MAV_SYS_STATUS_GEOFENCE):
+    for bit in (
+        mavlink.MAV_SYS_STATUS_SENSOR_GPS,
+        mavlink.MAV_SYS_STATUS_PREARM_CHECK,
+        mavlink.MAV_SYS_STATUS_GEOFENCE,
+    ):
         assert st.onboard_control_sensors_present & bit
         assert st.onboard_control_sensors_enabled & bit
         assert st.onboard_control_sensors_health & bit
@@ -144,8 +167,9 @@ def test_params_read_list_set_and_int_encoding(gcs: Gcs):
     gcs.mav.param_request_read_send(1, 0, b"", obl.param_index)
     by_index = gcs.wait("PARAM_VALUE", lambda m: m.param_index == obl.param_index)
     assert by_index.param_id == "COM_OBL_ACT"
-    gcs.mav.param_set_send(1, 0, b"COM_OBL_ACT", int_to_param_float(2),
-                           mavlink.MAV_PARAM_TYPE_INT32)
+    gcs.mav.param_set_send(
+        1, 0, b"COM_OBL_ACT", int_to_param_float(2), mavlink.MAV_PARAM_TYPE_INT32
+    )
     echo = gcs.wait("PARAM_VALUE", lambda m: m.param_id == "COM_OBL_ACT")
     assert param_float_to_int(echo.param_value) == 2
     gcs.mav.param_set_send(1, 0, b"MPC_XY_VEL_MAX", -3.0, mavlink.MAV_PARAM_TYPE_REAL32)
@@ -164,20 +188,31 @@ def test_params_read_list_set_and_int_encoding(gcs: Gcs):
 
 
 def test_every_command_long_gets_an_ack(gcs: Gcs):
-    A, D, U = (mavlink.MAV_RESULT_ACCEPTED, mavlink.MAV_RESULT_DENIED,
-               mavlink.MAV_RESULT_UNSUPPORTED)
-    assert gcs.command(mavlink.MAV_CMD_REQUEST_MESSAGE, mavlink.MAVLINK_MSG_ID_AUTOPILOT_VERSION) == A
+    A, D, U = (
+        mavlink.MAV_RESULT_ACCEPTED,
+        mavlink.MAV_RESULT_DENIED,
+        mavlink.MAV_RESULT_UNSUPPORTED,
+    )
+    assert (
+        gcs.command(mavlink.MAV_CMD_REQUEST_MESSAGE, mavlink.MAVLINK_MSG_ID_AUTOPILOT_VERSION) == A
+    )
     ver = gcs.wait("AUTOPILOT_VERSION")
     assert ver.capabilities & mavlink.MAV_PROTOCOL_CAPABILITY_MAVLINK2
     assert ver.capabilities & mavlink.MAV_PROTOCOL_CAPABILITY_PARAM_ENCODE_BYTEWISE
     assert gcs.command(mavlink.MAV_CMD_REQUEST_AUTOPILOT_CAPABILITIES, 1) == A
     assert gcs.command(mavlink.MAV_CMD_REQUEST_MESSAGE, mavlink.MAVLINK_MSG_ID_HOME_POSITION) == A
     gcs.wait("HOME_POSITION")
-    assert gcs.command(mavlink.MAV_CMD_SET_MESSAGE_INTERVAL,
-                       mavlink.MAVLINK_MSG_ID_EXTENDED_SYS_STATE, 1e6) == A
+    assert (
+        gcs.command(
+            mavlink.MAV_CMD_SET_MESSAGE_INTERVAL, mavlink.MAVLINK_MSG_ID_EXTENDED_SYS_STATE, 1e6
+        )
+        == A
+    )
     assert gcs.command(mavlink.MAV_CMD_SET_MESSAGE_INTERVAL, 9999, 1e6) == D
-    assert gcs.command(mavlink.MAV_CMD_GET_MESSAGE_INTERVAL,
-                       mavlink.MAVLINK_MSG_ID_EXTENDED_SYS_STATE) == A
+    assert (
+        gcs.command(mavlink.MAV_CMD_GET_MESSAGE_INTERVAL, mavlink.MAVLINK_MSG_ID_EXTENDED_SYS_STATE)
+        == A
+    )
     assert gcs.wait("MESSAGE_INTERVAL").interval_us == 1_000_000
     assert gcs.command(mavlink.MAV_CMD_DO_SET_MODE, 1, 3, 0) == D  # POSCTL needs RC
     assert gcs.command(mavlink.MAV_CMD_DO_SET_MODE, 1, 4, 1) == D  # never AUTO.READY
@@ -187,12 +222,17 @@ def test_every_command_long_gets_an_ack(gcs: Gcs):
     assert gcs.command(31999) == U  # not a command anyone knows
     assert gcs.command(mavlink.MAV_CMD_COMPONENT_ARM_DISARM, 1, NAN, NAN, NAN, NAN, NAN, NAN) == A
     # a retry with confirmation > 0 is answered the same way and stays idempotent
-    assert gcs.command(mavlink.MAV_CMD_COMPONENT_ARM_DISARM, 1, NAN, NAN, NAN, NAN, NAN, NAN,
-                       confirmation=1) == A
+    assert (
+        gcs.command(
+            mavlink.MAV_CMD_COMPONENT_ARM_DISARM, 1, NAN, NAN, NAN, NAN, NAN, NAN, confirmation=1
+        )
+        == A
+    )
     assert gcs.command(mavlink.MAV_CMD_COMPONENT_ARM_DISARM, 0) == A
     # COMMAND_INT is acknowledged too
-    gcs.mav.command_int_send(1, 0, mavlink.MAV_FRAME_GLOBAL, mavlink.MAV_CMD_DO_SET_SERVO,
-                             0, 0, 0, 0, 0, 0, 0, 0, 0)
+    gcs.mav.command_int_send(
+        1, 0, mavlink.MAV_FRAME_GLOBAL, mavlink.MAV_CMD_DO_SET_SERVO, 0, 0, 0, 0, 0, 0, 0, 0, 0
+    )
     ack = gcs.wait("COMMAND_ACK", lambda m: m.command == mavlink.MAV_CMD_DO_SET_SERVO)
     assert ack.result == U and ack.target_system == GCS_SYS
 
@@ -201,7 +241,11 @@ def test_ping_set_mode_message_and_mission_list(gcs: Gcs):
     gcs.mav.ping_send(123456, 7, 0, 0)
     pong = gcs.wait("PING")
     assert (pong.time_usec, pong.seq, pong.target_system, pong.target_component) == (
-        123456, 7, GCS_SYS, GCS_COMP)
+        123456,
+        7,
+        GCS_SYS,
+        GCS_COMP,
+    )
     gcs.mav.set_mode_send(1, mavlink.MAV_MODE_FLAG_CUSTOM_MODE_ENABLED, LAND)
     gcs.heartbeat(lambda m: m.custom_mode == LAND)
     gcs.mav.mission_request_list_send(1, 0)
@@ -226,8 +270,9 @@ def test_flight_arm_takeoff_offboard_loss_and_land(gcs: Gcs):
     gcs.wait("HEARTBEAT", timeout=1.0)  # let a few setpoints flow first
     assert gcs.command(mavlink.MAV_CMD_DO_SET_MODE, 1, 6, 0) == mavlink.MAV_RESULT_ACCEPTED
     gcs.heartbeat(lambda m: m.custom_mode == OFFBOARD)
-    reached = gcs.wait("LOCAL_POSITION_NED", lambda m: math.dist(
-        (m.x, m.y, m.z), gcs.setpoint) < 1.0, timeout=20.0)
+    reached = gcs.wait(
+        "LOCAL_POSITION_NED", lambda m: math.dist((m.x, m.y, m.z), gcs.setpoint) < 1.0, timeout=20.0
+    )
     assert abs(reached.x) <= 200 and abs(reached.y) <= 200
 
     gcs.setpoint = None  # stop streaming: COM_OF_LOSS_T later the vehicle holds
@@ -241,8 +286,11 @@ def test_flight_arm_takeoff_offboard_loss_and_land(gcs: Gcs):
     assert gcs.command(mavlink.MAV_CMD_NAV_LAND, *[NAN] * 7) == mavlink.MAV_RESULT_ACCEPTED
     gcs.heartbeat(lambda m: m.custom_mode == LAND)
     gcs.wait("EXTENDED_SYS_STATE", lambda m: m.landed_state == mavlink.MAV_LANDED_STATE_LANDING)
-    gcs.wait("EXTENDED_SYS_STATE", lambda m: m.landed_state == mavlink.MAV_LANDED_STATE_ON_GROUND,
-             timeout=20.0)
+    gcs.wait(
+        "EXTENDED_SYS_STATE",
+        lambda m: m.landed_state == mavlink.MAV_LANDED_STATE_ON_GROUND,
+        timeout=20.0,
+    )
     gcs.heartbeat(lambda m: not m.base_mode & mavlink.MAV_MODE_FLAG_SAFETY_ARMED, timeout=5.0)
 
 
@@ -265,10 +313,17 @@ def test_heartbeat_keeps_a_wall_clock_floor_at_low_speed():
 
 
 def test_cli_bad_arguments_exit_2_with_one_line():
-    for args in (["--speed", "0"], ["--connect", "udp:nowhere"], ["--scenario", "nope"],
-                 ["--param", "NOPE=1"], ["--home-lat", "123"], ["--no-payload", "--lockstep"]):
-        r = subprocess.run([sys.executable, "-m", "sitl_stub", *args], capture_output=True,
-                           text=True, timeout=30)
+    for args in (
+        ["--speed", "0"],
+        ["--connect", "udp:nowhere"],
+        ["--scenario", "nope"],
+        ["--param", "NOPE=1"],
+        ["--home-lat", "123"],
+        ["--no-payload", "--lockstep"],
+    ):
+        r = subprocess.run(
+            [sys.executable, "-m", "sitl_stub", *args], capture_output=True, text=True, timeout=30
+        )
         assert r.returncode == 2, (args, r.stderr)
         assert r.stderr.count("\n") == 1 and "error" in r.stderr, r.stderr
 
@@ -284,7 +339,21 @@ def test_cli_exits_cleanly_on_sigterm_sigint_and_duration():
             v.proc.send_signal(sig)
             assert v.proc.wait(10) == 0
             assert "Traceback" not in v.output()
-    r = subprocess.run([sys.executable, "-m", "sitl_stub", "--no-payload", "--speed", "10",
-                        "--duration-s", "2", "--connect", f"udpout:127.0.0.1:{port}"],
-                       capture_output=True, text=True, timeout=30)
+    r = subprocess.run(
+        [
+            sys.executable,
+            "-m",
+            "sitl_stub",
+            "--no-payload",
+            "--speed",
+            "10",
+            "--duration-s",
+            "2",
+            "--connect",
+            f"udpout:127.0.0.1:{port}",
+        ],
+        capture_output=True,
+        text=True,
+        timeout=30,
+    )
     assert r.returncode == 0, r.stderr

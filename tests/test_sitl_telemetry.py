@@ -23,8 +23,12 @@ pytestmark = [pytest.mark.waits, pytest.mark.timeout(90)]
 
 mavlink = mavutil.mavlink
 SPEED = 10.0
-HEALTH_BITS = (mavlink.MAV_SYS_STATUS_SENSOR_GPS | mavlink.MAV_SYS_STATUS_PREARM_CHECK
-               | mavlink.MAV_SYS_STATUS_GEOFENCE | mavlink.MAV_SYS_STATUS_SENSOR_BATTERY)
+HEALTH_BITS = (
+    mavlink.MAV_SYS_STATUS_SENSOR_GPS
+    | mavlink.MAV_SYS_STATUS_PREARM_CHECK
+    | mavlink.MAV_SYS_STATUS_GEOFENCE
+    | mavlink.MAV_SYS_STATUS_SENSOR_BATTERY
+)
 
 
 def test_battery_drains_while_armed_to_the_floor_and_refills_on_disarm() -> None:
@@ -35,7 +39,9 @@ def test_battery_drains_while_armed_to_the_floor_and_refills_on_disarm() -> None
     b.update(10.0, armed=True)  # arming starts the integration
     b.update(22.0, armed=True)  # 12 s of the default 60 s full drain: 20 %
     assert b.reading().remaining_pct == pytest.approx(80.0)
-    assert b.reading().voltage_v == pytest.approx(CELL_COUNT * (CELL_EMPTY_V + 0.8 * (CELL_FULL_V - CELL_EMPTY_V)))
+    assert b.reading().voltage_v == pytest.approx(
+        CELL_COUNT * (CELL_EMPTY_V + 0.8 * (CELL_FULL_V - CELL_EMPTY_V))
+    )
     b.update(200.0, armed=True)
     assert b.reading().remaining_pct == pytest.approx(50.0)  # SIM_BAT_MIN_PCT
     b.update(201.0, armed=False)
@@ -65,8 +71,9 @@ class _Capture:
 def test_sys_status_reports_a_breached_fence_unhealthy_and_the_battery() -> None:
     capture = _Capture()
     battery = Battery()
-    sender = TelemetrySender(mavlink.MAVLink(capture, srcSystem=1, srcComponent=1), GeoOrigin(),
-                             battery)
+    sender = TelemetrySender(
+        mavlink.MAVLink(capture, srcSystem=1, srcComponent=1), GeoOrigin(), battery
+    )
     state = Vehicle().state()
     battery.update(0.0, armed=True)
     battery.update(30.0, armed=True)
@@ -81,7 +88,9 @@ def test_sys_status_reports_a_breached_fence_unhealthy_and_the_battery() -> None
     assert ok.battery_remaining == status.battery_remaining == 50
     cells = [v for v in status.voltages if v != 65535]
     assert len(cells) == CELL_COUNT and sum(cells) == pytest.approx(ok.voltage_battery, abs=4)
-    assert status.charge_state == mavlink.MAV_BATTERY_CHARGE_STATE_OK and status.current_battery == -1
+    assert (
+        status.charge_state == mavlink.MAV_BATTERY_CHARGE_STATE_OK and status.current_battery == -1
+    )
 
 
 def _collect(conn: Any, seconds: float) -> list[Any]:
@@ -134,29 +143,48 @@ def _assert_period(gaps_s: list[float], period_s: float) -> None:
 def test_streams_arrive_at_their_rates_and_the_battery_drains_in_flight() -> None:
     config = ServerConfig(connect="udpin:127.0.0.1:0", speed=SPEED, params={"MIS_TAKEOFF_ALT": 5.0})
     with SitlServer(config) as server:
-        gcs = mavutil.mavlink_connection(f"udpout:127.0.0.1:{server.address[1]}",
-                                         source_system=245, source_component=190)
+        gcs = mavutil.mavlink_connection(
+            f"udpout:127.0.0.1:{server.address[1]}", source_system=245, source_component=190
+        )
         try:
             gcs.mav.heartbeat_send(6, 8, 0, 0, 4)
             before = _collect(gcs, 12.0 / SPEED * 4)  # ~48 simulated seconds
             kinds = [m.get_type() for m in before]
-            for kind in ("BATTERY_STATUS", "HOME_POSITION", "GPS_RAW_INT", "EXTENDED_SYS_STATE",
-                         "SYS_STATUS"):
+            for kind in (
+                "BATTERY_STATUS",
+                "HOME_POSITION",
+                "GPS_RAW_INT",
+                "EXTENDED_SYS_STATE",
+                "SYS_STATUS",
+            ):
                 assert kind in kinds, f"no {kind} stream"
             _assert_period(_stamped_intervals_s(before, "HOME_POSITION"), 2.0)
             _assert_period(_sim_intervals_s(before, "BATTERY_STATUS"), 2.0)
             # GPS_RAW_INT carries its own simulated time: the ATTITUDE clock trails it by up to a
             # delayed ATTITUDE on a loaded machine (0.75 then 1.37 s seen)
             _assert_period(_stamped_intervals_s(before, "GPS_RAW_INT"), 1.0)
-            assert {m.battery_remaining for m in before if m.get_type() == "BATTERY_STATUS"} == {100}
+            assert {m.battery_remaining for m in before if m.get_type() == "BATTERY_STATUS"} == {
+                100
+            }
             # HOME_POSITION on request (MAVSDK asks until it comes): with its periodic stream off,
             # exactly one arrives, and only once asked
-            assert _command(gcs, mavlink.MAV_CMD_SET_MESSAGE_INTERVAL, mavlink.MAVLINK_MSG_ID_HOME_POSITION,
-                            -1) == mavlink.MAV_RESULT_ACCEPTED
-            assert not [m for m in _collect(gcs, 6.0 / SPEED) if m.get_type() == "HOME_POSITION"][1:]
+            assert (
+                _command(
+                    gcs,
+                    mavlink.MAV_CMD_SET_MESSAGE_INTERVAL,
+                    mavlink.MAVLINK_MSG_ID_HOME_POSITION,
+                    -1,
+                )
+                == mavlink.MAV_RESULT_ACCEPTED
+            )
+            assert not [m for m in _collect(gcs, 6.0 / SPEED) if m.get_type() == "HOME_POSITION"][
+                1:
+            ]
             assert not [m for m in _collect(gcs, 6.0 / SPEED) if m.get_type() == "HOME_POSITION"]
-            assert _command(gcs, mavlink.MAV_CMD_REQUEST_MESSAGE,
-                            mavlink.MAVLINK_MSG_ID_HOME_POSITION) == mavlink.MAV_RESULT_ACCEPTED
+            assert (
+                _command(gcs, mavlink.MAV_CMD_REQUEST_MESSAGE, mavlink.MAVLINK_MSG_ID_HOME_POSITION)
+                == mavlink.MAV_RESULT_ACCEPTED
+            )
             asked = [m for m in _collect(gcs, 6.0 / SPEED) if m.get_type() == "HOME_POSITION"]
             assert len(asked) == 1
 
@@ -169,7 +197,8 @@ def test_streams_arrive_at_their_rates_and_the_battery_drains_in_flight() -> Non
             sys_status = [m for m in flying if m.get_type() == "SYS_STATUS"][-1]
             assert sys_status.battery_remaining == 50  # SIM_BAT_MIN_PCT floor
             assert sys_status.voltage_battery == pytest.approx(
-                1000 * CELL_COUNT * (CELL_EMPTY_V + 0.5 * (CELL_FULL_V - CELL_EMPTY_V)), abs=2)
+                1000 * CELL_COUNT * (CELL_EMPTY_V + 0.5 * (CELL_FULL_V - CELL_EMPTY_V)), abs=2
+            )
             assert server.state().armed and server.report()["vehicle"]["battery_pct"] == 50.0
         finally:
             gcs.close()

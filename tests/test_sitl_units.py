@@ -23,9 +23,17 @@ pytestmark = pytest.mark.timeout(30)
 
 
 # ------------------------------------------------------------------ modes
-@pytest.mark.parametrize(("mode", "main", "sub"), [
-    (FlightMode.OFFBOARD, 6, 0), (FlightMode.TAKEOFF, 4, 2), (FlightMode.LOITER, 4, 3),
-    (FlightMode.RTL, 4, 5), (FlightMode.LAND, 4, 6), (FlightMode.MISSION, 4, 4)])
+@pytest.mark.parametrize(
+    ("mode", "main", "sub"),
+    [
+        (FlightMode.OFFBOARD, 6, 0),
+        (FlightMode.TAKEOFF, 4, 2),
+        (FlightMode.LOITER, 4, 3),
+        (FlightMode.RTL, 4, 5),
+        (FlightMode.LAND, 4, 6),
+        (FlightMode.MISSION, 4, 4),
+    ],
+)
 def test_px4_custom_mode_encoding(mode, main, sub):
     assert mode.custom_mode == main << 16 | sub << 24
     assert decode_custom_mode(mode.custom_mode) == (main, sub)
@@ -82,24 +90,37 @@ def test_param_overrides():
 
 
 # ------------------------------------------------------------ connections
-@pytest.mark.parametrize(("given_url", "expected"), [
-    ("udpout:127.0.0.1:14550", "udpout:127.0.0.1:14550"),
-    ("udp:127.0.0.1:14550", "udpin:127.0.0.1:14550"),
-    ("udp:14550", "udpin:0.0.0.0:14550"),
-    ("udpin:14550", "udpin:0.0.0.0:14550"),
-    ("udpin://0.0.0.0:14540", "udpin:0.0.0.0:14540"),
-    ("udp://:14540", "udpin:0.0.0.0:14540"),
-    ("udpout://10.0.0.2:14550", "udpout:10.0.0.2:14550"),
-    ("tcp:127.0.0.1:5760", "tcp:127.0.0.1:5760"),
-    ("tcpin://0.0.0.0:5760", "tcpin:0.0.0.0:5760"),
-    ("UDP:127.0.0.1:0", "udpin:127.0.0.1:0"),
-])
+@pytest.mark.parametrize(
+    ("given_url", "expected"),
+    [
+        ("udpout:127.0.0.1:14550", "udpout:127.0.0.1:14550"),
+        ("udp:127.0.0.1:14550", "udpin:127.0.0.1:14550"),
+        ("udp:14550", "udpin:0.0.0.0:14550"),
+        ("udpin:14550", "udpin:0.0.0.0:14550"),
+        ("udpin://0.0.0.0:14540", "udpin:0.0.0.0:14540"),
+        ("udp://:14540", "udpin:0.0.0.0:14540"),
+        ("udpout://10.0.0.2:14550", "udpout:10.0.0.2:14550"),
+        ("tcp:127.0.0.1:5760", "tcp:127.0.0.1:5760"),
+        ("tcpin://0.0.0.0:5760", "tcpin:0.0.0.0:5760"),
+        ("UDP:127.0.0.1:0", "udpin:127.0.0.1:0"),
+    ],
+)
 def test_connection_normalisation(given_url, expected):
     assert normalize_connection(given_url) == expected
 
 
-@pytest.mark.parametrize("bad", ["", "14550", "serial:/dev/ttyUSB0", "udpout:14550",
-                                 "udp:host:port", "udp:1.2.3.4:70000", "udpout:1.2.3.4:0"])
+@pytest.mark.parametrize(
+    "bad",
+    [
+        "",
+        "14550",
+        "serial:/dev/ttyUSB0",
+        "udpout:14550",
+        "udp:host:port",
+        "udp:1.2.3.4:70000",
+        "udpout:1.2.3.4:0",
+    ],
+)
 def test_bad_connections_are_one_line_errors(bad):
     with pytest.raises(ValueError) as err:
         normalize_connection(bad)
@@ -202,7 +223,16 @@ def test_payload_contract_is_checked():
         check_payload(_Payload((18, 8, 0, 0, 4), component_id=1), {1})
 
 
-@pytest.mark.parametrize("main, sub, name", [(4, 3, "AUTO.LOITER"), (4, 6, "AUTO.LAND"), (6, 0, "OFFBOARD"),
-                                             (3, 0, "POSCTL"), (4, 9, "AUTO.9"), (12, 1, "mode 12.1")])
+@pytest.mark.parametrize(
+    "main, sub, name",
+    [
+        (4, 3, "AUTO.LOITER"),
+        (4, 6, "AUTO.LAND"),
+        (6, 0, "OFFBOARD"),
+        (3, 0, "POSCTL"),
+        (4, 9, "AUTO.9"),
+        (12, 1, "mode 12.1"),
+    ],
+)
 def test_px4_mode_names(main, sub, name):
     assert px4_mode_name(main, sub) == name

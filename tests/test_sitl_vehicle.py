@@ -225,8 +225,12 @@ def test_landing_descent_rates():
 def test_rtl_climbs_returns_home_and_lands():
     v = airborne(20.0)
     start_offboard(v, (120.0, -80.0, -20.0))
-    run_until(v, lambda: math.dist((v.pos[0], v.pos[1]), (120.0, -80.0)) < 0.5, 60.0,
-              (120.0, -80.0, -20.0))
+    run_until(
+        v,
+        lambda: math.dist((v.pos[0], v.pos[1]), (120.0, -80.0)) < 0.5,
+        60.0,
+        (120.0, -80.0, -20.0),
+    )
     assert v.return_to_launch().ok
     max_alt = 0.0
     while v.armed:
@@ -273,8 +277,18 @@ _coord = st.floats(min_value=-1000.0, max_value=1000.0, allow_nan=False)
 
 
 @settings(max_examples=25, deadline=None)
-@given(st.lists(st.tuples(_coord, _coord, st.floats(min_value=-150.0, max_value=50.0),
-                          st.floats(min_value=0.1, max_value=8.0)), min_size=1, max_size=6))
+@given(
+    st.lists(
+        st.tuples(
+            _coord,
+            _coord,
+            st.floats(min_value=-150.0, max_value=50.0),
+            st.floats(min_value=0.1, max_value=8.0),
+        ),
+        min_size=1,
+        max_size=6,
+    )
+)
 def test_any_setpoint_sequence_stays_inside_fence_and_limits(plan):
     v = airborne(5.0)
     start_offboard(v, (0.0, 0.0, -5.0))

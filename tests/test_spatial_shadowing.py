@@ -30,7 +30,9 @@ def test_marginal_is_zero_mean_with_8_db_std():
     assert values.std() == pytest.approx(8.0, abs=0.3)
 
 
-@pytest.mark.parametrize(("distance_m", "expected"), [(10, 0.82), (25, 0.61), (50, 0.37), (100, 0.14)])
+@pytest.mark.parametrize(
+    ("distance_m", "expected"), [(10, 0.82), (25, 0.61), (50, 0.37), (100, 0.14)]
+)
 @pytest.mark.parametrize("end", ["ue", "uav"])
 def test_correlation_follows_exp_minus_distance_over_50_m(distance_m, expected, end):
     field = _fields(2)
@@ -116,5 +118,7 @@ def test_several_uavs_read_one_field_and_two_over_one_spot_read_the_same():
     uavs = np.array([[[0.0, 0.0], [30.0, -40.0], [0.0, 0.0]]] * 6)
     both = field.shadow_db(uavs, ue)  # (6, 4, 3)
     for d in range(3):
-        np.testing.assert_allclose(both[:, :, d], field.shadow_db(uavs[:, d:d + 1], ue)[:, :, 0], atol=1e-4)
+        np.testing.assert_allclose(
+            both[:, :, d], field.shadow_db(uavs[:, d : d + 1], ue)[:, :, 0], atol=1e-4
+        )
     np.testing.assert_array_equal(both[:, :, 0], both[:, :, 2])

@@ -62,7 +62,9 @@ def test_rule_hovers_where_the_estimate_is_above_the_gate() -> None:
     env = BatchedUavEnv(CFG, n_envs=4, seed=1)
     obs = env.reset()
     plain = AoaPolicy(CFG).act(obs)
-    gated = AoaVariant(CFG, shadow_gate_db=2.0, shadow_estimator=FixedEstimate(np.array([5.0, 2.0, -1.0, 2.5])))
+    gated = AoaVariant(
+        CFG, shadow_gate_db=2.0, shadow_estimator=FixedEstimate(np.array([5.0, 2.0, -1.0, 2.5]))
+    )
     assert not gated.needs_truth  # an estimate from the observation: still GPS-free
     np.testing.assert_array_equal(gated.act(obs)[[0, 3]], np.tile(AoaPolicy(CFG).hover, (2, 1)))
     np.testing.assert_array_equal(gated.act(obs)[[1, 2]], plain[[1, 2]])
@@ -97,7 +99,10 @@ def test_make_teacher_builds_what_train_config_names() -> None:
     cfg = EnvConfig(scenario="straight_180")
     assert isinstance(make_teacher(cfg, "static"), StaticPolicy)  # other baselines fly as they are
     variant = make_teacher(cfg, "aoa", shadow_gate_db=0.5, sinr_span_db=3.0).rule
-    assert isinstance(variant, AoaVariant) and (variant.shadow_gate_db, variant.sinr_span_db) == (0.5, 3.0)
+    assert isinstance(variant, AoaVariant) and (variant.shadow_gate_db, variant.sinr_span_db) == (
+        0.5,
+        3.0,
+    )
     assert make_teacher(cfg, "aoa", shadow_gate_db=0.5).rule.sinr_span_db == AoaPolicy.sinr_span_db
     for setting in ({"shadow_gate_db": 0.0}, {"sinr_span_db": 2.0}):
         with pytest.raises(ValueError, match="needs train.warm_start.teacher aoa"):
@@ -117,7 +122,10 @@ def test_a_fleets_aoa_teacher_takes_a_speed_span_only() -> None:
     short, rule = make_teacher(cfg, "aoa", sinr_span_db=5.0), make_baseline("aoa", cfg)
     assert isinstance(short, FleetAoaPolicy) and short.sinr_span_db == 5.0
     obs = BatchedUavEnv(cfg, n_envs=32, seed=2).reset()
-    far_short, far_rule = short.mapping.to_polar(short.act(obs))[1], rule.mapping.to_polar(rule.act(obs))[1]
+    far_short, far_rule = (
+        short.mapping.to_polar(short.act(obs))[1],
+        rule.mapping.to_polar(rule.act(obs))[1],
+    )
     assert (far_short >= far_rule - 1e-9).all() and (far_short > far_rule + 0.1).any()
     with pytest.raises(ValueError, match="single-UAV aoa teacher's"):
         make_teacher(cfg, "aoa", shadow_gate_db=1.0)

@@ -25,12 +25,21 @@ def test_the_position_loop_is_sitl_stubs() -> None:
     assert PX4_MOTION.substep_s == SUBSTEP_S
     # the limits are the vehicle's default parameters (the gain and braking are track()'s own, below)
     params = ParamStore()
-    assert (PX4_MOTION.max_speed_mps, PX4_MOTION.max_accel_mps2) == (params["MPC_XY_VEL_MAX"], params["MPC_ACC_HOR_MAX"])
+    assert (PX4_MOTION.max_speed_mps, PX4_MOTION.max_accel_mps2) == (
+        params["MPC_XY_VEL_MAX"],
+        params["MPC_ACC_HOR_MAX"],
+    )
     for i in range(len(pos)):
         p, v = [pos[i, 0], pos[i, 1], -95.0], [vel[i, 0], vel[i, 1], 0.0]
         for _ in range(round(1.0 / SUBSTEP_S)):
-            track(p, v, (setpoint[i, 0], setpoint[i, 1], -95.0), (PX4_MOTION.max_speed_mps, 3.0, 1.5),
-                  PX4_MOTION.max_accel_mps2, SUBSTEP_S)
+            track(
+                p,
+                v,
+                (setpoint[i, 0], setpoint[i, 1], -95.0),
+                (PX4_MOTION.max_speed_mps, 3.0, 1.5),
+                PX4_MOTION.max_accel_mps2,
+                SUBSTEP_S,
+            )
         np.testing.assert_allclose(got_pos[i], p[:2], atol=1e-9)
         np.testing.assert_allclose(got_vel[i], v[:2], atol=1e-9)
 
@@ -49,7 +58,9 @@ def _flown(motion: str, moves: list[tuple[float, float]]) -> tuple[np.ndarray, n
 
 
 def test_a_full_speed_move_from_a_hover_takes_px4_more_than_a_frame() -> None:
-    east = [(1.0, 0.0)] * 6 + [(0.0, 0.0)] * 14  # 72 m east at the paper's 12 m per frame, then hover
+    east = [(1.0, 0.0)] * 6 + [
+        (0.0, 0.0)
+    ] * 14  # 72 m east at the paper's 12 m per frame, then hover
     instant, _ = _flown("instant", east)
     px4, setpoints = _flown("px4", east)
     np.testing.assert_allclose(instant[6], [72.0, 0.0])
@@ -76,5 +87,7 @@ def test_the_genie_plans_instant_moves_beside_a_px4_uav() -> None:
 
     overrides = EnvOverrides(scenario="no_move", settings={"uav_motion": "px4"})
     (_, static_cfg), (genie, genie_cfg) = load_with_env(["static", "genie"], overrides)
-    assert static_cfg.uav_motion == "px4" and genie_cfg.uav_motion == genie.cfg.uav_motion == "instant"
+    assert (
+        static_cfg.uav_motion == "px4" and genie_cfg.uav_motion == genie.cfg.uav_motion == "instant"
+    )
     assert genie_cfg.replace(uav_motion="px4") == static_cfg

@@ -25,10 +25,21 @@ class LinkError(RuntimeError):
 
 
 # The optional packages and the extra that installs each (pyproject.toml's optional-dependencies).
-EXTRA_OF_MODULE = {"torch": "train", "stable_baselines3": "train", "tensorboard": "train", "tqdm": "train",
-                   "rich": "train", "onnxruntime": "fly", "pymavlink": "fly", "onnx": "export",
-                   "matplotlib": "plot", "distributed": "sweep", "dask": "sweep", "tomli": "sweep",
-                   "pettingzoo": "fleet"}
+EXTRA_OF_MODULE = {
+    "torch": "train",
+    "stable_baselines3": "train",
+    "tensorboard": "train",
+    "tqdm": "train",
+    "rich": "train",
+    "onnxruntime": "fly",
+    "pymavlink": "fly",
+    "onnx": "export",
+    "matplotlib": "plot",
+    "distributed": "sweep",
+    "dask": "sweep",
+    "tomli": "sweep",
+    "pettingzoo": "fleet",
+}
 
 
 def missing_extra(exc: ModuleNotFoundError) -> str | None:
@@ -36,7 +47,11 @@ def missing_extra(exc: ModuleNotFoundError) -> str | None:
     (then the missing module is a bug or a broken install, and keeps its traceback)."""
     module = (exc.name or "").split(".")[0]
     extra = EXTRA_OF_MODULE.get(module)
-    return None if extra is None else f"this needs {module}, which is optional: pip install 'uavlink[{extra}]'"
+    return (
+        None
+        if extra is None
+        else f"this needs {module}, which is optional: pip install 'uavlink[{extra}]'"
+    )
 
 
 def require(module: str) -> None:

@@ -37,8 +37,14 @@ from uavlink.errors import UserError
 from uavlink.policies.manifest import file_sha256
 from uavlink.policies.onnx_policy import METADATA_KEY
 
-__all__ = ["METADATA_KEY", "ExportVerificationError", "export_onnx", "format_report",
-           "verification_observations", "verify_onnx"]
+__all__ = [
+    "METADATA_KEY",
+    "ExportVerificationError",
+    "export_onnx",
+    "format_report",
+    "verification_observations",
+    "verify_onnx",
+]
 
 INPUT_NAME = "obs"
 OUTPUT_NAME = "action"
@@ -60,10 +66,15 @@ def _to_onnx_bytes(actor: Any, obs_size: int, opset: int) -> bytes:
         warnings.simplefilter("ignore", DeprecationWarning)  # the TorchScript exporter's notice
         warnings.simplefilter("ignore", UserWarning)
         torch.onnx.export(
-            actor, (torch.zeros(1, obs_size, dtype=torch.float32),), buffer,
-            input_names=[INPUT_NAME], output_names=[OUTPUT_NAME], opset_version=opset,
+            actor,
+            (torch.zeros(1, obs_size, dtype=torch.float32),),
+            buffer,
+            input_names=[INPUT_NAME],
+            output_names=[OUTPUT_NAME],
+            opset_version=opset,
             dynamic_axes={INPUT_NAME: {0: "batch"}, OUTPUT_NAME: {0: "batch"}},
-            do_constant_folding=True, dynamo=False,
+            do_constant_folding=True,
+            dynamo=False,
         )
     return buffer.getvalue()
 
@@ -91,8 +102,9 @@ def verification_observations(sb3_policy: Any, n: int, seed: int) -> np.ndarray:
     return np.concatenate(batches, axis=0)[:n].astype(np.float32)
 
 
-def verify_onnx(onnx_path: Path, sb3_policy: Any, n: int = 1000, seed: int = 0,
-                tolerance: float = TOLERANCE) -> dict[str, Any]:
+def verify_onnx(
+    onnx_path: Path, sb3_policy: Any, n: int = 1000, seed: int = 0, tolerance: float = TOLERANCE
+) -> dict[str, Any]:
     """Compare the runtime's actions (``OnnxPolicy``, as flight loads it) with SB3's ``predict`` on
     ``n`` real observations, batched and the first ``SINGLE_CHECKS`` one at a time; raise
     ExportVerificationError beyond ``tolerance``. Also count the actions bit-identical to the zip's
@@ -104,25 +116,41 @@ def verify_onnx(onnx_path: Path, sb3_policy: Any, n: int = 1000, seed: int = 0,
     runtime = OnnxPolicy(onnx_path)
     got = runtime.act(obs)
     if got.shape != expected.shape or got.dtype != np.float32:
-        raise ExportVerificationError(f"exported graph returns {got.dtype} {got.shape}, "
-                                      f"expected float32 {expected.shape}")
+        raise ExportVerificationError(
+            f"exported graph returns {got.dtype} {got.shape}, expected float32 {expected.shape}"
+        )
     diff = np.abs(got.astype(np.float64) - expected)
     singles = min(SINGLE_CHECKS, n)
     single = np.concatenate([runtime.act(obs[i]) for i in range(singles)])
-    max_diff = max(float(diff.max()), float(np.abs(single.astype(np.float64) - expected[:singles]).max()))
+    max_diff = max(
+        float(diff.max()), float(np.abs(single.astype(np.float64) - expected[:singles]).max())
+    )
     if not np.isfinite(got).all() or max_diff > tolerance:
         worst = int(np.argmax(diff.max(axis=1)))
         raise ExportVerificationError(
             f"ONNX actions differ from SB3's by up to {max_diff:.3g} (tolerance {tolerance:g}) on "
             f"{n} observations; worst observation #{worst}: onnx {got[worst].tolist()} vs "
-            f"sb3 {expected[worst].tolist()}")
+            f"sb3 {expected[worst].tolist()}"
+        )
     identical = int(np.all(got == sb3_policy.act(obs), axis=1).sum())
-    return {"n_observations": n, "n_single": singles, "max_abs_diff": max_diff,
-            "tolerance": tolerance, "seed": seed, "n_identical_to_zip_runtime": identical}
+    return {
+        "n_observations": n,
+        "n_single": singles,
+        "max_abs_diff": max_diff,
+        "tolerance": tolerance,
+        "seed": seed,
+        "n_identical_to_zip_runtime": identical,
+    }
 
 
-def export_onnx(zip_path: str | Path, out_path: str | Path, verify: bool = True, n_verify: int = 1000,
-                seed: int = 0, opset: int = DEFAULT_OPSET) -> dict[str, Any]:
+def export_onnx(
+    zip_path: str | Path,
+    out_path: str | Path,
+    verify: bool = True,
+    n_verify: int = 1000,
+    seed: int = 0,
+    opset: int = DEFAULT_OPSET,
+) -> dict[str, Any]:
     """Write the policy zip's deterministic actor to ``out_path`` as ONNX; return what was done.
 
     Raises PolicyFileError for an unusable zip, ExportVerificationError when the graph's actions
@@ -142,12 +170,18 @@ def export_onnx(zip_path: str | Path, out_path: str | Path, verify: bool = True,
     manifest = dict(sb3.manifest)
     manifest["exported_from"] = zip_path.name
     manifest["source_policy_sha256"] = file_sha256(zip_path)
-    manifest["export"] = {"opset": opset, "input": INPUT_NAME, "output": OUTPUT_NAME,
-                          "action": "SB3 deterministic: Gaussian mean clipped to the action box",
-                          "precision": "float64 inside, float32 input and output"}
+    manifest["export"] = {
+        "opset": opset,
+        "input": INPUT_NAME,
+        "output": OUTPUT_NAME,
+        "action": "SB3 deterministic: Gaussian mean clipped to the action box",
+        "precision": "float64 inside, float32 input and output",
+    }
     del model.metadata_props[:]
     onnx.helper.set_model_props(model, {METADATA_KEY: json.dumps(manifest, sort_keys=True)})
-    model.doc_string = f"uavlink policy {zip_path.name}: obs [batch, {sb3.layout.size}] -> action [batch, 2]"
+    model.doc_string = (
+        f"uavlink policy {zip_path.name}: obs [batch, {sb3.layout.size}] -> action [batch, 2]"
+    )
     onnx.checker.check_model(model)
 
     out_path.parent.mkdir(parents=True, exist_ok=True)
@@ -160,25 +194,36 @@ def export_onnx(zip_path: str | Path, out_path: str | Path, verify: bool = True,
     except BaseException:
         tmp.unlink(missing_ok=True)
         raise
-    return {"source": str(zip_path), "out": str(out_path), "opset": opset,
-            "size_bytes": out_path.stat().st_size, "obs_size": sb3.layout.size,
-            "layout": sb3.layout.describe(), "source_policy_sha256": manifest["source_policy_sha256"],
-            "verified": check is not None, "verification": check}
+    return {
+        "source": str(zip_path),
+        "out": str(out_path),
+        "opset": opset,
+        "size_bytes": out_path.stat().st_size,
+        "obs_size": sb3.layout.size,
+        "layout": sb3.layout.describe(),
+        "source_policy_sha256": manifest["source_policy_sha256"],
+        "verified": check is not None,
+        "verification": check,
+    }
 
 
 def format_report(report: dict[str, Any]) -> str:
     """The lines ``uavlink export`` prints."""
-    lines = [f"exported {report['source']} -> {report['out']} "
-             f"(ONNX opset {report['opset']}, {report['size_bytes']:,} bytes)",
-             f"  input obs float32 [batch, {report['obs_size']}], layout {report['layout']}; "
-             f"output action float32 [batch, 2]"]
+    lines = [
+        f"exported {report['source']} -> {report['out']} "
+        f"(ONNX opset {report['opset']}, {report['size_bytes']:,} bytes)",
+        f"  input obs float32 [batch, {report['obs_size']}], layout {report['layout']}; "
+        f"output action float32 [batch, 2]",
+    ]
     check = report["verification"]
     if check is None:
         lines.append("  not verified (--no-verify)")
     else:
-        lines.append(f"  verified: {check['n_observations']} observations from seeded episodes "
-                     f"(seed {check['seed']}) batched, {check['n_single']} one at a time; "
-                     f"max |onnx - sb3 predict| = {check['max_abs_diff']:.2e} <= tolerance "
-                     f"{check['tolerance']:g}; {check['n_identical_to_zip_runtime']} of "
-                     f"{check['n_observations']} bit-identical to the zip's runtime (both float64)")
+        lines.append(
+            f"  verified: {check['n_observations']} observations from seeded episodes "
+            f"(seed {check['seed']}) batched, {check['n_single']} one at a time; "
+            f"max |onnx - sb3 predict| = {check['max_abs_diff']:.2e} <= tolerance "
+            f"{check['tolerance']:g}; {check['n_identical_to_zip_runtime']} of "
+            f"{check['n_observations']} bit-identical to the zip's runtime (both float64)"
+        )
     return "\n".join(lines)

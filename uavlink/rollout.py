@@ -56,7 +56,9 @@ class Chunk:
         may stop early (export verification does)."""
         layout: ObservationLayout | None = getattr(policy, "layout", None)
         if layout is not None:
-            layout.check_matches(self.env.layout, what=f"policy {getattr(policy, 'name', policy)!r}")
+            layout.check_matches(
+                self.env.layout, what=f"policy {getattr(policy, 'name', policy)!r}"
+            )
         obs = self.observation
         for index in range(self.env.cfg.episode_frames):
             truth = self.env.ground_truth() if policy.needs_truth else None
@@ -75,7 +77,9 @@ def chunks(cfg: EnvConfig, stream: Stream, episodes: int, seed: int) -> Iterator
         yield Chunk(index, BatchedUavEnv(cfg, n_envs=n_envs, seed=stream.seed(seed, index)))
 
 
-def rollout(policy: Actor, cfg: EnvConfig, stream: Stream, episodes: int, seed: int) -> Iterator[Frame]:
+def rollout(
+    policy: Actor, cfg: EnvConfig, stream: Stream, episodes: int, seed: int
+) -> Iterator[Frame]:
     """Every frame of ``episodes`` seeded episodes flown by ``policy``, chunk after chunk."""
     for chunk in chunks(cfg, stream, episodes, seed):
         yield from chunk.frames(policy)

@@ -31,8 +31,14 @@ PX4_SUB_POSCTL_ORBIT = 1
 
 #: PX4 main modes that need a manual-control (RC) link, which this vehicle never has.
 MANUAL_MAIN_MODES = frozenset(
-    {PX4_MAIN_MANUAL, PX4_MAIN_ALTCTL, PX4_MAIN_POSCTL, PX4_MAIN_ACRO, PX4_MAIN_STABILIZED,
-     PX4_MAIN_RATTITUDE}
+    {
+        PX4_MAIN_MANUAL,
+        PX4_MAIN_ALTCTL,
+        PX4_MAIN_POSCTL,
+        PX4_MAIN_ACRO,
+        PX4_MAIN_STABILIZED,
+        PX4_MAIN_RATTITUDE,
+    }
 )
 
 

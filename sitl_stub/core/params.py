@@ -34,39 +34,107 @@ class ParamDef:
 
 
 PARAM_DEFS: tuple[ParamDef, ...] = (
-    ParamDef("COM_OF_LOSS_T", ParamType.REAL32, 1.0, 0.0, 60.0,
-             "Offboard loss timeout, s (PX4 commander)."),
-    ParamDef("COM_OBL_ACT", ParamType.INT32, 1, 0, 2,
-             "Offboard loss action: 0 Land, 1 Hold (AUTO.LOITER), 2 Return."),
-    ParamDef("COM_DISARM_LAND", ParamType.REAL32, 2.0, -1.0, 20.0,
-             "Auto-disarm this long after landing, s; <= 0 disables."),
-    ParamDef("MPC_XY_VEL_MAX", ParamType.REAL32, 12.0, 0.5, 20.0,
-             "Maximum horizontal speed, m/s."),
-    ParamDef("MPC_XY_CRUISE", ParamType.REAL32, 5.0, 0.5, 20.0,
-             "Horizontal speed in auto modes (RTL), m/s."),
-    ParamDef("MPC_ACC_HOR_MAX", ParamType.REAL32, 5.0, 0.5, 15.0,
-             "Maximum horizontal acceleration, m/s^2."),
-    ParamDef("MPC_Z_VEL_MAX_UP", ParamType.REAL32, 3.0, 0.5, 8.0,
-             "Maximum climb rate, m/s."),
-    ParamDef("MPC_Z_VEL_MAX_DN", ParamType.REAL32, 1.5, 0.5, 4.0,
-             "Maximum descent rate, m/s."),
-    ParamDef("MPC_TKO_SPEED", ParamType.REAL32, 1.5, 0.5, 5.0,
-             "Climb rate in AUTO.TAKEOFF, m/s."),
-    ParamDef("MPC_LAND_SPEED", ParamType.REAL32, 0.7, 0.2, 2.0,
-             "Descent rate for the last MPC_LAND_ALT2 metres of a landing, m/s."),
-    ParamDef("MPC_LAND_ALT2", ParamType.REAL32, 5.0, 0.0, 50.0,
-             "Below this altitude a landing slows to MPC_LAND_SPEED, m."),
-    ParamDef("MIS_TAKEOFF_ALT", ParamType.REAL32, 95.0, 0.5, 500.0,
-             "Takeoff altitude above home when NAV_TAKEOFF gives none, m."),
-    ParamDef("SYS_FAILURE_EN", ParamType.INT32, 0, 0, 1,
-             "Failure injection (MAV_CMD_INJECT_FAILURE): 0 refused, 1 enabled."),
-    ParamDef("RTL_RETURN_ALT", ParamType.REAL32, 60.0, 0.0, 500.0,
-             "RTL climbs to at least this altitude above home before returning, m."),
-    ParamDef("NAV_ACC_RAD", ParamType.REAL32, 10.0, 0.05, 200.0,
-             "Mission waypoint acceptance radius when the item gives none, m (PX4 navigator)."),
-    ParamDef("GF_ACTION", ParamType.INT32, 2, 0, 5,
-             "Geofence breach action: 0 None, 1 Warning, 2 Hold, 3 Return, 4 Terminate (flown "
-             "as Land here), 5 Land."),
+    ParamDef(
+        "COM_OF_LOSS_T",
+        ParamType.REAL32,
+        1.0,
+        0.0,
+        60.0,
+        "Offboard loss timeout, s (PX4 commander).",
+    ),
+    ParamDef(
+        "COM_OBL_ACT",
+        ParamType.INT32,
+        1,
+        0,
+        2,
+        "Offboard loss action: 0 Land, 1 Hold (AUTO.LOITER), 2 Return.",
+    ),
+    ParamDef(
+        "COM_DISARM_LAND",
+        ParamType.REAL32,
+        2.0,
+        -1.0,
+        20.0,
+        "Auto-disarm this long after landing, s; <= 0 disables.",
+    ),
+    ParamDef("MPC_XY_VEL_MAX", ParamType.REAL32, 12.0, 0.5, 20.0, "Maximum horizontal speed, m/s."),
+    ParamDef(
+        "MPC_XY_CRUISE",
+        ParamType.REAL32,
+        5.0,
+        0.5,
+        20.0,
+        "Horizontal speed in auto modes (RTL), m/s.",
+    ),
+    ParamDef(
+        "MPC_ACC_HOR_MAX",
+        ParamType.REAL32,
+        5.0,
+        0.5,
+        15.0,
+        "Maximum horizontal acceleration, m/s^2.",
+    ),
+    ParamDef("MPC_Z_VEL_MAX_UP", ParamType.REAL32, 3.0, 0.5, 8.0, "Maximum climb rate, m/s."),
+    ParamDef("MPC_Z_VEL_MAX_DN", ParamType.REAL32, 1.5, 0.5, 4.0, "Maximum descent rate, m/s."),
+    ParamDef("MPC_TKO_SPEED", ParamType.REAL32, 1.5, 0.5, 5.0, "Climb rate in AUTO.TAKEOFF, m/s."),
+    ParamDef(
+        "MPC_LAND_SPEED",
+        ParamType.REAL32,
+        0.7,
+        0.2,
+        2.0,
+        "Descent rate for the last MPC_LAND_ALT2 metres of a landing, m/s.",
+    ),
+    ParamDef(
+        "MPC_LAND_ALT2",
+        ParamType.REAL32,
+        5.0,
+        0.0,
+        50.0,
+        "Below this altitude a landing slows to MPC_LAND_SPEED, m.",
+    ),
+    ParamDef(
+        "MIS_TAKEOFF_ALT",
+        ParamType.REAL32,
+        95.0,
+        0.5,
+        500.0,
+        "Takeoff altitude above home when NAV_TAKEOFF gives none, m.",
+    ),
+    ParamDef(
+        "SYS_FAILURE_EN",
+        ParamType.INT32,
+        0,
+        0,
+        1,
+        "Failure injection (MAV_CMD_INJECT_FAILURE): 0 refused, 1 enabled.",
+    ),
+    ParamDef(
+        "RTL_RETURN_ALT",
+        ParamType.REAL32,
+        60.0,
+        0.0,
+        500.0,
+        "RTL climbs to at least this altitude above home before returning, m.",
+    ),
+    ParamDef(
+        "NAV_ACC_RAD",
+        ParamType.REAL32,
+        10.0,
+        0.05,
+        200.0,
+        "Mission waypoint acceptance radius when the item gives none, m (PX4 navigator).",
+    ),
+    ParamDef(
+        "GF_ACTION",
+        ParamType.INT32,
+        2,
+        0,
+        5,
+        "Geofence breach action: 0 None, 1 Warning, 2 Hold, 3 Return, 4 Terminate (flown "
+        "as Land here), 5 Land.",
+    ),
 )
 
 
@@ -86,8 +154,12 @@ class ParamStore(Mapping[str, float]):
     INT32 values are held as Python ints, REAL32 as floats.
     """
 
-    def __init__(self, overrides: Mapping[str, float] | None = None, *,
-                 defs: tuple[ParamDef, ...] = PARAM_DEFS) -> None:
+    def __init__(
+        self,
+        overrides: Mapping[str, float] | None = None,
+        *,
+        defs: tuple[ParamDef, ...] = PARAM_DEFS,
+    ) -> None:
         self._defs = {d.name: d for d in defs}
         self._order = [d.name for d in defs]
         self._values: dict[str, float] = {d.name: _typed(d, d.default) for d in defs}

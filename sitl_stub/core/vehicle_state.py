@@ -76,7 +76,12 @@ class VehicleState:
     max_abs_xy_m: float = 0.0
     max_offboard_setpoint_age_s: float = 0.0
     fence_breached: bool = False  # a geofence is breached now (SYS_STATUS reports it unhealthy)
-    mission_current: tuple[int, int, int, int] = (0, 0, 1, 0)  # MISSION_CURRENT seq, total, state, mode
+    mission_current: tuple[int, int, int, int] = (
+        0,
+        0,
+        1,
+        0,
+    )  # MISSION_CURRENT seq, total, state, mode
     failures: frozenset[str] = frozenset()  # injected failures: "gps", "battery", "motor"
     orbit: Orbit | None = None  # the orbit flown in ORBIT mode
     armings: int = 0  # times armed since boot: each begins a flight (the radio payload's episode)

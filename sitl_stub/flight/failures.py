@@ -19,8 +19,11 @@ FAILURE_TYPE_OK = 0
 FAILURE_TYPE_OFF = 1
 
 #: unit -> the name it has in :attr:`FailureState.active` (and VehicleState.failures)
-MODELLED_UNITS = {FAILURE_UNIT_SENSOR_GPS: "gps", FAILURE_UNIT_SYSTEM_BATTERY: "battery",
-                  FAILURE_UNIT_SYSTEM_MOTOR: "motor"}
+MODELLED_UNITS = {
+    FAILURE_UNIT_SENSOR_GPS: "gps",
+    FAILURE_UNIT_SYSTEM_BATTERY: "battery",
+    FAILURE_UNIT_SYSTEM_MOTOR: "motor",
+}
 
 
 class FailureState:
@@ -37,8 +40,10 @@ class FailureState:
         """Apply FAILURE_TYPE ``failure_type`` to FAILURE_UNIT ``unit`` (OK restores it)."""
         name = MODELLED_UNITS.get(unit)
         if name is None or failure_type not in (FAILURE_TYPE_OK, FAILURE_TYPE_OFF):
-            return Outcome(Result.UNSUPPORTED,
-                           f"Failure injection: unit {unit} type {failure_type} not simulated")
+            return Outcome(
+                Result.UNSUPPORTED,
+                f"Failure injection: unit {unit} type {failure_type} not simulated",
+            )
         if failure_type == FAILURE_TYPE_OFF:
             self.active.add(name)
         else:

@@ -81,8 +81,9 @@ class Geofence:
         inclusions = [z for z in self.zones if z.inclusion]
         if inclusions and not any(z.contains(p) for z in inclusions):
             return False
-        return not any(z.contains(p) and z.boundary_distance(p) > 1e-9
-                       for z in self.zones if not z.inclusion)
+        return not any(
+            z.contains(p) and z.boundary_distance(p) > 1e-9 for z in self.zones if not z.inclusion
+        )
 
     def boundary_distance(self, p: Point) -> float:
         """Distance to the nearest zone boundary, metres (inf without zones)."""
@@ -119,15 +120,21 @@ def fence_from_items(items: Sequence[MissionItem], origin: GeoOrigin) -> Geofenc
         item = items[i]
         if item.command in (CIRCLE_INCLUSION, CIRCLE_EXCLUSION):
             if item.param1 > 0:
-                zones.append(Circle(_local(item, origin), float(item.param1),
-                                    item.command == CIRCLE_INCLUSION))
+                zones.append(
+                    Circle(
+                        _local(item, origin), float(item.param1), item.command == CIRCLE_INCLUSION
+                    )
+                )
             i += 1
         elif item.command in (POLYGON_INCLUSION, POLYGON_EXCLUSION):
             count = int(item.param1)
-            run = items[i:i + max(count, 1)]
+            run = items[i : i + max(count, 1)]
             if count >= 3 and len(run) == count and all(v.command == item.command for v in run):
-                zones.append(Polygon(tuple(_local(v, origin) for v in run),
-                                     item.command == POLYGON_INCLUSION))
+                zones.append(
+                    Polygon(
+                        tuple(_local(v, origin) for v in run), item.command == POLYGON_INCLUSION
+                    )
+                )
                 i += count
             else:
                 i += 1
@@ -179,7 +186,11 @@ class FenceGuard:
         """On a new breach (the stopping point just left the fence): the last allowed point on
         the way there, where a multicopter holds. None otherwise."""
         f = self.fence
-        bad = bool(f.zones) and not f.allows(stop_ne) and f.boundary_distance(stop_ne) > BREACH_TOLERANCE_M
+        bad = (
+            bool(f.zones)
+            and not f.allows(stop_ne)
+            and f.boundary_distance(stop_ne) > BREACH_TOLERANCE_M
+        )
         if not bad:
             self.breached = False
             return None

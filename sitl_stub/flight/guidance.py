@@ -44,11 +44,14 @@ class Motion:
     free_axes: tuple[bool, bool, bool]
     yaw_rate_radps: float | None = None
 
-    def fill(self, position: tuple[float, float, float],
-             current: list[float]) -> tuple[float, float, float]:
+    def fill(
+        self, position: tuple[float, float, float], current: list[float]
+    ) -> tuple[float, float, float]:
         """``position`` with its free axes replaced by the ``current`` position."""
-        return tuple(c if free else p for p, c, free  # type: ignore[return-value]
-                     in zip(position, current, self.free_axes, strict=True))
+        return tuple(
+            c if free else p
+            for p, c, free in zip(position, current, self.free_axes, strict=True)  # type: ignore[return-value]
+        )
 
 
 @dataclass(frozen=True)
@@ -93,8 +96,9 @@ class Orbit:
         return wrap(math.atan2(-re, -rn))  # front to centre (PX4's default, and RC-controlled)
 
 
-def sanitize_orbit(radius_m: float, speed_mps: float, v_max_mps: float,
-                   acc_max_mps2: float) -> tuple[float, float]:
+def sanitize_orbit(
+    radius_m: float, speed_mps: float, v_max_mps: float, acc_max_mps2: float
+) -> tuple[float, float]:
     """(radius, signed speed) as PX4's FlightTaskOrbit::_sanitizeParams leaves them: radius in
     [1, 1000] m, |speed| <= v_max, and v^2 <= acc_max * radius (speed lowered, not radius)."""
     r = min(max(radius_m, ORBIT_RADIUS_MIN_M), ORBIT_RADIUS_MAX_M)
@@ -104,7 +108,9 @@ def sanitize_orbit(radius_m: float, speed_mps: float, v_max_mps: float,
     return r, v
 
 
-def body_to_ned(forward: float, right: float, down: float, yaw_rad: float) -> tuple[float, float, float]:
+def body_to_ned(
+    forward: float, right: float, down: float, yaw_rad: float
+) -> tuple[float, float, float]:
     """A body-frame (FRD) vector in NED at heading ``yaw_rad``."""
     c, s = math.cos(yaw_rad), math.sin(yaw_rad)
     return forward * c - right * s, forward * s + right * c, down
@@ -136,7 +142,8 @@ class ControlCommand:
         """Asks to leave the ground (a target above it, or a climb rate)."""
         down = self.target[2]
         return (math.isfinite(down) and -down > GROUND_EPS_M) or (
-            math.isnan(down) and self.velocity_ff[2] < 0.0)
+            math.isnan(down) and self.velocity_ff[2] < 0.0
+        )
 
 
 class Guidance:
@@ -154,8 +161,9 @@ class Guidance:
         """AUTO modes' horizontal speed: DO_CHANGE_SPEED's, else MPC_XY_CRUISE (PX4 navigator)."""
         return self.cruise_override_mps or params["MPC_XY_CRUISE"]
 
-    def xy_limit_mps(self, mode: FlightMode, target: tuple[float, float, float],
-                     params: Mapping[str, float]) -> float:
+    def xy_limit_mps(
+        self, mode: FlightMode, target: tuple[float, float, float], params: Mapping[str, float]
+    ) -> float:
         """Horizontal speed limit: RTL and a reposition fly at the cruise speed (or
         DO_REPOSITION's ground speed), everything else up to MPC_XY_VEL_MAX."""
         xy = params["MPC_XY_VEL_MAX"]
@@ -165,24 +173,39 @@ class Guidance:
             return min(xy, self.reposition_speed_mps or self.cruise_speed_mps(params))
         return xy
 
-    def command(self, mode: FlightMode, pos: list[float], target: tuple[float, float, float],
-                yaw_target: float | None, fence_m: float, ceiling_m: float,
-                acc_xy_mps2: float) -> ControlCommand:
+    def command(
+        self,
+        mode: FlightMode,
+        pos: list[float],
+        target: tuple[float, float, float],
+        yaw_target: float | None,
+        fence_m: float,
+        ceiling_m: float,
+        acc_xy_mps2: float,
+    ) -> ControlCommand:
         """The control command for ``mode``; velocities are braked before the hard fence
         (``|north|, |east| <= fence_m``, ``-ceiling_m <= down <= 0``)."""
         if mode is FlightMode.ORBIT and self.orbit is not None:
             o = self.orbit
             vn, ve = o.velocity(pos[0], pos[1])
-            ff = (brake_before(pos[0], vn, -fence_m, fence_m, acc_xy_mps2),
-                  brake_before(pos[1], ve, -fence_m, fence_m, acc_xy_mps2), 0.0)
+            ff = (
+                brake_before(pos[0], vn, -fence_m, fence_m, acc_xy_mps2),
+                brake_before(pos[1], ve, -fence_m, fence_m, acc_xy_mps2),
+                0.0,
+            )
             return ControlCommand((NAN, NAN, o.down_m), ff, o.yaw(pos[0], pos[1]))
         if mode is FlightMode.OFFBOARD and self.motion is not None:
             m = self.motion
             tgt = tuple(NAN if free else t for free, t in zip(m.free_axes, target, strict=True))
-            bounds = ((-fence_m, fence_m, acc_xy_mps2), (-fence_m, fence_m, acc_xy_mps2),
-                      (-ceiling_m, 0.0, ACC_Z_MPS2))
-            ff = tuple(brake_before(p, v, lo, hi, acc)
-                       for p, v, (lo, hi, acc) in zip(pos, m.velocity_ned, bounds, strict=True))
+            bounds = (
+                (-fence_m, fence_m, acc_xy_mps2),
+                (-fence_m, fence_m, acc_xy_mps2),
+                (-ceiling_m, 0.0, ACC_Z_MPS2),
+            )
+            ff = tuple(
+                brake_before(p, v, lo, hi, acc)
+                for p, v, (lo, hi, acc) in zip(pos, m.velocity_ned, bounds, strict=True)
+            )
             yaw = None if m.yaw_rate_radps is not None else yaw_target
             return ControlCommand(tgt, ff, yaw, m.yaw_rate_radps)  # type: ignore[arg-type]
         return ControlCommand(target, (0.0, 0.0, 0.0), yaw_target)

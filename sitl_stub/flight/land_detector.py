@@ -39,5 +39,9 @@ class LandDetector:
 
     def disarm_due(self, t_s: float, disarm_after_s: float, landing_mode: bool) -> bool:
         """Whether an armed vehicle should disarm now (COM_DISARM_LAND)."""
-        return (self.landed and disarm_after_s > 0 and (self.has_flown or landing_mode)
-                and t_s - self.landed_since_s >= disarm_after_s)
+        return (
+            self.landed
+            and disarm_after_s > 0
+            and (self.has_flown or landing_mode)
+            and t_s - self.landed_since_s >= disarm_after_s
+        )

@@ -172,12 +172,15 @@ class MissionExecutor:
             return self._done(item)
         return leg
 
-    def _arrived(self, item: MissionItem, target: tuple[float, float, float],
-                 pos: list[float]) -> bool:
+    def _arrived(
+        self, item: MissionItem, target: tuple[float, float, float], pos: list[float]
+    ) -> bool:
         radius = item.param2 if item.command == NAV_WAYPOINT and item.param2 > 0 else 0.0
         radius = radius or self.params["NAV_ACC_RAD"]
-        return (math.hypot(target[0] - pos[0], target[1] - pos[1]) <= radius
-                and abs(target[2] - pos[2]) <= NAV_MC_ALT_RAD_M)
+        return (
+            math.hypot(target[0] - pos[0], target[1] - pos[1]) <= radius
+            and abs(target[2] - pos[2]) <= NAV_MC_ALT_RAD_M
+        )
 
     def _done(self, item: MissionItem) -> None:
         self._reached.append(item.seq)

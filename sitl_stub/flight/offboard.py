@@ -28,7 +28,9 @@ class OffboardStream:
         self.failsafes = 0
         self.max_age_s = 0.0  # the oldest setpoint ever flown on (the failsafe bounds it)
 
-    def offer(self, ned: Ned, yaw_rad: float | None, t_s: float, fence: Callable[[Ned], Ned]) -> Ned | None:
+    def offer(
+        self, ned: Ned, yaw_rad: float | None, t_s: float, fence: Callable[[Ned], Ned]
+    ) -> Ned | None:
         """Take a setpoint at time ``t_s``: None (rejected) unless finite, else ``fence(ned)``."""
         if not all(math.isfinite(v) for v in ned):
             self.setpoints_rejected += 1
@@ -48,4 +50,3 @@ class OffboardStream:
     def flown_at(self, t_s: float) -> None:
         """Record that the vehicle flew OFFBOARD on the stream at ``t_s``."""
         self.max_age_s = max(self.max_age_s, t_s - self.time_s)
-

@@ -18,9 +18,15 @@ GROUND_EPS_M = 0.05  # "on the ground" below this altitude
 BRAKE_FRACTION = 0.9  # braking curves use 90 % of the acceleration limit
 
 
-def track(pos: list[float], vel: list[float], target: tuple[float, float, float],
-          limits: tuple[float, float, float], acc_xy_mps2: float, h: float,
-          velocity_ff: tuple[float, float, float] = (0.0, 0.0, 0.0)) -> tuple[float, float]:
+def track(
+    pos: list[float],
+    vel: list[float],
+    target: tuple[float, float, float],
+    limits: tuple[float, float, float],
+    acc_xy_mps2: float,
+    h: float,
+    velocity_ff: tuple[float, float, float] = (0.0, 0.0, 0.0),
+) -> tuple[float, float]:
     """Fly ``h`` seconds towards ``target`` within ``limits`` (horizontal speed, climb rate,
     descent rate, m/s); returns the horizontal acceleration (north, east) it used.
 
@@ -47,8 +53,10 @@ def track(pos: list[float], vel: list[float], target: tuple[float, float, float]
     if not math.isnan(td):
         ed = td - pos[2]
         vmax = down_max if ed > 0 else up_max
-        vd_des += math.copysign(min(vmax, POS_GAIN * abs(ed),
-                                    math.sqrt(2.0 * BRAKE_FRACTION * ACC_Z_MPS2 * abs(ed))), ed)
+        vd_des += math.copysign(
+            min(vmax, POS_GAIN * abs(ed), math.sqrt(2.0 * BRAKE_FRACTION * ACC_Z_MPS2 * abs(ed))),
+            ed,
+        )
     vd_des = max(-up_max, min(down_max, vd_des))
     dvd = max(-ACC_Z_MPS2 * h, min(ACC_Z_MPS2 * h, vd_des - vel[2]))
     vel[2] = max(-up_max, min(down_max, vel[2] + dvd))
@@ -62,8 +70,9 @@ def _limit_norm(a: float, b: float, max_norm: float) -> tuple[float, float]:
     return (a * max_norm / n, b * max_norm / n) if n > max_norm else (a, b)
 
 
-def turn(yaw_rad: float, yaw_target_rad: float | None, h: float,
-         yaw_rate_radps: float | None = None) -> tuple[float, float]:
+def turn(
+    yaw_rad: float, yaw_target_rad: float | None, h: float, yaw_rate_radps: float | None = None
+) -> tuple[float, float]:
     """(yaw, yaw rate) after turning ``h`` seconds towards the target at the limited rate, or at
     ``yaw_rate_radps`` (limited the same) when given."""
     if yaw_rate_radps is not None:
@@ -86,7 +95,9 @@ def fall(pos: list[float], vel: list[float], h: float) -> None:
         vel[:] = [0.0, 0.0, 0.0]
 
 
-def stopping_point(pos: list[float], vel: list[float], acc_xy_mps2: float) -> tuple[float, float, float]:
+def stopping_point(
+    pos: list[float], vel: list[float], acc_xy_mps2: float
+) -> tuple[float, float, float]:
     """Where braking at 90 % of ``acc_xy_mps2`` from the current velocity ends (not clamped)."""
     a = BRAKE_FRACTION * acc_xy_mps2
     vn, ve = vel[0], vel[1]

@@ -27,8 +27,12 @@ def rally_points(items: Sequence[MissionItem], origin: GeoOrigin) -> list[tuple[
     return [origin.to_local(i.x / 1e7, i.y / 1e7) for i in items if i.command == NAV_RALLY_POINT]
 
 
-def return_destination(north_m: float, east_m: float, rally: Sequence[tuple[float, float]],
-                       home_ne: tuple[float, float] = HOME_NE) -> tuple[float, float]:
+def return_destination(
+    north_m: float,
+    east_m: float,
+    rally: Sequence[tuple[float, float]],
+    home_ne: tuple[float, float] = HOME_NE,
+) -> tuple[float, float]:
     """The safe point nearest (north_m, east_m): home or a rally point (home wins a tie)."""
     return min((home_ne, *rally), key=lambda p: math.hypot(p[0] - north_m, p[1] - east_m))
 
@@ -41,8 +45,9 @@ class ReturnPhases:
         self.alt_m = 0.0
         self.dest_ne = HOME_NE
 
-    def start(self, stop_ned: Ned, landed: bool, return_alt_m: float,
-              dest_ne: tuple[float, float]) -> Ned:
+    def start(
+        self, stop_ned: Ned, landed: bool, return_alt_m: float, dest_ne: tuple[float, float]
+    ) -> Ned:
         """Begin at the braking point ``stop_ned``; returns the first target. On the ground RTL
         just stays landed (PX4)."""
         self.alt_m = max(-stop_ned[2], return_alt_m)

@@ -56,9 +56,14 @@ MAX_ALTITUDE_M = 500.0  # vertical fence: setpoints above are clamped (= the alt
 class Vehicle:
     """The multicopter. Starts disarmed on the ground at home in AUTO.LOITER."""
 
-    def __init__(self, params: ParamStore | None = None, area: AreaConfig | None = None,
-                 plans: MissionStore | None = None, origin: GeoOrigin | None = None,
-                 home_ne: tuple[float, float] = (0.0, 0.0)) -> None:  # spawn point = home (a fleet's)
+    def __init__(
+        self,
+        params: ParamStore | None = None,
+        area: AreaConfig | None = None,
+        plans: MissionStore | None = None,
+        origin: GeoOrigin | None = None,
+        home_ne: tuple[float, float] = (0.0, 0.0),
+    ) -> None:  # spawn point = home (a fleet's)
         self.params = params if params is not None else ParamStore()
         self.plans = plans if plans is not None else MissionStore()
         self.origin = origin or GeoOrigin()
@@ -137,9 +142,12 @@ class Vehicle:
         of home and the rally points (PX4 RTL_TYPE 0), land there."""
         self.mode = FlightMode.RTL
         rally = rally_points(self.plans.items(RALLY), self.origin)
-        dest = self._clamp((*return_destination(self.pos[0], self.pos[1], rally, self.home_ne), 0.0))
-        self._target = self._rtl.start(self._stopping_point(), self.ground.landed,
-                                       self.params["RTL_RETURN_ALT"], dest[:2])
+        dest = self._clamp(
+            (*return_destination(self.pos[0], self.pos[1], rally, self.home_ne), 0.0)
+        )
+        self._target = self._rtl.start(
+            self._stopping_point(), self.ground.landed, self.params["RTL_RETURN_ALT"], dest[:2]
+        )
         return ACCEPTED
 
     def hold(self, at_ne: tuple[float, float] | None = None) -> Outcome:
@@ -182,8 +190,9 @@ class Vehicle:
         self._leg = None
         return ACCEPTED
 
-    def fly_to(self, mode: FlightMode, target: tuple[float, float, float],
-               yaw_rad: float | None = None) -> tuple[float, float, float] | None:
+    def fly_to(
+        self, mode: FlightMode, target: tuple[float, float, float], yaw_rad: float | None = None
+    ) -> tuple[float, float, float] | None:
         """Enter ``mode`` (LOITER: DO_REPOSITION; ORBIT) flying to ``target`` (fenced), heading
         ``yaw_rad`` (None: keep); the fenced target, or None when landed (PX4 stays down)."""
         self.mode = mode
@@ -194,8 +203,14 @@ class Vehicle:
         self._yaw_target = None if yaw_rad is None else wrap(yaw_rad)
         return self._target
 
-    def offer_setpoint(self, north_m: float, east_m: float, down_m: float,
-                       yaw_rad: float | None = None, motion: Motion | None = None) -> bool:
+    def offer_setpoint(
+        self,
+        north_m: float,
+        east_m: float,
+        down_m: float,
+        yaw_rad: float | None = None,
+        motion: Motion | None = None,
+    ) -> bool:
         """A position setpoint (LOCAL_NED). Non-finite ones are rejected (False); others are
         clamped into the geofence, above the ground and below :data:`MAX_ALTITUDE_M`, and refresh
         the offboard stream. ``motion`` adds a velocity (:class:`~sitl_stub.flight.guidance.Motion`)."""
@@ -233,17 +248,31 @@ class Vehicle:
         """Immutable snapshot."""
         roll, pitch = self._tilt()
         return VehicleState(
-            time_s=self.t, north_m=self.pos[0], east_m=self.pos[1], down_m=self.pos[2],
-            vn_mps=self.vel[0], ve_mps=self.vel[1], vd_mps=self.vel[2],
-            roll_rad=roll, pitch_rad=pitch, yaw_rad=self.yaw, yaw_rate_radps=self._yaw_rate,
-            armed=self.armed, mode=self.mode, landed_state=self._landed_state(),
-            setpoint_ned=self.offboard.setpoint, setpoints_accepted=self.offboard.setpoints_accepted,
+            time_s=self.t,
+            north_m=self.pos[0],
+            east_m=self.pos[1],
+            down_m=self.pos[2],
+            vn_mps=self.vel[0],
+            ve_mps=self.vel[1],
+            vd_mps=self.vel[2],
+            roll_rad=roll,
+            pitch_rad=pitch,
+            yaw_rad=self.yaw,
+            yaw_rate_radps=self._yaw_rate,
+            armed=self.armed,
+            mode=self.mode,
+            landed_state=self._landed_state(),
+            setpoint_ned=self.offboard.setpoint,
+            setpoints_accepted=self.offboard.setpoints_accepted,
             setpoints_rejected=self.offboard.setpoints_rejected,
-            setpoints_clamped=self.offboard.setpoints_clamped, offboard_failsafes=self.offboard.failsafes,
-            max_abs_xy_m=self.max_abs_xy_m, max_offboard_setpoint_age_s=self.offboard.max_age_s,
+            setpoints_clamped=self.offboard.setpoints_clamped,
+            offboard_failsafes=self.offboard.failsafes,
+            max_abs_xy_m=self.max_abs_xy_m,
+            max_offboard_setpoint_age_s=self.offboard.max_age_s,
             fence_breached=self.fence.breached,
             mission_current=self.mission.status(self.mode is FlightMode.MISSION),
-            failures=frozenset(self.failures.active), armings=self.armings,
+            failures=frozenset(self.failures.active),
+            armings=self.armings,
             orbit=self.guidance.orbit if self.mode is FlightMode.ORBIT else None,
         )
 
@@ -254,7 +283,11 @@ class Vehicle:
                 self.offboard.flown_at(self.t)
             else:  # lost: COM_OBL_ACT's reaction
                 self.offboard.failsafes += 1
-                self._react(offboard_lost(int(self.params["COM_OBL_ACT"]), self.armed and not self.ground.landed))
+                self._react(
+                    offboard_lost(
+                        int(self.params["COM_OBL_ACT"]), self.armed and not self.ground.landed
+                    )
+                )
         if self.armed and not self.failures.motors_off:
             self._advance_mode()
             if not self.ground.landed:
@@ -271,7 +304,9 @@ class Vehicle:
         gf_action = int(self.params["GF_ACTION"])
         if gf_action == 0:
             self.fence.breached = False
-        elif (safe := self.fence.check((self.pos[0], self.pos[1]), self._stopping_point()[:2])) is not None:
+        elif (
+            safe := self.fence.check((self.pos[0], self.pos[1]), self._stopping_point()[:2])
+        ) is not None:
             self._event(SEVERITY_CRITICAL, "Geofence violation")
             self._react(geofence_breach(gf_action, self.mode, safe))
 
@@ -313,12 +348,22 @@ class Vehicle:
         return xy, up, down
 
     def _landing(self) -> bool:
-        return (self.mode is FlightMode.LAND or (self.mode is FlightMode.RTL and self._rtl.landing)
-                or (self.mode is FlightMode.MISSION and self._leg is not None and self._leg.landing))
+        return (
+            self.mode is FlightMode.LAND
+            or (self.mode is FlightMode.RTL and self._rtl.landing)
+            or (self.mode is FlightMode.MISSION and self._leg is not None and self._leg.landing)
+        )
 
     def _command(self) -> ControlCommand:
-        return self.guidance.command(self.mode, self.pos, self._target, self._yaw_target, self.fence_m,
-                                     MAX_ALTITUDE_M, self.params["MPC_ACC_HOR_MAX"])
+        return self.guidance.command(
+            self.mode,
+            self.pos,
+            self._target,
+            self._yaw_target,
+            self.fence_m,
+            MAX_ALTITUDE_M,
+            self.params["MPC_ACC_HOR_MAX"],
+        )
 
     def _control(self, h: float) -> None:
         cmd = self._command()
@@ -326,8 +371,15 @@ class Vehicle:
             self.vel = [0.0, 0.0, 0.0]  # sitting on the ground, nothing to do
             self._acc_ne = (0.0, 0.0)
             return
-        self._acc_ne = track(self.pos, self.vel, cmd.target, self._limits(),
-                             self.params["MPC_ACC_HOR_MAX"], h, cmd.velocity_ff)
+        self._acc_ne = track(
+            self.pos,
+            self.vel,
+            cmd.target,
+            self._limits(),
+            self.params["MPC_ACC_HOR_MAX"],
+            h,
+            cmd.velocity_ff,
+        )
         self.yaw, self._yaw_rate = turn(self.yaw, cmd.yaw_rad, h, cmd.yaw_rate_radps)
 
     def _fall(self, h: float) -> None:
@@ -348,11 +400,16 @@ class Vehicle:
 
     def _update_landed(self) -> None:
         wants_up = self.armed and not self.failures.motors_off and self._command().wants_up
-        if self.ground.update(self.t, -self.pos[2], self.vel[2], self.armed, wants_up) and self.armed:
+        if (
+            self.ground.update(self.t, -self.pos[2], self.vel[2], self.armed, wants_up)
+            and self.armed
+        ):
             self.vel = [0.0, 0.0, 0.0]
             self._event(SEVERITY_INFO, "Landing detected")
         landing_mode = self.mode in (FlightMode.LAND, FlightMode.RTL)
-        if self.armed and self.ground.disarm_due(self.t, self.params["COM_DISARM_LAND"], landing_mode):
+        if self.armed and self.ground.disarm_due(
+            self.t, self.params["COM_DISARM_LAND"], landing_mode
+        ):
             self._disarm("Disarmed by landing")
 
     def _disarm(self, why: str) -> None:

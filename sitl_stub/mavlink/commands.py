@@ -24,13 +24,20 @@ RETRY_WINDOW_S = 3.0  # wall seconds
 FORCE_MAGIC = 21196  # COMPONENT_ARM_DISARM param2 that forces (PX4, ArduPilot)
 MIN_TAKEOFF_ALT_M = 0.5
 
-_STATE_CHANGING = frozenset({
-    mavlink.MAV_CMD_COMPONENT_ARM_DISARM, mavlink.MAV_CMD_NAV_TAKEOFF, mavlink.MAV_CMD_NAV_LAND,
-    mavlink.MAV_CMD_NAV_RETURN_TO_LAUNCH, mavlink.MAV_CMD_DO_SET_MODE,
-    mavlink.MAV_CMD_MISSION_START,
-    mavlink.MAV_CMD_DO_REPOSITION, mavlink.MAV_CMD_DO_ORBIT, mavlink.MAV_CMD_DO_CHANGE_SPEED,
-    mavlink.MAV_CMD_INJECT_FAILURE,
-})
+_STATE_CHANGING = frozenset(
+    {
+        mavlink.MAV_CMD_COMPONENT_ARM_DISARM,
+        mavlink.MAV_CMD_NAV_TAKEOFF,
+        mavlink.MAV_CMD_NAV_LAND,
+        mavlink.MAV_CMD_NAV_RETURN_TO_LAUNCH,
+        mavlink.MAV_CMD_DO_SET_MODE,
+        mavlink.MAV_CMD_MISSION_START,
+        mavlink.MAV_CMD_DO_REPOSITION,
+        mavlink.MAV_CMD_DO_ORBIT,
+        mavlink.MAV_CMD_DO_CHANGE_SPEED,
+        mavlink.MAV_CMD_INJECT_FAILURE,
+    }
+)
 
 
 @dataclass(frozen=True)
@@ -57,8 +64,9 @@ class CommandReply:
 class CommandHandler:
     """Maps MAV_CMDs onto the vehicle and the telemetry streams."""
 
-    def __init__(self, vehicle: Vehicle, streams: StreamScheduler,
-                 telemetry: TelemetrySender) -> None:
+    def __init__(
+        self, vehicle: Vehicle, streams: StreamScheduler, telemetry: TelemetrySender
+    ) -> None:
         self.vehicle = vehicle
         self.streams = streams
         self.telemetry = telemetry
@@ -72,8 +80,9 @@ class CommandHandler:
                 return CommandReply(cached[1].result, cached[1].reason)
         reply = self._dispatch(req)
         if req.command in _STATE_CHANGING:
-            self._recent = {k: v for k, v in self._recent.items()
-                            if wall_s - v[0] <= RETRY_WINDOW_S}
+            self._recent = {
+                k: v for k, v in self._recent.items() if wall_s - v[0] <= RETRY_WINDOW_S
+            }
             self._recent[key] = (wall_s, reply)
         return reply
 
@@ -123,8 +132,10 @@ class CommandHandler:
             if name is None or name not in self.streams:
                 return CommandReply(Result.DENIED)
             msg_id, interval = int(p[0]), self.streams.interval_us(name)
-            return CommandReply(Result.ACCEPTED, then=[
-                lambda: self.telemetry.mav.message_interval_send(msg_id, interval)])
+            return CommandReply(
+                Result.ACCEPTED,
+                then=[lambda: self.telemetry.mav.message_interval_send(msg_id, interval)],
+            )
         return CommandReply(Result.UNSUPPORTED)
 
     def _sender(self, name: str) -> Callable[[], None]:

@@ -109,13 +109,28 @@ def orbit(v: Vehicle, origin: GeoOrigin, p: Sequence[float], frame: int | None) 
         return Outcome(Result.DENIED, f"Orbit denied: yaw behaviour {p[2]:g} unknown")
     old = v.guidance.orbit if s.mode is FlightMode.ORBIT else None
     # A new orbit starts as PX4's FlightTaskOrbit does: at its smallest radius and default speed.
-    radius = abs(p[0]) if math.isfinite(p[0]) and p[0] != 0 else (old.radius_m if old else ORBIT_RADIUS_MIN_M)
-    clockwise = p[0] > 0 if math.isfinite(p[0]) and p[0] != 0 else (
-        old.speed_mps >= 0 if old else True)
-    speed = abs(p[1]) if math.isfinite(p[1]) else (abs(old.speed_mps) if old else ORBIT_DEFAULT_SPEED_MPS)
-    radius, speed = sanitize_orbit(radius, speed if clockwise else -speed,
-                                   v.params["MPC_XY_VEL_MAX"], v.params["MPC_ACC_HOR_MAX"])
-    yaw_mode = int(p[2]) if math.isfinite(p[2]) else (old.yaw_behaviour if old else YAW_FRONT_TO_CENTER)
+    radius = (
+        abs(p[0])
+        if math.isfinite(p[0]) and p[0] != 0
+        else (old.radius_m if old else ORBIT_RADIUS_MIN_M)
+    )
+    clockwise = (
+        p[0] > 0 if math.isfinite(p[0]) and p[0] != 0 else (old.speed_mps >= 0 if old else True)
+    )
+    speed = (
+        abs(p[1])
+        if math.isfinite(p[1])
+        else (abs(old.speed_mps) if old else ORBIT_DEFAULT_SPEED_MPS)
+    )
+    radius, speed = sanitize_orbit(
+        radius,
+        speed if clockwise else -speed,
+        v.params["MPC_XY_VEL_MAX"],
+        v.params["MPC_ACC_HOR_MAX"],
+    )
+    yaw_mode = (
+        int(p[2]) if math.isfinite(p[2]) else (old.yaw_behaviour if old else YAW_FRONT_TO_CENTER)
+    )
     if point is not None:
         cn, ce = origin.to_local(*point)
     else:

@@ -55,8 +55,10 @@ def px4_links(instance: int = 0) -> tuple[LinkSpec, LinkSpec]:
     if not 0 <= instance <= MAX_INSTANCE:
         raise ValueError(f"instance must be in 0..{MAX_INSTANCE}, got {instance}")
     api_remote = API_REMOTE_PORT + instance if instance <= 9 else API_LAST_REMOTE_PORT
-    return (LinkSpec("api", f"udpout:{LOCALHOST}:{api_remote}", API_LOCAL_PORT + instance),
-            LinkSpec("gcs", f"udpout:{LOCALHOST}:{GCS_REMOTE_PORT}", GCS_LOCAL_PORT + instance))
+    return (
+        LinkSpec("api", f"udpout:{LOCALHOST}:{api_remote}", API_LOCAL_PORT + instance),
+        LinkSpec("gcs", f"udpout:{LOCALHOST}:{GCS_REMOTE_PORT}", GCS_LOCAL_PORT + instance),
+    )
 
 
 def connect_links(urls: Sequence[str]) -> tuple[LinkSpec, ...]:
@@ -73,8 +75,12 @@ class PortPairUdp(mavutil.mavudp):
 
     def __init__(self, spec: LinkSpec, source_system: int, source_component: int) -> None:
         assert spec.local_port is not None and spec.connect.startswith("udpout:")
-        super().__init__(spec.connect[len("udpout:"):], input=False, source_system=source_system,
-                         source_component=source_component)
+        super().__init__(
+            spec.connect[len("udpout:") :],
+            input=False,
+            source_system=source_system,
+            source_component=source_component,
+        )
         try:
             self.port.bind((LOCALHOST, spec.local_port))
         except OSError:
@@ -104,8 +110,9 @@ class Link:
         if spec.local_port is not None:
             self.conn: Any = PortPairUdp(spec, system_id, component_id)
         else:
-            self.conn = mavutil.mavlink_connection(spec.connect, source_system=system_id,
-                                                   source_component=component_id)
+            self.conn = mavutil.mavlink_connection(
+                spec.connect, source_system=system_id, source_component=component_id
+            )
         self.mav = self.conn.mav
 
     def encoder(self, component_id: int) -> Any:

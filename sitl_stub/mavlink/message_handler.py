@@ -44,10 +44,19 @@ MAX_RX_PER_TICK = 2000  # messages/datagrams handled per loop iteration: a flood
 class MessageHandler:
     """Reads the vehicle's connection and acts on each message (one per :meth:`receive` loop)."""
 
-    def __init__(self, system_id: int, conn: Any, vehicle: Vehicle, commands: CommandHandler,
-                 telemetry: TelemetrySender, param_protocol: ParamProtocol,
-                 slots: Sequence[PayloadSlot], stats: Counter[str], rejects: RejectLog,
-                 signing: SigningGuard | None) -> None:
+    def __init__(
+        self,
+        system_id: int,
+        conn: Any,
+        vehicle: Vehicle,
+        commands: CommandHandler,
+        telemetry: TelemetrySender,
+        param_protocol: ParamProtocol,
+        slots: Sequence[PayloadSlot],
+        stats: Counter[str],
+        rejects: RejectLog,
+        signing: SigningGuard | None,
+    ) -> None:
         self.system_id = system_id
         self.conn = conn
         self.mav = conn.mav
@@ -59,8 +68,9 @@ class MessageHandler:
         self.stats = stats
         self.rejects = rejects
         self.signing = signing
-        self.missions = MissionProtocol(vehicle.plans, self.mav, system_id, telemetry.statustext,
-                                        reject=rejects.reject)
+        self.missions = MissionProtocol(
+            vehicle.plans, self.mav, system_id, telemetry.statustext, reject=rejects.reject
+        )
 
     def receive(self, wall: float) -> None:
         """Handle what arrived (at most MAX_RX_PER_TICK messages or datagrams)."""
@@ -92,7 +102,9 @@ class MessageHandler:
                 self._dispatch(msg, kind, wall)
             except Exception:
                 self._handler_error(f"handling {kind}")
-                self.rejects.reject("handler_error", f"failed to handle {kind}", key=f"error_{kind}")
+                self.rejects.reject(
+                    "handler_error", f"failed to handle {kind}", key=f"error_{kind}"
+                )
 
     def _dispatch(self, msg: Any, kind: str, wall: float) -> None:
         if kind in ("COMMAND_LONG", "COMMAND_INT"):
@@ -101,37 +113,48 @@ class MessageHandler:
             self._on_setpoint(msg)
         elif kind == "SET_ATTITUDE_TARGET" and self._for_autopilot(msg):
             self.stats["setpoints_ignored"] += 1  # not a stream: OFFBOARD stays refused
-            self.rejects.reject("setpoint_attitude", "SET_ATTITUDE_TARGET refused: attitude and "
-                                "rate setpoints are not flown; use SET_POSITION_TARGET_*")
+            self.rejects.reject(
+                "setpoint_attitude",
+                "SET_ATTITUDE_TARGET refused: attitude and "
+                "rate setpoints are not flown; use SET_POSITION_TARGET_*",
+            )
         elif kind.startswith("PARAM_"):
             if self._for_autopilot(msg):
                 refused = self.param_protocol.rejected_sets
                 self.param_protocol.handle(msg)
                 if self.param_protocol.rejected_sets > refused:
                     name = getattr(msg, "param_id", "?")
-                    self.rejects.reject("param_set_refused",
-                                        f"PARAM_SET {name}={msg.param_value!r} out of range",
-                                        key=f"param_{name}")
+                    self.rejects.reject(
+                        "param_set_refused",
+                        f"PARAM_SET {name}={msg.param_value!r} out of range",
+                        key=f"param_{name}",
+                    )
         elif kind == "SET_MODE":  # deprecated message: acted on like DO_SET_MODE, no ACK
-            if (msg.target_system == self.system_id
-                    and msg.base_mode & mavlink.MAV_MODE_FLAG_CUSTOM_MODE_ENABLED):
+            if (
+                msg.target_system == self.system_id
+                and msg.base_mode & mavlink.MAV_MODE_FLAG_CUSTOM_MODE_ENABLED
+            ):
                 main, sub = decode_custom_mode(msg.custom_mode)
-                reply = self.commands.handle(self._request(
-                    msg, mavlink.MAV_CMD_DO_SET_MODE, (1.0, main, sub, 0, 0, 0, 0)), wall)
+                reply = self.commands.handle(
+                    self._request(msg, mavlink.MAV_CMD_DO_SET_MODE, (1.0, main, sub, 0, 0, 0, 0)),
+                    wall,
+                )
                 if reply.reason:
                     self.telemetry.statustext(mavlink.MAV_SEVERITY_WARNING, reply.reason)
         elif kind == "PING":
             if msg.target_system == 0 and msg.target_component == 0:
-                self.mav.ping_send(msg.time_usec, msg.seq, msg.get_srcSystem(),
-                                   msg.get_srcComponent())
+                self.mav.ping_send(
+                    msg.time_usec, msg.seq, msg.get_srcSystem(), msg.get_srcComponent()
+                )
         elif kind == "TIMESYNC":
             if msg.tc1 == 0:
                 self.mav.timesync_send(int(self.vehicle.t * 1e9), msg.ts1)
         elif kind == "FILE_TRANSFER_PROTOCOL":
             reply = ftp_reply(msg.payload) if self._for_autopilot(msg) else None
             if reply is not None:
-                self.mav.file_transfer_protocol_send(0, msg.get_srcSystem(),
-                                                     msg.get_srcComponent(), reply)
+                self.mav.file_transfer_protocol_send(
+                    0, msg.get_srcSystem(), msg.get_srcComponent(), reply
+                )
         elif kind.startswith("MISSION_"):
             self.missions.handle(msg, wall)
 
@@ -143,8 +166,9 @@ class MessageHandler:
             log.error("error while %s (%d so far); the vehicle flies on", what, n, exc_info=True)
 
     def _for_autopilot(self, msg: Any) -> bool:
-        return (getattr(msg, "target_system", 0) in (0, self.system_id)
-                and getattr(msg, "target_component", 0) in (0, AUTOPILOT_COMPONENT))
+        return getattr(msg, "target_system", 0) in (0, self.system_id) and getattr(
+            msg, "target_component", 0
+        ) in (0, AUTOPILOT_COMPONENT)
 
     def _on_setpoint(self, m: Any) -> None:
         """SET_POSITION_TARGET_LOCAL_NED (LOCAL_NED; BODY_NED/BODY_FRD velocities) or
@@ -156,33 +180,45 @@ class MessageHandler:
         body_yaw = None
         if m.get_type() == "SET_POSITION_TARGET_GLOBAL_INT":
             if frame not in GLOBAL_FRAMES:
-                return self._refuse_setpoint(Refusal(
-                    "setpoint_frame", f"global setpoint in frame {frame}: only MAV_FRAME_GLOBAL"
-                    "(_INT), GLOBAL_RELATIVE_ALT(_INT) and GLOBAL_TERRAIN_ALT(_INT)"), frame)
+                return self._refuse_setpoint(
+                    Refusal(
+                        "setpoint_frame",
+                        f"global setpoint in frame {frame}: only MAV_FRAME_GLOBAL"
+                        "(_INT), GLOBAL_RELATIVE_ALT(_INT) and GLOBAL_TERRAIN_ALT(_INT)",
+                    ),
+                    frame,
+                )
             position = self._global_to_local(m.lat_int, m.lon_int, m.alt, frame)
         else:
             if frame in _BODY_FRAMES:
                 body_yaw = self.vehicle.yaw
             elif frame != mavlink.MAV_FRAME_LOCAL_NED:
-                return self._refuse_setpoint(Refusal(
-                    "setpoint_frame", f"setpoint in frame {frame}: only MAV_FRAME_LOCAL_NED (1), "
-                    "BODY_NED (8) and BODY_FRD (12)"), frame)
+                return self._refuse_setpoint(
+                    Refusal(
+                        "setpoint_frame",
+                        f"setpoint in frame {frame}: only MAV_FRAME_LOCAL_NED (1), "
+                        "BODY_NED (8) and BODY_FRD (12)",
+                    ),
+                    frame,
+                )
             position = (m.x, m.y, m.z)
         sp = read_setpoint(m.type_mask, position, (m.vx, m.vy, m.vz), m.yaw, m.yaw_rate, body_yaw)
         if isinstance(sp, Refusal):
             return self._refuse_setpoint(sp, frame)
         if not self.vehicle.offer_setpoint(*sp.position_ned, sp.yaw_rad, sp.motion):
             self.stats["setpoints_rejected"] += 1
-            self.rejects.reject("setpoint_not_finite",
-                                f"setpoint with a NaN/infinite position {position}")
+            self.rejects.reject(
+                "setpoint_not_finite", f"setpoint with a NaN/infinite position {position}"
+            )
 
     def _refuse_setpoint(self, refusal: Refusal, frame: int) -> None:
         self.stats["setpoints_ignored"] += 1
         key = f"setpoint_frame_{frame}" if refusal.kind == "setpoint_frame" else None
         self.rejects.reject(refusal.kind, refusal.text, key=key)
 
-    def _global_to_local(self, lat_int: int, lon_int: int, alt_m: float,
-                         frame: int) -> tuple[float, float, float]:
+    def _global_to_local(
+        self, lat_int: int, lon_int: int, alt_m: float, frame: int
+    ) -> tuple[float, float, float]:
         """LOCAL_NED of a global setpoint; the world is flat at home, so terrain = home."""
         origin = self.vehicle.origin
         north, east = origin.to_local(lat_int / 1e7, lon_int / 1e7)
@@ -191,37 +227,60 @@ class MessageHandler:
     def _on_command(self, msg: Any, kind: str, wall: float) -> None:
         if msg.target_system not in (0, self.system_id):
             return
-        slot = next((s for s in self._slots if s.payload.component_id == msg.target_component),
-                    None)
+        slot = next(
+            (s for s in self._slots if s.payload.component_id == msg.target_component), None
+        )
         if slot is not None:
             self._payload_command(slot, msg)
             return
         if msg.target_component not in (0, AUTOPILOT_COMPONENT):
             return
         if kind == "COMMAND_LONG":
-            params = (msg.param1, msg.param2, msg.param3, msg.param4, msg.param5, msg.param6,
-                      msg.param7)
+            params = (
+                msg.param1,
+                msg.param2,
+                msg.param3,
+                msg.param4,
+                msg.param5,
+                msg.param6,
+                msg.param7,
+            )
             req = self._request(msg, msg.command, params, msg.confirmation)
         else:
-            params = (msg.param1, msg.param2, msg.param3, msg.param4, float(msg.x), float(msg.y),
-                      msg.z)
+            params = (
+                msg.param1,
+                msg.param2,
+                msg.param3,
+                msg.param4,
+                float(msg.x),
+                float(msg.y),
+                msg.z,
+            )
             req = self._request(msg, msg.command, params, 0, msg.frame)
         try:
             reply: CommandReply = self.commands.handle(req, wall)
         except Exception as exc:  # a bug or an input nobody foresaw: answer FAILED, fly on
             self._handler_error(f"command {msg.command}")
-            reply = CommandReply(Result.FAILED, f"Command {msg.command} failed: {type(exc).__name__}")
-        self.mav.command_ack_send(msg.command, int(reply.result), 0, 0, msg.get_srcSystem(),
-                                  msg.get_srcComponent())
+            reply = CommandReply(
+                Result.FAILED, f"Command {msg.command} failed: {type(exc).__name__}"
+            )
+        self.mav.command_ack_send(
+            msg.command, int(reply.result), 0, 0, msg.get_srcSystem(), msg.get_srcComponent()
+        )
         result = Result(reply.result)
         self.stats[f"ack_{result.name.lower()}"] += 1
         if result is Result.UNSUPPORTED:
-            self.rejects.reject("command_unsupported", f"unsupported command {msg.command}",
-                                key=f"command_unsupported_{msg.command}")
+            self.rejects.reject(
+                "command_unsupported",
+                f"unsupported command {msg.command}",
+                key=f"command_unsupported_{msg.command}",
+            )
         elif result is not Result.ACCEPTED:
-            self.rejects.reject(f"command_{result.name.lower()}",
-                                f"command {msg.command}: {result.name} {reply.reason}".rstrip(),
-                                key=f"{reply.reason or msg.command}")
+            self.rejects.reject(
+                f"command_{result.name.lower()}",
+                f"command {msg.command}: {result.name} {reply.reason}".rstrip(),
+                key=f"{reply.reason or msg.command}",
+            )
         if reply.reason:
             self.telemetry.statustext(mavlink.MAV_SEVERITY_WARNING, reply.reason)
         for follow_up in reply.then:
@@ -233,15 +292,26 @@ class MessageHandler:
             result = handler(msg, slot.mav) if handler else mavlink.MAV_RESULT_UNSUPPORTED
         except Exception:
             self._handler_error(f"payload {slot.payload.component_id} command {msg.command}")
-            self.rejects.reject("command_failed", f"payload {slot.payload.component_id} failed "
-                                f"command {msg.command}", key=f"payload_cmd_{msg.command}")
+            self.rejects.reject(
+                "command_failed",
+                f"payload {slot.payload.component_id} failed command {msg.command}",
+                key=f"payload_cmd_{msg.command}",
+            )
             result = mavlink.MAV_RESULT_FAILED
         if result is not None:
-            slot.mav.command_ack_send(msg.command, int(result), 0, 0, msg.get_srcSystem(),
-                                      msg.get_srcComponent())
+            slot.mav.command_ack_send(
+                msg.command, int(result), 0, 0, msg.get_srcSystem(), msg.get_srcComponent()
+            )
 
     @staticmethod
-    def _request(msg: Any, command: int, params: tuple, confirmation: int = 0,
-                 frame: int | None = None) -> CommandRequest:
-        return CommandRequest(int(command), tuple(float(p) for p in params), int(confirmation),
-                              frame, msg.get_srcSystem(), msg.get_srcComponent())
+    def _request(
+        msg: Any, command: int, params: tuple, confirmation: int = 0, frame: int | None = None
+    ) -> CommandRequest:
+        return CommandRequest(
+            int(command),
+            tuple(float(p) for p in params),
+            int(confirmation),
+            frame,
+            msg.get_srcSystem(),
+            msg.get_srcComponent(),
+        )

@@ -65,32 +65,79 @@ CRITICAL = mavlink.MAV_SEVERITY_CRITICAL
 
 
 def _cmds(*names: str) -> frozenset[int]:
-    return frozenset(getattr(mavlink, f"MAV_CMD_{n}") for n in names
-                     if hasattr(mavlink, f"MAV_CMD_{n}"))
+    return frozenset(
+        getattr(mavlink, f"MAV_CMD_{n}") for n in names if hasattr(mavlink, f"MAV_CMD_{n}")
+    )
 
 
 # What PX4's parse_mavlink_mission_item takes: commands with a position (global frames) ...
 POSITION_COMMANDS = _cmds(
-    "NAV_WAYPOINT", "NAV_LOITER_UNLIM", "NAV_LOITER_TIME", "NAV_LAND", "NAV_TAKEOFF",
-    "NAV_LOITER_TO_ALT", "NAV_ROI", "DO_SET_ROI", "DO_SET_ROI_LOCATION", "NAV_VTOL_TAKEOFF",
-    "NAV_VTOL_LAND", "CONDITION_GATE", "NAV_FENCE_RETURN_POINT",
-    "NAV_FENCE_POLYGON_VERTEX_INCLUSION", "NAV_FENCE_POLYGON_VERTEX_EXCLUSION",
-    "NAV_FENCE_CIRCLE_INCLUSION", "NAV_FENCE_CIRCLE_EXCLUSION", "NAV_RALLY_POINT",
-    "COMPONENT_ARM_DISARM", "DO_AUTOTUNE_ENABLE")
+    "NAV_WAYPOINT",
+    "NAV_LOITER_UNLIM",
+    "NAV_LOITER_TIME",
+    "NAV_LAND",
+    "NAV_TAKEOFF",
+    "NAV_LOITER_TO_ALT",
+    "NAV_ROI",
+    "DO_SET_ROI",
+    "DO_SET_ROI_LOCATION",
+    "NAV_VTOL_TAKEOFF",
+    "NAV_VTOL_LAND",
+    "CONDITION_GATE",
+    "NAV_FENCE_RETURN_POINT",
+    "NAV_FENCE_POLYGON_VERTEX_INCLUSION",
+    "NAV_FENCE_POLYGON_VERTEX_EXCLUSION",
+    "NAV_FENCE_CIRCLE_INCLUSION",
+    "NAV_FENCE_CIRCLE_EXCLUSION",
+    "NAV_RALLY_POINT",
+    "COMPONENT_ARM_DISARM",
+    "DO_AUTOTUNE_ENABLE",
+)
 # ... and commands without one (MAV_FRAME_MISSION)
 MISSION_FRAME_COMMANDS = _cmds(
-    "DO_JUMP", "NAV_ROI", "DO_SET_ROI", "DO_WINCH", "DO_GRIPPER", "DO_CHANGE_SPEED", "DO_SET_HOME",
-    "DO_LAND_START", "DO_TRIGGER_CONTROL", "DO_DIGICAM_CONTROL", "DO_MOUNT_CONFIGURE",
-    "DO_MOUNT_CONTROL", "DO_GIMBAL_MANAGER_PITCHYAW", "SET_CAMERA_FOCUS",
-    "DO_GIMBAL_MANAGER_CONFIGURE", "IMAGE_START_CAPTURE", "IMAGE_STOP_CAPTURE",
-    "VIDEO_START_CAPTURE", "VIDEO_STOP_CAPTURE", "DO_CONTROL_VIDEO", "DO_SET_CAM_TRIGG_DIST",
-    "OBLIQUE_SURVEY", "DO_SET_CAM_TRIGG_INTERVAL", "SET_CAMERA_MODE", "SET_CAMERA_SOURCE",
-    "DO_VTOL_TRANSITION", "NAV_DELAY", "NAV_RETURN_TO_LAUNCH", "DO_SET_ROI_WPNEXT_OFFSET",
-    "DO_SET_ROI_NONE", "CONDITION_DELAY", "CONDITION_DISTANCE", "DO_SET_ACTUATOR",
-    "DO_AUTOTUNE_ENABLE", "COMPONENT_ARM_DISARM")
+    "DO_JUMP",
+    "NAV_ROI",
+    "DO_SET_ROI",
+    "DO_WINCH",
+    "DO_GRIPPER",
+    "DO_CHANGE_SPEED",
+    "DO_SET_HOME",
+    "DO_LAND_START",
+    "DO_TRIGGER_CONTROL",
+    "DO_DIGICAM_CONTROL",
+    "DO_MOUNT_CONFIGURE",
+    "DO_MOUNT_CONTROL",
+    "DO_GIMBAL_MANAGER_PITCHYAW",
+    "SET_CAMERA_FOCUS",
+    "DO_GIMBAL_MANAGER_CONFIGURE",
+    "IMAGE_START_CAPTURE",
+    "IMAGE_STOP_CAPTURE",
+    "VIDEO_START_CAPTURE",
+    "VIDEO_STOP_CAPTURE",
+    "DO_CONTROL_VIDEO",
+    "DO_SET_CAM_TRIGG_DIST",
+    "OBLIQUE_SURVEY",
+    "DO_SET_CAM_TRIGG_INTERVAL",
+    "SET_CAMERA_MODE",
+    "SET_CAMERA_SOURCE",
+    "DO_VTOL_TRANSITION",
+    "NAV_DELAY",
+    "NAV_RETURN_TO_LAUNCH",
+    "DO_SET_ROI_WPNEXT_OFFSET",
+    "DO_SET_ROI_NONE",
+    "CONDITION_DELAY",
+    "CONDITION_DISTANCE",
+    "DO_SET_ACTUATOR",
+    "DO_AUTOTUNE_ENABLE",
+    "COMPONENT_ARM_DISARM",
+)
 FENCE_RALLY_COMMANDS = _cmds(
-    "NAV_FENCE_POLYGON_VERTEX_INCLUSION", "NAV_FENCE_POLYGON_VERTEX_EXCLUSION",
-    "NAV_FENCE_CIRCLE_INCLUSION", "NAV_FENCE_CIRCLE_EXCLUSION", "NAV_RALLY_POINT")
+    "NAV_FENCE_POLYGON_VERTEX_INCLUSION",
+    "NAV_FENCE_POLYGON_VERTEX_EXCLUSION",
+    "NAV_FENCE_CIRCLE_INCLUSION",
+    "NAV_FENCE_CIRCLE_EXCLUSION",
+    "NAV_RALLY_POINT",
+)
 POLYGON_COMMANDS = _cmds("NAV_FENCE_POLYGON_VERTEX_INCLUSION", "NAV_FENCE_POLYGON_VERTEX_EXCLUSION")
 ROI_COMMANDS = _cmds("NAV_ROI", "DO_SET_ROI")
 FLOAT_FRAMES, INT_ONLY_FRAMES = frozenset(TO_INT_FRAME), frozenset(TO_FLOAT_FRAME)
@@ -112,21 +159,29 @@ def check_item(item: MissionItem, int_mode: bool) -> int:
     if item.frame in frames:
         if item.command not in POSITION_COMMANDS:
             return mavlink.MAV_MISSION_UNSUPPORTED
-        if item.command in ROI_COMMANDS and int(item.param1) not in (mavlink.MAV_ROI_LOCATION,
-                                                                     mavlink.MAV_ROI_NONE):
+        if item.command in ROI_COMMANDS and int(item.param1) not in (
+            mavlink.MAV_ROI_LOCATION,
+            mavlink.MAV_ROI_NONE,
+        ):
             return mavlink.MAV_MISSION_INVALID_PARAM1
     elif item.frame == mavlink.MAV_FRAME_MISSION:
         if item.command not in MISSION_FRAME_COMMANDS:
             return mavlink.MAV_MISSION_UNSUPPORTED
         if item.command in ROI_COMMANDS and int(item.param1) not in (
-                mavlink.MAV_ROI_NONE, mavlink.MAV_ROI_WPNEXT, mavlink.MAV_ROI_WPINDEX):
+            mavlink.MAV_ROI_NONE,
+            mavlink.MAV_ROI_WPNEXT,
+            mavlink.MAV_ROI_WPINDEX,
+        ):
             return mavlink.MAV_MISSION_INVALID_PARAM1
     else:
         return mavlink.MAV_MISSION_UNSUPPORTED_FRAME
     if item.mission_type == MISSION and item.command in FENCE_RALLY_COMMANDS:
         return mavlink.MAV_MISSION_ERROR
-    if (item.mission_type == FENCE and item.command in POLYGON_COMMANDS
-            and int(item.param1 + 0.5) < 3):
+    if (
+        item.mission_type == FENCE
+        and item.command in POLYGON_COMMANDS
+        and int(item.param1 + 0.5) < 3
+    ):
         return mavlink.MAV_MISSION_ERROR  # PX4: "Fence: too few vertices"
     return mavlink.MAV_MISSION_ACCEPTED
 
@@ -135,9 +190,15 @@ class MissionProtocol:
     """One link's mission manager over the vehicle's ``store``; :meth:`handle` each MISSION_*
     message, :meth:`tick` every loop (wall time drives the re-requests and timeouts)."""
 
-    def __init__(self, store: MissionStore, mav: Any, system_id: int,
-                 statustext: Callable[[int, str], None], component_id: int = 1,
-                 reject: Callable[..., object] | None = None) -> None:
+    def __init__(
+        self,
+        store: MissionStore,
+        mav: Any,
+        system_id: int,
+        statustext: Callable[[int, str], None],
+        component_id: int = 1,
+        reject: Callable[..., object] | None = None,
+    ) -> None:
         self.store = store
         self.reject = reject or (lambda kind, text, key=None: None)  # RejectLog.reject
         self.mav = mav
@@ -161,11 +222,17 @@ class MissionProtocol:
         """Act on a mission message addressed to this vehicle; False for anything else."""
         kind = msg.get_type()
         handler = self._HANDLERS.get(kind)
-        if handler is None or getattr(msg, "target_system", None) != self.system_id \
-                or msg.target_component not in self.component_ids:
+        if (
+            handler is None
+            or getattr(msg, "target_system", None) != self.system_id
+            or msg.target_component not in self.component_ids
+        ):
             return False
-        if (self.state is State.SENDLIST and self.transfer_seq >= self.transfer_count
-                and kind not in ("MISSION_REQUEST", "MISSION_REQUEST_INT", "MISSION_ACK")):
+        if (
+            self.state is State.SENDLIST
+            and self.transfer_seq >= self.transfer_count
+            and kind not in ("MISSION_REQUEST", "MISSION_REQUEST_INT", "MISSION_ACK")
+        ):
             self._idle()  # a finished download whose ACK never came (MAVProxy sends none)
         handler(self, msg, (msg.get_srcSystem(), msg.get_srcComponent()), wall)
         return True
@@ -232,7 +299,9 @@ class MissionProtocol:
             self._refuse("item", "partner", "MISSION_ITEM from a station that is not uploading")
             return
         if msg.mission_type != self.mission_type:
-            self._refuse("item", "type", f"MISSION_ITEM of another mission_type ({msg.mission_type})")
+            self._refuse(
+                "item", "type", f"MISSION_ITEM of another mission_type ({msg.mission_type})"
+            )
             self._ack(src, mavlink.MAV_MISSION_ERROR)
             return
         if self.state is State.IDLE:
@@ -255,8 +324,10 @@ class MissionProtocol:
         verdict = check_item(item, self.int_mode)
         if verdict != mavlink.MAV_MISSION_ACCEPTED:
             self.statustext(CRITICAL, "IGN MISSION_ITEM: Invalid item")
-            what = (f"{enum_name('MAV_CMD', item.command)} in frame {enum_name('MAV_FRAME', item.frame)}: "
-                    f"{enum_name('MAV_MISSION_RESULT', verdict)}")
+            what = (
+                f"{enum_name('MAV_CMD', item.command)} in frame {enum_name('MAV_FRAME', item.frame)}: "
+                f"{enum_name('MAV_MISSION_RESULT', verdict)}"
+            )
             self._refuse("item", what, f"{msg.get_type()} {msg.seq}: {what}, upload ended")
             self._ack(src, verdict)
             self._idle()
@@ -291,17 +362,22 @@ class MissionProtocol:
 
     # ---------------------------------------------------------------------------- download
     def _on_request_list(self, msg: Any, src: tuple[int, int], wall: float) -> None:
-        same = (self.state is State.SENDLIST and msg.mission_type == self.mission_type
-                and src == self.partner)
+        same = (
+            self.state is State.SENDLIST
+            and msg.mission_type == self.mission_type
+            and src == self.partner
+        )
         if self.state is not State.IDLE and not same:
-            self.statustext(mavlink.MAV_SEVERITY_INFO,
-                            "Mission download request ignored, already active")
+            self.statustext(
+                mavlink.MAV_SEVERITY_INFO, "Mission download request ignored, already active"
+            )
             self._refuse("request", "busy", "MISSION_REQUEST_LIST during a transfer: ignored")
             return
         self._last_recv = wall
         self.partner, self.mission_type = src, msg.mission_type
-        self._sending = (self.store.items(msg.mission_type) if msg.mission_type in MISSION_TYPES
-                         else ())
+        self._sending = (
+            self.store.items(msg.mission_type) if msg.mission_type in MISSION_TYPES else ()
+        )
         self.transfer_seq, self.transfer_count = 0, len(self._sending)
         self.state = State.SENDLIST if self._sending else State.IDLE
         self.mav.mission_count_send(src[0], src[1], self.transfer_count, msg.mission_type)
@@ -310,7 +386,9 @@ class MissionProtocol:
         self.int_mode = msg.get_type() == "MISSION_REQUEST_INT"
         if src != self.partner:
             self.statustext(CRITICAL, "WPM: REJ. CMD: partner id mismatch")
-            self._refuse("request", "partner", "MISSION_REQUEST from a station that is not downloading")
+            self._refuse(
+                "request", "partner", "MISSION_REQUEST from a station that is not downloading"
+            )
             return
         if self.state is State.GETLIST:
             self.statustext(CRITICAL, "WPM: REJ. CMD: Busy")
@@ -340,14 +418,20 @@ class MissionProtocol:
             self._refuse("clear", "busy", "MISSION_CLEAR_ALL during a transfer: Busy")
             return
         self._last_recv = wall
-        types = MISSION_TYPES if msg.mission_type == mavlink.MAV_MISSION_TYPE_ALL else (
-            (msg.mission_type,) if msg.mission_type in MISSION_TYPES else ())
+        types = (
+            MISSION_TYPES
+            if msg.mission_type == mavlink.MAV_MISSION_TYPE_ALL
+            else ((msg.mission_type,) if msg.mission_type in MISSION_TYPES else ())
+        )
         for mission_type in types:
             self.store.replace(mission_type, ())
         if not types:
             self._refuse("clear", "type", f"MISSION_CLEAR_ALL of mission_type {msg.mission_type}")
-        self._ack(src, mavlink.MAV_MISSION_ACCEPTED if types else mavlink.MAV_MISSION_ERROR,
-                  msg.mission_type)
+        self._ack(
+            src,
+            mavlink.MAV_MISSION_ACCEPTED if types else mavlink.MAV_MISSION_ERROR,
+            msg.mission_type,
+        )
 
     def _on_set_current(self, msg: Any, src: tuple[int, int], wall: float) -> None:
         if self.state is not State.IDLE:
@@ -371,8 +455,9 @@ class MissionProtocol:
         send(self.partner[0], self.partner[1], seq, self.mission_type)
 
     def _ack(self, to: tuple[int, int], result: int, mission_type: int | None = None) -> None:
-        self.mav.mission_ack_send(to[0], to[1], result,
-                                  self.mission_type if mission_type is None else mission_type)
+        self.mav.mission_ack_send(
+            to[0], to[1], result, self.mission_type if mission_type is None else mission_type
+        )
 
     def _idle(self) -> None:
         self.state = State.IDLE
@@ -380,10 +465,13 @@ class MissionProtocol:
             del _uploading[self.store]
 
     _HANDLERS: dict[str, Callable[..., None]] = {
-        "MISSION_COUNT": _on_count, "MISSION_ITEM_INT": _on_item, "MISSION_ITEM": _on_item,
-        "MISSION_ACK": _on_ack, "MISSION_REQUEST_LIST": _on_request_list,
-        "MISSION_REQUEST_INT": _on_request, "MISSION_REQUEST": _on_request,
-        "MISSION_CLEAR_ALL": _on_clear_all, "MISSION_SET_CURRENT": _on_set_current,
+        "MISSION_COUNT": _on_count,
+        "MISSION_ITEM_INT": _on_item,
+        "MISSION_ITEM": _on_item,
+        "MISSION_ACK": _on_ack,
+        "MISSION_REQUEST_LIST": _on_request_list,
+        "MISSION_REQUEST_INT": _on_request,
+        "MISSION_REQUEST": _on_request,
+        "MISSION_CLEAR_ALL": _on_clear_all,
+        "MISSION_SET_CURRENT": _on_set_current,
     }
-
-

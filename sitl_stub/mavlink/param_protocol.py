@@ -44,8 +44,9 @@ class ParamProtocol:
 
     def send_value(self, name: str) -> None:
         value, ptype = self.store.encode(name)
-        self.mav.param_value_send(name.encode("ascii"), value, int(ptype), len(self.store),
-                                  self.store.index_of(name))
+        self.mav.param_value_send(
+            name.encode("ascii"), value, int(ptype), len(self.store), self.store.index_of(name)
+        )
 
 
 def _name(msg: Any) -> str:

@@ -105,7 +105,9 @@ class ServerConfig:
 class SitlServer:
     """A PX4-style SITL multicopter speaking MAVLink 2 on one or more links."""
 
-    def __init__(self, config: ServerConfig | None = None, payloads: Sequence[Payload] = ()) -> None:
+    def __init__(
+        self, config: ServerConfig | None = None, payloads: Sequence[Payload] = ()
+    ) -> None:
         self.config = config or ServerConfig()
         c = self.config
         self.link_specs = c.link_specs()
@@ -126,9 +128,12 @@ class SitlServer:
             ids.add(int(p.component_id))
         self._payloads = list(payloads)
         self._lockstep = any(getattr(p, "lockstep", False) for p in payloads)
-        if self._lockstep and any(abs(p.frame_s / SUBSTEP_S - round(p.frame_s / SUBSTEP_S)) > 1e-9
-                                  for p in payloads):
-            raise ValueError(f"lockstep needs payload frames in whole {SUBSTEP_S * 1e3:g} ms substeps")
+        if self._lockstep and any(
+            abs(p.frame_s / SUBSTEP_S - round(p.frame_s / SUBSTEP_S)) > 1e-9 for p in payloads
+        ):
+            raise ValueError(
+                f"lockstep needs payload frames in whole {SUBSTEP_S * 1e3:g} ms substeps"
+            )
         self._slots: list[PayloadSlot] = []
         self.stats: Counter[str] = Counter()
         self.rejects = RejectLog(log)
@@ -153,8 +158,10 @@ class SitlServer:
             return
         c = self.config
         self.links = open_links(self.link_specs, self.system_id, AUTOPILOT_COMPONENT)
-        encoders = [[link.mav, *(link.encoder(int(p.component_id)) for p in self._payloads)]
-                    for link in self.links]
+        encoders = [
+            [link.mav, *(link.encoder(int(p.component_id)) for p in self._payloads)]
+            for link in self.links
+        ]
         if c.signing_key is not None:
             self.signing = SigningGuard(c.signing_key, on_first_reject=self._on_signing_reject)
             for link, mavs in zip(self.links, encoders, strict=True):
@@ -163,15 +170,30 @@ class SitlServer:
         per_component = list(zip(*encoders, strict=True))  # [autopilot encoders, payload 1's, ...]
         self.mav = Fanout(per_component[0], self.route)
         # home is the vehicle's (PX4's commander owns it); telemetry encodes positions against it
-        self.telemetry = TelemetrySender(self.mav, self.vehicle.origin, self.battery, self.mav.everyone(), c.home_ne)
+        self.telemetry = TelemetrySender(
+            self.mav, self.vehicle.origin, self.battery, self.mav.everyone(), c.home_ne
+        )
         self.commands = CommandHandler(self.vehicle, self.streams, self.telemetry)
         self.param_protocol = ParamProtocol(self.params, self.mav)
-        self._slots = [PayloadSlot(p, Fanout(mavs, self.route))
-                       for p, mavs in zip(self._payloads, per_component[1:], strict=True)]
-        self.inboxes = [MessageHandler(self.system_id, link.conn, self.vehicle, self.commands,
-                                       self.telemetry, self.param_protocol, self._slots,
-                                       self.stats, self.rejects, self.signing)
-                        for link in self.links]
+        self._slots = [
+            PayloadSlot(p, Fanout(mavs, self.route))
+            for p, mavs in zip(self._payloads, per_component[1:], strict=True)
+        ]
+        self.inboxes = [
+            MessageHandler(
+                self.system_id,
+                link.conn,
+                self.vehicle,
+                self.commands,
+                self.telemetry,
+                self.param_protocol,
+                self._slots,
+                self.stats,
+                self.rejects,
+                self.signing,
+            )
+            for link in self.links
+        ]
         self.clock = SimClock(c.speed)
         log.debug("vehicle %d on %s at %gx real time", self.system_id, self.connection, c.speed)
 
@@ -224,8 +246,11 @@ class SitlServer:
         and the vehicle's safety monitors (geofence, offboard setpoint age, failsafes, battery)."""
         s = self._snapshot
         acks = {k[4:]: v for k, v in sorted(self.stats.items()) if k.startswith("ack_")}
-        payloads = {str(p.component_id): p.summary() for p in self._payloads
-                    if callable(getattr(p, "summary", None))}
+        payloads = {
+            str(p.component_id): p.summary()
+            for p in self._payloads
+            if callable(getattr(p, "summary", None))
+        }
         return {
             "links": [spec.describe() for spec in self.link_specs],
             "signing": self.signing.stats() if self.signing else None,
@@ -233,10 +258,13 @@ class SitlServer:
             "rejected": self.rejects.as_dict(),
             "acks": acks,
             "vehicle": {
-                "time_s": round(s.time_s, 3), "armed": s.armed, "mode": s.mode.px4_name,
+                "time_s": round(s.time_s, 3),
+                "armed": s.armed,
+                "mode": s.mode.px4_name,
                 "offboard_failsafes": s.offboard_failsafes,
                 "max_offboard_setpoint_age_s": round(s.max_offboard_setpoint_age_s, 3),
-                "max_abs_xy_m": round(s.max_abs_xy_m, 3), "fence_m": self.vehicle.fence_m,
+                "max_abs_xy_m": round(s.max_abs_xy_m, 3),
+                "fence_m": self.vehicle.fence_m,
                 "setpoints_accepted": s.setpoints_accepted,
                 "setpoints_clamped": s.setpoints_clamped,
                 "battery_pct": round(self.battery.reading().remaining_pct, 1),
@@ -305,8 +333,9 @@ class SitlServer:
                     slot.next_frame += 1
             if self._lockstep and _holds_clock(self._slots, v.state()):
                 return True
-            next_frame = min((s.next_frame * s.payload.frame_s for s in self._slots),
-                             default=math.inf)
+            next_frame = min(
+                (s.next_frame * s.payload.frame_s for s in self._slots), default=math.inf
+            )
             if not step_vehicles([v], min(target_s, next_frame), self._lockstep):
                 return False
 
@@ -321,8 +350,11 @@ class SitlServer:
         except Exception:
             slot.failures += 1
             if slot.failures == 1 or slot.failures % 100 == 0:
-                log.exception("payload %d failed in on_frame (%d failures)",
-                              slot.payload.component_id, slot.failures)
+                log.exception(
+                    "payload %d failed in on_frame (%d failures)",
+                    slot.payload.component_id,
+                    slot.failures,
+                )
 
     def _send_due(self, wall: float) -> None:
         s = self.vehicle.state()
@@ -360,5 +392,9 @@ def step_vehicles(vehicles: Sequence[Vehicle], end_s: float, whole_substeps: boo
 
 def _holds_clock(slots: Sequence[PayloadSlot], state: VehicleState) -> bool:
     """Whether a lockstep payload holds time at its frame (its optional ``holds_clock``)."""
-    return any(getattr(slot.payload, "lockstep", False) and getattr(slot.payload, "holds_clock", None)
-               and slot.payload.holds_clock(state) for slot in slots)
+    return any(
+        getattr(slot.payload, "lockstep", False)
+        and getattr(slot.payload, "holds_clock", None)
+        and slot.payload.holds_clock(state)
+        for slot in slots
+    )

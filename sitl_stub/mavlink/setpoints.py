@@ -39,33 +39,51 @@ class Refusal:
     text: str
 
 
-def read_setpoint(type_mask: int, position_ned: tuple[float, float, float],
-                  velocity: tuple[float, float, float], yaw_rad: float, yaw_rate_radps: float,
-                  body_yaw_rad: float | None = None) -> Setpoint | Refusal:
+def read_setpoint(
+    type_mask: int,
+    position_ned: tuple[float, float, float],
+    velocity: tuple[float, float, float],
+    yaw_rad: float,
+    yaw_rate_radps: float,
+    body_yaw_rad: float | None = None,
+) -> Setpoint | Refusal:
     """The setpoint a SET_POSITION_TARGET_* message asks for. ``body_yaw_rad`` is the vehicle's
     heading when the frame is a body frame (velocity forward/right/down; positions refused)."""
     free = tuple(bool(type_mask & bit) for bit in IGNORE_POSITION)
     vel_used = tuple(not type_mask & bit for bit in IGNORE_VELOCITY)
     if all(free) and not any(vel_used):
-        return Refusal("setpoint_type_mask", f"setpoint type_mask 0x{type_mask:x} has neither "
-                       "position nor velocity: acceleration/force setpoints are not flown")
+        return Refusal(
+            "setpoint_type_mask",
+            f"setpoint type_mask 0x{type_mask:x} has neither "
+            "position nor velocity: acceleration/force setpoints are not flown",
+        )
     if free[0] != free[1]:
-        return Refusal("setpoint_type_mask", f"setpoint type_mask 0x{type_mask:x}: north and "
-                       "east positions must be used or ignored together")
+        return Refusal(
+            "setpoint_type_mask",
+            f"setpoint type_mask 0x{type_mask:x}: north and "
+            "east positions must be used or ignored together",
+        )
     if any(f and not v for f, v in zip(free, vel_used, strict=True)):
-        return Refusal("setpoint_type_mask", f"setpoint type_mask 0x{type_mask:x} leaves an axis "
-                       "with neither position nor velocity")
+        return Refusal(
+            "setpoint_type_mask",
+            f"setpoint type_mask 0x{type_mask:x} leaves an axis with neither position nor velocity",
+        )
     if body_yaw_rad is not None and not all(free):
-        return Refusal("setpoint_frame", "body-frame setpoints carry velocities only: send "
-                       "positions in MAV_FRAME_LOCAL_NED")
+        return Refusal(
+            "setpoint_frame",
+            "body-frame setpoints carry velocities only: send positions in MAV_FRAME_LOCAL_NED",
+        )
     vel = tuple(v if used else 0.0 for v, used in zip(velocity, vel_used, strict=True))
     if not all(math.isfinite(v) for v in vel):  # positions: the vehicle checks (and counts)
         return Refusal("setpoint_not_finite", f"setpoint with a NaN/infinite velocity {velocity}")
     if body_yaw_rad is not None:
         vel = body_to_ned(*vel, body_yaw_rad)
     yaw = None if type_mask & IGNORE_YAW or not math.isfinite(yaw_rad) else yaw_rad
-    rate = (yaw_rate_radps if yaw is None and not type_mask & IGNORE_YAW_RATE
-            and math.isfinite(yaw_rate_radps) else None)
+    rate = (
+        yaw_rate_radps
+        if yaw is None and not type_mask & IGNORE_YAW_RATE and math.isfinite(yaw_rate_radps)
+        else None
+    )
     pos = tuple(math.nan if f else p for p, f in zip(position_ned, free, strict=True))
     if not any(free) and not any(vel_used):
         return Setpoint(pos, yaw, None)  # type: ignore[arg-type]

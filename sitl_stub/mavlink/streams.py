@@ -72,8 +72,10 @@ class StreamScheduler:
         for name, rate in self.rates.items():
             if rate <= 0:
                 continue
-            if (sim_s - self._last_sim[name] >= 1.0 / rate - 1e-9
-                    and wall_s - self._last_wall[name] >= self.min_wall_gap_s - 1e-9):
+            if (
+                sim_s - self._last_sim[name] >= 1.0 / rate - 1e-9
+                and wall_s - self._last_wall[name] >= self.min_wall_gap_s - 1e-9
+            ):
                 self._last_sim[name] = sim_s
                 self._last_wall[name] = wall_s
                 out.append(name)
@@ -83,8 +85,10 @@ class StreamScheduler:
         """True (and marks sent) once per simulated second, with a 1 Hz wall-time floor."""
         if wall_s - self._hb_wall < self.min_wall_gap_s - 1e-9:
             return False
-        if (sim_s - self._hb_sim >= HEARTBEAT_SIM_PERIOD_S - 1e-9
-                or wall_s - self._hb_wall >= HEARTBEAT_WALL_PERIOD_S):
+        if (
+            sim_s - self._hb_sim >= HEARTBEAT_SIM_PERIOD_S - 1e-9
+            or wall_s - self._hb_wall >= HEARTBEAT_WALL_PERIOD_S
+        ):
             self._hb_sim = sim_s
             self._hb_wall = wall_s
             return True

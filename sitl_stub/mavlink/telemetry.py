@@ -26,41 +26,58 @@ from uavlink.mavlink.dialect import mavlink
 # from announcing "fence breach" (it is unhealthy while VehicleState.fence_breached), PREARM_CHECK
 # and GPS make MAVSDK's health armable / position ok.
 SENSORS = (
-    mavlink.MAV_SYS_STATUS_SENSOR_3D_GYRO | mavlink.MAV_SYS_STATUS_SENSOR_3D_ACCEL
-    | mavlink.MAV_SYS_STATUS_SENSOR_3D_MAG | mavlink.MAV_SYS_STATUS_SENSOR_ABSOLUTE_PRESSURE
-    | mavlink.MAV_SYS_STATUS_SENSOR_GPS | mavlink.MAV_SYS_STATUS_SENSOR_ANGULAR_RATE_CONTROL
-    | mavlink.MAV_SYS_STATUS_SENSOR_ATTITUDE_STABILIZATION | mavlink.MAV_SYS_STATUS_SENSOR_YAW_POSITION
+    mavlink.MAV_SYS_STATUS_SENSOR_3D_GYRO
+    | mavlink.MAV_SYS_STATUS_SENSOR_3D_ACCEL
+    | mavlink.MAV_SYS_STATUS_SENSOR_3D_MAG
+    | mavlink.MAV_SYS_STATUS_SENSOR_ABSOLUTE_PRESSURE
+    | mavlink.MAV_SYS_STATUS_SENSOR_GPS
+    | mavlink.MAV_SYS_STATUS_SENSOR_ANGULAR_RATE_CONTROL
+    | mavlink.MAV_SYS_STATUS_SENSOR_ATTITUDE_STABILIZATION
+    | mavlink.MAV_SYS_STATUS_SENSOR_YAW_POSITION
     | mavlink.MAV_SYS_STATUS_SENSOR_Z_ALTITUDE_CONTROL
-    | mavlink.MAV_SYS_STATUS_SENSOR_XY_POSITION_CONTROL | mavlink.MAV_SYS_STATUS_SENSOR_MOTOR_OUTPUTS
-    | mavlink.MAV_SYS_STATUS_GEOFENCE | mavlink.MAV_SYS_STATUS_AHRS
-    | mavlink.MAV_SYS_STATUS_SENSOR_BATTERY | mavlink.MAV_SYS_STATUS_PREARM_CHECK
+    | mavlink.MAV_SYS_STATUS_SENSOR_XY_POSITION_CONTROL
+    | mavlink.MAV_SYS_STATUS_SENSOR_MOTOR_OUTPUTS
+    | mavlink.MAV_SYS_STATUS_GEOFENCE
+    | mavlink.MAV_SYS_STATUS_AHRS
+    | mavlink.MAV_SYS_STATUS_SENSOR_BATTERY
+    | mavlink.MAV_SYS_STATUS_PREARM_CHECK
 )
 
 # SYS_STATUS health bits an injected failure (sitl_stub.flight.failures) clears.
-_FAILED_BITS = {"gps": mavlink.MAV_SYS_STATUS_SENSOR_GPS,
-                "battery": mavlink.MAV_SYS_STATUS_SENSOR_BATTERY,
-                "motor": mavlink.MAV_SYS_STATUS_SENSOR_MOTOR_OUTPUTS}
+_FAILED_BITS = {
+    "gps": mavlink.MAV_SYS_STATUS_SENSOR_GPS,
+    "battery": mavlink.MAV_SYS_STATUS_SENSOR_BATTERY,
+    "motor": mavlink.MAV_SYS_STATUS_SENSOR_MOTOR_OUTPUTS,
+}
 
 CAPABILITIES = (
-    mavlink.MAV_PROTOCOL_CAPABILITY_MAVLINK2 | mavlink.MAV_PROTOCOL_CAPABILITY_COMMAND_INT
+    mavlink.MAV_PROTOCOL_CAPABILITY_MAVLINK2
+    | mavlink.MAV_PROTOCOL_CAPABILITY_COMMAND_INT
     | mavlink.MAV_PROTOCOL_CAPABILITY_PARAM_ENCODE_BYTEWISE
     | mavlink.MAV_PROTOCOL_CAPABILITY_SET_POSITION_TARGET_LOCAL_NED
     # the mission protocol (sitl_stub.mavlink.mission_protocol): MAVSDK's mission_raw wants MISSION_INT,
     # QGroundControl downloads fence and rally only when these say so
-    | mavlink.MAV_PROTOCOL_CAPABILITY_MISSION_FLOAT | mavlink.MAV_PROTOCOL_CAPABILITY_MISSION_INT
-    | mavlink.MAV_PROTOCOL_CAPABILITY_MISSION_FENCE | mavlink.MAV_PROTOCOL_CAPABILITY_MISSION_RALLY
+    | mavlink.MAV_PROTOCOL_CAPABILITY_MISSION_FLOAT
+    | mavlink.MAV_PROTOCOL_CAPABILITY_MISSION_INT
+    | mavlink.MAV_PROTOCOL_CAPABILITY_MISSION_FENCE
+    | mavlink.MAV_PROTOCOL_CAPABILITY_MISSION_RALLY
 )
 FLIGHT_SW_VERSION = 1 << 24 | 14 << 16 | 0 << 8 | 255  # "v1.14.0 official", PX4's encoding
 UID = int.from_bytes(b"SITLSTUB", "big")
 UNKNOWN_TEMPERATURE = 32767  # BATTERY_STATUS.temperature INT16_MAX: not measured
 UNUSED_CELL = 65535  # BATTERY_STATUS.voltages UINT16_MAX: no such cell
 # PX4's BAT_LOW_THR, BAT_CRIT_THR, BAT_EMERGEN_THR (remaining fraction) -> charge_state
-_CHARGE_STATES = ((0.05, mavlink.MAV_BATTERY_CHARGE_STATE_EMERGENCY),
-                  (0.07, mavlink.MAV_BATTERY_CHARGE_STATE_CRITICAL),
-                  (0.15, mavlink.MAV_BATTERY_CHARGE_STATE_LOW))
+_CHARGE_STATES = (
+    (0.05, mavlink.MAV_BATTERY_CHARGE_STATE_EMERGENCY),
+    (0.07, mavlink.MAV_BATTERY_CHARGE_STATE_CRITICAL),
+    (0.15, mavlink.MAV_BATTERY_CHARGE_STATE_LOW),
+)
 
-_AUTO_FLAGS = (mavlink.MAV_MODE_FLAG_AUTO_ENABLED | mavlink.MAV_MODE_FLAG_STABILIZE_ENABLED
-               | mavlink.MAV_MODE_FLAG_GUIDED_ENABLED)
+_AUTO_FLAGS = (
+    mavlink.MAV_MODE_FLAG_AUTO_ENABLED
+    | mavlink.MAV_MODE_FLAG_STABILIZE_ENABLED
+    | mavlink.MAV_MODE_FLAG_GUIDED_ENABLED
+)
 
 
 def base_mode(state: VehicleState) -> int:
@@ -74,8 +91,14 @@ def base_mode(state: VehicleState) -> int:
 class TelemetrySender:
     """Sends the autopilot's messages with one pymavlink ``MAVLink`` object (component 1)."""
 
-    def __init__(self, mav: Any, origin: GeoOrigin, battery: Battery | None = None,
-                 announce: Any = None, home_ne: tuple[float, float] = (0.0, 0.0)) -> None:
+    def __init__(
+        self,
+        mav: Any,
+        origin: GeoOrigin,
+        battery: Battery | None = None,
+        announce: Any = None,
+        home_ne: tuple[float, float] = (0.0, 0.0),
+    ) -> None:
         self.mav = mav
         self.origin = origin
         self.home_ne = home_ne
@@ -95,7 +118,6 @@ class TelemetrySender:
             "VFR_HUD": self.vfr_hud,
             "AUTOPILOT_VERSION": self.autopilot_version,
             "MISSION_CURRENT": self.mission_current,
-
             "ORBIT_EXECUTION_STATUS": self.orbit_execution_status,
         }
 
@@ -111,26 +133,56 @@ class TelemetrySender:
     # ------------------------------------------------------------------ builders
     def heartbeat(self, s: VehicleState) -> None:
         status = mavlink.MAV_STATE_ACTIVE if s.armed else mavlink.MAV_STATE_STANDBY
-        self.mav.heartbeat_send(mavlink.MAV_TYPE_QUADROTOR, mavlink.MAV_AUTOPILOT_PX4,
-                                base_mode(s), s.mode.custom_mode, status)
+        self.mav.heartbeat_send(
+            mavlink.MAV_TYPE_QUADROTOR,
+            mavlink.MAV_AUTOPILOT_PX4,
+            base_mode(s),
+            s.mode.custom_mode,
+            status,
+        )
 
     def sys_status(self, s: VehicleState) -> None:
         healthy = SENSORS & ~sum(_FAILED_BITS[f] for f in s.failures if f in _FAILED_BITS)
         if s.fence_breached:
             healthy &= ~mavlink.MAV_SYS_STATUS_GEOFENCE
         b = self.battery.reading()
-        self.mav.sys_status_send(SENSORS, SENSORS, healthy, 200, _mv(b.voltage_v), -1,
-                                 int(b.remaining_pct), 0, 0, 0, 0, 0, 0)
+        self.mav.sys_status_send(
+            SENSORS,
+            SENSORS,
+            healthy,
+            200,
+            _mv(b.voltage_v),
+            -1,
+            int(b.remaining_pct),
+            0,
+            0,
+            0,
+            0,
+            0,
+            0,
+        )
 
     def battery_status(self, s: VehicleState) -> None:
         b = self.battery.reading()
         cells = [_mv(b.cell_voltage_v)] * CELL_COUNT + [UNUSED_CELL] * (10 - CELL_COUNT)
         fraction = b.remaining_pct / 100.0
-        charge = next((state for limit, state in _CHARGE_STATES if fraction <= limit),
-                      mavlink.MAV_BATTERY_CHARGE_STATE_OK)
-        self.mav.battery_status_send(0, mavlink.MAV_BATTERY_FUNCTION_ALL,
-                                     mavlink.MAV_BATTERY_TYPE_LIPO, UNKNOWN_TEMPERATURE, cells,
-                                     -1, -1, -1, int(b.remaining_pct), 0, charge)
+        charge = next(
+            (state for limit, state in _CHARGE_STATES if fraction <= limit),
+            mavlink.MAV_BATTERY_CHARGE_STATE_OK,
+        )
+        self.mav.battery_status_send(
+            0,
+            mavlink.MAV_BATTERY_FUNCTION_ALL,
+            mavlink.MAV_BATTERY_TYPE_LIPO,
+            UNKNOWN_TEMPERATURE,
+            cells,
+            -1,
+            -1,
+            -1,
+            int(b.remaining_pct),
+            0,
+            charge,
+        )
 
     def extended_sys_state(self, s: VehicleState) -> None:
         self.mav.extended_sys_state_send(mavlink.MAV_VTOL_STATE_UNDEFINED, int(s.landed_state))
@@ -139,9 +191,19 @@ class TelemetrySender:
         """Home (the spawn point: LOCAL_NED ``home_ne``, the origin itself for one vehicle)."""
         o, (north, east) = self.origin, self.home_ne
         lat, lon = o.to_global(north, east)
-        self.mav.home_position_send(_e7(lat), _e7(lon), _mm(o.alt_amsl_m),
-                                    north, east, 0.0, [1.0, 0.0, 0.0, 0.0], 0.0, 0.0, 0.0,
-                                    _us(s.time_s))
+        self.mav.home_position_send(
+            _e7(lat),
+            _e7(lon),
+            _mm(o.alt_amsl_m),
+            north,
+            east,
+            0.0,
+            [1.0, 0.0, 0.0, 0.0],
+            0.0,
+            0.0,
+            0.0,
+            _us(s.time_s),
+        )
 
     def gps_raw_int(self, s: VehicleState) -> None:
         lat, lon = self.origin.to_global(s.north_m, s.east_m)
@@ -149,24 +211,48 @@ class TelemetrySender:
         cog = 65535 if speed < 0.5 else _cdeg(math.atan2(s.ve_mps, s.vn_mps))
         gps_off = "gps" in s.failures  # injected failure: no receiver data
         fix = mavlink.GPS_FIX_TYPE_NO_GPS if gps_off else mavlink.GPS_FIX_TYPE_3D_FIX
-        self.mav.gps_raw_int_send(_us(s.time_s), fix, _e7(lat), _e7(lon),
-                                  _mm(self.origin.alt_amsl_m + s.altitude_m), 70, 110,
-                                  min(int(speed * 100), 65534), cog, 0 if gps_off else 12,
-                                  _mm(self.origin.alt_amsl_m + s.altitude_m), 500, 800, 200, 0, 0)
+        self.mav.gps_raw_int_send(
+            _us(s.time_s),
+            fix,
+            _e7(lat),
+            _e7(lon),
+            _mm(self.origin.alt_amsl_m + s.altitude_m),
+            70,
+            110,
+            min(int(speed * 100), 65534),
+            cog,
+            0 if gps_off else 12,
+            _mm(self.origin.alt_amsl_m + s.altitude_m),
+            500,
+            800,
+            200,
+            0,
+            0,
+        )
 
     def global_position_int(self, s: VehicleState) -> None:
         lat, lon = self.origin.to_global(s.north_m, s.east_m)
         self.mav.global_position_int_send(
-            _ms(s.time_s), _e7(lat), _e7(lon), _mm(self.origin.alt_amsl_m + s.altitude_m),
-            _mm(s.altitude_m), _cms(s.vn_mps), _cms(s.ve_mps), _cms(s.vd_mps), _cdeg(s.yaw_rad))
+            _ms(s.time_s),
+            _e7(lat),
+            _e7(lon),
+            _mm(self.origin.alt_amsl_m + s.altitude_m),
+            _mm(s.altitude_m),
+            _cms(s.vn_mps),
+            _cms(s.ve_mps),
+            _cms(s.vd_mps),
+            _cdeg(s.yaw_rad),
+        )
 
     def local_position_ned(self, s: VehicleState) -> None:
-        self.mav.local_position_ned_send(_ms(s.time_s), s.north_m, s.east_m, s.down_m,
-                                         s.vn_mps, s.ve_mps, s.vd_mps)
+        self.mav.local_position_ned_send(
+            _ms(s.time_s), s.north_m, s.east_m, s.down_m, s.vn_mps, s.ve_mps, s.vd_mps
+        )
 
     def attitude(self, s: VehicleState) -> None:
-        self.mav.attitude_send(_ms(s.time_s), s.roll_rad, s.pitch_rad, s.yaw_rad,
-                               0.0, 0.0, s.yaw_rate_radps)
+        self.mav.attitude_send(
+            _ms(s.time_s), s.roll_rad, s.pitch_rad, s.yaw_rad, 0.0, 0.0, s.yaw_rate_radps
+        )
 
     def attitude_quaternion(self, s: VehicleState) -> None:
         q = _quaternion(s.roll_rad, s.pitch_rad, s.yaw_rad)
@@ -175,14 +261,21 @@ class TelemetrySender:
     def vfr_hud(self, s: VehicleState) -> None:
         heading = int(round(math.degrees(s.yaw_rad))) % 360
         throttle = 50 if s.armed and s.in_air else 0
-        self.mav.vfr_hud_send(s.ground_speed_mps, s.ground_speed_mps, heading, throttle,
-                              self.origin.alt_amsl_m + s.altitude_m, -s.vd_mps)
+        self.mav.vfr_hud_send(
+            s.ground_speed_mps,
+            s.ground_speed_mps,
+            heading,
+            throttle,
+            self.origin.alt_amsl_m + s.altitude_m,
+            -s.vd_mps,
+        )
 
     def autopilot_version(self, s: VehicleState) -> None:
         # uid2 (MAVLink 2 extension, 18 bytes) as well as uid: MAVSDK 4 reads its hardware uid from uid2
         uid2 = list(UID.to_bytes(8, "big") + bytes([self.mav.srcSystem]) + bytes(9))
-        self.mav.autopilot_version_send(CAPABILITIES, FLIGHT_SW_VERSION, 0, 0, 0,
-                                        [0] * 8, [0] * 8, [0] * 8, 0, 0, UID, uid2)
+        self.mav.autopilot_version_send(
+            CAPABILITIES, FLIGHT_SW_VERSION, 0, 0, 0, [0] * 8, [0] * 8, [0] * 8, 0, 0, UID, uid2
+        )
 
     def mission_current(self, s: VehicleState) -> None:
         """MISSION_CURRENT as PX4 streams it: seq, total, mission_state, mission_mode."""
@@ -197,9 +290,14 @@ class TelemetrySender:
         if o is None:
             return
         lat, lon = self.origin.to_global(o.center_north_m, o.center_east_m)
-        self.mav.orbit_execution_status_send(_us(s.time_s), o.signed_radius_m,
-                                             mavlink.MAV_FRAME_GLOBAL, _e7(lat), _e7(lon),
-                                             self.origin.alt_amsl_m - o.down_m)
+        self.mav.orbit_execution_status_send(
+            _us(s.time_s),
+            o.signed_radius_m,
+            mavlink.MAV_FRAME_GLOBAL,
+            _e7(lat),
+            _e7(lon),
+            self.origin.alt_amsl_m - o.down_m,
+        )
 
     def statustext(self, severity: int, text: str) -> None:
         self.announce.statustext_send(severity, text[:50].encode("ascii", "replace"))
@@ -236,5 +334,9 @@ def _quaternion(roll: float, pitch: float, yaw: float) -> tuple[float, float, fl
     cr, sr = math.cos(roll / 2), math.sin(roll / 2)
     cp, sp = math.cos(pitch / 2), math.sin(pitch / 2)
     cy, sy = math.cos(yaw / 2), math.sin(yaw / 2)
-    return (cr * cp * cy + sr * sp * sy, sr * cp * cy - cr * sp * sy,
-            cr * sp * cy + sr * cp * sy, cr * cp * sy - sr * sp * cy)
+    return (
+        cr * cp * cy + sr * sp * sy,
+        sr * cp * cy - cr * sp * sy,
+        cr * sp * cy + sr * cp * sy,
+        cr * cp * sy - sr * sp * cy,
+    )

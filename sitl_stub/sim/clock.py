@@ -15,8 +15,12 @@ class SimClock:
     jumping.
     """
 
-    def __init__(self, speed: float = 1.0, max_wall_step_s: float = 0.25,
-                 wall: Callable[[], float] = time.monotonic) -> None:
+    def __init__(
+        self,
+        speed: float = 1.0,
+        max_wall_step_s: float = 0.25,
+        wall: Callable[[], float] = time.monotonic,
+    ) -> None:
         if not (math.isfinite(speed) and speed > 0):
             raise ValueError(f"speed must be a positive number, got {speed}")
         self.speed = float(speed)

@@ -60,7 +60,11 @@ class FrameHold:
             return True
         self.timeouts += 1
         if self.timeouts == 1:
-            log.warning("lockstep: frame %d got no FRAME_DECIDED within %g s of wall time: going on "
-                        "without it (is the flight computer in lockstep?)", self.frame, LOCKSTEP_WAIT_WALL_S)
+            log.warning(
+                "lockstep: frame %d got no FRAME_DECIDED within %g s of wall time: going on "
+                "without it (is the flight computer in lockstep?)",
+                self.frame,
+                LOCKSTEP_WAIT_WALL_S,
+            )
         self.frame = None
         return False

@@ -68,7 +68,9 @@ class PayloadOptions:
     settings: tuple[tuple[str, object], ...] = ()  # --set KEY=VALUE: the radio payload's env fields
     home: GeoOrigin = GeoOrigin()  # the LOCAL_NED origin: where the UE truth is placed on Earth
     ue_truth: bool = True  # send the simulated UEs as ADSB_VEHICLE (sitl_stub.sim.ue_truth)
-    lockstep: bool = False  # hold each frame of a running episode until the flight computer decides it
+    lockstep: bool = (
+        False  # hold each frame of a running episode until the flight computer decides it
+    )
 
 
 @dataclass
@@ -104,4 +106,5 @@ def check_payload(payload: Payload, system_component_ids: set[int]) -> None:
     if len(hb) != 5 or hb[1] != MAV_AUTOPILOT_INVALID or hb[2] != 0:
         raise ValueError(
             f"payload {cid} heartbeat must be (type, MAV_AUTOPILOT_INVALID=8, base_mode=0, "
-            f"custom_mode, system_status), got {hb}")
+            f"custom_mode, system_status), got {hb}"
+        )

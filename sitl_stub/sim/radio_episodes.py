@@ -69,8 +69,11 @@ class RadioEpisodes:
     def awaits_decision(self, states: Sequence[VehicleState]) -> bool:
         """The frame just ticked is one a flight computer decides: the episode runs, has frames
         left, and a vehicle flies it in OFFBOARD (what a lockstep world holds for)."""
-        return (self.started and self.world.frame < self.cfg.episode_frames
-                and any(s.mode is FlightMode.OFFBOARD for s in states))
+        return (
+            self.started
+            and self.world.frame < self.cfg.episode_frames
+            and any(s.mode is FlightMode.OFFBOARD for s in states)
+        )
 
     def _flight_begins(self, states: Sequence[VehicleState]) -> bool:
         """A vehicle armed since the last tick, and every vehicle armed now armed since then: the
@@ -93,7 +96,11 @@ class RadioEpisodes:
         before the first arming; the episode then waiting is ``episode_seed``'s, the next flight's).
         ``UL_EPISODE`` (``count``) is the current episode's index, what ``uavlink fly`` reads."""
         rates = self.frame_rates_mbps[: self.cfg.episode_frames]
-        return {"frames": len(rates), "frames_total": len(self.frame_rates_mbps),
-                "mean_rate_mbps": round(sum(rates) / len(rates), 6) if rates else None,
-                "episode_seed": self.seed, "episodes": self.count + int(self.begun),
-                "scenario": self.world.scenario}
+        return {
+            "frames": len(rates),
+            "frames_total": len(self.frame_rates_mbps),
+            "mean_rate_mbps": round(sum(rates) / len(rates), 6) if rates else None,
+            "episode_seed": self.seed,
+            "episodes": self.count + int(self.begun),
+            "scenario": self.world.scenario,
+        }

@@ -44,7 +44,13 @@ from uavlink.mavlink.radio_codec import (
 
 # The payload component's HEARTBEAT (type, autopilot, base mode, custom mode, state): a companion
 # computer's, never an autopilot's, so a ground link does not take it for the vehicle.
-HEARTBEAT = (mavlink.MAV_TYPE_ONBOARD_CONTROLLER, MAV_AUTOPILOT_INVALID, 0, 0, mavlink.MAV_STATE_ACTIVE)
+HEARTBEAT = (
+    mavlink.MAV_TYPE_ONBOARD_CONTROLLER,
+    MAV_AUTOPILOT_INVALID,
+    0,
+    0,
+    mavlink.MAV_STATE_ACTIVE,
+)
 READINGS_COPIES = 2  # each frame's readings, sent this many times against packet loss
 
 
@@ -53,15 +59,25 @@ def payload_env(options: PayloadOptions, n_uavs: int = 1) -> EnvConfig:
     UAVs (a fleet's shared world; ``--set n_uavs`` may only agree)."""
     cfg = EnvConfig().replace(**dict(options.settings))
     if n_uavs == 1 and cfg.n_uavs != 1:
-        raise ValueError(f"n_uavs={cfg.n_uavs} needs a fleet of vehicles: use --fleet {cfg.n_uavs} "
-                         "(one vehicle serves one UAV)")
+        raise ValueError(
+            f"n_uavs={cfg.n_uavs} needs a fleet of vehicles: use --fleet {cfg.n_uavs} "
+            "(one vehicle serves one UAV)"
+        )
     if cfg.n_uavs not in (1, n_uavs):
         raise ValueError(f"--set n_uavs={cfg.n_uavs} disagrees with --fleet {n_uavs}; drop one")
-    return cfg.replace(scenario=options.scenario, aoa_noise_deg=options.aoa_noise_deg, n_uavs=n_uavs).validate()
+    return cfg.replace(
+        scenario=options.scenario, aoa_noise_deg=options.aoa_noise_deg, n_uavs=n_uavs
+    ).validate()
 
 
-def publish_frame(mav: Any, sim_time_s: float, episodes: RadioEpisodes, score: list[float] | None,
-                  readings: list[float], truth_origin: GeoOrigin | None) -> None:
+def publish_frame(
+    mav: Any,
+    sim_time_s: float,
+    episodes: RadioEpisodes,
+    score: list[float] | None,
+    readings: list[float],
+    truth_origin: GeoOrigin | None,
+) -> None:
     """One frame of a payload's messages: the encoded score (None before the episode starts), the
     episode's seed and count, the encoded readings ``READINGS_COPIES`` times, and the UEs' positions
     when ``truth_origin`` is given."""
@@ -95,9 +111,14 @@ class RadioPayload:
         episodes = self.episodes
         result = episodes.tick([state])
         readings = episodes.world.readings()
-        publish_frame(mav, sim_time_s, episodes,
-                      None if result is None else encode_score(result.rate_bps, result.fair_rate),
-                      encode_readings(readings.sinr_db, readings.aoa_deg, episodes.started), self.truth_origin)
+        publish_frame(
+            mav,
+            sim_time_s,
+            episodes,
+            None if result is None else encode_score(result.rate_bps, result.fair_rate),
+            encode_readings(readings.sinr_db, readings.aoa_deg, episodes.started),
+            self.truth_origin,
+        )
         if self.lockstep and episodes.awaits_decision([state]):
             self.hold.hold(episodes.world.frame)
 

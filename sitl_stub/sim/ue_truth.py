@@ -17,7 +17,9 @@ from uavlink.mavlink.ue_truth import adsb_arguments
 
 def send_ue_truth(mav: Any, world: RadioWorld, origin: GeoOrigin) -> None:
     """One ADSB_VEHICLE per UE of ``world`` at its current position, with ``mav``."""
-    for ue, ((east, north), (ve, vn)) in enumerate(zip(world.ue_xy_m(), world.ue_velocity_mps(),
-                                                       strict=True)):
-        mav.adsb_vehicle_send(*adsb_arguments(ue, float(east), float(north), float(ve), float(vn),
-                                              origin))
+    for ue, ((east, north), (ve, vn)) in enumerate(
+        zip(world.ue_xy_m(), world.ue_velocity_mps(), strict=True)
+    ):
+        mav.adsb_vehicle_send(
+            *adsb_arguments(ue, float(east), float(north), float(ve), float(vn), origin)
+        )

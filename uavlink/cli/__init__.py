@@ -35,8 +35,15 @@ def build_parser() -> argparse.ArgumentParser:
     from uavlink.cli.sweep import add_sweep_parser
     from uavlink.cli.train import add_train_parser
 
-    for add in (add_evaluate_parser, add_train_parser, add_export_parser, add_sweep_parser, add_keygen_parser,
-                add_fly_parser, add_plot_parser):
+    for add in (
+        add_evaluate_parser,
+        add_train_parser,
+        add_export_parser,
+        add_sweep_parser,
+        add_keygen_parser,
+        add_fly_parser,
+        add_plot_parser,
+    ):
         add(sub)
     return parser
 
@@ -60,6 +67,8 @@ def main(argv: Sequence[str] | None = None) -> int:
     except BrokenPipeError:  # e.g. piped into head
         return 0
     except KeyboardInterrupt as exc:  # its message, if any, says what was kept
-        print(f"uavlink {args.command}: interrupted" + (f"; {exc}" if str(exc) else ""), file=sys.stderr)
+        print(
+            f"uavlink {args.command}: interrupted" + (f"; {exc}" if str(exc) else ""),
+            file=sys.stderr,
+        )
         return 130
-

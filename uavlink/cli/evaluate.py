@@ -32,28 +32,47 @@ def cmd_evaluate(args: argparse.Namespace) -> int:
         if args.against:
             raise UserError("--against compares policies in a table; it does not go with --out")
         return _write_results_folder(args)
-    report_only = [flag for flag, value in (("--markdown", args.markdown), ("--spatial", args.spatial),
-                                            ("--map", args.map), ("--fleet", args.fleet), ("--sweep", args.sweep))
-                   if value]
+    report_only = [
+        flag
+        for flag, value in (
+            ("--markdown", args.markdown),
+            ("--spatial", args.spatial),
+            ("--map", args.map),
+            ("--fleet", args.fleet),
+            ("--sweep", args.sweep),
+        )
+        if value
+    ]
     if report_only:
-        raise UserError(f"{', '.join(report_only)} {'go' if len(report_only) > 1 else 'goes'} with --out FOLDER "
-                        "(the results folder, with --scenario all)")
+        raise UserError(
+            f"{', '.join(report_only)} {'go' if len(report_only) > 1 else 'goes'} with --out FOLDER "
+            "(the results folder, with --scenario all)"
+        )
     results, comparisons = [], []
     overrides = EnvOverrides.from_command_line(None, args.aoa_noise_deg, args.overrides)
     specs = [args.policy, *(args.against or [])]
     if args.scenario is None and Path(args.policy).is_file():
-        scenarios = [None]  # the file's manifest names it; a baseline beside it flies the file's world
+        scenarios = [
+            None
+        ]  # the file's manifest names it; a baseline beside it flies the file's world
     else:
         scenarios = scenario_list(args.scenario or "circular")
     status = StatusLine()
     try:
         for scenario in scenarios:
             flown = []
-            for spec, (policy, cfg) in zip(specs, load_with_env(specs, overrides.on(scenario)), strict=True):
+            for spec, (policy, cfg) in zip(
+                specs, load_with_env(specs, overrides.on(scenario)), strict=True
+            ):
                 status.show(f"evaluating {cfg.scenario}: {spec} ({args.episodes} episodes)")
                 flown.append(evaluate_policy(policy, cfg, args.episodes, args.seed))
-            if len({r.policy for r in flown}) < len(flown):  # policies/map/x.zip vs policies/spatial/x.zip
-                flown = [dataclasses.replace(r, policy=str(spec)) for r, spec in zip(flown, specs, strict=True)]
+            if len({r.policy for r in flown}) < len(
+                flown
+            ):  # policies/map/x.zip vs policies/spatial/x.zip
+                flown = [
+                    dataclasses.replace(r, policy=str(spec))
+                    for r, spec in zip(flown, specs, strict=True)
+                ]
             results += flown
             comparisons += [compare(flown[0], other) for other in flown[1:]]
     finally:
@@ -61,7 +80,12 @@ def cmd_evaluate(args: argparse.Namespace) -> int:
     if args.json:
         payload = [r.to_dict() for r in results]
         if comparisons:
-            print(json.dumps({"results": payload, "comparisons": [c.to_dict() for c in comparisons]}, indent=2))
+            print(
+                json.dumps(
+                    {"results": payload, "comparisons": [c.to_dict() for c in comparisons]},
+                    indent=2,
+                )
+            )
         else:
             print(json.dumps(payload[0] if len(payload) == 1 else payload, indent=2))
     else:
@@ -78,7 +102,9 @@ def _write_results_folder(args: argparse.Namespace) -> int:
 
     folder = Path(args.policy)
     if args.scenario != "all" or not folder.is_dir():
-        raise UserError("--out needs --scenario all and --policy FOLDER (one policy file per scenario)")
+        raise UserError(
+            "--out needs --scenario all and --policy FOLDER (one policy file per scenario)"
+        )
     require("matplotlib")  # the report's figures come last: without it the tables would stand alone
     overrides = EnvOverrides.from_command_line(None, args.aoa_noise_deg, args.overrides)
     apply_overrides(EnvConfig(), overrides.on("no_move"))  # a bad --set fails before the long run
@@ -89,18 +115,32 @@ def _write_results_folder(args: argparse.Namespace) -> int:
     if args.spatial is not None and not args.spatial.is_dir():
         raise UserError(f"--spatial {args.spatial}: not a folder of policies")
     if args.fleet is not None and (args.spatial is None or not args.fleet.is_dir()):
-        raise UserError(f"--fleet {args.fleet}: needs a folder of fleet policies and --spatial (one UAV's, to compare)")
+        raise UserError(
+            f"--fleet {args.fleet}: needs a folder of fleet policies and --spatial (one UAV's, to compare)"
+        )
     if args.map is not None and (args.spatial is None or not args.map.is_dir()):
-        raise UserError(f"--map {args.map}: needs a folder of map policies and --spatial (today's, to compare)")
+        raise UserError(
+            f"--map {args.map}: needs a folder of map policies and --spatial (today's, to compare)"
+        )
 
     def kind(spec) -> str:
         env = spec.jobs()[0].env
-        return "fleet" if env.n_uavs > 1 else "map" if env.place_cell_m > 0 else env.radio.shadowing_model
+        return (
+            "fleet"
+            if env.n_uavs > 1
+            else "map"
+            if env.place_cell_m > 0
+            else env.radio.shadowing_model
+        )
 
     def shipped(spec) -> Path:
         """The folder a sweep's median seeds were shipped to: its record lies beside them."""
-        return Path({"ar1": folder, "spatial": args.spatial, "fleet": args.fleet, "map": args.map}[kind(spec)]
-                    or folder)
+        return Path(
+            {"ar1": folder, "spatial": args.spatial, "fleet": args.fleet, "map": args.map}[
+                kind(spec)
+            ]
+            or folder
+        )
 
     specs = []
     if args.sweep:  # checked before the long evaluation, which would write the folder
@@ -109,21 +149,50 @@ def _write_results_folder(args: argparse.Namespace) -> int:
 
         specs = [load_spec(path) for path in args.sweep]
         for spec in specs:
-            finished_rows(spec, args.sweep_root / spec.name, read_record(record_path(shipped(spec), spec)))
+            finished_rows(
+                spec, args.sweep_root / spec.name, read_record(record_path(shipped(spec), spec))
+            )
 
     def sweep_sections(link_prefix: Path, wanted: str) -> list[str]:
         from uavlink.sweep.aggregate import results_section
 
-        return [section for spec in specs if kind(spec) == wanted
-                for section in (results_section(spec, args.sweep_root / spec.name, args.out, link_prefix,
-                                                shipped(spec), "##" if wanted == "ar1" else "###"), "")]
+        return [
+            section
+            for spec in specs
+            if kind(spec) == wanted
+            for section in (
+                results_section(
+                    spec,
+                    args.sweep_root / spec.name,
+                    args.out,
+                    link_prefix,
+                    shipped(spec),
+                    "##" if wanted == "ar1" else "###",
+                ),
+                "",
+            )
+        ]
 
     status = StatusLine()
     try:
-        run = ReportRun(args.episodes, args.seed, overrides, args.out, markdown,
-                        progress=lambda msg: status.show(f"evaluating {msg}"))
-        path = write_results(run, folder, command, sweep_sections=sweep_sections, spatial_folder=args.spatial,
-                             fleet_folder=args.fleet, map_folder=args.map, teacher_of=policy_teacher)
+        run = ReportRun(
+            args.episodes,
+            args.seed,
+            overrides,
+            args.out,
+            markdown,
+            progress=lambda msg: status.show(f"evaluating {msg}"),
+        )
+        path = write_results(
+            run,
+            folder,
+            command,
+            sweep_sections=sweep_sections,
+            spatial_folder=args.spatial,
+            fleet_folder=args.fleet,
+            map_folder=args.map,
+            teacher_of=policy_teacher,
+        )
     finally:
         status.close()
     print(path.read_text())
@@ -151,6 +220,7 @@ def format_table(results) -> str:
     """One row per result; a fleet's (more than one UAV) adds Jain's index, the
     5th-percentile UE rate and the UEs each UAV serves."""
     width = max([16, *(len(r.policy) for r in results)])
+
     def is_fleet(r) -> bool:
         return len(r.ues_per_uav) > 1
 
@@ -158,8 +228,10 @@ def format_table(results) -> str:
     head = f"{'scenario':<13} {'policy':<{width}} {'episodes':>8} {'Mbps':>7} {'±95%':>6} {'R_fair':>7}"
     lines = [head + (f" {'Jain':>5} {'p5 Mbps':>7}  UEs per UAV" if fleet else "")]
     for r in results:
-        row = (f"{r.scenario:<13} {r.policy:<{width}} {r.episodes:>8} {r.mean_rate_mbps:>7.3f} "
-               f"{r.ci95_mbps:>6.3f} {r.mean_fair_rate:>7.3f}")
+        row = (
+            f"{r.scenario:<13} {r.policy:<{width}} {r.episodes:>8} {r.mean_rate_mbps:>7.3f} "
+            f"{r.ci95_mbps:>6.3f} {r.mean_fair_rate:>7.3f}"
+        )
         if is_fleet(r):
             row += f" {r.jain_index:>5.3f} {r.p5_ue_rate_mbps:>7.3f}  {' '.join(f'{n:.1f}' for n in r.ues_per_uav)}"
         lines.append(row)
@@ -167,35 +239,81 @@ def format_table(results) -> str:
 
 
 def add_evaluate_parser(sub) -> None:
-    p = sub.add_parser("evaluate", help="evaluate a policy or baseline, print a table",
-                       description=f"Evaluate a policy file, a folder of them, or a baseline "
-                                   f"({', '.join(BASELINES)}). " + OVERRIDES_HELP)
+    p = sub.add_parser(
+        "evaluate",
+        help="evaluate a policy or baseline, print a table",
+        description=f"Evaluate a policy file, a folder of them, or a baseline "
+        f"({', '.join(BASELINES)}). " + OVERRIDES_HELP,
+    )
     add_env_options(p, for_policy=True)
-    p.add_argument("--policy", default="static",
-                   help=f"{' | '.join(BASELINES)} (genie: evaluation only, it plans on the episode's "
-                        "future) | FILE.zip | FILE.onnx | FOLDER (default static)")
-    p.add_argument("--against", action="append", default=None, metavar="POLICY",
-                   help="also fly this policy (same forms; repeatable) on the same episodes and print --policy's paired "
-                        "throughput ratio with its 95 %% interval, the R_fair difference and the episodes won "
-                        "(a fleet policy may face a single-UAV one: the same UEs and channel)")
-    p.add_argument("--episodes", type=int, default=100, help="episodes per policy and scenario (default 100)")
-    p.add_argument("--seed", type=seed, default=0, help="seed of the episodes (default 0: docs/results.md's)")
+    p.add_argument(
+        "--policy",
+        default="static",
+        help=f"{' | '.join(BASELINES)} (genie: evaluation only, it plans on the episode's "
+        "future) | FILE.zip | FILE.onnx | FOLDER (default static)",
+    )
+    p.add_argument(
+        "--against",
+        action="append",
+        default=None,
+        metavar="POLICY",
+        help="also fly this policy (same forms; repeatable) on the same episodes and print --policy's paired "
+        "throughput ratio with its 95 %% interval, the R_fair difference and the episodes won "
+        "(a fleet policy may face a single-UAV one: the same UEs and channel)",
+    )
+    p.add_argument(
+        "--episodes", type=int, default=100, help="episodes per policy and scenario (default 100)"
+    )
+    p.add_argument(
+        "--seed", type=seed, default=0, help="seed of the episodes (default 0: docs/results.md's)"
+    )
     p.add_argument("--json", action="store_true", help="print JSON instead of a table")
-    p.add_argument("--out", type=Path, default=None,
-                   help="write a results folder (Table I/II as Markdown and CSV, figures); "
-                        "needs --scenario all and --policy FOLDER")
-    p.add_argument("--markdown", type=Path, default=None, help="where the report goes (default OUT/results.md)")
-    p.add_argument("--sweep", type=Path, action="append", default=[],
-                   help="with --out: add the across-seed table of this finished sweep file (e.g. "
-                        "sweeps/table1.toml; repeat for more; a spatial-channel sweep goes with --spatial)")
-    p.add_argument("--spatial", type=Path, default=None, metavar="FOLDER",
-                   help="with --out: add the spatial-channel tables (radio.shadowing_model=spatial): FOLDER's "
-                        "policies, trained on it, and --policy's flown on it (e.g. policies/spatial)")
-    p.add_argument("--map", type=Path, default=None, metavar="FOLDER",
-                   help="with --out and --spatial: add the memory-of-place table: FOLDER's map policies "
-                        "(e.g. policies/map) against --spatial's, explore, aoa and static on the spatial channel")
-    p.add_argument("--fleet", type=Path, default=None, metavar="FOLDER",
-                   help="with --out and --spatial: add the fleet tables (D = 1, 2, 3 UAVs on the spatial channel): "
-                        "FOLDER's fleet policies against the fleet baselines and --spatial's (e.g. policies/fleet)")
-    p.add_argument("--sweep-root", type=Path, default=Path("runs"), help="where the sweep's results are (default runs)")
+    p.add_argument(
+        "--out",
+        type=Path,
+        default=None,
+        help="write a results folder (Table I/II as Markdown and CSV, figures); "
+        "needs --scenario all and --policy FOLDER",
+    )
+    p.add_argument(
+        "--markdown", type=Path, default=None, help="where the report goes (default OUT/results.md)"
+    )
+    p.add_argument(
+        "--sweep",
+        type=Path,
+        action="append",
+        default=[],
+        help="with --out: add the across-seed table of this finished sweep file (e.g. "
+        "sweeps/table1.toml; repeat for more; a spatial-channel sweep goes with --spatial)",
+    )
+    p.add_argument(
+        "--spatial",
+        type=Path,
+        default=None,
+        metavar="FOLDER",
+        help="with --out: add the spatial-channel tables (radio.shadowing_model=spatial): FOLDER's "
+        "policies, trained on it, and --policy's flown on it (e.g. policies/spatial)",
+    )
+    p.add_argument(
+        "--map",
+        type=Path,
+        default=None,
+        metavar="FOLDER",
+        help="with --out and --spatial: add the memory-of-place table: FOLDER's map policies "
+        "(e.g. policies/map) against --spatial's, explore, aoa and static on the spatial channel",
+    )
+    p.add_argument(
+        "--fleet",
+        type=Path,
+        default=None,
+        metavar="FOLDER",
+        help="with --out and --spatial: add the fleet tables (D = 1, 2, 3 UAVs on the spatial channel): "
+        "FOLDER's fleet policies against the fleet baselines and --spatial's (e.g. policies/fleet)",
+    )
+    p.add_argument(
+        "--sweep-root",
+        type=Path,
+        default=Path("runs"),
+        help="where the sweep's results are (default runs)",
+    )
     p.set_defaults(func=cmd_evaluate)

@@ -28,26 +28,45 @@ def scenario_list(name: str) -> list[str]:
     if name == "all":
         return list(SCENARIOS)
     if name not in SCENARIO_NAMES:
-        raise UserError(f"unknown scenario {name!r}; choose from {', '.join(SCENARIO_NAMES)} or all")
+        raise UserError(
+            f"unknown scenario {name!r}; choose from {', '.join(SCENARIO_NAMES)} or all"
+        )
     return [name]
 
 
 def add_env_options(p: argparse.ArgumentParser, for_policy: bool = False) -> None:
     """``--scenario``, ``--aoa-noise-deg`` and ``--set``; ``for_policy``: as evaluate reads them,
     where a policy file's manifest gives the defaults and limits what may change."""
-    names = ', '.join(SCENARIO_NAMES)
+    names = ", ".join(SCENARIO_NAMES)
     if for_policy:  # evaluate: a policy file flies its own scenario unless told otherwise
-        p.add_argument("--scenario", default=None,
-                       help=f"one of {names} or all (default: a policy file's own scenario, from its "
-                            "manifest; circular for a baseline or a folder)")
+        p.add_argument(
+            "--scenario",
+            default=None,
+            help=f"one of {names} or all (default: a policy file's own scenario, from its "
+            "manifest; circular for a baseline or a folder)",
+        )
     else:
         p.add_argument("--scenario", default="circular", help=f"one of {names} (default: circular)")
-    p.add_argument("--aoa-noise-deg", type=float, default=None,
-                   help="std of the AoA estimate noise (deg)" + (" (default: the policy's; 0 for a baseline alone)" if for_policy else ""))
-    p.add_argument("--set", dest="overrides", action="append", default=[], metavar="KEY=VALUE",
-                   help="override an env config field, e.g. --set r_max_m=10 --set radio.shadowing=false"
-                        + (f"; under a policy file radio fields may change, {', '.join(BUILT_FOR)} may not"
-                           if for_policy else ""))
+    p.add_argument(
+        "--aoa-noise-deg",
+        type=float,
+        default=None,
+        help="std of the AoA estimate noise (deg)"
+        + (" (default: the policy's; 0 for a baseline alone)" if for_policy else ""),
+    )
+    p.add_argument(
+        "--set",
+        dest="overrides",
+        action="append",
+        default=[],
+        metavar="KEY=VALUE",
+        help="override an env config field, e.g. --set r_max_m=10 --set radio.shadowing=false"
+        + (
+            f"; under a policy file radio fields may change, {', '.join(BUILT_FOR)} may not"
+            if for_policy
+            else ""
+        ),
+    )
 
 
 def command_line(command: str, otherwise: str) -> str:

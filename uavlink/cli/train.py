@@ -17,33 +17,55 @@ from uavlink.policies.contract import EnvOverrides, apply_overrides
 def cmd_train(args: argparse.Namespace) -> int:
     from uavlink.learn.training import check_checkpoint, train
 
-    output_file(args.out, "--out", (".zip",))  # the policy's place, checked before hours of training
-    cfg = apply_overrides(EnvConfig(), EnvOverrides.from_command_line(args.scenario, args.aoa_noise_deg, args.overrides))
+    output_file(
+        args.out, "--out", (".zip",)
+    )  # the policy's place, checked before hours of training
+    cfg = apply_overrides(
+        EnvConfig(),
+        EnvOverrides.from_command_line(args.scenario, args.aoa_noise_deg, args.overrides),
+    )
     tc = from_options(TrainConfig, args).validate(cfg, name=lambda path: flag_of(TrainConfig, path))
     if args.eval_episodes < 0:
         raise UserError(f"--eval-episodes must be >= 0 (0: skip), got {args.eval_episodes}")
     from uavlink.policies.manifest import read_zip_manifest
 
-    for file in (tc.warm_start.policy, tc.warm_start.leader_policy):  # the loader's checks, before any output
+    for file in (
+        tc.warm_start.policy,
+        tc.warm_start.leader_policy,
+    ):  # the loader's checks, before any output
         if file:
             read_zip_manifest(Path(file))
     require("stable_baselines3")
     if args.resume is not None:
         check_checkpoint(args.resume, cfg, tc)
-    run_dir = output_folder(args.run_dir or Path("runs") / f"{args.out.stem}-seed{tc.seed}", "--run-dir")
-    print(f"training PPO on {cfg.scenario!r} for {tc.total_timesteps(cfg):,} env steps; "
-          f"TensorBoard logs and checkpoint in {run_dir}", file=sys.stderr)
+    run_dir = output_folder(
+        args.run_dir or Path("runs") / f"{args.out.stem}-seed{tc.seed}", "--run-dir"
+    )
+    print(
+        f"training PPO on {cfg.scenario!r} for {tc.total_timesteps(cfg):,} env steps; "
+        f"TensorBoard logs and checkpoint in {run_dir}",
+        file=sys.stderr,
+    )
     training = train(cfg, tc, args.out, run_dir, resume=args.resume, progress=not args.no_progress)
-    print(f"saved {args.out} ({training['total_timesteps']:,} steps in {training['wall_time_s']:.0f} s)")
+    print(
+        f"saved {args.out} ({training['total_timesteps']:,} steps in {training['wall_time_s']:.0f} s)"
+    )
     if training["validation"]:
         kept = training["validation"]
-        print(f"kept the weights after {kept['kept_steps']:,} steps: {kept['kept_mbps']:.3f} Mbps on "
-              f"{kept['episodes']} validation episodes (the last: {kept['curve'][-1][1]:.3f})")
+        print(
+            f"kept the weights after {kept['kept_steps']:,} steps: {kept['kept_mbps']:.3f} Mbps on "
+            f"{kept['episodes']} validation episodes (the last: {kept['curve'][-1][1]:.3f})"
+        )
     if args.eval_episodes:
-        print(f"evaluating {args.out} on {args.eval_episodes} episodes (seed 0) into its manifest", file=sys.stderr)
+        print(
+            f"evaluating {args.out} on {args.eval_episodes} episodes (seed 0) into its manifest",
+            file=sys.stderr,
+        )
         for scenario, figures in _attach_evaluation(args.out, cfg, args.eval_episodes).items():
-            print(f"{scenario}: {figures['mean_rate_mbps']:.3f} Mbps ± {figures['ci95_mbps']:.3f} (95 %), "
-                  f"R_fair {figures['mean_fair_rate']:.3f}")
+            print(
+                f"{scenario}: {figures['mean_rate_mbps']:.3f} Mbps ± {figures['ci95_mbps']:.3f} (95 %), "
+                f"R_fair {figures['mean_fair_rate']:.3f}"
+            )
     return 0
 
 
@@ -55,7 +77,7 @@ def _attach_evaluation(path: Path, cfg: EnvConfig, episodes: int) -> dict[str, d
 
     policy = SB3Policy(path)
     figures = {}
-    for scenario in (SCENARIOS if cfg.scenario == MIXED else [cfg.scenario]):
+    for scenario in SCENARIOS if cfg.scenario == MIXED else [cfg.scenario]:
         result = evaluate_policy(policy, cfg.replace(scenario=scenario), episodes, seed=0)
         figures[scenario] = {k: v for k, v in result.to_dict().items() if k != "episode_rate_mbps"}
     manifest = read_zip_manifest(path)
@@ -65,18 +87,34 @@ def _attach_evaluation(path: Path, cfg: EnvConfig, episodes: int) -> dict[str, d
 
 
 def add_train_parser(sub) -> None:
-    p = sub.add_parser("train", help="train a PPO policy",
-                       description="Train PPO on the batched env. Defaults are the paper's; the training "
-                                   "options are TrainConfig's fields (uavlink/config/train.py).")
+    p = sub.add_parser(
+        "train",
+        help="train a PPO policy",
+        description="Train PPO on the batched env. Defaults are the paper's; the training "
+        "options are TrainConfig's fields (uavlink/config/train.py).",
+    )
     add_env_options(p)
     p.add_argument("--out", type=Path, required=True, help="policy zip to write (FILE.zip)")
     add_options(p, TrainConfig)
-    p.add_argument("--run-dir", type=Path, default=None, help="TensorBoard logs and checkpoint (default runs/OUT-seedN)")
-    p.add_argument("--resume", type=Path, default=None,
-                   help="continue from a checkpoint (RUN_DIR/checkpoint.zip, written every --checkpoint-every-steps "
-                        "and on Ctrl-C) or a policy zip this command saved; the PPO settings are this "
-                        "command's")
-    p.add_argument("--eval-episodes", type=int, default=100,
-                   help="evaluate after training into the manifest (default 100; 0: skip)")
+    p.add_argument(
+        "--run-dir",
+        type=Path,
+        default=None,
+        help="TensorBoard logs and checkpoint (default runs/OUT-seedN)",
+    )
+    p.add_argument(
+        "--resume",
+        type=Path,
+        default=None,
+        help="continue from a checkpoint (RUN_DIR/checkpoint.zip, written every --checkpoint-every-steps "
+        "and on Ctrl-C) or a policy zip this command saved; the PPO settings are this "
+        "command's",
+    )
+    p.add_argument(
+        "--eval-episodes",
+        type=int,
+        default=100,
+        help="evaluate after training into the manifest (default 100; 0: skip)",
+    )
     p.add_argument("--no-progress", action="store_true", help="no progress bar")
     p.set_defaults(func=cmd_train)

@@ -18,6 +18,20 @@ from uavlink.config.env import (
 from uavlink.config.fields import SEED_MAX, check_seed
 from uavlink.config.train import BASELINE_NAMES, PAPER_HYPERPARAMETERS, TrainConfig, WarmStartConfig
 
-__all__ = ["BASELINE_NAMES", "MIXED", "PAPER_HYPERPARAMETERS", "SCENARIO_NAMES", "SCENARIOS", "SEED_MAX", "SHADOWING_MODELS",
-           "AreaConfig", "EnvConfig", "RadioConfig", "TrainConfig", "WarmStartConfig", "changed_settings",
-           "check_seed", "parse_settings"]
+__all__ = [
+    "BASELINE_NAMES",
+    "MIXED",
+    "PAPER_HYPERPARAMETERS",
+    "SCENARIO_NAMES",
+    "SCENARIOS",
+    "SEED_MAX",
+    "SHADOWING_MODELS",
+    "AreaConfig",
+    "EnvConfig",
+    "RadioConfig",
+    "TrainConfig",
+    "WarmStartConfig",
+    "changed_settings",
+    "check_seed",
+    "parse_settings",
+]

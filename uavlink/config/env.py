@@ -21,7 +21,14 @@ from uavlink.config.fields import positive as _positive
 from uavlink.errors import ConfigError
 
 # The UE mobility scenarios (uavlink.mobility implements them); MIXED draws one per env and episode.
-SCENARIOS: tuple[str, ...] = ("no_move", "straight", "circular", "straight_90", "straight_180", "hotspot")
+SCENARIOS: tuple[str, ...] = (
+    "no_move",
+    "straight",
+    "circular",
+    "straight_90",
+    "straight_180",
+    "hotspot",
+)
 MIXED = "mixed"
 SCENARIO_NAMES: tuple[str, ...] = (*SCENARIOS, MIXED)  # every scenario a config accepts
 # Shadowing: the SPEC's per-link AR(1) (the paper's) or the spatially consistent field.
@@ -93,14 +100,18 @@ class RadioConfig:
         _positive("radio.carrier_ghz", self.carrier_ghz)
         _positive("radio.bandwidth_hz", self.bandwidth_hz)
         if self.n_resource_blocks < 1:
-            raise ConfigError(f"radio.n_resource_blocks must be a positive integer, got {self.n_resource_blocks}")
+            raise ConfigError(
+                f"radio.n_resource_blocks must be a positive integer, got {self.n_resource_blocks}"
+            )
         _positive("radio.min_distance_m", self.min_distance_m)
         _non_negative("radio.shadowing_std_db", self.shadowing_std_db)
         _positive("radio.shadowing_decorrelation_m", self.shadowing_decorrelation_m)
         _positive("radio.shadowing_uav_decorrelation_m", self.shadowing_uav_decorrelation_m)
         if self.shadowing_model not in SHADOWING_MODELS:
-            raise ConfigError(f"radio.shadowing_model must be one of {', '.join(SHADOWING_MODELS)}, "
-                              f"got {self.shadowing_model!r}")
+            raise ConfigError(
+                f"radio.shadowing_model must be one of {', '.join(SHADOWING_MODELS)}, "
+                f"got {self.shadowing_model!r}"
+            )
         _non_negative("radio.aoa_noise_deg", self.aoa_noise_deg)
         _non_negative("radio.aoa_noise_max_deg", self.aoa_noise_max_deg)
         if 0 < self.aoa_noise_max_deg < self.aoa_noise_deg:
@@ -149,22 +160,33 @@ class EnvConfig:
         self.area.validate()  # the checks below read the area
         if self.scenario not in SCENARIO_NAMES:
             raise ConfigError(
-                f"unknown scenario {self.scenario!r}; choose from {', '.join(SCENARIOS)} or {MIXED}")
+                f"unknown scenario {self.scenario!r}; choose from {', '.join(SCENARIOS)} or {MIXED}"
+            )
         if self.action_mapping not in ACTION_MAPPINGS:
-            raise ConfigError(f"unknown action mapping {self.action_mapping!r}; choose from "
-                              f"{', '.join(ACTION_MAPPINGS)}")
+            raise ConfigError(
+                f"unknown action mapping {self.action_mapping!r}; choose from "
+                f"{', '.join(ACTION_MAPPINGS)}"
+            )
         if self.uav_motion not in UAV_MOTIONS:
-            raise ConfigError(f"unknown uav_motion {self.uav_motion!r}; choose from {', '.join(UAV_MOTIONS)}")
+            raise ConfigError(
+                f"unknown uav_motion {self.uav_motion!r}; choose from {', '.join(UAV_MOTIONS)}"
+            )
         if self.uav_motion != "instant" and self.n_uavs > 1:
-            raise ConfigError("uav_motion=px4 flies one UAV; a fleet's separation filter needs instant moves")
+            raise ConfigError(
+                "uav_motion=px4 flies one UAV; a fleet's separation filter needs instant moves"
+            )
         if self.fleet_reuse not in FLEET_REUSE:
-            raise ConfigError(f"unknown fleet_reuse {self.fleet_reuse!r}; choose from {', '.join(FLEET_REUSE)}")
+            raise ConfigError(
+                f"unknown fleet_reuse {self.fleet_reuse!r}; choose from {', '.join(FLEET_REUSE)}"
+            )
         for name in ("n_ues", "episode_frames", "memory", "n_uavs"):
             value = getattr(self, name)
             if value < 1:
                 raise ConfigError(f"env.{name} must be a positive integer, got {value!r}")
         if self.n_ues < 2 and self.scenario in ("straight_90", "straight_180", "hotspot", MIXED):
-            raise ConfigError(f"scenario {self.scenario!r} needs at least 2 UEs, got n_ues={self.n_ues}")
+            raise ConfigError(
+                f"scenario {self.scenario!r} needs at least 2 UEs, got n_ues={self.n_ues}"
+            )
         _positive("env.frame_s", self.frame_s)
         _positive("env.r_max_m", self.r_max_m)
         _non_negative("env.place_cell_m", self.place_cell_m)
@@ -172,14 +194,20 @@ class EnvConfig:
             raise ConfigError("env.place_cell_m must be 0 (off) or at most area.half_width_m")
         finest = max(PLACE_CELL_MIN_M, 2 * self.area.half_width_m / PLACE_CELLS_ACROSS)
         if 0 < self.place_cell_m < finest:
-            raise ConfigError(f"env.place_cell_m must be 0 (off) or >= {finest:g} m (cells of at least "
-                              f"{PLACE_CELL_MIN_M:g} m, at most {PLACE_CELLS_ACROSS} across the area's "
-                              f"{2 * self.area.half_width_m:g} m), got {self.place_cell_m!r}")
+            raise ConfigError(
+                f"env.place_cell_m must be 0 (off) or >= {finest:g} m (cells of at least "
+                f"{PLACE_CELL_MIN_M:g} m, at most {PLACE_CELLS_ACROSS} across the area's "
+                f"{2 * self.area.half_width_m:g} m), got {self.place_cell_m!r}"
+            )
         if self.place_model not in PLACE_MODELS:
-            raise ConfigError(f"unknown place_model {self.place_model!r}; choose from {', '.join(PLACE_MODELS)}")
+            raise ConfigError(
+                f"unknown place_model {self.place_model!r}; choose from {', '.join(PLACE_MODELS)}"
+            )
         if self.place_model == "kriging" and (self.place_cell_m <= 0 or self.n_uavs > 1):
-            raise ConfigError("env.place_model=kriging models one UAV's memory of place: it needs "
-                              "place_cell_m > 0 and n_uavs = 1")
+            raise ConfigError(
+                "env.place_model=kriging models one UAV's memory of place: it needs "
+                "place_cell_m > 0 and n_uavs = 1"
+            )
         _non_negative("env.ue_speed_mps", self.ue_speed_mps)
         _non_negative("env.cluster_size_m", self.cluster_size_m)
         if self.cluster_size_m >= 2 * self.area.half_width_m:
@@ -189,9 +217,14 @@ class EnvConfig:
         if self.n_uavs > 1:  # the start circle must fit the area and keep the UAVs apart
             if self.fleet_start_radius_m >= self.area.half_width_m:
                 raise ConfigError("env.fleet_start_radius_m must be smaller than area.half_width_m")
-            if 2 * self.fleet_start_radius_m * math.sin(math.pi / self.n_uavs) < self.uav_separation_m:
-                raise ConfigError(f"{self.n_uavs} UAVs on a {self.fleet_start_radius_m:g} m start circle are "
-                                  f"closer than env.uav_separation_m={self.uav_separation_m:g}")
+            if (
+                2 * self.fleet_start_radius_m * math.sin(math.pi / self.n_uavs)
+                < self.uav_separation_m
+            ):
+                raise ConfigError(
+                    f"{self.n_uavs} UAVs on a {self.fleet_start_radius_m:g} m start circle are "
+                    f"closer than env.uav_separation_m={self.uav_separation_m:g}"
+                )
         self.radio.validate()
         return self
 
@@ -203,13 +236,21 @@ class EnvConfig:
         nested: dict[str, dict[str, Any]] = {"radio": {}, "area": {}}
         for key, value in changes.items():
             if key not in _field_names(EnvConfig):  # a bare radio or area field reaches its config
-                key = next((f"{head}.{key}" for head, cls in (("radio", RadioConfig), ("area", AreaConfig))
-                            if key in _field_names(cls)), key)
+                key = next(
+                    (
+                        f"{head}.{key}"
+                        for head, cls in (("radio", RadioConfig), ("area", AreaConfig))
+                        if key in _field_names(cls)
+                    ),
+                    key,
+                )
             head, _, tail = key.partition(".")
             if tail:  # coerce refuses a key no config has, naming it
                 nested[head][tail] = coerce(EnvConfig, key, value, key)
             else:
-                top[key] = value if dataclasses.is_dataclass(value) else coerce(EnvConfig, key, value, key)
+                top[key] = (
+                    value if dataclasses.is_dataclass(value) else coerce(EnvConfig, key, value, key)
+                )
         for head, sub in nested.items():
             if sub:
                 top[head] = dataclasses.replace(top.get(head, getattr(self, head)), **sub)
@@ -222,7 +263,11 @@ class EnvConfig:
         """Every field by its ``replace`` key: ``scenario``, ``radio.shadowing``, ``area.half_width_m``."""
         flat: dict[str, Any] = {}
         for key, value in self.to_dict().items():
-            flat.update({f"{key}.{k}": v for k, v in value.items()} if isinstance(value, dict) else {key: value})
+            flat.update(
+                {f"{key}.{k}": v for k, v in value.items()}
+                if isinstance(value, dict)
+                else {key: value}
+            )
         return flat
 
     @classmethod
@@ -251,9 +296,12 @@ def changed_settings(cfg: EnvConfig, base: EnvConfig | None = None) -> list[str]
     """``cfg``'s fields that differ from ``base`` (default: the defaults) as ``KEY=JSON`` pairs for
     ``--set`` (``radio.x`` / ``area.x`` for nested ones); ``parse_settings`` reads them back exactly."""
     ref = (base or EnvConfig()).to_flat_dict()
-    return [f"{key}={json.dumps(value)}" for key, value in cfg.to_flat_dict().items() if value != ref[key]]
+    return [
+        f"{key}={json.dumps(value)}"
+        for key, value in cfg.to_flat_dict().items()
+        if value != ref[key]
+    ]
 
 
 def _field_names(cls: type) -> set[str]:
     return {f.name for f in dataclasses.fields(cls)}
-

@@ -23,14 +23,31 @@ from uavlink.errors import ConfigError
 Namer = Callable[[str], str]  # field path ("warm_start.episodes") -> how the user wrote it
 
 
-def setting(default: Any, help: str, *, low: float | None = None, high: float | None = None,
-            low_open: bool = False, flag: str | None = None, metavar: str | None = None,
-            choices: tuple[str, ...] | None = None, paper: bool = False) -> Any:
+def setting(
+    default: Any,
+    help: str,
+    *,
+    low: float | None = None,
+    high: float | None = None,
+    low_open: bool = False,
+    flag: str | None = None,
+    metavar: str | None = None,
+    choices: tuple[str, ...] | None = None,
+    paper: bool = False,
+) -> Any:
     """A config field: its default and help, the range ``validate()`` checks ([low, high]; (low, high]
     with ``low_open``; an optional field may also be None), its flag (default ``--field-name``), and
     ``paper``: the value is the paper's, not our choice."""
-    meta = {"help": help, "low": low, "high": high, "low_open": low_open, "flag": flag,
-            "metavar": metavar, "choices": choices, "paper": paper}
+    meta = {
+        "help": help,
+        "low": low,
+        "high": high,
+        "low_open": low_open,
+        "flag": flag,
+        "metavar": metavar,
+        "choices": choices,
+        "paper": paper,
+    }
     return dataclasses.field(default=default, metadata=meta)
 
 
@@ -91,8 +108,13 @@ def resolve(cls: type, path: str) -> tuple[type, str] | None:
     return None if tail else (cls, head)
 
 
-_WHAT = {bool: "true or false", int: "an integer", float: "a number", str: "a string",
-         tuple: "a non-empty list of positive integers"}
+_WHAT = {
+    bool: "true or false",
+    int: "an integer",
+    float: "a number",
+    str: "a string",
+    tuple: "a non-empty list of positive integers",
+}
 
 
 def coerce(cls: type, path: str, value: Any, label: str) -> Any:
@@ -101,12 +123,20 @@ def coerce(cls: type, path: str, value: Any, label: str) -> Any:
     owner, name = resolve(cls, path) or (None, None)
     if owner is None:
         group = _group(cls, path)
-        if group is not None:  # a nested config's own name: it takes that config, or its fields one by one
+        if (
+            group is not None
+        ):  # a nested config's own name: it takes that config, or its fields one by one
             first = dataclasses.fields(group)[0].name
-            raise ConfigError(f"{label} is a nested config: pass {_a(group)}, or set its fields one by one "
-                              f"({label}.{first}=...), got {value!r}")
+            raise ConfigError(
+                f"{label} is a nested config: pass {_a(group)}, or set its fields one by one "
+                f"({label}.{first}=...), got {value!r}"
+            )
         near = difflib.get_close_matches(path, field_paths(cls), n=3, cutoff=0.6)
-        hint = f"did you mean {' or '.join(near)}?" if near else f"the keys: the fields of {cls.__module__}.{cls.__name__}"
+        hint = (
+            f"did you mean {' or '.join(near)}?"
+            if near
+            else f"the keys: the fields of {cls.__module__}.{cls.__name__}"
+        )
         raise ConfigError(f"unknown config key {label!r} ({hint})")
     base, optional = kind(_hints(owner)[name])
     if value is None and optional:
@@ -119,8 +149,11 @@ def coerce(cls: type, path: str, value: Any, label: str) -> Any:
     elif base is float:
         ok, value = number, float(value) if number else value
     elif base is tuple:
-        ok = (isinstance(value, (list, tuple)) and len(value) > 0
-              and all(isinstance(v, int) and not isinstance(v, bool) and v >= 1 for v in value))
+        ok = (
+            isinstance(value, (list, tuple))
+            and len(value) > 0
+            and all(isinstance(v, int) and not isinstance(v, bool) and v >= 1 for v in value)
+        )
         value = tuple(value) if ok else value
     else:
         ok = isinstance(value, base)
@@ -139,11 +172,17 @@ def check_fields(config: Any, name: Namer) -> None:
                 raise ConfigError(f"{name(path)} must be {_a(hint)}, got {value!r}")
             continue
         coerce(type(config), f.name, value, name(path))
-        low, high, low_open = f.metadata.get("low"), f.metadata.get("high"), f.metadata.get("low_open")
+        low, high, low_open = (
+            f.metadata.get("low"),
+            f.metadata.get("high"),
+            f.metadata.get("low_open"),
+        )
         choices = f.metadata.get("choices")
         if value is None or isinstance(value, (bool, str, tuple)):
             if choices is not None and value not in choices:
-                raise ConfigError(f"{name(path)} must be one of {', '.join(map(repr, choices))}, got {value!r}")
+                raise ConfigError(
+                    f"{name(path)} must be one of {', '.join(map(repr, choices))}, got {value!r}"
+                )
             continue
         if not math.isfinite(value):
             raise ConfigError(f"{name(path)} must be a finite number, got {value!r}")
@@ -152,7 +191,9 @@ def check_fields(config: Any, name: Namer) -> None:
             bound = "positive" if positive else f"{'>' if low_open else '>='} {low:g}"
             raise ConfigError(f"{name(path)} must be {bound}, got {value!r}")
         if high is not None and value > high:
-            raise ConfigError(f"{name(path)} must be <= {high if isinstance(high, int) else format(high, 'g')}, got {value!r}")
+            raise ConfigError(
+                f"{name(path)} must be <= {high if isinstance(high, int) else format(high, 'g')}, got {value!r}"
+            )
 
 
 def with_changes(config: Any, changes: dict[str, Any]) -> Any:
@@ -198,7 +239,11 @@ def add_options(parser: argparse.ArgumentParser, cls: type, prefix: str = "") ->
         default, meta = getattr(defaults, f.name), f.metadata
         base, _ = kind(hint)
         shown = "" if default in (None, "") else " (default: %(default)s)"
-        options: dict[str, Any] = {"dest": prefix + f.name, "default": default, "help": meta["help"] + shown}
+        options: dict[str, Any] = {
+            "dest": prefix + f.name,
+            "default": default,
+            "help": meta["help"] + shown,
+        }
         if base is bool:
             options["action"] = argparse.BooleanOptionalAction
         elif base is tuple:
@@ -210,7 +255,9 @@ def add_options(parser: argparse.ArgumentParser, cls: type, prefix: str = "") ->
                 options[key] = meta[key]
         if "" in options.get("choices", ()):
             options["choices"] = _OrOff(c for c in options["choices"] if c)
-        parser.add_argument(meta.get("flag") or "--" + (prefix + f.name).replace("_", "-"), **options)
+        parser.add_argument(
+            meta.get("flag") or "--" + (prefix + f.name).replace("_", "-"), **options
+        )
 
 
 def from_options(cls: type, args: argparse.Namespace, prefix: str = "") -> Any:
@@ -225,7 +272,9 @@ def from_options(cls: type, args: argparse.Namespace, prefix: str = "") -> Any:
     return cls(**values)
 
 
-SEED_MAX = 2**31 - 1  # a run's seed is 0..SEED_MAX: the vehicle reports a flight's in an int32 (NAMED_VALUE_INT)
+SEED_MAX = (
+    2**31 - 1
+)  # a run's seed is 0..SEED_MAX: the vehicle reports a flight's in an int32 (NAMED_VALUE_INT)
 
 
 def check_seed(value: int, label: str = "seed") -> int:

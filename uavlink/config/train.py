@@ -43,58 +43,103 @@ class WarmStartConfig:
     Either way the exploration std is set to exp(``log_std``) and PPO fits only the critic for
     ``critic_rollouts`` rollouts (the actor frozen) before it trains as usual."""
 
-    teacher: str = setting("", "first fit the actor to this rule's actions (behaviour cloning), then run "
-                           "PPO (ours; e.g. aoa, as the shipped policies; default: off, the paper's PPO "
-                           "from scratch)", flag="--warm-start", metavar="RULE", choices=("", *TEACHER_NAMES))
+    teacher: str = setting(
+        "",
+        "first fit the actor to this rule's actions (behaviour cloning), then run "
+        "PPO (ours; e.g. aoa, as the shipped policies; default: off, the paper's PPO "
+        "from scratch)",
+        flag="--warm-start",
+        metavar="RULE",
+        choices=("", *TEACHER_NAMES),
+    )
     episodes: int = setting(256, "episodes the rule flies to make the cloning data", low=1)
-    epochs: int | None = setting(None, "passes of the actor over the cloning data (default 20, "
-                                 "imitation.CLONE_EPOCHS)", low=1, metavar="N")
+    epochs: int | None = setting(
+        None,
+        "passes of the actor over the cloning data (default 20, imitation.CLONE_EPOCHS)",
+        low=1,
+        metavar="N",
+    )
     log_std: float = setting(-1.0, "exploration log std PPO starts from after the warm start")
-    critic_rollouts: int = setting(10, "PPO updates with the actor frozen, fitting the critic", low=0)
+    critic_rollouts: int = setting(
+        10, "PPO updates with the actor frozen, fitting the critic", low=0
+    )
     shadow_gate_db: float | None = setting(
-        None, "aoa teacher only: hover when the newest frame's mean SINR beats the older frames' by "
-        "more than DB (ours; default: off, the SPEC's rule)", metavar="DB")
+        None,
+        "aoa teacher only: hover when the newest frame's mean SINR beats the older frames' by "
+        "more than DB (ours; default: off, the SPEC's rule)",
+        metavar="DB",
+    )
     sinr_span_db: float | None = setting(
-        None, "aoa teacher only: its speed span, full speed DB below the hover SINR (default: the "
-        "baseline's 10 dB)", low=0, low_open=True, metavar="DB")
+        None,
+        "aoa teacher only: its speed span, full speed DB below the hover SINR (default: the "
+        "baseline's 10 dB)",
+        low=0,
+        low_open=True,
+        metavar="DB",
+    )
     shadow_estimator_episodes: int | None = setting(
-        None, "aoa teacher only: gate on a shadowing estimate (uavlink/learn/shadow_estimation.py) fitted on "
+        None,
+        "aoa teacher only: gate on a shadowing estimate (uavlink/learn/shadow_estimation.py) fitted on "
         "N simulated episodes (hover while the estimated mean shadowing is above "
-        "--warm-start-shadow-gate-db) instead of on the SINR jump (ours)", low=1, metavar="N")
+        "--warm-start-shadow-gate-db) instead of on the SINR jump (ours)",
+        low=1,
+        metavar="N",
+    )
     leader_policy: str = setting(
-        "", "lead teacher only: the single-UAV policy file (.zip) the leading UAV flies (e.g. "
-        "policies/spatial/no_move.zip; default: the single-UAV aoa rule)", metavar="FILE")
+        "",
+        "lead teacher only: the single-UAV policy file (.zip) the leading UAV flies (e.g. "
+        "policies/spatial/no_move.zip; default: the single-UAV aoa rule)",
+        metavar="FILE",
+    )
     policy: str = setting(
-        "", "instead of a teacher, start from this policy file's weights: one whose observation lacks "
+        "",
+        "instead of a teacher, start from this policy file's weights: one whose observation lacks "
         "some of this env's fields (e.g. policies/spatial/hotspot.zip for a map policy); its inputs keep "
         "their weights and the new ones start at zero, so PPO starts from its actions exactly "
-        "(uavlink/learn/policy_transfer.py; ours)", flag="--start-from", metavar="FILE")
+        "(uavlink/learn/policy_transfer.py; ours)",
+        flag="--start-from",
+        metavar="FILE",
+    )
 
     def validate(self, name: Namer = config_name) -> WarmStartConfig:
         check_fields(self, lambda path: name(f"warm_start.{path}"))
         for knob in ("shadow_gate_db", "sinr_span_db", "shadow_estimator_episodes"):
             if getattr(self, knob) is not None and self.teacher != "aoa":
-                raise ConfigError(f"{name('warm_start.' + knob)} needs {name('warm_start.teacher')} aoa")
+                raise ConfigError(
+                    f"{name('warm_start.' + knob)} needs {name('warm_start.teacher')} aoa"
+                )
         if self.policy and self.teacher:
-            raise ConfigError(f"{name('warm_start.policy')} starts from a policy's weights: it takes no "
-                              f"{name('warm_start.teacher')} (leave it empty)")
+            raise ConfigError(
+                f"{name('warm_start.policy')} starts from a policy's weights: it takes no "
+                f"{name('warm_start.teacher')} (leave it empty)"
+            )
         if self.leader_policy and self.teacher != "lead":
-            raise ConfigError(f"{name('warm_start.leader_policy')} needs {name('warm_start.teacher')} lead")
+            raise ConfigError(
+                f"{name('warm_start.leader_policy')} needs {name('warm_start.teacher')} lead"
+            )
         if self.shadow_estimator_episodes is not None and self.shadow_gate_db is None:
-            raise ConfigError(f"{name('warm_start.shadow_estimator_episodes')} needs "
-                              f"{name('warm_start.shadow_gate_db')} (the gate's threshold)")
+            raise ConfigError(
+                f"{name('warm_start.shadow_estimator_episodes')} needs "
+                f"{name('warm_start.shadow_gate_db')} (the gate's threshold)"
+            )
         return self
 
     def check_env(self, env: EnvConfig, name: Namer = config_name) -> None:
         """The checks against the env the teacher flies: a fleet's teachers need a fleet, the shadow
         gate is the single-UAV aoa rule's and compares frames."""
         if self.teacher in ("solo", "lead") and env.n_uavs == 1:
-            raise ConfigError(f"{name('warm_start.teacher')} {self.teacher} is a fleet's teacher: it needs n_uavs > 1")
+            raise ConfigError(
+                f"{name('warm_start.teacher')} {self.teacher} is a fleet's teacher: it needs n_uavs > 1"
+            )
         if self.shadow_gate_db is not None and env.n_uavs > 1:
-            raise ConfigError(f"{name('warm_start.shadow_gate_db')} is the single-UAV aoa teacher's; a "
-                              f"fleet's aoa teacher takes only {name('warm_start.sinr_span_db')}")
+            raise ConfigError(
+                f"{name('warm_start.shadow_gate_db')} is the single-UAV aoa teacher's; a "
+                f"fleet's aoa teacher takes only {name('warm_start.sinr_span_db')}"
+            )
         if self.shadow_gate_db is not None and env.memory < 2:
-            raise ConfigError(f"{name('warm_start.shadow_gate_db')} compares frames: it needs memory >= 2")
+            raise ConfigError(
+                f"{name('warm_start.shadow_gate_db')} compares frames: it needs memory >= 2"
+            )
 
 
 @dataclass(frozen=True)
@@ -104,15 +149,28 @@ class TrainConfig:
     EnvConfig) and, not marked ``paper``, our choices. An episode is ``EnvConfig.episode_frames``
     steps, so the budget is ``total_timesteps(env)``."""
 
-    episodes: int = setting(12_000, "training budget in episodes of the env's episode_frames steps "
-                            "(paper: 12000)", low=1, paper=True)
-    learning_rate: float = setting(3e-4, "Adam learning rate (paper: 3e-4)", low=0, low_open=True, paper=True)
-    net_arch: tuple[int, ...] = setting((128, 128, 128), "hidden layers of the actor and of the critic "
-                                        "(paper: 128 128 128)", paper=True)
+    episodes: int = setting(
+        12_000,
+        "training budget in episodes of the env's episode_frames steps (paper: 12000)",
+        low=1,
+        paper=True,
+    )
+    learning_rate: float = setting(
+        3e-4, "Adam learning rate (paper: 3e-4)", low=0, low_open=True, paper=True
+    )
+    net_arch: tuple[int, ...] = setting(
+        (128, 128, 128),
+        "hidden layers of the actor and of the critic (paper: 128 128 128)",
+        paper=True,
+    )
     gamma: float = setting(0.99, "discount (paper: 0.99)", low=0, low_open=True, high=1, paper=True)
     gae_lambda: float = setting(0.95, "GAE lambda (paper: 0.95)", low=0, high=1, paper=True)
-    max_grad_norm: float = setting(1.0, "gradient clip norm (paper: 1.0)", low=0, low_open=True, paper=True)
-    clip_range: float = setting(0.2, "PPO clip range (paper: 0.2)", low=0, low_open=True, paper=True)
+    max_grad_norm: float = setting(
+        1.0, "gradient clip norm (paper: 1.0)", low=0, low_open=True, paper=True
+    )
+    clip_range: float = setting(
+        0.2, "PPO clip range (paper: 0.2)", low=0, low_open=True, paper=True
+    )
     # Ours, sized for speed (docs/design.md, "PPO settings the paper does not state"): one update
     # epoch of minibatch 1024 (at 10 epochs the update was ~80 % of the loop), 128 envs to amortise
     # the rollout's per-step cost (the policy's forward pass), and rollouts of whole episodes: a
@@ -121,8 +179,12 @@ class TrainConfig:
     # 128 steps, minibatch 512, 10 epochs before; the shipped recipes in sweeps/ pin those, so
     # their jobs and policies stay as they were.
     n_envs: int = setting(128, "parallel envs in the batched VecEnv (ours)", low=1)
-    n_steps: int = setting(128, "steps per env per rollout (ours: a whole 128-frame episode, so no "
-                           "return is cut off and bootstrapped)", low=1)
+    n_steps: int = setting(
+        128,
+        "steps per env per rollout (ours: a whole 128-frame episode, so no "
+        "return is cut off and bootstrapped)",
+        low=1,
+    )
     batch_size: int = setting(1024, "PPO minibatch (ours)", low=2)
     n_epochs: int = setting(1, "PPO epochs per rollout (ours)", low=1)
     ent_coef: float = setting(0.0, "entropy bonus coefficient (ours, SB3 default)", low=0)
@@ -130,23 +192,34 @@ class TrainConfig:
     # Undiscounted returns reach ~100; without the scaling the critic's gradient dominates the
     # shared max-grad-norm clip. Observations are O(1) by construction and are not normalised, so
     # a saved policy needs no statistics at inference.
-    normalize_reward: bool = setting(True, "scale rewards by a running estimate of the return's std "
-                                     "(SB3 VecNormalize, rewards only; ours)")
+    normalize_reward: bool = setting(
+        True,
+        "scale rewards by a running estimate of the return's std "
+        "(SB3 VecNormalize, rewards only; ours)",
+    )
     # Domain randomisation belongs to the training, not to the policy's env: training_env_config puts
     # it into the env PPO trains in (RadioConfig.aoa_noise_max_deg, which the env core reads), while
     # the manifest keeps the env without it, so evaluation and flight run without it unless asked.
-    aoa_noise_max_deg: float = setting(0.0, "train with each episode's AoA noise std drawn from "
-                                       "[--aoa-noise-deg, this] (ours; 0: off)", low=0)
-    validation_episodes: int = setting(0, "score the deterministic policy on this many validation "
-                                       "episodes (a stream apart from every evaluation seed) before the "
-                                       "first update, after each and at the end, and ship the best weights "
-                                       "(ours; uavlink/learn/selection.py; 0: off, the last weights)",
-                                       low=0, metavar="N")
+    aoa_noise_max_deg: float = setting(
+        0.0,
+        "train with each episode's AoA noise std drawn from [--aoa-noise-deg, this] (ours; 0: off)",
+        low=0,
+    )
+    validation_episodes: int = setting(
+        0,
+        "score the deterministic policy on this many validation "
+        "episodes (a stream apart from every evaluation seed) before the "
+        "first update, after each and at the end, and ship the best weights "
+        "(ours; uavlink/learn/selection.py; 0: off, the last weights)",
+        low=0,
+        metavar="N",
+    )
     warm_start: WarmStartConfig = nested(WarmStartConfig, "behaviour-cloning warm start (ours)")
     seed: int = setting(0, "seed of the envs, the network and the warm start", low=0, high=SEED_MAX)
     torch_threads: int = setting(1, "torch CPU threads (1 is fastest for 3x128 MLPs)", low=1)
-    checkpoint_every_steps: int = setting(100_000, "save RUN_DIR/checkpoint.zip every this many env "
-                                          "steps", low=1)
+    checkpoint_every_steps: int = setting(
+        100_000, "save RUN_DIR/checkpoint.zip every this many env steps", low=1
+    )
 
     def total_timesteps(self, env: EnvConfig) -> int:
         """The budget in agent steps (what SB3 counts): ``episodes`` of the env's ``episode_frames``,
@@ -159,20 +232,28 @@ class TrainConfig:
         the checks against the env it trains in."""
         check_fields(self, name)
         if self.n_envs * self.n_steps < 2:
-            raise ConfigError(f"{name('n_envs')} x {name('n_steps')} must be >= 2 (PPO's rollout buffer)")
+            raise ConfigError(
+                f"{name('n_envs')} x {name('n_steps')} must be >= 2 (PPO's rollout buffer)"
+            )
         rollout = self.n_envs * self.n_steps
         if self.batch_size > rollout or rollout % self.batch_size:
-            raise ConfigError(f"{name('batch_size')} must divide a rollout of {name('n_envs')} x {name('n_steps')} "
-                              f"= {rollout} steps into whole minibatches, got {self.batch_size}")
+            raise ConfigError(
+                f"{name('batch_size')} must divide a rollout of {name('n_envs')} x {name('n_steps')} "
+                f"= {rollout} steps into whole minibatches, got {self.batch_size}"
+            )
         self.warm_start.validate(name)
         if env is not None:
             self.warm_start.check_env(env, name)
             if env.radio.aoa_noise_max_deg:
-                raise ConfigError(f"radio.aoa_noise_max_deg is the training's AoA noise randomisation: "
-                                  f"set {name('aoa_noise_max_deg')} instead")
+                raise ConfigError(
+                    f"radio.aoa_noise_max_deg is the training's AoA noise randomisation: "
+                    f"set {name('aoa_noise_max_deg')} instead"
+                )
             if 0 < self.aoa_noise_max_deg < env.radio.aoa_noise_deg:
-                raise ConfigError(f"{name('aoa_noise_max_deg')} must be 0 (off) or >= the env's "
-                                  f"aoa_noise_deg ({env.radio.aoa_noise_deg:g}), got {self.aoa_noise_max_deg:g}")
+                raise ConfigError(
+                    f"{name('aoa_noise_max_deg')} must be 0 (off) or >= the env's "
+                    f"aoa_noise_deg ({env.radio.aoa_noise_deg:g}), got {self.aoa_noise_max_deg:g}"
+                )
         return self
 
     def to_dict(self) -> dict[str, Any]:
@@ -195,8 +276,9 @@ class TrainConfig:
                 warm[flat] = value
             else:
                 values[key] = coerce(cls, key, value, f"train.{key}")
-        values["warm_start"] = WarmStartConfig(**{k: coerce(WarmStartConfig, k, v, f"train.warm_start.{k}")
-                                                  for k, v in warm.items()})
+        values["warm_start"] = WarmStartConfig(
+            **{k: coerce(WarmStartConfig, k, v, f"train.warm_start.{k}") for k, v in warm.items()}
+        )
         return cls(**values)
 
 
@@ -208,4 +290,6 @@ def legacy_warm_start_key(key: str) -> str | None:
     return name if name in {f.name for f, _ in config_fields(WarmStartConfig)} else None
 
 
-PAPER_HYPERPARAMETERS = tuple(f.name for f, _ in config_fields(TrainConfig) if f.metadata.get("paper"))
+PAPER_HYPERPARAMETERS = tuple(
+    f.name for f, _ in config_fields(TrainConfig) if f.metadata.get("paper")
+)

@@ -13,9 +13,14 @@ import importlib
 from typing import Any
 
 _HOMES = {
-    "ActionMapping": "actions", "BatchedUavEnv": "core", "GroundTruth": "core", "StepResult": "core",
-    "OBS_LAYOUT_VERSION": "observation", "ObservationBuilder": "observation",
-    "ObservationLayout": "observation", "RewardBounds": "reward",
+    "ActionMapping": "actions",
+    "BatchedUavEnv": "core",
+    "GroundTruth": "core",
+    "StepResult": "core",
+    "OBS_LAYOUT_VERSION": "observation",
+    "ObservationBuilder": "observation_builder",
+    "ObservationLayout": "observation",
+    "RewardBounds": "reward",
 }
 __all__ = sorted(_HOMES)
 

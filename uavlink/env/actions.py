@@ -35,7 +35,9 @@ class ActionMapping:
 
     def __post_init__(self) -> None:
         if self.kind not in ACTION_MAPPINGS:
-            raise ConfigError(f"unknown action mapping {self.kind!r}; choose from {', '.join(ACTION_MAPPINGS)}")
+            raise ConfigError(
+                f"unknown action mapping {self.kind!r}; choose from {', '.join(ACTION_MAPPINGS)}"
+            )
 
     @classmethod
     def for_config(cls, cfg: EnvConfig) -> ActionMapping:
@@ -46,7 +48,9 @@ class ActionMapping:
         """Check shape (rows, 2), a row per agent (env x UAV), and finiteness, then clip into the box."""
         action = np.asarray(action, dtype=float)
         if action.shape != (rows, 2):
-            raise ValueError(f"action must have shape ({rows}, 2), one row per agent, got {action.shape}")
+            raise ValueError(
+                f"action must have shape ({rows}, 2), one row per agent, got {action.shape}"
+            )
         if not np.isfinite(action).all():
             raise ValueError("action contains NaN or infinity")
         return np.clip(action, -1.0, 1.0)
@@ -81,8 +85,10 @@ class ActionMapping:
         most: a vehicle trails its setpoint, so a rule that steps the whole way from where the
         vehicle is overshoots and swings (docs/design.md, "explore")."""
         offset_m = np.asarray(offset_m)
-        return self.from_polar(np.degrees(np.arctan2(offset_m[:, 1], offset_m[:, 0])),
-                               share * np.hypot(offset_m[:, 0], offset_m[:, 1]))
+        return self.from_polar(
+            np.degrees(np.arctan2(offset_m[:, 1], offset_m[:, 0])),
+            share * np.hypot(offset_m[:, 0], offset_m[:, 1]),
+        )
 
     def to_dict(self) -> dict[str, Any]:
         return dataclasses.asdict(self)

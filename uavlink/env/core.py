@@ -18,7 +18,8 @@ import numpy as np
 
 from uavlink.config import EnvConfig
 from uavlink.env.actions import ActionMapping
-from uavlink.env.observation import ObservationBuilder, ObservationLayout, fleet_quantities
+from uavlink.env.observation import ObservationLayout, fleet_quantities
+from uavlink.env.observation_builder import ObservationBuilder
 from uavlink.env.place_memory import PlaceMemory
 from uavlink.env.reward import RewardBounds
 from uavlink.mobility import MobilityState, draw_scenarios, init_mobility, step_mobility
@@ -43,7 +44,9 @@ class GroundTruth:
     scenario_ids: np.ndarray  # (N,)
     frame: int = 0  # frames stepped since reset
     mobility: MobilityState | None = None  # a copy of the UEs' state
-    shadow_field: SpatialShadowField | None = None  # the episode's field; None on AR(1) or no shadowing
+    shadow_field: SpatialShadowField | None = (
+        None  # the episode's field; None on AR(1) or no shadowing
+    )
 
 
 @dataclass
@@ -59,8 +62,12 @@ class StepResult:
 class BatchedUavEnv:
     """N aerial-base-station episodes as arrays; the physics behind both env faces."""
 
-    def __init__(self, cfg: EnvConfig | None = None, n_envs: int = 1,
-                 seed: int | np.random.SeedSequence | None = None) -> None:
+    def __init__(
+        self,
+        cfg: EnvConfig | None = None,
+        n_envs: int = 1,
+        seed: int | np.random.SeedSequence | None = None,
+    ) -> None:
         self.cfg = (cfg or EnvConfig()).validate()
         if int(n_envs) != n_envs or n_envs < 1:
             raise ValueError(f"n_envs must be a positive integer, got {n_envs}")
@@ -70,10 +77,13 @@ class BatchedUavEnv:
         self.layout = ObservationLayout.for_config(self.cfg)
         self.actions = ActionMapping.for_config(self.cfg)
         self.reward_bounds = RewardBounds.for_config(self.cfg)
-        self.channel = RadioChannel(self.cfg.radio, self.cfg.area, self.cfg.n_ues, self.cfg.fleet_reuse)
+        self.channel = RadioChannel(
+            self.cfg.radio, self.cfg.area, self.cfg.n_ues, self.cfg.fleet_reuse
+        )
         self._builder = ObservationBuilder(self.layout, self.n_rows)
-        self._start_xy_m = np.tile(start_positions_m(self.n_uavs, self.cfg.fleet_start_radius_m),
-                                   (self.n_envs, 1))
+        self._start_xy_m = np.tile(
+            start_positions_m(self.n_uavs, self.cfg.fleet_start_radius_m), (self.n_envs, 1)
+        )
         self._seed(seed)
         self.frame = 0
         self.uav_xy_m = self._start_xy_m.copy()
@@ -103,8 +113,9 @@ class BatchedUavEnv:
         self.uav_xy_m = self._start_xy_m.copy()
         self.setpoint_xy_m = self._start_xy_m.copy()  # uav_motion px4: where PX4 is asked to be
         self.uav_velocity_mps = np.zeros_like(self.uav_xy_m)
-        self.readings = self.channel.reset(self.radio_rng, self._per_env(self.uav_xy_m),
-                                           self.mobility.position_m)
+        self.readings = self.channel.reset(
+            self.radio_rng, self._per_env(self.uav_xy_m), self.mobility.position_m
+        )
         return self._builder.reset(**self._sensed())
 
     def step(self, action: np.ndarray) -> StepResult:
@@ -114,9 +125,12 @@ class BatchedUavEnv:
         action = self.actions.validate(action, self.n_rows)
         half = self.cfg.area.half_width_m
         if self.cfg.uav_motion == "px4":  # the move shifts the setpoint, which PX4 then flies to
-            self.setpoint_xy_m = np.clip(self.setpoint_xy_m + self.actions.to_displacement_m(action), -half, half)
-            position, self.uav_velocity_mps = PX4_MOTION.fly(self.uav_xy_m, self.uav_velocity_mps,
-                                                             self.setpoint_xy_m, self.cfg.frame_s)
+            self.setpoint_xy_m = np.clip(
+                self.setpoint_xy_m + self.actions.to_displacement_m(action), -half, half
+            )
+            position, self.uav_velocity_mps = PX4_MOTION.fly(
+                self.uav_xy_m, self.uav_velocity_mps, self.setpoint_xy_m, self.cfg.frame_s
+            )
             return self.step_to(position)
         moves = self._per_env(self.actions.to_displacement_m(action))
         target = apply_moves(self._per_env(self.uav_xy_m), moves, half, self.cfg.uav_separation_m)
@@ -131,10 +145,13 @@ class BatchedUavEnv:
         if self.mobility is None:
             raise RuntimeError("call reset() before step_to()")
         half = self.cfg.area.half_width_m
-        self.uav_xy_m = np.clip(np.asarray(uav_xy_m, dtype=float).reshape(self.n_rows, 2), -half, half)
+        self.uav_xy_m = np.clip(
+            np.asarray(uav_xy_m, dtype=float).reshape(self.n_rows, 2), -half, half
+        )
         step_mobility(self.mobility, self.cfg.frame_s, half)
-        self.readings = self.channel.step(self.radio_rng, self._per_env(self.uav_xy_m),
-                                          self.mobility.position_m)
+        self.readings = self.channel.step(
+            self.radio_rng, self._per_env(self.uav_xy_m), self.mobility.position_m
+        )
         self.frame += 1
         obs = self._builder.push(**self._sensed())
         fair = fair_rate(self.readings.rate_bps)
@@ -155,11 +172,24 @@ class BatchedUavEnv:
     def _sensed(self) -> dict[str, np.ndarray]:
         """The observation's inputs per agent row: position, what its UAV hears, fleet fields."""
         r, rows = self.readings, (self.n_rows, -1)
-        fleet = {} if self.n_uavs == 1 else fleet_quantities(self._per_env(self.uav_xy_m), r.serving)
-        return {"uav_xy_m": self.uav_xy_m, "sinr_db": r.heard_sinr_db.reshape(rows),
-                "aoa_deg": r.heard_aoa_deg.reshape(rows), **fleet}
+        fleet = (
+            {} if self.n_uavs == 1 else fleet_quantities(self._per_env(self.uav_xy_m), r.serving)
+        )
+        return {
+            "uav_xy_m": self.uav_xy_m,
+            "sinr_db": r.heard_sinr_db.reshape(rows),
+            "aoa_deg": r.heard_aoa_deg.reshape(rows),
+            **fleet,
+        }
 
     def ground_truth(self) -> GroundTruth:
         mobility = MobilityState(**{k: v.copy() for k, v in vars(self.mobility).items()})
-        return GroundTruth(self.uav_xy_m.copy(), mobility.position_m.copy(), mobility.velocity_mps.copy(),
-                           self.scenario_ids.copy(), self.frame, mobility, self.channel.field)
+        return GroundTruth(
+            self.uav_xy_m.copy(),
+            mobility.position_m.copy(),
+            mobility.velocity_mps.copy(),
+            self.scenario_ids.copy(),
+            self.frame,
+            mobility,
+            self.channel.field,
+        )

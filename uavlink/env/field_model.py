@@ -37,25 +37,35 @@ SPACING_M = 6.0  # the grid of candidate spots
 SWITCH_GAIN = 1.02  # a new pick must score this much more than the current one
 
 
-def candidate_spots_m(radius_m: float = RADIUS_M, spacing_m: float = SPACING_M,
-                      half_width_m: float = math.inf) -> np.ndarray:
+def candidate_spots_m(
+    radius_m: float = RADIUS_M, spacing_m: float = SPACING_M, half_width_m: float = math.inf
+) -> np.ndarray:
     """The grid spots (K, 2) within ``radius_m`` of the centre and inside the area, m."""
     axis = np.arange(-radius_m, radius_m + 1e-9, spacing_m)
     grid = np.stack(np.meshgrid(axis, axis, indexing="ij"), axis=-1).reshape(-1, 2)
-    keep = (np.hypot(grid[:, 0], grid[:, 1]) <= radius_m) & (np.abs(grid) <= half_width_m).all(axis=1)
+    keep = (np.hypot(grid[:, 0], grid[:, 1]) <= radius_m) & (np.abs(grid) <= half_width_m).all(
+        axis=1
+    )
     return grid[keep]
 
 
 class FieldModel:
     """Per-row Gaussian-process posteriors of the sensed value over candidate spots, batched in numpy."""
 
-    def __init__(self, n_rows: int, horizon_frames: int, r_max_m: float, half_width_m: float = math.inf) -> None:
+    def __init__(
+        self, n_rows: int, horizon_frames: int, r_max_m: float, half_width_m: float = math.inf
+    ) -> None:
         self.horizon_frames, self.r_max_m = int(horizon_frames), float(r_max_m)
         self.spots_m = candidate_spots_m(half_width_m=half_width_m)
-        self.prior_var = SIGMA_BITS ** 2 + MEAN_SIGMA_BITS ** 2
-        n, k = self.horizon_frames + 1, len(self.spots_m)  # the episode's first observation, then a frame's each
+        self.prior_var = SIGMA_BITS**2 + MEAN_SIGMA_BITS**2
+        n, k = (
+            self.horizon_frames + 1,
+            len(self.spots_m),
+        )  # the episode's first observation, then a frame's each
         self._x = np.zeros((n_rows, n, 2))
-        self._linv = np.zeros((n_rows, n, n))  # inverse Cholesky factor of the observations' covariance
+        self._linv = np.zeros(
+            (n_rows, n, n)
+        )  # inverse Cholesky factor of the observations' covariance
         self._v = np.zeros((n_rows, n, k))  # linv @ cov(observations, spots)
         self._w = np.zeros((n_rows, n))  # linv @ values
         self.mean = np.zeros((n_rows, k))
@@ -82,8 +92,8 @@ class FieldModel:
         textbook expression: IEEE negation, products and sums are exact to reorder this way)."""
         c = np.divide(d_m, -DECORRELATION_M)
         np.exp(c, out=c)
-        c *= SIGMA_BITS ** 2
-        c += MEAN_SIGMA_BITS ** 2
+        c *= SIGMA_BITS**2
+        c += MEAN_SIGMA_BITS**2
         return c
 
     def update(self, uav_xy_m: np.ndarray, value_bits: np.ndarray) -> dict[str, np.ndarray]:
@@ -91,13 +101,15 @@ class FieldModel:
         the UAV, m; posterior mean minus the value now and posterior std, bits/s/Hz)."""
         t = self.frames
         x, y = np.asarray(uav_xy_m, dtype=float), np.asarray(value_bits, dtype=float)
-        to_spots_m = self._distance_m(x, self.spots_m)  # (rows, K): the covariances' and the travel's
+        to_spots_m = self._distance_m(
+            x, self.spots_m
+        )  # (rows, K): the covariances' and the travel's
         if t > self.horizon_frames:  # stepped past the episode without a reset: the model is full
             return self._pick(x, y, to_spots_m)
         linv, v, w = self._linv[:, :t, :t], self._v[:, :t], self._w[:, :t]
         k_old = self._cov(self._distance_m(x, self._x[:, :t]))  # (rows, t)
         ell = np.matmul(linv, k_old[..., None])[..., 0]  # (rows, t): L^-1 k
-        d = np.sqrt(np.maximum(self.prior_var + NUGGET_BITS ** 2 - (ell * ell).sum(axis=1), 1e-12))
+        d = np.sqrt(np.maximum(self.prior_var + NUGGET_BITS**2 - (ell * ell).sum(axis=1), 1e-12))
         self._linv[:, t, :t] = -np.matmul(ell[:, None, :], linv)[:, 0] / d[:, None]
         self._linv[:, t, t] = 1.0 / d
         v_new = self._cov(to_spots_m)  # (rows, K), then minus what the earlier spots explain
@@ -110,10 +122,16 @@ class FieldModel:
         self.frames = t + 1
         return self._pick(x, y, to_spots_m)
 
-    def _pick(self, x: np.ndarray, now_bits: np.ndarray, to_spots_m: np.ndarray) -> dict[str, np.ndarray]:
+    def _pick(
+        self, x: np.ndarray, now_bits: np.ndarray, to_spots_m: np.ndarray
+    ) -> dict[str, np.ndarray]:
         rows = np.arange(len(x))
-        left = max(self.horizon_frames + 1 - self.frames, 0)  # decisions still to come, this one included
-        score = np.divide(to_spots_m, self.r_max_m)  # (rows, K), in place from here: frames of travel,
+        left = max(
+            self.horizon_frames + 1 - self.frames, 0
+        )  # decisions still to come, this one included
+        score = np.divide(
+            to_spots_m, self.r_max_m
+        )  # (rows, K), in place from here: frames of travel,
         np.ceil(score, out=score)
         np.subtract(left, score, out=score)  # the frames left there,
         np.maximum(score, 0.0, out=score)
@@ -128,6 +146,8 @@ class FieldModel:
         else:
             switch = score[rows, best] > SWITCH_GAIN * score[rows, self.pick]
             self.pick = np.where(switch, best, self.pick)
-        return {"place_pick_offset_m": self.spots_m[self.pick] - x,
-                "place_pick_gain_bits": self.mean[rows, self.pick] - now_bits,
-                "place_pick_std_bits": std[rows, self.pick]}
+        return {
+            "place_pick_offset_m": self.spots_m[self.pick] - x,
+            "place_pick_gain_bits": self.mean[rows, self.pick] - now_bits,
+            "place_pick_std_bits": std[rows, self.pick],
+        }

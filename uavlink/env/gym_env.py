@@ -30,18 +30,32 @@ class UavBsEnv(gym.Env):
 
     metadata = {"render_modes": []}
 
-    def __init__(self, scenario: str | None = None, aoa_noise_deg: float | None = None, *,
-                 config: EnvConfig | None = None, render_mode: str | None = None, **overrides: Any) -> None:
+    def __init__(
+        self,
+        scenario: str | None = None,
+        aoa_noise_deg: float | None = None,
+        *,
+        config: EnvConfig | None = None,
+        render_mode: str | None = None,
+        **overrides: Any,
+    ) -> None:
         super().__init__()
         if render_mode is not None:
-            raise UserError(f"render_mode {render_mode!r} is not supported; the env renders nothing "
-                            "(a flight's picture: uavlink plot)")
+            raise UserError(
+                f"render_mode {render_mode!r} is not supported; the env renders nothing "
+                "(a flight's picture: uavlink plot)"
+            )
         self.render_mode = None
-        cfg = config_with(config if config is not None else EnvConfig(),
-                          {"scenario": scenario, "aoa_noise_deg": aoa_noise_deg}, overrides)
+        cfg = config_with(
+            config if config is not None else EnvConfig(),
+            {"scenario": scenario, "aoa_noise_deg": aoa_noise_deg},
+            overrides,
+        )
         if cfg.n_uavs > 1:
-            raise UserError(f"n_uavs={cfg.n_uavs}: a fleet has one observation and action per UAV; "
-                            "use uavlink.fleet.parallel_env (PettingZoo) or uavlink.env.vec_env.UavVecEnv")
+            raise UserError(
+                f"n_uavs={cfg.n_uavs}: a fleet has one observation and action per UAV; "
+                "use uavlink.fleet.parallel_env (PettingZoo) or uavlink.env.vec_env.UavVecEnv"
+            )
         self.core = BatchedUavEnv(cfg, n_envs=1)
         self.config = self.core.cfg
         self.layout = self.core.layout
@@ -63,9 +77,13 @@ class UavBsEnv(gym.Env):
         """Move the UAV by ``action`` and advance a frame: (observation, reward, False, truncated, info)."""
         if not self._running:
             raise RuntimeError("the episode has ended (or not begun): call reset()")
-        result = self.core.step(np.asarray(action, dtype=float).reshape(1, -1)
-                                if np.ndim(action) == 1 else action)
-        info = {"mean_rate_mbps": float(result.mean_rate_mbps[0]), "fair_rate": float(result.fair_rate[0])}
+        result = self.core.step(
+            np.asarray(action, dtype=float).reshape(1, -1) if np.ndim(action) == 1 else action
+        )
+        info = {
+            "mean_rate_mbps": float(result.mean_rate_mbps[0]),
+            "fair_rate": float(result.fair_rate[0]),
+        }
         truncated = bool(result.truncated[0])
         self._running = not truncated
         return (result.observation[0], float(result.reward[0]), False, truncated, info)

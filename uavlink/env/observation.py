@@ -27,8 +27,6 @@ from typing import Any
 import numpy as np
 
 from uavlink.config import EnvConfig
-from uavlink.env.field_model import FieldModel
-from uavlink.env.place_memory import PlaceMemory, sensed_value_bits
 from uavlink.errors import UserError
 from uavlink.radio.aoa import circular_stats_deg
 
@@ -64,15 +62,20 @@ class Field:
 
     def names(self, layout: ObservationLayout) -> list[str]:
         ues, others, uavs = range(layout.n_ues), range(1, layout.n_uavs), range(layout.n_uavs)
-        return {"frame": list(self.labels),
-                "ue": [f"{label}_{u}" for u in ues for label in self.labels],
-                "other_uav": [f"{label}_{j}" for j in others for label in self.labels],
-                "ue_uav": [f"{label}_{u}_{j}" for u in ues for j in uavs for label in self.labels]}[self.per]
+        return {
+            "frame": list(self.labels),
+            "ue": [f"{label}_{u}" for u in ues for label in self.labels],
+            "other_uav": [f"{label}_{j}" for j in others for label in self.labels],
+            "ue_uav": [f"{label}_{u}_{j}" for u in ues for j in uavs for label in self.labels],
+        }[self.per]
 
 
 def _sinr_bounds(layout: ObservationLayout) -> tuple[float, float]:
     lo_db, hi_db = layout.sinr_clip_db
-    return ((lo_db - layout.sinr_offset_db) / layout.sinr_scale_db, (hi_db - layout.sinr_offset_db) / layout.sinr_scale_db)
+    return (
+        (lo_db - layout.sinr_offset_db) / layout.sinr_scale_db,
+        (hi_db - layout.sinr_offset_db) / layout.sinr_scale_db,
+    )
 
 
 def _aoa_fields(prefix: str) -> tuple[Field, Field]:
@@ -80,14 +83,22 @@ def _aoa_fields(prefix: str) -> tuple[Field, Field]:
     ``<prefix>_mean_deg`` and ``<prefix>_std_deg``: every UE's (``aoa``) or one cell's (``cell_aoa``)."""
     mean, std = f"{prefix}_mean_deg", f"{prefix}_std_deg"
     return (
-        Field(mean, (f"{prefix}_mean_sin", f"{prefix}_mean_cos"),
-              encode=lambda layout, q: _unit_vector(q[mean]),
-              decode=lambda layout, x: np.degrees(np.arctan2(x[..., 0], x[..., 1])),
-              bounds=lambda layout: (-1.0, 1.0)),
-        Field(std, (f"{prefix}_std",),
-              encode=lambda layout, q: np.minimum(np.radians(q[std]), layout.aoa_std_max_rad)[:, None] / np.pi,
-              decode=lambda layout, x: np.degrees(x[..., 0] * np.pi),
-              bounds=lambda layout: (0.0, layout.aoa_std_max_rad / np.pi)),
+        Field(
+            mean,
+            (f"{prefix}_mean_sin", f"{prefix}_mean_cos"),
+            encode=lambda layout, q: _unit_vector(q[mean]),
+            decode=lambda layout, x: np.degrees(np.arctan2(x[..., 0], x[..., 1])),
+            bounds=lambda layout: (-1.0, 1.0),
+        ),
+        Field(
+            std,
+            (f"{prefix}_std",),
+            encode=lambda layout, q: (
+                np.minimum(np.radians(q[std]), layout.aoa_std_max_rad)[:, None] / np.pi
+            ),
+            decode=lambda layout, x: np.degrees(x[..., 0] * np.pi),
+            bounds=lambda layout: (0.0, layout.aoa_std_max_rad / np.pi),
+        ),
     )
 
 
@@ -99,56 +110,95 @@ def _unit_vector(angle_deg: np.ndarray) -> np.ndarray:
 
 
 FIELDS: tuple[Field, ...] = (
-    Field("uav_xy_m", ("uav_x", "uav_y"),
-          encode=lambda layout, q: q["uav_xy_m"] / layout.half_width_m,
-          decode=lambda layout, x: x * layout.half_width_m,
-          bounds=lambda layout: (-1.0, 1.0)),
-    Field("sinr_db", ("sinr",), per="ue",
-          encode=lambda layout, q: (np.clip(q["sinr_db"], *layout.sinr_clip_db) - layout.sinr_offset_db) / layout.sinr_scale_db,
-          decode=lambda layout, x: x * layout.sinr_scale_db + layout.sinr_offset_db,
-          bounds=_sinr_bounds),
+    Field(
+        "uav_xy_m",
+        ("uav_x", "uav_y"),
+        encode=lambda layout, q: q["uav_xy_m"] / layout.half_width_m,
+        decode=lambda layout, x: x * layout.half_width_m,
+        bounds=lambda layout: (-1.0, 1.0),
+    ),
+    Field(
+        "sinr_db",
+        ("sinr",),
+        per="ue",
+        encode=lambda layout, q: (
+            (np.clip(q["sinr_db"], *layout.sinr_clip_db) - layout.sinr_offset_db)
+            / layout.sinr_scale_db
+        ),
+        decode=lambda layout, x: x * layout.sinr_scale_db + layout.sinr_offset_db,
+        bounds=_sinr_bounds,
+    ),
     *_aoa_fields("aoa"),
 )
 
 
 FLEET_FIELDS: tuple[Field, ...] = (
-    Field("others_xy_m", ("other_x", "other_y"), per="other_uav",
-          encode=lambda layout, q: q["others_xy_m"].reshape(len(q["others_xy_m"]), -1) / layout.half_width_m,
-          decode=lambda layout, x: x.reshape(*x.shape[:-1], -1, 2) * layout.half_width_m,
-          bounds=lambda layout: (-1.0, 1.0)),
+    Field(
+        "others_xy_m",
+        ("other_x", "other_y"),
+        per="other_uav",
+        encode=lambda layout, q: (
+            q["others_xy_m"].reshape(len(q["others_xy_m"]), -1) / layout.half_width_m
+        ),
+        decode=lambda layout, x: x.reshape(*x.shape[:-1], -1, 2) * layout.half_width_m,
+        bounds=lambda layout: (-1.0, 1.0),
+    ),
     *_aoa_fields("cell_aoa"),
-    Field("served_by", ("served_by",), per="ue_uav",
-          encode=lambda layout, q: (q["served_by"][..., None] == np.arange(layout.n_uavs)).reshape(
-              len(q["served_by"]), -1).astype(np.float32),
-          decode=lambda layout, x: x.reshape(*x.shape[:-1], layout.n_ues, layout.n_uavs).argmax(axis=-1),
-          bounds=lambda layout: (0.0, 1.0)),
+    Field(
+        "served_by",
+        ("served_by",),
+        per="ue_uav",
+        encode=lambda layout, q: (
+            (q["served_by"][..., None] == np.arange(layout.n_uavs))
+            .reshape(len(q["served_by"]), -1)
+            .astype(np.float32)
+        ),
+        decode=lambda layout, x: x.reshape(*x.shape[:-1], layout.n_ues, layout.n_uavs).argmax(
+            axis=-1
+        ),
+        bounds=lambda layout: (0.0, 1.0),
+    ),
 )
 
 
 def _scaled_frames(quantity: str, label: str) -> Field:
-    return Field(quantity, (label,),
-                 encode=lambda layout, q: np.minimum(q[quantity], 2 * PLACE_AGE_SCALE_FRAMES)[:, None] / PLACE_AGE_SCALE_FRAMES,
-                 decode=lambda layout, x: x[..., 0] * PLACE_AGE_SCALE_FRAMES,
-                 bounds=lambda layout: (0.0, 2.0))
+    return Field(
+        quantity,
+        (label,),
+        encode=lambda layout, q: (
+            np.minimum(q[quantity], 2 * PLACE_AGE_SCALE_FRAMES)[:, None] / PLACE_AGE_SCALE_FRAMES
+        ),
+        decode=lambda layout, x: x[..., 0] * PLACE_AGE_SCALE_FRAMES,
+        bounds=lambda layout: (0.0, 2.0),
+    )
 
 
 def _gain_bits(quantity: str, labels: tuple[str, ...]) -> Field:
     def encode(layout: ObservationLayout, q: Mapping[str, np.ndarray]) -> np.ndarray:
-        value = np.maximum(q[quantity], -PLACE_GAIN_CLIP_BITS)  # np.clip's values, without its overhead
+        value = np.maximum(
+            q[quantity], -PLACE_GAIN_CLIP_BITS
+        )  # np.clip's values, without its overhead
         np.minimum(value, PLACE_GAIN_CLIP_BITS, out=value)
         return value.reshape(len(value), -1)
 
-    return Field(quantity, labels, encode=encode,
-                 decode=lambda layout, x: x[..., 0] if len(labels) == 1 else x,
-                 bounds=lambda layout: (-PLACE_GAIN_CLIP_BITS, PLACE_GAIN_CLIP_BITS))
+    return Field(
+        quantity,
+        labels,
+        encode=encode,
+        decode=lambda layout, x: x[..., 0] if len(labels) == 1 else x,
+        bounds=lambda layout: (-PLACE_GAIN_CLIP_BITS, PLACE_GAIN_CLIP_BITS),
+    )
 
 
 def _offset_m(quantity: str, labels: tuple[str, str]) -> Field:
     """A spot's offset from the UAV (m), in half-widths: within the area, at most 2."""
-    return Field(quantity, labels,
-                 encode=lambda layout, q: q[quantity] / layout.half_width_m,
-                 decode=lambda layout, x: x * layout.half_width_m,
-                 bounds=lambda layout: (-2.0, 2.0))
+    return Field(
+        quantity,
+        labels,
+        encode=lambda layout, q: q[quantity] / layout.half_width_m,
+        decode=lambda layout, x: x * layout.half_width_m,
+        bounds=lambda layout: (-2.0, 2.0),
+    )
 
 
 PLACE_FIELDS: tuple[Field, ...] = (
@@ -156,13 +206,17 @@ PLACE_FIELDS: tuple[Field, ...] = (
     _gain_bits("place_best_gain_bits", ("place_best_gain",)),
     _scaled_frames("place_best_age_frames", "place_best_age"),
     _scaled_frames("place_frames", "place_frames"),
-    _gain_bits("place_neighbour_gain_bits", ("place_east_gain", "place_north_gain", "place_west_gain",
-                                             "place_south_gain")),
-    Field("place_neighbour_known", ("place_east_known", "place_north_known", "place_west_known",
-                                    "place_south_known"),
-          encode=lambda layout, q: q["place_neighbour_known"],
-          decode=lambda layout, x: x,
-          bounds=lambda layout: (0.0, 1.0)),
+    _gain_bits(
+        "place_neighbour_gain_bits",
+        ("place_east_gain", "place_north_gain", "place_west_gain", "place_south_gain"),
+    ),
+    Field(
+        "place_neighbour_known",
+        ("place_east_known", "place_north_known", "place_west_known", "place_south_known"),
+        encode=lambda layout, q: q["place_neighbour_known"],
+        decode=lambda layout, x: x,
+        bounds=lambda layout: (0.0, 1.0),
+    ),
 )
 
 # The model of the sensed field (layout v5, uavlink/env/field_model.py): the spot it picks, from the
@@ -184,8 +238,10 @@ def fleet_quantities(uav_xy_m: np.ndarray, serving: np.ndarray) -> dict[str, np.
     order = (me[:, None] + np.arange(1, n_uavs)) % n_uavs  # (D, D-1)
     others = uav_xy_m[:, order]  # (N, D, D-1, 2)
     served_by = (serving[:, None, :] - me[None, :, None]) % n_uavs  # (N, D, U)
-    return {"others_xy_m": others.reshape(n_envs * n_uavs, n_uavs - 1, 2),
-            "served_by": served_by.reshape(n_envs * n_uavs, -1)}
+    return {
+        "others_xy_m": others.reshape(n_envs * n_uavs, n_uavs - 1, 2),
+        "served_by": served_by.reshape(n_envs * n_uavs, -1),
+    }
 
 
 @dataclass(frozen=True)
@@ -213,14 +269,24 @@ class ObservationLayout:
     @classmethod
     def for_config(cls, cfg: EnvConfig) -> ObservationLayout:
         fleet, place = cfg.n_uavs > 1, cfg.place_cell_m > 0
-        version = {(False, False): OBS_LAYOUT_VERSION, (True, False): FLEET_LAYOUT_VERSION,
-                   (False, True): PLACE_LAYOUT_VERSION, (True, True): FLEET_PLACE_LAYOUT_VERSION}[fleet, place]
+        version = {
+            (False, False): OBS_LAYOUT_VERSION,
+            (True, False): FLEET_LAYOUT_VERSION,
+            (False, True): PLACE_LAYOUT_VERSION,
+            (True, True): FLEET_PLACE_LAYOUT_VERSION,
+        }[fleet, place]
         kriging = place and cfg.place_model == "kriging"
-        return cls(version=KRIGING_LAYOUT_VERSION if kriging else version, n_ues=cfg.n_ues, n_uavs=cfg.n_uavs,
-                   memory=cfg.memory, half_width_m=cfg.area.half_width_m, place_cell_m=float(cfg.place_cell_m),
-                   place_model=cfg.place_model if kriging else "cells",
-                   episode_frames=cfg.episode_frames if kriging else cls.episode_frames,
-                   r_max_m=cfg.r_max_m if kriging else cls.r_max_m)
+        return cls(
+            version=KRIGING_LAYOUT_VERSION if kriging else version,
+            n_ues=cfg.n_ues,
+            n_uavs=cfg.n_uavs,
+            memory=cfg.memory,
+            half_width_m=cfg.area.half_width_m,
+            place_cell_m=float(cfg.place_cell_m),
+            place_model=cfg.place_model if kriging else "cells",
+            episode_frames=cfg.episode_frames if kriging else cls.episode_frames,
+            r_max_m=cfg.r_max_m if kriging else cls.r_max_m,
+        )
 
     @property
     def fields(self) -> tuple[Field, ...]:
@@ -256,7 +322,10 @@ class ObservationLayout:
             lo, hi = field.bounds(self)
             low += [lo] * field.width(self)
             high += [hi] * field.width(self)
-        return (np.tile(np.array(low, np.float32), self.memory), np.tile(np.array(high, np.float32), self.memory))
+        return (
+            np.tile(np.array(low, np.float32), self.memory),
+            np.tile(np.array(high, np.float32), self.memory),
+        )
 
     def to_dict(self) -> dict[str, Any]:
         data = dataclasses.asdict(self)
@@ -278,19 +347,27 @@ class ObservationLayout:
     def check_matches(self, other: ObservationLayout, what: str = "policy") -> None:
         """Raise a one-line UserError naming both layouts when they differ."""
         if self != other:
-            raise UserError(f"observation layout mismatch: {what} expects {self.describe()}, "
-                             f"env provides {other.describe()}")
+            raise UserError(
+                f"observation layout mismatch: {what} expects {self.describe()}, "
+                f"env provides {other.describe()}"
+            )
 
     def describe(self) -> str:
         fleet = f"n_uavs={self.n_uavs}, " if self.n_uavs > 1 else ""
         fleet += f"place_cell_m={self.place_cell_m:g}, " if self.place_cell_m > 0 else ""
-        fleet += (f"place_model=kriging, episode_frames={self.episode_frames}, r_max_m={self.r_max_m:g}, "
-                  if self.place_model == "kriging" else "")
-        return (f"v{self.version} ({fleet}n_ues={self.n_ues}, memory={self.memory}, "
-                f"half_width_m={self.half_width_m:g}, size={self.size})")
+        fleet += (
+            f"place_model=kriging, episode_frames={self.episode_frames}, r_max_m={self.r_max_m:g}, "
+            if self.place_model == "kriging"
+            else ""
+        )
+        return (
+            f"v{self.version} ({fleet}n_ues={self.n_ues}, memory={self.memory}, "
+            f"half_width_m={self.half_width_m:g}, size={self.size})"
+        )
 
-    def encode_frame(self, uav_xy_m: np.ndarray, sinr_db: np.ndarray, aoa_deg: np.ndarray,
-                     **extra: np.ndarray) -> np.ndarray:
+    def encode_frame(
+        self, uav_xy_m: np.ndarray, sinr_db: np.ndarray, aoa_deg: np.ndarray, **extra: np.ndarray
+    ) -> np.ndarray:
         """One frame's features (rows, frame_size) from UAV position (rows, 2), SINR and AoA
         (rows, U) as each row's UAV senses them, for a fleet ``others_xy_m`` (rows, D-1, 2)
         and ``served_by`` (rows, U) (see :func:`fleet_quantities`), and with a memory of place
@@ -298,11 +375,19 @@ class ObservationLayout:
         rad = np.radians(aoa_deg)
         sin, cos = np.sin(rad), np.cos(rad)  # shared by every AoA statistic below
         aoa_mean_deg, aoa_std_deg = circular_stats_deg(sin, cos)
-        quantities = {"uav_xy_m": uav_xy_m, "sinr_db": sinr_db, "aoa_mean_deg": aoa_mean_deg,
-                      "aoa_std_deg": aoa_std_deg, **extra}
-        if "served_by" in extra:  # the AoA statistics of the UEs this UAV serves (undefined for an empty cell)
+        quantities = {
+            "uav_xy_m": uav_xy_m,
+            "sinr_db": sinr_db,
+            "aoa_mean_deg": aoa_mean_deg,
+            "aoa_std_deg": aoa_std_deg,
+            **extra,
+        }
+        if (
+            "served_by" in extra
+        ):  # the AoA statistics of the UEs this UAV serves (undefined for an empty cell)
             quantities["cell_aoa_mean_deg"], quantities["cell_aoa_std_deg"] = circular_stats_deg(
-                sin, cos, mask=extra["served_by"] == 0)
+                sin, cos, mask=extra["served_by"] == 0
+            )
         return np.concatenate([field.encode(self, quantities) for field in self.fields], axis=1)
 
     def frames(self, obs: np.ndarray) -> np.ndarray:
@@ -314,8 +399,10 @@ class ObservationLayout:
         for field in self.fields:
             if field.quantity == quantity:
                 return field
-        raise KeyError(f"no quantity {quantity!r} in observation layout {self.describe()}; "
-                       f"its quantities: {', '.join(self.slices)}")
+        raise KeyError(
+            f"no quantity {quantity!r} in observation layout {self.describe()}; "
+            f"its quantities: {', '.join(self.slices)}"
+        )
 
     def history(self, obs: np.ndarray, quantity: str) -> np.ndarray:
         """A field decoded from every frame of observations (N, size): (N, memory, ...), newest first."""
@@ -324,7 +411,9 @@ class ObservationLayout:
     def encoded_history(self, obs: np.ndarray, *quantities: str) -> np.ndarray:
         """Fields as encoded (N, memory, widths summed), newest frame first."""
         frames, slices = self.frames(obs), self.slices
-        return np.concatenate([frames[:, :, slices[self._field(q).quantity]] for q in quantities], axis=2)
+        return np.concatenate(
+            [frames[:, :, slices[self._field(q).quantity]] for q in quantities], axis=2
+        )
 
     def sinr_db_history(self, obs: np.ndarray) -> np.ndarray:
         """Per-UE SINRs (N, memory, U) in dB, newest frame first, decoded from observations (N, size)."""
@@ -341,44 +430,7 @@ class ObservationLayout:
     def newest_frame(self, obs: np.ndarray) -> dict[str, np.ndarray]:
         """Decode the newest frame of observations (N, size) back to physical units, by quantity."""
         frame = obs[:, : self.frame_size].astype(float)
-        return {field.quantity: field.decode(self, frame[:, self.slices[field.quantity]]) for field in self.fields}
-
-
-class ObservationBuilder:
-    """Keeps the last M frames per row (env, or env and UAV), and the memory of place when the
-    layout has one, and returns the flattened observation (rows, size), float32."""
-
-    def __init__(self, layout: ObservationLayout, n_rows: int) -> None:
-        self.layout = layout
-        self._history = np.zeros((n_rows, layout.memory, layout.frame_size), dtype=np.float32)
-        self.place = (PlaceMemory(layout.place_cell_m, layout.half_width_m, n_rows)
-                      if layout.place_cell_m > 0 else None)
-        self.field = (FieldModel(n_rows, layout.episode_frames, layout.r_max_m, layout.half_width_m)
-                      if layout.place_model == "kriging" else None)
-
-    def _encode(self, uav_xy_m: np.ndarray, sinr_db: np.ndarray, aoa_deg: np.ndarray,
-                **fleet: np.ndarray) -> np.ndarray:
-        place = self.place.update(uav_xy_m, sinr_db) if self.place is not None else {}
-        if self.field is not None:
-            place |= self.field.update(uav_xy_m, sensed_value_bits(sinr_db))
-        return self.layout.encode_frame(uav_xy_m, sinr_db, aoa_deg, **fleet, **place)
-
-    def reset(self, uav_xy_m: np.ndarray, sinr_db: np.ndarray, aoa_deg: np.ndarray,
-              **fleet: np.ndarray) -> np.ndarray:
-        """Start a new episode: every memory slot holds the first frame; the place memory is empty
-        before it."""
-        if self.place is not None:
-            self.place.reset()
-        if self.field is not None:
-            self.field.reset()
-        self._history[:] = self._encode(uav_xy_m, sinr_db, aoa_deg, **fleet)[:, None, :]
-        return self.observation()
-
-    def push(self, uav_xy_m: np.ndarray, sinr_db: np.ndarray, aoa_deg: np.ndarray,
-             **fleet: np.ndarray) -> np.ndarray:
-        self._history[:, 1:] = self._history[:, :-1]
-        self._history[:, 0] = self._encode(uav_xy_m, sinr_db, aoa_deg, **fleet)
-        return self.observation()
-
-    def observation(self) -> np.ndarray:
-        return self._history.reshape(self._history.shape[0], -1).copy()
+        return {
+            field.quantity: field.decode(self, frame[:, self.slices[field.quantity]])
+            for field in self.fields
+        }

@@ -26,7 +26,9 @@ import math
 
 import numpy as np
 
-STALE_BITS_PER_FRAME = 0.01  # a spot sensed 100 frames ago must have been 1 bit/s/Hz better than now
+STALE_BITS_PER_FRAME = (
+    0.01  # a spot sensed 100 frames ago must have been 1 bit/s/Hz better than now
+)
 HYSTERESIS_BITS = 0.1  # the best cell stays best until it reads this much less than when it won
 NEIGHBOURS = np.array([[1, 0], [0, 1], [-1, 0], [0, -1]])  # east, north, west, south, in cells
 
@@ -61,9 +63,13 @@ class PlaceMemory:
         self._row_offset = np.arange(n_rows) * (n_cells + 1)  # flat index of a row's cell 0
         # One more cell per row than the grid has: the neighbour beyond the edge, never sensed.
         self._value = np.full((n_rows, n_cells + 1), -np.inf)
-        self._seen = np.zeros((n_rows, n_cells + 1), dtype=np.int32)  # the frame a cell was sensed in
+        self._seen = np.zeros(
+            (n_rows, n_cells + 1), dtype=np.int32
+        )  # the frame a cell was sensed in
         self.best = np.zeros(n_rows, dtype=np.int64)
-        self.best_score = np.full(n_rows, -np.inf)  # the best cell's score when it won (or last rose)
+        self.best_score = np.full(
+            n_rows, -np.inf
+        )  # the best cell's score when it won (or last rose)
         self.frames = 0
         ij = np.stack(np.divmod(np.arange(n_cells), self.n_side), axis=-1)  # (cells, 2)
         self._centres_m = (ij + 0.5) * self.cell_m - self.half_width_m
@@ -114,7 +120,9 @@ class PlaceMemory:
         seen[flat] = t
         new_score = now + STALE_BITS_PER_FRAME * t
         won = new_score >= self.best_score
-        lost = (cell == self.best) & (new_score < self.best_score - HYSTERESIS_BITS)  # the best read less
+        lost = (cell == self.best) & (
+            new_score < self.best_score - HYSTERESIS_BITS
+        )  # the best read less
         np.copyto(self.best, cell, where=won)
         np.copyto(self.best_score, new_score, where=won)
         if lost.any():
@@ -126,7 +134,9 @@ class PlaceMemory:
         self.frames = t + 1
         # take() rather than fancy indexing: the same gather at a fifth of the cost on these sizes
         best_flat = self._row_offset + self.best
-        nbr = values.take(self._row_offset[:, None] + self._nbr_cell.take(cell, axis=0))  # (rows, 4)
+        nbr = values.take(
+            self._row_offset[:, None] + self._nbr_cell.take(cell, axis=0)
+        )  # (rows, 4)
         known = nbr > -np.inf
         return {
             "place_best_offset_m": self._centres_m.take(self.best, axis=0) - uav_xy_m,

@@ -76,8 +76,11 @@ class RadioWorld:
         and north, clipped to the area) and score the new frame."""
         xy = np.asarray(uav_xy_m, dtype=float).reshape(self.n_uavs, 2)
         result = self._env.step_to(xy)
-        return FrameScore(float(result.mean_rate_mbps[0]), float(result.fair_rate[0]),
-                          self._env.readings.rate_bps[0].copy())
+        return FrameScore(
+            float(result.mean_rate_mbps[0]),
+            float(result.fair_rate[0]),
+            self._env.readings.rate_bps[0].copy(),
+        )
 
 
 def episode_scenario(cfg: EnvConfig, seed: int) -> str:

@@ -77,9 +77,12 @@ class UavVecEnv(VecEnv):
             for i, info in enumerate(infos):
                 info["terminal_observation"] = obs[i]
                 info["TimeLimit.truncated"] = bool(result.truncated[i] and not result.terminated[i])
-                info["episode"] = {"r": float(self._returns[i]), "l": frames,
-                                   "t": round(time.time() - self._start, 6),
-                                   "mean_rate_mbps": float(self._rate_sums[i // self.core.n_uavs] / frames)}
+                info["episode"] = {
+                    "r": float(self._returns[i]),
+                    "l": frames,
+                    "t": round(time.time() - self._start, 6),
+                    "mean_rate_mbps": float(self._rate_sums[i // self.core.n_uavs] / frames),
+                }
             obs = self.reset()
         return obs, result.reward.astype(np.float32), dones, infos
 
@@ -102,18 +105,23 @@ class UavVecEnv(VecEnv):
         """Set the core's attribute for the whole batch; ``indices`` must cover every row (one value
         is shared by all of them), else ValueError."""
         if set(self._get_indices(indices)) != set(range(self.num_envs)):
-            raise ValueError(f"{attr_name!r} is one value for the whole batch of {self.num_envs} rows; "
-                             "set it for all of them (indices=None)")
+            raise ValueError(
+                f"{attr_name!r} is one value for the whole batch of {self.num_envs} rows; "
+                "set it for all of them (indices=None)"
+            )
         setattr(self.core, attr_name, value)
 
-    def env_method(self, method_name: str, *method_args, indices: VecEnvIndices = None,
-                   **method_kwargs) -> list[Any]:
+    def env_method(
+        self, method_name: str, *method_args, indices: VecEnvIndices = None, **method_kwargs
+    ) -> list[Any]:
         """Call the core's method once, on the whole batch, and return its result once per index
         (see the class docstring); a method that changes state changes every env."""
         result = getattr(self.core, method_name)(*method_args, **method_kwargs)
         return [result] * len(self._get_indices(indices))
 
-    def env_is_wrapped(self, wrapper_class: type[gym.Wrapper], indices: VecEnvIndices = None) -> list[bool]:
+    def env_is_wrapped(
+        self, wrapper_class: type[gym.Wrapper], indices: VecEnvIndices = None
+    ) -> list[bool]:
         """False for every index: the batch is no gymnasium env, so no gymnasium wrapper (e.g. SB3's
         ``Monitor``, which is why SB3's ``VecMonitor`` and ``evaluate_policy`` ask) wraps it; the
         ``info["episode"]`` it would add is written by ``step_wait``."""

@@ -22,4 +22,11 @@ from uavlink.evaluation.core import (
     paired_ratio_ci,
 )
 
-__all__ = ["EvalResult", "PairedComparison", "Trajectory", "compare", "evaluate_policy", "paired_ratio_ci"]
+__all__ = [
+    "EvalResult",
+    "PairedComparison",
+    "Trajectory",
+    "compare",
+    "evaluate_policy",
+    "paired_ratio_ci",
+]

@@ -112,18 +112,28 @@ class EvalResult:
 
     def to_dict(self) -> dict[str, Any]:
         return {
-            "scenario": self.scenario, "policy": self.policy, "episodes": self.episodes,
-            "seed": self.seed, "aoa_noise_deg": self.aoa_noise_deg,
-            "mean_rate_mbps": round(self.mean_rate_mbps, 6), "ci95_mbps": round(self.ci95_mbps, 6),
+            "scenario": self.scenario,
+            "policy": self.policy,
+            "episodes": self.episodes,
+            "seed": self.seed,
+            "aoa_noise_deg": self.aoa_noise_deg,
+            "mean_rate_mbps": round(self.mean_rate_mbps, 6),
+            "ci95_mbps": round(self.ci95_mbps, 6),
             "mean_fair_rate": round(self.mean_fair_rate, 6),
             "episode_rate_mbps": [round(float(x), 6) for x in self.episode_rate_mbps],
-            "jain_index": round(self.jain_index, 6), "p5_ue_rate_mbps": round(self.p5_ue_rate_mbps, 6),
+            "jain_index": round(self.jain_index, 6),
+            "p5_ue_rate_mbps": round(self.p5_ue_rate_mbps, 6),
             "ues_per_uav": [round(float(x), 4) for x in self.ues_per_uav],
         }
 
 
-def evaluate_policy(policy: Policy, cfg: EnvConfig, episodes: int = 100, seed: int = 0,
-                    record_trajectory: bool = False) -> EvalResult:
+def evaluate_policy(
+    policy: Policy,
+    cfg: EnvConfig,
+    episodes: int = 100,
+    seed: int = 0,
+    record_trajectory: bool = False,
+) -> EvalResult:
     """Run ``episodes`` seeded episodes; the trajectory of episode 0 is kept on request. ``cfg`` must
     be the env ``policy`` was built for (``uavlink.policies.contract.check_policy_env``): a policy
     file's manifest env (``load_with_env``) with world changes only, a baseline's
@@ -133,7 +143,11 @@ def evaluate_policy(policy: Policy, cfg: EnvConfig, episodes: int = 100, seed: i
     for chunk in chunks(cfg, EVAL, episodes, seed):
         keep = record_trajectory and chunk.index == 0
         env = chunk.env
-        uav, ue, serving = [env.uav_xy_m[:d].copy()], [env.mobility.position_m[0].copy()], [env.readings.serving[0].copy()]
+        uav, ue, serving = (
+            [env.uav_xy_m[:d].copy()],
+            [env.mobility.position_m[0].copy()],
+            [env.readings.serving[0].copy()],
+        )
         tally = _Tally()
         for frame in chunk.frames(policy):
             tally.add(frame.result, env.readings, d)
@@ -146,12 +160,24 @@ def evaluate_policy(policy: Policy, cfg: EnvConfig, episodes: int = 100, seed: i
             rate = np.array(tally.rate_mbps)[:, 0]
             trajectory = Trajectory(np.array(uav), np.array(ue), rate, np.array(serving))
     joined = {k: np.concatenate([c[k] for c in per_chunk]) for k in per_chunk[0]}
-    return EvalResult(cfg.scenario, policy.name, episodes, seed, cfg.radio.aoa_noise_deg,
-                      joined["rate_mbps"], joined["fair"], joined["jain"], joined["ue_rate_mbps"],
-                      joined["cell_size"], trajectory)
+    return EvalResult(
+        cfg.scenario,
+        policy.name,
+        episodes,
+        seed,
+        cfg.radio.aoa_noise_deg,
+        joined["rate_mbps"],
+        joined["fair"],
+        joined["jain"],
+        joined["ue_rate_mbps"],
+        joined["cell_size"],
+        trajectory,
+    )
 
 
-def paired_ratio_ci(num: np.ndarray, den: np.ndarray, n_boot: int = 2000) -> tuple[float, float, float]:
+def paired_ratio_ci(
+    num: np.ndarray, den: np.ndarray, n_boot: int = 2000
+) -> tuple[float, float, float]:
     """mean(num)/mean(den) with a 95 % paired-bootstrap interval (episodes share seeds)."""
     rng = np.random.default_rng(0)
     idx = rng.integers(0, len(num), size=(n_boot, len(num)))
@@ -174,23 +200,41 @@ class PairedComparison:
 
     def describe(self) -> str:
         ratio, lo, hi = self.throughput_ratio
-        return (f"{self.scenario}: {self.a} vs {self.b}: throughput {100 * (ratio - 1):+.2f} % "
-                f"[{100 * (lo - 1):+.2f}, {100 * (hi - 1):+.2f}] (95 %, paired over {self.episodes} episodes), "
-                f"R_fair {self.fair_rate_difference:+.3f}, better in {self.a_better_episodes} of {self.episodes} episodes")
+        return (
+            f"{self.scenario}: {self.a} vs {self.b}: throughput {100 * (ratio - 1):+.2f} % "
+            f"[{100 * (lo - 1):+.2f}, {100 * (hi - 1):+.2f}] (95 %, paired over {self.episodes} episodes), "
+            f"R_fair {self.fair_rate_difference:+.3f}, better in {self.a_better_episodes} of {self.episodes} episodes"
+        )
 
     def to_dict(self) -> dict[str, Any]:
         ratio, lo, hi = self.throughput_ratio
-        return {"scenario": self.scenario, "a": self.a, "b": self.b, "episodes": self.episodes,
-                "throughput_ratio": round(ratio, 6), "throughput_ratio_ci95": [round(lo, 6), round(hi, 6)],
-                "fair_rate_difference": round(self.fair_rate_difference, 6),
-                "a_better_episodes": self.a_better_episodes}
+        return {
+            "scenario": self.scenario,
+            "a": self.a,
+            "b": self.b,
+            "episodes": self.episodes,
+            "throughput_ratio": round(ratio, 6),
+            "throughput_ratio_ci95": [round(lo, 6), round(hi, 6)],
+            "fair_rate_difference": round(self.fair_rate_difference, 6),
+            "a_better_episodes": self.a_better_episodes,
+        }
 
 
 def compare(a: EvalResult, b: EvalResult) -> PairedComparison:
     """Pair two evaluations episode by episode; they must have flown the same episodes."""
-    if (a.scenario, a.episodes, a.seed, a.aoa_noise_deg) != (b.scenario, b.episodes, b.seed, b.aoa_noise_deg):
+    if (a.scenario, a.episodes, a.seed, a.aoa_noise_deg) != (
+        b.scenario,
+        b.episodes,
+        b.seed,
+        b.aoa_noise_deg,
+    ):
         raise ValueError(f"cannot pair {a.policy!r} and {b.policy!r}: they flew different episodes")
-    return PairedComparison(a.scenario, a.policy, b.policy, a.episodes,
-                            paired_ratio_ci(a.episode_rate_mbps, b.episode_rate_mbps),
-                            a.mean_fair_rate - b.mean_fair_rate,
-                            int((a.episode_rate_mbps > b.episode_rate_mbps).sum()))
+    return PairedComparison(
+        a.scenario,
+        a.policy,
+        b.policy,
+        a.episodes,
+        paired_ratio_ci(a.episode_rate_mbps, b.episode_rate_mbps),
+        a.mean_fair_rate - b.mean_fair_rate,
+        int((a.episode_rate_mbps > b.episode_rate_mbps).sum()),
+    )

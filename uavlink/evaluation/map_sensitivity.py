@@ -26,43 +26,79 @@ POLICIES = ("genie", "explore", "map", "spatial")
 SENSITIVITY_SCENARIOS = ("no_move", "circular")
 
 
-def sensitivity(map_folder: Path, spatial_folder: Path, episodes: int, seed: int,
-                scenarios: tuple[str, ...] | list[str] = SENSITIVITY_SCENARIOS,
-                progress: Callable[[str], None] = lambda _: None, base: EnvOverrides | None = None) -> dict:
+def sensitivity(
+    map_folder: Path,
+    spatial_folder: Path,
+    episodes: int,
+    seed: int,
+    scenarios: tuple[str, ...] | list[str] = SENSITIVITY_SCENARIOS,
+    progress: Callable[[str], None] = lambda _: None,
+    base: EnvOverrides | None = None,
+) -> dict:
     """One row per (scenario, sigma, decorrelation): static's Mbps and each policy's over static's;
     ``base`` is what else the command line overrides (the channel's two settings win)."""
     base = base or EnvOverrides()
     rows = []
-    for scenario, sigma_db, decorrelation_m in itertools.product(scenarios, SIGMAS_DB, UAV_DECORRELATIONS_M):
-        overrides = spatial_overrides(EnvOverrides(scenario, base.aoa_noise_deg, {
-            **base.settings,
-            "radio.shadowing_std_db": sigma_db, "radio.shadowing_uav_decorrelation_m": decorrelation_m}))
-        specs = {"static": "static", "genie": "genie", "explore": "explore",
-                 "map": policy_for_scenario(map_folder, scenario),
-                 "spatial": policy_for_scenario(spatial_folder, scenario)}
+    for scenario, sigma_db, decorrelation_m in itertools.product(
+        scenarios, SIGMAS_DB, UAV_DECORRELATIONS_M
+    ):
+        overrides = spatial_overrides(
+            EnvOverrides(
+                scenario,
+                base.aoa_noise_deg,
+                {
+                    **base.settings,
+                    "radio.shadowing_std_db": sigma_db,
+                    "radio.shadowing_uav_decorrelation_m": decorrelation_m,
+                },
+            )
+        )
+        specs = {
+            "static": "static",
+            "genie": "genie",
+            "explore": "explore",
+            "map": policy_for_scenario(map_folder, scenario),
+            "spatial": policy_for_scenario(spatial_folder, scenario),
+        }
         loaded = dict(zip(specs, load_with_env(list(specs.values()), overrides), strict=True))
         rates = {}
         for name, (policy, cfg) in loaded.items():
             progress(f"sensitivity {scenario} sigma {sigma_db:g} dB, {decorrelation_m:g} m: {name}")
             rates[name] = evaluate_policy(policy, cfg, episodes, seed).episode_rate_mbps
-        row = {"scenario": scenario, "shadowing_std_db": sigma_db, "uav_decorrelation_m": decorrelation_m,
-               "static_mbps": round(float(rates["static"].mean()), 4)}
+        row = {
+            "scenario": scenario,
+            "shadowing_std_db": sigma_db,
+            "uav_decorrelation_m": decorrelation_m,
+            "static_mbps": round(float(rates["static"].mean()), 4),
+        }
         for name in POLICIES:
             ratio, lo, hi = paired_ratio_ci(rates[name], rates["static"])
-            row[name] = {"mbps": round(float(rates[name].mean()), 4), "over_static": round(ratio, 4),
-                         "ci95": [round(lo, 4), round(hi, 4)]}
+            row[name] = {
+                "mbps": round(float(rates[name].mean()), 4),
+                "over_static": round(ratio, 4),
+                "ci95": [round(lo, 4), round(hi, 4)],
+            }
         rows.append(row)
-    return {"episodes": episodes, "seed": seed,
-            "statistic": "mean throughput over static's on the same episodes, 95 % paired bootstrap",
-            "rows": rows}
+    return {
+        "episodes": episodes,
+        "seed": seed,
+        "statistic": "mean throughput over static's on the same episodes, 95 % paired bootstrap",
+        "rows": rows,
+    }
 
 
 def sensitivity_table(report: dict) -> str:
     """The rows as a Markdown table: each policy's gain over static with its interval."""
-    lines = ["| scenario | sigma (dB) | UAV-end decorrelation (m) | static Mbps | " + " | ".join(POLICIES) + " |",
-             "|---|---:|---:|---:|" + "---|" * len(POLICIES)]
+    lines = [
+        "| scenario | sigma (dB) | UAV-end decorrelation (m) | static Mbps | "
+        + " | ".join(POLICIES)
+        + " |",
+        "|---|---:|---:|---:|" + "---|" * len(POLICIES),
+    ]
     for r in report["rows"]:
         cells = [gain_cell(r[p]["over_static"], *r[p]["ci95"]) for p in POLICIES]
-        lines.append(f"| {r['scenario']} | {r['shadowing_std_db']:g} | {r['uav_decorrelation_m']:g} | "
-                     f"{r['static_mbps']:.2f} | " + " | ".join(cells) + " |")
+        lines.append(
+            f"| {r['scenario']} | {r['shadowing_std_db']:g} | {r['uav_decorrelation_m']:g} | "
+            f"{r['static_mbps']:.2f} | " + " | ".join(cells) + " |"
+        )
     return "\n".join(lines)

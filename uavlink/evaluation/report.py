@@ -56,14 +56,28 @@ def plot_throughput_vs_fairness(rows: list[ScenarioRow], path: Path) -> None:
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    styles = {"ppo": ("tab:red", "o"), "ppo_mixed": ("tab:orange", "v"), "aoa": ("tab:blue", "s"),
-              "oracle": ("tab:green", "D"), "static": ("tab:gray", "x")}
+    styles = {
+        "ppo": ("tab:red", "o"),
+        "ppo_mixed": ("tab:orange", "v"),
+        "aoa": ("tab:blue", "s"),
+        "oracle": ("tab:green", "D"),
+        "static": ("tab:gray", "x"),
+    }
     fig, axes = plt.subplots(2, 3, figsize=(11, 6.5))
     for ax, row in zip(axes.flat, rows, strict=True):  # the six scenarios
         for key, result in row.results.items():
             color, marker = styles[key]
-            ax.errorbar(result.mean_fair_rate, result.mean_rate_mbps, yerr=result.ci95_mbps, color=color,
-                        marker=marker, ms=6, capsize=2, ls="none", label=key.replace("_", " "))
+            ax.errorbar(
+                result.mean_fair_rate,
+                result.mean_rate_mbps,
+                yerr=result.ci95_mbps,
+                color=color,
+                marker=marker,
+                ms=6,
+                capsize=2,
+                ls="none",
+                label=key.replace("_", " "),
+            )
         ax.set_title(row.scenario, fontsize=10)
         ax.grid(alpha=0.3)
         ax.tick_params(labelsize=8)
@@ -72,7 +86,9 @@ def plot_throughput_vs_fairness(rows: list[ScenarioRow], path: Path) -> None:
     for ax in axes[:, 0]:
         ax.set_ylabel("average UE throughput (Mbps)")
     axes.flat[0].legend(fontsize=8)
-    fig.suptitle("Throughput against R_fair, mean over the evaluation episodes (bars: 95 % interval)")
+    fig.suptitle(
+        "Throughput against R_fair, mean over the evaluation episodes (bars: 95 % interval)"
+    )
     fig.tight_layout()
     fig.savefig(path, dpi=100)
     plt.close(fig)
@@ -87,12 +103,23 @@ def plot_trajectories(row: ScenarioRow, half_width_m: float, path: Path) -> None
     fig, ax = plt.subplots(figsize=(5.5, 5.5))
     traj = row.results["ppo"].trajectory
     for u in range(traj.ue_xy_m.shape[1]):
-        ax.plot(traj.ue_xy_m[:, u, 0], traj.ue_xy_m[:, u, 1], color="tab:gray", lw=0.6, alpha=0.7,
-                label="UEs" if u == 0 else None)
+        ax.plot(
+            traj.ue_xy_m[:, u, 0],
+            traj.ue_xy_m[:, u, 1],
+            color="tab:gray",
+            lw=0.6,
+            alpha=0.7,
+            label="UEs" if u == 0 else None,
+        )
     for key, color in (("ppo", "tab:red"), ("aoa", "tab:blue"), ("oracle", "tab:green")):
         t = row.results[key].trajectory
-        ax.plot(t.uav_xy_m[:, 0, 0], t.uav_xy_m[:, 0, 1], color=color, lw=1.6,
-                label=f"UAV {key} ({row.results[key].episode_rate_mbps[0]:.2f} Mbps)")
+        ax.plot(
+            t.uav_xy_m[:, 0, 0],
+            t.uav_xy_m[:, 0, 1],
+            color=color,
+            lw=1.6,
+            label=f"UAV {key} ({row.results[key].episode_rate_mbps[0]:.2f} Mbps)",
+        )
     ax.plot(0, 0, "k+", ms=10)
     ax.set_xlim(-half_width_m, half_width_m)
     ax.set_ylim(-half_width_m, half_width_m)
@@ -106,10 +133,16 @@ def plot_trajectories(row: ScenarioRow, half_width_m: float, path: Path) -> None
     plt.close(fig)
 
 
-def write_results(run: ReportRun, policy_folder: Path, command: str,
-                  sweep_sections: Callable[[Path, str], list[str]] = lambda _, __: [],
-                  spatial_folder: Path | None = None, fleet_folder: Path | None = None,
-                  map_folder: Path | None = None, teacher_of: TeacherOf | None = None) -> Path:
+def write_results(
+    run: ReportRun,
+    policy_folder: Path,
+    command: str,
+    sweep_sections: Callable[[Path, str], list[str]] = lambda _, __: [],
+    spatial_folder: Path | None = None,
+    fleet_folder: Path | None = None,
+    map_folder: Path | None = None,
+    teacher_of: TeacherOf | None = None,
+) -> Path:
     """Evaluate everything, then write the folder ``run.out`` and the Markdown ``run.markdown``
     (nothing is written if an evaluation fails); returns the Markdown path.
     ``sweep_sections(link_prefix, kind)`` gives the across-seed sections of the sweeps of that kind
@@ -128,13 +161,18 @@ def write_results(run: ReportRun, policy_folder: Path, command: str,
     out.mkdir(parents=True, exist_ok=True)
     spatial = []
     if spatial_folder is not None:
-        spatial = spatial_sections(run, policy_folder, spatial_folder, rows, sweep_sections(rel, "spatial"))
+        spatial = spatial_sections(
+            run, policy_folder, spatial_folder, rows, sweep_sections(rel, "spatial")
+        )
     if map_folder is not None and spatial_folder is not None:
-        spatial += map_sections(run, map_folder, spatial_folder, sweep_sections(rel, "map"), teacher_of)
+        spatial += map_sections(
+            run, map_folder, spatial_folder, sweep_sections(rel, "map"), teacher_of
+        )
     fleet = []
     if fleet_folder is not None and spatial_folder is not None:
-        fleet = fleet_sections(run, fleet_folder, spatial_folder,
-                               rows[0].cfg.area.half_width_m) + sweep_sections(rel, "fleet")
+        fleet = fleet_sections(
+            run, fleet_folder, spatial_folder, rows[0].cfg.area.half_width_m
+        ) + sweep_sections(rel, "fleet")
     write_csv(out / "table1.csv", h1, b1)
     write_csv(out / "table2.csv", h2, b2)
     plot_throughput_per_episode(rows, out / "throughput_per_episode.png")

@@ -40,7 +40,9 @@ def _ratio(results: dict[str, EvalResult], a: str, b: str) -> str:
 
 
 def _share(results: dict[str, EvalResult], a: str) -> str:
-    return share_cell(*paired_ratio_ci(results[a].episode_rate_mbps, results["genie"].episode_rate_mbps))
+    return share_cell(
+        *paired_ratio_ci(results[a].episode_rate_mbps, results["genie"].episode_rate_mbps)
+    )
 
 
 # (policy, its env) -> the teacher its warm start copied, flying that env (None where it copied no
@@ -48,15 +50,33 @@ def _share(results: dict[str, EvalResult], a: str) -> str:
 TeacherOf = Callable[[Policy, EnvConfig], tuple[Policy | None, str]]
 
 
-def map_table(map_folder: Path, spatial_folder: Path, episodes: int, seed: int, overrides: EnvOverrides,
-              teacher_of: TeacherOf, progress: Callable[[str], None] = lambda _: None,
-              with_genie: bool = True) -> tuple[list[str], list[list[str]]]:
+def map_table(
+    map_folder: Path,
+    spatial_folder: Path,
+    episodes: int,
+    seed: int,
+    overrides: EnvOverrides,
+    teacher_of: TeacherOf,
+    progress: Callable[[str], None] = lambda _: None,
+    with_genie: bool = True,
+) -> tuple[list[str], list[list[str]]]:
     """The table's header and rows; ``with_genie=False`` leaves out the genie's columns (its plans
     cost about a CPU-second per episode, where the rest costs milliseconds)."""
     columns = COLUMNS if with_genie else COLUMNS[:-1]
-    header = ["scenario", "map PPO", "spatial PPO", "explore", "aoa", "static", *(["genie"] if with_genie else []),
-              "map vs spatial PPO", "map vs explore", "map vs its teacher", "explore vs spatial PPO",
-              *(["map / genie", "spatial / genie"] if with_genie else [])]
+    header = [
+        "scenario",
+        "map PPO",
+        "spatial PPO",
+        "explore",
+        "aoa",
+        "static",
+        *(["genie"] if with_genie else []),
+        "map vs spatial PPO",
+        "map vs explore",
+        "map vs its teacher",
+        "explore vs spatial PPO",
+        *(["map / genie", "spatial / genie"] if with_genie else []),
+    ]
     body = []
     on_spatial = spatial_overrides(overrides)
     for scenario in SCENARIO_NAMES:  # mixed: one policy for all, each episode's scenario drawn
@@ -75,30 +95,51 @@ def map_table(map_folder: Path, spatial_folder: Path, episodes: int, seed: int, 
             progress(f"map {scenario}: {label}")
             results["teacher"] = evaluate_policy(teacher, loaded[0][1], episodes, seed)
             label = f"{label}: {_ratio(results, 'map', 'teacher')}"
-        body.append([scenario, *(f"{results[c].mean_rate_mbps:.2f} ± {results[c].ci95_mbps:.2f}" for c in columns),
-                     _ratio(results, "map", "spatial"), _ratio(results, "map", "explore"),
-                     label, _ratio(results, "explore", "spatial"),
-                     *([_share(results, "map"), _share(results, "spatial")] if with_genie else [])])
+        body.append(
+            [
+                scenario,
+                *(f"{results[c].mean_rate_mbps:.2f} ± {results[c].ci95_mbps:.2f}" for c in columns),
+                _ratio(results, "map", "spatial"),
+                _ratio(results, "map", "explore"),
+                label,
+                _ratio(results, "explore", "spatial"),
+                *([_share(results, "map"), _share(results, "spatial")] if with_genie else []),
+            ]
+        )
     return header, body
 
 
-def map_sections(run: ReportRun, map_folder: Path, spatial_folder: Path, sweep_sections: list[str],
-                 teacher_of: TeacherOf) -> list[str]:
+def map_sections(
+    run: ReportRun,
+    map_folder: Path,
+    spatial_folder: Path,
+    sweep_sections: list[str],
+    teacher_of: TeacherOf,
+) -> list[str]:
     """Evaluate, write ``map.csv`` and the pictures into ``run.out`` and return the Markdown of the
     part, which links the pictures as the Markdown sees ``run.out``."""
     out, rel, seed, overrides, progress = run.out, run.rel, run.seed, run.overrides, run.progress
-    header, body = map_table(map_folder, spatial_folder, run.episodes, seed, overrides, teacher_of, progress)
+    header, body = map_table(
+        map_folder, spatial_folder, run.episodes, seed, overrides, teacher_of, progress
+    )
     write_csv(out / "map.csv", header, body)
     pictures = []
     for scenario in (row[0] for row in body):
         progress(f"map {scenario}: picture")
-        [(policy, cfg)] = load_with_env([policy_for_scenario(map_folder, scenario)],
-                                        spatial_overrides(overrides).on(scenario))
+        [(policy, cfg)] = load_with_env(
+            [policy_for_scenario(map_folder, scenario)], spatial_overrides(overrides).on(scenario)
+        )
         draw_place_map(fly_place_map(policy, cfg, seed), out / f"place_map_{scenario}.png")
-        pictures += [f"![the map {scenario}'s policy built]({rel / f'place_map_{scenario}.png'})", ""]
+        pictures += [
+            f"![the map {scenario}'s policy built]({rel / f'place_map_{scenario}.png'})",
+            "",
+        ]
     trained = [s for s in SENSITIVITY_SCENARIOS if s in {row[0] for row in body}]
-    by_channel = sensitivity(map_folder, spatial_folder, run.episodes, seed, trained, progress,
-                             overrides) if trained else None
+    by_channel = (
+        sensitivity(map_folder, spatial_folder, run.episodes, seed, trained, progress, overrides)
+        if trained
+        else None
+    )
     return [
         f"### A memory of place: map policies (`{map_folder}`) and the explore rule",
         "",
@@ -109,7 +150,7 @@ def map_sections(run: ReportRun, map_folder: Path, spatial_folder: Path, sweep_s
         "rule (search a cross, return to the best spot sensed, follow the team when it leaves), and as a",
         "share of the `genie` (the full-knowledge yardstick). Same episodes; paired ratios with 95 %",
         "bootstrap intervals; `mixed`: each episode's scenario drawn, the mixed policies of both kinds.",
-        "\"Its teacher\" is the rule the policy's warm start copied, with its knobs (speed span, shadow",
+        '"Its teacher" is the rule the policy\'s warm start copied, with its knobs (speed span, shadow',
         "gate, shadowing estimator), rebuilt from the policy's manifest as training built it.",
         "Scenarios without a map policy yet are left out.",
         "",
@@ -121,16 +162,20 @@ def map_sections(run: ReportRun, map_folder: Path, spatial_folder: Path, sweep_s
         "visited, on the same scale, and the cell its memory ranks best.",
         "",
         *pictures,
-        *([] if by_channel is None else [
-            "#### How much a map is worth on which channel",
-            "",
-            "Each policy over static on the same episodes, with the shadowing's sigma and its UAV-end",
-            "decorrelation set by radio overrides (the map and spatial policies were trained at 8 dB and",
-            "50 m; `uavlink.evaluation.map_sensitivity`, also `python benchmarks/map_sensitivity.py`).",
-            "A short decorrelation puts a better spot near any other; a long one leaves little to find.",
-            "",
-            sensitivity_table(by_channel),
-            "",
-        ]),
+        *(
+            []
+            if by_channel is None
+            else [
+                "#### How much a map is worth on which channel",
+                "",
+                "Each policy over static on the same episodes, with the shadowing's sigma and its UAV-end",
+                "decorrelation set by radio overrides (the map and spatial policies were trained at 8 dB and",
+                "50 m; `uavlink.evaluation.map_sensitivity`, also `python benchmarks/map_sensitivity.py`).",
+                "A short decorrelation puts a better spot near any other; a long one leaves little to find.",
+                "",
+                sensitivity_table(by_channel),
+                "",
+            ]
+        ),
         *sweep_sections,
     ]

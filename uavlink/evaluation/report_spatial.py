@@ -27,28 +27,64 @@ from uavlink.evaluation.tables import (
 
 
 def _vs(row: ScenarioRow, other: str) -> str:
-    return gain_cell(*paired_ratio_ci(row.results["ppo"].episode_rate_mbps, row.results[other].episode_rate_mbps))
+    return gain_cell(
+        *paired_ratio_ci(row.results["ppo"].episode_rate_mbps, row.results[other].episode_rate_mbps)
+    )
 
 
-def transfer_table(ar1: list[ScenarioRow], transferred: list[ScenarioRow],
-                   spatial: list[ScenarioRow]) -> tuple[list[str], list[list[str]]]:
+def transfer_table(
+    ar1: list[ScenarioRow], transferred: list[ScenarioRow], spatial: list[ScenarioRow]
+) -> tuple[list[str], list[list[str]]]:
     """Per scenario, PPO vs aoa and PPO vs oracle (paired, 95 %): AR(1) policies on AR(1), the same
     policies on the spatial channel, and policies trained on the spatial channel."""
-    header = ["scenario", "AR(1): PPO vs aoa", "AR(1): PPO vs oracle", "AR(1) policy on spatial: vs aoa",
-              "AR(1) policy on spatial: vs oracle", "spatial policy: vs aoa", "spatial policy: vs oracle"]
-    body = [[a.scenario, _vs(a, "aoa"), _vs(a, "oracle"), _vs(t, "aoa"), _vs(t, "oracle"), _vs(s, "aoa"),
-             _vs(s, "oracle")] for a, t, s in zip(ar1, transferred, spatial, strict=True)]
+    header = [
+        "scenario",
+        "AR(1): PPO vs aoa",
+        "AR(1): PPO vs oracle",
+        "AR(1) policy on spatial: vs aoa",
+        "AR(1) policy on spatial: vs oracle",
+        "spatial policy: vs aoa",
+        "spatial policy: vs oracle",
+    ]
+    body = [
+        [
+            a.scenario,
+            _vs(a, "aoa"),
+            _vs(a, "oracle"),
+            _vs(t, "aoa"),
+            _vs(t, "oracle"),
+            _vs(s, "aoa"),
+            _vs(s, "oracle"),
+        ]
+        for a, t, s in zip(ar1, transferred, spatial, strict=True)
+    ]
     return header, body
 
 
-def spatial_sections(run: ReportRun, ar1_folder: Path, spatial_folder: Path, ar1_rows: list[ScenarioRow],
-                     sweep_sections: list[str]) -> list[str]:
+def spatial_sections(
+    run: ReportRun,
+    ar1_folder: Path,
+    spatial_folder: Path,
+    ar1_rows: list[ScenarioRow],
+    sweep_sections: list[str],
+) -> list[str]:
     """Evaluate, write the CSVs into ``run.out`` and return the Markdown of the spatial part."""
     on_spatial = spatial_overrides(run.overrides)
-    spatial = evaluate_scenarios(spatial_folder, run.episodes, run.seed, on_spatial,
-                                 lambda m: run.progress(f"spatial {m}"), extra=("genie",))
-    transferred = evaluate_scenarios(ar1_folder, run.episodes, run.seed, on_spatial,
-                                     lambda m: run.progress(f"AR(1) policies on spatial {m}"))
+    spatial = evaluate_scenarios(
+        spatial_folder,
+        run.episodes,
+        run.seed,
+        on_spatial,
+        lambda m: run.progress(f"spatial {m}"),
+        extra=("genie",),
+    )
+    transferred = evaluate_scenarios(
+        ar1_folder,
+        run.episodes,
+        run.seed,
+        on_spatial,
+        lambda m: run.progress(f"AR(1) policies on spatial {m}"),
+    )
     run.progress("spatial table II")
     h1, b1 = table_one(spatial)
     h2, b2 = table_two(spatial_folder, run.episodes, run.seed, on_spatial)
@@ -60,7 +96,7 @@ def spatial_sections(run: ReportRun, ar1_folder: Path, spatial_folder: Path, ar1
     return [
         "## On the spatial channel",
         "",
-        "The same tables with shadowing as a function of place (`radio.shadowing_model = \"spatial\"`,",
+        'The same tables with shadowing as a function of place (`radio.shadowing_model = "spatial"`,',
         "docs/design.md): a UAV that returns to a spot reads the shadowing it read there before, so no",
         "policy can re-roll a building's shadow by moving. Same episodes, seeds and columns as above.",
         "",
@@ -68,7 +104,7 @@ def spatial_sections(run: ReportRun, ar1_folder: Path, spatial_folder: Path, ar1
         "",
         markdown_table(h1, b1),
         "",
-        "`genie` is the full-knowledge yardstick (SPEC \"The limit, and a memory of place\"): it knows the",
+        '`genie` is the full-knowledge yardstick (SPEC "The limit, and a memory of place"): it knows the',
         "episode's UE paths and shadowing field and flies the best path under the motion limits (dynamic",
         "programming over a 4 m grid, docs/design.md); PPO / genie is how far from that limit each policy flies.",
         "",

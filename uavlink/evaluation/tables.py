@@ -41,8 +41,12 @@ class ReportRun:
 
 # The paper's Table I (PPO, static) and Table II (straight under AoA noise), Mbps (SPEC).
 PAPER_TABLE_ONE = {
-    "no_move": (8.00, 7.95), "straight": (7.87, 4.59), "circular": (7.08, 3.59),
-    "straight_90": (6.27, 5.33), "straight_180": (5.91, 5.31), "hotspot": (5.19, 4.77),
+    "no_move": (8.00, 7.95),
+    "straight": (7.87, 4.59),
+    "circular": (7.08, 3.59),
+    "straight_90": (6.27, 5.33),
+    "straight_180": (5.91, 5.31),
+    "hotspot": (5.19, 4.77),
 }
 PAPER_TABLE_TWO = {0: 7.87, 1: 7.84, 5: 7.82, 10: 7.80, 50: 7.70, 100: 7.16}
 
@@ -69,15 +73,23 @@ class ScenarioRow:
 TABLE_ONE_BASELINES = ("static", "oracle", "aoa")
 
 
-def evaluate_scenarios(policy_folder: Path, episodes: int, seed: int, overrides: EnvOverrides,
-                       progress: Callable[[str], None] = lambda _: None,
-                       extra: tuple[str, ...] = ()) -> list[ScenarioRow]:
+def evaluate_scenarios(
+    policy_folder: Path,
+    episodes: int,
+    seed: int,
+    overrides: EnvOverrides,
+    progress: Callable[[str], None] = lambda _: None,
+    extra: tuple[str, ...] = (),
+) -> list[ScenarioRow]:
     """Per scenario: its policy, the baselines in that policy's env (and the ``extra`` ones, e.g. the
     genie on the spatial channel), and the mixed policy if any."""
     rows = []
     mixed = policy_file(policy_folder, MIXED)
-    columns = {"ppo": policy_folder, **{name: name for name in (*TABLE_ONE_BASELINES, *extra)},
-               **({"ppo_mixed": mixed} if mixed is not None else {})}
+    columns = {
+        "ppo": policy_folder,
+        **{name: name for name in (*TABLE_ONE_BASELINES, *extra)},
+        **({"ppo_mixed": mixed} if mixed is not None else {}),
+    }
     for scenario in SCENARIOS:
         loaded = load_with_env(list(columns.values()), overrides.on(scenario))
         results = {}
@@ -91,10 +103,21 @@ def evaluate_scenarios(policy_folder: Path, episodes: int, seed: int, overrides:
 
 def table_one(rows: list[ScenarioRow]) -> tuple[list[str], list[list[str]]]:
     has_mixed, has_genie = "ppo_mixed" in rows[0].results, "genie" in rows[0].results
-    header = ["scenario", "PPO", *TABLE_ONE_BASELINES, *(["genie"] if has_genie else []),
-              *(["PPO mixed"] if has_mixed else []), "gain over static", "paper gain", "PPO / oracle",
-              *(["PPO / genie"] if has_genie else []), "PPO vs aoa",
-              "R_fair PPO / static / oracle / aoa", "target", "met"]
+    header = [
+        "scenario",
+        "PPO",
+        *TABLE_ONE_BASELINES,
+        *(["genie"] if has_genie else []),
+        *(["PPO mixed"] if has_mixed else []),
+        "gain over static",
+        "paper gain",
+        "PPO / oracle",
+        *(["PPO / genie"] if has_genie else []),
+        "PPO vs aoa",
+        "R_fair PPO / static / oracle / aoa",
+        "target",
+        "met",
+    ]
     body = []
     for row in rows:
         r = row.results
@@ -108,18 +131,23 @@ def table_one(rows: list[ScenarioRow]) -> tuple[list[str], list[list[str]]]:
         def cell(key: str, r: dict[str, EvalResult] = r) -> str:
             return f"{r[key].mean_rate_mbps:.2f} ± {r[key].ci95_mbps:.2f}"
 
-        body.append([
-            row.scenario, cell("ppo"), *(cell(b) for b in TABLE_ONE_BASELINES),
-            *([cell("genie")] if has_genie else []), *([cell("ppo_mixed")] if has_mixed else []),
-            gain_cell(gain, glo, ghi),
-            f"{100 * (paper_ppo / paper_static - 1):+.1f} %",
-            share_cell(share, slo, shi),
-            *([_share(ppo, r["genie"].episode_rate_mbps)] if has_genie else []),
-            gain_cell(vs_aoa, alo, ahi),
-            " / ".join(f"{r[k].mean_fair_rate:.2f}" for k in ("ppo", *TABLE_ONE_BASELINES)),
-            f"{target:.2f} ({rule})",
-            "yes" if r["ppo"].mean_rate_mbps >= target else "no",
-        ])
+        body.append(
+            [
+                row.scenario,
+                cell("ppo"),
+                *(cell(b) for b in TABLE_ONE_BASELINES),
+                *([cell("genie")] if has_genie else []),
+                *([cell("ppo_mixed")] if has_mixed else []),
+                gain_cell(gain, glo, ghi),
+                f"{100 * (paper_ppo / paper_static - 1):+.1f} %",
+                share_cell(share, slo, shi),
+                *([_share(ppo, r["genie"].episode_rate_mbps)] if has_genie else []),
+                gain_cell(vs_aoa, alo, ahi),
+                " / ".join(f"{r[k].mean_fair_rate:.2f}" for k in ("ppo", *TABLE_ONE_BASELINES)),
+                f"{target:.2f} ({rule})",
+                "yes" if r["ppo"].mean_rate_mbps >= target else "no",
+            ]
+        )
     return header, body
 
 
@@ -137,8 +165,9 @@ def _share(num: np.ndarray, den: np.ndarray) -> str:
     return share_cell(*paired_ratio_ci(num, den))
 
 
-def table_two(policy_folder: Path, episodes: int, seed: int,
-              overrides: EnvOverrides) -> tuple[list[str], list[list[str]]]:
+def table_two(
+    policy_folder: Path, episodes: int, seed: int, overrides: EnvOverrides
+) -> tuple[list[str], list[list[str]]]:
     header = ["AoA noise std (deg)", "PPO (Mbps)", "drop from 0 deg", "paper (Mbps)", "paper drop"]
     body, clean = [], None
     for std, paper in PAPER_TABLE_TWO.items():
@@ -146,8 +175,15 @@ def table_two(policy_folder: Path, episodes: int, seed: int,
         [(policy, cfg)] = load_with_env([policy_folder], noisy)
         result = evaluate_policy(policy, cfg, episodes, seed)
         clean = result.mean_rate_mbps if clean is None else clean
-        body.append([str(std), f"{result.mean_rate_mbps:.2f} ± {result.ci95_mbps:.2f}",
-                     f"{clean - result.mean_rate_mbps:.2f}", f"{paper:.2f}", f"{PAPER_TABLE_TWO[0] - paper:.2f}"])
+        body.append(
+            [
+                str(std),
+                f"{result.mean_rate_mbps:.2f} ± {result.ci95_mbps:.2f}",
+                f"{clean - result.mean_rate_mbps:.2f}",
+                f"{paper:.2f}",
+                f"{PAPER_TABLE_TWO[0] - paper:.2f}",
+            ]
+        )
     return header, body
 
 
@@ -169,4 +205,6 @@ SPATIAL = {"radio.shadowing_model": "spatial"}
 
 def spatial_overrides(overrides: EnvOverrides) -> EnvOverrides:
     """The command line's overrides on the spatial channel (a radio override: allowed for any policy)."""
-    return EnvOverrides(overrides.scenario, overrides.aoa_noise_deg, {**overrides.settings, **SPATIAL})
+    return EnvOverrides(
+        overrides.scenario, overrides.aoa_noise_deg, {**overrides.settings, **SPATIAL}
+    )

@@ -27,8 +27,12 @@ def _parallel_module() -> Any:
     return importlib.import_module("uavlink.fleet.parallel")
 
 
-def parallel_env(scenario: str | None = None, n_uavs: int | None = None,
-                 config: EnvConfig | None = None, **overrides: Any) -> FleetParallelEnv:
+def parallel_env(
+    scenario: str | None = None,
+    n_uavs: int | None = None,
+    config: EnvConfig | None = None,
+    **overrides: Any,
+) -> FleetParallelEnv:
     """The fleet as a PettingZoo ``ParallelEnv`` (defaults: ``circular``, 2 UAVs; see
     :class:`uavlink.fleet.parallel.FleetParallelEnv`)."""
     return _parallel_module().FleetParallelEnv(scenario, n_uavs, config=config, **overrides)

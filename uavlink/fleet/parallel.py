@@ -38,8 +38,12 @@ def agent_names(n_uavs: int) -> list[AgentID]:
     return [f"uav_{d}" for d in range(n_uavs)]
 
 
-def fleet_config(scenario: str | None = None, n_uavs: int | None = None,
-                 config: EnvConfig | None = None, **overrides: Any) -> EnvConfig:
+def fleet_config(
+    scenario: str | None = None,
+    n_uavs: int | None = None,
+    config: EnvConfig | None = None,
+    **overrides: Any,
+) -> EnvConfig:
     """The env's config: ``config`` (default: the SPEC defaults with ``circular`` and 2 UAVs) with
     ``scenario``, ``n_uavs`` and ``overrides`` (``radio.x`` or plain field names) applied."""
     base = config if config is not None else EnvConfig(n_uavs=2)
@@ -57,11 +61,19 @@ class FleetParallelEnv(ParallelEnv[AgentID, np.ndarray, np.ndarray]):
 
     metadata = {"name": "uavlink_fleet_v0", "render_modes": []}
 
-    def __init__(self, scenario: str | None = None, n_uavs: int | None = None, *,
-                 config: EnvConfig | None = None, render_mode: str | None = None,
-                 **overrides: Any) -> None:
+    def __init__(
+        self,
+        scenario: str | None = None,
+        n_uavs: int | None = None,
+        *,
+        config: EnvConfig | None = None,
+        render_mode: str | None = None,
+        **overrides: Any,
+    ) -> None:
         if render_mode is not None:
-            raise UserError(f"render_mode {render_mode!r} is not supported; the fleet env renders nothing")
+            raise UserError(
+                f"render_mode {render_mode!r} is not supported; the fleet env renders nothing"
+            )
         self.render_mode = None
         self.core = BatchedUavEnv(fleet_config(scenario, n_uavs, config, **overrides), n_envs=1)
         self.config = self.core.cfg
@@ -69,8 +81,12 @@ class FleetParallelEnv(ParallelEnv[AgentID, np.ndarray, np.ndarray]):
         self.possible_agents = agent_names(self.core.n_uavs)
         self.agents: list[AgentID] = []
         low, high = self.layout.bounds()
-        self.observation_spaces = {a: spaces.Box(low, high, dtype=np.float32) for a in self.possible_agents}
-        self.action_spaces = {a: spaces.Box(-1.0, 1.0, (2,), np.float32) for a in self.possible_agents}
+        self.observation_spaces = {
+            a: spaces.Box(low, high, dtype=np.float32) for a in self.possible_agents
+        }
+        self.action_spaces = {
+            a: spaces.Box(-1.0, 1.0, (2,), np.float32) for a in self.possible_agents
+        }
         n = len(self.possible_agents)
         self.state_space = spaces.Box(np.tile(low, n), np.tile(high, n), dtype=np.float32)
         self._observation: np.ndarray | None = None  # (D, obs), the core's rows
@@ -82,19 +98,28 @@ class FleetParallelEnv(ParallelEnv[AgentID, np.ndarray, np.ndarray]):
     def action_space(self, agent: AgentID) -> spaces.Box:
         return self.action_spaces[agent]
 
-    def reset(self, seed: int | None = None,
-              options: dict[str, Any] | None = None) -> tuple[dict[AgentID, np.ndarray], Infos]:
+    def reset(
+        self, seed: int | None = None, options: dict[str, Any] | None = None
+    ) -> tuple[dict[AgentID, np.ndarray], Infos]:
         """Start an episode (UAVs at their start positions); ``options`` are accepted and unused."""
         if seed is None and not self._seeded:
-            seed = int(np.random.default_rng().integers(2**63 - 1))  # unseeded: draw one, as Gymnasium does
+            seed = int(
+                np.random.default_rng().integers(2**63 - 1)
+            )  # unseeded: draw one, as Gymnasium does
         self._seeded = True
         self._observation = self.core.reset(seed)
         self.agents = list(self.possible_agents)
         return self._per_agent(self._observation), {agent: {} for agent in self.agents}
 
-    def step(self, actions: dict[AgentID, Any]) -> tuple[
-            dict[AgentID, np.ndarray], dict[AgentID, float], dict[AgentID, bool],
-            dict[AgentID, bool], Infos]:
+    def step(
+        self, actions: dict[AgentID, Any]
+    ) -> tuple[
+        dict[AgentID, np.ndarray],
+        dict[AgentID, float],
+        dict[AgentID, bool],
+        dict[AgentID, bool],
+        Infos,
+    ]:
         """Move every UAV by its action (one per live agent, each in [-1, 1]^2) and advance a frame."""
         if not self.agents:
             raise RuntimeError("no live agents: call reset() to start an episode")
@@ -102,14 +127,21 @@ class FleetParallelEnv(ParallelEnv[AgentID, np.ndarray, np.ndarray]):
         unknown = sorted(set(actions) - set(self.agents))
         if missing or unknown:
             raise UserError(f"every live agent must act: missing {missing}, unknown {unknown}")
-        result = self.core.step(np.stack([np.asarray(actions[agent], dtype=float) for agent in self.agents]))
+        result = self.core.step(
+            np.stack([np.asarray(actions[agent], dtype=float) for agent in self.agents])
+        )
         self._observation = result.observation
-        info = {"mean_rate_mbps": float(result.mean_rate_mbps[0]), "fair_rate": float(result.fair_rate[0])}
-        out = (self._per_agent(result.observation),
-               {agent: float(result.reward[d]) for d, agent in enumerate(self.agents)},
-               {agent: bool(result.terminated[d]) for d, agent in enumerate(self.agents)},
-               {agent: bool(result.truncated[d]) for d, agent in enumerate(self.agents)},
-               {agent: dict(info) for agent in self.agents})
+        info = {
+            "mean_rate_mbps": float(result.mean_rate_mbps[0]),
+            "fair_rate": float(result.fair_rate[0]),
+        }
+        out = (
+            self._per_agent(result.observation),
+            {agent: float(result.reward[d]) for d, agent in enumerate(self.agents)},
+            {agent: bool(result.terminated[d]) for d, agent in enumerate(self.agents)},
+            {agent: bool(result.truncated[d]) for d, agent in enumerate(self.agents)},
+            {agent: dict(info) for agent in self.agents},
+        )
         if result.truncated.any() or result.terminated.any():
             self.agents = []
         return out

@@ -1,9 +1,9 @@
 """Flying a policy over MAVLink (``uavlink fly``): ``link`` (the MAVLink ground end: one vehicle's
 link, what it knows of each system, a fleet's links as one group), ``radio_source`` (the payload's
-radio readings), ``vehicle_control`` (wait until ready, take off, OFFBOARD, land), ``mission`` and
-``fleet_mission`` (the fly loop for one UAV and a fleet), ``outcome`` (was the flight complete, and
-if not why and what to do), ``steady`` (a frozen heap while flying), ``start_point`` (a later flight
-flies to the episode's start first), ``fence``, ``transit``, ``vehicles`` (the embedded SITL or
+radio readings), ``vehicle_control`` (wait until ready, take off, OFFBOARD, land), ``loop`` and
+``fleet_loop`` (the flight loop for one UAV and a fleet), ``result`` (what a flight did: was it
+complete, and if not why and what to do; its summary and status line), ``steady`` (a frozen
+heap while flying), ``start_point`` (a later flight flies to the episode's start first), ``fence``, ``transit``, ``vehicles`` (the embedded SITL or
 the vehicles ``--connect`` names) and ``fly`` (the command). Layer: the top, below only the CLI.
 
 May import: ``config``, ``errors``, ``mobility``, ``env``, ``mavlink``, ``policies``, ``plot`` (the

@@ -30,18 +30,26 @@ HOME_WAIT_S = 5.0  # wall seconds for a HOME_POSITION before asking for one
 log = logging.getLogger(__name__)
 
 
-def area_fence(origin: GeoOrigin, half_width_m: float,
-               margin_m: float = FENCE_MARGIN_M) -> list[MissionItem]:
+def area_fence(
+    origin: GeoOrigin, half_width_m: float, margin_m: float = FENCE_MARGIN_M
+) -> list[MissionItem]:
     """The square ``half_width_m + margin_m`` around the local origin as an inclusion polygon."""
     h = half_width_m + margin_m
     corners_ne = [(h, h), (-h, h), (-h, -h), (h, -h)]  # NE, SE, SW, NW
     items = []
     for seq, (north, east) in enumerate(corners_ne):
         lat, lon = origin.to_global(north, east)
-        items.append(MissionItem(seq, mavlink.MAV_FRAME_GLOBAL,
-                                 mavlink.MAV_CMD_NAV_FENCE_POLYGON_VERTEX_INCLUSION,
-                                 float(len(corners_ne)), x=round(lat * 1e7), y=round(lon * 1e7),
-                                 mission_type=FENCE))
+        items.append(
+            MissionItem(
+                seq,
+                mavlink.MAV_FRAME_GLOBAL,
+                mavlink.MAV_CMD_NAV_FENCE_POLYGON_VERTEX_INCLUSION,
+                float(len(corners_ne)),
+                x=round(lat * 1e7),
+                y=round(lon * 1e7),
+                mission_type=FENCE,
+            )
+        )
     return items
 
 
@@ -63,18 +71,26 @@ def upload_area_fence(link: VehicleLink, half_width_m: float) -> bool:
     taken."""
     origin = local_origin(link)
     if origin is None:
-        log.warning("geofence not uploaded: the vehicle sends no HOME_POSITION; flying on "
-                    "(the flight loop keeps its targets inside the area)")
+        log.warning(
+            "geofence not uploaded: the vehicle sends no HOME_POSITION; flying on "
+            "(the flight loop keeps its targets inside the area)"
+        )
         return False
-    client = MissionClient(link.conn.mav, link.recv_mission, link.target_system,
-                           link.target_component)
+    client = MissionClient(
+        link.conn.mav, link.recv_mission, link.target_system, link.target_component
+    )
     try:
         client.upload(area_fence(origin, half_width_m), FENCE)
     except MissionTransferError as exc:
         if link.unsigned_to_a_signing_vehicle:  # nothing we send will be taken: no use flying on
-            raise LinkError(f"geofence not uploaded ({exc}): the vehicle ignores our unsigned packets") from None
-        log.warning("geofence not uploaded: %s; flying on (the flight loop keeps its targets "
-                    "inside the area)", exc)
+            raise LinkError(
+                f"geofence not uploaded ({exc}): the vehicle ignores our unsigned packets"
+            ) from None
+        log.warning(
+            "geofence not uploaded: %s; flying on (the flight loop keeps its targets "
+            "inside the area)",
+            exc,
+        )
         return False
     log.info("geofence uploaded: the %g m operating area as an inclusion polygon", 2 * half_width_m)
     return True

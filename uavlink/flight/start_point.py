@@ -20,7 +20,9 @@ from uavlink.mavlink.dialect import mavlink
 
 log = logging.getLogger(__name__)
 
-AT_START_M = 2.0  # horizontal distance that counts as at the start (DO_REPOSITION's float32 degrees: ~0.5 m)
+AT_START_M = (
+    2.0  # horizontal distance that counts as at the start (DO_REPOSITION's float32 degrees: ~0.5 m)
+)
 TRANSIT_VEHICLE_S = 300.0  # vehicle seconds allowed for the transit
 
 
@@ -28,18 +30,36 @@ def fly_to_starts(links: Sequence[VehicleLink], starts_en_m: Sequence[Sequence[f
     """Send every vehicle in the air that is further than :data:`AT_START_M` from its start (east,
     north in the local frame) there, then wait until all are within it (LinkError after
     :data:`TRANSIT_VEHICLE_S` of vehicle time)."""
-    away = [(link, start) for link, start in zip(links, starts_en_m, strict=True) if link.status.in_air
-            and math.hypot(link.status.east_m - start[0], link.status.north_m - start[1]) > AT_START_M]
+    away = [
+        (link, start)
+        for link, start in zip(links, starts_en_m, strict=True)
+        if link.status.in_air
+        and math.hypot(link.status.east_m - start[0], link.status.north_m - start[1]) > AT_START_M
+    ]
     for link, (east, north) in away:
         origin = local_origin(link)
         if origin is None:
             raise LinkError("no HOME_POSITION from the vehicle: cannot fly to the episode's start")
         lat, lon = origin.to_global(north, east)
-        log.warning("vehicle %s took off %.0f m from its start position: flying there first",
-                    link.target_system, math.hypot(link.status.east_m - east, link.status.north_m - north))
-        link.command(mavlink.MAV_CMD_DO_REPOSITION, -1.0, mavlink.MAV_DO_REPOSITION_FLAGS_CHANGE_MODE,
-                     0.0, math.nan, lat, lon, math.nan)
+        log.warning(
+            "vehicle %s took off %.0f m from its start position: flying there first",
+            link.target_system,
+            math.hypot(link.status.east_m - east, link.status.north_m - north),
+        )
+        link.command(
+            mavlink.MAV_CMD_DO_REPOSITION,
+            -1.0,
+            mavlink.MAV_DO_REPOSITION_FLAGS_CHANGE_MODE,
+            0.0,
+            math.nan,
+            lat,
+            lon,
+            math.nan,
+        )
     for link, (east, north) in away:
         st = link.status
-        link.wait_until(lambda st=st, e=east, n=north: math.hypot(st.east_m - e, st.north_m - n) <= AT_START_M,
-                        TRANSIT_VEHICLE_S, "the flight to the episode's start position")
+        link.wait_until(
+            lambda st=st, e=east, n=north: math.hypot(st.east_m - e, st.north_m - n) <= AT_START_M,
+            TRANSIT_VEHICLE_S,
+            "the flight to the episode's start position",
+        )

@@ -40,12 +40,17 @@ def segment_distance_m(a: np.ndarray, b: np.ndarray, c: np.ndarray, d: np.ndarra
     d1, d2, d3, d4 = _cross(c, d, a), _cross(c, d, b), _cross(a, b, c), _cross(a, b, d)
     if ((d1 > 0) != (d2 > 0)) and ((d3 > 0) != (d4 > 0)) and 0.0 not in (d1, d2, d3, d4):
         return 0.0
-    return min(_point_segment_m(a, c, d), _point_segment_m(b, c, d),
-               _point_segment_m(c, a, b), _point_segment_m(d, a, b))
+    return min(
+        _point_segment_m(a, c, d),
+        _point_segment_m(b, c, d),
+        _point_segment_m(c, a, b),
+        _point_segment_m(d, a, b),
+    )
 
 
-def guard_transit(actual_m: np.ndarray, current_m: np.ndarray, new_m: np.ndarray,
-                  min_separation_m: float) -> np.ndarray:
+def guard_transit(
+    actual_m: np.ndarray, current_m: np.ndarray, new_m: np.ndarray, min_separation_m: float
+) -> np.ndarray:
     """New setpoints (D, 2), each on its vehicle's move ``current_m`` -> ``new_m`` and cut where the
     region it sweeps from ``actual_m`` (see the module) would come within ``min_separation_m`` of
     another vehicle's; where a pair is already closer, that pair may not come closer still."""
@@ -54,17 +59,34 @@ def guard_transit(actual_m: np.ndarray, current_m: np.ndarray, new_m: np.ndarray
     out = np.array(new_m, dtype=float)
     n = len(out)
     for d in range(n):
-        regions = [[(actual[j], current[j]), (current[j], out[j]), (actual[j], out[j])] if j < d
-                   else [(actual[j], current[j])] for j in range(n) if j != d]
+        regions = [
+            [(actual[j], current[j]), (current[j], out[j]), (actual[j], out[j])]
+            if j < d
+            else [(actual[j], current[j])]
+            for j in range(n)
+            if j != d
+        ]
 
         # d sweeps the triangle P, S, E(t) (E(t) on S -> S'): its edge P -> S is the same for every t,
         # and the triangle only grows with t, so each gap only shrinks and a bisection finds the cut
-        fixed = [min(segment_distance_m(actual[d], current[d], a, b) for a, b in region) for region in regions]
+        fixed = [
+            min(segment_distance_m(actual[d], current[d], a, b) for a, b in region)
+            for region in regions
+        ]
 
         def gaps(t: float, regions: list = regions, fixed: list = fixed, d: int = d) -> list[float]:
             end = current[d] + t * (out[d] - current[d])
-            return [min(f, *(segment_distance_m(p, end, a, b) for p in (actual[d], current[d]) for a, b in region))
-                    for f, region in zip(fixed, regions, strict=True)]
+            return [
+                min(
+                    f,
+                    *(
+                        segment_distance_m(p, end, a, b)
+                        for p in (actual[d], current[d])
+                        for a, b in region
+                    ),
+                )
+                for f, region in zip(fixed, regions, strict=True)
+            ]
 
         # a pair already closer than the minimum keeps at least its present gap (moves apart only)
         need = [min(min_separation_m, g) for g in gaps(0.0)]
@@ -80,4 +102,3 @@ def guard_transit(actual_m: np.ndarray, current_m: np.ndarray, new_m: np.ndarray
             lo, hi = (mid, hi) if clear(mid) else (lo, mid)
         out[d] = current[d] + lo * (out[d] - current[d])
     return out
-

@@ -31,15 +31,20 @@ def wait_ready(link: VehicleLink, takeoff: bool, landing_wait_vehicle_s: float) 
     link.wait_vehicle()
     st = link.status
     if st.armed and (ending_mode(st) or st.landed_state == mavlink.MAV_LANDED_STATE_LANDING):
-        log.warning("vehicle is %s (an earlier flight ending): waiting until it has landed and "
-                    "disarmed", mode_name(st))
-        link.wait_until(lambda: not st.armed, landing_wait_vehicle_s, "the earlier flight's landing and disarm")
+        log.warning(
+            "vehicle is %s (an earlier flight ending): waiting until it has landed and disarmed",
+            mode_name(st),
+        )
+        link.wait_until(
+            lambda: not st.armed, landing_wait_vehicle_s, "the earlier flight's landing and disarm"
+        )
     if st.armed and not st.in_air and takeoff:
         link.arm(False)
 
 
-def take_off_or_resume(link: VehicleLink, altitude_m: float, fence_half_width_m: float | None,
-                       takeoff: bool) -> bool:
+def take_off_or_resume(
+    link: VehicleLink, altitude_m: float, fence_half_width_m: float | None, takeoff: bool
+) -> bool:
     """Upload the area as the geofence (``fence_half_width_m``, None: none), then arm and take off to
     ``altitude_m`` (when ``takeoff``), or resume a vehicle already armed and in the air; whether it
     resumed."""
@@ -47,8 +52,11 @@ def take_off_or_resume(link: VehicleLink, altitude_m: float, fence_half_width_m:
     if fence_half_width_m is not None:
         upload_area_fence(link, fence_half_width_m)
     if st.armed and st.in_air:
-        log.warning("vehicle already armed and in the air (%s, %.0f m): resuming without take-off",
-                    mode_name(st), -st.down_m)
+        log.warning(
+            "vehicle already armed and in the air (%s, %.0f m): resuming without take-off",
+            mode_name(st),
+            -st.down_m,
+        )
         return True
     if takeoff:
         link.arm()

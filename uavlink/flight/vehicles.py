@@ -14,7 +14,9 @@ from uavlink.config import EnvConfig, changed_settings, check_seed
 from uavlink.errors import LinkError, UserError
 from uavlink.mavlink.connection import free_udp_port, normalize_connection
 
-VEHICLE_START_S = 30.0  # wall seconds for the embedded vehicle to open its links (as the heartbeat wait)
+VEHICLE_START_S = (
+    30.0  # wall seconds for the embedded vehicle to open its links (as the heartbeat wait)
+)
 
 
 def check_vehicle_options(seed: int, speed: float) -> None:
@@ -22,7 +24,9 @@ def check_vehicle_options(seed: int, speed: float) -> None:
     vehicle would refuse them too, but only after ``fly`` had made its --out folder."""
     check_seed(seed, "--seed")
     if not (math.isfinite(speed) and speed > 0):
-        raise UserError(f"--speed must be a number > 0 (simulated seconds per wall second), got {speed:g}")
+        raise UserError(
+            f"--speed must be a number > 0 (simulated seconds per wall second), got {speed:g}"
+        )
 
 
 @contextlib.contextmanager
@@ -36,7 +40,9 @@ def started_vehicle(connect: str | list[str], speed: float, args: list[str], log
         try:
             vehicle.wait_started(VEHICLE_START_S)
         except VehicleExited as exc:
-            raise LinkError(f"the embedded vehicle (sitl-stub) {exc} (its log: {log_path})") from None
+            raise LinkError(
+                f"the embedded vehicle (sitl-stub) {exc} (its log: {log_path})"
+            ) from None
         yield vehicle
 
 
@@ -51,15 +57,24 @@ def split_urls(connect: str) -> list[str]:
     return urls
 
 
-def vehicle_args(cfg: EnvConfig, seed: int, lockstep: bool = False,
-                 signing_key_file: Path | None = None) -> list[str]:
+def vehicle_args(
+    cfg: EnvConfig, seed: int, lockstep: bool = False, signing_key_file: Path | None = None
+) -> list[str]:
     """The ``sitl_stub`` options whose radio payload simulates ``cfg`` from episode 0 of ``seed``
     (``--fleet D`` for ``n_uavs`` = D > 1), in lockstep and signing with the key file when asked:
     the embedded vehicle's, and what a vehicle started by hand needs to serve a policy of ``cfg``
     (benchmarks/soak.py, the tests)."""
-    args = ([] if cfg.n_uavs == 1 else ["--fleet", str(cfg.n_uavs)]) + (["--lockstep"] if lockstep else [])
-    args += ["--scenario", cfg.scenario, "--seed", str(seed),
-             "--aoa-noise-deg", repr(float(cfg.radio.aoa_noise_deg))]
+    args = ([] if cfg.n_uavs == 1 else ["--fleet", str(cfg.n_uavs)]) + (
+        ["--lockstep"] if lockstep else []
+    )
+    args += [
+        "--scenario",
+        cfg.scenario,
+        "--seed",
+        str(seed),
+        "--aoa-noise-deg",
+        repr(float(cfg.radio.aoa_noise_deg)),
+    ]
     for pair in changed_settings(cfg):
         if not pair.startswith(("n_uavs=", "scenario=")):
             args += ["--set", pair]
@@ -67,8 +82,14 @@ def vehicle_args(cfg: EnvConfig, seed: int, lockstep: bool = False,
 
 
 @contextlib.contextmanager
-def embedded_vehicles(cfg: EnvConfig, seed: int, speed: float, log_path: Path,
-                      signing_key_file: Path | None = None, lockstep: bool = False) -> Iterator[list[str]]:
+def embedded_vehicles(
+    cfg: EnvConfig,
+    seed: int,
+    speed: float,
+    log_path: Path,
+    signing_key_file: Path | None = None,
+    lockstep: bool = False,
+) -> Iterator[list[str]]:
     """The embedded SITL (:func:`started_vehicle`), its radio payload simulating ``cfg``
     (:func:`vehicle_args`; ``sitl_stub --fleet D`` for ``n_uavs`` = D > 1), vehicle i sending to free
     loopback port i; yields the URLs to listen on, in vehicle (UAV) order."""

@@ -24,7 +24,9 @@ from uavlink.learn.teachers import make_teacher
 from uavlink.rollout import Actor, rollout
 from uavlink.seeding import TEACHER
 
-CLONE_EPOCHS = 20  # passes over the cloning data unless TrainConfig.warm_start.epochs says otherwise
+CLONE_EPOCHS = (
+    20  # passes over the cloning data unless TrainConfig.warm_start.epochs says otherwise
+)
 
 
 @dataclass(frozen=True)
@@ -35,11 +37,17 @@ class CloneReport:
     final_mse: float
 
     def to_dict(self) -> dict[str, Any]:
-        return {"teacher": self.teacher, "samples": self.samples, "epochs": self.epochs,
-                "final_mse": round(self.final_mse, 6)}
+        return {
+            "teacher": self.teacher,
+            "samples": self.samples,
+            "epochs": self.epochs,
+            "final_mse": round(self.final_mse, 6),
+        }
 
 
-def teacher_dataset(cfg: EnvConfig, teacher: str | Actor, episodes: int, seed: int) -> tuple[np.ndarray, np.ndarray]:
+def teacher_dataset(
+    cfg: EnvConfig, teacher: str | Actor, episodes: int, seed: int
+) -> tuple[np.ndarray, np.ndarray]:
     """(observations, actions) float32 from ``episodes`` seeded episodes flown by ``teacher`` (a rule's
     name, or a teacher from ``uavlink.learn.teachers.make_teacher``)."""
     policy = make_teacher(cfg, teacher) if isinstance(teacher, str) else teacher
@@ -47,7 +55,9 @@ def teacher_dataset(cfg: EnvConfig, teacher: str | Actor, episodes: int, seed: i
     for frame in rollout(policy, cfg, TEACHER, episodes, seed):
         observations.append(frame.observation)
         actions.append(frame.action)
-    return np.concatenate(observations).astype(np.float32), np.concatenate(actions).astype(np.float32)
+    return np.concatenate(observations).astype(np.float32), np.concatenate(actions).astype(
+        np.float32
+    )
 
 
 def actor_mean_parameters(sb3_policy: Any) -> list:
@@ -55,9 +65,16 @@ def actor_mean_parameters(sb3_policy: Any) -> list:
     return [*sb3_policy.mlp_extractor.policy_net.parameters(), *sb3_policy.action_net.parameters()]
 
 
-def clone_actor(sb3_policy: Any, observations: np.ndarray, actions: np.ndarray, epochs: int = CLONE_EPOCHS,
-                batch_size: int = 1024, learning_rate: float = 1e-3, log_std: float = -1.0,
-                seed: int = 0) -> float:
+def clone_actor(
+    sb3_policy: Any,
+    observations: np.ndarray,
+    actions: np.ndarray,
+    epochs: int = CLONE_EPOCHS,
+    batch_size: int = 1024,
+    learning_rate: float = 1e-3,
+    log_std: float = -1.0,
+    seed: int = 0,
+) -> float:
     """Fit the SB3 policy's actor mean to ``actions`` (MSE, Adam) and set its log std; returns the
     final epoch's mean squared error."""
     import torch
@@ -69,7 +86,7 @@ def clone_actor(sb3_policy: Any, observations: np.ndarray, actions: np.ndarray, 
     for _ in range(epochs):
         loss_sum, order = 0.0, torch.randperm(len(obs_t), generator=generator)
         for start in range(0, len(order), batch_size):
-            idx = order[start:start + batch_size]
+            idx = order[start : start + batch_size]
             latent = sb3_policy.mlp_extractor.forward_actor(obs_t[idx])
             loss = torch.nn.functional.mse_loss(sb3_policy.action_net(latent), act_t[idx])
             optimizer.zero_grad()
@@ -81,8 +98,15 @@ def clone_actor(sb3_policy: Any, observations: np.ndarray, actions: np.ndarray, 
     return loss_sum / len(obs_t)
 
 
-def warm_start(sb3_policy: Any, cfg: EnvConfig, teacher: str | Actor, episodes: int, seed: int,
-               epochs: int = CLONE_EPOCHS, log_std: float = -1.0) -> CloneReport:
+def warm_start(
+    sb3_policy: Any,
+    cfg: EnvConfig,
+    teacher: str | Actor,
+    episodes: int,
+    seed: int,
+    epochs: int = CLONE_EPOCHS,
+    log_std: float = -1.0,
+) -> CloneReport:
     """Clone ``teacher`` (a rule's name, or a policy from ``make_teacher``) into the policy's actor
     from ``episodes`` of its own flying."""
     policy = make_teacher(cfg, teacher) if isinstance(teacher, str) else teacher

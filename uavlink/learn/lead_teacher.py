@@ -31,16 +31,25 @@ from uavlink.rollout import Actor
 
 def single_layout(fleet: ObservationLayout) -> ObservationLayout:
     """The single-UAV layout (v1) with a fleet layout's UEs, memory and area."""
-    return ObservationLayout(version=OBS_LAYOUT_VERSION, n_ues=fleet.n_ues, n_uavs=1, memory=fleet.memory,
-                             half_width_m=fleet.half_width_m, sinr_offset_db=fleet.sinr_offset_db,
-                             sinr_scale_db=fleet.sinr_scale_db, sinr_clip_db=fleet.sinr_clip_db,
-                             aoa_std_max_rad=fleet.aoa_std_max_rad)
+    return ObservationLayout(
+        version=OBS_LAYOUT_VERSION,
+        n_ues=fleet.n_ues,
+        n_uavs=1,
+        memory=fleet.memory,
+        half_width_m=fleet.half_width_m,
+        sinr_offset_db=fleet.sinr_offset_db,
+        sinr_scale_db=fleet.sinr_scale_db,
+        sinr_clip_db=fleet.sinr_clip_db,
+        aoa_std_max_rad=fleet.aoa_std_max_rad,
+    )
 
 
 def single_view(fleet: ObservationLayout, obs: np.ndarray) -> np.ndarray:
     """What one UAV of a fleet would observe alone: the single-UAV fields of each of its frames,
     (rows, v1 size) float32 from fleet observations (rows, v2 size)."""
-    frames = fleet.encoded_history(obs, *(field.quantity for field in FIELDS))  # (rows, memory, v1 frame)
+    frames = fleet.encoded_history(
+        obs, *(field.quantity for field in FIELDS)
+    )  # (rows, memory, v1 frame)
     return frames.reshape(len(obs), -1).astype(np.float32)
 
 
@@ -79,7 +88,9 @@ class LeadTeacher:
         self.single = single_layout(self.layout)
         own = getattr(leader, "layout", None)
         if own is not None:
-            own.check_matches(self.single, what=f"the lead teacher's leader {getattr(leader, 'name', leader)!r}")
+            own.check_matches(
+                self.single, what=f"the lead teacher's leader {getattr(leader, 'name', leader)!r}"
+            )
         self.leader = leader
         self.cfg = cfg
         self.mapping = ActionMapping.for_config(cfg)
@@ -104,10 +115,15 @@ class LeadTeacher:
         plus ``far_sinr_margin_db`` (a single UAV starts on top of the UEs: its policy never learned
         to close in from a fleet's start 100 m off, nor to leave a badly shadowed spot far from them)."""
         frame = self.layout.newest_frame(obs)
-        far = ((frame["aoa_std_deg"] < self.close_spread_deg)
-               & (frame["sinr_db"].mean(axis=1) < self.hover_sinr_db + self.far_sinr_margin_db))
-        dash = self.mapping.from_polar(frame["aoa_mean_deg"], np.full(len(obs), self.mapping.r_max_m))
-        return np.where(far[:, None], dash, self.leader.act(single_view(self.layout, obs))).astype(np.float32)
+        far = (frame["aoa_std_deg"] < self.close_spread_deg) & (
+            frame["sinr_db"].mean(axis=1) < self.hover_sinr_db + self.far_sinr_margin_db
+        )
+        dash = self.mapping.from_polar(
+            frame["aoa_mean_deg"], np.full(len(obs), self.mapping.r_max_m)
+        )
+        return np.where(far[:, None], dash, self.leader.act(single_view(self.layout, obs))).astype(
+            np.float32
+        )
 
     def away(self, obs: np.ndarray, leader_xy_m: np.ndarray) -> np.ndarray:
         """Out of the way: the far corners from the leader (it is with the UEs), ``away_target_m``."""
@@ -123,7 +139,9 @@ def area_corners_m(cfg: EnvConfig) -> np.ndarray:
     return np.array([[h, h], [-h, h], [-h, -h], [h, -h]])
 
 
-def away_target_m(corners_m: np.ndarray, xy_m: np.ndarray, from_xy_m: np.ndarray, serving: np.ndarray) -> np.ndarray:
+def away_target_m(
+    corners_m: np.ndarray, xy_m: np.ndarray, from_xy_m: np.ndarray, serving: np.ndarray
+) -> np.ndarray:
     """Where UAVs at ``xy_m`` (rows, 2) keeping out of the way head (rows, 2): the corner (of
     ``corners_m``, (4, 2)) farthest from ``from_xy_m`` (rows, 2); once there, on to the next farthest
     while their cell still holds a UE (``serving``, (rows,); shadowing can favour a far UAV), else
@@ -142,4 +160,6 @@ def make_lead_teacher(cfg: EnvConfig, leader_policy: str = "") -> LeadTeacher:
     from uavlink.policies.loader import load_policy
 
     single = cfg.replace(n_uavs=1).validate()
-    return LeadTeacher(cfg, load_policy(leader_policy, single) if leader_policy else AoaPolicy(single))
+    return LeadTeacher(
+        cfg, load_policy(leader_policy, single) if leader_policy else AoaPolicy(single)
+    )

@@ -24,9 +24,14 @@ FIRST_LAYERS = ("mlp_extractor.policy_net.0.weight", "mlp_extractor.value_net.0.
 
 def _column_map(source: ObservationLayout, target: ObservationLayout, path: Path) -> list[int]:
     """The new observation's column of each of the old one's features."""
-    if dataclasses.replace(source, version=target.version, place_cell_m=target.place_cell_m) != target:
-        raise UserError(f"warm_start.policy {path}: its observation ({source.describe()}) is not this env's "
-                        f"({target.describe()}) without the new fields")
+    if (
+        dataclasses.replace(source, version=target.version, place_cell_m=target.place_cell_m)
+        != target
+    ):
+        raise UserError(
+            f"warm_start.policy {path}: its observation ({source.describe()}) is not this env's "
+            f"({target.describe()}) without the new fields"
+        )
     column = {name: i for i, name in enumerate(target.feature_names())}
     missing = [name for name in source.feature_names() if name not in column]
     if missing:
@@ -34,7 +39,9 @@ def _column_map(source: ObservationLayout, target: ObservationLayout, path: Path
     return [column[name] for name in source.feature_names()]
 
 
-def start_from_policy(sb3_policy: Any, cfg: EnvConfig, path: str | Path, log_std: float | None = None) -> dict[str, Any]:
+def start_from_policy(
+    sb3_policy: Any, cfg: EnvConfig, path: str | Path, log_std: float | None = None
+) -> dict[str, Any]:
     """Load the policy file ``path`` into ``sb3_policy`` (PPO's, for ``cfg``'s observation), the new
     inputs at zero weight; ``log_std`` resets the exploration (default: the file's). The report."""
     import torch
@@ -52,14 +59,18 @@ def start_from_policy(sb3_policy: Any, cfg: EnvConfig, path: str | Path, log_std
     loaded = {}
     for name, value in params["policy"].items():
         if name not in target:
-            raise UserError(f"warm_start.policy {path}: its network has {name}, PPO's here does not")
+            raise UserError(
+                f"warm_start.policy {path}: its network has {name}, PPO's here does not"
+            )
         if name in FIRST_LAYERS and value.shape == (target[name].shape[0], len(columns)):
             grown = torch.zeros_like(target[name])
             grown[:, columns] = value
             value = grown
         if value.shape != target[name].shape:
-            raise UserError(f"warm_start.policy {path}: {name} is {tuple(value.shape)}, PPO's here "
-                            f"{tuple(target[name].shape)} (another net_arch)")
+            raise UserError(
+                f"warm_start.policy {path}: {name} is {tuple(value.shape)}, PPO's here "
+                f"{tuple(target[name].shape)} (another net_arch)"
+            )
         loaded[name] = value
     absent = sorted(set(target) - set(loaded))
     if absent:
@@ -68,5 +79,9 @@ def start_from_policy(sb3_policy: Any, cfg: EnvConfig, path: str | Path, log_std
     if log_std is not None:
         with torch.no_grad():
             sb3_policy.log_std.fill_(log_std)
-    return {"policy": str(path), "policy_sha256": file_sha256(path), "inputs_kept": len(columns),
-            "inputs_new": layout.size - len(columns)}
+    return {
+        "policy": str(path),
+        "policy_sha256": file_sha256(path),
+        "inputs_kept": len(columns),
+        "inputs_new": layout.size - len(columns),
+    }

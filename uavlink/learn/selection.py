@@ -51,7 +51,10 @@ def keep_best_callback(cfg: EnvConfig, episodes: int, seed: int):
 
         def _score(self) -> None:
             policy = ActorPolicy(self.model.policy, layout, "training")
-            point = (int(self.num_timesteps), round(validation_rate_mbps(policy, cfg, episodes, seed), 6))
+            point = (
+                int(self.num_timesteps),
+                round(validation_rate_mbps(policy, cfg, episodes, seed), 6),
+            )
             self.curve.append(point)
             if self.kept is None or point[1] > self.kept[1]:
                 self.kept, self._best_state = point, copy.deepcopy(self.model.policy.state_dict())
@@ -68,8 +71,13 @@ def keep_best_callback(cfg: EnvConfig, episodes: int, seed: int):
 
         def report(self) -> dict[str, Any]:
             """The manifest's ``training.validation``."""
-            return {"episodes": episodes, "stream": VALIDATION.name, "seed": seed,
-                    "kept_steps": self.kept[0], "kept_mbps": self.kept[1],
-                    "curve": [list(point) for point in self.curve]}
+            return {
+                "episodes": episodes,
+                "stream": VALIDATION.name,
+                "seed": seed,
+                "kept_steps": self.kept[0],
+                "kept_mbps": self.kept[1],
+                "curve": [list(point) for point in self.curve],
+            }
 
     return KeepBest()

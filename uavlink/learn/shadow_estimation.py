@@ -24,7 +24,9 @@ from uavlink.policies.baselines import AoaPolicy
 from uavlink.rollout import chunks
 from uavlink.seeding import SHADOW, SHADOW_HELD_OUT, SHADOW_HELD_OUT_HOVERS, SHADOW_HOVERS
 
-HOVER_PROBABILITY = 0.3  # the data's rule hovers at random in this share of frames, so both are seen
+HOVER_PROBABILITY = (
+    0.3  # the data's rule hovers at random in this share of frames, so both are seen
+)
 RIDGE = 1.0  # L2 penalty on the weights (features are O(1) to O(10))
 
 
@@ -37,9 +39,18 @@ def shadow_features(layout: ObservationLayout, obs: np.ndarray) -> np.ndarray:
     uav_xy_m = layout.uav_xy_m_history(obs)
     displacement_m = np.linalg.norm(uav_xy_m[:, :-1] - uav_xy_m[:, 1:], axis=2)
     jump_db = sinr_db[:, :1] - sinr_db[:, 1:]
-    return np.concatenate([sinr_db.reshape(n, -1), jump_db.reshape(n, -1), sinr_db.mean(axis=2),
-                           jump_db.mean(axis=2), displacement_m, layout.aoa_feature_history(obs).reshape(n, -1),
-                           np.ones((n, 1))], axis=1)
+    return np.concatenate(
+        [
+            sinr_db.reshape(n, -1),
+            jump_db.reshape(n, -1),
+            sinr_db.mean(axis=2),
+            jump_db.mean(axis=2),
+            displacement_m,
+            layout.aoa_feature_history(obs).reshape(n, -1),
+            np.ones((n, 1)),
+        ],
+        axis=1,
+    )
 
 
 @dataclass(frozen=True)
@@ -68,11 +79,15 @@ class RandomHovers:
         return np.where(hover[:, None], self.rule.hover, self.rule.act(obs))
 
 
-def shadow_dataset(cfg: EnvConfig, episodes: int, seed: int, held_out: bool = False) -> tuple[np.ndarray, np.ndarray]:
+def shadow_dataset(
+    cfg: EnvConfig, episodes: int, seed: int, held_out: bool = False
+) -> tuple[np.ndarray, np.ndarray]:
     """(features, mean shadowing dB) of every frame with a full memory, from ``episodes`` seeded
     episodes flown by the aoa rule with random hovers; ``held_out`` draws another set of episodes."""
     rule, layout = AoaPolicy(cfg), ObservationLayout.for_config(cfg)
-    stream, hovers = (SHADOW_HELD_OUT, SHADOW_HELD_OUT_HOVERS) if held_out else (SHADOW, SHADOW_HOVERS)
+    stream, hovers = (
+        (SHADOW_HELD_OUT, SHADOW_HELD_OUT_HOVERS) if held_out else (SHADOW, SHADOW_HOVERS)
+    )
     features, targets = [], []
     for chunk in chunks(cfg, stream, episodes, seed):
         for frame in chunk.frames(RandomHovers(rule, hovers.generator(seed, chunk.index))):

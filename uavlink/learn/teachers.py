@@ -46,8 +46,13 @@ class AoaVariant(AoaPolicy):
     mostly a good shadowing draw). With one: where the estimated mean shadowing is above the gate.
     """
 
-    def __init__(self, cfg: EnvConfig, sinr_span_db: float = AoaPolicy.sinr_span_db,
-                 shadow_gate_db: float | None = None, shadow_estimator: ShadowEstimate | None = None) -> None:
+    def __init__(
+        self,
+        cfg: EnvConfig,
+        sinr_span_db: float = AoaPolicy.sinr_span_db,
+        shadow_gate_db: float | None = None,
+        shadow_estimator: ShadowEstimate | None = None,
+    ) -> None:
         super().__init__(cfg)
         if shadow_gate_db is not None and cfg.memory < 2:
             raise UserError("the aoa rule's shadow gate compares frames: it needs memory >= 2")
@@ -64,7 +69,9 @@ class AoaVariant(AoaPolicy):
         if self.shadow_estimator is not None:
             lucky = self.shadow_estimator.predict_db(obs) > self.shadow_gate_db
         else:
-            mean_sinr_db = self.layout.sinr_db_history(obs).mean(axis=2)  # (N, memory), newest first
+            mean_sinr_db = self.layout.sinr_db_history(obs).mean(
+                axis=2
+            )  # (N, memory), newest first
             lucky = mean_sinr_db[:, 0] > mean_sinr_db[:, 1:].mean(axis=1) + self.shadow_gate_db
         return np.where(lucky[:, None], self.hover, action)
 
@@ -81,14 +88,23 @@ class TrueAoaTeacher:
 
     def act(self, obs: np.ndarray, truth: GroundTruth | None = None) -> np.ndarray:
         if truth is None:
-            raise ValueError("the true-AoA teacher needs ground truth; it cannot fly from MAVLink data")
-        aoa_mean_deg, _ = circular_mean_std_deg(true_aoa_deg(truth.uav_xy_m[:, None, :], truth.ue_xy_m))
+            raise ValueError(
+                "the true-AoA teacher needs ground truth; it cannot fly from MAVLink data"
+            )
+        aoa_mean_deg, _ = circular_mean_std_deg(
+            true_aoa_deg(truth.uav_xy_m[:, None, :], truth.ue_xy_m)
+        )
         return self.rule.act_towards(obs, aoa_mean_deg)
 
 
-def make_teacher(cfg: EnvConfig, teacher: str, shadow_gate_db: float | None = None,
-                 sinr_span_db: float | None = None, shadow_estimator: ShadowEstimate | None = None,
-                 leader_policy: str = "") -> Any:
+def make_teacher(
+    cfg: EnvConfig,
+    teacher: str,
+    shadow_gate_db: float | None = None,
+    sinr_span_db: float | None = None,
+    shadow_estimator: ShadowEstimate | None = None,
+    leader_policy: str = "",
+) -> Any:
     """The warm start's teacher named ``teacher``: the aoa rule (or its variant, when
     ``shadow_gate_db``, ``sinr_span_db`` or ``shadow_estimator`` is set) on the true AoAs, a
     fleet's ``solo`` or ``lead`` teacher (the latter's leader flies ``leader_policy``, a single-UAV
@@ -96,8 +112,12 @@ def make_teacher(cfg: EnvConfig, teacher: str, shadow_gate_db: float | None = No
     takes is refused by ``WarmStartConfig``'s own checks, as ``uavlink train`` refuses it."""
     if teacher not in TEACHER_NAMES:
         raise UserError(f"unknown teacher {teacher!r}; choose from {', '.join(TEACHER_NAMES)}")
-    ws = WarmStartConfig(teacher=teacher, shadow_gate_db=shadow_gate_db, sinr_span_db=sinr_span_db,
-                         leader_policy=leader_policy).validate()
+    ws = WarmStartConfig(
+        teacher=teacher,
+        shadow_gate_db=shadow_gate_db,
+        sinr_span_db=sinr_span_db,
+        leader_policy=leader_policy,
+    ).validate()
     ws.check_env(cfg)
     if shadow_estimator is not None and shadow_gate_db is None:
         raise UserError("a shadow estimator needs the gate's threshold (shadow_gate_db)")
@@ -108,11 +128,17 @@ def make_teacher(cfg: EnvConfig, teacher: str, shadow_gate_db: float | None = No
     if teacher != "aoa":
         return make_baseline(teacher, cfg)
     if cfg.n_uavs > 1:  # a fleet's aoa rule, with its speed span replaced if asked
-        return make_baseline(teacher, cfg) if sinr_span_db is None else FleetAoaPolicy(cfg, sinr_span_db=sinr_span_db)
+        return (
+            make_baseline(teacher, cfg)
+            if sinr_span_db is None
+            else FleetAoaPolicy(cfg, sinr_span_db=sinr_span_db)
+        )
     if shadow_gate_db is None and sinr_span_db is None:
         return TrueAoaTeacher(AoaPolicy(cfg))
     span = {} if sinr_span_db is None else {"sinr_span_db": sinr_span_db}
-    return TrueAoaTeacher(AoaVariant(cfg, shadow_gate_db=shadow_gate_db, shadow_estimator=shadow_estimator, **span))
+    return TrueAoaTeacher(
+        AoaVariant(cfg, shadow_gate_db=shadow_gate_db, shadow_estimator=shadow_estimator, **span)
+    )
 
 
 def warm_start_teacher(cfg: EnvConfig, tc: TrainConfig) -> tuple[Any, Any]:
@@ -124,7 +150,9 @@ def warm_start_teacher(cfg: EnvConfig, tc: TrainConfig) -> tuple[Any, Any]:
         from uavlink.learn.shadow_estimation import fit_shadow_estimator
 
         estimator = fit_shadow_estimator(cfg, ws.shadow_estimator_episodes, tc.seed)
-    return make_teacher(cfg, ws.teacher, ws.shadow_gate_db, ws.sinr_span_db, estimator, ws.leader_policy), estimator
+    return make_teacher(
+        cfg, ws.teacher, ws.shadow_gate_db, ws.sinr_span_db, estimator, ws.leader_policy
+    ), estimator
 
 
 def policy_teacher(policy: Any, cfg: EnvConfig) -> tuple[Any | None, str]:
@@ -138,8 +166,15 @@ def policy_teacher(policy: Any, cfg: EnvConfig) -> tuple[Any | None, str]:
         return None, f"the weights of {ws.policy}"
     if not ws.teacher:
         return None, "no warm start"
-    knobs = [f"{k} {v:g}" for k, v in (("span", ws.sinr_span_db), ("gate", ws.shadow_gate_db),
-                                       ("estimator", ws.shadow_estimator_episodes)) if v is not None]
+    knobs = [
+        f"{k} {v:g}"
+        for k, v in (
+            ("span", ws.sinr_span_db),
+            ("gate", ws.shadow_gate_db),
+            ("estimator", ws.shadow_estimator_episodes),
+        )
+        if v is not None
+    ]
     return warm_start_teacher(cfg, tc)[0], ws.teacher + (f" ({', '.join(knobs)})" if knobs else "")
 
 

@@ -18,14 +18,25 @@ import numpy as np
 
 from uavlink.config import PAPER_HYPERPARAMETERS, EnvConfig, TrainConfig
 
-__all__ = ["check_checkpoint", "make_model", "save_checkpoint", "time_to_fraction", "train", "training_env_config"]
+__all__ = [
+    "check_checkpoint",
+    "make_model",
+    "save_checkpoint",
+    "time_to_fraction",
+    "train",
+    "training_env_config",
+]
 
 
 def training_env_config(cfg: EnvConfig, tc: TrainConfig) -> EnvConfig:
     """The env PPO trains in: the policy's env ``cfg`` plus the training's AoA noise randomisation
     (``tc.aoa_noise_max_deg`` into ``RadioConfig.aoa_noise_max_deg``, which the env core reads). The
     manifest keeps ``cfg``: the randomisation is the training's, not the policy's env."""
-    return cfg.replace(aoa_noise_max_deg=tc.aoa_noise_max_deg).validate() if tc.aoa_noise_max_deg else cfg
+    return (
+        cfg.replace(aoa_noise_max_deg=tc.aoa_noise_max_deg).validate()
+        if tc.aoa_noise_max_deg
+        else cfg
+    )
 
 
 def make_model(cfg: EnvConfig, tc: TrainConfig, run_dir: Path | None):
@@ -39,7 +50,11 @@ def make_model(cfg: EnvConfig, tc: TrainConfig, run_dir: Path | None):
         # cut-off return from a critic that sees no episode clock (docs/design.md, "PPO settings")
         logging.getLogger(__name__).warning(
             "train.n_steps=%d is not a multiple of env.episode_frames=%d: rollouts cut episodes, which "
-            "biases PPO's advantages; set --n-steps %d", tc.n_steps, cfg.episode_frames, cfg.episode_frames)
+            "biases PPO's advantages; set --n-steps %d",
+            tc.n_steps,
+            cfg.episode_frames,
+            cfg.episode_frames,
+        )
     torch.set_num_threads(tc.torch_threads)
     env = UavVecEnv(training_env_config(cfg, tc), n_envs=tc.n_envs, seed=tc.seed)
     if tc.normalize_reward:
@@ -48,15 +63,31 @@ def make_model(cfg: EnvConfig, tc: TrainConfig, run_dir: Path | None):
         env = VecNormalize(env, norm_obs=False, norm_reward=True, gamma=tc.gamma)
     arch = list(tc.net_arch)
     return PPO(
-        "MlpPolicy", env, **ppo_settings(tc), policy_kwargs={"net_arch": {"pi": arch, "vf": arch}}, seed=tc.seed,
-        device="cpu", tensorboard_log=str(run_dir) if run_dir else None, verbose=0,
+        "MlpPolicy",
+        env,
+        **ppo_settings(tc),
+        policy_kwargs={"net_arch": {"pi": arch, "vf": arch}},
+        seed=tc.seed,
+        device="cpu",
+        tensorboard_log=str(run_dir) if run_dir else None,
+        verbose=0,
     )
 
 
 # PPO's settings from TrainConfig (same names on both): a new model's, and what a resumed model takes
 # from the command rather than from its checkpoint.
-PPO_SETTINGS = ("learning_rate", "n_steps", "batch_size", "n_epochs", "gamma", "gae_lambda", "clip_range",
-                "ent_coef", "vf_coef", "max_grad_norm")
+PPO_SETTINGS = (
+    "learning_rate",
+    "n_steps",
+    "batch_size",
+    "n_epochs",
+    "gamma",
+    "gae_lambda",
+    "clip_range",
+    "ent_coef",
+    "vf_coef",
+    "max_grad_norm",
+)
 
 
 def ppo_settings(tc: TrainConfig) -> dict[str, float | int]:
@@ -76,29 +107,44 @@ def check_checkpoint(resume: Path, cfg: EnvConfig, tc: TrainConfig) -> None:
     if not resume.is_file():
         raise UserError(f"--resume {resume}: no such checkpoint")
     if not zipfile.is_zipfile(resume):
-        raise UserError(f"--resume {resume}: not a checkpoint (an SB3 zip such as RUN_DIR/checkpoint.zip)")
+        raise UserError(
+            f"--resume {resume}: not a checkpoint (an SB3 zip such as RUN_DIR/checkpoint.zip)"
+        )
     with zipfile.ZipFile(resume) as archive:
         members = archive.namelist()
     if "data" not in members:
-        raise UserError(f"--resume {resume}: not a checkpoint (an SB3 zip such as RUN_DIR/checkpoint.zip)")
+        raise UserError(
+            f"--resume {resume}: not a checkpoint (an SB3 zip such as RUN_DIR/checkpoint.zip)"
+        )
     data, _, _ = load_from_zip_file(resume, device="cpu", load_data=True)
     size, ours = data["observation_space"].shape[0], ObservationLayout.for_config(cfg).size
     if size != ours:
-        raise UserError(f"--resume {resume}: its observation has {size} values, this env's {ours}: "
-                        f"resume in the env it was trained in (the same --scenario family and --set)")
+        raise UserError(
+            f"--resume {resume}: its observation has {size} values, this env's {ours}: "
+            f"resume in the env it was trained in (the same --scenario family and --set)"
+        )
     arch = list((data.get("policy_kwargs") or {}).get("net_arch", {}).get("pi", []))
     if arch != list(tc.net_arch):
-        raise UserError(f"--resume {resume}: its network is {arch}, not --net-arch {list(tc.net_arch)}")
+        raise UserError(
+            f"--resume {resume}: its network is {arch}, not --net-arch {list(tc.net_arch)}"
+        )
 
 
-def _resumed(model: Any, resume: Path, cfg: EnvConfig, tc: TrainConfig, run_dir: Path | None) -> Any:
+def _resumed(
+    model: Any, resume: Path, cfg: EnvConfig, tc: TrainConfig, run_dir: Path | None
+) -> Any:
     """The checkpoint ``resume`` loaded into ``model``'s env with ``tc``'s PPO settings (SB3 keeps the
     checkpoint's own unless told; the manifest records ``tc``'s)."""
     from stable_baselines3 import PPO
 
     check_checkpoint(resume, cfg, tc)
-    return PPO.load(resume, env=model.get_env(), device="cpu", custom_objects=ppo_settings(tc),
-                    tensorboard_log=str(run_dir) if run_dir else None)
+    return PPO.load(
+        resume,
+        env=model.get_env(),
+        device="cpu",
+        custom_objects=ppo_settings(tc),
+        tensorboard_log=str(run_dir) if run_dir else None,
+    )
 
 
 def save_checkpoint(model: Any, run_dir: Path) -> Path:
@@ -126,13 +172,22 @@ def _callback(total: int, run_dir: Path | None, checkpoint_every: int, progress:
                 from tqdm.auto import tqdm
 
                 # disable=None: no bar when stderr is not a terminal (logs, pipes, CI)
-                self._bar = tqdm(total=total, initial=self.num_timesteps, unit="step", dynamic_ncols=True,
-                                 disable=None)
+                self._bar = tqdm(
+                    total=total,
+                    initial=self.num_timesteps,
+                    unit="step",
+                    dynamic_ncols=True,
+                    disable=None,
+                )
 
         def _on_step(self) -> bool:
             # Fixed-length episodes end together: look at the infos only on a step where some did.
             done = self.locals["dones"].any()
-            rates = [i["episode"]["mean_rate_mbps"] for i in self.locals["infos"] if "episode" in i] if done else []
+            rates = (
+                [i["episode"]["mean_rate_mbps"] for i in self.locals["infos"] if "episode" in i]
+                if done
+                else []
+            )
             if rates:
                 mean = float(np.mean(rates))
                 self.curve.append((int(self.num_timesteps), round(mean, 4)))
@@ -155,7 +210,9 @@ def _callback(total: int, run_dir: Path | None, checkpoint_every: int, progress:
     return TrainingMonitor()
 
 
-def time_to_fraction(curve: list[tuple[int, float]], fraction: float = 0.95, window: int = 10) -> int | None:
+def time_to_fraction(
+    curve: list[tuple[int, float]], fraction: float = 0.95, window: int = 10
+) -> int | None:
     """First step at which the moving average of episode throughput reaches ``fraction`` of its final value."""
     if len(curve) < window:
         return None
@@ -192,15 +249,23 @@ def _warm_start(sb3_policy: Any, cfg: EnvConfig, tc: TrainConfig) -> dict[str, A
         return start_from_policy(sb3_policy, cfg, ws.policy, ws.log_std)
     teacher, estimator = warm_start_teacher(cfg, tc)
     epochs = CLONE_EPOCHS if ws.epochs is None else ws.epochs
-    report = warm_start(sb3_policy, cfg, teacher, ws.episodes, tc.seed, epochs=epochs,
-                        log_std=ws.log_std).to_dict()
+    report = warm_start(
+        sb3_policy, cfg, teacher, ws.episodes, tc.seed, epochs=epochs, log_std=ws.log_std
+    ).to_dict()
     if estimator is not None:
         report["shadow_estimator_r2"] = round(estimator.r2, 4)
     return report
 
 
-def train(cfg: EnvConfig, tc: TrainConfig, out: Path, run_dir: Path | None = None,
-          resume: Path | None = None, progress: bool = True, callbacks: Sequence[Any] = ()) -> dict[str, Any]:
+def train(
+    cfg: EnvConfig,
+    tc: TrainConfig,
+    out: Path,
+    run_dir: Path | None = None,
+    resume: Path | None = None,
+    progress: bool = True,
+    callbacks: Sequence[Any] = (),
+) -> dict[str, Any]:
     """Train, save ``out`` (SB3 zip with manifest) and return the manifest's training section.
     ``tc`` is validated against ``cfg`` here, so a bad setting fails before any work. ``callbacks``:
     extra SB3 callbacks that only observe (benchmarks/train_throughput.py times the loop with one)."""
@@ -236,14 +301,20 @@ def train(cfg: EnvConfig, tc: TrainConfig, out: Path, run_dir: Path | None = Non
         callbacks.append(keep_best)  # last: the weights it leaves are the ones saved
     try:
         with _without_distribution_checks():
-            model.learn(total_timesteps=total_timesteps - model.num_timesteps, callback=callbacks,
-                        reset_num_timesteps=resume is None, tb_log_name="ppo")
+            model.learn(
+                total_timesteps=total_timesteps - model.num_timesteps,
+                callback=callbacks,
+                reset_num_timesteps=resume is None,
+                tb_log_name="ppo",
+            )
     except KeyboardInterrupt:
         if run_dir is None:
             raise
         checkpoint = save_checkpoint(model, run_dir)
-        raise KeyboardInterrupt(f"checkpoint at {model.num_timesteps:,} steps in {checkpoint}; "
-                                f"--resume {checkpoint} continues") from None
+        raise KeyboardInterrupt(
+            f"checkpoint at {model.num_timesteps:,} steps in {checkpoint}; "
+            f"--resume {checkpoint} continues"
+        ) from None
     wall_s = time.perf_counter() - start
     out.parent.mkdir(parents=True, exist_ok=True)
     tmp = out.with_name(out.stem + ".partial.zip")

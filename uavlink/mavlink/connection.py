@@ -27,7 +27,8 @@ def normalize_connection(url: str) -> str:
     if not sep or scheme not in _LISTEN and scheme not in _SEND:
         raise ValueError(
             f"unsupported connection {url!r}: use udp:HOST:PORT, udpout:HOST:PORT, udp:PORT, "
-            "udpin://HOST:PORT, udpout://HOST:PORT, tcp:HOST:PORT or tcpin:HOST:PORT")
+            "udpin://HOST:PORT, udpout://HOST:PORT, tcp:HOST:PORT or tcpin:HOST:PORT"
+        )
     if rest.startswith("//"):
         rest = rest[2:]
     host, colon, port_text = rest.rpartition(":")

@@ -55,6 +55,8 @@ class GeoOrigin:
         cos_c = max(-1.0, min(1.0, cos_c))
         c = math.acos(cos_c)
         k = 1.0 if c == 0.0 else c / math.sin(c)
-        north = k * (math.cos(lat0) * math.sin(lat) - math.sin(lat0) * math.cos(lat) * math.cos(dlon))
+        north = k * (
+            math.cos(lat0) * math.sin(lat) - math.sin(lat0) * math.cos(lat) * math.cos(dlon)
+        )
         east = k * math.cos(lat) * math.sin(dlon)
         return north * EARTH_RADIUS_M, east * EARTH_RADIUS_M

@@ -25,8 +25,15 @@ FENCE = 1  # MAV_MISSION_TYPE_FENCE
 RALLY = 2  # MAV_MISSION_TYPE_RALLY
 MISSION_TYPES = (MISSION, FENCE, RALLY)
 TYPE_NAMES = {MISSION: "mission", FENCE: "fence", RALLY: "rally"}
-MISSION_REPLIES = ("MISSION_COUNT", "MISSION_ITEM", "MISSION_ITEM_INT", "MISSION_REQUEST",
-                   "MISSION_REQUEST_INT", "MISSION_ACK", "MISSION_CURRENT")
+MISSION_REPLIES = (
+    "MISSION_COUNT",
+    "MISSION_ITEM",
+    "MISSION_ITEM_INT",
+    "MISSION_REQUEST",
+    "MISSION_REQUEST_INT",
+    "MISSION_ACK",
+    "MISSION_CURRENT",
+)
 ANSWER_TIMEOUT_S = 1.5  # QGC PlanManager::_ackTimeoutMilliseconds
 RETRIES = 5  # QGC PlanManager::_maxRetryCount
 
@@ -71,30 +78,75 @@ def item_from_message(msg: Any) -> MissionItem:
     if msg.get_type() == "MISSION_ITEM":
         scale = 1e7 if msg.frame in GLOBAL_FRAMES else 1.0
         x, y = round(x * scale), round(y * scale)
-    return MissionItem(int(msg.seq), int(msg.frame), int(msg.command), float(msg.param1),
-                       float(msg.param2), float(msg.param3), float(msg.param4), int(x), int(y),
-                       float(msg.z), int(msg.autocontinue), int(getattr(msg, "mission_type", 0)))
+    return MissionItem(
+        int(msg.seq),
+        int(msg.frame),
+        int(msg.command),
+        float(msg.param1),
+        float(msg.param2),
+        float(msg.param3),
+        float(msg.param4),
+        int(x),
+        int(y),
+        float(msg.z),
+        int(msg.autocontinue),
+        int(getattr(msg, "mission_type", 0)),
+    )
 
 
-def send_item(mav: Any, item: MissionItem, target_system: int, target_component: int,
-              int_mode: bool = True, current: bool = False) -> None:
+def send_item(
+    mav: Any,
+    item: MissionItem,
+    target_system: int,
+    target_component: int,
+    int_mode: bool = True,
+    current: bool = False,
+) -> None:
     """Send ``item`` as MISSION_ITEM_INT (``int_mode``) or as the legacy float MISSION_ITEM."""
     if int_mode:
-        mav.mission_item_int_send(target_system, target_component, item.seq, item.frame,
-                                  item.command, int(current), item.autocontinue, item.param1,
-                                  item.param2, item.param3, item.param4, item.x, item.y, item.z,
-                                  item.mission_type)
+        mav.mission_item_int_send(
+            target_system,
+            target_component,
+            item.seq,
+            item.frame,
+            item.command,
+            int(current),
+            item.autocontinue,
+            item.param1,
+            item.param2,
+            item.param3,
+            item.param4,
+            item.x,
+            item.y,
+            item.z,
+            item.mission_type,
+        )
         return
     scale = 1e-7 if item.frame in GLOBAL_FRAMES else 1.0
-    mav.mission_item_send(target_system, target_component, item.seq, item.frame, item.command,
-                          int(current), item.autocontinue, item.param1, item.param2, item.param3,
-                          item.param4, item.x * scale, item.y * scale, item.z, item.mission_type)
+    mav.mission_item_send(
+        target_system,
+        target_component,
+        item.seq,
+        item.frame,
+        item.command,
+        int(current),
+        item.autocontinue,
+        item.param1,
+        item.param2,
+        item.param3,
+        item.param4,
+        item.x * scale,
+        item.y * scale,
+        item.z,
+        item.mission_type,
+    )
 
 
 def pymavlink_recv(conn: Any) -> MissionRecv:
     """A :data:`MissionRecv` reading the mission messages of a pymavlink connection."""
-    return lambda timeout_s: conn.recv_match(type=list(MISSION_REPLIES), blocking=True,
-                                             timeout=timeout_s)
+    return lambda timeout_s: conn.recv_match(
+        type=list(MISSION_REPLIES), blocking=True, timeout=timeout_s
+    )
 
 
 class MissionClient:
@@ -107,8 +159,15 @@ class MissionClient:
     request of a download.
     """
 
-    def __init__(self, mav: Any, recv: MissionRecv, target_system: int, target_component: int = 1,
-                 timeout_s: float = ANSWER_TIMEOUT_S, retries: int = RETRIES) -> None:
+    def __init__(
+        self,
+        mav: Any,
+        recv: MissionRecv,
+        target_system: int,
+        target_component: int = 1,
+        timeout_s: float = ANSWER_TIMEOUT_S,
+        retries: int = RETRIES,
+    ) -> None:
         self.mav = mav
         self.recv = recv
         self.target_system = target_system
@@ -131,17 +190,24 @@ class MissionClient:
 
         self._send_count(len(items), mission_type)
         while True:
-            msg = self._await(("MISSION_REQUEST_INT", "MISSION_REQUEST", "MISSION_ACK"),
-                              mission_type, resend, what)
+            msg = self._await(
+                ("MISSION_REQUEST_INT", "MISSION_REQUEST", "MISSION_ACK"),
+                mission_type,
+                resend,
+                what,
+            )
             if msg.get_type() == "MISSION_ACK":
                 done = not items or last_sent == len(items) - 1
                 if msg.type == mavlink.MAV_MISSION_ACCEPTED and done:
                     return
-                raise MissionTransferError(f"vehicle refused the {what}: "
-                                           f"{enum_name('MAV_MISSION_RESULT', msg.type)}", msg.type)
+                raise MissionTransferError(
+                    f"vehicle refused the {what}: {enum_name('MAV_MISSION_RESULT', msg.type)}",
+                    msg.type,
+                )
             if not 0 <= msg.seq < len(items):
-                raise MissionTransferError(f"vehicle asked for item {msg.seq} of {len(items)} "
-                                           f"in the {what}")
+                raise MissionTransferError(
+                    f"vehicle asked for item {msg.seq} of {len(items)} in the {what}"
+                )
             last_sent = msg.seq
             self._send(items[msg.seq], msg.get_type() == "MISSION_REQUEST_INT")
 
@@ -150,17 +216,26 @@ class MissionClient:
         what = f"{TYPE_NAMES.get(mission_type, mission_type)} download"
         ts, tc = self.target_system, self.target_component
         self.mav.mission_request_list_send(ts, tc, mission_type)
-        count = self._await(("MISSION_COUNT",), mission_type,
-                            lambda: self.mav.mission_request_list_send(ts, tc, mission_type),
-                            what).count
+        count = self._await(
+            ("MISSION_COUNT",),
+            mission_type,
+            lambda: self.mav.mission_request_list_send(ts, tc, mission_type),
+            what,
+        ).count
         items: list[MissionItem] = []
         for seq in range(count):
+
             def request(seq: int = seq) -> None:
                 self.mav.mission_request_int_send(ts, tc, seq, mission_type)
 
             request()
-            msg = self._await(("MISSION_ITEM_INT", "MISSION_ITEM"), mission_type, request, what,
-                              lambda m, seq=seq: m.seq == seq)
+            msg = self._await(
+                ("MISSION_ITEM_INT", "MISSION_ITEM"),
+                mission_type,
+                request,
+                what,
+                lambda m, seq=seq: m.seq == seq,
+            )
             items.append(item_from_message(msg))
         self.mav.mission_ack_send(ts, tc, mavlink.MAV_MISSION_ACCEPTED, mission_type)
         return items
@@ -170,19 +245,28 @@ class MissionClient:
         ts, tc = self.target_system, self.target_component
         self.mav.mission_clear_all_send(ts, tc, mission_type)
         what = f"{TYPE_NAMES.get(mission_type, mission_type)} clear"
-        ack = self._await(("MISSION_ACK",), mission_type,
-                          lambda: self.mav.mission_clear_all_send(ts, tc, mission_type), what)
+        ack = self._await(
+            ("MISSION_ACK",),
+            mission_type,
+            lambda: self.mav.mission_clear_all_send(ts, tc, mission_type),
+            what,
+        )
         if ack.type != mavlink.MAV_MISSION_ACCEPTED:
-            raise MissionTransferError(f"vehicle refused the {what}: {enum_name('MAV_MISSION_RESULT', ack.type)}",
-                                       ack.type)
+            raise MissionTransferError(
+                f"vehicle refused the {what}: {enum_name('MAV_MISSION_RESULT', ack.type)}", ack.type
+            )
 
     def set_current(self, seq: int) -> None:
         """MISSION_SET_CURRENT, until a MISSION_CURRENT shows ``seq``."""
         ts, tc = self.target_system, self.target_component
         self.mav.mission_set_current_send(ts, tc, seq)
-        self._await(("MISSION_CURRENT",), None,
-                    lambda: self.mav.mission_set_current_send(ts, tc, seq),
-                    f"set current item {seq}", lambda m: m.seq == seq)
+        self._await(
+            ("MISSION_CURRENT",),
+            None,
+            lambda: self.mav.mission_set_current_send(ts, tc, seq),
+            f"set current item {seq}",
+            lambda m: m.seq == seq,
+        )
 
     # ---------------------------------------------------------------------------- helpers
     def _send_count(self, count: int, mission_type: int) -> None:
@@ -191,9 +275,14 @@ class MissionClient:
     def _send(self, item: MissionItem, int_mode: bool) -> None:
         send_item(self.mav, item, self.target_system, self.target_component, int_mode)
 
-    def _await(self, kinds: tuple[str, ...], mission_type: int | None,
-               resend: Callable[[], None], what: str,
-               accept: Callable[[Any], bool] = lambda m: True) -> Any:
+    def _await(
+        self,
+        kinds: tuple[str, ...],
+        mission_type: int | None,
+        resend: Callable[[], None],
+        what: str,
+        accept: Callable[[Any], bool] = lambda m: True,
+    ) -> Any:
         """The next message of ``kinds`` for us (and of ``mission_type``) that ``accept`` takes;
         ``resend()`` after each unanswered wait; MissionTransferError after ``retries`` of them."""
         me = self.mav.srcSystem
@@ -201,12 +290,15 @@ class MissionClient:
             deadline = time.monotonic() + self.timeout_s
             while (left := deadline - time.monotonic()) > 0:
                 msg = self.recv(left)
-                if msg is not None and (msg.get_type() in kinds and msg.get_srcSystem() == self.target_system
-                        and getattr(msg, "target_system", me) in (0, me)
-                        and (mission_type is None
-                             or getattr(msg, "mission_type", 0) == mission_type)
-                        and accept(msg)):
+                if msg is not None and (
+                    msg.get_type() in kinds
+                    and msg.get_srcSystem() == self.target_system
+                    and getattr(msg, "target_system", me) in (0, me)
+                    and (mission_type is None or getattr(msg, "mission_type", 0) == mission_type)
+                    and accept(msg)
+                ):
                     return msg
             resend()
-        raise MissionTransferError(f"no answer from the vehicle to the {what} "
-                                   f"after {self.retries} retries")
+        raise MissionTransferError(
+            f"no answer from the vehicle to the {what} after {self.retries} retries"
+        )

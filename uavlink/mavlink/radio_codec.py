@@ -58,7 +58,9 @@ class RadioReport:
     sinr_db: np.ndarray  # (U,)
     aoa_deg: np.ndarray  # (U,)
     running: bool = True
-    serves: np.ndarray | None = None  # (U,) bool: the UEs in this UAV's cell (a fleet's); None: not reported
+    serves: np.ndarray | None = (
+        None  # (U,) bool: the UEs in this UAV's cell (a fleet's); None: not reported
+    )
 
 
 @dataclass(frozen=True)
@@ -72,20 +74,29 @@ def _pad(values: list[float]) -> list[float]:
     return values + [0.0] * (DATA_LEN - len(values))
 
 
-def encode_readings(sinr_db: np.ndarray, aoa_deg: np.ndarray, running: bool,
-                    serves: np.ndarray | None = None) -> list[float]:
+def encode_readings(
+    sinr_db: np.ndarray, aoa_deg: np.ndarray, running: bool, serves: np.ndarray | None = None
+) -> list[float]:
     n = len(sinr_db)
     cell = [] if serves is None else [1.0 if s else -1.0 for s in serves]
     if 2 + 2 * n + len(cell) > DATA_LEN or len(aoa_deg) != n or len(cell) not in (0, n):
-        raise ValueError(f"cannot encode {n} UEs in one DEBUG_FLOAT_ARRAY (max {MAX_UES}, "
-                         f"{(DATA_LEN - 2) // 3} with a fleet's cell flags)")
+        raise ValueError(
+            f"cannot encode {n} UEs in one DEBUG_FLOAT_ARRAY (max {MAX_UES}, "
+            f"{(DATA_LEN - 2) // 3} with a fleet's cell flags)"
+        )
     return _pad([float(n), *map(float, sinr_db), *map(float, aoa_deg), float(running), *cell])
 
 
 def encode_score(rate_bps: np.ndarray, fair_rate: float) -> list[float]:
     n = len(rate_bps)
-    return _pad([float(n), float(np.mean(rate_bps)) * 1e-6, float(fair_rate),
-                 *(float(r) * 1e-6 for r in rate_bps[: DATA_LEN - 3])])
+    return _pad(
+        [
+            float(n),
+            float(np.mean(rate_bps)) * 1e-6,
+            float(fair_rate),
+            *(float(r) * 1e-6 for r in rate_bps[: DATA_LEN - 3]),
+        ]
+    )
 
 
 def _name(msg) -> str:
@@ -99,16 +110,22 @@ def decode_readings(msg, expected_ues: int) -> RadioReport:
     n = data[0]
     if n != expected_ues:
         raise RadioReportError(f"radio report has {n:g} UEs, policy expects {expected_ues}")
-    sinr = np.asarray(data[1:1 + expected_ues], dtype=float)
-    aoa = np.asarray(data[1 + expected_ues:1 + 2 * expected_ues], dtype=float)
+    sinr = np.asarray(data[1 : 1 + expected_ues], dtype=float)
+    aoa = np.asarray(data[1 + expected_ues : 1 + 2 * expected_ues], dtype=float)
     if not (np.isfinite(sinr).all() and np.isfinite(aoa).all()):
         raise RadioReportError("radio report contains NaN or infinite values")
     if (np.abs(aoa) > 180.0).any() or (np.abs(sinr) > 200.0).any():
         raise RadioReportError("radio report values out of range")
-    flags = np.asarray(data[2 + 2 * expected_ues:2 + 3 * expected_ues], dtype=float)
+    flags = np.asarray(data[2 + 2 * expected_ues : 2 + 3 * expected_ues], dtype=float)
     serves = flags > 0 if len(flags) == expected_ues and (flags != 0).any() else None
-    return RadioReport(int(msg.array_id), msg.time_usec * 1e-6, sinr, aoa,
-                       running=data[1 + 2 * expected_ues] == 1.0, serves=serves)
+    return RadioReport(
+        int(msg.array_id),
+        msg.time_usec * 1e-6,
+        sinr,
+        aoa,
+        running=data[1 + 2 * expected_ues] == 1.0,
+        serves=serves,
+    )
 
 
 def decode_score(msg) -> ScoreReport:
@@ -124,8 +141,15 @@ def send_frame_decided(mav, target_system: int, frame: int, decided: bool) -> No
     """FRAME_DECIDED for ``frame`` to the radio payload of ``target_system`` (``mav``: a pymavlink
     ``MAVLink``): a lockstep vehicle lets simulated time go on; no ACK is awaited. ``decided``
     (param2): the policy decided this frame for this vehicle; False: only let go."""
-    mav.command_long_send(target_system, RADIO_COMPONENT_ID, FRAME_DECIDED_COMMAND, 0, float(frame),
-                          1.0 if decided else 0.0, *(float("nan"),) * 5)
+    mav.command_long_send(
+        target_system,
+        RADIO_COMPONENT_ID,
+        FRAME_DECIDED_COMMAND,
+        0,
+        float(frame),
+        1.0 if decided else 0.0,
+        *(float("nan"),) * 5,
+    )
 
 
 def decode_episode(msg) -> tuple[str, int] | None:
@@ -141,5 +165,3 @@ def message_kind(msg) -> str | None:
         return None
     name = _name(msg).rstrip("\x00")
     return {READINGS_NAME: "readings", SCORE_NAME: "score"}.get(name)
-
-

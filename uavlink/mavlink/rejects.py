@@ -36,8 +36,11 @@ class RejectLog:
                 self.reject("bad_data", f"bad MAVLink data ({msg.reason})")
             return False
         if kind.startswith("UNKNOWN"):
-            self.reject("unknown_message", f"unknown message id {msg.get_msgId()}",
-                        key=f"unknown_message_{msg.get_msgId()}")
+            self.reject(
+                "unknown_message",
+                f"unknown message id {msg.get_msgId()}",
+                key=f"unknown_message_{msg.get_msgId()}",
+            )
             return False
         return True
 
@@ -71,5 +74,5 @@ def rescan_bad_frame(mav, msg) -> None:
     data = bytes(msg.data)
     if len(data) < 2:
         return
-    mav.buf = bytearray(data[1:]) + mav.buf[mav.buf_index:]
+    mav.buf = bytearray(data[1:]) + mav.buf[mav.buf_index :]
     mav.buf_index = 0

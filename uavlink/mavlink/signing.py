@@ -73,15 +73,20 @@ def load_key(path: str | os.PathLike[str]) -> bytes:
     except OSError as exc:
         raise SigningKeyError(f"cannot read signing key {p}: {exc.strerror or exc}") from None
     if len(key) != KEY_LEN:
-        raise SigningKeyError(f"signing key {p} has {len(key)} bytes; a key is {KEY_LEN} raw bytes "
-                              "(make one with `uavlink keygen --out FILE`)")
+        raise SigningKeyError(
+            f"signing key {p} has {len(key)} bytes; a key is {KEY_LEN} raw bytes "
+            "(make one with `uavlink keygen --out FILE`)"
+        )
     try:
         mode = p.stat().st_mode
     except OSError:  # pragma: no cover - it was just read
         mode = 0
     if mode & (stat.S_IRWXG | stat.S_IRWXO):
-        log.warning("signing key %s is readable by other users (mode %o); chmod 600 it",
-                    p, stat.S_IMODE(mode))
+        log.warning(
+            "signing key %s is readable by other users (mode %o); chmod 600 it",
+            p,
+            stat.S_IMODE(mode),
+        )
     return key
 
 
@@ -119,9 +124,13 @@ class SigningGuard:
     or from a stream too old to be new. ``clock`` returns Unix seconds (tests pass a fake one).
     """
 
-    def __init__(self, key: bytes, link_id: int = 0,
-                 clock: Callable[[], float] = time.time,
-                 on_first_reject: Callable[[str, str], None] | None = None) -> None:
+    def __init__(
+        self,
+        key: bytes,
+        link_id: int = 0,
+        clock: Callable[[], float] = time.time,
+        on_first_reject: Callable[[str, str], None] | None = None,
+    ) -> None:
         if len(key) != KEY_LEN:
             raise SigningKeyError(f"a signing key is {KEY_LEN} bytes, got {len(key)}")
         if not 0 <= link_id <= 255:

@@ -26,7 +26,9 @@ UE_ICAO_BASE = 0xE0E000
 MAX_TRUTH_UES = 0x1000
 EMITTER_SERVICE_SURFACE = 18  # ADSB_EMITTER_TYPE_SERVICE_SURFACE
 ALTITUDE_GEOMETRIC = 1  # ADSB_ALTITUDE_TYPE_GEOMETRIC
-FLAGS = 1 | 2 | 4 | 8 | 16 | 64  # VALID_COORDS, _ALTITUDE, _HEADING, _VELOCITY, _CALLSIGN, SIMULATED
+FLAGS = (
+    1 | 2 | 4 | 8 | 16 | 64
+)  # VALID_COORDS, _ALTITUDE, _HEADING, _VELOCITY, _CALLSIGN, SIMULATED
 FLAG_SIMULATED = 64
 UE_ANTENNA_HEIGHT_M = 1.5  # TR 38.901 Table 7.4.1-1: UE height 1.5 m outdoors
 
@@ -40,18 +42,30 @@ class UeFix:
     lon_deg: float
 
 
-def adsb_arguments(ue: int, east_m: float, north_m: float, ve_mps: float, vn_mps: float,
-                   origin: GeoOrigin) -> tuple:
+def adsb_arguments(
+    ue: int, east_m: float, north_m: float, ve_mps: float, vn_mps: float, origin: GeoOrigin
+) -> tuple:
     """``MAVLink.adsb_vehicle_send`` arguments for UE ``ue`` at local (east, north) metres."""
     if not 0 <= ue < MAX_TRUTH_UES:
         raise ValueError(f"UE index {ue} outside 0..{MAX_TRUTH_UES - 1}")
     lat, lon = origin.to_global(north_m, east_m)
     speed = math.hypot(ve_mps, vn_mps)
     heading_cdeg = int(round(math.degrees(math.atan2(ve_mps, vn_mps)) * 100)) % 36000
-    return (UE_ICAO_BASE + ue, int(round(lat * 1e7)), int(round(lon * 1e7)), ALTITUDE_GEOMETRIC,
-            int(round((origin.alt_amsl_m + UE_ANTENNA_HEIGHT_M) * 1000)), heading_cdeg,
-            min(int(round(speed * 100)), 65534), 0, f"UE{ue}".encode(), EMITTER_SERVICE_SURFACE,
-            0, FLAGS, 0)
+    return (
+        UE_ICAO_BASE + ue,
+        int(round(lat * 1e7)),
+        int(round(lon * 1e7)),
+        ALTITUDE_GEOMETRIC,
+        int(round((origin.alt_amsl_m + UE_ANTENNA_HEIGHT_M) * 1000)),
+        heading_cdeg,
+        min(int(round(speed * 100)), 65534),
+        0,
+        f"UE{ue}".encode(),
+        EMITTER_SERVICE_SURFACE,
+        0,
+        FLAGS,
+        0,
+    )
 
 
 def decode_ue_fix(msg) -> UeFix | None:

@@ -14,5 +14,12 @@ from uavlink.mobility.scenarios import (
     step_mobility,
 )
 
-__all__ = ["MIXED", "SCENARIOS", "MobilityState", "draw_scenarios", "init_mobility",
-           "scenario_index", "step_mobility"]
+__all__ = [
+    "MIXED",
+    "SCENARIOS",
+    "MobilityState",
+    "draw_scenarios",
+    "init_mobility",
+    "scenario_index",
+    "step_mobility",
+]

@@ -42,7 +42,7 @@ def separate(current_m: np.ndarray, target_m: np.ndarray, min_separation_m: floa
     for d in range(n_uavs):
         start = current_m[:, d]
         move = out[:, d] - start
-        others = np.concatenate([out[:, :d], current_m[:, d + 1:]], axis=1)  # (N, D-1, 2)
+        others = np.concatenate([out[:, :d], current_m[:, d + 1 :]], axis=1)  # (N, D-1, 2)
         # |start - q + t move|^2 = s^2: a t^2 + b t + c = 0, entering at the smaller root.
         rel = start[:, None, :] - others
         a = np.einsum("nk,nk->n", move, move)[:, None]
@@ -59,13 +59,16 @@ def separate(current_m: np.ndarray, target_m: np.ndarray, min_separation_m: floa
         new = start + t[:, None] * move
         # Rounding in a grazing approach can leave the cut point a hair inside: then stay put
         # (the current position respects the minimum by the invariant above).
-        short = (np.einsum("njk,njk->nj", new[:, None, :] - others, new[:, None, :] - others) < s2).any(axis=1)
+        short = (
+            np.einsum("njk,njk->nj", new[:, None, :] - others, new[:, None, :] - others) < s2
+        ).any(axis=1)
         out[:, d] = np.where(short[:, None] & ~inside.any(axis=1)[:, None], start, new)
     return out
 
 
-def apply_moves(current_m: np.ndarray, moves_m: np.ndarray, half_width_m: float,
-                min_separation_m: float) -> np.ndarray:
+def apply_moves(
+    current_m: np.ndarray, moves_m: np.ndarray, half_width_m: float, min_separation_m: float
+) -> np.ndarray:
     """Where UAVs (N, D, 2) at ``current_m`` go for ``moves_m`` (N, D, 2): clipped into the area
     (``|x|, |y| <= half_width_m``), then kept apart by :func:`separate`."""
     target = np.clip(current_m + moves_m, -half_width_m, half_width_m)

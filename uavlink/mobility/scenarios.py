@@ -30,7 +30,9 @@ class MobilityState:
 
 def scenario_index(name: str) -> int:
     if name not in SCENARIOS:
-        raise ValueError(f"unknown scenario {name!r}; choose from {', '.join(SCENARIOS)} or {MIXED}")
+        raise ValueError(
+            f"unknown scenario {name!r}; choose from {', '.join(SCENARIOS)} or {MIXED}"
+        )
     return SCENARIOS.index(name)
 
 
@@ -41,7 +43,9 @@ def draw_scenarios(rng: np.random.Generator, name: str, n_envs: int) -> np.ndarr
     return np.full(n_envs, scenario_index(name))
 
 
-def init_mobility(rng: np.random.Generator, scenario_ids: np.ndarray, cfg: EnvConfig) -> MobilityState:
+def init_mobility(
+    rng: np.random.Generator, scenario_ids: np.ndarray, cfg: EnvConfig
+) -> MobilityState:
     """Initial UE positions and velocities for each env's scenario (indices into ``SCENARIOS``)."""
     n_envs, n_ues = len(scenario_ids), cfg.n_ues
     state = MobilityState(
@@ -100,6 +104,7 @@ def _init_two_clusters(gap_rad: float):
         split = cfg.n_ues // 2
         state.velocity_mps[envs, :split] = cfg.ue_speed_mps * _heading(base)[:, None, :]
         state.velocity_mps[envs, split:] = cfg.ue_speed_mps * _heading(base + gap_rad)[:, None, :]
+
     return init
 
 

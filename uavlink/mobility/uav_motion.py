@@ -27,8 +27,13 @@ class PositionLoop:
     brake_fraction: float = 0.9  # braking curves use 90 % of the acceleration limit
     substep_s: float = 0.02  # sitl_stub's integration step
 
-    def fly(self, position_m: np.ndarray, velocity_mps: np.ndarray, setpoint_m: np.ndarray,
-            duration_s: float) -> tuple[np.ndarray, np.ndarray]:
+    def fly(
+        self,
+        position_m: np.ndarray,
+        velocity_mps: np.ndarray,
+        setpoint_m: np.ndarray,
+        duration_s: float,
+    ) -> tuple[np.ndarray, np.ndarray]:
         """Position and velocity (rows, 2) after flying ``duration_s`` towards ``setpoint_m`` (rows, 2)."""
         pos, vel = position_m.astype(float, copy=True), velocity_mps.astype(float, copy=True)
         left = float(duration_s)
@@ -36,8 +41,10 @@ class PositionLoop:
             h = min(self.substep_s, left)
             error = setpoint_m - pos
             dist = np.hypot(error[:, 0], error[:, 1])
-            speed = np.minimum(np.minimum(self.max_speed_mps, self.gain_per_s * dist),
-                               np.sqrt(2.0 * self.brake_fraction * self.max_accel_mps2 * dist))
+            speed = np.minimum(
+                np.minimum(self.max_speed_mps, self.gain_per_s * dist),
+                np.sqrt(2.0 * self.brake_fraction * self.max_accel_mps2 * dist),
+            )
             wanted = error * (speed / np.maximum(dist, 1e-9))[:, None]
             change = _limit_norm(wanted - vel, self.max_accel_mps2 * h)
             vel = _limit_norm(vel + change, self.max_speed_mps)

@@ -38,8 +38,9 @@ def animate_flight(data: FlightData, out: Path, title: str | None = None) -> Ani
 
     rows = _animated_rows(data)
     fig = new_figure(4.8, 5.9, 80)
-    grid = fig.add_gridspec(2, 1, height_ratios=[4.2, 1.0], hspace=0.35, left=0.16, right=0.96,
-                            top=0.93, bottom=0.09)
+    grid = fig.add_gridspec(
+        2, 1, height_ratios=[4.2, 1.0], hspace=0.35, left=0.16, right=0.96, top=0.93, bottom=0.09
+    )
     ax_map, ax_rate = fig.add_subplot(grid[0]), fig.add_subplot(grid[1])
     scene = _MapScene(ax_map, data)
     rate = data.mean_rate_mbps
@@ -52,7 +53,7 @@ def animate_flight(data: FlightData, out: Path, title: str | None = None) -> Ani
         ax_rate.set_ylim(0, np.nanmax(rate) * 1.1)
     if len(data.frames):
         ax_rate.set_xlim(data.frames[0], max(data.frames[-1], data.frames[0] + 1))
-    done, = ax_rate.plot([], [], "-", color="0.1", lw=1.2)
+    (done,) = ax_rate.plot([], [], "-", color="0.1", lw=1.2)
     cursor = ax_rate.axvline(0, color="#c0392b", lw=1.0)
     heading = fig.suptitle(" ", fontsize=9.5)
     head = title or source_name(data)
@@ -67,7 +68,7 @@ def animate_flight(data: FlightData, out: Path, title: str | None = None) -> Ani
         if row >= 0:
             scene.show(row)
             frame = int(data.frames[row])
-            done.set_data(data.frames[:row + 1], rate[:row + 1])
+            done.set_data(data.frames[: row + 1], rate[: row + 1])
             cursor.set_xdata([frame, frame])
             now = f", {rate[row]:.2f} Mbps" if has_rate and np.isfinite(rate[row]) else ""
             heading.set_text(f"{head}: frame {frame}{now}")
@@ -87,8 +88,16 @@ def animate_flight(data: FlightData, out: Path, title: str | None = None) -> Ani
         images.append(image)
     out = Path(out)
     out.parent.mkdir(parents=True, exist_ok=True)
-    images[0].save(out, save_all=True, append_images=images[1:], duration=FRAME_MS, loop=0,
-                   optimize=False, disposal=1, transparency=TRANSPARENT)
+    images[0].save(
+        out,
+        save_all=True,
+        append_images=images[1:],
+        duration=FRAME_MS,
+        loop=0,
+        optimize=False,
+        disposal=1,
+        transparency=TRANSPARENT,
+    )
     width, height = images[0].size
     return AnimationInfo(out, len(images), width, height, out.stat().st_size)
 
@@ -112,10 +121,16 @@ class _MapScene:
         self.data, self.ax = data, ax
         draw_map(ax, data, upto=-1, bearings=False)  # fence, axes, labels: the still parts
         self.serving = data.serving_uav()
-        self.ue_colours = [tuple(c) for c in ue_colours(max(data.n_ues, data.ue_east_m.shape[1], 1))]
-        self.trails = [ax.plot([], [], "-", color=uav_colour(d), lw=1.6)[0] for d in range(len(data.vehicles))]
-        self.uavs = [ax.plot([], [], "^", ms=9, mfc=uav_colour(d), mec="black", mew=0.8, zorder=6)[0]
-                     for d in range(len(data.vehicles))]
+        self.ue_colours = [
+            tuple(c) for c in ue_colours(max(data.n_ues, data.ue_east_m.shape[1], 1))
+        ]
+        self.trails = [
+            ax.plot([], [], "-", color=uav_colour(d), lw=1.6)[0] for d in range(len(data.vehicles))
+        ]
+        self.uavs = [
+            ax.plot([], [], "^", ms=9, mfc=uav_colour(d), mec="black", mew=0.8, zorder=6)[0]
+            for d in range(len(data.vehicles))
+        ]
         self.tails = LineCollection([], lw=1.0, alpha=0.5)
         self.rays = LineCollection([], lw=0.9, alpha=0.85, zorder=2)
         ax.add_collection(self.tails)
@@ -144,13 +159,19 @@ class _MapScene:
         self.rays.set_segments(rays)
         self.rays.set_colors(ray_colours)
         lo = max(0, row - TAIL_FRAMES)
-        east, north = data.ue_east_m[lo:row + 1], data.ue_north_m[lo:row + 1]
+        east, north = data.ue_east_m[lo : row + 1], data.ue_north_m[lo : row + 1]
         now = np.isfinite(east[-1]) if len(east) else np.zeros(0, bool)
-        cells = self.serving[row, :east.shape[1]] if east.shape[1] <= self.serving.shape[1] else \
-            np.full(east.shape[1], -1)
+        cells = (
+            self.serving[row, : east.shape[1]]
+            if east.shape[1] <= self.serving.shape[1]
+            else np.full(east.shape[1], -1)
+        )
         colours = [uav_colour(c) if c >= 0 else "0.55" for c in cells]
-        self.tails.set_segments([np.column_stack([east[:, u], north[:, u]]) for u in range(east.shape[1])])
+        self.tails.set_segments(
+            [np.column_stack([east[:, u], north[:, u]]) for u in range(east.shape[1])]
+        )
         self.tails.set_colors(colours)
-        self.ues.set_offsets(np.column_stack([east[-1][now], north[-1][now]]) if now.any()
-                             else np.zeros((0, 2)))
+        self.ues.set_offsets(
+            np.column_stack([east[-1][now], north[-1][now]]) if now.any() else np.zeros((0, 2))
+        )
         self.ues.set_facecolors([c for c, ok in zip(colours, now, strict=True) if ok])

@@ -72,14 +72,18 @@ def run_plot(args: argparse.Namespace) -> int:
     if args.json:
         print(json.dumps(drawn, indent=2))
     elif args.gif:
-        print(f"wrote {out} ({drawn['width_px']}x{drawn['height_px']} px, {drawn['frames']} frames, "
-              f"{drawn['bytes'] / 1024:.0f} KiB)")
+        print(
+            f"wrote {out} ({drawn['width_px']}x{drawn['height_px']} px, {drawn['frames']} frames, "
+            f"{drawn['bytes'] / 1024:.0f} KiB)"
+        )
     else:
         # Decision frames, as `fly` counts its frames: a flight of N frames decides frames 0..N-1
         # and shows frame N's readings (the last move's outcome), N + 1 radio frames on the axis.
         span = drawn["frame_span"]
         frames = f" (radio frames {span[0]}-{span[1]})" if span else ""
-        print(f"wrote {out} ({drawn['width_px']}x{drawn['height_px']} px): {drawn['tracks']} UAV "
-              f"track(s), {drawn['ue_tracks']} UE track(s), {drawn['decision_frames']} decision "
-              f"frames{frames}" + (f"; {'; '.join(drawn['notes'])}" if drawn["notes"] else ""))
+        print(
+            f"wrote {out} ({drawn['width_px']}x{drawn['height_px']} px): {drawn['tracks']} UAV "
+            f"track(s), {drawn['ue_tracks']} UE track(s), {drawn['decision_frames']} decision "
+            f"frames{frames}" + (f"; {'; '.join(drawn['notes'])}" if drawn["notes"] else "")
+        )
     return 0

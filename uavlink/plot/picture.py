@@ -19,7 +19,16 @@ import numpy as np
 from uavlink.errors import missing_extra
 from uavlink.plot.tlog import FlightData
 
-UAV_COLOURS = ("#1f4e9c", "#c0392b", "#1e8449", "#7d3c98", "#d35400", "#17a589", "#5d6d7e", "#b7950b")
+UAV_COLOURS = (
+    "#1f4e9c",
+    "#c0392b",
+    "#1e8449",
+    "#7d3c98",
+    "#d35400",
+    "#17a589",
+    "#5d6d7e",
+    "#b7950b",
+)
 
 
 class PlotUnavailable(RuntimeError):
@@ -83,8 +92,11 @@ def _map_extent_m(data: FlightData) -> float:
 
 
 def _frame_s(data: FlightData) -> float | None:
-    times = [np.diff(v.frame_time_s) / np.maximum(np.diff(v.frames), 1) for v in data.vehicles
-             if len(v.frames) > 1]
+    times = [
+        np.diff(v.frame_time_s) / np.maximum(np.diff(v.frames), 1)
+        for v in data.vehicles
+        if len(v.frames) > 1
+    ]
     return float(np.median(np.concatenate(times))) if times else None
 
 
@@ -119,14 +131,24 @@ def draw_map(ax, data: FlightData, upto: int | None = None, bearings: bool = Tru
         ue_tracks += 1
         cell = serving[:rows, ue] if ue < serving.shape[1] else np.full(rows, -1)
         # one piece per stretch under one serving UAV (a handover changes the colour)
-        starts = [i for i in range(rows) if ok[i] and (i == 0 or cell[i] != cell[i - 1] or not ok[i - 1])]
+        starts = [
+            i for i in range(rows) if ok[i] and (i == 0 or cell[i] != cell[i - 1] or not ok[i - 1])
+        ]
         for s, end in zip(starts, [*starts[1:], rows], strict=True):
-            segments.append(np.column_stack([e[s:end + 1], n[s:end + 1]]))
+            segments.append(np.column_stack([e[s : end + 1], n[s : end + 1]]))
             colours.append(uav_colour(cell[s]) if cell[s] >= 0 else "0.55")
         last = np.flatnonzero(ok)[-1]
         ends.append((e[last], n[last], uav_colour(cell[last]) if cell[last] >= 0 else "0.55"))
-        ax.annotate(str(ue), (e[last], n[last]), xytext=(4, 3), textcoords="offset points",
-                    fontsize=7, color=ue_colour[ue], fontweight="bold", zorder=5)
+        ax.annotate(
+            str(ue),
+            (e[last], n[last]),
+            xytext=(4, 3),
+            textcoords="offset points",
+            fontsize=7,
+            color=ue_colour[ue],
+            fontweight="bold",
+            zorder=5,
+        )
     if segments:
         from matplotlib.collections import LineCollection
 
@@ -138,8 +160,14 @@ def draw_map(ax, data: FlightData, upto: int | None = None, bearings: bool = Tru
         colour = uav_colour(d)
         keep = np.searchsorted(data.frames, v.frames) < rows
         if upto is None:
-            ax.plot(v.east_m, v.north_m, "-", color=colour, lw=1.8,
-                    label=f"UAV {d + 1} (system {v.system_id}) track")
+            ax.plot(
+                v.east_m,
+                v.north_m,
+                "-",
+                color=colour,
+                lw=1.8,
+                label=f"UAV {d + 1} (system {v.system_id}) track",
+            )
         elif keep.any():
             t_end = v.frame_time_s[keep][-1]
             m = v.time_s <= t_end
@@ -154,8 +182,15 @@ def draw_map(ax, data: FlightData, upto: int | None = None, bearings: bool = Tru
                 if not np.isfinite(deg) or (v.serves is not None and not v.serves[keep][-1][ue]):
                     continue
                 a = np.radians(deg)
-                ax.plot([fe[-1], fe[-1] + ray * np.cos(a)], [fn[-1], fn[-1] + ray * np.sin(a)], "-",
-                        color=ue_colour[ue], lw=0.9, alpha=0.85, zorder=2)
+                ax.plot(
+                    [fe[-1], fe[-1] + ray * np.cos(a)],
+                    [fn[-1], fn[-1] + ray * np.sin(a)],
+                    "-",
+                    color=ue_colour[ue],
+                    lw=0.9,
+                    alpha=0.85,
+                    zorder=2,
+                )
                 n_bearings += 1
     return {"ue_tracks": ue_tracks, "bearings": n_bearings}
 
@@ -163,24 +198,57 @@ def draw_map(ax, data: FlightData, upto: int | None = None, bearings: bool = Tru
 def _legend_handles(data: FlightData):
     from matplotlib.lines import Line2D
 
-    handles = [Line2D([], [], color="k", ls="--", label="fence")] if data.fence_en_m is not None else []
+    handles = (
+        [Line2D([], [], color="k", ls="--", label="fence")] if data.fence_en_m is not None else []
+    )
     for d, v in enumerate(data.vehicles):
-        handles.append(Line2D([], [], color=uav_colour(d), lw=1.8, marker="^", ms=7, mec="black",
-                              label=f"UAV {d + 1} (system {v.system_id}): track, decisions, end"))
+        handles.append(
+            Line2D(
+                [],
+                [],
+                color=uav_colour(d),
+                lw=1.8,
+                marker="^",
+                ms=7,
+                mec="black",
+                label=f"UAV {d + 1} (system {v.system_id}): track, decisions, end",
+            )
+        )
     if data.ue_east_m.shape[1]:
         by_uav = " (colour: serving UAV)" if len(data.vehicles) > 1 else ""
-        handles.append(Line2D([], [], color="0.45", lw=1, marker="o", ms=6, mec="white", alpha=0.8,
-                              label=f"UE track, now{by_uav}"))
+        handles.append(
+            Line2D(
+                [],
+                [],
+                color="0.45",
+                lw=1,
+                marker="o",
+                ms=6,
+                mec="white",
+                alpha=0.8,
+                label=f"UE track, now{by_uav}",
+            )
+        )
     if data.n_ues:
-        handles.append(Line2D([], [], color="0.3", lw=0.9, label="sensed bearing (AoA), last frame"))
+        handles.append(
+            Line2D([], [], color="0.3", lw=0.9, label="sensed bearing (AoA), last frame")
+        )
     return handles
 
 
 def draw_flight(data: FlightData, out: Path, title: str | None = None) -> PictureInfo:
     """The flight picture as a PNG at ``out``; PlotUnavailable without matplotlib."""
     fig = new_figure(7.6, 10.4, 100)
-    grid = fig.add_gridspec(3, 1, height_ratios=[3.5, 1.0, 1.25], hspace=0.2,
-                            left=0.12, right=0.97, top=0.935, bottom=0.055)
+    grid = fig.add_gridspec(
+        3,
+        1,
+        height_ratios=[3.5, 1.0, 1.25],
+        hspace=0.2,
+        left=0.12,
+        right=0.97,
+        top=0.935,
+        bottom=0.055,
+    )
     ax_map = fig.add_subplot(grid[0])
     drawn = draw_map(ax_map, data)
     ax_map.legend(handles=_legend_handles(data), loc="upper left", fontsize=7.5, framealpha=0.85)
@@ -193,9 +261,11 @@ def draw_flight(data: FlightData, out: Path, title: str | None = None) -> Pictur
     ax_sinr.set_xlabel("radio frame" + (f" ({frame_s:.3g} s each)" if frame_s else ""))
     mean = np.nanmean(data.mean_rate_mbps) if np.isfinite(data.mean_rate_mbps).any() else None
     head = title or source_name(data)
-    summary = (f"{len(data.vehicles)} UAV{'s' if len(data.vehicles) > 1 else ''}, "
-               f"{data.n_ues} UEs, {data.decision_frames} decision frames"
-               + (f", mean UE throughput {mean:.2f} Mbps" if mean is not None else ""))
+    summary = (
+        f"{len(data.vehicles)} UAV{'s' if len(data.vehicles) > 1 else ''}, "
+        f"{data.n_ues} UEs, {data.decision_frames} decision frames"
+        + (f", mean UE throughput {mean:.2f} Mbps" if mean is not None else "")
+    )
     fig.suptitle(f"{head}\n{summary}", fontsize=11)
     if data.notes:
         fig.text(0.5, 0.005, "; ".join(data.notes), ha="center", fontsize=7.5, color="0.35")
@@ -205,8 +275,17 @@ def draw_flight(data: FlightData, out: Path, title: str | None = None) -> Pictur
     width, height = fig.canvas.get_width_height()
     _save_png(np.asarray(fig.canvas.buffer_rgba())[..., :3], out)
     span = (int(data.frames[0]), int(data.frames[-1])) if len(data.frames) else None
-    return PictureInfo(out, width, height, len(data.vehicles), drawn["ue_tracks"], len(data.frames),
-                       data.decision_frames, drawn["bearings"], span)
+    return PictureInfo(
+        out,
+        width,
+        height,
+        len(data.vehicles),
+        drawn["ue_tracks"],
+        len(data.frames),
+        data.decision_frames,
+        drawn["bearings"],
+        span,
+    )
 
 
 def _save_png(rgb: np.ndarray, out: Path) -> None:
@@ -222,9 +301,17 @@ def _mark_decisions(ax, data: FlightData) -> None:
     for d, v in enumerate(data.vehicles):
         f = v.frames[v.decided]
         if len(f):
-            ax.plot(f, np.zeros(len(f)) + 0.02 + 0.05 * d, "|", color=uav_colour(d), ms=5, mew=0.8,
-                    transform=ax.get_xaxis_transform(), clip_on=False,
-                    label="decision frames" if d == 0 else None)
+            ax.plot(
+                f,
+                np.zeros(len(f)) + 0.02 + 0.05 * d,
+                "|",
+                color=uav_colour(d),
+                ms=5,
+                mew=0.8,
+                transform=ax.get_xaxis_transform(),
+                clip_on=False,
+                label="decision frames" if d == 0 else None,
+            )
 
 
 def _draw_rate(ax, data: FlightData) -> None:
@@ -237,8 +324,15 @@ def _draw_rate(ax, data: FlightData) -> None:
         ax.axhline(mean, color="0.5", ls=":", lw=1, label=f"flight mean {mean:.2f} Mbps")
         ax.set_ylim(bottom=0)
     else:
-        ax.text(0.5, 0.5, "no throughput (UL_SCORE) in the log", ha="center", va="center",
-                transform=ax.transAxes, color="0.4")
+        ax.text(
+            0.5,
+            0.5,
+            "no throughput (UL_SCORE) in the log",
+            ha="center",
+            va="center",
+            transform=ax.transAxes,
+            color="0.4",
+        )
     _mark_decisions(ax, data)
     if ax.get_legend_handles_labels()[0]:
         ax.legend(loc="lower right", fontsize=7.5, framealpha=0.85)
@@ -249,8 +343,15 @@ def _draw_sinr(ax, data: FlightData) -> None:
     ax.set_ylabel("UE SINR at its\nserving UAV (dB)")
     ax.grid(True, lw=0.4, alpha=0.4)
     if not data.n_ues:
-        ax.text(0.5, 0.5, "no radio readings (UL_RADIO) in the log", ha="center", va="center",
-                transform=ax.transAxes, color="0.4")
+        ax.text(
+            0.5,
+            0.5,
+            "no radio readings (UL_RADIO) in the log",
+            ha="center",
+            va="center",
+            transform=ax.transAxes,
+            color="0.4",
+        )
         return
     sinr = np.full((len(data.frames), data.n_ues), np.nan)
     serving = data.serving_uav()
@@ -261,7 +362,16 @@ def _draw_sinr(ax, data: FlightData) -> None:
     from matplotlib.collections import LineCollection
 
     lines = [np.column_stack([data.frames, sinr[:, ue]]) for ue in range(data.n_ues)]
-    ax.add_collection(LineCollection(lines, colors=ue_colours(data.n_ues), linewidths=0.9, alpha=0.85))
+    ax.add_collection(
+        LineCollection(lines, colors=ue_colours(data.n_ues), linewidths=0.9, alpha=0.85)
+    )
     ax.autoscale_view()
-    ax.text(1.0, 1.02, "one line per UE (colour: UE number on the map)", transform=ax.transAxes,
-            ha="right", fontsize=7.5, color="0.35")
+    ax.text(
+        1.0,
+        1.02,
+        "one line per UE (colour: UE number on the map)",
+        transform=ax.transAxes,
+        ha="right",
+        fontsize=7.5,
+        color="0.35",
+    )

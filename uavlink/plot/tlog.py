@@ -52,8 +52,16 @@ from uavlink.mavlink.radio_codec import (
 )
 from uavlink.mavlink.ue_truth import decode_ue_fix
 
-WANTED = ["HEARTBEAT", "LOCAL_POSITION_NED", "GLOBAL_POSITION_INT", "HOME_POSITION",
-          "DEBUG_FLOAT_ARRAY", "ADSB_VEHICLE", "MISSION_ITEM_INT", "COMMAND_LONG"]
+WANTED = [
+    "HEARTBEAT",
+    "LOCAL_POSITION_NED",
+    "GLOBAL_POSITION_INT",
+    "HOME_POSITION",
+    "DEBUG_FLOAT_ARRAY",
+    "ADSB_VEHICLE",
+    "MISSION_ITEM_INT",
+    "COMMAND_LONG",
+]
 RESTART_FRAMES = 3  # a running frame this far below the newest: a new episode, not a late copy
 FENCE_MISSION_TYPE = mavlink.MAV_MISSION_TYPE_FENCE
 FENCE_VERTEX = mavlink.MAV_CMD_NAV_FENCE_POLYGON_VERTEX_INCLUSION
@@ -140,14 +148,20 @@ class _Reader:
                 offboard = decode_custom_mode(msg.custom_mode)[0] == PX4_MAIN_OFFBOARD
                 self.offboard[sys_id] = offboard
                 got, frame = self.readings.get(sys_id, {}), self.last_frame.get(sys_id)
-                if offboard and frame in got:  # the heartbeat lags a mode change by up to its period:
-                    got[frame] = (*got[frame][:2], True)  # a frame is OFFBOARD if it shows before the next
+                if (
+                    offboard and frame in got
+                ):  # the heartbeat lags a mode change by up to its period:
+                    got[frame] = (
+                        *got[frame][:2],
+                        True,
+                    )  # a frame is OFFBOARD if it shows before the next
         elif kind == "LOCAL_POSITION_NED":
             if math.isfinite(msg.x) and math.isfinite(msg.y):
                 self.local.setdefault(sys_id, []).append((msg.time_boot_ms * 1e-3, msg.y, msg.x))
         elif kind == "GLOBAL_POSITION_INT":
-            self.glob.setdefault(sys_id, []).append((msg.time_boot_ms * 1e-3, msg.lat * 1e-7,
-                                                     msg.lon * 1e-7))
+            self.glob.setdefault(sys_id, []).append(
+                (msg.time_boot_ms * 1e-3, msg.lat * 1e-7, msg.lon * 1e-7)
+            )
         elif kind == "HOME_POSITION":
             home = GeoOrigin(msg.latitude * 1e-7, msg.longitude * 1e-7)
             lat, lon = home.to_global(-msg.x, -msg.y)  # the local origin, as the fence upload does
@@ -163,21 +177,37 @@ class _Reader:
                     if got and msg.array_id < max(got) - RESTART_FRAMES:
                         got.clear()  # the payload started a new episode: draw the latest flight
                         self.decisions.pop(sys_id, None)
-                    got.setdefault(msg.array_id, (msg.time_usec * 1e-6, tuple(data[:2 + 3 * n]),
-                                                  self.offboard.get(sys_id, False)))
+                    got.setdefault(
+                        msg.array_id,
+                        (
+                            msg.time_usec * 1e-6,
+                            tuple(data[: 2 + 3 * n]),
+                            self.offboard.get(sys_id, False),
+                        ),
+                    )
             elif which == "score":
                 self.scores[msg.array_id] = float(data[1])
         elif kind == "ADSB_VEHICLE":
             fix = decode_ue_fix(msg)
             if fix is not None and sys_id in self.last_frame:
-                self.fixes.setdefault(self.last_frame[sys_id], {})[fix.ue] = (fix.lat_deg, fix.lon_deg)
-        elif kind == "COMMAND_LONG" and msg.command == FRAME_DECIDED_COMMAND \
-                and msg.target_component == RADIO_COMPONENT_ID and msg.param2 in (0.0, 1.0):
+                self.fixes.setdefault(self.last_frame[sys_id], {})[fix.ue] = (
+                    fix.lat_deg,
+                    fix.lon_deg,
+                )
+        elif (
+            kind == "COMMAND_LONG"
+            and msg.command == FRAME_DECIDED_COMMAND
+            and msg.target_component == RADIO_COMPONENT_ID
+            and msg.param2 in (0.0, 1.0)
+        ):
             decided = self.decisions.setdefault(msg.target_system, set())  # (NaN: an older fly's)
             if msg.param2 == 1.0:
                 decided.add(int(msg.param1))
-        elif kind == "MISSION_ITEM_INT" and msg.mission_type == FENCE_MISSION_TYPE \
-                and msg.command == FENCE_VERTEX:
+        elif (
+            kind == "MISSION_ITEM_INT"
+            and msg.mission_type == FENCE_MISSION_TYPE
+            and msg.command == FENCE_VERTEX
+        ):
             self.fence[msg.seq] = (msg.x * 1e-7, msg.y * 1e-7)
 
 
@@ -229,7 +259,7 @@ def _records(blob: bytes) -> Iterator:
             i = start + size
             continue
         try:
-            msg = mav.decode(bytearray(blob[start:start + size]))
+            msg = mav.decode(bytearray(blob[start : start + size]))
         except Exception:  # CRC or length error: a damaged record, or not a record start
             i += 1
             continue
@@ -244,15 +274,20 @@ def _assemble(r: _Reader, source: str) -> FlightData:
     origin = next(iter(r.home.values()), None)
     systems = sorted(s for s in r.autopilots if s in r.local or s in r.glob)
     if not systems:
-        raise UserError(f"{source}: no vehicle position in the log (no LOCAL_POSITION_NED or "
-                        "GLOBAL_POSITION_INT from an autopilot)")
+        raise UserError(
+            f"{source}: no vehicle position in the log (no LOCAL_POSITION_NED or "
+            "GLOBAL_POSITION_INT from an autopilot)"
+        )
     if origin is None:
         first = r.glob.get(systems[0])
         if first:  # no HOME_POSITION: the first fix stands for the origin of a local frame
             origin = GeoOrigin(first[0][1], first[0][2])
             notes.append("no HOME_POSITION: origin at the first position fix")
-    n_ues = max((len(d[1]) - 2) // 3 for rs in r.readings.values() for d in rs.values()) if any(
-        r.readings.values()) else 0
+    n_ues = (
+        max((len(d[1]) - 2) // 3 for rs in r.readings.values() for d in rs.values())
+        if any(r.readings.values())
+        else 0
+    )
     vehicles = [_track(s, r, origin, n_ues) for s in systems]
     decided = [v.frames[v.decided] for v in vehicles if v.decided.any()]
     all_frames = np.unique(np.concatenate([v.frames for v in vehicles] + [np.zeros(0, int)]))
@@ -289,7 +324,11 @@ def _track(system: int, r: _Reader, origin: GeoOrigin | None, n_ues: int) -> Veh
     else:
         rows = r.glob[system]
         t = np.array([row[0] for row in rows])
-        ne = np.array([origin.to_local(lat, lon) for _, lat, lon in rows]) if origin else np.zeros((len(rows), 2))
+        ne = (
+            np.array([origin.to_local(lat, lon) for _, lat, lon in rows])
+            if origin
+            else np.zeros((len(rows), 2))
+        )
         north, east = ne[:, 0], ne[:, 1]
     order = np.argsort(t, kind="stable")
     t, east, north = t[order], east[order], north[order]
@@ -304,8 +343,8 @@ def _track(system: int, r: _Reader, origin: GeoOrigin | None, n_ues: int) -> Veh
     for row, f in enumerate(frames):
         time_s, data, offboard = got[int(f)]
         n = int(data[0])
-        sinr[row, :n], aoa[row, :n] = data[1:1 + n], data[1 + n:1 + 2 * n]
-        flags[row, :n] = data[2 + 2 * n:2 + 3 * n]
+        sinr[row, :n], aoa[row, :n] = data[1 : 1 + n], data[1 + n : 1 + 2 * n]
+        flags[row, :n] = data[2 + 2 * n : 2 + 3 * n]
         decided[row], frame_t[row] = offboard, time_s
     if system in r.decisions:  # the ground named its decisions (fly's log): exactly fly's count
         decided &= np.isin(frames, sorted(r.decisions[system]))

@@ -60,7 +60,9 @@ class AoaPolicy(RulePolicy):
     def act_towards(self, obs: np.ndarray, aoa_mean_deg: np.ndarray) -> np.ndarray:
         """The rule's actions (N, 2) with the circular-mean AoA (N,) in deg given, rather than read
         from the observations (N, size): the seam a privileged teacher uses (``uavlink.learn.teachers``)."""
-        gap = (self.hover_sinr_db - self.layout.newest_frame(obs)["sinr_db"].mean(axis=1)) / self.sinr_span_db
+        gap = (
+            self.hover_sinr_db - self.layout.newest_frame(obs)["sinr_db"].mean(axis=1)
+        ) / self.sinr_span_db
         distance = self.mapping.r_max_m * np.clip(gap, 0.0, 1.0)
         return self.mapping.from_polar(aoa_mean_deg, distance)
 
@@ -88,10 +90,14 @@ class OraclePolicy(RulePolicy):
 
     def act(self, obs: np.ndarray, truth: GroundTruth | None = None) -> np.ndarray:
         if truth is None:
-            raise ValueError("the oracle baseline needs ground truth; it cannot fly from MAVLink data")
+            raise ValueError(
+                "the oracle baseline needs ground truth; it cannot fly from MAVLink data"
+            )
         half = self.cfg.area.half_width_m
         ue_next = np.clip(truth.ue_xy_m + truth.ue_velocity_mps * self.cfg.frame_s, -half, half)
-        uav_cand = np.clip(truth.uav_xy_m[:, None, :] + self.cand_move[None], -half, half)  # (N, C, 2)
+        uav_cand = np.clip(
+            truth.uav_xy_m[:, None, :] + self.cand_move[None], -half, half
+        )  # (N, C, 2)
         delta = ue_next[:, None, :, :] - uav_cand[:, :, None, :]  # (N, C, U, 2)
         dist = np.sqrt((delta**2).sum(-1) + self.cfg.area.uav_altitude_m**2)
         snr = 10.0 ** (mean_snr_db(dist, self.cfg.radio) / 10.0)

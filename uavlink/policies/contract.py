@@ -33,16 +33,35 @@ from uavlink.policies.manifest import PolicyFileError
 from uavlink.policies.registry import BASELINES, baseline_env
 
 # Fields a policy was built for: its action mapping and its observation layout's inputs.
-BUILT_FOR = ("action_mapping", "r_max_m", "memory", "place_cell_m", "place_model", "n_ues", "n_uavs", "area.half_width_m")
-OVERRIDES_HELP = (f"A policy file runs in the env its manifest records; --scenario, --aoa-noise-deg and --set "
-                  f"override it. Radio physics and the world may be overridden (a robustness study); what "
-                  f"the policy was built for ({', '.join(BUILT_FOR)}) may not. Baselines get the env of the "
-                  f"policy they are compared with.")
+BUILT_FOR = (
+    "action_mapping",
+    "r_max_m",
+    "memory",
+    "place_cell_m",
+    "place_model",
+    "n_ues",
+    "n_uavs",
+    "area.half_width_m",
+)
+OVERRIDES_HELP = (
+    f"A policy file runs in the env its manifest records; --scenario, --aoa-noise-deg and --set "
+    f"override it. Radio physics and the world may be overridden (a robustness study); what "
+    f"the policy was built for ({', '.join(BUILT_FOR)}) may not. Baselines get the env of the "
+    f"policy they are compared with."
+)
 # What compared policies may differ in: each flies with its own action mapping and memory, and with
 # its own number of UAVs and its own memory of place over the same UEs and channel (a fleet against one UAV: the per-episode
 # world streams do not depend on n_uavs, so the episodes pair as in docs/results.md's fleet ratios).
 # How its UAV reaches a setpoint is a policy's too: motion draws nothing, so the episodes pair.
-PER_POLICY = ("action_mapping", "r_max_m", "memory", "place_cell_m", "place_model", "n_uavs", "uav_motion")
+PER_POLICY = (
+    "action_mapping",
+    "r_max_m",
+    "memory",
+    "place_cell_m",
+    "place_model",
+    "n_uavs",
+    "uav_motion",
+)
 # Training-time randomisation: off in a policy's env unless an override turns it on.
 TRAINING_ONLY = "radio.aoa_noise_max_deg"
 
@@ -57,8 +76,9 @@ class EnvOverrides:
     settings: Mapping[str, Any] = field(default_factory=dict)
 
     @classmethod
-    def from_command_line(cls, scenario: str | None, aoa_noise_deg: float | None,
-                          set_pairs: Sequence[str]) -> EnvOverrides:
+    def from_command_line(
+        cls, scenario: str | None, aoa_noise_deg: float | None, set_pairs: Sequence[str]
+    ) -> EnvOverrides:
         """``--scenario``, ``--aoa-noise-deg`` and the ``--set KEY=VALUE`` pairs of a command line."""
         return cls(scenario, aoa_noise_deg, parse_settings(set_pairs))
 
@@ -84,7 +104,9 @@ def manifest_env(manifest: Mapping[str, Any] | None) -> EnvConfig:
     return EnvConfig.from_dict(manifest["env_config"]).replace(**{TRAINING_ONLY: 0.0})
 
 
-def apply_overrides(base: EnvConfig, overrides: EnvOverrides, built_for: str | None = None) -> EnvConfig:
+def apply_overrides(
+    base: EnvConfig, overrides: EnvOverrides, built_for: str | None = None
+) -> EnvConfig:
     """``base`` with ``overrides`` on top, validated (a bad key or value is a one-line
     ``ConfigError``). With ``built_for`` (the policy file's name), an override that changes a
     ``BUILT_FOR`` field is refused naming both values."""
@@ -94,8 +116,10 @@ def apply_overrides(base: EnvConfig, overrides: EnvOverrides, built_for: str | N
         path = built_for_change(base, cfg)
         if path is not None:
             key = next((k for k in changes if k == path or k == path.rpartition(".")[2]), path)
-            raise UserError(f"policy {built_for} was built for {path}={base.to_flat_dict()[path]!r}; "
-                            f"--set {key}={changes.get(key)} conflicts (drop the --set)")
+            raise UserError(
+                f"policy {built_for} was built for {path}={base.to_flat_dict()[path]!r}; "
+                f"--set {key}={changes.get(key)} conflicts (drop the --set)"
+            )
     return cfg
 
 
@@ -114,11 +138,15 @@ def check_policy_env(policy: Policy, cfg: EnvConfig) -> None:
     name = getattr(policy, "name", policy)
     if manifest is not None:
         path = getattr(policy, "path", None)
-        how = (f"evaluate it in the env its manifest records: uavlink.policies.contract.load_with_env("
-               f"[{str(path) if path else 'path'!r}], EnvOverrides()) gives (policy, env)")
+        how = (
+            f"evaluate it in the env its manifest records: uavlink.policies.contract.load_with_env("
+            f"[{str(path) if path else 'path'!r}], EnvOverrides()) gives (policy, env)"
+        )
     elif name in BASELINES:
-        how = (f"evaluate a baseline made for a world, make_baseline({name!r}, world), in "
-               f"uavlink.policies.registry.baseline_env({name!r}, world)")
+        how = (
+            f"evaluate a baseline made for a world, make_baseline({name!r}, world), in "
+            f"uavlink.policies.registry.baseline_env({name!r}, world)"
+        )
     else:
         how = None
     layout: ObservationLayout | None = getattr(policy, "layout", None)
@@ -131,11 +159,15 @@ def check_policy_env(policy: Policy, cfg: EnvConfig) -> None:
         built = manifest_env(manifest)
         path = built_for_change(built, cfg)
         if path is not None:
-            raise UserError(f"policy {name!r} was built for {path}={built.to_flat_dict()[path]!r}, not "
-                            f"{cfg.to_flat_dict()[path]!r}; {how}")
+            raise UserError(
+                f"policy {name!r} was built for {path}={built.to_flat_dict()[path]!r}, not "
+                f"{cfg.to_flat_dict()[path]!r}; {how}"
+            )
 
 
-def policy_env(policy: Policy, overrides: EnvOverrides, source: str | Path | None = None) -> EnvConfig:
+def policy_env(
+    policy: Policy, overrides: EnvOverrides, source: str | Path | None = None
+) -> EnvConfig:
     """The env of a loaded policy: its manifest's (defaults for a baseline) plus ``overrides``."""
     manifest = getattr(policy, "manifest", None)
     if manifest is None:
@@ -159,28 +191,41 @@ def resolve(spec: str | Path, scenario: str | None) -> str | Path:
     return policy_for_scenario(Path(spec), scenario)
 
 
-def load_with_env(specs: Sequence[str | Path], overrides: EnvOverrides) -> list[tuple[Policy, EnvConfig]]:
+def load_with_env(
+    specs: Sequence[str | Path], overrides: EnvOverrides
+) -> list[tuple[Policy, EnvConfig]]:
     """Load the policies ``specs`` names (baselines, files, folders resolved per scenario), each
     with the env it runs in. Files get their own manifest's env; baselines get the first file's,
     so compared policies fly the same world. Files built for different worlds are refused: they
     could not fly the same episodes. Without a scenario in ``overrides``, a folder beside a file
     resolves to the file's own scenario (its manifest's)."""
     defaults = apply_overrides(EnvConfig(), overrides)
-    named = {str(spec): load_policy(spec, defaults) for spec in specs
-             if str(spec) not in BASELINES and not Path(spec).is_dir()}  # a file's policy needs no env
+    named = {
+        str(spec): load_policy(spec, defaults)
+        for spec in specs
+        if str(spec) not in BASELINES and not Path(spec).is_dir()
+    }  # a file's policy needs no env
     if overrides.scenario is None and named and any(Path(spec).is_dir() for spec in specs):
         own = next(iter(named))  # the folder's policy is the one for the first file's scenario
         overrides = overrides.on(policy_env(named[own], overrides, own).scenario)
         defaults = apply_overrides(EnvConfig(), overrides)
     resolved = [str(resolve(spec, overrides.scenario)) for spec in specs]
-    files = {spec: named.get(spec) or load_policy(spec, defaults) for spec in resolved if spec not in BASELINES}
+    files = {
+        spec: named.get(spec) or load_policy(spec, defaults)
+        for spec in resolved
+        if spec not in BASELINES
+    }
     envs = {spec: policy_env(policy, overrides, spec) for spec, policy in files.items()}
     first = next(iter(envs), None)
     world = envs[first] if first is not None else defaults
     for spec, cfg in envs.items():
         _check_same_world(first, world, spec, cfg)
-    return [(files[spec], envs[spec]) if spec in files else (load_policy(spec, world), baseline_env(spec, world))
-            for spec in resolved]
+    return [
+        (files[spec], envs[spec])
+        if spec in files
+        else (load_policy(spec, world), baseline_env(spec, world))
+        for spec in resolved
+    ]
 
 
 def _check_same_world(first: str | None, world: EnvConfig, spec: str, cfg: EnvConfig) -> None:
@@ -190,5 +235,7 @@ def _check_same_world(first: str | None, world: EnvConfig, spec: str, cfg: EnvCo
     key = next((k for k, v in theirs.items() if ours[k] != v), None)
     if key is not None:
         hint = ": --scenario flies both on one" if key == "scenario" else ""
-        raise UserError(f"{first} and {spec} were built for different envs ({key}={ours[key]!r} vs "
-                        f"{theirs[key]!r}); they cannot be compared on the same episodes{hint}")
+        raise UserError(
+            f"{first} and {spec} were built for different envs ({key}={ours[key]!r} vs "
+            f"{theirs[key]!r}); they cannot be compared on the same episodes{hint}"
+        )

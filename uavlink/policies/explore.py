@@ -46,13 +46,21 @@ class ExplorePolicy(RulePolicy):
     name = "explore"
     needs_truth = False
 
-    def __init__(self, cfg: EnvConfig, search_leg_frames: int = 4, margin_bits: float = 0.05,
-                 follow_gap_db: float = 10.0, approach_gain: float = 0.5) -> None:
+    def __init__(
+        self,
+        cfg: EnvConfig,
+        search_leg_frames: int = 4,
+        margin_bits: float = 0.05,
+        follow_gap_db: float = 10.0,
+        approach_gain: float = 0.5,
+    ) -> None:
         if cfg.place_cell_m <= 0:
             raise UserError("the explore rule needs a memory of place: set env.place_cell_m > 0")
         self.layout = ObservationLayout.for_config(cfg)
         self.mapping = ActionMapping.for_config(cfg)
-        self.follow = FleetAoaPolicy(cfg) if cfg.n_uavs > 1 else AoaPolicy(cfg)  # the aoa rule, per cell
+        self.follow = (
+            FleetAoaPolicy(cfg) if cfg.n_uavs > 1 else AoaPolicy(cfg)
+        )  # the aoa rule, per cell
         self.search_leg_frames = int(search_leg_frames)
         self.search_frames = 8 * self.search_leg_frames
         self.margin_bits = margin_bits
@@ -80,7 +88,9 @@ class ExplorePolicy(RulePolicy):
         search = self.mapping.from_polar(heading, np.full(len(index), r_max))
         # 2. the best remembered spot, when it is worth going to.
         go = frame["place_best_gain_bits"] > self.margin_bits
-        to_best = self.mapping.towards(frame["place_best_offset_m"], np.where(go, self.approach_gain, 0.0))
+        to_best = self.mapping.towards(
+            frame["place_best_offset_m"], np.where(go, self.approach_gain, 0.0)
+        )
         # 3. follow the team when it has left.
         follow = self._sinr_gap_db(frame) > self.follow_gap_db
         action = np.where(follow[:, None], self.follow.act(obs), to_best)

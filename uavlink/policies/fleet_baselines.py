@@ -29,10 +29,14 @@ class FleetAoaPolicy(RulePolicy):
 
     name = "aoa"
     needs_truth = False
-    sinr_span_db = AoaPolicy.sinr_span_db  # full speed this far below the hover SINR, as one UAV's rule
+    sinr_span_db = (
+        AoaPolicy.sinr_span_db
+    )  # full speed this far below the hover SINR, as one UAV's rule
 
     def __init__(self, cfg: EnvConfig, sinr_span_db: float = sinr_span_db) -> None:
-        self.sinr_span_db = sinr_span_db  # a warm start's teacher may change it (uavlink.learn.teachers)
+        self.sinr_span_db = (
+            sinr_span_db  # a warm start's teacher may change it (uavlink.learn.teachers)
+        )
         self.layout = ObservationLayout.for_config(cfg)
         self.mapping = ActionMapping.for_config(cfg)
         self.hover_sinr_db = hover_sinr_db(cfg)
@@ -43,7 +47,9 @@ class FleetAoaPolicy(RulePolicy):
         count = mine.sum(axis=1)
         with np.errstate(invalid="ignore"):
             mean_sinr_db = np.where(mine, frame["sinr_db"], 0.0).sum(axis=1) / count
-        gap = np.nan_to_num((self.hover_sinr_db - mean_sinr_db) / self.sinr_span_db)  # empty cell: 0, hold
+        gap = np.nan_to_num(
+            (self.hover_sinr_db - mean_sinr_db) / self.sinr_span_db
+        )  # empty cell: 0, hold
         distance = self.mapping.r_max_m * np.clip(gap, 0.0, 1.0)
         return self.mapping.from_polar(frame["cell_aoa_mean_deg"], distance)
 
@@ -76,7 +82,9 @@ class FleetOraclePolicy(RulePolicy):
 
     def act(self, obs: np.ndarray, truth: GroundTruth | None = None) -> np.ndarray:
         if truth is None:
-            raise ValueError("the oracle baseline needs ground truth; it cannot fly from MAVLink data")
+            raise ValueError(
+                "the oracle baseline needs ground truth; it cannot fly from MAVLink data"
+            )
         cfg, n_uavs = self.cfg, self.cfg.n_uavs
         half = cfg.area.half_width_m
         ue_next = np.clip(truth.ue_xy_m + truth.ue_velocity_mps * cfg.frame_s, -half, half)
@@ -86,7 +94,9 @@ class FleetOraclePolicy(RulePolicy):
         for d in range(n_uavs):
             cand = np.repeat(plan[:, None], n_cand, axis=1)  # (N, C, D, 2)
             cand[:, :, d] = np.clip(now[:, None, d] + self.cand_move, -half, half)
-            flat = separate(np.repeat(plan, n_cand, axis=0), cand.reshape(-1, n_uavs, 2), cfg.uav_separation_m)
+            flat = separate(
+                np.repeat(plan, n_cand, axis=0), cand.reshape(-1, n_uavs, 2), cfg.uav_separation_m
+            )
             cand = flat.reshape(n_envs, n_cand, n_uavs, 2)
             score = mean_fleet_fair_rate(cfg, cand, ue_next[:, None])
             plan[:, d] = cand[np.arange(n_envs), score.argmax(axis=1), d]
@@ -110,13 +120,17 @@ class KMeansPolicy(RulePolicy):
 
     def act(self, obs: np.ndarray, truth: GroundTruth | None = None) -> np.ndarray:
         if truth is None:
-            raise ValueError("the kmeans baseline needs ground truth; it cannot fly from MAVLink data")
+            raise ValueError(
+                "the kmeans baseline needs ground truth; it cannot fly from MAVLink data"
+            )
         n_uavs = self.cfg.n_uavs
         uav = truth.uav_xy_m.reshape(-1, n_uavs, 2)
         ue = truth.ue_xy_m
         centroid = uav.copy()
         for _ in range(self.iterations):
-            label = np.linalg.norm(ue[:, :, None] - centroid[:, None], axis=-1).argmin(axis=2)  # (N, U)
+            label = np.linalg.norm(ue[:, :, None] - centroid[:, None], axis=-1).argmin(
+                axis=2
+            )  # (N, U)
             member = label[..., None] == np.arange(n_uavs)  # (N, U, D)
             count = member.sum(axis=1)[..., None]
             mean = np.einsum("nud,nuk->ndk", member, ue) / np.maximum(count, 1)

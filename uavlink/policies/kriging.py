@@ -38,10 +38,14 @@ class KrigingPolicy(RulePolicy):
 
     def __init__(self, cfg: EnvConfig, approach_gain: float = 0.4) -> None:
         if cfg.place_model != "kriging" or cfg.n_uavs > 1:
-            raise UserError("the kriging rule flies one UAV with a model of the field: env.place_model=kriging")
+            raise UserError(
+                "the kriging rule flies one UAV with a model of the field: env.place_model=kriging"
+            )
         self.layout = ObservationLayout.for_config(cfg)
         self.mapping = ActionMapping.for_config(cfg)
         self.approach_gain = approach_gain
 
     def act(self, obs: np.ndarray, truth: GroundTruth | None = None) -> np.ndarray:
-        return self.mapping.towards(self.layout.newest_frame(obs)["place_pick_offset_m"], self.approach_gain)
+        return self.mapping.towards(
+            self.layout.newest_frame(obs)["place_pick_offset_m"], self.approach_gain
+        )

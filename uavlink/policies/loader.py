@@ -27,7 +27,9 @@ def load_policy(spec: str | Path, cfg: EnvConfig) -> Policy:
 
         return OnnxPolicy(path)
     if not path.exists():
-        raise PolicyFileError(f"{spec}: neither a baseline ({', '.join(BASELINES)}) nor an existing file")
+        raise PolicyFileError(
+            f"{spec}: neither a baseline ({', '.join(BASELINES)}) nor an existing file"
+        )
     raise PolicyFileError(f"{spec}: unknown policy file type (expected .zip or .onnx)")
 
 
@@ -35,7 +37,9 @@ def policy_for_scenario(folder: Path, scenario: str) -> Path:
     """``folder/<scenario>.zip`` (or .onnx), falling back to the mixed policy (``folder/mixed.zip``)."""
     found = policy_file(folder, scenario) or policy_file(folder, MIXED)
     if found is None:
-        raise PolicyFileError(f"{folder}: no {scenario}.zip, {scenario}.onnx or {MIXED}.zip policy in this folder")
+        raise PolicyFileError(
+            f"{folder}: no {scenario}.zip, {scenario}.onnx or {MIXED}.zip policy in this folder"
+        )
     return found
 
 

@@ -29,7 +29,15 @@ class PolicyFileError(UserError):
 
 def package_versions() -> dict[str, str]:
     versions = {"python": platform.python_version()}
-    for name in ("uavlink", "numpy", "gymnasium", "stable-baselines3", "torch", "onnxruntime", "onnx"):
+    for name in (
+        "uavlink",
+        "numpy",
+        "gymnasium",
+        "stable-baselines3",
+        "torch",
+        "onnxruntime",
+        "onnx",
+    ):
         with contextlib.suppress(metadata.PackageNotFoundError):
             versions[name] = metadata.version(name)
     return versions
@@ -49,7 +57,9 @@ def build_manifest(cfg: EnvConfig, training: dict[str, Any]) -> dict[str, Any]:
 def check_manifest(manifest: Any, source: str) -> dict[str, Any]:
     """Validate the manifest's shape; raise PolicyFileError naming ``source`` otherwise."""
     if not isinstance(manifest, dict) or manifest.get("format") != MANIFEST_FORMAT:
-        raise PolicyFileError(f"{source}: not a uavlink policy manifest (format {MANIFEST_FORMAT!r} expected)")
+        raise PolicyFileError(
+            f"{source}: not a uavlink policy manifest (format {MANIFEST_FORMAT!r} expected)"
+        )
     for key in ("observation_layout", "action_mapping", "env_config"):
         if key not in manifest:
             raise PolicyFileError(f"{source}: manifest lacks {key!r}")
@@ -81,7 +91,11 @@ def read_zip_manifest(path: Path) -> dict[str, Any]:
 def write_zip_manifest(path: Path, manifest: dict[str, Any]) -> None:
     """Add (or replace) the manifest inside a zip, and write it beside the zip as JSON for readers."""
     with zipfile.ZipFile(path) as archive:
-        entries = [(info, archive.read(info)) for info in archive.infolist() if info.filename != MANIFEST_NAME]
+        entries = [
+            (info, archive.read(info))
+            for info in archive.infolist()
+            if info.filename != MANIFEST_NAME
+        ]
     # Entries keep their own timestamps and the manifest takes the newest of them, not the clock:
     # the same policy and manifest give the same bytes (a re-shipped policy shows no diff).
     stamp = max((info.date_time for info, _ in entries), default=(1980, 1, 1, 0, 0, 0))
@@ -89,8 +103,11 @@ def write_zip_manifest(path: Path, manifest: dict[str, Any]) -> None:
     with zipfile.ZipFile(tmp, "w", zipfile.ZIP_DEFLATED) as archive:
         for info, data in entries:
             archive.writestr(info, data)
-        archive.writestr(zipfile.ZipInfo(MANIFEST_NAME, stamp), json.dumps(manifest, indent=2, sort_keys=True),
-                         compress_type=zipfile.ZIP_DEFLATED)
+        archive.writestr(
+            zipfile.ZipInfo(MANIFEST_NAME, stamp),
+            json.dumps(manifest, indent=2, sort_keys=True),
+            compress_type=zipfile.ZIP_DEFLATED,
+        )
     tmp.replace(path)
     path.with_suffix(".json").write_text(json.dumps(manifest, indent=2, sort_keys=True) + "\n")
 

@@ -33,11 +33,23 @@ def deterministic_actor(policy: Any):
     from stable_baselines3.common.torch_layers import FlattenExtractor
 
     space = policy.action_space
-    if not isinstance(space, spaces.Box) or space.shape != (2,) or np.ptp(space.low) or np.ptp(space.high):
-        raise PolicyFileError(f"action space {space} is not a Box(low, high, (2,)) with scalar bounds")
-    if (policy.squash_output or not isinstance(policy.action_dist, DiagGaussianDistribution)
-            or not isinstance(policy.pi_features_extractor, FlattenExtractor)):
-        raise PolicyFileError("only PPO MlpPolicy with a diagonal Gaussian and squash_output=False is supported")
+    if (
+        not isinstance(space, spaces.Box)
+        or space.shape != (2,)
+        or np.ptp(space.low)
+        or np.ptp(space.high)
+    ):
+        raise PolicyFileError(
+            f"action space {space} is not a Box(low, high, (2,)) with scalar bounds"
+        )
+    if (
+        policy.squash_output
+        or not isinstance(policy.action_dist, DiagGaussianDistribution)
+        or not isinstance(policy.pi_features_extractor, FlattenExtractor)
+    ):
+        raise PolicyFileError(
+            "only PPO MlpPolicy with a diagonal Gaussian and squash_output=False is supported"
+        )
     low, high = float(space.low[0]), float(space.high[0])
 
     class DeterministicActor(torch.nn.Module):
@@ -114,14 +126,23 @@ class SB3Policy(ActorPolicy):
         try:
             data, params, _ = load_from_zip_file(path, device="cpu")
             kwargs = {**data["policy_kwargs"], "optimizer_class": _NoOptimizer}
-            policy = data["policy_class"](data["observation_space"], data["action_space"], lambda _: 0.0,
-                                          use_sde=data["use_sde"], **kwargs)
+            policy = data["policy_class"](
+                data["observation_space"],
+                data["action_space"],
+                lambda _: 0.0,
+                use_sde=data["use_sde"],
+                **kwargs,
+            )
             policy.load_state_dict(params["policy"])
         except Exception as exc:  # SB3 raises many kinds on a damaged archive
-            raise PolicyFileError(f"{path}: cannot load the SB3 model ({type(exc).__name__}: {exc})") from None
+            raise PolicyFileError(
+                f"{path}: cannot load the SB3 model ({type(exc).__name__}: {exc})"
+            ) from None
         if data["observation_space"].shape != (layout.size,):
-            raise PolicyFileError(f"{path}: model input {data['observation_space'].shape} does not "
-                                  f"match its manifest's layout {layout.describe()}")
+            raise PolicyFileError(
+                f"{path}: model input {data['observation_space'].shape} does not "
+                f"match its manifest's layout {layout.describe()}"
+            )
         try:
             super().__init__(policy, layout, path.stem)
         except PolicyFileError as exc:

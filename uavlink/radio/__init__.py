@@ -16,8 +16,22 @@ from uavlink.radio.pathloss import distance_3d_m, mean_rx_power_dbm, path_loss_d
 from uavlink.radio.rates import fair_rate, rate_bps, round_robin_rbs
 
 __all__ = [
-    "RadioChannel", "RadioReadings", "circular_mean_std_deg", "distance_3d_m", "fair_rate",
-    "mean_rician_power_gain", "mean_rx_power_dbm", "mean_snr_db", "measured_aoa_deg", "noise_power_dbm",
-    "path_loss_db", "rate_bps", "rician_gain_table", "rician_power_gain", "round_robin_rbs",
-    "tabulated_rician_power_gain", "true_aoa_deg", "wrap_deg",
+    "RadioChannel",
+    "RadioReadings",
+    "circular_mean_std_deg",
+    "distance_3d_m",
+    "fair_rate",
+    "mean_rician_power_gain",
+    "mean_rx_power_dbm",
+    "mean_snr_db",
+    "measured_aoa_deg",
+    "noise_power_dbm",
+    "path_loss_db",
+    "rate_bps",
+    "rician_gain_table",
+    "rician_power_gain",
+    "round_robin_rbs",
+    "tabulated_rician_power_gain",
+    "true_aoa_deg",
+    "wrap_deg",
 ]

@@ -31,7 +31,9 @@ def measured_aoa_deg(
     return wrap_deg(true_deg)
 
 
-def circular_mean_std_deg(angle_deg: np.ndarray, mask: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
+def circular_mean_std_deg(
+    angle_deg: np.ndarray, mask: np.ndarray | None = None
+) -> tuple[np.ndarray, np.ndarray]:
     """Circular mean and std over the last axis (degrees), over the entries ``mask`` keeps when given.
 
     Mean = atan2(mean sin, mean cos); std = sqrt(-2 ln R) with R the mean resultant length (as
@@ -42,8 +44,9 @@ def circular_mean_std_deg(angle_deg: np.ndarray, mask: np.ndarray | None = None)
     return circular_stats_deg(np.sin(rad), np.cos(rad), mask)
 
 
-def circular_stats_deg(sin: np.ndarray, cos: np.ndarray,
-                       mask: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
+def circular_stats_deg(
+    sin: np.ndarray, cos: np.ndarray, mask: np.ndarray | None = None
+) -> tuple[np.ndarray, np.ndarray]:
     """``circular_mean_std_deg`` from the angles' sines and cosines, so that several statistics of
     one set of angles (all UEs', one cell's) share one evaluation of the trigonometry."""
     if mask is None:

@@ -48,7 +48,9 @@ class Cells:
         return n_rbs // cell + (self.rank < n_rbs % cell)
 
 
-def mean_channel_rate_bps(rx_dbm: np.ndarray, radio: RadioConfig, fleet_reuse: str = "full") -> np.ndarray:
+def mean_channel_rate_bps(
+    rx_dbm: np.ndarray, radio: RadioConfig, fleet_reuse: str = "full"
+) -> np.ndarray:
     """Each UE's Shannon rate (..., U) at the mean-fading SINR, for mean received powers (..., U, D)
     in dBm (path loss and shadowing): strongest-UAV cells, per-cell B / U_d, interference from every
     active cell (``"full"`` reuse) or none (``"orthogonal"``: 1/D of the band each). With one UAV it

@@ -45,7 +45,9 @@ class RadioReadings:
 class RadioChannel:
     """Stateful (shadowing) channel; the random generator is passed to every call that draws."""
 
-    def __init__(self, radio: RadioConfig, area: AreaConfig, n_ues: int, fleet_reuse: str = "full") -> None:
+    def __init__(
+        self, radio: RadioConfig, area: AreaConfig, n_ues: int, fleet_reuse: str = "full"
+    ) -> None:
         radio.validate()
         area.validate()
         self.radio = radio
@@ -73,7 +75,9 @@ class RadioChannel:
         only (the genie), never part of an observation. Immutable, so shared, not copied."""
         return self._field
 
-    def reset(self, rng: np.random.Generator, uav_xy_m: np.ndarray, ue_xy_m: np.ndarray) -> RadioReadings:
+    def reset(
+        self, rng: np.random.Generator, uav_xy_m: np.ndarray, ue_xy_m: np.ndarray
+    ) -> RadioReadings:
         """Draw fresh shadowing for every link and return the readings of the first frame."""
         n_envs, n_uavs = uav_xy_m.shape[0], uav_xy_m.shape[1]
         if self.radio.shadowing and self.radio.shadowing_model == "spatial":
@@ -84,12 +88,15 @@ class RadioChannel:
             self._shadow_db = initial_shadowing_db(rng, (n_envs, self.n_ues, n_uavs), self.radio)
         self._aoa_std_deg = self.radio.aoa_noise_deg
         if self.radio.aoa_noise_max_deg > self.radio.aoa_noise_deg:  # per-episode std, (N, 1)
-            self._aoa_std_deg = rng.uniform(self.radio.aoa_noise_deg, self.radio.aoa_noise_max_deg,
-                                            size=(n_envs, 1))
+            self._aoa_std_deg = rng.uniform(
+                self.radio.aoa_noise_deg, self.radio.aoa_noise_max_deg, size=(n_envs, 1)
+            )
         self._uav_prev, self._ue_prev = uav_xy_m.copy(), ue_xy_m.copy()
         return self._readings(rng, uav_xy_m, ue_xy_m)
 
-    def step(self, rng: np.random.Generator, uav_xy_m: np.ndarray, ue_xy_m: np.ndarray) -> RadioReadings:
+    def step(
+        self, rng: np.random.Generator, uav_xy_m: np.ndarray, ue_xy_m: np.ndarray
+    ) -> RadioReadings:
         """Advance the shadowing (AR(1): by each link's displacement since the last call; spatial:
         the episode's field at the new positions), then read the frame."""
         if self._shadow_db is None:
@@ -104,7 +111,9 @@ class RadioChannel:
         self._uav_prev, self._ue_prev = uav_xy_m.copy(), ue_xy_m.copy()
         return self._readings(rng, uav_xy_m, ue_xy_m)
 
-    def _readings(self, rng: np.random.Generator, uav_xy_m: np.ndarray, ue_xy_m: np.ndarray) -> RadioReadings:
+    def _readings(
+        self, rng: np.random.Generator, uav_xy_m: np.ndarray, ue_xy_m: np.ndarray
+    ) -> RadioReadings:
         radio = self.radio
         rx_dbm = mean_rx_power_dbm(distance_3d_m(uav_xy_m, ue_xy_m, self.altitude_m), radio)
         rx_dbm += self._shadow_db  # (N, U, D)
@@ -115,12 +124,22 @@ class RadioChannel:
             sinr *= mean_rician_power_gain(rng, sinr.shape, self.rbs_per_ue, radio.rician_k_db)
         sinr_db = 10.0 * np.log10(sinr)
         aoa = measured_aoa_deg(rng, true_aoa_deg(uav_xy_m, ue_xy_m), self._aoa_std_deg)
-        return RadioReadings(sinr_db=sinr_db, rate_bps=rate_bps(sinr, radio.bandwidth_hz, self.n_ues),
-                             aoa_deg=aoa, heard_sinr_db=sinr_db[:, None, :], heard_aoa_deg=aoa[:, None, :],
-                             serving=np.zeros(sinr.shape, dtype=np.intp))
+        return RadioReadings(
+            sinr_db=sinr_db,
+            rate_bps=rate_bps(sinr, radio.bandwidth_hz, self.n_ues),
+            aoa_deg=aoa,
+            heard_sinr_db=sinr_db[:, None, :],
+            heard_aoa_deg=aoa[:, None, :],
+            serving=np.zeros(sinr.shape, dtype=np.intp),
+        )
 
-    def _fleet_readings(self, rng: np.random.Generator, uav_xy_m: np.ndarray, ue_xy_m: np.ndarray,
-                        rx_dbm: np.ndarray) -> RadioReadings:
+    def _fleet_readings(
+        self,
+        rng: np.random.Generator,
+        uav_xy_m: np.ndarray,
+        ue_xy_m: np.ndarray,
+        rx_dbm: np.ndarray,
+    ) -> RadioReadings:
         radio = self.radio
         cells = Cells.associate(rx_dbm)
         if self.fleet_reuse == "orthogonal":
@@ -131,16 +150,28 @@ class RadioChannel:
         # RBs (no other cell's downlink in the uplink band), and the AoA.
         heard = 10.0 ** ((rx_dbm - self.noise_dbm) / 10.0)
         if radio.fast_fading:
-            heard *= mean_rician_power_gain(rng, heard.shape, self.rbs_per_ue[:, None], radio.rician_k_db)
-        std = self._aoa_std_deg if np.ndim(self._aoa_std_deg) == 0 else self._aoa_std_deg[:, :, None]
-        heard_aoa = measured_aoa_deg(rng, true_aoa_deg(uav_xy_m[:, :, None, :], ue_xy_m[:, None, :, :]), std)
+            heard *= mean_rician_power_gain(
+                rng, heard.shape, self.rbs_per_ue[:, None], radio.rician_k_db
+            )
+        std = (
+            self._aoa_std_deg if np.ndim(self._aoa_std_deg) == 0 else self._aoa_std_deg[:, :, None]
+        )
+        heard_aoa = measured_aoa_deg(
+            rng, true_aoa_deg(uav_xy_m[:, :, None, :], ue_xy_m[:, None, :, :]), std
+        )
         at_server = np.take_along_axis(heard_aoa, cells.serving[:, None, :], axis=1)[:, 0]
-        return RadioReadings(sinr_db=10.0 * np.log10(sinr), rate_bps=bandwidth_hz * np.log2(1.0 + sinr),
-                             aoa_deg=at_server, heard_sinr_db=10.0 * np.log10(heard.transpose(0, 2, 1)),
-                             heard_aoa_deg=heard_aoa, serving=cells.serving)
+        return RadioReadings(
+            sinr_db=10.0 * np.log10(sinr),
+            rate_bps=bandwidth_hz * np.log2(1.0 + sinr),
+            aoa_deg=at_server,
+            heard_sinr_db=10.0 * np.log10(heard.transpose(0, 2, 1)),
+            heard_aoa_deg=heard_aoa,
+            serving=cells.serving,
+        )
 
-    def _full_reuse_sinr(self, rng: np.random.Generator, rx_dbm: np.ndarray,
-                         cells: Cells) -> tuple[np.ndarray, np.ndarray]:
+    def _full_reuse_sinr(
+        self, rng: np.random.Generator, rx_dbm: np.ndarray, cells: Cells
+    ) -> tuple[np.ndarray, np.ndarray]:
         """Effective SINR (N, U), the linear mean over the UE's RBs of signal / (interference +
         noise) with every active UAV on every RB and per-RB fading, and the bandwidth B / U_d.
 
@@ -167,8 +198,9 @@ class RadioChannel:
         sinr = (np.add.reduceat(sinr_rb, first_rb) / n_rb).reshape(n_envs, n_ues)
         return sinr, radio.bandwidth_hz / cells.ues_in_cell()
 
-    def _orthogonal_sinr(self, rng: np.random.Generator, rx_dbm: np.ndarray,
-                         cells: Cells) -> tuple[np.ndarray, np.ndarray]:
+    def _orthogonal_sinr(
+        self, rng: np.random.Generator, rx_dbm: np.ndarray, cells: Cells
+    ) -> tuple[np.ndarray, np.ndarray]:
         """Each UAV alone on K // D RBs at full power: no interference; the bandwidth B_d / U_d."""
         radio = self.radio
         rbs_per_uav = radio.n_resource_blocks // rx_dbm.shape[2]

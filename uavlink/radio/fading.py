@@ -62,8 +62,13 @@ def rician_gain_table(k_db: float, size: int = TABLE_SIZE) -> np.ndarray:
     z = 2.0 * np.sqrt(k * (k + 1.0) * g)
     # log I0(z): numpy's i0 up to z = 500, its asymptotic series beyond (I0 overflows near 700).
     small = np.minimum(z, 500.0)
-    log_i0 = np.where(z <= 500.0, np.log(np.i0(small)),
-                      z - 0.5 * np.log(2.0 * np.pi * np.maximum(z, 1.0)) + np.log1p(1.0 / (8.0 * np.maximum(z, 1.0))))
+    log_i0 = np.where(
+        z <= 500.0,
+        np.log(np.i0(small)),
+        z
+        - 0.5 * np.log(2.0 * np.pi * np.maximum(z, 1.0))
+        + np.log1p(1.0 / (8.0 * np.maximum(z, 1.0))),
+    )
     pdf = (k + 1.0) * np.exp(-k - (k + 1.0) * g + log_i0)
     step = g[1] - g[0]
     cdf = np.concatenate([[0.0], np.cumsum(0.5 * (pdf[1:] + pdf[:-1]) * step)])
@@ -75,9 +80,12 @@ def rician_gain_table(k_db: float, size: int = TABLE_SIZE) -> np.ndarray:
     return np.maximum.accumulate(table / table.mean()).astype(np.float32)
 
 
-def tabulated_rician_power_gain(rng: np.random.Generator, shape: tuple[int, ...], k_db: float) -> np.ndarray:
+def tabulated_rician_power_gain(
+    rng: np.random.Generator, shape: tuple[int, ...], k_db: float
+) -> np.ndarray:
     """Independent per-RB power gains |h|^2 (mean 1), float32, by table lookup: one uint16 per
     gain instead of two normals. A fleet's full-reuse SINR draws one gain
     per scheduled RB and UAV (51k per frame at N = 256, D = 2); see ``rician_gain_table``."""
-    return rician_gain_table(float(k_db)).take(rng.integers(0, TABLE_SIZE, size=shape, dtype=np.uint16))
-
+    return rician_gain_table(float(k_db)).take(
+        rng.integers(0, TABLE_SIZE, size=shape, dtype=np.uint16)
+    )

@@ -21,7 +21,13 @@ def path_loss_db(distance_m: np.ndarray | float, radio: RadioConfig = DEFAULT_RA
     return radio.path_loss_intercept_db + radio.path_loss_slope_db * np.log10(d_km)
 
 
-def mean_rx_power_dbm(distance_m: np.ndarray | float, radio: RadioConfig = DEFAULT_RADIO) -> np.ndarray:
+def mean_rx_power_dbm(
+    distance_m: np.ndarray | float, radio: RadioConfig = DEFAULT_RADIO
+) -> np.ndarray:
     """Received power without shadowing or fading: P_tx + G_antenna - L - L_o2i (dBm, whole band)."""
-    return (radio.tx_power_dbm + radio.antenna_gain_db - radio.outdoor_to_indoor_loss_db
-            - path_loss_db(distance_m, radio))
+    return (
+        radio.tx_power_dbm
+        + radio.antenna_gain_db
+        - radio.outdoor_to_indoor_loss_db
+        - path_loss_db(distance_m, radio)
+    )

@@ -12,7 +12,9 @@ import numpy as np
 from uavlink.config import RadioConfig
 
 
-def initial_shadowing_db(rng: np.random.Generator, shape: tuple[int, ...], radio: RadioConfig) -> np.ndarray:
+def initial_shadowing_db(
+    rng: np.random.Generator, shape: tuple[int, ...], radio: RadioConfig
+) -> np.ndarray:
     """Stationary draw of the shadow values, shape (..., U, D); zeros when shadowing is off."""
     if not radio.shadowing:
         return np.zeros(shape)

@@ -24,8 +24,9 @@ from uavlink.config import RadioConfig
 N_TERMS = 32  # cosines per field (SPEC: K = 32)
 
 
-def cauchy_wave_vectors(rng: np.random.Generator, n_envs: int, n_terms: int,
-                        decorrelation_m: float) -> np.ndarray:
+def cauchy_wave_vectors(
+    rng: np.random.Generator, n_envs: int, n_terms: int, decorrelation_m: float
+) -> np.ndarray:
     """Wave vectors (N, K, 2) in rad/m from the 2-D spectrum of exp(-r/d).
 
     That spectrum's radial CDF is F(k) = 1 - (1 + d^2 k^2)^(-1/2), inverted at a stratified
@@ -50,18 +51,24 @@ class SpatialShadowField:
     amplitude_db: float  # sigma sqrt(2 / K)
 
     @classmethod
-    def draw(cls, rng: np.random.Generator, n_envs: int, radio: RadioConfig,
-             n_terms: int = N_TERMS) -> SpatialShadowField:
+    def draw(
+        cls, rng: np.random.Generator, n_envs: int, radio: RadioConfig, n_terms: int = N_TERMS
+    ) -> SpatialShadowField:
         ue = cauchy_wave_vectors(rng, n_envs, n_terms, radio.shadowing_decorrelation_m)
         uav = cauchy_wave_vectors(rng, n_envs, n_terms, radio.shadowing_uav_decorrelation_m)
         # Pair the two ends' strata at random: with term k taking stratum k at both ends, long and
         # short waves would pair up and both ends moving would decorrelate less than the product.
-        uav = np.take_along_axis(uav, rng.permuted(np.tile(np.arange(n_terms), (n_envs, 1)), axis=1)[..., None],
-                                 axis=1)
+        uav = np.take_along_axis(
+            uav, rng.permuted(np.tile(np.arange(n_terms), (n_envs, 1)), axis=1)[..., None], axis=1
+        )
         phase = rng.uniform(-np.pi, np.pi, (n_envs, 1, n_terms))
         as_columns = lambda waves: np.ascontiguousarray(waves.transpose(0, 2, 1), dtype=np.float32)  # noqa: E731
-        return cls(as_columns(ue), as_columns(uav), phase.astype(np.float32),
-                   radio.shadowing_std_db * np.sqrt(2.0 / n_terms))
+        return cls(
+            as_columns(ue),
+            as_columns(uav),
+            phase.astype(np.float32),
+            radio.shadowing_std_db * np.sqrt(2.0 / n_terms),
+        )
 
     def shadow_db(self, uav_xy_m: np.ndarray, ue_xy_m: np.ndarray) -> np.ndarray:
         """Shadowing (N, U, D) in dB of every link, for UAVs (N, D, 2) and UEs (N, U, 2)."""
@@ -69,7 +76,9 @@ class SpatialShadowField:
         if uav_phase.shape[1] == 1:
             # One UAV, the hot path of training: its phase rides in the same matrix product as the
             # UEs' ([p, 1] @ [w; phase]), with no (N, U, D, K) temporary.
-            ue = np.concatenate([ue_xy_m.astype(np.float32), np.ones((*ue_xy_m.shape[:2], 1), np.float32)], axis=2)
+            ue = np.concatenate(
+                [ue_xy_m.astype(np.float32), np.ones((*ue_xy_m.shape[:2], 1), np.float32)], axis=2
+            )
             phase = (ue @ np.concatenate([self.ue_wave_per_m, uav_phase], axis=1))[:, :, None, :]
         else:
             ue_phase = ue_xy_m.astype(np.float32) @ self.ue_wave_per_m  # (N, U, K)

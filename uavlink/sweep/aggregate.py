@@ -13,7 +13,6 @@ import json
 import math
 import shutil
 from collections.abc import Collection
-from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
@@ -21,80 +20,8 @@ from uavlink.errors import UserError
 from uavlink.evaluation.tables import markdown_table, write_csv
 from uavlink.sweep.jobs import RUN_FIELDS, read_result, result_path
 from uavlink.sweep.plots import plot_learning_curves, plot_throughput
-from uavlink.sweep.spec import BASELINE_COLUMNS, Job, SweepSpec, describe_point
-
-# Two-sided 95 % Student t quantiles, t(0.975, df), df = 1..30.
-_T975 = (12.706, 4.303, 3.182, 2.776, 2.571, 2.447, 2.365, 2.306, 2.262, 2.228, 2.201, 2.179, 2.160,
-         2.145, 2.131, 2.120, 2.110, 2.101, 2.093, 2.086, 2.080, 2.074, 2.069, 2.064, 2.060, 2.056,
-         2.052, 2.048, 2.045, 2.042)
-
-
-def t975(df: int) -> float:
-    """t(0.975, df); a Cornish-Fisher expansion beyond the table (error < 1e-3)."""
-    if df < 1:
-        return math.nan
-    if df <= len(_T975):
-        return _T975[df - 1]
-    z = 1.959964
-    return z + (z**3 + z) / (4 * df) + (5 * z**5 + 16 * z**3 + 3 * z) / (96 * df**2)
-
-
-@dataclass
-class SettingRow:
-    """One scenario x grid point and its finished seeds."""
-
-    scenario: str
-    point: dict[str, Any]
-    expected_seeds: int
-    results: list[dict[str, Any]] = field(default_factory=list)
-
-    def column(self, policy: str) -> list[float]:
-        return [r["evaluation"][policy]["mean_rate_mbps"] for r in self.results]
-
-    @property
-    def n(self) -> int:
-        return len(self.results)
-
-    def ppo_interval(self) -> tuple[float, float]:
-        """(mean, 95 % half-width across seeds); half-width NaN with one seed."""
-        values = self.column("ppo")
-        mean = sum(values) / len(values)
-        if len(values) < 2:
-            return mean, math.nan
-        std = math.sqrt(sum((v - mean) ** 2 for v in values) / (len(values) - 1))
-        return mean, t975(len(values) - 1) * std / math.sqrt(len(values))
-
-    def baseline(self, policy: str) -> float:
-        values = self.column(policy)  # identical across seeds: same episodes, no training
-        return sum(values) / len(values)
-
-    def median_result(self) -> dict[str, Any]:
-        """The seed whose PPO throughput is the median (the lower one of the middle two when even)."""
-        ranked = sorted(self.results, key=lambda r: (r["evaluation"]["ppo"]["mean_rate_mbps"], r["seed"]))
-        return ranked[(len(ranked) - 1) // 2]
-
-    def wall_s(self) -> list[float]:
-        return [r["timing"]["job_s"] for r in self.results]
-
-    def numbers(self) -> dict[str, Any]:
-        mean, hw = self.ppo_interval()
-        static, oracle, aoa = (self.baseline(p) for p in BASELINE_COLUMNS)
-        walls = self.wall_s()
-        median = self.median_result()
-        ppo = self.column("ppo")
-        return {
-            "scenario": self.scenario, **{k.split(".", 1)[1]: v for k, v in self.point.items()},
-            "seeds": self.n, "seeds_expected": self.expected_seeds,
-            "ppo_mbps": mean, "ppo_ci95_mbps": hw, "ppo_min_mbps": min(ppo), "ppo_max_mbps": max(ppo),
-            "static_mbps": static, "oracle_mbps": oracle, "aoa_mbps": aoa,
-            "gain_pct": 100 * (mean / static - 1), "gain_lo_pct": 100 * ((mean - hw) / static - 1),
-            "gain_hi_pct": 100 * ((mean + hw) / static - 1),
-            "oracle_share_pct": 100 * mean / oracle, "oracle_share_lo_pct": 100 * (mean - hw) / oracle,
-            "oracle_share_hi_pct": 100 * (mean + hw) / oracle,
-            "wall_s_mean": sum(walls) / len(walls), "wall_s_total": sum(walls),
-            "median_seed": median["seed"], "median_job": median["name"],
-        }
-
+from uavlink.sweep.rows import SettingRow
+from uavlink.sweep.spec import Job, SweepSpec, describe_point
 
 RECORD_FORMAT = "uavlink-sweep-record-v1"
 
@@ -108,16 +35,21 @@ def _record_entry(result: dict[str, Any]) -> dict[str, Any]:
     """A job's figures as the across-seed table and its plots use them: no policy bytes, no
     per-episode lists, of the run fields only the wall time."""
     entry = {k: v for k, v in result.items() if k not in (*RUN_FIELDS, "policy_zip", "evaluation")}
-    entry["evaluation"] = {policy: {k: v for k, v in figures.items() if not isinstance(v, list)}
-                           for policy, figures in result["evaluation"].items()}
+    entry["evaluation"] = {
+        policy: {k: v for k, v in figures.items() if not isinstance(v, list)}
+        for policy, figures in result["evaluation"].items()
+    }
     entry["timing"] = {"job_s": result["timing"]["job_s"]}
     return entry
 
 
 def write_record(rows: list[SettingRow], spec: SweepSpec, path: Path) -> None:
     """Write the record of a sweep's finished jobs, atomically."""
-    payload = {"format": RECORD_FORMAT, "sweep": spec.name,
-               "jobs": [_record_entry(result) for row in rows for result in row.results]}
+    payload = {
+        "format": RECORD_FORMAT,
+        "sweep": spec.name,
+        "jobs": [_record_entry(result) for row in rows for result in row.results],
+    }
     tmp = path.with_name(f".{path.name}.partial")
     tmp.write_text(json.dumps(payload, indent=1, sort_keys=True) + "\n")
     tmp.replace(path)
@@ -132,11 +64,15 @@ def read_record(path: Path) -> dict[str, dict[str, Any]]:
     except (OSError, json.JSONDecodeError) as exc:
         raise UserError(f"{path}: not a readable sweep record ({exc})") from None
     if payload.get("format") != RECORD_FORMAT:
-        raise UserError(f"{path}: not a sweep record (format {payload.get('format')!r}, expected {RECORD_FORMAT!r})")
+        raise UserError(
+            f"{path}: not a sweep record (format {payload.get('format')!r}, expected {RECORD_FORMAT!r})"
+        )
     return {job["key"]: job for job in payload["jobs"]}
 
 
-def collect(spec: SweepSpec, sweep_dir: Path, record: dict[str, dict[str, Any]] | None = None) -> list[SettingRow]:
+def collect(
+    spec: SweepSpec, sweep_dir: Path, record: dict[str, dict[str, Any]] | None = None
+) -> list[SettingRow]:
     """Settings in the sweep file's order, each with the finished results of its jobs: from
     ``sweep_dir``, else from ``record`` (``read_record``; a job's key names its settings, so a
     recipe changed since the record was written finds no figures there)."""
@@ -149,15 +85,35 @@ def collect(spec: SweepSpec, sweep_dir: Path, record: dict[str, dict[str, Any]] 
     return list(rows.values())
 
 
-def summary_table(rows: list[SettingRow], grid_keys: list[str]) -> tuple[list[str], list[list[str]]]:
+def summary_table(
+    rows: list[SettingRow], grid_keys: list[str]
+) -> tuple[list[str], list[list[str]]]:
     names = [k.split(".", 1)[1] for k in grid_keys]
-    header = ["scenario", *names, "seeds", "PPO (Mbps)", "PPO seed range", "static", "oracle", "aoa",
-              "gain over static", "PPO / oracle", "wall / job", "median seed"]
+    header = [
+        "scenario",
+        *names,
+        "seeds",
+        "PPO (Mbps)",
+        "PPO seed range",
+        "static",
+        "oracle",
+        "aoa",
+        "gain over static",
+        "PPO / oracle",
+        "wall / job",
+        "median seed",
+    ]
     body = []
     for row in rows:
         if not row.n:
-            body.append([row.scenario, *[_cell(row.point[k]) for k in grid_keys], f"0/{row.expected_seeds}",
-                         *["—"] * (len(header) - 2 - len(names))])
+            body.append(
+                [
+                    row.scenario,
+                    *[_cell(row.point[k]) for k in grid_keys],
+                    f"0/{row.expected_seeds}",
+                    *["—"] * (len(header) - 2 - len(names)),
+                ]
+            )
             continue
         x = row.numbers()
         hw = "n/a" if math.isnan(x["ppo_ci95_mbps"]) else f"{x['ppo_ci95_mbps']:.2f}"
@@ -166,17 +122,31 @@ def summary_table(rows: list[SettingRow], grid_keys: list[str]) -> tuple[list[st
         if not math.isnan(x["ppo_ci95_mbps"]):
             gain += f" [{x['gain_lo_pct']:+.1f}, {x['gain_hi_pct']:+.1f}]"
             share += f" [{x['oracle_share_lo_pct']:.1f}, {x['oracle_share_hi_pct']:.1f}]"
-        body.append([
-            row.scenario, *[_cell(row.point[k]) for k in grid_keys], f"{row.n}/{row.expected_seeds}",
-            f"{x['ppo_mbps']:.2f} ± {hw}", f"{x['ppo_min_mbps']:.2f}–{x['ppo_max_mbps']:.2f}",
-            f"{x['static_mbps']:.2f}", f"{x['oracle_mbps']:.2f}", f"{x['aoa_mbps']:.2f}", gain, share,
-            _duration(x["wall_s_mean"]), str(x["median_seed"]),
-        ])
+        body.append(
+            [
+                row.scenario,
+                *[_cell(row.point[k]) for k in grid_keys],
+                f"{row.n}/{row.expected_seeds}",
+                f"{x['ppo_mbps']:.2f} ± {hw}",
+                f"{x['ppo_min_mbps']:.2f}–{x['ppo_max_mbps']:.2f}",
+                f"{x['static_mbps']:.2f}",
+                f"{x['oracle_mbps']:.2f}",
+                f"{x['aoa_mbps']:.2f}",
+                gain,
+                share,
+                _duration(x["wall_s_mean"]),
+                str(x["median_seed"]),
+            ]
+        )
     return header, body
 
 
-def write_summary(spec: SweepSpec, sweep_dir: Path, command: str = "",
-                  record: dict[str, dict[str, Any]] | None = None) -> tuple[Path, str]:
+def write_summary(
+    spec: SweepSpec,
+    sweep_dir: Path,
+    command: str = "",
+    record: dict[str, dict[str, Any]] | None = None,
+) -> tuple[Path, str]:
     """Write summary.md, summary.csv, throughput.png and learning_curves.png of the jobs in
     ``sweep_dir`` and ``record`` (see ``collect``); returns (md, table)."""
     rows = collect(spec, sweep_dir, record)
@@ -186,8 +156,7 @@ def write_summary(spec: SweepSpec, sweep_dir: Path, command: str = "",
     numeric = [r.numbers() for r in finished]
     if numeric:
         keys = list(numeric[0])
-        write_csv(sweep_dir / "summary.csv", keys,
-                  [[_csv(x[k]) for k in keys] for x in numeric])
+        write_csv(sweep_dir / "summary.csv", keys, [[_csv(x[k]) for k in keys] for x in numeric])
         plot_throughput(finished, grid_keys, sweep_dir / "throughput.png")
         plot_learning_curves(finished, grid_keys, sweep_dir / "learning_curves.png")
     table = markdown_table(header, body)
@@ -206,12 +175,23 @@ def write_summary(spec: SweepSpec, sweep_dir: Path, command: str = "",
         "",
         table,
         "",
-        *(["![throughput per setting](throughput.png)", "", "![learning curves](learning_curves.png)", ""]
-          if numeric else []),
+        *(
+            [
+                "![throughput per setting](throughput.png)",
+                "",
+                "![learning curves](learning_curves.png)",
+                "",
+            ]
+            if numeric
+            else []
+        ),
     ]
     path = sweep_dir / "summary.md"
     path.write_text("\n".join(text))
-    clean = [{k: None if isinstance(v, float) and math.isnan(v) else v for k, v in x.items()} for x in numeric]
+    clean = [
+        {k: None if isinstance(v, float) and math.isnan(v) else v for k, v in x.items()}
+        for x in numeric
+    ]
     (sweep_dir / "summary.json").write_text(json.dumps(clean, indent=1) + "\n")
     return path, table
 
@@ -222,18 +202,28 @@ def training_episodes(spec: SweepSpec) -> str:
     return f"{counts[0]:,}" if len(counts) == 1 else f"{counts[0]:,} to {counts[-1]:,}"
 
 
-def finished_rows(spec: SweepSpec, sweep_dir: Path, record: dict[str, dict[str, Any]] | None = None) -> list[SettingRow]:
+def finished_rows(
+    spec: SweepSpec, sweep_dir: Path, record: dict[str, dict[str, Any]] | None = None
+) -> list[SettingRow]:
     """The sweep's rows (see ``collect``); a UserError naming the unfinished scenarios if any job is missing."""
     rows = collect(spec, sweep_dir, record)
     missing = [r.scenario for r in rows if r.n < r.expected_seeds]
     if missing:
-        raise UserError(f"sweep {spec.name!r} in {sweep_dir} is not finished ({', '.join(missing)}): "
-                         f"run `uavlink sweep` on it first")
+        raise UserError(
+            f"sweep {spec.name!r} in {sweep_dir} is not finished ({', '.join(missing)}): "
+            f"run `uavlink sweep` on it first"
+        )
     return rows
 
 
-def results_section(spec: SweepSpec, sweep_dir: Path, assets: Path, link_prefix: Path,
-                    shipped_to: Path = Path("policies"), level: str = "##") -> str:
+def results_section(
+    spec: SweepSpec,
+    sweep_dir: Path,
+    assets: Path,
+    link_prefix: Path,
+    shipped_to: Path = Path("policies"),
+    level: str = "##",
+) -> str:
     """Markdown for docs/results.md: the across-seed table of a finished sweep and its figures,
     drawn into ``assets`` as ``sweep_<sweep name>_<figure>`` (linked as ``link_prefix/<file>``, so
     several sweeps share one folder). Its median seeds are shipped to ``shipped_to``; the figures
@@ -244,20 +234,25 @@ def results_section(spec: SweepSpec, sweep_dir: Path, assets: Path, link_prefix:
     prefix = f"sweep_{spec.name}_"
     plot_throughput(rows, list(spec.grid), assets / f"{prefix}throughput.png")
     plot_learning_curves(rows, list(spec.grid), assets / f"{prefix}learning_curves.png")
-    figures = [line for name in ("throughput", "learning_curves")
-               for line in (f"![{name}]({link_prefix / f'{prefix}{name}.png'})", "")]
-    return "\n".join([
-        f"{level} Table I across training seeds (sweep `{spec.name}`)",
-        "",
-        f"`uavlink sweep` of `{spec.name}` ({len(spec.seeds)} seeds per scenario, {training_episodes(spec)} "
-        f"training episodes each, evaluation on {spec.eval['episodes']} episodes, seed {spec.eval['seed']}). "
-        "PPO is the mean over training seeds ± the 95 % Student-t interval across seeds. "
-        + shipped_sentence(rows, spec, shipped_to),
-        "",
-        markdown_table(header, body),
-        "",
-        *figures,
-    ])
+    figures = [
+        line
+        for name in ("throughput", "learning_curves")
+        for line in (f"![{name}]({link_prefix / f'{prefix}{name}.png'})", "")
+    ]
+    return "\n".join(
+        [
+            f"{level} Table I across training seeds (sweep `{spec.name}`)",
+            "",
+            f"`uavlink sweep` of `{spec.name}` ({len(spec.seeds)} seeds per scenario, {training_episodes(spec)} "
+            f"training episodes each, evaluation on {spec.eval['episodes']} episodes, seed {spec.eval['seed']}). "
+            "PPO is the mean over training seeds ± the 95 % Student-t interval across seeds. "
+            + shipped_sentence(rows, spec, shipped_to),
+            "",
+            markdown_table(header, body),
+            "",
+            *figures,
+        ]
+    )
 
 
 def shipped_sentence(rows: list[SettingRow], spec: SweepSpec, shipped_to: Path) -> str:
@@ -281,12 +276,16 @@ def shipped_sentence(rows: list[SettingRow], spec: SweepSpec, shipped_to: Path) 
     if not earlier:
         return f"{where} each scenario's median seed."
     which = "" if len(earlier) == considered else f" for {', '.join(earlier)}"
-    return (f"{where} not this run's median seeds{which}: they were chosen from an earlier run of the "
-            "sweep whose per-seed throughputs differ from this run's (each manifest's `selection` keeps "
-            f"them){'; elsewhere they are' if which else ''}.")
+    return (
+        f"{where} not this run's median seeds{which}: they were chosen from an earlier run of the "
+        "sweep whose per-seed throughputs differ from this run's (each manifest's `selection` keeps "
+        f"them){'; elsewhere they are' if which else ''}."
+    )
 
 
-def export_median_policies(spec: SweepSpec, sweep_dir: Path, dest: Path) -> list[tuple[str, Path, int]]:
+def export_median_policies(
+    spec: SweepSpec, sweep_dir: Path, dest: Path
+) -> list[tuple[str, Path, int]]:
     """Copy each scenario's median-seed policy to ``dest/<scenario>.zip`` (manifest records the
     choice) and write the sweep's record beside them; returns the policies copied.
 
@@ -297,32 +296,48 @@ def export_median_policies(spec: SweepSpec, sweep_dir: Path, dest: Path) -> list
     from uavlink.policies.manifest import read_zip_manifest, write_zip_manifest
 
     if len(spec.points()) > 1:
-        raise UserError("--policies-out needs one setting per scenario: this sweep has a grid "
-                         f"of {len(spec.points())} points")
+        raise UserError(
+            "--policies-out needs one setting per scenario: this sweep has a grid "
+            f"of {len(spec.points())} points"
+        )
     rows = collect(spec, sweep_dir, read_record(record_path(dest, spec)))
     missing = [r.scenario for r in rows if r.n < r.expected_seeds]
     if missing:
-        raise UserError(f"--policies-out: not every seed finished for {', '.join(missing)}; rerun the sweep")
+        raise UserError(
+            f"--policies-out: not every seed finished for {', '.join(missing)}; rerun the sweep"
+        )
     dest.mkdir(parents=True, exist_ok=True)
     written = []
     for row in rows:
         chosen = row.median_result()
         out = dest / f"{row.scenario}.zip"
         if not (sweep_dir / chosen["name"] / "policy.zip").is_file():
-            shipped_key = (read_zip_manifest(out).get("selection", {}).get("key") if out.is_file() else None)
+            shipped_key = (
+                read_zip_manifest(out).get("selection", {}).get("key") if out.is_file() else None
+            )
             if shipped_key != chosen["key"]:
-                raise UserError(f"--policies-out: {row.scenario}'s median job {chosen['name']} is in the record "
-                                f"but {out} is not its policy; rerun that job (delete {record_path(dest, spec)})")
+                raise UserError(
+                    f"--policies-out: {row.scenario}'s median job {chosen['name']} is in the record "
+                    f"but {out} is not its policy; rerun that job (delete {record_path(dest, spec)})"
+                )
             continue
         tmp = dest / f".{row.scenario}.zip.partial"
         shutil.copyfile(sweep_dir / chosen["name"] / "policy.zip", tmp)
         manifest = read_zip_manifest(tmp)
-        manifest["evaluation"] = {row.scenario: {k: v for k, v in chosen["evaluation"]["ppo"].items()
-                                                 if k != "episode_rate_mbps"}}
+        manifest["evaluation"] = {
+            row.scenario: {
+                k: v for k, v in chosen["evaluation"]["ppo"].items() if k != "episode_rate_mbps"
+            }
+        }
         manifest["selection"] = {
             "rule": "median seed of the sweep by PPO evaluation throughput",
-            "sweep": spec.name, "job": chosen["name"], "key": chosen["key"], "seed": chosen["seed"],
-            "seeds_mbps": {str(r["seed"]): r["evaluation"]["ppo"]["mean_rate_mbps"] for r in row.results},
+            "sweep": spec.name,
+            "job": chosen["name"],
+            "key": chosen["key"],
+            "seed": chosen["seed"],
+            "seeds_mbps": {
+                str(r["seed"]): r["evaluation"]["ppo"]["mean_rate_mbps"] for r in row.results
+            },
         }
         write_zip_manifest(tmp, manifest)
         tmp.replace(out)
@@ -334,6 +349,7 @@ def export_median_policies(spec: SweepSpec, sweep_dir: Path, dest: Path) -> list
 
 def jobs_table(jobs: list[Job], sweep_dir: Path, recorded: Collection[str] = ()) -> str:
     """One line per job with its status (``recorded``: keys of a shipped record's jobs), for --dry-run."""
+
     def status(job: Job) -> str:
         if result_path(sweep_dir, job).is_file():
             return "done"
@@ -358,4 +374,3 @@ def _csv(value: Any) -> Any:
     if isinstance(value, float):
         return "" if math.isnan(value) else round(value, 6)
     return value
-

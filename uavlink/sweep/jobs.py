@@ -49,8 +49,10 @@ def run_job(job_data: dict[str, Any]) -> dict[str, Any]:
     for name, digest in job.file_sha256.items():
         path = getattr(tc.warm_start, name)
         if file_sha256(Path(path)) != digest:
-            raise RuntimeError(f"job {job.key}: {path} on this worker is not the warm_start.{name} file the "
-                               "job was made with")
+            raise RuntimeError(
+                f"job {job.key}: {path} on this worker is not the warm_start.{name} file the "
+                "job was made with"
+            )
     with tempfile.TemporaryDirectory(prefix=f"uavlink-{job.key}-") as tmp:
         path = Path(tmp) / "policy.zip"
         t0 = time.perf_counter()
@@ -63,21 +65,34 @@ def run_job(job_data: dict[str, Any]) -> dict[str, Any]:
         # The policy's env (its manifest's, without training-time randomisation); the baselines fly it too.
         columns = ("ppo", *BASELINE_COLUMNS)
         loaded = load_with_env([path, *BASELINE_COLUMNS], EnvOverrides())
-        evaluation = {name: evaluate_policy(policy, env, episodes, seed).to_dict()
-                      for name, (policy, env) in zip(columns, loaded, strict=True)}
+        evaluation = {
+            name: evaluate_policy(policy, env, episodes, seed).to_dict()
+            for name, (policy, env) in zip(columns, loaded, strict=True)
+        }
         eval_s = time.perf_counter() - t0
     _trace("end", job.key)
     return {
-        "format": RESULT_FORMAT, "key": job.key, "name": job.name, "sweep": job.sweep,
-        "scenario": job.scenario, "seed": job.seed, "point": job.point, "settings": job.settings(),
+        "format": RESULT_FORMAT,
+        "key": job.key,
+        "name": job.name,
+        "sweep": job.sweep,
+        "scenario": job.scenario,
+        "seed": job.seed,
+        "point": job.point,
+        "settings": job.settings(),
         "evaluation": evaluation,
-        "training": {k: training[k] for k in ("total_timesteps", "steps_to_95pct_final", "learning_curve",
-                                              "validation")},
+        "training": {
+            k: training[k]
+            for k in ("total_timesteps", "steps_to_95pct_final", "learning_curve", "validation")
+        },
         "versions": manifest.get("versions", {}),
         "worker": _worker_identity(),
-        "timing": {"train_s": round(train_s, 3), "eval_s": round(eval_s, 3),
-                   "job_s": round(time.perf_counter() - start, 3),
-                   "cpu_s": round(time.process_time() - cpu_start, 3)},
+        "timing": {
+            "train_s": round(train_s, 3),
+            "eval_s": round(eval_s, 3),
+            "job_s": round(time.perf_counter() - start, 3),
+            "cpu_s": round(time.process_time() - cpu_start, 3),
+        },
         "policy_zip": policy_bytes,
     }
 

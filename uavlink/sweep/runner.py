@@ -35,9 +35,11 @@ from uavlink.sweep.spec import Job, SweepSpec
 # no statistical profiler (its 10 ms stack sampling takes the GIL from the job's thread); and
 # glibc's own malloc trimming: Dask's MALLOC_TRIM_THRESHOLD_=65536 also turns off glibc's dynamic
 # mmap threshold, so every large numpy temporary becomes an mmap + page faults (~8 % slower jobs).
-LOCAL_CLUSTER_CONFIG = {"distributed.scheduler.worker-saturation": 1.0,
-                        "distributed.worker.profile.enabled": False,
-                        "distributed.nanny.pre-spawn-environ.MALLOC_TRIM_THRESHOLD_": None}
+LOCAL_CLUSTER_CONFIG = {
+    "distributed.scheduler.worker-saturation": 1.0,
+    "distributed.worker.profile.enabled": False,
+    "distributed.nanny.pre-spawn-environ.MALLOC_TRIM_THRESHOLD_": None,
+}
 
 
 class EngineError(RuntimeError):
@@ -60,12 +62,16 @@ class SweepOutcome:
     written: set[str] = field(default_factory=set)  # job folders written by this run
 
 
-def plan(spec: SweepSpec, out_root: Path, done_keys: Collection[str] = ()) -> tuple[Path, list[Job], list[Job]]:
+def plan(
+    spec: SweepSpec, out_root: Path, done_keys: Collection[str] = ()
+) -> tuple[Path, list[Job], list[Job]]:
     """(sweep folder, all jobs, jobs without a result.json whose key is not in ``done_keys``);
     writes nothing."""
     sweep_dir = out_root / spec.name
     jobs = spec.jobs()
-    pending = [j for j in jobs if j.key not in done_keys and not result_path(sweep_dir, j).is_file()]
+    pending = [
+        j for j in jobs if j.key not in done_keys and not result_path(sweep_dir, j).is_file()
+    ]
     return sweep_dir, jobs, pending
 
 
@@ -74,15 +80,23 @@ def record_plan(spec: SweepSpec, sweep_dir: Path, jobs: list[Job]) -> None:
     sweep_dir.mkdir(parents=True, exist_ok=True)
     if spec.source is not None and spec.source.resolve() != (sweep_dir / "sweep.toml").resolve():
         shutil.copyfile(spec.source, sweep_dir / "sweep.toml")
-    listing = [{"key": j.key, "name": j.name, "scenario": j.scenario, "seed": j.seed, "point": j.point}
-               for j in jobs]
+    listing = [
+        {"key": j.key, "name": j.name, "scenario": j.scenario, "seed": j.seed, "point": j.point}
+        for j in jobs
+    ]
     (sweep_dir / "jobs.json").write_text(json.dumps(listing, indent=1) + "\n")
 
 
-def run_sweep(spec: SweepSpec, out_root: Path, scheduler: str | None = None, workers: int | None = None,
-              retries: int = 2, progress: bool = True,
-              log: Callable[[str], None] = lambda msg: print(msg, file=sys.stderr),
-              done_keys: Collection[str] = ()) -> SweepOutcome:
+def run_sweep(
+    spec: SweepSpec,
+    out_root: Path,
+    scheduler: str | None = None,
+    workers: int | None = None,
+    retries: int = 2,
+    progress: bool = True,
+    log: Callable[[str], None] = lambda msg: print(msg, file=sys.stderr),
+    done_keys: Collection[str] = (),
+) -> SweepOutcome:
     """Run every job of ``spec`` that has no result yet (in ``out_root`` or, by key, in ``done_keys``:
     a shipped sweep record's jobs); returns what happened. Nothing is written before the engine
     runs: a scheduler that cannot be reached leaves no sweep folder behind."""
@@ -94,8 +108,10 @@ def run_sweep(spec: SweepSpec, out_root: Path, scheduler: str | None = None, wor
 
     def begin() -> None:
         record_plan(spec, sweep_dir, jobs)
-        log(f"sweep {spec.name}: {len(jobs)} jobs, {outcome.skipped} already done, {len(pending)} to run "
-            f"-> {sweep_dir}")
+        log(
+            f"sweep {spec.name}: {len(jobs)} jobs, {outcome.skipped} already done, {len(pending)} to run "
+            f"-> {sweep_dir}"
+        )
 
     if pending and workers != 0:
         _run_on_dask(pending, sweep_dir, outcome, scheduler, workers, retries, progress, log, begin)
@@ -118,10 +134,14 @@ def _check_address(scheduler: str) -> None:
         if scheme in ("tcp", "tls"):
             parse_host_port(location)
     except ValueError as exc:
-        raise EngineError(f"--scheduler {scheduler!r} is not a Dask address ({exc}); e.g. tcp://HOST:8786") from None
+        raise EngineError(
+            f"--scheduler {scheduler!r} is not a Dask address ({exc}); e.g. tcp://HOST:8786"
+        ) from None
 
 
-def _run_in_process(pending: list[Job], sweep_dir: Path, outcome: SweepOutcome, progress: bool) -> None:
+def _run_in_process(
+    pending: list[Job], sweep_dir: Path, outcome: SweepOutcome, progress: bool
+) -> None:
     outcome.engine = "in-process, sequential"
     bar = _bar(len(pending), progress)
     try:
@@ -140,9 +160,17 @@ def _run_in_process(pending: list[Job], sweep_dir: Path, outcome: SweepOutcome, 
         bar.close()
 
 
-def _run_on_dask(pending: list[Job], sweep_dir: Path, outcome: SweepOutcome, scheduler: str | None,
-                 workers: int | None, retries: int, progress: bool, log: Callable[[str], None],
-                 begin: Callable[[], None]) -> None:
+def _run_on_dask(
+    pending: list[Job],
+    sweep_dir: Path,
+    outcome: SweepOutcome,
+    scheduler: str | None,
+    workers: int | None,
+    retries: int,
+    progress: bool,
+    log: Callable[[str], None],
+    begin: Callable[[], None],
+) -> None:
     """The jobs on Dask; ``begin`` runs once the engine is up (and never when it cannot start)."""
     require("distributed")
     import dask
@@ -154,7 +182,9 @@ def _run_on_dask(pending: list[Job], sweep_dir: Path, outcome: SweepOutcome, sch
             try:
                 client = Client(scheduler, timeout="20s", set_as_default=False)
             except (OSError, TimeoutError) as exc:
-                raise EngineError(f"cannot reach the Dask scheduler at {scheduler} ({exc})") from None
+                raise EngineError(
+                    f"cannot reach the Dask scheduler at {scheduler} ({exc})"
+                ) from None
             outcome.engine = f"scheduler {scheduler}"
             with contextlib.suppress(TimeoutError):
                 client.wait_for_workers(1, timeout=30)
@@ -165,8 +195,12 @@ def _run_on_dask(pending: list[Job], sweep_dir: Path, outcome: SweepOutcome, sch
             previous = signal.signal(signal.SIGINT, signal.SIG_IGN)
             try:
                 with dask.config.set(LOCAL_CLUSTER_CONFIG):
-                    cluster = LocalCluster(n_workers=n, threads_per_worker=1, processes=True,
-                                           silence_logs=logging.CRITICAL)  # failures: ours
+                    cluster = LocalCluster(
+                        n_workers=n,
+                        threads_per_worker=1,
+                        processes=True,
+                        silence_logs=logging.CRITICAL,
+                    )  # failures: ours
             finally:
                 signal.signal(signal.SIGINT, previous)
             client = Client(cluster, set_as_default=False)
@@ -183,7 +217,11 @@ def _run_on_dask(pending: list[Job], sweep_dir: Path, outcome: SweepOutcome, sch
     if "dashboard" in info.get("services", {}):
         import importlib.util
 
-        hint = "" if scheduler or importlib.util.find_spec("bokeh") else " (pip install bokeh for its pages)"
+        hint = (
+            ""
+            if scheduler or importlib.util.find_spec("bokeh")
+            else " (pip install bokeh for its pages)"
+        )
         log(f"dashboard: {client.dashboard_link}{hint}")
 
     by_key: dict[str, Job] = {}
@@ -191,8 +229,9 @@ def _run_on_dask(pending: list[Job], sweep_dir: Path, outcome: SweepOutcome, sch
     bar = _bar(len(pending), progress)
     try:
         for job in pending:
-            future = client.submit(run_job, job.to_dict(), key=f"uavlink-sweep-{job.key}", pure=False,
-                                   retries=retries)
+            future = client.submit(
+                run_job, job.to_dict(), key=f"uavlink-sweep-{job.key}", pure=False, retries=retries
+            )
             by_key[future.key] = job
             futures.append(future)
         queue = as_completed(futures, loop=client.loop)
@@ -253,8 +292,9 @@ def _record_success(sweep_dir: Path, payload: dict[str, Any], outcome: SweepOutc
     outcome.written.add(payload["name"])
 
 
-def _record_failure(sweep_dir: Path, job: Job, exc: BaseException, tb: str, outcome: SweepOutcome,
-                    bar: Any) -> None:
+def _record_failure(
+    sweep_dir: Path, job: Job, exc: BaseException, tb: str, outcome: SweepOutcome, bar: Any
+) -> None:
     line = f"{type(exc).__name__}: {exc}".splitlines()[0]
     outcome.failed[job.name] = line
     (sweep_dir / f"{job.name}.error.txt").write_text(f"{line}\n\n{tb}")
@@ -269,12 +309,21 @@ def _running(client: Any, remaining: set[Any]) -> int:
         threads = client.nthreads()
     except Exception:  # noqa: BLE001 - the count is cosmetic
         return 0
-    return sum(min(sum(1 for k in tasks if k in keys), threads.get(w, 1)) for w, tasks in processing.items())
+    return sum(
+        min(sum(1 for k in tasks if k in keys), threads.get(w, 1))
+        for w, tasks in processing.items()
+    )
 
 
 def _bar(total: int, progress: bool) -> Any:
     from tqdm.auto import tqdm
 
     # disable=None: no bar when stderr is not a terminal (logs, pipes, CI)
-    return tqdm(total=total, unit="job", disable=None if progress else True, dynamic_ncols=True,
-                file=sys.stderr, bar_format="{l_bar}{bar}| {n_fmt}/{total_fmt} done [{elapsed}<{remaining}] {postfix}")
+    return tqdm(
+        total=total,
+        unit="job",
+        disable=None if progress else True,
+        dynamic_ncols=True,
+        file=sys.stderr,
+        bar_format="{l_bar}{bar}| {n_fmt}/{total_fmt} done [{elapsed}<{remaining}] {postfix}",
+    )

@@ -28,9 +28,15 @@ KEY_VERSION = 2
 # Env fields added after KEY_VERSION 2 whose default reproduces every figure of before (the fleet's,
 # at n_uavs = 1 bit for bit the single-UAV env): left out of a job's key while at that default, so
 # existing results keep their keys. A new field whose default changes figures bumps KEY_VERSION.
-NEUTRAL_ENV_DEFAULTS: dict[str, Any] = {"n_uavs": 1, "fleet_reuse": "full", "uav_separation_m": 20.0,
-                                        "fleet_start_radius_m": 100.0, "place_cell_m": 0.0,
-                                        "uav_motion": "instant", "place_model": "cells"}
+NEUTRAL_ENV_DEFAULTS: dict[str, Any] = {
+    "n_uavs": 1,
+    "fleet_reuse": "full",
+    "uav_separation_m": 20.0,
+    "fleet_start_radius_m": 100.0,
+    "place_cell_m": 0.0,
+    "uav_motion": "instant",
+    "place_model": "cells",
+}
 # The same for the training's (nested) warm-start fields.
 NEUTRAL_WARM_START_DEFAULTS: dict[str, Any] = {"leader_policy": "", "policy": ""}
 # The same for the training's own fields.
@@ -56,7 +62,9 @@ class Job:
     env: EnvConfig
     train: TrainConfig
     eval: dict[str, int]
-    file_sha256: dict[str, str] = field(default_factory=dict)  # POLICY_FILE_FIELDS' files, hashed where the job is made
+    file_sha256: dict[str, str] = field(
+        default_factory=dict
+    )  # POLICY_FILE_FIELDS' files, hashed where the job is made
     key: str = field(default="", init=False)
 
     def __post_init__(self) -> None:
@@ -66,9 +74,13 @@ class Job:
                 try:
                     self.file_sha256[name] = file_sha256(Path(path))
                 except OSError as exc:
-                    raise SweepSpecError(f"{self.sweep}: warm_start.{name} {path}: cannot read it "
-                                         f"({exc.strerror}); paths are relative to where the sweep runs") from None
-        self.key = hashlib.sha256(json.dumps(self.settings(), sort_keys=True).encode()).hexdigest()[:12]
+                    raise SweepSpecError(
+                        f"{self.sweep}: warm_start.{name} {path}: cannot read it "
+                        f"({exc.strerror}); paths are relative to where the sweep runs"
+                    ) from None
+        self.key = hashlib.sha256(json.dumps(self.settings(), sort_keys=True).encode()).hexdigest()[
+            :12
+        ]
 
     @property
     def name(self) -> str:
@@ -82,30 +94,62 @@ class Job:
 
     def settings(self) -> dict[str, Any]:
         """Everything that determines the job's figures; the key is its hash."""
-        env = {k: v for k, v in self.env.to_dict().items()
-               if k not in NEUTRAL_ENV_DEFAULTS or v != NEUTRAL_ENV_DEFAULTS[k]}
-        train = {k: v for k, v in self.train.to_dict().items()
-                 if k not in NEUTRAL_TRAIN_DEFAULTS or v != NEUTRAL_TRAIN_DEFAULTS[k]}
-        train["warm_start"] = {k: v for k, v in train["warm_start"].items()
-                               if k not in NEUTRAL_WARM_START_DEFAULTS or v != NEUTRAL_WARM_START_DEFAULTS[k]}
+        env = {
+            k: v
+            for k, v in self.env.to_dict().items()
+            if k not in NEUTRAL_ENV_DEFAULTS or v != NEUTRAL_ENV_DEFAULTS[k]
+        }
+        train = {
+            k: v
+            for k, v in self.train.to_dict().items()
+            if k not in NEUTRAL_TRAIN_DEFAULTS or v != NEUTRAL_TRAIN_DEFAULTS[k]
+        }
+        train["warm_start"] = {
+            k: v
+            for k, v in train["warm_start"].items()
+            if k not in NEUTRAL_WARM_START_DEFAULTS or v != NEUTRAL_WARM_START_DEFAULTS[k]
+        }
         for name, digest in self.file_sha256.items():
             train["warm_start"][f"{name}_sha256"] = digest
-        return {"key_version": KEY_VERSION, "env": env, "train": train,
-                "eval": {**self.eval, "policies": ["ppo", *BASELINE_COLUMNS]}}
+        return {
+            "key_version": KEY_VERSION,
+            "env": env,
+            "train": train,
+            "eval": {**self.eval, "policies": ["ppo", *BASELINE_COLUMNS]},
+        }
 
     def to_dict(self) -> dict[str, Any]:
-        return {"sweep": self.sweep, "scenario": self.scenario, "seed": self.seed, "point": self.point,
-                "env": self.env.to_dict(), "train": self.train.to_dict(), "eval": self.eval,
-                "file_sha256": self.file_sha256, "key": self.key}
+        return {
+            "sweep": self.sweep,
+            "scenario": self.scenario,
+            "seed": self.seed,
+            "point": self.point,
+            "env": self.env.to_dict(),
+            "train": self.train.to_dict(),
+            "eval": self.eval,
+            "file_sha256": self.file_sha256,
+            "key": self.key,
+        }
 
     @classmethod
     def from_dict(cls, data: dict[str, Any]) -> Job:
-        job = cls(data["sweep"], data["scenario"], data["seed"], dict(data["point"]),
-                  EnvConfig.from_dict(data["env"]), TrainConfig.from_dict(data["train"]), dict(data["eval"]),
-                  dict(data.get("file_sha256") or  # jobs.json before the start policy: the leader's only
-                       ({"leader_policy": data["leader_sha256"]} if data.get("leader_sha256") else {})))
+        job = cls(
+            data["sweep"],
+            data["scenario"],
+            data["seed"],
+            dict(data["point"]),
+            EnvConfig.from_dict(data["env"]),
+            TrainConfig.from_dict(data["train"]),
+            dict(data["eval"]),
+            dict(
+                data.get("file_sha256")  # jobs.json before the start policy: the leader's only
+                or ({"leader_policy": data["leader_sha256"]} if data.get("leader_sha256") else {})
+            ),
+        )
         if data.get("key", job.key) != job.key:
-            raise ValueError(f"job {data['key']}: settings hash to {job.key} here (another uavlink version?)")
+            raise ValueError(
+                f"job {data['key']}: settings hash to {job.key} here (another uavlink version?)"
+            )
         return job
 
 
@@ -120,26 +164,52 @@ class SweepSpec:
     grid: dict[str, list[Any]]  # qualified key ("train.x", "env.x") -> values
     description: str = ""
     source: Path | None = None
-    scenario_train: dict[str, dict[str, Any]] = field(default_factory=dict)  # scenario -> train changes
+    scenario_train: dict[str, dict[str, Any]] = field(
+        default_factory=dict
+    )  # scenario -> train changes
     scenario_env: dict[str, dict[str, Any]] = field(default_factory=dict)  # scenario -> env changes
 
     def points(self) -> list[dict[str, Any]]:
         keys = list(self.grid)
-        return [dict(zip(keys, values, strict=True)) for values in itertools.product(*self.grid.values())]
+        return [
+            dict(zip(keys, values, strict=True))
+            for values in itertools.product(*self.grid.values())
+        ]
 
-    def configs(self, scenario: str, point: dict[str, Any], seed: int) -> tuple[EnvConfig, TrainConfig]:
+    def configs(
+        self, scenario: str, point: dict[str, Any], seed: int
+    ) -> tuple[EnvConfig, TrainConfig]:
         """The validated configs of one job (a ConfigError naming the field if a value is bad)."""
-        env = {**self.env, **self.scenario_env.get(scenario, {}),
-               **{k[4:]: v for k, v in point.items() if k.startswith("env.")}}
-        train = {**self.train, **self.scenario_train.get(scenario, {}),
-                 **{k[6:]: v for k, v in point.items() if k.startswith("train.")}}
+        env = {
+            **self.env,
+            **self.scenario_env.get(scenario, {}),
+            **{k[4:]: v for k, v in point.items() if k.startswith("env.")},
+        }
+        train = {
+            **self.train,
+            **self.scenario_train.get(scenario, {}),
+            **{k[6:]: v for k, v in point.items() if k.startswith("train.")},
+        }
         cfg = EnvConfig().replace(**env, scenario=scenario).validate()
-        return cfg, with_changes(TrainConfig(), {**train, "seed": seed, "torch_threads": 1}).validate(cfg)
+        return cfg, with_changes(
+            TrainConfig(), {**train, "seed": seed, "torch_threads": 1}
+        ).validate(cfg)
 
     def jobs(self) -> list[Job]:
         """Scenario-major, then grid point, then seed."""
-        return [Job(self.name, scenario, seed, point, *self.configs(scenario, point, seed), dict(self.eval))
-                for scenario in self.scenarios for point in self.points() for seed in self.seeds]
+        return [
+            Job(
+                self.name,
+                scenario,
+                seed,
+                point,
+                *self.configs(scenario, point, seed),
+                dict(self.eval),
+            )
+            for scenario in self.scenarios
+            for point in self.points()
+            for seed in self.seeds
+        ]
 
 
 def _hashable(value: Any) -> Any:

@@ -47,8 +47,18 @@ if sys.version_info >= (3, 11):
 else:  # pragma: no cover - the sweep extra installs tomli on 3.10
     import tomli as tomllib
 
-TOP_KEYS = ("name", "description", "scenarios", "seeds", "train", "scenario_train", "env", "scenario_env", "eval",
-            "grid")
+TOP_KEYS = (
+    "name",
+    "description",
+    "scenarios",
+    "seeds",
+    "train",
+    "scenario_train",
+    "env",
+    "scenario_env",
+    "eval",
+    "grid",
+)
 EVAL_DEFAULTS: dict[str, int] = {"episodes": 100, "seed": 0}
 # Config fields a sweep does not set, and why.
 TRAIN_FIXED = {
@@ -86,7 +96,9 @@ def parse_spec(data: dict[str, Any], default_name: str = "sweep") -> SweepSpec:
             raise SweepSpecError(f"unknown key {key!r} (allowed: {', '.join(TOP_KEYS)})")
     name = data.get("name", default_name)
     if not isinstance(name, str) or not _NAME.match(name):
-        raise SweepSpecError(f"key 'name' must be a folder name (letters, digits, _ . -), got {name!r}")
+        raise SweepSpecError(
+            f"key 'name' must be a folder name (letters, digits, _ . -), got {name!r}"
+        )
     description = data.get("description", "")
     if not isinstance(description, str):
         raise SweepSpecError("key 'description' must be a string")
@@ -98,16 +110,30 @@ def parse_spec(data: dict[str, Any], default_name: str = "sweep") -> SweepSpec:
     for section, tables in per_scenario.items():
         for scenario, table in _table(data, f"scenario_{section}").items():
             if scenario not in scenarios or not isinstance(table, dict):
-                raise SweepSpecError(f"[scenario_{section}] key {scenario!r} must be a table named after one "
-                                     f"of the sweep's scenarios ({', '.join(scenarios)})")
+                raise SweepSpecError(
+                    f"[scenario_{section}] key {scenario!r} must be a table named after one "
+                    f"of the sweep's scenarios ({', '.join(scenarios)})"
+                )
             tables[scenario] = _section(table, f"scenario_{section}.{scenario}", (section,))
     grid = _grid(data, {"train": train, "env": env}, per_scenario)
 
-    spec = SweepSpec(name, scenarios, seeds, train, env, _evaluation(data), grid, description,
-                     scenario_train=per_scenario["train"], scenario_env=per_scenario["env"])
+    spec = SweepSpec(
+        name,
+        scenarios,
+        seeds,
+        train,
+        env,
+        _evaluation(data),
+        grid,
+        description,
+        scenario_train=per_scenario["train"],
+        scenario_env=per_scenario["env"],
+    )
     for scenario in spec.scenarios:  # build every config: validate() names the field of a bad value
         for point in spec.points():
-            where = f"scenario {scenario}" + (f", grid point {describe_point(point)}" if point else "")
+            where = f"scenario {scenario}" + (
+                f", grid point {describe_point(point)}" if point else ""
+            )
             try:
                 spec.configs(scenario, point, spec.seeds[0])
             except (TypeError, ValueError) as exc:
@@ -120,11 +146,14 @@ def _scenarios(data: dict[str, Any]) -> list[str]:
     if scenarios == "all":
         scenarios = list(SCENARIOS)
     if not isinstance(scenarios, list) or not scenarios:
-        raise SweepSpecError("key 'scenarios' must be \"all\" or a non-empty list of scenario names")
+        raise SweepSpecError(
+            "key 'scenarios' must be \"all\" or a non-empty list of scenario names"
+        )
     for s in scenarios:
         if s not in SCENARIO_NAMES:
-            raise SweepSpecError(f"key 'scenarios': unknown scenario {s!r}; choose from "
-                                 f"{', '.join(SCENARIO_NAMES)}")
+            raise SweepSpecError(
+                f"key 'scenarios': unknown scenario {s!r}; choose from {', '.join(SCENARIO_NAMES)}"
+            )
     if len(set(scenarios)) != len(scenarios):
         raise SweepSpecError("key 'scenarios' lists a scenario twice")
     return list(scenarios)
@@ -136,9 +165,14 @@ def _seeds(data: dict[str, Any]) -> list[int]:
         if seeds < 1:
             raise SweepSpecError(f"key 'seeds' as a count must be >= 1, got {seeds}")
         seeds = list(range(seeds))
-    if (not isinstance(seeds, list) or not seeds
-            or any(isinstance(s, bool) or not isinstance(s, int) or s < 0 for s in seeds)):
-        raise SweepSpecError(f"key 'seeds' must be a count or a non-empty list of integers >= 0, got {seeds!r}")
+    if (
+        not isinstance(seeds, list)
+        or not seeds
+        or any(isinstance(s, bool) or not isinstance(s, int) or s < 0 for s in seeds)
+    ):
+        raise SweepSpecError(
+            f"key 'seeds' must be a count or a non-empty list of integers >= 0, got {seeds!r}"
+        )
     if len(set(seeds)) != len(seeds):
         raise SweepSpecError("key 'seeds' lists a seed twice")
     return list(seeds)
@@ -148,15 +182,26 @@ def _evaluation(data: dict[str, Any]) -> dict[str, int]:
     evaluation = dict(EVAL_DEFAULTS)
     for key, value in _table(data, "eval").items():
         if key not in EVAL_DEFAULTS:
-            raise SweepSpecError(f"[eval] unknown key {key!r} (allowed: {', '.join(EVAL_DEFAULTS)})")
-        if isinstance(value, bool) or not isinstance(value, int) or value < (1 if key == "episodes" else 0):
-            raise SweepSpecError(f"eval.{key} must be an integer >= {1 if key == 'episodes' else 0}, got {value!r}")
+            raise SweepSpecError(
+                f"[eval] unknown key {key!r} (allowed: {', '.join(EVAL_DEFAULTS)})"
+            )
+        if (
+            isinstance(value, bool)
+            or not isinstance(value, int)
+            or value < (1 if key == "episodes" else 0)
+        ):
+            raise SweepSpecError(
+                f"eval.{key} must be an integer >= {1 if key == 'episodes' else 0}, got {value!r}"
+            )
         evaluation[key] = value
     return evaluation
 
 
-def _grid(data: dict[str, Any], fixed: dict[str, dict[str, Any]],
-          per_scenario: dict[str, dict[str, dict[str, Any]]]) -> dict[str, list[Any]]:
+def _grid(
+    data: dict[str, Any],
+    fixed: dict[str, dict[str, Any]],
+    per_scenario: dict[str, dict[str, dict[str, Any]]],
+) -> dict[str, list[Any]]:
     """[grid]'s values by qualified path; a key may not also be fixed in [train], [env] or a scenario's table."""
     grid: dict[str, list[Any]] = {}
     for key, values in _flatten(_table(data, "grid")).items():
@@ -238,15 +283,20 @@ def _qualify(key: str, where: str, allow: tuple[str, ...]) -> tuple[str, str]:
     if head in ("train", "env") and tail:
         section, name = head, tail
     else:  # a bare key: the table's own section, or in [grid] the config that has the field
-        section, name = (allow[0] if len(allow) == 1 else "train" if _train_path(key) else "env"), key
+        section, name = (
+            (allow[0] if len(allow) == 1 else "train" if _train_path(key) else "env"),
+            key,
+        )
     path = _train_path(name) if section == "train" else _env_path(name)
     label = f"[{where}] key {key!r}"
     fixed = TRAIN_FIXED if section == "train" else ENV_FIXED
     if path in fixed:
         raise SweepSpecError(f"{label} cannot be set in a sweep: {fixed[path]}")
     if section not in allow or path is None:
-        what = {"train": "a TrainConfig field (PPO hyper-parameter, budget, warm_start.x)",
-                "env": "an EnvConfig field (radio.x and area.x for the nested ones)"}
+        what = {
+            "train": "a TrainConfig field (PPO hyper-parameter, budget, warm_start.x)",
+            "env": "an EnvConfig field (radio.x and area.x for the nested ones)",
+        }
         expected = " or ".join(what[s] for s in allow)
         raise SweepSpecError(f"{label} is unknown: not {expected}")
     return section, path

@@ -14,4 +14,10 @@ from uavlink.flight.link.vehicle_link import (
 )
 from uavlink.flight.link.vehicle_status import VehicleStatus
 
-__all__ = ["MAX_RX_PER_POLL", "STREAM_PERIOD_VEHICLE_S", "LinkError", "VehicleLink", "VehicleStatus"]
+__all__ = [
+    "MAX_RX_PER_POLL",
+    "STREAM_PERIOD_VEHICLE_S",
+    "LinkError",
+    "VehicleLink",
+    "VehicleStatus",
+]

@@ -60,29 +60,38 @@ class LinkGroup:
             link.close()
 
 
-def open_fleet_links(urls: Sequence[str], n_vehicles: int, tlog: Path | None,
-                     signing_key: bytes | None = None) -> tuple[LinkGroup, BinaryIO | None]:
+def open_fleet_links(
+    urls: Sequence[str], n_vehicles: int, tlog: Path | None, signing_key: bytes | None = None
+) -> tuple[LinkGroup, BinaryIO | None]:
     """Links to ``n_vehicles`` vehicles, in UAV order: one per URL, or all on one URL (its systems
     in ascending id order, discovered from their autopilot heartbeats). Returns the group and the
     shared tlog file (the caller closes it after the group)."""
     if len(urls) not in (1, n_vehicles):
-        raise UserError(f"a fleet of {n_vehicles} takes --connect with {n_vehicles} URLs (one per "
-                        f"vehicle, comma-separated) or one URL carrying every system; got {len(urls)}")
+        raise UserError(
+            f"a fleet of {n_vehicles} takes --connect with {n_vehicles} URLs (one per "
+            f"vehicle, comma-separated) or one URL carrying every system; got {len(urls)}"
+        )
     tlog_file = open(tlog, "wb") if tlog else None  # noqa: SIM115 - the caller closes it
     if len(urls) == n_vehicles:
         links = [VehicleLink(url, signing_key=signing_key, tlog_file=tlog_file) for url in urls]
         return LinkGroup(links), tlog_file
     owner = VehicleLink(urls[0], signing_key=signing_key, tlog_file=tlog_file)
     deadline = time.monotonic() + DISCOVERY_S
-    while len(systems := sorted(s for s, st in owner.systems.items() if st.heartbeats)) < n_vehicles:
+    while (
+        len(systems := sorted(s for s, st in owner.systems.items() if st.heartbeats)) < n_vehicles
+    ):
         if time.monotonic() > deadline:
             owner.close()
-            raise LinkError(f"heard {len(systems)} vehicle(s) on {urls[0]} within {DISCOVERY_S:g} s, "
-                            f"the fleet needs {n_vehicles}")
+            raise LinkError(
+                f"heard {len(systems)} vehicle(s) on {urls[0]} within {DISCOVERY_S:g} s, "
+                f"the fleet needs {n_vehicles}"
+            )
         owner.poll(0.2)
     owner.target_system = systems[0]
-    links = [owner] + [VehicleLink(urls[0], target_system=sid, connection=owner.conn,
-                                   tlog_file=tlog_file) for sid in systems[1:n_vehicles]]
+    links = [owner] + [
+        VehicleLink(urls[0], target_system=sid, connection=owner.conn, tlog_file=tlog_file)
+        for sid in systems[1:n_vehicles]
+    ]
     for link in links[1:]:
         link.systems = owner.systems  # what was heard so far is every link's to know
     return LinkGroup(links), tlog_file

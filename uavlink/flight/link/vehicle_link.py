@@ -43,16 +43,25 @@ from uavlink.mavlink.rejects import RejectLog, rescan_bad_frame
 from uavlink.mavlink.signing import SigningGuard
 
 MAV = mavlink
-MULTIROTOR_TYPES = {MAV.MAV_TYPE_QUADROTOR, MAV.MAV_TYPE_HEXAROTOR, MAV.MAV_TYPE_OCTOROTOR,
-                    MAV.MAV_TYPE_TRICOPTER, MAV.MAV_TYPE_COAXIAL}
+MULTIROTOR_TYPES = {
+    MAV.MAV_TYPE_QUADROTOR,
+    MAV.MAV_TYPE_HEXAROTOR,
+    MAV.MAV_TYPE_OCTOROTOR,
+    MAV.MAV_TYPE_TRICOPTER,
+    MAV.MAV_TYPE_COAXIAL,
+}
 POSITION_ONLY_MASK = 0x0DF8  # ignore velocity, acceleration, yaw, yaw rate: position bits clear
 HEARTBEAT_PERIOD_S = 1.0  # our own HEARTBEAT, wall time
-STREAM_PERIOD_VEHICLE_S = 0.1  # offboard keep-alive: 10 setpoints per COM_OF_LOSS_T survive a lossy link
+STREAM_PERIOD_VEHICLE_S = (
+    0.1  # offboard keep-alive: 10 setpoints per COM_OF_LOSS_T survive a lossy link
+)
 ACK_WAIT_S = 0.5  # wall time to wait for a COMMAND_ACK before sending the command again
 COMMAND_TRIES = 10
 PARAM_TRIES = 10
 MAX_RX_PER_POLL = 2000  # messages/datagrams handled per poll: a flood cannot stall the loop
-WRONG_KEY_PACKETS = 20  # packets signed with another key, none accepted: the heartbeat wait gives up
+WRONG_KEY_PACKETS = (
+    20  # packets signed with another key, none accepted: the heartbeat wait gives up
+)
 
 log = logging.getLogger(__name__)
 
@@ -61,18 +70,29 @@ class VehicleLink:
     """The link to one vehicle: ``target_system``/``target_component`` when given, else learnt from
     the first autopilot heartbeat. ``system_id``/``component_id`` are the link's own ids."""
 
-    def __init__(self, url: str, tlog: Path | None = None, system_id: int = 255,
-                 component_id: int = MAV.MAV_COMP_ID_ONBOARD_COMPUTER,
-                 signing_key: bytes | None = None, target_system: int | None = None,
-                 target_component: int | None = None, connection: Any = None,
-                 tlog_file: BinaryIO | None = None) -> None:
-        for name, value in (("target_system", target_system), ("target_component", target_component)):
+    def __init__(
+        self,
+        url: str,
+        tlog: Path | None = None,
+        system_id: int = 255,
+        component_id: int = MAV.MAV_COMP_ID_ONBOARD_COMPUTER,
+        signing_key: bytes | None = None,
+        target_system: int | None = None,
+        target_component: int | None = None,
+        connection: Any = None,
+        tlog_file: BinaryIO | None = None,
+    ) -> None:
+        for name, value in (
+            ("target_system", target_system),
+            ("target_component", target_component),
+        ):
             if value is not None and not 1 <= value <= 255:
                 raise ValueError(f"{name} must be in 1..255, got {value}")
         self.url = normalize_connection(url)
         # ``connection``: another link's (one URL carrying several systems; see ``group``)
-        self.conn = connection or mavutil.mavlink_connection(self.url, source_system=system_id,
-                                                             source_component=component_id, dialect="common")
+        self.conn = connection or mavutil.mavlink_connection(
+            self.url, source_system=system_id, source_component=component_id, dialect="common"
+        )
         self._owns_conn, self.group = connection is None, None
         self.signing: SigningGuard | None = None
         if signing_key is not None and connection is None:
@@ -87,7 +107,9 @@ class VehicleLink:
         self._target_component = target_component
         self.on_radio: Callable = lambda msg: None
         self.on_score: Callable = lambda score: None
-        self.radio_episode: dict[str, int] = {}  # the payload's UL_EP_SEED / UL_EPISODE: seed, count
+        self.radio_episode: dict[
+            str, int
+        ] = {}  # the payload's UL_EP_SEED / UL_EPISODE: seed, count
         self._acks: dict[int, int] = {}
         self._mission_inbox: deque[Any] = deque(maxlen=64)  # for recv_mission
         # Offboard keep-alive: while set, poll() re-sends this NED setpoint every
@@ -149,8 +171,13 @@ class VehicleLink:
         the next is due."""
         if now - self._last_heartbeat_sent >= HEARTBEAT_PERIOD_S:
             self._last_heartbeat_sent = now
-            self.conn.mav.heartbeat_send(MAV.MAV_TYPE_ONBOARD_CONTROLLER, MAV.MAV_AUTOPILOT_INVALID,
-                                         0, 0, MAV.MAV_STATE_ACTIVE)
+            self.conn.mav.heartbeat_send(
+                MAV.MAV_TYPE_ONBOARD_CONTROLLER,
+                MAV.MAV_AUTOPILOT_INVALID,
+                0,
+                0,
+                MAV.MAV_STATE_ACTIVE,
+            )
         if self.stream_ned is None:
             return HEARTBEAT_PERIOD_S
         period = self.stream_period_vehicle_s / self.speed_factor()
@@ -187,9 +214,15 @@ class VehicleLink:
         if self._tlog and first:
             self._log(msg)
         src_sys, src_comp = msg.get_srcSystem(), msg.get_srcComponent()
-        if self.target_system is None and kind == "HEARTBEAT" and msg.autopilot != MAV.MAV_AUTOPILOT_INVALID:
+        if (
+            self.target_system is None
+            and kind == "HEARTBEAT"
+            and msg.autopilot != MAV.MAV_AUTOPILOT_INVALID
+        ):
             self.target_system = src_sys
-            log.info("target: system %d component %d (first autopilot heartbeat)", src_sys, src_comp)
+            log.info(
+                "target: system %d component %d (first autopilot heartbeat)", src_sys, src_comp
+            )
         st = self.systems.setdefault(src_sys, VehicleStatus())
         st.track(msg, kind, src_comp, self.rejects)
         if src_sys != self.target_system:
@@ -200,7 +233,11 @@ class VehicleLink:
         elif kind in MISSION_REPLIES:
             self._mission_inbox.append(msg)
         elif kind == "PARAM_VALUE":
-            name = msg.param_id if isinstance(msg.param_id, str) else msg.param_id.decode("ascii", "replace")
+            name = (
+                msg.param_id
+                if isinstance(msg.param_id, str)
+                else msg.param_id.decode("ascii", "replace")
+            )
             self.params[name.split("\x00", 1)[0]] = msg.param_value
         elif src_comp == radio.RADIO_COMPONENT_ID:
             which = radio.message_kind(msg)
@@ -258,16 +295,26 @@ class VehicleLink:
         deadline = time.monotonic() + timeout_s
         while self.status.heartbeats == 0:
             if time.monotonic() > deadline:
-                raise LinkError(f"no heartbeat from a vehicle on {self.url} within {timeout_s:.0f} s")
+                raise LinkError(
+                    f"no heartbeat from a vehicle on {self.url} within {timeout_s:.0f} s"
+                )
             guard = self.signing
-            if guard is not None and not guard.accepted and guard.rejected["bad_signature"] >= WRONG_KEY_PACKETS:
+            if (
+                guard is not None
+                and not guard.accepted
+                and guard.rejected["bad_signature"] >= WRONG_KEY_PACKETS
+            ):
                 # a vehicle signing with another key: none of its packets will ever pass, so say so now
-                raise LinkError(f"no heartbeat accepted from {self.url}: its packets "
-                                f"({guard.rejected['bad_signature']} so far) are all signed with another key")
+                raise LinkError(
+                    f"no heartbeat accepted from {self.url}: its packets "
+                    f"({guard.rejected['bad_signature']} so far) are all signed with another key"
+                )
             self.poll(0.2)
         hb = self.status.heartbeat
         if hb.autopilot != MAV.MAV_AUTOPILOT_PX4 or hb.type not in MULTIROTOR_TYPES:
-            raise LinkError(f"vehicle is not a PX4 multicopter (autopilot {hb.autopilot}, type {hb.type})")
+            raise LinkError(
+                f"vehicle is not a PX4 multicopter (autopilot {hb.autopilot}, type {hb.type})"
+            )
         # Wait for a position too: the mission starts from it; and for the landed state.
         self.wait_until(lambda: len(self.status.boot_samples) >= 5, 10.0, "LOCAL_POSITION_NED")
         self.wait_until(lambda: self.status.landed_known, 10.0, "EXTENDED_SYS_STATE")
@@ -287,8 +334,14 @@ class VehicleLink:
         self.wait_wall(lambda: bool(self._mission_inbox), timeout_s)
         return self._mission_inbox.popleft() if self._mission_inbox else None
 
-    def command(self, command: int, *params: float, ack_wait_s: float = ACK_WAIT_S,
-                tries: int = COMMAND_TRIES, done: Callable[[], bool] | None = None) -> None:
+    def command(
+        self,
+        command: int,
+        *params: float,
+        ack_wait_s: float = ACK_WAIT_S,
+        tries: int = COMMAND_TRIES,
+        done: Callable[[], bool] | None = None,
+    ) -> None:
         """COMMAND_LONG to the autopilot, sent again (confirmation 0, 1, ...) every ``ack_wait_s``
         of wall time until an ACK comes (or ``done()``: the telemetry already shows the effect, so
         a lost ACK costs no retry); LinkError on refusal or after ``tries`` sends."""
@@ -296,8 +349,9 @@ class VehicleLink:
         self._acks.pop(command, None)
         for confirmation in range(tries):
             self.send_command(command, *params, confirmation=confirmation)
-            if not self.wait_wall(lambda: command in self._acks or (done is not None and done()),
-                                  ack_wait_s):
+            if not self.wait_wall(
+                lambda: command in self._acks or (done is not None and done()), ack_wait_s
+            ):
                 continue
             if command not in self._acks:
                 return  # done() although the ACK was lost
@@ -311,15 +365,21 @@ class VehicleLink:
         """One COMMAND_LONG to the autopilot, unused params NaN; no wait for its ACK (``command``
         waits)."""
         params = tuple(params) + (math.nan,) * (7 - len(params))
-        self.conn.mav.command_long_send(self.target_system, self.target_component, command,
-                                        min(confirmation, 255), *params)
+        self.conn.mav.command_long_send(
+            self.target_system, self.target_component, command, min(confirmation, 255), *params
+        )
 
     def set_param(self, name: str, value: float, tries: int = PARAM_TRIES) -> None:
         """PARAM_SET, sent again until the vehicle's PARAM_VALUE shows the value (REAL32 only)."""
         self.params.pop(name, None)
         for _ in range(tries):
-            self.conn.mav.param_set_send(self.target_system, self.target_component, name.encode(),
-                                         float(value), MAV.MAV_PARAM_TYPE_REAL32)
+            self.conn.mav.param_set_send(
+                self.target_system,
+                self.target_component,
+                name.encode(),
+                float(value),
+                MAV.MAV_PARAM_TYPE_REAL32,
+            )
             if self.wait_wall(lambda: name in self.params, ACK_WAIT_S):
                 if abs(self.params[name] - value) <= 1e-3 * max(1.0, abs(value)):
                     return
@@ -329,18 +389,27 @@ class VehicleLink:
     def arm(self, armed: bool = True) -> None:
         """Arm (or, with ``armed=False``, disarm) and wait for a heartbeat that shows it."""
         beats = self.status.heartbeats
-        self.command(MAV.MAV_CMD_COMPONENT_ARM_DISARM, float(armed),
-                     done=lambda: self.status.armed == armed and self.status.heartbeats > beats)
-        self.wait_until(lambda: self.status.armed == armed, 3.0, f"{'' if armed else 'dis'}armed heartbeat")
+        self.command(
+            MAV.MAV_CMD_COMPONENT_ARM_DISARM,
+            float(armed),
+            done=lambda: self.status.armed == armed and self.status.heartbeats > beats,
+        )
+        self.wait_until(
+            lambda: self.status.armed == armed, 3.0, f"{'' if armed else 'dis'}armed heartbeat"
+        )
 
     def takeoff(self, altitude_m: float) -> None:
         self.set_param("MIS_TAKEOFF_ALT", altitude_m)
         self.command(MAV.MAV_CMD_NAV_TAKEOFF)
-        self.wait_until(lambda: -self.status.down_m >= altitude_m - 1.0, 120.0, f"take-off to {altitude_m:g} m")
+        self.wait_until(
+            lambda: -self.status.down_m >= altitude_m - 1.0, 120.0, f"take-off to {altitude_m:g} m"
+        )
 
     def _mode_params(self, main: int, sub: int) -> tuple[float, float, float]:
         """DO_SET_MODE's params for PX4's custom mode ``main``/``sub`` (base mode: custom, armed as now)."""
-        base = MAV.MAV_MODE_FLAG_CUSTOM_MODE_ENABLED | (MAV.MAV_MODE_FLAG_SAFETY_ARMED if self.status.armed else 0)
+        base = MAV.MAV_MODE_FLAG_CUSTOM_MODE_ENABLED | (
+            MAV.MAV_MODE_FLAG_SAFETY_ARMED if self.status.armed else 0
+        )
         return float(base), float(main), float(sub)
 
     def request_mode(self, main: int, sub: int = 0) -> None:
@@ -356,13 +425,30 @@ class VehicleLink:
             in_mode = st.main_mode == main and (main == PX4_MAIN_OFFBOARD or st.sub_mode == sub)
             return st.heartbeats > beats and in_mode
 
-        self.command(MAV.MAV_CMD_DO_SET_MODE, *self._mode_params(main, sub), tries=tries, done=shows_mode)
+        self.command(
+            MAV.MAV_CMD_DO_SET_MODE, *self._mode_params(main, sub), tries=tries, done=shows_mode
+        )
 
     def send_setpoint(self, north_m: float, east_m: float, down_m: float) -> None:
         self._last_stream = time.monotonic()
         self.conn.mav.set_position_target_local_ned_send(
-            self.status.time_boot_ms, self.target_system, self.target_component, MAV.MAV_FRAME_LOCAL_NED,
-            POSITION_ONLY_MASK, north_m, east_m, down_m, 0, 0, 0, 0, 0, 0, 0, 0)
+            self.status.time_boot_ms,
+            self.target_system,
+            self.target_component,
+            MAV.MAV_FRAME_LOCAL_NED,
+            POSITION_ONLY_MASK,
+            north_m,
+            east_m,
+            down_m,
+            0,
+            0,
+            0,
+            0,
+            0,
+            0,
+            0,
+            0,
+        )
 
     def land(self) -> None:
         self.command(MAV.MAV_CMD_NAV_LAND)

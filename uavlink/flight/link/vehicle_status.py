@@ -65,8 +65,10 @@ class VehicleStatus:
                 self.main_mode, self.sub_mode = decode_custom_mode(msg.custom_mode)
         elif kind == "LOCAL_POSITION_NED":
             if not all(math.isfinite(v) for v in (msg.x, msg.y, msg.z)):
-                rejects.reject("position_not_finite",
-                               f"LOCAL_POSITION_NED with NaN/infinite position ({msg.x}, {msg.y}, {msg.z})")
+                rejects.reject(
+                    "position_not_finite",
+                    f"LOCAL_POSITION_NED with NaN/infinite position ({msg.x}, {msg.y}, {msg.z})",
+                )
                 return
             samples = self.boot_samples
             newest = samples[-1][1] if samples else -math.inf

@@ -36,8 +36,12 @@ class Grid:
         x = np.linspace(-half_width_m, half_width_m, n)
         step = x[1] - x[0]
         reach = int(r_max_m // step) + 1
-        ij = [(i, j) for i in range(-reach, reach + 1) for j in range(-reach, reach + 1)
-              if step * np.hypot(i, j) <= r_max_m + REACH_SLACK_M]
+        ij = [
+            (i, j)
+            for i in range(-reach, reach + 1)
+            for j in range(-reach, reach + 1)
+            if step * np.hypot(i, j) <= r_max_m + REACH_SLACK_M
+        ]
         ij.sort(key=lambda o: (np.hypot(*o), o))  # hover first
         return cls(x, np.array(ij, dtype=int).reshape(-1, 2), float(r_max_m))
 
@@ -59,8 +63,14 @@ class Grid:
         return dx[:, None] ** 2 + dy[None, :] ** 2 <= (radius_m + REACH_SLACK_M) ** 2
 
 
-def grid_rx_dbm(grid: Grid, ue_xy_m: np.ndarray, field: SpatialShadowField | None, radio: RadioConfig,
-                altitude_m: float, block: int = 16) -> np.ndarray:
+def grid_rx_dbm(
+    grid: Grid,
+    ue_xy_m: np.ndarray,
+    field: SpatialShadowField | None,
+    radio: RadioConfig,
+    altitude_m: float,
+    block: int = 16,
+) -> np.ndarray:
     """Mean received power (T, U, n, n) float32, dBm, of each UE (positions (T, U, 2)) from a UAV at
     every grid cell: path loss plus the field's shadowing (none: the mean channel, as on AR(1)).
 
@@ -68,20 +78,29 @@ def grid_rx_dbm(grid: Grid, ue_xy_m: np.ndarray, field: SpatialShadowField | Non
     matrix product: cos(a + b) = cos a cos b - sin a sin b with a the UE's phase and b the cell's,
     (T U, 2K) @ (2K, n n), instead of n n T U K cosines."""
     n, x = grid.n, grid.x_m.astype(np.float32)
-    at_1_m_dbm = float(mean_rx_power_dbm(1e3, radio)) + 3.0 * radio.path_loss_slope_db  # (1 m, unfloored)
+    at_1_m_dbm = (
+        float(mean_rx_power_dbm(1e3, radio)) + 3.0 * radio.path_loss_slope_db
+    )  # (1 m, unfloored)
     out = np.empty((*ue_xy_m.shape[:2], n, n), dtype=np.float32)
     if field is not None:
-        ue_wave, uav_wave = field.ue_wave_per_m[0].astype(float), field.uav_wave_per_m[0].astype(float)
-        cell_phase = (grid.x_m[:, None, None] * uav_wave[0] + grid.x_m[None, :, None] * uav_wave[1]).reshape(n * n, -1)
-        right = np.concatenate([np.cos(cell_phase), np.sin(cell_phase)], axis=1).T.astype(np.float32)
+        ue_wave, uav_wave = (
+            field.ue_wave_per_m[0].astype(float),
+            field.uav_wave_per_m[0].astype(float),
+        )
+        cell_phase = (
+            grid.x_m[:, None, None] * uav_wave[0] + grid.x_m[None, :, None] * uav_wave[1]
+        ).reshape(n * n, -1)
+        right = np.concatenate([np.cos(cell_phase), np.sin(cell_phase)], axis=1).T.astype(
+            np.float32
+        )
     for t0 in range(0, len(ue_xy_m), block):
-        ue = ue_xy_m[t0:t0 + block]  # (Tb, U, 2)
+        ue = ue_xy_m[t0 : t0 + block]  # (Tb, U, 2)
         dx2 = (x - ue[..., 0:1].astype(np.float32)) ** 2  # (Tb, U, n)
         dy2 = (x - ue[..., 1:2].astype(np.float32)) ** 2 + np.float32(altitude_m**2)
         # mean_rx_power_dbm (TR 25.814) on the squared distance, in place and in float32: the
         # planner's hot path (about 3x faster than float64, far finer than it needs; the plan's
         # value is re-scored by the env's own code in float64). tests/test_genie.py checks it.
-        rx = out[t0:t0 + len(ue)]
+        rx = out[t0 : t0 + len(ue)]
         np.add(dx2[..., :, None], dy2[..., None, :], out=rx)
         np.maximum(rx, np.float32(radio.min_distance_m**2), out=rx)
         np.log10(rx, out=rx)
@@ -90,7 +109,9 @@ def grid_rx_dbm(grid: Grid, ue_xy_m: np.ndarray, field: SpatialShadowField | Non
         if field is not None:
             ue_phase = ue @ ue_wave + field.phase_rad[0].astype(float)  # (Tb, U, K)
             left = np.concatenate([np.cos(ue_phase), -np.sin(ue_phase)], axis=-1).astype(np.float32)
-            rx += np.float32(field.amplitude_db) * (left.reshape(-1, left.shape[-1]) @ right).reshape(rx.shape)
+            rx += np.float32(field.amplitude_db) * (
+                left.reshape(-1, left.shape[-1]) @ right
+            ).reshape(rx.shape)
     return out
 
 
@@ -98,13 +119,19 @@ def one_uav_rate_mbps(rx_dbm: np.ndarray, radio: RadioConfig) -> np.ndarray:
     """Mean UE rate (..., n, n), Mbps, of one UAV at every grid cell from its received powers
     (..., U, n, n) dBm (``grid_rx_dbm``): round robin's (B / U) log2(1 + SNR), averaged over UEs. In
     float32, 10^(x/10) as exp: the hot path of one UAV's plan."""
-    snr = np.exp((rx_dbm - np.float32(noise_power_dbm(radio.bandwidth_hz, radio))) * np.float32(np.log(10.0) / 10.0))
+    snr = np.exp(
+        (rx_dbm - np.float32(noise_power_dbm(radio.bandwidth_hz, radio)))
+        * np.float32(np.log(10.0) / 10.0)
+    )
     snr += np.float32(1.0)
-    return (radio.bandwidth_hz / rx_dbm.shape[-3] * 1e-6) * np.log2(snr, out=snr).mean(axis=-3, dtype=float)
+    return (radio.bandwidth_hz / rx_dbm.shape[-3] * 1e-6) * np.log2(snr, out=snr).mean(
+        axis=-3, dtype=float
+    )
 
 
-def best_grid_path(reward: np.ndarray, grid: Grid, first: np.ndarray,
-                   allowed_moves: np.ndarray | None = None) -> tuple[np.ndarray | None, float]:
+def best_grid_path(
+    reward: np.ndarray, grid: Grid, first: np.ndarray, allowed_moves: np.ndarray | None = None
+) -> tuple[np.ndarray | None, float]:
     """The path of cells (T, 2) maximising the summed ``reward`` (T, n, n) (entry t: frame t + 1;
     -inf marks a forbidden cell), its first cell among ``first`` (n, n) bool, each later cell one
     grid offset from the one before; ``allowed_moves`` (T - 1, K, n, n) bool may forbid the move
@@ -115,17 +142,24 @@ def best_grid_path(reward: np.ndarray, grid: Grid, first: np.ndarray,
     maxima); the path is read forward from the values, the first of equal moves (hover) winning."""
     n_frames, n = reward.shape[0], grid.n
     pad = int(np.abs(grid.offsets).max())
-    windows = [(slice(pad + di, pad + di + n), slice(pad + dj, pad + dj + n)) for di, dj in grid.offsets]
+    windows = [
+        (slice(pad + di, pad + di + n), slice(pad + dj, pad + dj + n)) for di, dj in grid.offsets
+    ]
     values = np.empty((n_frames, n, n))
     values[-1] = reward[-1]
     padded = np.full((n + 2 * pad, n + 2 * pad), -np.inf)
     best = np.empty((n, n))
     for t in range(n_frames - 2, -1, -1):
-        padded[pad:pad + n, pad:pad + n] = values[t + 1]
+        padded[pad : pad + n, pad : pad + n] = values[t + 1]
         best.fill(-np.inf)
         for k, window in enumerate(windows):
             # a forbidden move leaves ``best`` as it is (ufunc ``where``: no masked copy per move)
-            np.maximum(best, padded[window], out=best, where=True if allowed_moves is None else allowed_moves[t, k])
+            np.maximum(
+                best,
+                padded[window],
+                out=best,
+                where=True if allowed_moves is None else allowed_moves[t, k],
+            )
         np.add(reward[t], best, out=values[t])
     total = np.where(first, values[0], -np.inf)
     cell = np.unravel_index(int(np.argmax(total)), total.shape)

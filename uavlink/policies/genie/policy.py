@@ -36,12 +36,16 @@ from uavlink.radio.noise import noise_power_dbm
 from uavlink.radio.pathloss import distance_3d_m, mean_rx_power_dbm
 from uavlink.radio.spatial_shadowing import SpatialShadowField
 
-SEPARATION_SLACK_M = 1e-6  # planned moves keep this much more than the minimum: the filter never cuts
+SEPARATION_SLACK_M = (
+    1e-6  # planned moves keep this much more than the minimum: the filter never cuts
+)
 REFERENCES = ("static", "oracle", "kmeans")  # the baselines whose paths a fleet plan starts from
 GENIE_GRID_M = 4.0  # the grid the genie plans on (its default); the place map draws the truth on it
 
 
-def future_ues(mobility: MobilityState, frames: int, frame_s: float, half_width_m: float) -> tuple[np.ndarray, np.ndarray]:
+def future_ues(
+    mobility: MobilityState, frames: int, frame_s: float, half_width_m: float
+) -> tuple[np.ndarray, np.ndarray]:
     """UE positions and velocities (frames + 1, N, U, 2) from now (entry 0) to the episode's end,
     stepping a copy of the state as the env does."""
     state = MobilityState(**{k: np.array(v, copy=True) for k, v in vars(mobility).items()})
@@ -58,10 +62,16 @@ def env_field(field: SpatialShadowField | None, env: int, frames: int) -> Spatia
     ``shadow_db`` reads a path's frames as its batch."""
     if field is None:
         return None
+
     def rows(a: np.ndarray) -> np.ndarray:  # noqa: E306
-        return np.broadcast_to(a[env:env + 1], (frames, *a.shape[1:]))
-    return dataclasses.replace(field, ue_wave_per_m=rows(field.ue_wave_per_m),
-                               uav_wave_per_m=rows(field.uav_wave_per_m), phase_rad=rows(field.phase_rad))
+        return np.broadcast_to(a[env : env + 1], (frames, *a.shape[1:]))
+
+    return dataclasses.replace(
+        field,
+        ue_wave_per_m=rows(field.ue_wave_per_m),
+        uav_wave_per_m=rows(field.uav_wave_per_m),
+        phase_rad=rows(field.phase_rad),
+    )
 
 
 def segment_clear(a: np.ndarray, b: np.ndarray, c: np.ndarray, distance_m: float) -> np.ndarray:
@@ -75,8 +85,9 @@ def segment_clear(a: np.ndarray, b: np.ndarray, c: np.ndarray, distance_m: float
     return dx * dx + dy * dy >= distance_m * distance_m
 
 
-def fleet_mean_rate_bps(mine_mw: np.ndarray, others_mw: np.ndarray, radio: RadioConfig,
-                        fleet_reuse: str) -> np.ndarray:
+def fleet_mean_rate_bps(
+    mine_mw: np.ndarray, others_mw: np.ndarray, radio: RadioConfig, fleet_reuse: str
+) -> np.ndarray:
     """The UEs' mean ``mean_channel_rate_bps`` (T, G) with one UAV at each of G places and the others
     fixed: received powers mW, (T, U, G) from the moving UAV, (T, U, D - 1) from the others. The same
     cells, shares and interference (exact ties of power aside, which go to the moving UAV here and
@@ -92,16 +103,23 @@ def fleet_mean_rate_bps(mine_mw: np.ndarray, others_mw: np.ndarray, radio: Radio
     mine = mine_mw > signal_theirs  # (T, U, G) served by the moving UAV
     mine_f = mine.astype(np.float32)
     n_mine = mine_f.sum(axis=1)  # (T, G)
-    member = (their[:, None, :] == np.arange(n_others)[None, :, None]).astype(np.float32)  # (T, D-1, U)
-    n_their = member.sum(axis=-1)[..., None] - member @ mine_f  # (T, D-1, G): each other cell's UEs left
+    member = (their[:, None, :] == np.arange(n_others)[None, :, None]).astype(
+        np.float32
+    )  # (T, D-1, U)
+    n_their = (
+        member.sum(axis=-1)[..., None] - member @ mine_f
+    )  # (T, D-1, G): each other cell's UEs left
     if fleet_reuse == "orthogonal":
         share = np.float32((radio.n_resource_blocks // (n_others + 1)) / radio.n_resource_blocks)
         sinr = np.where(mine, mine_mw, signal_theirs) / (share * noise_mw)
         bandwidth = share * np.float32(radio.bandwidth_hz)
     else:  # every active other cell's power, less the UE's own for a UE of another cell
-        from_others = sum(others_mw[:, :, j, None] * (n_their[:, None, j] > 0) for j in range(n_others))
-        interference = np.where(mine, from_others,
-                                from_others - signal_theirs + (n_mine > 0)[:, None, :] * mine_mw)
+        from_others = sum(
+            others_mw[:, :, j, None] * (n_their[:, None, j] > 0) for j in range(n_others)
+        )
+        interference = np.where(
+            mine, from_others, from_others - signal_theirs + (n_mine > 0)[:, None, :] * mine_mw
+        )
         sinr = np.where(mine, mine_mw, signal_theirs) / (interference + noise_mw)
         bandwidth = np.float32(radio.bandwidth_hz)
     bits = np.log2(sinr + np.float32(1.0), out=sinr)  # (T, U, G) per UE, before its cell's share
@@ -109,15 +127,22 @@ def fleet_mean_rate_bps(mine_mw: np.ndarray, others_mw: np.ndarray, radio: Radio
     in_theirs = member @ (bits - bits * mine_f)  # (T, D-1, G)
     with np.errstate(divide="ignore", invalid="ignore"):  # an empty cell holds no UE: 0 / 0 -> 0
         per_cell = np.where(n_mine > 0, in_mine / n_mine, 0.0) + np.where(
-            n_their > 0, in_theirs / n_their, 0.0).sum(axis=1)
+            n_their > 0, in_theirs / n_their, 0.0
+        ).sum(axis=1)
     return bandwidth / n_ues * per_cell
 
 
 class EpisodePlanner:
     """One episode's plan: UEs (T + 1, U, 2) from now, the field (or None), the UAVs' start (D, 2)."""
 
-    def __init__(self, cfg: EnvConfig, grid: Grid, ue_xy_m: np.ndarray, field: SpatialShadowField | None,
-                 start_m: np.ndarray) -> None:
+    def __init__(
+        self,
+        cfg: EnvConfig,
+        grid: Grid,
+        ue_xy_m: np.ndarray,
+        field: SpatialShadowField | None,
+        start_m: np.ndarray,
+    ) -> None:
         self.cfg, self.grid, self.ue_xy_m, self.start_m = cfg, grid, ue_xy_m, start_m
         self.frames = len(ue_xy_m) - 1
         self.field = env_field(field, 0, self.frames) if field is not None else None
@@ -132,9 +157,18 @@ class EpisodePlanner:
 
     def rate_mbps(self, path_m: np.ndarray) -> float:
         """The episode's mean expected UE throughput on ``path_m`` (T + 1, D, 2), Mbps."""
-        return float(mean_channel_rate_bps(self.rx_dbm(path_m), self.cfg.radio, self.cfg.fleet_reuse).mean()) * 1e-6
+        return (
+            float(
+                mean_channel_rate_bps(
+                    self.rx_dbm(path_m), self.cfg.radio, self.cfg.fleet_reuse
+                ).mean()
+            )
+            * 1e-6
+        )
 
-    def plan(self, references: list[np.ndarray], tolerance: float, max_rounds: int) -> tuple[np.ndarray, float]:
+    def plan(
+        self, references: list[np.ndarray], tolerance: float, max_rounds: int
+    ) -> tuple[np.ndarray, float]:
         """From the best of ``references`` (paths (T + 1, D, 2)), re-plan UAV after UAV given the others
         until a round gains no UAV more than ``tolerance`` (relative); the best path and its rate."""
         values = [self.rate_mbps(p) for p in references]
@@ -171,7 +205,9 @@ class EpisodePlanner:
         if n_uavs > 1:
             reward[~self._cells_clear(d, path_m)] = -np.inf
             first &= self._first_moves_clear(self._blockers(d, path_m, 0), path_m[0, d])
-        cells, _ = best_grid_path(reward, grid, first, self._offsets_clear(d, path_m) if n_uavs > 1 else None)
+        cells, _ = best_grid_path(
+            reward, grid, first, self._offsets_clear(d, path_m) if n_uavs > 1 else None
+        )
         if cells is None:
             return None
         return np.concatenate([path_m[:1, d], grid.points_m(cells)])
@@ -183,18 +219,27 @@ class EpisodePlanner:
         if n_uavs == 1:
             return one_uav_rate_mbps(self.rx_grid, radio)
         others = [j for j in range(n_uavs) if j != d]
-        others_mw = (10.0 ** (self.rx_dbm(path_m)[..., others] / 10.0)).astype(np.float32)  # (T, U, D-1)
+        others_mw = (10.0 ** (self.rx_dbm(path_m)[..., others] / 10.0)).astype(
+            np.float32
+        )  # (T, U, D-1)
         reward = np.empty((self.frames, n, n))
         for t0 in range(0, self.frames, block):
-            rx_mw = np.exp(self.rx_grid[t0:t0 + block].reshape(-1, n_ues, n * n) * np.float32(np.log(10.0) / 10.0))
-            rate = fleet_mean_rate_bps(rx_mw, others_mw[t0:t0 + block], radio, self.cfg.fleet_reuse)
-            reward[t0:t0 + block] = rate.reshape(-1, n, n) * 1e-6
+            rx_mw = np.exp(
+                self.rx_grid[t0 : t0 + block].reshape(-1, n_ues, n * n)
+                * np.float32(np.log(10.0) / 10.0)
+            )
+            rate = fleet_mean_rate_bps(
+                rx_mw, others_mw[t0 : t0 + block], radio, self.cfg.fleet_reuse
+            )
+            reward[t0 : t0 + block] = rate.reshape(-1, n, n) * 1e-6
         return reward
 
     def _cells_clear(self, d: int, path_m: np.ndarray) -> np.ndarray:
         """(T, n, n): cells where UAV d may be at frame t + 1 without cutting another's move: clear of
         a later UAV's move into that frame and of an earlier UAV's move out of it."""
-        points = np.stack(np.meshgrid(self.grid.x_m, self.grid.x_m, indexing="ij"), axis=-1)  # (n, n, 2)
+        points = np.stack(
+            np.meshgrid(self.grid.x_m, self.grid.x_m, indexing="ij"), axis=-1
+        )  # (n, n, 2)
         clear = np.ones((self.frames, self.grid.n, self.grid.n), dtype=bool)
         for j in range(path_m.shape[1]):
             if j > d:
@@ -203,14 +248,18 @@ class EpisodePlanner:
                 a, b, frames = path_m[1:-1, j], path_m[2:, j], slice(0, self.frames - 1)
             else:
                 continue
-            clear[frames] &= segment_clear(a[:, None, None], b[:, None, None], points, self.separation_m)
+            clear[frames] &= segment_clear(
+                a[:, None, None], b[:, None, None], points, self.separation_m
+            )
         return clear
 
     @staticmethod
     def _blockers(d: int, path_m: np.ndarray, t: int) -> np.ndarray:
         """Where the others stand while UAV d moves from frame t to t + 1, as the separation filter
         sees them: UAVs before d at frame t + 1, after d at frame t."""
-        return np.array([path_m[t + 1, j] if j < d else path_m[t, j] for j in range(path_m.shape[1]) if j != d])
+        return np.array(
+            [path_m[t + 1, j] if j < d else path_m[t, j] for j in range(path_m.shape[1]) if j != d]
+        )
 
     def _first_moves_clear(self, blockers: np.ndarray, source_m: np.ndarray) -> np.ndarray:
         """(n, n): grid cells a straight move from ``source_m`` reaches clear of every blocker."""
@@ -228,16 +277,30 @@ class EpisodePlanner:
         clear = np.ones((frames - 1, len(grid.offsets), grid.n, grid.n), dtype=bool)
         step = grid.offsets * grid.spacing_m  # (K, 2)
         w = min(grid.n, 2 * int(np.ceil((self.separation_m + grid.r_max_m) / grid.spacing_m)) + 3)
-        blockers = np.stack([self._blockers(d, path_m, t) for t in range(1, frames)])  # (T - 1, D - 1, 2)
+        blockers = np.stack(
+            [self._blockers(d, path_m, t) for t in range(1, frames)]
+        )  # (T - 1, D - 1, 2)
         rows = np.arange(frames - 1)[:, None, None]
         for c in blockers.transpose(1, 0, 2):  # (T - 1, 2): one other UAV over the frames
-            origin = np.clip(np.rint((c + x[-1]) / grid.spacing_m).astype(int) - w // 2, 0, grid.n - w)
+            origin = np.clip(
+                np.rint((c + x[-1]) / grid.spacing_m).astype(int) - w // 2, 0, grid.n - w
+            )
             ix, iy = origin[:, :1] + np.arange(w), origin[:, 1:] + np.arange(w)  # (T - 1, w)
-            source = np.stack(np.broadcast_arrays(x[ix][:, :, None], x[iy][:, None, :]), axis=-1)  # (T-1, w, w, 2)
-            far = segment_clear(source[:, None], source[:, None] + step[None, :, None, None],
-                                c[:, None, None, None], self.separation_m)  # (T - 1, K, w, w)
-            view = clear.transpose(0, 2, 3, 1)[rows, ix[:, :, None], iy[:, None, :]]  # (T - 1, w, w, K)
-            clear.transpose(0, 2, 3, 1)[rows, ix[:, :, None], iy[:, None, :]] = view & far.transpose(0, 2, 3, 1)
+            source = np.stack(
+                np.broadcast_arrays(x[ix][:, :, None], x[iy][:, None, :]), axis=-1
+            )  # (T-1, w, w, 2)
+            far = segment_clear(
+                source[:, None],
+                source[:, None] + step[None, :, None, None],
+                c[:, None, None, None],
+                self.separation_m,
+            )  # (T - 1, K, w, w)
+            view = clear.transpose(0, 2, 3, 1)[
+                rows, ix[:, :, None], iy[:, None, :]
+            ]  # (T - 1, w, w, K)
+            clear.transpose(0, 2, 3, 1)[rows, ix[:, :, None], iy[:, None, :]] = (
+                view & far.transpose(0, 2, 3, 1)
+            )
         return clear
 
 
@@ -256,33 +319,51 @@ class GeniePolicy(RulePolicy):
     needs_truth = True
     privilege = "knows the episode's future (the UEs' paths and the shadowing field), is for evaluation only"
 
-    def __init__(self, cfg: EnvConfig, references: list, grid_m: float = GENIE_GRID_M, tolerance: float = 1e-3,
-                 max_rounds: int = 4, workers: int | None = None) -> None:
+    def __init__(
+        self,
+        cfg: EnvConfig,
+        references: list,
+        grid_m: float = GENIE_GRID_M,
+        tolerance: float = 1e-3,
+        max_rounds: int = 4,
+        workers: int | None = None,
+    ) -> None:
         """``references``: the baselines of ``REFERENCES`` for ``cfg`` (a fleet's plan starts from the
         best of their paths); ``uavlink.policies.registry.make_baseline("genie", cfg)`` passes them.
         ``workers``: threads that plan a batch's episodes side by side (default: one per CPU)."""
         self.cfg = cfg.validate()
         if cfg.uav_motion != "instant":
-            raise ValueError("the genie plans instant moves: plan it in the env with uav_motion='instant' "
-                             "(uavlink.policies.registry.baseline_env)")
+            raise ValueError(
+                "the genie plans instant moves: plan it in the env with uav_motion='instant' "
+                "(uavlink.policies.registry.baseline_env)"
+            )
         self.workers = max(1, workers or os.cpu_count() or 1)
         self.mapping = ActionMapping.for_config(cfg)
         self.grid = Grid.over_area(cfg.area.half_width_m, grid_m, cfg.r_max_m)
         self.tolerance, self.max_rounds = tolerance, max_rounds
         self.references = references
-        self.path_m: np.ndarray | None = None  # (T + 1, N, D, 2) the plan, entry 0 at frame ``planned_at``
+        self.path_m: np.ndarray | None = (
+            None  # (T + 1, N, D, 2) the plan, entry 0 at frame ``planned_at``
+        )
         self.planned_rate_mbps: np.ndarray | None = None  # (N,) its mean expected throughput
         self.planned_at = 0
 
     def act(self, obs: np.ndarray, truth: GroundTruth | None = None) -> np.ndarray:
         if truth is None or truth.mobility is None:
-            raise ValueError("the genie needs the episode's ground truth; it cannot fly from MAVLink data")
+            raise ValueError(
+                "the genie needs the episode's ground truth; it cannot fly from MAVLink data"
+            )
         now = truth.uav_xy_m.reshape(-1, self.cfg.n_uavs, 2)
         step = truth.frame - self.planned_at
         # Frame 0 is a new episode even where the UAVs stand where the last plan began (every
         # episode starts at the centre): the next batch of an evaluation must not fly this one's plan.
-        if (truth.frame == 0 or self.path_m is None or not 0 <= step < len(self.path_m) - 1
-                or self.path_m.shape[1] != len(now) or not np.allclose(self.path_m[step], now, atol=1e-6)):
+        if (
+            truth.frame == 0
+            or self.path_m is None
+            or not 0 <= step < len(self.path_m) - 1
+            or self.path_m.shape[1] != len(now)
+            or not np.allclose(self.path_m[step], now, atol=1e-6)
+        ):
             self.plan(truth)
             step = 0
         return self.mapping.towards(self.path_m[step + 1].reshape(-1, 2) - truth.uav_xy_m, 1.0)
@@ -293,9 +374,22 @@ class GeniePolicy(RulePolicy):
         frames = cfg.episode_frames - truth.frame
         ue, velocity = future_ues(truth.mobility, frames, cfg.frame_s, cfg.area.half_width_m)
         start = truth.uav_xy_m.reshape(-1, n_uavs, 2)
-        references = [self._replay(p, start, ue, velocity, truth.scenario_ids) for p in self.references]
-        tasks = [(cfg, self.grid, ue[:, env], env_field(truth.shadow_field, env, 1), start[env],
-                  [r[:, env] for r in references], self.tolerance, self.max_rounds) for env in range(len(start))]
+        references = [
+            self._replay(p, start, ue, velocity, truth.scenario_ids) for p in self.references
+        ]
+        tasks = [
+            (
+                cfg,
+                self.grid,
+                ue[:, env],
+                env_field(truth.shadow_field, env, 1),
+                start[env],
+                [r[:, env] for r in references],
+                self.tolerance,
+                self.max_rounds,
+            )
+            for env in range(len(start))
+        ]
         workers = min(self.workers, len(tasks))
         if workers > 1:  # episodes plan independently, and numpy's array loops release the GIL
             with ThreadPoolExecutor(workers) as pool:
@@ -303,10 +397,20 @@ class GeniePolicy(RulePolicy):
         else:
             plans = [_plan_episode(task) for task in tasks]
         paths, rates = zip(*plans, strict=True)
-        self.path_m, self.planned_rate_mbps, self.planned_at = np.stack(paths, axis=1), np.array(rates), truth.frame
+        self.path_m, self.planned_rate_mbps, self.planned_at = (
+            np.stack(paths, axis=1),
+            np.array(rates),
+            truth.frame,
+        )
 
-    def _replay(self, policy, start: np.ndarray, ue: np.ndarray, velocity: np.ndarray,
-                scenario_ids: np.ndarray) -> np.ndarray:
+    def _replay(
+        self,
+        policy,
+        start: np.ndarray,
+        ue: np.ndarray,
+        velocity: np.ndarray,
+        scenario_ids: np.ndarray,
+    ) -> np.ndarray:
         """The path (T + 1, N, D, 2) a GPS baseline flies, stepped as ``BatchedUavEnv.step`` does."""
         n_envs, n_uavs = start.shape[:2]
         half, rows = self.cfg.area.half_width_m, n_envs * n_uavs

@@ -16,7 +16,7 @@ others away from). When its link returns, the loop asks it to re-enter OFFBOARD 
 about once a second, without waiting, so the others' decisions are not held up) and it flies the
 policy again.
 
-As for one vehicle (:func:`~uavlink.flight.outcome.judge`), the result says whether the flight flew
+As for one vehicle (:func:`~uavlink.flight.result.judge`), the result says whether the flight flew
 the frames it set out to, and if not, why.
 """
 
@@ -26,23 +26,21 @@ import logging
 import math
 import time
 from collections.abc import Callable, Sequence
-from dataclasses import dataclass, field
 
 import numpy as np
 
 from uavlink.config import EnvConfig
 from uavlink.env.observation import fleet_quantities
 from uavlink.flight.link import LinkError, VehicleLink
-from uavlink.flight.mission import (
-    MissionConfig,
-    MissionResult,
+from uavlink.flight.loop import (
+    LoopConfig,
     PolicyPilot,
     episode_over,
     stream_then_offboard,
     to_start,
 )
-from uavlink.flight.outcome import EndedBy, judge, link_fields, signing_hint
 from uavlink.flight.radio_source import MavlinkRadioSource
+from uavlink.flight.result import EndedBy, FleetResult, VehicleRecord, judge, signing_hint
 from uavlink.flight.transit import guard_transit
 from uavlink.flight.vehicle_control import (
     ending_mode,
@@ -58,12 +56,18 @@ from uavlink.mobility.fleet import apply_moves, min_separation_m
 log = logging.getLogger(__name__)
 
 LIVE_S = 0.5  # wall seconds: a vehicle not heard for longer is not waited for
-GATHER_FRAME_FRACTION = 0.3  # of a frame's wall time: the longest wait for the other vehicles' reports
+GATHER_FRAME_FRACTION = (
+    0.3  # of a frame's wall time: the longest wait for the other vehicles' reports
+)
 
 
-def fleet_setpoints(current_xy_m: np.ndarray, moves_m: np.ndarray, cfg: EnvConfig,
-                    movable: np.ndarray | None = None, actual_xy_m: np.ndarray | None = None,
-                    ) -> np.ndarray:
+def fleet_setpoints(
+    current_xy_m: np.ndarray,
+    moves_m: np.ndarray,
+    cfg: EnvConfig,
+    movable: np.ndarray | None = None,
+    actual_xy_m: np.ndarray | None = None,
+) -> np.ndarray:
     """Next setpoints (D, 2) east/north from the current ones and the policy's moves, as the env
     moves its UAVs: clipped to the area, then the separation filter. ``movable`` (D,) bool: a
     vehicle that cannot be told this frame keeps its setpoint (its move is not made). With the
@@ -81,7 +85,9 @@ def fleet_setpoints(current_xy_m: np.ndarray, moves_m: np.ndarray, cfg: EnvConfi
 class FleetPilot(PolicyPilot):
     """The policy on a fleet's D agent rows: observation rows as the env builds them."""
 
-    def decide(self, reports: Sequence[RadioReport], uav_xy_m: np.ndarray, first: bool) -> np.ndarray:
+    def decide(
+        self, reports: Sequence[RadioReport], uav_xy_m: np.ndarray, first: bool
+    ) -> np.ndarray:
         """East/north moves (D, 2), m; holds (zero moves) if the policy misbehaves."""
         sinr = np.stack([r.sinr_db for r in reports])
         serving = sinr.argmax(axis=0)  # the strongest, where no cell flags came
@@ -94,69 +100,44 @@ class FleetPilot(PolicyPilot):
         return self.guarded_moves(obs, reports[0].frame)
 
 
-@dataclass
-class VehicleRecord:
-    """One vehicle's part of the flight, for the summary."""
-
-    system_id: int | None
-    decisions: int = 0
-    holds: int = 0  # times it left OFFBOARD during the episode (a failsafe hold, say)
-    offboard_reentries: int = 0
-    released: str = ""  # why the loop stopped commanding it ("" while it flies)
-    max_silence_s: float = 0.0
-
-    def summary(self, link: VehicleLink) -> dict:
-        st = link.status
-        return {"system_id": self.system_id, "url": link.url, "decisions": self.decisions,
-                "holds": self.holds, "offboard_reentries": self.offboard_reentries,
-                "max_link_silence_s": round(self.max_silence_s, 2), "mode": mode_name(st),
-                "released": self.released or None,
-                "last_position_en_m": [round(st.east_m, 2), round(st.north_m, 2)], **link_fields(link)}
-
-
-@dataclass
-class FleetResult(MissionResult):
-    vehicles: list[VehicleRecord] = field(default_factory=list)
-    min_separation_flown_m: float = math.inf
-    setpoint_min_separation_m: float = math.inf
-
-    def fleet_summary(self, links: Sequence[VehicleLink]) -> dict:
-        vehicles = self.vehicles or [VehicleRecord(link.target_system) for link in links]
-        return {**self.summary(), "n_uavs": len(links),
-                "min_separation_flown_m": round(self.min_separation_flown_m, 5),
-                "min_separation_setpoints_m": round(self.setpoint_min_separation_m, 2),
-                "vehicles": [v.summary(link) for v, link in zip(vehicles, links, strict=True)]}
-
-
-def fly_fleet(links: Sequence[VehicleLink], pilot: FleetPilot, cfg: EnvConfig, mission: MissionConfig,
-              status: Callable[[int, np.ndarray, float | None], None] | None = None) -> FleetResult:
+def fly_fleet(
+    links: Sequence[VehicleLink],
+    pilot: FleetPilot,
+    cfg: EnvConfig,
+    loop_cfg: LoopConfig,
+    status: Callable[[int, np.ndarray, float | None], None] | None = None,
+) -> FleetResult:
     """Fly one episode with every vehicle (links in UAV order); land them at the end. Never
     raises LinkError: the result says what went wrong."""
     result = FleetResult()
     try:
-        _fly_fleet(links, pilot, cfg, mission, status, result)
+        _fly_fleet(links, pilot, cfg, loop_cfg, status, result)
     except LinkError as exc:
         result.failure, result.fix = str(exc), next(filter(None, map(signing_hint, links)), "")
     except KeyboardInterrupt:  # before the episode's loop (which lands by itself)
         result.interrupted, result.ended_by = True, EndedBy.INTERRUPTED
         for link in links:
-            if mission.land and link.status.armed and not ending_mode(link.status):
+            if loop_cfg.land and link.status.armed and not ending_mode(link.status):
                 land(link)
-    judge(result, mission.frames)
+    judge(result, loop_cfg.frames)
     return result
 
 
-def _fly_fleet(links, pilot, cfg, mission, status, result: FleetResult) -> None:
+def _fly_fleet(links, pilot, cfg, loop_cfg, status, result: FleetResult) -> None:
     sources = [MavlinkRadioSource(cfg.n_ues) for _ in links]
     scores: dict[int, ScoreReport] = {}
     for link, source in zip(links, sources, strict=True):
         link.on_radio = source.feed
         link.on_score = lambda s: scores.setdefault(s.frame, s)
     for link in links:  # every vehicle ready before any arms: the first arming begins the episode
-        wait_ready(link, mission.takeoff, mission.landing_wait_vehicle_s)
+        wait_ready(link, loop_cfg.takeoff, loop_cfg.landing_wait_vehicle_s)
     for link in links:
-        resumed = take_off_or_resume(link, cfg.area.uav_altitude_m,
-                                     cfg.area.half_width_m if mission.fence else None, mission.takeoff)
+        resumed = take_off_or_resume(
+            link,
+            cfg.area.uav_altitude_m,
+            cfg.area.half_width_m if loop_cfg.fence else None,
+            loop_cfg.takeoff,
+        )
         result.resumed = result.resumed or resumed
     if not result.resumed:
         result.met_start = to_start(links, sources, cfg)
@@ -169,16 +150,28 @@ def _fly_fleet(links, pilot, cfg, mission, status, result: FleetResult) -> None:
         links[i].stream_ned = (float(targets[i, 1]), float(targets[i, 0]), down)
         links[i].send_setpoint(*links[i].stream_ned)
 
-    stream_then_offboard(links, send, mission)
-    _Loop(links, pilot, cfg, mission, result, sources, scores, targets, send, status).run()
+    stream_then_offboard(links, send, loop_cfg)
+    _Loop(links, pilot, cfg, loop_cfg, result, sources, scores, targets, send, status).run()
 
 
 class _Loop:
     """The per-frame loop of :func:`fly_fleet` (state shared by its steps)."""
 
-    def __init__(self, links, pilot, cfg, mission, result, sources, scores, targets, send, status):
-        self.links, self.pilot, self.cfg, self.mission, self.result = links, pilot, cfg, mission, result
-        self.sources, self.scores, self.targets, self.send, self.status = sources, scores, targets, send, status
+    def __init__(self, links, pilot, cfg, loop_cfg, result, sources, scores, targets, send, status):
+        self.links, self.pilot, self.cfg, self.loop_cfg, self.result = (
+            links,
+            pilot,
+            cfg,
+            loop_cfg,
+            result,
+        )
+        self.sources, self.scores, self.targets, self.send, self.status = (
+            sources,
+            scores,
+            targets,
+            send,
+            status,
+        )
         self.newest: list[RadioReport | None] = [None] * len(links)
         self.decided = -1  # the last frame decided
         self.seen_at: dict[int, float] = {}
@@ -187,7 +180,7 @@ class _Loop:
         self.last_radio = time.monotonic()
 
     def run(self) -> None:
-        links, result, mission = self.links, self.result, self.mission
+        links, result, loop_cfg = self.links, self.result, self.loop_cfg
         started = None
         try:
             while True:
@@ -204,32 +197,45 @@ class _Loop:
                 if all(v.released for v in result.vehicles):
                     result.ended_by = EndedBy.EVERY_VEHICLE_RELEASED
                     break
-                if now - self.last_radio > mission.radio_timeout_s:
+                if now - self.last_radio > loop_cfg.radio_timeout_s:
                     result.ended_by = EndedBy.NO_RADIO_REPORTS
                     break
                 self._watch(now, started is not None)
-                if min(now - link.last_rx_wall for link in links) > mission.link_timeout_s:
+                if min(now - link.last_rx_wall for link in links) > loop_cfg.link_timeout_s:
                     result.ended_by = EndedBy.LINK_LOST
-                    raise LinkError(f"no message from any vehicle for {mission.link_timeout_s:g} s")
+                    raise LinkError(
+                        f"no message from any vehicle for {loop_cfg.link_timeout_s:g} s"
+                    )
         except KeyboardInterrupt:
             result.interrupted, result.ended_by = True, EndedBy.INTERRUPTED
         finally:
             result.episode_wall_s = time.monotonic() - started if started else 0.0
-            result.take_scores(self.scores, mission.frames, self.pilot, sum(s.rejected for s in self.sources))
+            result.take_scores(
+                self.scores, loop_cfg.frames, self.pilot, sum(s.rejected for s in self.sources)
+            )
             for link, record in zip(links, result.vehicles, strict=True):
                 st = link.status
-                if mission.land and st.armed and not ending_mode(st) and not record.released \
-                        and time.monotonic() - link.last_rx_wall < LIVE_S * 4:
+                if (
+                    loop_cfg.land
+                    and st.armed
+                    and not ending_mode(st)
+                    and not record.released
+                    and time.monotonic() - link.last_rx_wall < LIVE_S * 4
+                ):
                     land(link)
                 link.stream_ned = None
 
     def _take_reports(self, now: float) -> None:
         for i, source in enumerate(self.sources):
             for r in source.take_reports():
-                if not r.running or (self.newest[i] is not None and r.frame <= self.newest[i].frame):
+                if not r.running or (
+                    self.newest[i] is not None and r.frame <= self.newest[i].frame
+                ):
                     continue
                 if self.newest[i] is not None and self.decided >= 0:
-                    self.result.frames_missed += max(0, r.frame - self.newest[i].frame - 1) if i == 0 else 0
+                    self.result.frames_missed += (
+                        max(0, r.frame - self.newest[i].frame - 1) if i == 0 else 0
+                    )
                 self.newest[i] = r
                 self.seen_at.setdefault(r.frame, now)
                 self.last_radio = now
@@ -245,14 +251,18 @@ class _Loop:
         frame = max(r.frame for r in self.newest)
         if frame <= self.decided:
             return None
-        if frame >= self.mission.frames:  # past the flight's frames: nothing to decide, nothing to wait for
+        if (
+            frame >= self.loop_cfg.frames
+        ):  # past the flight's frames: nothing to decide, nothing to wait for
             self._decided(frame)
             return None
         live = [now - link.last_rx_wall < LIVE_S for link in self.links]
         have = [r.frame == frame for r in self.newest]
         frame_wall_s = self.cfg.frame_s / self.links[0].speed_factor()
-        if all(h or not alive for h, alive in zip(have, live, strict=True)) or \
-                now - self.seen_at[frame] > GATHER_FRAME_FRACTION * frame_wall_s:
+        if (
+            all(h or not alive for h, alive in zip(have, live, strict=True))
+            or now - self.seen_at[frame] > GATHER_FRAME_FRACTION * frame_wall_s
+        ):
             return frame
         return None
 
@@ -260,11 +270,18 @@ class _Loop:
         links, result = self.links, self.result
         positions = np.array([[link.status.east_m, link.status.north_m] for link in links])
         moves = self.pilot.decide(self.newest, positions, self.decided < 0)
-        movable = np.array([self.newest[i].frame == frame and not result.vehicles[i].released
-                            and links[i].status.offboard for i in range(len(links))])
+        movable = np.array(
+            [
+                self.newest[i].frame == frame
+                and not result.vehicles[i].released
+                and links[i].status.offboard
+                for i in range(len(links))
+            ]
+        )
         self.targets[:] = fleet_setpoints(self.targets, moves, self.cfg, movable, positions)
-        result.setpoint_min_separation_m = min(result.setpoint_min_separation_m,
-                                               float(min_separation_m(self.targets[None])[0]))
+        result.setpoint_min_separation_m = min(
+            result.setpoint_min_separation_m, float(min_separation_m(self.targets[None])[0])
+        )
         for i in np.flatnonzero(movable):
             self.send(int(i))
             result.vehicles[i].decisions += 1
@@ -280,19 +297,22 @@ class _Loop:
         which vehicles the policy steered in it (None: none, the frame is only let go)."""
         self.decided = frame
         for i, link in enumerate(self.links):
-            send_frame_decided(link.conn.mav, link.target_system, frame, moved is not None and bool(moved[i]))
+            send_frame_decided(
+                link.conn.mav, link.target_system, frame, moved is not None and bool(moved[i])
+            )
 
     def _episode_done(self) -> bool:
         last = max((r.frame for r in self.newest if r is not None), default=-1)
-        return episode_over(self.mission, self.scores, last)
+        return episode_over(self.loop_cfg, self.scores, last)
 
     def _watch(self, now: float, flying: bool) -> None:
         """Per vehicle: its mode (hold, rejoin, released), its silence; the separation flown."""
         links, result = self.links, self.result
         if flying:
             xy = np.array([[link.status.east_m, link.status.north_m] for link in links])
-            result.min_separation_flown_m = min(result.min_separation_flown_m,
-                                                float(min_separation_m(xy[None])[0]))
+            result.min_separation_flown_m = min(
+                result.min_separation_flown_m, float(min_separation_m(xy[None])[0])
+            )
         for i, (link, record) in enumerate(zip(links, result.vehicles, strict=True)):
             st = link.status
             record.max_silence_s = max(record.max_silence_s, now - link.last_rx_wall)
@@ -301,19 +321,27 @@ class _Loop:
             if not st.armed or ending_mode(st):
                 record.released = f"vehicle in {mode_name(st)}"
                 link.stream_ned = None
-                log.warning("system %s is now %s (operator or failsafe): leaving it alone",
-                            link.target_system, mode_name(st))
+                log.warning(
+                    "system %s is now %s (operator or failsafe): leaving it alone",
+                    link.target_system,
+                    mode_name(st),
+                )
                 continue
             if st.offboard != self.was_offboard[i]:
                 if st.offboard:
                     record.offboard_reentries += 1
-                    log.warning("system %s is back in OFFBOARD: flying the policy again", link.target_system)
+                    log.warning(
+                        "system %s is back in OFFBOARD: flying the policy again", link.target_system
+                    )
                 else:
                     record.holds += 1
-                    log.warning("system %s left OFFBOARD (now %s): asking it back", link.target_system,
-                                mode_name(st))
+                    log.warning(
+                        "system %s left OFFBOARD (now %s): asking it back",
+                        link.target_system,
+                        mode_name(st),
+                    )
                 self.was_offboard[i] = st.offboard
-            if not st.offboard and now - self.last_request[i] >= self.mission.reenter_interval_s:
+            if not st.offboard and now - self.last_request[i] >= self.loop_cfg.reenter_interval_s:
                 self.last_request[i] = now
                 link.request_mode(PX4_MAIN_OFFBOARD)
         result.offboard_reentries = sum(v.offboard_reentries for v in result.vehicles)

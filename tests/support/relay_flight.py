@@ -18,10 +18,10 @@ from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
 
-from mavlink_gcs import FAST_TAKEOFF, parse_vehicle_stats
-from udp_relay import Faults, UdpRelay
+from support.mavlink_gcs import FAST_TAKEOFF, parse_vehicle_stats
+from support.udp_relay import Faults, UdpRelay
 
-ROOT = Path(__file__).resolve().parents[1]
+ROOT = Path(__file__).resolve().parents[2]
 
 
 class ModeWatch:
@@ -59,11 +59,21 @@ class ModeWatch:
         return max((f for tf, f in self.frames if tf <= t), default=0)
 
 
-def fly_through_relay(faults: Faults, *, policy: str = "aoa", scenario: str = "straight",
-                      seed: int = 0, frames: int = 128, speed: float = 20.0, relay_seed: int = 0,
-                      schedule: Sequence[tuple[float, Faults]] = (), timeout_s: float = 120.0,
-                      fly_args: Sequence[str] = (), vehicle_args: Sequence[str] = (),
-                      keep: Path | None = None) -> dict[str, Any]:
+def fly_through_relay(
+    faults: Faults,
+    *,
+    policy: str = "aoa",
+    scenario: str = "straight",
+    seed: int = 0,
+    frames: int = 128,
+    speed: float = 20.0,
+    relay_seed: int = 0,
+    schedule: Sequence[tuple[float, Faults]] = (),
+    timeout_s: float = 120.0,
+    fly_args: Sequence[str] = (),
+    vehicle_args: Sequence[str] = (),
+    keep: Path | None = None,
+) -> dict[str, Any]:
     """Fly one episode through a relay with ``faults``. ``schedule``: (seconds after the vehicle
     first reports OFFBOARD, new faults) pairs; ``keep``: a folder for fly's tlog and summary (else
     a temporary one). Returns {"fly", "vehicle", "relay", "modes", ...}."""
@@ -73,20 +83,51 @@ def fly_through_relay(faults: Faults, *, policy: str = "aoa", scenario: str = "s
     fly_port = free_udp_port()
     watch = ModeWatch()
     offboard = 6 << 16
-    with tempfile.TemporaryDirectory(prefix="fly_relay_") as tmp, \
-            UdpRelay(("127.0.0.1", fly_port), faults, seed=relay_seed, max_duration_s=timeout_s + 10,
-                     tap=watch) as relay, \
-            vehicle_process(f"udpout:127.0.0.1:{relay.port}", speed,
-                            ["--scenario", scenario, "--seed", str(seed), *FAST_TAKEOFF,
-                             *vehicle_args]) as vehicle:
+    with (
+        tempfile.TemporaryDirectory(prefix="fly_relay_") as tmp,
+        UdpRelay(
+            ("127.0.0.1", fly_port),
+            faults,
+            seed=relay_seed,
+            max_duration_s=timeout_s + 10,
+            tap=watch,
+        ) as relay,
+        vehicle_process(
+            f"udpout:127.0.0.1:{relay.port}",
+            speed,
+            ["--scenario", scenario, "--seed", str(seed), *FAST_TAKEOFF, *vehicle_args],
+        ) as vehicle,
+    ):
         out = str(keep) if keep is not None else tmp
-        cmd = [sys.executable, "-m", "uavlink.cli", "fly", "--connect", f"udpin:127.0.0.1:{fly_port}",
-               "--policy", policy, "--scenario", scenario, "--seed", str(seed), "--frames",
-               str(frames), "--out", out, "--json", *fly_args]
+        cmd = [
+            sys.executable,
+            "-m",
+            "uavlink.cli",
+            "fly",
+            "--connect",
+            f"udpin:127.0.0.1:{fly_port}",
+            "--policy",
+            policy,
+            "--scenario",
+            scenario,
+            "--seed",
+            str(seed),
+            "--frames",
+            str(frames),
+            "--out",
+            out,
+            "--json",
+            *fly_args,
+        ]
         err_path = Path(out) / "fly.stderr"
         with open(err_path, "wb") as err:
-            fly = subprocess.Popen(cmd, stdout=subprocess.PIPE, stderr=err, cwd=ROOT,
-                                   env=dict(os.environ, PYTHONUNBUFFERED="1"))
+            fly = subprocess.Popen(
+                cmd,
+                stdout=subprocess.PIPE,
+                stderr=err,
+                cwd=ROOT,
+                env=dict(os.environ, PYTHONUNBUFFERED="1"),
+            )
         try:
             deadline = time.monotonic() + timeout_s
             pending = sorted(schedule, key=lambda p: p[0])
@@ -101,8 +142,10 @@ def fly_through_relay(faults: Faults, *, policy: str = "aoa", scenario: str = "s
             if fly.poll() is None:
                 fly.kill()
                 fly.wait(10)
-                raise AssertionError(f"fly did not finish within {timeout_s} s: "
-                                     f"{err_path.read_text(errors='replace')[-3000:]}")
+                raise AssertionError(
+                    f"fly did not finish within {timeout_s} s: "
+                    f"{err_path.read_text(errors='replace')[-3000:]}"
+                )
             stdout = fly.stdout.read().decode() if fly.stdout else ""
         finally:
             if fly.poll() is None:
@@ -115,13 +158,23 @@ def fly_through_relay(faults: Faults, *, policy: str = "aoa", scenario: str = "s
         vstats = parse_vehicle_stats(vehicle.output())
     if fly.returncode != 0:
         raise AssertionError(f"fly exited {fly.returncode}: {stderr[-3000:]}")
-    return {"fly": json.loads(stdout), "fly_stderr": stderr, "vehicle": vstats,
-            "relay": dict(relay.stats), "modes": watch.changes, "watch": watch, "applied": applied,
-            "faults": faults.describe(), "speed": speed, "frames": frames}
+    return {
+        "fly": json.loads(stdout),
+        "fly_stderr": stderr,
+        "vehicle": vstats,
+        "relay": dict(relay.stats),
+        "modes": watch.changes,
+        "watch": watch,
+        "applied": applied,
+        "faults": faults.describe(),
+        "speed": speed,
+        "frames": frames,
+    }
 
 
-def table_row(name: str, runs: dict[str, Any] | Sequence[dict[str, Any]],
-              clean_mbps: float | None) -> dict[str, Any]:
+def table_row(
+    name: str, runs: dict[str, Any] | Sequence[dict[str, Any]], clean_mbps: float | None
+) -> dict[str, Any]:
     """One row of the fault table from one or more :func:`fly_through_relay` results (the same
     condition, different relay seeds): means, and the worst of the safety monitors."""
     runs = [runs] if isinstance(runs, dict) else list(runs)
@@ -132,8 +185,12 @@ def table_row(name: str, runs: dict[str, Any] | Sequence[dict[str, Any]],
         return None if not clean_mbps else round(100.0 * (x / clean_mbps - 1.0), 2)
 
     return {
-        "condition": name, "speed": runs[0]["speed"], "frames": runs[0]["frames"], "runs": len(runs),
-        "mean_rate_mbps": round(sum(truths) / len(truths), 6), "rates_mbps": truths,
+        "condition": name,
+        "speed": runs[0]["speed"],
+        "frames": runs[0]["frames"],
+        "runs": len(runs),
+        "mean_rate_mbps": round(sum(truths) / len(truths), 6),
+        "rates_mbps": truths,
         "vs_clean_pct": pct(sum(truths) / len(truths)),
         "vs_clean_range_pct": None if not clean_mbps else [pct(min(truths)), pct(max(truths))],
         "fly_seen_mbps": [f["mean_rate_mbps"] for f in flys],
@@ -143,24 +200,31 @@ def table_row(name: str, runs: dict[str, Any] | Sequence[dict[str, Any]],
         "offboard_failsafes": sum(v["offboard_failsafes"] for v in vehs),
         "offboard_reentries": sum(f["offboard_reentries"] for f in flys),
         "max_setpoint_age_s": max(v["max_offboard_setpoint_age_s"] for v in vehs),
-        "max_abs_xy_m": max(v["max_abs_xy_m"] for v in vehs), "fence_m": vehs[0]["fence_m"],
+        "max_abs_xy_m": max(v["max_abs_xy_m"] for v in vehs),
+        "fence_m": vehs[0]["fence_m"],
         "episode_wall_s": [f["episode_wall_s"] for f in flys],
         "relay": [r["relay"] for r in runs],
     }
 
 
 def format_table(rows: Sequence[dict[str, Any]]) -> str:
-    head = ("| condition | --speed | runs | mean UE throughput, Mbps (vehicle truth) | vs clean (range) | "
-            "decisions per run | offboard failsafes | re-entries | max setpoint age (s) | "
-            "max abs x/y (m) |")
+    head = (
+        "| condition | --speed | runs | mean UE throughput, Mbps (vehicle truth) | vs clean (range) | "
+        "decisions per run | offboard failsafes | re-entries | max setpoint age (s) | "
+        "max abs x/y (m) |"
+    )
     lines = [head, "|" + "---|" * 10]
     for r in rows:
         vs = ""
         if r["vs_clean_pct"] is not None:
             lo, hi = r["vs_clean_range_pct"]
-            vs = f"{r['vs_clean_pct']:+.1f} %" + (f" ({lo:+.1f} .. {hi:+.1f})" if r["runs"] > 1 else "")
-        lines.append(f"| {r['condition']} | {r['speed']:g} | {r['runs']} | {r['mean_rate_mbps']:.3f} | "
-                     f"{vs} | {r['decisions']:g}/{r['frames']} | {r['offboard_failsafes']} | "
-                     f"{r['offboard_reentries']} | {r['max_setpoint_age_s']:.2f} | "
-                     f"{r['max_abs_xy_m']:.1f} |")
+            vs = f"{r['vs_clean_pct']:+.1f} %" + (
+                f" ({lo:+.1f} .. {hi:+.1f})" if r["runs"] > 1 else ""
+            )
+        lines.append(
+            f"| {r['condition']} | {r['speed']:g} | {r['runs']} | {r['mean_rate_mbps']:.3f} | "
+            f"{vs} | {r['decisions']:g}/{r['frames']} | {r['offboard_failsafes']} | "
+            f"{r['offboard_reentries']} | {r['max_setpoint_age_s']:.2f} | "
+            f"{r['max_abs_xy_m']:.1f} |"
+        )
     return "\n".join(lines)

@@ -5,12 +5,17 @@ from __future__ import annotations
 from hypothesis import HealthCheck, settings
 from hypothesis import strategies as st
 
-FUZZ = settings(max_examples=200, deadline=None, derandomize=True,
-                suppress_health_check=[HealthCheck.too_slow, HealthCheck.data_too_large])
+FUZZ = settings(
+    max_examples=200,
+    deadline=None,
+    derandomize=True,
+    suppress_health_check=[HealthCheck.too_slow, HealthCheck.data_too_large],
+)
 
 # (which packet, where to flip, the xor mask, junk appended): see :func:`corrupt`
-mutation = st.tuples(st.integers(0, 11), st.integers(0, 10_000), st.integers(1, 255),
-                     st.binary(max_size=8))
+mutation = st.tuples(
+    st.integers(0, 11), st.integers(0, 10_000), st.integers(1, 255), st.binary(max_size=8)
+)
 
 
 def corrupt(pkt: bytes, pos: int, flip: int) -> bytes:

@@ -16,15 +16,15 @@ until it has landed and disarmed; one landed but still armed is disarmed first: 
 with an arming, which gives it a fresh radio episode (``sitl_stub.sim.radio_episodes``). When the
 vehicle falls back to hold (offboard-loss failsafe after lost setpoints), the loop re-enters OFFBOARD,
 trying again about once a second until the vehicle takes it. If the vehicle goes to AUTO.LAND or
-AUTO.RTL, or disarms (an operator with the key, or a failsafe meant to end the flight), the mission
+AUTO.RTL, or disarms (an operator with the key, or a failsafe meant to end the flight), the loop_cfg
 ends and leaves it alone. Lost radio reports cost their frame's decision only; a backlog of reports
 (the loop was held up) is decided once, on the newest, the older ones only entering the observation
 history; lost scores do not stall the end of the episode. Without any message from the vehicle for
 ``link_timeout_s`` of wall time, or without a fresh radio frame for ``radio_timeout_s`` in
-OFFBOARD, the mission gives up.
+OFFBOARD, the loop_cfg gives up.
 
 The result says whether the flight flew the frames it set out to
-(:func:`~uavlink.flight.outcome.judge`): every frame of a fresh episode from its start (a flight
+(:func:`~uavlink.flight.result.judge`): every frame of a fresh episode from its start (a flight
 that took off), or the rest of the running one (a resumed flight). Anything else (no radio reports, an episode already running or over, a vehicle that never
 reached OFFBOARD, a lost link, an operator or failsafe ending the flight, Ctrl-C) is
 ``completed = False`` with the reason, one line that says what happened and what to do.
@@ -36,17 +36,18 @@ import logging
 import math
 import time
 from collections.abc import Callable, Sequence
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 
 import numpy as np
 
 from uavlink.config import AreaConfig, EnvConfig
 from uavlink.env.actions import ActionMapping
-from uavlink.env.observation import ObservationBuilder, ObservationLayout
+from uavlink.env.observation import ObservationLayout
+from uavlink.env.observation_builder import ObservationBuilder
 from uavlink.errors import UserError
 from uavlink.flight.link import STREAM_PERIOD_VEHICLE_S, LinkError, VehicleLink
-from uavlink.flight.outcome import EndedBy, judge, signing_hint
 from uavlink.flight.radio_source import MavlinkRadioSource, RadioSource
+from uavlink.flight.result import EndedBy, FlightResult, judge, signing_hint
 from uavlink.flight.start_point import fly_to_starts
 from uavlink.flight.vehicle_control import (
     ending_mode,
@@ -65,7 +66,7 @@ log = logging.getLogger(__name__)
 
 
 @dataclass
-class MissionConfig:
+class LoopConfig:
     frames: int = 128
     stream_period_vehicle_s: float = STREAM_PERIOD_VEHICLE_S
     takeoff: bool = True
@@ -77,78 +78,20 @@ class MissionConfig:
     radio_timeout_s: float = 10.0  # wall seconds in OFFBOARD without a fresh radio frame: give up
     landing_wait_vehicle_s: float = 300.0  # vehicle seconds to wait for an earlier flight's landing
 
-    def validate(self, episode_frames: int) -> MissionConfig:
+    def validate(self, episode_frames: int) -> LoopConfig:
         """UserError for frames no flight can fly (checked before anything starts or is written):
         under 1, or past the env's episode, where the policy's clock and the flight's replay end."""
         if not 1 <= self.frames <= episode_frames:
-            raise UserError(f"--frames must be 1..{episode_frames} (decision frames to fly, at most the env's "
-                            f"episode: --set episode_frames=N for longer), got {self.frames}")
+            raise UserError(
+                f"--frames must be 1..{episode_frames} (decision frames to fly, at most the env's "
+                f"episode: --set episode_frames=N for longer), got {self.frames}"
+            )
         return self
-
-
-@dataclass
-class MissionResult:
-    frames: int = 0
-    frame_rates_mbps: list[float] = field(default_factory=list)
-    latencies_s: list[float] = field(default_factory=list)
-    guarded_actions: int = 0
-    rejected_reports: int = 0
-    resumed: bool = False
-    episode_wall_s: float = 0.0
-    interrupted: bool = False
-    first_frame: int | None = None
-    last_frame: int | None = None  # the newest frame taken
-    decisions: int = 0
-    frames_missed: int = 0
-    stale_reports: int = 0
-    offboard_reentries: int = 0
-    ended_by: str = ""
-    met_start: bool = False  # the radio episode was still waiting for OFFBOARD after take-off
-    episode: dict[str, int] = field(default_factory=dict)  # the payload's: seed, count
-    failure: str = ""  # the LinkError that ended the flight
-    fix: str = ""  # what to do about the failure, when known (else: check the vehicle is running)
-    completed: bool = False
-    reason: str = ""  # why not completed: what happened, what to do
-
-    inference_s: list[float] = field(default_factory=list)
-
-    def take_scores(self, scores: dict[int, ScoreReport], frames: int, pilot: PolicyPilot, rejected: int) -> None:
-        """The flight's figures at its end: the payload's score of each frame 1..``frames`` it sent,
-        and what the pilot guarded and spent."""
-        self.frame_rates_mbps = [scores[k].mean_rate_mbps for k in sorted(scores) if 1 <= k <= frames]
-        self.frames = len(self.frame_rates_mbps)
-        self.guarded_actions, self.inference_s = pilot.guarded, pilot.inference_s
-        self.rejected_reports = rejected
-
-    def summary(self) -> dict:
-        lat_ms = np.array(self.latencies_s) * 1e3 if self.latencies_s else np.array([np.nan])
-        inf_us = np.array(self.inference_s) * 1e6 if self.inference_s else np.array([np.nan])
-        return {
-            "frames": self.frames,
-            "mean_rate_mbps": round(float(np.mean(self.frame_rates_mbps)), 6) if self.frame_rates_mbps else None,
-            "latency_ms_p50": round(float(np.percentile(lat_ms, 50)), 4),
-            "latency_ms_p99": round(float(np.percentile(lat_ms, 99)), 4),
-            "inference_us_p50": round(float(np.percentile(inf_us, 50)), 2),
-            "inference_us_p99": round(float(np.percentile(inf_us, 99)), 2),
-            "episode_wall_s": round(self.episode_wall_s, 3),
-            "guarded_actions": self.guarded_actions,
-            "rejected_radio_reports": self.rejected_reports,
-            "resumed_in_air": self.resumed,
-            "interrupted": self.interrupted,
-            "first_frame": self.first_frame,
-            "decisions": self.decisions,
-            "radio_frames_missed": self.frames_missed,
-            "stale_radio_reports": self.stale_reports,
-            "offboard_reentries": self.offboard_reentries,
-            "ended_by": self.ended_by,
-            "completed": self.completed,
-            "reason": self.reason or None,
-        }
 
 
 class PolicyPilot:
     """Turns radio reports into position targets: observation builder + policy + output guard, for
-    the ``cfg.n_uavs`` rows of one vehicle (here) or a fleet (``fleet_mission.FleetPilot``)."""
+    the ``cfg.n_uavs`` rows of one vehicle (here) or a fleet (``fleet_loop.FleetPilot``)."""
 
     def __init__(self, policy: Policy, cfg: EnvConfig) -> None:
         self.policy = policy
@@ -178,19 +121,33 @@ class PolicyPilot:
         started = time.perf_counter()
         action = np.asarray(self.policy.act(obs), dtype=float)
         self.inference_s.append(time.perf_counter() - started)
-        why = ("wrong shape" if action.shape != (rows, 2) else
-               "NaN/infinite" if not np.isfinite(action).all() else
-               "outside [-1, 1]" if (np.abs(action) > 1.0 + 1e-6).any() else None)
+        why = (
+            "wrong shape"
+            if action.shape != (rows, 2)
+            else "NaN/infinite"
+            if not np.isfinite(action).all()
+            else "outside [-1, 1]"
+            if (np.abs(action) > 1.0 + 1e-6).any()
+            else None
+        )
         if why is None:
             return self.mapping.to_displacement_m(action)
         self.guarded += 1
-        log.warning("policy output guard: frame %d: policy %r returned an unusable action %s (%s): "
-                    "holding position (hold setpoint, no move); %d guarded so far", frame,
-                    getattr(self.policy, "name", "?"), action.tolist(), why, self.guarded)
+        log.warning(
+            "policy output guard: frame %d: policy %r returned an unusable action %s (%s): "
+            "holding position (hold setpoint, no move); %d guarded so far",
+            frame,
+            getattr(self.policy, "name", "?"),
+            action.tolist(),
+            why,
+            self.guarded,
+        )
         return np.zeros((rows, 2))
 
 
-def to_start(links: Sequence[VehicleLink], sources: Sequence[MavlinkRadioSource], cfg: EnvConfig) -> bool:
+def to_start(
+    links: Sequence[VehicleLink], sources: Sequence[MavlinkRadioSource], cfg: EnvConfig
+) -> bool:
     """Fly each vehicle to its UAV's start (a later flight took off where the last one landed) and
     drop the reports of what came before (an earlier episode, the wait); whether every payload's
     episode was still waiting for OFFBOARD, i.e. this flight meets the episode's start."""
@@ -199,46 +156,56 @@ def to_start(links: Sequence[VehicleLink], sources: Sequence[MavlinkRadioSource]
     return all(before and not before[-1].running for before in befores)
 
 
-def stream_then_offboard(links: Sequence[VehicleLink], send: Callable[[int], None], mission: MissionConfig) -> None:
+def stream_then_offboard(
+    links: Sequence[VehicleLink], send: Callable[[int], None], loop_cfg: LoopConfig
+) -> None:
     """PX4 refuses OFFBOARD without a setpoint stream: stream each vehicle's target (``send(i)``) for
     a moment, then switch each."""
     for i, link in enumerate(links):
-        link.stream_period_vehicle_s = mission.stream_period_vehicle_s
+        link.stream_period_vehicle_s = loop_cfg.stream_period_vehicle_s
         send(i)
     for _ in range(5):
-        links[0].poll(mission.stream_period_vehicle_s / links[0].speed_factor())
+        links[0].poll(loop_cfg.stream_period_vehicle_s / links[0].speed_factor())
     for link in links:
-        enter_offboard(link, mission.offboard_entry_s)
+        enter_offboard(link, loop_cfg.offboard_entry_s)
 
 
-def episode_over(mission: MissionConfig, scores: dict[int, ScoreReport], last_frame: int) -> bool:
+def episode_over(loop_cfg: LoopConfig, scores: dict[int, ScoreReport], last_frame: int) -> bool:
     """The flight's frames are flown: the last one scored, or the reports two frames past it (its
     score lost), or past it with every frame scored."""
-    return mission.frames in scores or last_frame >= mission.frames + 2 or (
-        last_frame >= mission.frames and len(scores) >= mission.frames)
+    return (
+        loop_cfg.frames in scores
+        or last_frame >= loop_cfg.frames + 2
+        or (last_frame >= loop_cfg.frames and len(scores) >= loop_cfg.frames)
+    )
 
 
-def fly_mission(link: VehicleLink, pilot: PolicyPilot, cfg: EnvConfig, mission: MissionConfig,
-                radio: RadioSource | None = None,
-                status: Callable[[int, np.ndarray, float | None], None] | None = None) -> MissionResult:
+def fly_vehicle(
+    link: VehicleLink,
+    pilot: PolicyPilot,
+    cfg: EnvConfig,
+    loop_cfg: LoopConfig,
+    radio: RadioSource | None = None,
+    status: Callable[[int, np.ndarray, float | None], None] | None = None,
+) -> FlightResult:
     """Fly one episode: take control (arm and take off, or resume in the air), stream setpoints and
     enter OFFBOARD, make one decision per fresh radio frame until the episode ends, the operator or
     a failsafe takes over, or the link is lost; then land unless someone else is already ending the
     flight. Ctrl-C lands too. Never raises LinkError: the result says what went wrong."""
-    result = MissionResult()
+    result = FlightResult()
     try:
-        _fly(link, pilot, cfg, mission, radio, status, result)
+        _fly(link, pilot, cfg, loop_cfg, radio, status, result)
     except LinkError as exc:
         result.failure, result.fix = str(exc), signing_hint(link)
     except KeyboardInterrupt:  # before the episode's loop (which lands by itself)
         result.interrupted, result.ended_by = True, EndedBy.INTERRUPTED
-        if mission.land and link.status.armed and not ending_mode(link.status):
+        if loop_cfg.land and link.status.armed and not ending_mode(link.status):
             land(link)
-    judge(result, mission.frames)
+    judge(result, loop_cfg.frames)
     return result
 
 
-def _fly(link, pilot, cfg, mission, radio, status, result: MissionResult) -> None:
+def _fly(link, pilot, cfg, loop_cfg, radio, status, result: FlightResult) -> None:
     source = radio or MavlinkRadioSource(cfg.n_ues)
     simulated = isinstance(source, MavlinkRadioSource)  # the SITL's radio payload: lockstep-able
     if simulated:
@@ -247,7 +214,7 @@ def _fly(link, pilot, cfg, mission, radio, status, result: MissionResult) -> Non
     link.on_score = lambda s: scores.__setitem__(s.frame, s)
     half = cfg.area.half_width_m
 
-    _take_control(link, mission, cfg.area, result)
+    _take_control(link, loop_cfg, cfg.area, result)
     if not result.resumed:
         result.met_start = to_start([link], [source], cfg)
         scores.clear()
@@ -259,7 +226,7 @@ def _fly(link, pilot, cfg, mission, radio, status, result: MissionResult) -> Non
         link.stream_ned = (float(target[1]), float(target[0]), down)
         link.send_setpoint(*link.stream_ned)
 
-    stream_then_offboard([link], send, mission)
+    stream_then_offboard([link], send, loop_cfg)
 
     frames = _FrameTracker()
     last_reentry = -math.inf
@@ -278,7 +245,7 @@ def _fly(link, pilot, cfg, mission, radio, status, result: MissionResult) -> Non
                 pilot.observe(report, np.array([st.east_m, st.north_m]), first)
             for report, first in fresh[-1:]:
                 arrived = time.monotonic()
-                if report.frame < mission.frames:
+                if report.frame < loop_cfg.frames:
                     move = pilot.decide(report, np.array([st.east_m, st.north_m]), first)
                     target = np.clip(target + move, -half, half)
                     send()
@@ -286,36 +253,56 @@ def _fly(link, pilot, cfg, mission, radio, status, result: MissionResult) -> Non
                     result.latencies_s.append(time.monotonic() - arrived)
                     if status:
                         frame_score = scores.get(report.frame)
-                        status(report.frame, target, frame_score.mean_rate_mbps if frame_score else None)
+                        status(
+                            report.frame,
+                            target,
+                            frame_score.mean_rate_mbps if frame_score else None,
+                        )
                 if simulated:  # after the setpoint: a lockstep vehicle's time may go on
-                    send_frame_decided(link.conn.mav, link.target_system, report.frame,
-                                       report.frame < mission.frames)
-            if episode_over(mission, scores, frames.last):
+                    send_frame_decided(
+                        link.conn.mav,
+                        link.target_system,
+                        report.frame,
+                        report.frame < loop_cfg.frames,
+                    )
+            if episode_over(loop_cfg, scores, frames.last):
                 result.ended_by = EndedBy.EPISODE_DONE
                 break
             if not st.armed or ending_mode(st):
                 result.ended_by = f"vehicle in {mode_name(st)}"
-                log.warning("vehicle is now %s (operator or failsafe): ending the mission, "
-                            "leaving the vehicle alone", mode_name(st))
+                log.warning(
+                    "vehicle is now %s (operator or failsafe): ending the loop_cfg, "
+                    "leaving the vehicle alone",
+                    mode_name(st),
+                )
                 break
             now = time.monotonic()
-            if now - last_radio > mission.radio_timeout_s:
+            if now - last_radio > loop_cfg.radio_timeout_s:
                 result.ended_by = EndedBy.NO_RADIO_REPORTS
                 break
-            if not st.offboard and now - last_reentry >= mission.reenter_interval_s:
+            if not st.offboard and now - last_reentry >= loop_cfg.reenter_interval_s:
                 last_reentry = now
                 _reenter_offboard(link, result)
-            if now - link.last_rx_wall > mission.link_timeout_s:
+            if now - link.last_rx_wall > loop_cfg.link_timeout_s:
                 result.ended_by = EndedBy.LINK_LOST
-                raise LinkError(f"no message from the vehicle for {mission.link_timeout_s:g} s: "
-                                f"{EndedBy.LINK_LOST}")
+                raise LinkError(
+                    f"no message from the vehicle for {loop_cfg.link_timeout_s:g} s: "
+                    f"{EndedBy.LINK_LOST}"
+                )
     except KeyboardInterrupt:
         result.interrupted = True
         result.ended_by = EndedBy.INTERRUPTED
     finally:
-        result.episode_wall_s = time.monotonic() - frames.started_wall if frames.started_wall else 0.0
-        result.take_scores(scores, mission.frames, pilot, getattr(source, "rejected", 0))
-        if mission.land and st.armed and not ending_mode(st) and result.ended_by != EndedBy.LINK_LOST:
+        result.episode_wall_s = (
+            time.monotonic() - frames.started_wall if frames.started_wall else 0.0
+        )
+        result.take_scores(scores, loop_cfg.frames, pilot, getattr(source, "rejected", 0))
+        if (
+            loop_cfg.land
+            and st.armed
+            and not ending_mode(st)
+            and result.ended_by != EndedBy.LINK_LOST
+        ):
             land(link)
         link.stream_ned = None
 
@@ -327,7 +314,9 @@ class _FrameTracker:
         self.last = -1  # newest frame taken
         self.started_wall: float | None = None  # wall time of the first running frame
 
-    def fresh(self, reports: list[RadioReport], result: MissionResult) -> list[tuple[RadioReport, bool]]:
+    def fresh(
+        self, reports: list[RadioReport], result: FlightResult
+    ) -> list[tuple[RadioReport, bool]]:
         """The new reports in order, each with whether it is the episode's first; counts gaps."""
         fresh = []
         for report in reports:
@@ -343,21 +332,24 @@ class _FrameTracker:
         return fresh
 
 
-def _take_control(link: VehicleLink, mission: MissionConfig, area: AreaConfig, result: MissionResult) -> None:
+def _take_control(
+    link: VehicleLink, loop_cfg: LoopConfig, area: AreaConfig, result: FlightResult
+) -> None:
     """Wait for the vehicle to be ready, give it the operating area as its geofence, then arm and
     take off, or resume a vehicle already flying (``uavlink.flight.vehicle_control``)."""
-    wait_ready(link, mission.takeoff, mission.landing_wait_vehicle_s)
-    result.resumed = take_off_or_resume(link, area.uav_altitude_m, area.half_width_m if mission.fence else None,
-                                        mission.takeoff)
+    wait_ready(link, loop_cfg.takeoff, loop_cfg.landing_wait_vehicle_s)
+    result.resumed = take_off_or_resume(
+        link, area.uav_altitude_m, area.half_width_m if loop_cfg.fence else None, loop_cfg.takeoff
+    )
 
 
-def _reenter_offboard(link: VehicleLink, result: MissionResult) -> None:
+def _reenter_offboard(link: VehicleLink, result: FlightResult) -> None:
     """The vehicle left OFFBOARD (a failsafe hold, say) but is still ours: ask for it back once."""
-    log.warning("vehicle left OFFBOARD (now %s, failsafe hold?): re-entering", mode_name(link.status))
+    log.warning(
+        "vehicle left OFFBOARD (now %s, failsafe hold?): re-entering", mode_name(link.status)
+    )
     try:
         link.set_mode(PX4_MAIN_OFFBOARD, tries=3)
         result.offboard_reentries += 1
     except LinkError as exc:
         log.warning("could not re-enter OFFBOARD yet: %s", exc)
-
-

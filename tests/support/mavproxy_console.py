@@ -12,19 +12,30 @@ from collections.abc import Callable, Iterator, Sequence
 from pathlib import Path
 
 MAVPROXY = shutil.which("mavproxy.py", path=str(Path(sys.executable).parent)) or shutil.which(
-    "mavproxy.py")
+    "mavproxy.py"
+)
 
 
 @contextlib.contextmanager
-def mavproxy(args: Sequence[str], cwd: Path, out_path: Path, typed: bool = True,
-             ) -> Iterator[Callable[[str], None]]:
+def mavproxy(
+    args: Sequence[str],
+    cwd: Path,
+    out_path: Path,
+    typed: bool = True,
+) -> Iterator[Callable[[str], None]]:
     """``mavproxy.py ARGS`` in ``cwd`` (where it writes mav.tlog), its output in ``out_path``;
     yields ``type_in(command)`` (stdin closed when ``typed`` is False); terminated, then killed."""
     assert MAVPROXY is not None
     env = dict(os.environ, PYTHONUNBUFFERED="1")
     with out_path.open("wb") as out:
-        mp = subprocess.Popen([sys.executable, MAVPROXY, *args], stdout=out, stderr=subprocess.STDOUT,
-                              stdin=subprocess.PIPE if typed else subprocess.DEVNULL, cwd=cwd, env=env)
+        mp = subprocess.Popen(
+            [sys.executable, MAVPROXY, *args],
+            stdout=out,
+            stderr=subprocess.STDOUT,
+            stdin=subprocess.PIPE if typed else subprocess.DEVNULL,
+            cwd=cwd,
+            env=env,
+        )
 
     def type_in(command: str) -> None:
         assert mp.stdin is not None, "MAVProxy was started without stdin"

@@ -16,8 +16,8 @@ The relay runs in a daemon thread, stops by itself after ``max_duration_s`` (wal
 while it runs (e.g. a blackout, then a clear link). ``stats`` counts what it did per direction.
 ``tap(direction, datagram)``, when given, sees every datagram as it arrives (before any fault).
 
-Flights through it: ``tests/relay_flight.py``; a ground station for tests: ``tests/mavlink_gcs.py``.
-``python tests/udp_relay.py`` runs benchmarks/link_faults.py (the throughput table).
+Flights through it: ``tests/support/relay_flight.py``; a ground station for tests: ``tests/support/mavlink_gcs.py``.
+``python benchmarks/link_faults.py`` flies through it (the throughput table).
 """
 
 from __future__ import annotations
@@ -26,13 +26,11 @@ import heapq
 import random
 import select
 import socket
-import sys
 import threading
 import time
 from collections import Counter
 from collections.abc import Callable
 from dataclasses import dataclass
-from pathlib import Path
 
 MAX_DATAGRAM = 65535
 
@@ -56,11 +54,13 @@ class Faults:
                 raise ValueError(f"{name} must be in [0, 10] s, got {getattr(self, name)}")
 
     def describe(self) -> str:
-        parts = [f"{self.loss:.0%} loss" if self.loss else "",
-                 f"{self.delay_s * 1e3:.0f} ms delay" if self.delay_s else "",
-                 f"{self.jitter_s * 1e3:.0f} ms jitter" if self.jitter_s else "",
-                 f"{self.duplicate:.0%} duplicated" if self.duplicate else "",
-                 f"{self.reorder:.0%} reordered" if self.reorder else ""]
+        parts = [
+            f"{self.loss:.0%} loss" if self.loss else "",
+            f"{self.delay_s * 1e3:.0f} ms delay" if self.delay_s else "",
+            f"{self.jitter_s * 1e3:.0f} ms jitter" if self.jitter_s else "",
+            f"{self.duplicate:.0%} duplicated" if self.duplicate else "",
+            f"{self.reorder:.0%} reordered" if self.reorder else "",
+        ]
         return ", ".join(p for p in parts if p) or "clean"
 
 
@@ -71,9 +71,15 @@ BLACKOUT = Faults(loss=1.0)
 class UdpRelay:
     """Relay between whoever sends to ``port`` and ``dest``; see the module docstring."""
 
-    def __init__(self, dest: tuple[str, int], faults: Faults = CLEAN, seed: int = 0,
-                 max_duration_s: float = 120.0, host: str = "127.0.0.1",
-                 tap: Callable[[str, bytes], None] | None = None) -> None:
+    def __init__(
+        self,
+        dest: tuple[str, int],
+        faults: Faults = CLEAN,
+        seed: int = 0,
+        max_duration_s: float = 120.0,
+        host: str = "127.0.0.1",
+        tap: Callable[[str, bytes], None] | None = None,
+    ) -> None:
         if host not in ("127.0.0.1", "localhost"):
             raise ValueError("the test relay stays on loopback")
         self.dest = dest
@@ -185,10 +191,3 @@ class UdpRelay:
                 self.stats[f"{direction}_out"] += 1
             except OSError:
                 self.stats[f"{direction}_send_errors"] += 1
-
-
-if __name__ == "__main__":  # pragma: no cover - convenience entry point
-    import runpy
-
-    sys.argv[0] = str(Path(__file__).resolve().parents[1] / "benchmarks" / "link_faults.py")
-    runpy.run_path(sys.argv[0], run_name="__main__")

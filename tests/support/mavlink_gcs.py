@@ -11,7 +11,9 @@ from collections.abc import Callable
 from typing import Any
 
 FAST_CLIMB_PARAMS = {"MPC_TKO_SPEED": 5.0, "MPC_Z_VEL_MAX_UP": 5.0}  # 95 m in ~20 s sim
-FAST_TAKEOFF = tuple(a for name, value in FAST_CLIMB_PARAMS.items() for a in ("--param", f"{name}={value:g}"))
+FAST_TAKEOFF = tuple(
+    a for name, value in FAST_CLIMB_PARAMS.items() for a in ("--param", f"{name}={value:g}")
+)
 
 
 class Gcs:
@@ -19,12 +21,17 @@ class Gcs:
     pymavlink's own ``setup_signing`` (a stock client). It records the autopilot's heartbeats
     (wall time, custom_mode, armed) and every COMMAND_ACK addressed to it."""
 
-    def __init__(self, port: int, system_id: int = 245, component_id: int = 190,
-                 key: bytes | None = None) -> None:
+    def __init__(
+        self, port: int, system_id: int = 245, component_id: int = 190, key: bytes | None = None
+    ) -> None:
         from uavlink.mavlink.dialect import mavutil
 
-        self.conn = mavutil.mavlink_connection(f"udpout:127.0.0.1:{port}", source_system=system_id,
-                                               source_component=component_id, dialect="common")
+        self.conn = mavutil.mavlink_connection(
+            f"udpout:127.0.0.1:{port}",
+            source_system=system_id,
+            source_component=component_id,
+            dialect="common",
+        )
         if key is not None:
             self.conn.setup_signing(key, sign_outgoing=True)
         self.mav = self.conn.mav
@@ -70,8 +77,9 @@ class Gcs:
                 raise AssertionError(f"timed out after {timeout} s waiting for {what}")
             self.pump()
 
-    def wait_message(self, kind: str, timeout: float = 10.0,
-                     pred: Callable[[Any], bool] = lambda m: True) -> Any:
+    def wait_message(
+        self, kind: str, timeout: float = 10.0, pred: Callable[[Any], bool] = lambda m: True
+    ) -> Any:
         self.last.pop(kind, None)
         self.wait(lambda: kind in self.last and pred(self.last[kind]), timeout, kind)
         return self.last[kind]

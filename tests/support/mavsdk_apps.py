@@ -43,16 +43,24 @@ PX4_API_ADDRESS = "udpin://0.0.0.0:14540"  # what every MAVSDK-Python example co
 HOME_LAT_DEG, HOME_LON_DEG, HOME_ALT_M = 47.397742, 8.545594, 488.0  # sitl_stub's default home
 EARTH_RADIUS_M = 6_371_000.0
 GOTO_LAT_DEG, GOTO_LON_DEG = 47.397606, 8.543060  # goto.py's target, ~190 m west of home
-WAYPOINTS_DEG = ((47.398039859999997, 8.5455725400000002), (47.398036222362471, 8.5450146439425509),
-                 (47.397825620791885, 8.5450092830163271))  # mission.py's three waypoints
+WAYPOINTS_DEG = (
+    (47.398039859999997, 8.5455725400000002),
+    (47.398036222362471, 8.5450146439425509),
+    (47.397825620791885, 8.5450092830163271),
+)  # mission.py's three waypoints
 INT_FRAME = {0: 5, 3: 6}  # MAV_FRAME_GLOBAL(_RELATIVE_ALT) -> its _INT twin
 
 
 @functools.cache
 def stub_has_px4_ports() -> bool:
     """Whether ``python -m sitl_stub`` with no flags serves PX4's ports (it has ``--instance``)."""
-    help_text = subprocess.run([sys.executable, "-m", "sitl_stub", "--help"], capture_output=True,
-                               text=True, env=_child_env(), timeout=60).stdout
+    help_text = subprocess.run(
+        [sys.executable, "-m", "sitl_stub", "--help"],
+        capture_output=True,
+        text=True,
+        env=_child_env(),
+        timeout=60,
+    ).stdout
     return "--instance" in help_text
 
 
@@ -77,13 +85,27 @@ def sitl_vehicle(extra_args: Sequence[str] = (), speed: float = SPEED) -> Iterat
         connect_args, address = [], PX4_API_ADDRESS
     else:
         port = free_udp_port()
-        connect_args, address = ["--connect", f"udpout:127.0.0.1:{port}"], f"udpin://127.0.0.1:{port}"
+        connect_args, address = (
+            ["--connect", f"udpout:127.0.0.1:{port}"],
+            f"udpin://127.0.0.1:{port}",
+        )
     fd, name = tempfile.mkstemp(prefix="sitl_stub_mavsdk_", suffix=".log")
     log_path = Path(name)
     with os.fdopen(fd, "wb") as log_file:
         proc = subprocess.Popen(
-            [sys.executable, "-m", "sitl_stub", "--speed", repr(float(speed)), *connect_args,
-             *extra_args], stdout=log_file, stderr=subprocess.STDOUT, env=_child_env())
+            [
+                sys.executable,
+                "-m",
+                "sitl_stub",
+                "--speed",
+                repr(float(speed)),
+                *connect_args,
+                *extra_args,
+            ],
+            stdout=log_file,
+            stderr=subprocess.STDOUT,
+            env=_child_env(),
+        )
     vehicle = VehicleProcess(proc, log_path)
     try:
         yield Sitl(vehicle, address)
@@ -100,6 +122,7 @@ def _child_env() -> dict[str, str]:
 def run_app(app: Callable[[str], Awaitable[None]], vehicle: Sitl, timeout_s: float = 120.0) -> None:
     """Run ``app(vehicle.address)`` to the end within ``timeout_s`` of wall time; a failure
     carries the vehicle's last log lines. The vehicle must still be running afterwards."""
+
     async def app_while_vehicle_runs() -> None:
         task = asyncio.ensure_future(asyncio.wait_for(app(vehicle.address), timeout_s))
         while not task.done():  # a vehicle that died fails the app now, not at its timeout
@@ -113,8 +136,9 @@ def run_app(app: Callable[[str], Awaitable[None]], vehicle: Sitl, timeout_s: flo
         asyncio.run(app_while_vehicle_runs())
     except BaseException as exc:  # TimeoutError, MAVSDK errors, assertions: all get the log
         tail = "\n".join(vehicle.output().splitlines()[-40:])
-        raise AssertionError(f"{type(exc).__name__}: {exc}\n--- sitl_stub log (tail) ---\n"
-                             f"{tail}") from exc
+        raise AssertionError(
+            f"{type(exc).__name__}: {exc}\n--- sitl_stub log (tail) ---\n{tail}"
+        ) from exc
     assert vehicle.alive(), vehicle.output()
 
 
@@ -155,8 +179,12 @@ async def mavsdk4_drone(address: str) -> AsyncIterator[Any]:
         yield drone
 
 
-async def first(gen: AsyncIterator[Any], pred: Callable[[Any], bool] = lambda x: True,
-                timeout: float = 30.0, what: str = "") -> Any:
+async def first(
+    gen: AsyncIterator[Any],
+    pred: Callable[[Any], bool] = lambda x: True,
+    timeout: float = 30.0,
+    what: str = "",
+) -> Any:
     """The first item of a MAVSDK subscription that satisfies ``pred`` (either API)."""
     last: list[Any] = []
 
@@ -170,8 +198,10 @@ async def first(gen: AsyncIterator[Any], pred: Callable[[Any], bool] = lambda x:
     try:
         return await asyncio.wait_for(scan(), timeout)
     except asyncio.TimeoutError:
-        raise AssertionError(f"waited {timeout} s for {what or 'a matching item'}; "
-                             f"last seen: {last[0] if last else 'nothing'}") from None
+        raise AssertionError(
+            f"waited {timeout} s for {what or 'a matching item'}; "
+            f"last seen: {last[0] if last else 'nothing'}"
+        ) from None
     finally:
         await gen.aclose()
 
@@ -188,21 +218,33 @@ def heading_error_deg(heading_deg: float, target_deg: float) -> float:
     return abs((heading_deg - target_deg + 180.0) % 360.0 - 180.0)
 
 
-def near_velocity(north_m_s: float, east_m_s: float, down_m_s: float, tol_m_s: float = 0.3,
-                  ) -> Callable[[Any], bool]:
+def near_velocity(
+    north_m_s: float,
+    east_m_s: float,
+    down_m_s: float,
+    tol_m_s: float = 0.3,
+) -> Callable[[Any], bool]:
     """Predicate on a MAVSDK VelocityNed: within ``tol_m_s`` of the given NED velocity."""
+
     def pred(v: Any) -> bool:
-        return (abs(v.north_m_s - north_m_s) < tol_m_s and abs(v.east_m_s - east_m_s) < tol_m_s
-                and abs(v.down_m_s - down_m_s) < tol_m_s)
+        return (
+            abs(v.north_m_s - north_m_s) < tol_m_s
+            and abs(v.east_m_s - east_m_s) < tol_m_s
+            and abs(v.down_m_s - down_m_s) < tol_m_s
+        )
+
     return pred
 
 
 def assert_same_raw_items(got: Sequence[Any], sent: Sequence[Any]) -> None:
     """Same mission_raw items (either API); PX4 answers MISSION_ITEM_INT downloads in the _INT
     frames (0 -> 5, 3 -> 6)."""
+
     def key(i: Any) -> tuple:
         return (i.seq, INT_FRAME.get(i.frame, i.frame), i.command, i.x, i.y, i.mission_type)
 
     assert [key(i) for i in got] == [key(i) for i in sent]
     for g, s in zip(got, sent, strict=True):
-        assert math.isclose(g.z, s.z, abs_tol=1e-4) and math.isclose(g.param2, s.param2, abs_tol=1e-4)
+        assert math.isclose(g.z, s.z, abs_tol=1e-4) and math.isclose(
+            g.param2, s.param2, abs_tol=1e-4
+        )
