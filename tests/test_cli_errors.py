@@ -3,7 +3,9 @@ real child processes of the CLI, the missing package made absent as Python sees 
 
 from __future__ import annotations
 
+import json
 import re
+import shutil
 import subprocess
 import sys
 from pathlib import Path
@@ -30,7 +32,7 @@ def _without(modules: tuple[str, ...], *args: str, cwd: Path = ROOT) -> subproce
     [
         (
             ("torch", "stable_baselines3"),
-            ("evaluate", "--policy", "policies/circular.zip", "--episodes", "1"),
+            ("evaluate", "--policy", "lone/circular.zip", "--episodes", "1"),  # no ONNX twin
             "train",
         ),
         (("stable_baselines3",), ("train", "--out", "never.zip", "--episodes", "1"), "train"),
@@ -38,11 +40,31 @@ def _without(modules: tuple[str, ...], *args: str, cwd: Path = ROOT) -> subproce
     ],
 )
 def test_a_missing_optional_package_names_its_extra(modules, args, extra, tmp_path):
+    lone = tmp_path / "lone"
+    lone.mkdir()
+    shutil.copy(ROOT / "policies" / "circular.zip", lone)
     proc = _without(
-        modules, *(str(ROOT / a) if a.startswith("policies/") else a for a in args), cwd=tmp_path
+        modules,
+        *(str(ROOT / a) if a.startswith("policies/") else a for a in args),
+        *(["--scenario", "circular"] if "lone/circular.zip" in args else []),
+        cwd=tmp_path,
     )
     assert_user_error(proc, f"this needs {modules[0]}", f"pip install 'uavlink[{extra}]'")
-    assert list(tmp_path.iterdir()) == []
+    assert [p.name for p in tmp_path.iterdir()] == ["lone"]  # nothing written
+
+
+def test_a_shipped_zip_flies_as_its_onnx_twin_without_torch(tmp_path):
+    """The [fly] install has no torch: a shipped zip is evaluated through its ONNX twin (one line
+    says so) and gives the zip's figures to the last digit."""
+    args = ("evaluate", "--policy", "circular.zip", "--episodes", "2", "--seed", "3", "--json")
+    proc = _without(("torch", "stable_baselines3"), *args, cwd=tmp_path)
+    assert proc.returncode == 0, proc.stderr
+    assert "flying its ONNX twin" in proc.stderr and "circular.onnx" in proc.stderr
+    with_torch = run_uavlink_in_process(*args)
+    assert with_torch.returncode == 0, with_torch.stderr
+    twin, zipped = json.loads(proc.stdout), json.loads(with_torch.stdout)
+    assert twin["mean_rate_mbps"] == zipped["mean_rate_mbps"]
+    assert twin["mean_fair_rate"] == zipped["mean_fair_rate"]
 
 
 def test_the_results_folder_needs_matplotlib_before_it_writes_a_table(tmp_path):

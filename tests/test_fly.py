@@ -159,7 +159,7 @@ def test_fly_bare_port_connect(tmp_path: Path) -> None:
 @pytest.mark.parametrize(
     "policy,message",
     [
-        ("missing.zip", "no such policy file"),
+        ("missing.zip", "no such file"),
         ("oracle", "cannot fly"),
     ],
 )

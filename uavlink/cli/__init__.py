@@ -32,6 +32,7 @@ def build_parser() -> argparse.ArgumentParser:
     from uavlink.cli.fly import add_fly_parser
     from uavlink.cli.keygen import add_keygen_parser
     from uavlink.cli.plot import add_plot_parser
+    from uavlink.cli.policies import add_policies_parser
     from uavlink.cli.sweep import add_sweep_parser
     from uavlink.cli.train import add_train_parser
 
@@ -43,6 +44,7 @@ def build_parser() -> argparse.ArgumentParser:
         add_keygen_parser,
         add_fly_parser,
         add_plot_parser,
+        add_policies_parser,
     ):
         add(sub)
     return parser

@@ -20,12 +20,15 @@ from uavlink.cli.options import (
 from uavlink.config import EnvConfig
 from uavlink.errors import UserError, require
 from uavlink.policies.contract import OVERRIDES_HELP, EnvOverrides, apply_overrides, load_with_env
+from uavlink.policies.loader import locate
 from uavlink.policies.registry import BASELINES
 
 
 def cmd_evaluate(args: argparse.Namespace) -> int:
     from uavlink.evaluation import compare, evaluate_policy
 
+    args.policy = str(locate(args.policy))  # a shipped policy by name: its file from here on
+    args.against = [str(locate(spec)) for spec in args.against or []]
     if args.episodes < 1:
         raise UserError(f"--episodes must be a positive integer, got {args.episodes}")
     if args.out is not None:
@@ -52,9 +55,8 @@ def cmd_evaluate(args: argparse.Namespace) -> int:
     overrides = EnvOverrides.from_command_line(None, args.aoa_noise_deg, args.overrides)
     specs = [args.policy, *(args.against or [])]
     if args.scenario is None and Path(args.policy).is_file():
-        scenarios = [
-            None
-        ]  # the file's manifest names it; a baseline beside it flies the file's world
+        # the file's manifest names it; a baseline beside it flies the file's world
+        scenarios = [None]
     else:
         scenarios = scenario_list(args.scenario or "circular")
     status = StatusLine()
@@ -66,9 +68,7 @@ def cmd_evaluate(args: argparse.Namespace) -> int:
             ):
                 status.show(f"evaluating {cfg.scenario}: {spec} ({args.episodes} episodes)")
                 flown.append(evaluate_policy(policy, cfg, args.episodes, args.seed))
-            if len({r.policy for r in flown}) < len(
-                flown
-            ):  # policies/map/x.zip vs policies/spatial/x.zip
+            if len({r.policy for r in flown}) < len(flown):  # map/x.zip vs spatial/x.zip
                 flown = [
                     dataclasses.replace(r, policy=str(spec))
                     for r, spec in zip(flown, specs, strict=True)

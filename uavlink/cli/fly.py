@@ -12,15 +12,30 @@ from uavlink.policies.registry import flying_baselines
 
 
 def cmd_fly(args: argparse.Namespace) -> int:
-    from uavlink.flight.fly import run_fly
+    from uavlink.flight.fly import FlyOptions, run_fly
 
     output_folder(args.out, "--out")
-    return run_fly(args)
+    options = FlyOptions(
+        policy=args.policy,
+        connect=args.connect,
+        scenario=args.scenario,
+        seed=args.seed,
+        aoa_noise_deg=args.aoa_noise_deg,
+        overrides=tuple(args.overrides),
+        speed=args.speed,
+        lockstep=args.lockstep,
+        frames=args.frames,
+        out=args.out,
+        picture=not args.no_picture,
+        signing_key=Path(args.signing_key) if args.signing_key else None,
+        verbose=args.verbose,
+    )
+    return run_fly(options, as_json=args.json, quiet=args.quiet)
 
 
 def policy_help() -> str:
-    """What ``--policy`` takes: a policy file or a baseline that flies."""
-    return " | ".join(("FILE.zip", "FILE.onnx", *flying_baselines()))
+    """What ``--policy`` takes: a policy file, a baseline that flies or a shipped policy's name."""
+    return " | ".join(("FILE.zip", "FILE.onnx", *flying_baselines(), "NAME (uavlink policies)"))
 
 
 def add_fly_parser(sub) -> None:
@@ -36,7 +51,7 @@ def add_fly_parser(sub) -> None:
         "completed: false and the reason); 130 after Ctrl-C (the vehicle "
         "lands); 2 for bad input. " + OVERRIDES_HELP,
     )
-    p.add_argument("--policy", default="policies/circular.zip", help=policy_help())
+    p.add_argument("--policy", default="circular", help=policy_help() + " (default: circular)")
     p.add_argument(
         "--connect",
         default=None,

@@ -14,7 +14,7 @@ def cmd_plot(args: argparse.Namespace) -> int:
 
     if args.out is not None:  # what --gif or not writes, under a name that says so
         output_file(args.out, "--out", (".gif",) if args.gif else (".png",))
-    return run_plot(args)
+    return run_plot(args.tlog, args.out, args.gif, args.title, as_json=args.json)
 
 
 def add_plot_parser(sub) -> None:

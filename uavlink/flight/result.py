@@ -13,7 +13,6 @@ failsafe ending the flight), with one line on stderr that says what happened and
 
 from __future__ import annotations
 
-import argparse
 import json
 import logging
 import math
@@ -35,6 +34,16 @@ from uavlink.plot.command import picture_after_flight
 
 EXIT_COMPLETE, EXIT_INCOMPLETE, EXIT_INTERRUPTED = 0, 1, 130
 log = logging.getLogger("uavlink.fly")
+
+
+class FlownOptions(Protocol):
+    """What the summary reads of a flight's options (``fly.FlyOptions``) to name its replay."""
+
+    seed: int
+    connect: str | None
+    aoa_noise_deg: float | None
+    overrides: Sequence[str]
+    lockstep: bool
 
 
 class Piloting(Protocol):
@@ -162,9 +171,8 @@ class StatusLine:
     """The live status line, one frame at a time, rewritten in place on stderr (the first UAV's
     target for a fleet); silent with --quiet or --json or when stderr is not a terminal."""
 
-    def __init__(self, args: argparse.Namespace, frames: int) -> None:
-        self.on = not (args.quiet or args.json) and sys.stderr.isatty()
-        self.frames = frames
+    def __init__(self, on: bool, frames: int) -> None:
+        self.on, self.frames = on, frames
 
     def __call__(self, frame: int, target: np.ndarray, rate: float | None) -> None:
         if self.on:
@@ -267,7 +275,7 @@ def signing_hint(link) -> str:
 
 
 def episode_fields(
-    args: argparse.Namespace, cfg: EnvConfig, episode: dict[str, int], frames: int
+    options: FlownOptions, policy: str, cfg: EnvConfig, episode: dict[str, int], frames: int
 ) -> dict:
     """Which radio episode was flown, its scenario and how to replay it: the vehicle's payload names
     it (its UL_EP_SEED / UL_EPISODE messages); an embedded vehicle serves episode 0 of ``--seed``.
@@ -275,7 +283,7 @@ def episode_fields(
     summary names the one flown. A lockstep flight of one UAV is replayed with the vehicle's
     motion (``uav_motion=px4``); a flight of the first ``frames`` of the episode, with an episode that
     long (none for a policy that plans over the episode's length: the model of the field's)."""
-    seed = episode.get("seed", args.seed if args.connect is None else None)
+    seed = episode.get("seed", options.seed if options.connect is None else None)
     scenario = {"scenario": cfg.scenario}
     if cfg.scenario == MIXED and seed is not None:
         scenario = {"scenario": episode_scenario(cfg, seed), "scenario_drawn_from": MIXED}
@@ -286,7 +294,7 @@ def episode_fields(
             "uavlink",
             "evaluate",
             "--policy",
-            str(args.policy),
+            policy,
             "--scenario",
             cfg.scenario,
             "--seed",
@@ -294,11 +302,11 @@ def episode_fields(
             "--episodes",
             "1",
         ]
-        if args.aoa_noise_deg is not None:
-            words += ["--aoa-noise-deg", repr(float(args.aoa_noise_deg))]
-        for pair in args.overrides:
+        if options.aoa_noise_deg is not None:
+            words += ["--aoa-noise-deg", repr(float(options.aoa_noise_deg))]
+        for pair in options.overrides:
             words += ["--set", pair]
-        if args.lockstep and cfg.n_uavs == 1 and cfg.uav_motion != "px4":
+        if options.lockstep and cfg.n_uavs == 1 and cfg.uav_motion != "px4":
             words += ["--set", "uav_motion=px4"]
         if short:  # the episode's first frames are the same in a shorter episode
             words += ["--set", f"episode_frames={frames}"]
@@ -317,22 +325,47 @@ def flown_name(summary: dict) -> str:
     return repr(summary["scenario"]) + (f" (drawn from {drawn})" if drawn else "")
 
 
-def finish(
-    summary: dict, out_dir: Path, as_json: bool, flown_line: str, picture: bool = True
-) -> int:
-    """Draw flight.png from the flight's tlog (unless ``picture`` is off; complete or not), write
-    summary.json and print the summary (``--json``); then ``flown_line`` (stdout) for a complete
-    flight, one line on stderr for one that is not; then why there is no picture, if there is none
-    (after: the flight's own outcome is the first thing to read). Returns the exit status."""
+def flown_line(summary: dict, out_dir: Path) -> str:
+    """The line after a complete flight: what was flown, how well, where its files are."""
+    if "vehicles" in summary:  # a fleet
+        per = "; ".join(
+            f"system {v['system_id']}: {v['decisions']} decisions, {v['holds']} holds"
+            for v in summary["vehicles"]
+        )
+        how = (
+            f" and {summary['n_uavs']} vehicles: mean UE throughput {summary['mean_rate_mbps']} "
+            f"Mbps; min separation flown {summary['min_separation_flown_m']} m; {per}"
+        )
+    else:
+        how = (
+            f": mean UE throughput {summary['mean_rate_mbps']} Mbps; decision latency p50 "
+            f"{summary['latency_ms_p50']} ms, p99 {summary['latency_ms_p99']} ms"
+        )
+    line = (
+        f"flew {summary['frames']} frames of {flown_name(summary)} with {summary['policy']}{how}; "
+        f"log {summary['tlog']}, summary {out_dir / 'summary.json'}"
+    )
+    return line + (f", picture {summary['picture']}" if summary.get("picture") else "")
+
+
+def record(summary: dict, out_dir: Path, picture: bool = True) -> dict:
+    """Draw flight.png from the flight's tlog (unless ``picture`` is off; complete or not) and
+    write summary.json; the summary, with the picture's fields."""
     if picture:
         summary.update(picture_after_flight(Path(summary["tlog"]), out_dir / "flight.png"))
-        flown_line += f", picture {summary['picture']}" if summary.get("picture") else ""
     (out_dir / "summary.json").write_text(json.dumps(summary, indent=2) + "\n")
+    return summary
+
+
+def report(summary: dict, as_json: bool, line: str) -> int:
+    """Print the summary (``as_json``), then ``line`` (stdout) for a complete flight, one line on
+    stderr for one that is not; then why there is no picture, if there is none (after: the flight's
+    own outcome is the first thing to read). Returns the exit status."""
     if as_json:
         print(json.dumps(summary, indent=2))
     if summary["completed"]:
         if not as_json:
-            print(flown_line)
+            print(line)
         status = EXIT_COMPLETE
     else:
         print(

@@ -9,7 +9,6 @@ pymavlink and matplotlib are imported when a picture is drawn; the command's opt
 
 from __future__ import annotations
 
-import argparse
 import json
 import os
 import time
@@ -61,17 +60,24 @@ def picture_after_flight(tlog: Path, out: Path) -> dict:
     return {"picture": str(out), "picture_s": round(time.perf_counter() - started, 3)}
 
 
-def run_plot(args: argparse.Namespace) -> int:
-    tlog: Path = args.tlog
+def run_plot(
+    tlog: Path,
+    out: Path | None = None,
+    gif: bool = False,
+    title: str | None = None,
+    as_json: bool = False,
+) -> int:
+    """``uavlink plot``: draw ``tlog``'s flight to ``out`` (PNG, or an animated GIF) and say what
+    was drawn; its exit status."""
     if tlog.is_dir():
         raise UserError(f"{tlog} is a folder; give a telemetry log (FLIGHT.tlog)")
     if not tlog.is_file():
         raise UserError(f"{tlog}: no such file")
-    out = args.out or tlog.with_suffix(".gif" if args.gif else ".png")
-    drawn = render(tlog, out, args.gif, args.title)
-    if args.json:
+    out = out or tlog.with_suffix(".gif" if gif else ".png")
+    drawn = render(tlog, out, gif, title)
+    if as_json:
         print(json.dumps(drawn, indent=2))
-    elif args.gif:
+    elif gif:
         print(
             f"wrote {out} ({drawn['width_px']}x{drawn['height_px']} px, {drawn['frames']} frames, "
             f"{drawn['bytes'] / 1024:.0f} KiB)"

@@ -28,7 +28,7 @@ from uavlink.config import EnvConfig, parse_settings
 from uavlink.env.observation import ObservationLayout
 from uavlink.errors import UserError
 from uavlink.policies.base import Policy
-from uavlink.policies.loader import load_policy, policy_for_scenario
+from uavlink.policies.loader import load_policy, locate, policy_for_scenario
 from uavlink.policies.manifest import PolicyFileError
 from uavlink.policies.registry import BASELINES, baseline_env
 
@@ -199,6 +199,7 @@ def load_with_env(
     so compared policies fly the same world. Files built for different worlds are refused: they
     could not fly the same episodes. Without a scenario in ``overrides``, a folder beside a file
     resolves to the file's own scenario (its manifest's)."""
+    specs = [locate(spec) for spec in specs]
     defaults = apply_overrides(EnvConfig(), overrides)
     named = {
         str(spec): load_policy(spec, defaults)

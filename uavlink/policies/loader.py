@@ -1,7 +1,18 @@
-"""Resolve what ``--policy`` names: a baseline, an SB3 zip, an ONNX file, or a folder of them."""
+"""Resolve what ``--policy`` names: an existing file or folder, a baseline, or a shipped policy by
+name; and load it (an SB3 zip, an ONNX file, or a folder's policy for a scenario).
+
+The shipped policies are the repository's ``policies/`` folder; a wheel carries them as
+``uavlink/shipped`` (``setup.py``'s build step copies them there), so an installed package flies them
+from any folder. Each zip has an ONNX twin beside it: where stable-baselines3 is not installed (the
+``[fly]`` install of a companion computer), a zip flies as its twin, which acts alike to the last bit
+(``uavlink export`` checks it; ``tests/test_shipped_policies.py`` keeps it so).
+"""
 
 from __future__ import annotations
 
+import difflib
+import importlib.util
+import sys
 from pathlib import Path
 
 from uavlink.config import MIXED, EnvConfig
@@ -9,27 +20,91 @@ from uavlink.policies.base import Policy
 from uavlink.policies.manifest import PolicyFileError
 from uavlink.policies.registry import BASELINES, make_baseline
 
+POLICY_SUFFIXES = (".zip", ".onnx")
+_PACKAGE = Path(__file__).resolve().parents[1]  # the installed or checked-out ``uavlink``
+
+
+def shipped_root() -> Path | None:
+    """The folder of shipped policies: the installed package's ``uavlink/shipped``, else the source
+    checkout's ``policies/`` beside the package; None when neither exists."""
+    return next(
+        (p for p in (_PACKAGE / "shipped", _PACKAGE.parent / "policies") if p.is_dir()), None
+    )
+
+
+def shipped_policies() -> dict[str, Path]:
+    """Every shipped policy by name (``circular``, ``spatial/circular``, ``fleet/straight_180``): its
+    zip, or its ONNX file where no zip is shipped; sorted by name."""
+    root = shipped_root()
+    if root is None:
+        return {}
+    found: dict[str, Path] = {}
+    for suffix in reversed(POLICY_SUFFIXES):  # a zip wins over its twin
+        for path in root.rglob(f"*{suffix}"):
+            found[path.relative_to(root).with_suffix("").as_posix()] = path
+    return dict(sorted(found.items()))
+
+
+def locate(spec: str | Path) -> str | Path:
+    """What ``--policy`` names, in order: an existing file or folder (as given), a baseline, a
+    shipped policy or folder by name (``circular``, ``circular.zip``, ``spatial/circular``,
+    ``map/no_move``, ``fleet/straight_180``, ``policies/circular.zip``; one line on stderr says which
+    file it is). Anything else is a PolicyFileError naming the closest shipped policies."""
+    text = str(spec)
+    if text in BASELINES or Path(text).exists():
+        return spec
+    name = text.removeprefix("policies/").rstrip("/")
+    stem = next((name[: -len(s)] for s in POLICY_SUFFIXES if name.endswith(s)), name)
+    root = shipped_root()
+    shipped = shipped_policies()
+    if root is not None:
+        if name in ("", "policies"):
+            found = root
+        elif name != stem and (root / name).is_file():
+            found = root / name
+        elif stem in shipped:
+            found = shipped[stem]
+        elif stem and (root / stem).is_dir():
+            found = root / stem
+        else:
+            found = None
+        if found is not None:
+            print(f"uavlink: --policy {text}: the shipped {found}", file=sys.stderr)
+            return found
+    close = difflib.get_close_matches(stem, [*shipped, *BASELINES], n=3, cutoff=0.6)
+    hint = f"; closest: {', '.join(close)}" if close else ""
+    raise PolicyFileError(
+        f"{text}: no such file, baseline ({', '.join(BASELINES)}) or shipped policy{hint} "
+        "(`uavlink policies` lists them)"
+    )
+
 
 def load_policy(spec: str | Path, cfg: EnvConfig) -> Policy:
-    """A Policy for ``spec``; raises PolicyFileError / ValueError with a one-line message."""
-    spec = str(spec)
+    """A Policy for ``spec`` (see :func:`locate`); raises PolicyFileError / ValueError with a
+    one-line message."""
+    spec = str(locate(spec))
     if spec in BASELINES:
         return make_baseline(spec, cfg)
     path = Path(spec)
     if path.is_dir():
         return load_policy(policy_for_scenario(path, cfg.scenario), cfg)
     if path.suffix == ".zip":
-        from uavlink.policies.sb3_policy import SB3Policy
+        twin = path.with_suffix(".onnx")
+        if twin.is_file() and importlib.util.find_spec("stable_baselines3") is None:
+            print(
+                f"uavlink: {path.name}: stable-baselines3 is not installed (the [train] extra): "
+                f"flying its ONNX twin {twin}",
+                file=sys.stderr,
+            )
+            path = twin
+        else:
+            from uavlink.policies.sb3_policy import SB3Policy
 
-        return SB3Policy(path)
+            return SB3Policy(path)
     if path.suffix == ".onnx":
         from uavlink.policies.onnx_policy import OnnxPolicy
 
         return OnnxPolicy(path)
-    if not path.exists():
-        raise PolicyFileError(
-            f"{spec}: neither a baseline ({', '.join(BASELINES)}) nor an existing file"
-        )
     raise PolicyFileError(f"{spec}: unknown policy file type (expected .zip or .onnx)")
 
 

@@ -1,0 +1,105 @@
+"""The shipped policies as a user meets them: ``--policy`` by name (an existing file first, then a
+baseline, then a shipped policy; one line says which file), the closest names for a typo,
+``uavlink policies`` listing every one, and each zip's ONNX twin acting as the zip does."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import numpy as np
+import pytest
+from support.cli import ROOT, assert_user_error, run_uavlink_in_process
+
+from uavlink.config import EnvConfig
+from uavlink.policies.loader import locate, shipped_policies, shipped_root
+from uavlink.policies.manifest import PolicyFileError
+
+SHIPPED_ZIPS = sorted((ROOT / "policies").rglob("*.zip"))
+
+
+def test_the_checkout_ships_every_zip_with_an_onnx_twin_and_a_manifest() -> None:
+    assert shipped_root() == ROOT / "policies"
+    assert len(SHIPPED_ZIPS) == len(shipped_policies()) >= 27
+    for path in SHIPPED_ZIPS:
+        assert path.with_suffix(".onnx").is_file(), path
+        assert path.with_suffix(".json").is_file(), path
+
+
+@pytest.mark.parametrize(
+    ("name", "file"),
+    [
+        ("circular", "circular.zip"),
+        ("circular.zip", "circular.zip"),
+        ("circular.onnx", "circular.onnx"),
+        ("spatial/circular", "spatial/circular.zip"),
+        ("map/no_move", "map/no_move.zip"),
+        ("fleet/straight_180", "fleet/straight_180.zip"),
+        ("policies/hotspot.zip", "hotspot.zip"),
+        ("spatial", "spatial"),
+    ],
+)
+def test_a_shipped_policy_by_name_from_any_folder(
+    name: str, file: str, monkeypatch: pytest.MonkeyPatch, tmp_path: Path, capsys
+) -> None:
+    monkeypatch.chdir(tmp_path)
+    assert locate(name) == ROOT / "policies" / file
+    line = capsys.readouterr().err.strip()
+    assert line == f"uavlink: --policy {name}: the shipped {ROOT / 'policies' / file}"
+
+
+def test_an_existing_file_and_a_baseline_come_before_a_shipped_name(
+    monkeypatch: pytest.MonkeyPatch, tmp_path: Path, capsys
+) -> None:
+    monkeypatch.chdir(tmp_path)
+    (tmp_path / "circular.zip").write_bytes(b"mine")
+    assert locate("circular.zip") == "circular.zip"
+    assert locate("aoa") == "aoa"
+    assert capsys.readouterr().err == ""
+
+
+def test_an_unknown_name_gets_the_closest_shipped_ones(
+    monkeypatch: pytest.MonkeyPatch, tmp_path: Path
+) -> None:
+    monkeypatch.chdir(tmp_path)
+    with pytest.raises(PolicyFileError, match=r"closest: circular, map/circular, fleet/circular"):
+        locate("circulr")
+    proc = run_uavlink_in_process("fly", "--policy", "fleet/hotspt", "--out", str(tmp_path / "o"))
+    assert_user_error(proc, "fleet/hotspt: no such file", "closest: fleet/hotspot")
+    assert not (tmp_path / "o").exists()
+
+
+def test_uavlink_policies_lists_every_shipped_policy_with_its_manifest_figure() -> None:
+    proc = run_uavlink_in_process("policies", "--json")
+    assert proc.returncode == 0, proc.stderr
+    rows = {row["name"]: row for row in json.loads(proc.stdout)}
+    assert set(rows) == set(shipped_policies())
+    hotspot = rows["fleet/hotspot"]
+    manifest = json.loads((ROOT / "policies/fleet/hotspot.json").read_text())
+    assert hotspot["n_uavs"] == 2 and hotspot["channel"] == "spatial"
+    assert hotspot["mean_rate_mbps"] == manifest["evaluation"]["hotspot"]["mean_rate_mbps"]
+    assert hotspot["runtimes"] == ["onnx [fly]", "sb3 [train]"]
+    assert rows["map/no_move"]["layout"] == 5
+    table = run_uavlink_in_process("policies").stdout
+    assert all(name in table for name in rows)
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("zip_path", SHIPPED_ZIPS, ids=lambda p: str(p.relative_to(ROOT)))
+def test_each_onnx_twin_acts_as_its_zip(zip_path: Path) -> None:
+    """On observations of the policy's own env (seeded episodes, random moves), the twin's actions
+    equal the zip's to the last bit: both runtimes compute the actor in float64."""
+    from uavlink.env.core import BatchedUavEnv
+    from uavlink.policies.onnx_policy import OnnxPolicy
+    from uavlink.policies.sb3_policy import SB3Policy
+
+    zipped, twin = SB3Policy(zip_path), OnnxPolicy(zip_path.with_suffix(".onnx"))
+    assert twin.layout == zipped.layout
+    manifest = json.loads(zip_path.with_suffix(".json").read_text())
+    cfg = EnvConfig.from_dict(manifest["env_config"])
+    env = BatchedUavEnv(cfg, n_envs=16, seed=11)
+    rng = np.random.default_rng(11)
+    obs = env.reset()
+    for _ in range(8):
+        np.testing.assert_array_equal(twin.act(obs), zipped.act(obs))
+        obs = env.step(rng.uniform(-1, 1, (obs.shape[0], 2)).astype(np.float32)).observation
