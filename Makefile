@@ -1,12 +1,13 @@
 # Two entry points, each self-contained on a fresh machine:
 #   make demo  -> create .venv, install, fly a shipped policy end to end (embedded SITL)
-#   make test  -> create .venv, install with dev extras, run ruff and the test suite
+#   make test  -> create .venv, install with dev extras, run the linters, the test suite and the
+#                 wheel check
 PYTHON ?= python3
 VENV := .venv
 BIN := $(VENV)/bin
 STAMP := $(VENV)/.installed
 
-.PHONY: demo test lint bench clean
+.PHONY: demo test lint wheel-check bench clean
 
 # pip byte-compiles what it installs one file at a time (about a minute, mostly torch's); compileall
 # does the same on every core. A file this Python cannot compile (torch ships a 3.12-only example)
@@ -28,16 +29,25 @@ demo: $(STAMP)
 # worker under pytest 9), then the `waits` tests, which mostly wait on a vehicle's clock (its report
 # follows the workers'); then the `serial` flights run alone. (Long CPU-bound tests moved beside the
 # workers made timed flight tests fail: 2 of 3 runs; the `waits` tests use a sixth of a core.)
-test: $(STAMP)
-	$(BIN)/ruff check uavlink sitl_stub tests benchmarks
+test: lint
 	@$(BIN)/python -m pytest -q -m "px4_ports or waits" > $(VENV)/beside.log 2>&1 & beside=$$!; \
 	$(BIN)/python -m pytest -q -n 2 -m "not px4_ports and not waits and not serial" --durations=15; rest=$$?; \
 	wait $$beside; beside_status=$$?; echo "--- tests on PX4's fixed ports and waiting tests (run beside the above):"; \
 	cat $(VENV)/beside.log; [ $$rest -eq 0 ] && [ $$beside_status -eq 0 ]
 	$(BIN)/python -m pytest -q -m serial
+	$(MAKE) wheel-check
 
+# ruff's lint and format check over every Python folder, and mypy over the package (its settings:
+# pyproject.toml [tool.mypy]). .pre-commit-config.yaml runs the same before each commit.
+LINTED := uavlink sitl_stub tests benchmarks
 lint: $(STAMP)
-	$(BIN)/ruff check uavlink sitl_stub tests benchmarks
+	$(BIN)/ruff check $(LINTED)
+	$(BIN)/ruff format --check $(LINTED)
+
+# What a user installs: the wheel with [fly] only, in a fresh venv outside the checkout, flying a
+# shipped policy and a shipped fleet policy from another folder (.ci/wheel-check).
+wheel-check: $(STAMP)
+	PYTHON=$(BIN)/python bash .ci/wheel-check
 
 bench: $(STAMP)
 	$(BIN)/python benchmarks/env_throughput.py

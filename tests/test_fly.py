@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import json
+import shlex
 import subprocess
 import sys
 from pathlib import Path
@@ -186,3 +187,21 @@ def test_policy_output_guard_holds(action) -> None:
     report = RadioReport(frame=0, time_s=0.0, sinr_db=np.full(10, 10.0), aoa_deg=np.zeros(10))
     move = pilot.decide(report, np.zeros(2), first=True)
     assert np.array_equal(move, np.zeros(2)) and pilot.guarded == 1
+
+
+@pytest.mark.slow
+@pytest.mark.timeout(120)
+def test_fly_policy_from_python_returns_the_summary_the_replay_reproduces(tmp_path: Path) -> None:
+    """``fly_policy(FlyOptions(...))`` flies a shipped policy by name, writes the same summary it
+    returns, and in lockstep its frames score as the summary's replay command evaluates them."""
+    from uavlink.flight import FlyOptions, fly_policy
+
+    options = FlyOptions(policy="circular", seed=4, frames=6, lockstep=True, out=tmp_path)
+    summary = fly_policy(options)
+    assert summary["completed"], summary["reason"]
+    assert summary["frames"] == 6 and summary["policy"] == str(ROOT / "policies/circular.zip")
+    assert json.loads((tmp_path / "summary.json").read_text()) == summary
+    replay = shlex.split(summary["replay"])[1:]
+    assert replay[:2] == ["evaluate", "--policy"]
+    evaluated = cli_json(*replay, "--json")["mean_rate_mbps"]
+    assert summary["mean_rate_mbps"] == pytest.approx(evaluated, rel=1e-4)
