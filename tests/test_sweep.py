@@ -772,6 +772,28 @@ def test_sweep_reruns_only_what_its_shipped_record_lacks(tmp_path: Path, capsys)
     assert straight in {job.key for job in changed.jobs() if job.scenario == "straight"}
 
 
+def test_record_out_keeps_the_jobs_figures_and_ships_no_policy(tmp_path: Path, capsys) -> None:
+    """`--record-out DIR` writes the record of every finished job (a rerun over finished runs runs
+    nothing) and copies no policy: the record of policies trained before stands beside them."""
+    sweep_file, records = tmp_path / "tiny4.toml", tmp_path / "records"
+    sweep_file.write_text(TINY)
+    args = ["sweep", str(sweep_file), "--out-root", str(tmp_path / "runs"), "--workers", "0"]
+    assert main([*args, "--no-progress"]) == 0
+    capsys.readouterr()
+    assert main([*args, "--no-progress", "--record-out", str(records)]) == 0
+    assert "4 already done, 0 to run" in capsys.readouterr().err
+    spec = load_spec(sweep_file)
+    assert [p.name for p in records.iterdir()] == ["tiny4.sweep.json"]
+    recorded = read_record(record_path(records, spec))
+    assert set(recorded) == {job.key for job in spec.jobs()}
+    job = spec.jobs()[0]
+    run = json.loads((tmp_path / "runs" / "tiny4" / job.name / "result.json").read_text())
+    for policy, figures in run["evaluation"].items():
+        assert (
+            recorded[job.key]["evaluation"][policy]["mean_rate_mbps"] == figures["mean_rate_mbps"]
+        )
+
+
 def test_the_fast_ppo_defaults_leave_the_shipped_jobs_as_they_were() -> None:
     """TrainConfig's PPO loop defaults changed (issue 24); the shipped sweep files pin the old loop, so
     their jobs keep the keys (and the settings) their results and policies were made under."""

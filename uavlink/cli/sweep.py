@@ -13,10 +13,12 @@ from uavlink.errors import UserError
 
 def cmd_sweep(args: argparse.Namespace) -> int:
     from uavlink.sweep.aggregate import (
+        collect,
         export_median_policies,
         jobs_table,
         read_record,
         record_path,
+        write_record,
         write_summary,
     )
     from uavlink.sweep.sweep_file import load_spec
@@ -27,6 +29,8 @@ def cmd_sweep(args: argparse.Namespace) -> int:
     if args.retries < 0:
         raise UserError("--retries must be >= 0")
     output_folder(args.out_root, "--out-root")
+    if args.record_out is not None:
+        output_folder(args.record_out, "--record-out")
     if args.policies_out is not None:
         output_folder(args.policies_out, "--policies-out")
         if len(spec.points()) > 1:
@@ -78,6 +82,11 @@ def cmd_sweep(args: argparse.Namespace) -> int:
             file=sys.stderr,
         )
         return 1
+    if args.record_out is not None:
+        path = record_path(args.record_out, spec)
+        path.parent.mkdir(parents=True, exist_ok=True)
+        write_record(collect(spec, outcome.sweep_dir, record), spec, path)
+        print(f"record of {done} jobs -> {path}", file=sys.stderr)
     if args.policies_out is not None:
         for scenario, path, seed in export_median_policies(
             spec, outcome.sweep_dir, args.policies_out
@@ -128,6 +137,14 @@ def add_sweep_parser(sub) -> None:
         metavar="DIR",
         help="copy each scenario's median-seed policy to DIR/<scenario>.zip and the sweep's record "
         "to DIR/<name>.sweep.json; jobs in that record count as done",
+    )
+    p.add_argument(
+        "--record-out",
+        type=Path,
+        default=None,
+        metavar="DIR",
+        help="write the sweep's record (every finished job's figures) to DIR/<name>.sweep.json "
+        "without shipping policies: the results report rebuilds the sweep's table from it",
     )
     p.add_argument(
         "--dry-run", action="store_true", help="list the jobs and whether each is done, run nothing"
