@@ -1,12 +1,13 @@
 # Two entry points, each self-contained on a fresh machine:
 #   make demo  -> create .venv, install, fly a shipped policy end to end (embedded SITL)
-#   make test  -> create .venv, install with dev extras, run ruff and the test suite
+#   make test  -> create .venv, install with dev extras, run ruff, the test suite and the docs build
+#   make docs  -> build the docs site into site/ (mkdocs build --strict)
 PYTHON ?= python3
 VENV := .venv
 BIN := $(VENV)/bin
 STAMP := $(VENV)/.installed
 
-.PHONY: demo test lint bench clean
+.PHONY: demo test lint docs bench clean
 
 # pip byte-compiles what it installs one file at a time (about a minute, mostly torch's); compileall
 # does the same on every core. A file this Python cannot compile (torch ships a 3.12-only example)
@@ -29,18 +30,24 @@ demo: $(STAMP)
 # follows the workers'); then the `serial` flights run alone. (Long CPU-bound tests moved beside the
 # workers made timed flight tests fail: 2 of 3 runs; the `waits` tests use a sixth of a core.)
 test: $(STAMP)
-	$(BIN)/ruff check uavlink sitl_stub tests benchmarks
+	$(BIN)/ruff check uavlink sitl_stub tests benchmarks docs
 	@$(BIN)/python -m pytest -q -m "px4_ports or waits" > $(VENV)/beside.log 2>&1 & beside=$$!; \
 	$(BIN)/python -m pytest -q -n 2 -m "not px4_ports and not waits and not serial" --durations=15; rest=$$?; \
 	wait $$beside; beside_status=$$?; echo "--- tests on PX4's fixed ports and waiting tests (run beside the above):"; \
 	cat $(VENV)/beside.log; [ $$rest -eq 0 ] && [ $$beside_status -eq 0 ]
 	$(BIN)/python -m pytest -q -m serial
+	$(MAKE) --no-print-directory docs
+
+# The docs site (mkdocs.yml): the CLI and config reference pages are generated at build time
+# (docs/hooks/reference.py), the API pages by mkdocstrings; --strict fails on any broken link.
+docs: $(STAMP)
+	$(BIN)/mkdocs build --strict --site-dir site
 
 lint: $(STAMP)
-	$(BIN)/ruff check uavlink sitl_stub tests benchmarks
+	$(BIN)/ruff check uavlink sitl_stub tests benchmarks docs
 
 bench: $(STAMP)
 	$(BIN)/python benchmarks/env_throughput.py
 
 clean:
-	rm -rf $(VENV) build *.egg-info
+	rm -rf $(VENV) build site *.egg-info

@@ -159,7 +159,9 @@ def _range(meta: Any, choices: tuple[str, ...] | None = None) -> str:
     if low is None and high is None:
         return ""
     left = "(" if meta.get("low_open") else "["
-    return f"{left}{'-inf' if low is None else f'{low:g}'}, {'inf' if high is None else f'{high:g}'}]"
+    return (
+        f"{left}{'-inf' if low is None else f'{low:g}'}, {'inf' if high is None else f'{high:g}'}]"
+    )
 
 
 def _type_name(hint: Any) -> str:
