@@ -1,13 +1,14 @@
 # Two entry points, each self-contained on a fresh machine:
 #   make demo  -> create .venv, install, fly a shipped policy end to end (embedded SITL)
-#   make test  -> create .venv, install with dev extras, run the linters, the test suite and the
-#                 wheel check
+#   make test  -> create .venv, install with dev extras, run the linters, the test suite, the
+#                 docs build and the wheel check
+#   make docs  -> build the docs site into site/ (mkdocs build --strict)
 PYTHON ?= python3
 VENV := .venv
 BIN := $(VENV)/bin
 STAMP := $(VENV)/.installed
 
-.PHONY: demo test lint wheel-check bench clean
+.PHONY: demo test lint docs wheel-check bench clean
 
 # pip byte-compiles what it installs one file at a time (about a minute, mostly torch's); compileall
 # does the same on every core. A file this Python cannot compile (torch ships a 3.12-only example)
@@ -35,11 +36,17 @@ test: lint
 	wait $$beside; beside_status=$$?; echo "--- tests on PX4's fixed ports and waiting tests (run beside the above):"; \
 	cat $(VENV)/beside.log; [ $$rest -eq 0 ] && [ $$beside_status -eq 0 ]
 	$(BIN)/python -m pytest -q -m serial
-	$(MAKE) wheel-check
+	$(MAKE) --no-print-directory docs
+	$(MAKE) --no-print-directory wheel-check
+
+# The docs site (mkdocs.yml): the CLI and config reference pages are generated at build time
+# (docs/hooks/reference.py), the API pages by mkdocstrings; --strict fails on any broken link.
+docs: $(STAMP)
+	$(BIN)/mkdocs build --strict --site-dir site
 
 # ruff's lint and format check over every Python folder, and mypy over the package (its settings:
 # pyproject.toml [tool.mypy]). .pre-commit-config.yaml runs the same before each commit.
-LINTED := uavlink sitl_stub tests benchmarks
+LINTED := uavlink sitl_stub tests benchmarks docs
 lint: $(STAMP)
 	$(BIN)/ruff check $(LINTED)
 	$(BIN)/ruff format --check $(LINTED)
@@ -53,4 +60,4 @@ bench: $(STAMP)
 	$(BIN)/python benchmarks/env_throughput.py
 
 clean:
-	rm -rf $(VENV) build *.egg-info
+	rm -rf $(VENV) build site *.egg-info

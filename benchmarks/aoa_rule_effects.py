@@ -1,4 +1,4 @@
-"""The figures behind docs/design.md's notes on shadowing and the warm start, one run.
+"""The figures behind docs/design/radio.md's and learning.md's notes on shadowing and the warm start, one run.
 
 1. What the SPEC's memoryless shadowing rewards: over the same seeded episodes, hovering
    (``static``), a 12 m east-west zig-zag (moving all the time) and the ``aoa`` rule (moving only

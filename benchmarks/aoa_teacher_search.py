@@ -14,7 +14,7 @@ with it episode by episode: the mean paired difference in R_fair (PPO's reward) 
 The pick: the highest R_fair among the variants whose throughput gain over the rule has its 95 %
 interval above zero (none: keep the rule). A teacher must be better on the reward PPO then trains
 on, and surely not worse on the metric the table reports; on ``hotspot`` the two part ways
-(docs/design.md), and a variant whose mean gain is positive but whose interval is wide is no pick.
+(docs/design/learning.md), and a variant whose mean gain is positive but whose interval is wide is no pick.
 
 As a bound on what any gate could gain, the rule gated on the links' true mean shadowing (hover
 while it is above a threshold), which no GPS-free policy can read.

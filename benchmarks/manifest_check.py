@@ -4,7 +4,7 @@ Each manifest's ``evaluation`` keeps the figure `uavlink evaluate` gave when the
 (its scenario, episodes and seed). On the paper's channel the figures come back to the last digit on
 any machine; on the spatial channel numpy's vectorised transcendental functions differ in the last
 bit between CPUs, and a closed-loop policy can turn that into another path in a few episodes
-(docs/design.md, "Reproducible by seed, to the last bit on one machine").
+(docs/design/code.md, "Reproducible by seed, to the last bit on one machine").
 
     python benchmarks/manifest_check.py [--policies policies] [--json]
 """

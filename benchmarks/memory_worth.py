@@ -17,7 +17,7 @@ Travel is free here, which favours the memory: a UAV needs frames to get back. A
 
     python benchmarks/memory_worth.py                              # every scenario, 50 episodes
     python benchmarks/memory_worth.py --scenarios no_move straight_180 --episodes 20 --json
-    python benchmarks/memory_worth.py --plot docs/img/memory_worth.png   # the figure in docs/design.md
+    python benchmarks/memory_worth.py --plot docs/img/memory_worth.png   # the figure in docs/design/learning.md
 """
 
 from __future__ import annotations

@@ -139,7 +139,7 @@ def test_aoa_beats_static_and_stays_under_the_oracle(paired, scenario):
 def test_aoa_moves_while_shadowed_and_beats_static_on_no_move():
     """The SPEC's aoa rule speeds up as the SINRs fall below the hover level, so over a static cluster
     it keeps moving while the links are shadowed and stops when they are not; under the SPEC's
-    memoryless AR(1) shadowing that re-draws bad shadow values and keeps good ones (docs/design.md).
+    memoryless AR(1) shadowing that re-draws bad shadow values and keeps good ones (docs/design/radio.md).
     Paired episodes: the gain is the rule's, not the draw's. Where the links start unshadowed the
     rule never moves, and that episode is exactly static's."""
     static, aoa = evaluate("static", "no_move", 48), evaluate("aoa", "no_move", 48)

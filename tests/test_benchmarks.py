@@ -1,4 +1,4 @@
-"""The experiment scripts under benchmarks/ that stand behind figures in README and docs/design.md
+"""The experiment scripts under benchmarks/ that stand behind figures in the docs and docs/design/
 run end to end (tiny budgets, each script's main in this process) and keep the properties their figures rely on."""
 
 from __future__ import annotations

@@ -1,6 +1,7 @@
-"""The commands the current docs give (README.md and docs/ but the experiment log) parse: each
-``uavlink ...`` and ``sitl-stub ...`` in a code span or block goes through its program's real
-parser, so a renamed or removed flag fails here rather than in a reader's shell. Commands with
+"""The commands the current docs give (README.md and every page of the docs site under docs/, but the
+experiment log) parse: each ``uavlink ...`` and ``sitl-stub ...`` in a code span or block goes
+through its program's real parser, so a renamed or removed flag fails here rather than in a
+reader's shell. Commands with
 placeholders (``S``, ``DIR``, ``...``) are left out; nothing is run."""
 
 from __future__ import annotations
@@ -16,9 +17,14 @@ from support.cli import ROOT, cli_json
 from sitl_stub.__main__ import build_parser as sitl_parser
 from uavlink.cli import build_parser as uavlink_parser
 
+# README.md and every Markdown page under docs/ (the site's pages), but the experiment log
 DOCS = [
     "README.md",
-    *(f"docs/{name}" for name in ("results.md", "design.md", "sitl.md", "sweeps.md", "safety.md")),
+    *sorted(
+        path.relative_to(ROOT).as_posix()
+        for path in (ROOT / "docs").rglob("*.md")
+        if path.name != "experiments.md"
+    ),
 ]
 PROGRAMS = {"uavlink": uavlink_parser, "sitl-stub": sitl_parser}
 PLACEHOLDER = re.compile(r"^[A-Z][A-Z0-9_]*$|\.\.\.|[<>\[\]{}|]|^-?[A-Z]$|^[A-Z]\+")
@@ -64,6 +70,9 @@ COMMANDS = _concrete()
 
 def test_the_docs_give_commands_to_check():
     assert len(COMMANDS) >= 40, COMMANDS  # the extraction still finds the docs' commands
+    pages = {doc for doc, _ in COMMANDS}
+    for page in ("README.md", "docs/get-started/first-flight.md", "docs/guides/flying.md"):
+        assert page in pages, sorted(pages)  # the site's pages are read, not only the README
 
 
 @pytest.mark.parametrize(("doc", "command"), COMMANDS)
@@ -77,21 +86,24 @@ def test_a_command_in_the_docs_parses(doc: str, command: str) -> None:
             assert exc.code == 0, f"{doc}: `{command}`: {err.getvalue().strip()}"
 
 
+PYTHON_PAGE = "docs/reference/api/index.md"  # the Python API's front page (was README.md's)
+
+
 @pytest.mark.slow  # loads a policy (torch)
-def test_the_readmes_python_runs_and_prints_what_the_cli_prints(monkeypatch) -> None:
-    """README.md's Python blocks, run from the repository root; the shipped policy's figure is the
-    one its comment gives, `uavlink evaluate --policy policies/circular.zip --episodes 3`'s."""
+def test_the_api_pages_python_runs_and_prints_what_the_cli_prints(monkeypatch) -> None:
+    """The Python API page's blocks, run from the repository root; the shipped policy's figure is
+    the one its comment gives, `uavlink evaluate --policy policies/circular.zip --episodes 3`'s."""
     monkeypatch.chdir(ROOT)
-    blocks = re.findall(r"```python\n(.*?)```", (ROOT / "README.md").read_text(), re.S)
+    blocks = re.findall(r"```python\n(.*?)```", (ROOT / PYTHON_PAGE).read_text(), re.S)
     assert len(blocks) >= 2
     out = io.StringIO()
     with contextlib.redirect_stdout(out):
         for block in blocks:
-            exec(compile(block, "README.md", "exec"), {})  # noqa: S102 - the README's own code
+            exec(compile(block, PYTHON_PAGE, "exec"), {})  # noqa: S102 - the page's own code
     printed = out.getvalue().split()
     # the figure the README's comment gives, and what the CLI gives for the same episodes
     [quoted] = re.findall(
-        r"mean_rate_mbps\)  # (\d+\.\d{6}) to 6 decimals", (ROOT / "README.md").read_text()
+        r"print\(rate\)  # (\d+\.\d{6}) to 6 decimals", (ROOT / PYTHON_PAGE).read_text()
     )
     cli = cli_json(
         "evaluate", "--policy", "policies/circular.zip", "--episodes", "3", "--seed", "0", "--json"

@@ -25,7 +25,7 @@ LOADED_SPEED = 10.0  # where a stalled setpoint stream would change what a test 
 # The offboard-loss timeout raised from PX4's 1 s to 5 s of vehicle time (250 ms of wall time at
 # --speed 20): a flight loop starved for a moment by a loaded CI machine does not trip the failsafe
 # into a hold that would cost throughput the replay does not lose (the failsafe has its own tests:
-# test_reliability_*). docs/sitl.md: "raise COM_OF_LOSS_T".
+# test_reliability_*). docs/guides/sitl.md: "raise COM_OF_LOSS_T".
 PATIENT = ("--param", "COM_OF_LOSS_T=5")
 
 

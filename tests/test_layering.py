@@ -1,6 +1,6 @@
 """The code's shape, read from the source with ``ast`` (nothing is imported): no import cycle between
 the project's modules (imports inside functions and ``if TYPE_CHECKING:`` blocks included), every
-import allowed by the layering table below (the table of docs/design.md "Code structure" and the
+import allowed by the layering table below (the table of docs/design/code.md and the
 packages' docstrings; type-only imports aside), no module over 480 lines and no folder with more
 than 12 modules."""
 
@@ -226,7 +226,7 @@ def test_every_import_follows_the_layering() -> None:
     graph = _imports(_modules())
     units = {_unit(m) for m in graph}
     assert units <= set(MAY_IMPORT), (
-        f"place these in MAY_IMPORT (and docs/design.md): {units - set(MAY_IMPORT)}"
+        f"place these in MAY_IMPORT (and docs/design/code.md): {units - set(MAY_IMPORT)}"
     )
     assert _cycles(MAY_IMPORT) == []  # the table itself is a layering
     wrong = sorted(

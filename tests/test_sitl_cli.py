@@ -1,5 +1,5 @@
 """The sitl-stub command line as a user meets it: its help names every scenario it accepts, a
-meaningless combination of flags is refused in one line, docs/sitl.md's flag table and payload
+meaningless combination of flags is refused in one line, docs/guides/sitl.md's flag table and payload
 hook match the code, and everything the vehicle prints (log lines included) starts with
 ``sitl-stub:`` while ``uavlink fly`` still finds its ready line."""
 
@@ -24,7 +24,7 @@ from uavlink.mavlink.connection import free_udp_port
 from uavlink.mavlink.dialect import mavlink
 
 ROOT = Path(__file__).resolve().parent.parent
-DOC = (ROOT / "docs" / "sitl.md").read_text()
+DOC = (ROOT / "docs" / "guides" / "sitl.md").read_text()
 
 
 def _one_line_error(capsys: pytest.CaptureFixture[str], argv: list[str]) -> str:

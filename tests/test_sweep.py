@@ -788,10 +788,8 @@ def test_record_out_keeps_the_jobs_figures_and_ships_no_policy(tmp_path: Path, c
     assert set(recorded) == {job.key for job in spec.jobs()}
     job = spec.jobs()[0]
     run = json.loads((tmp_path / "runs" / "tiny4" / job.name / "result.json").read_text())
-    for policy, figures in run["evaluation"].items():
-        assert (
-            recorded[job.key]["evaluation"][policy]["mean_rate_mbps"] == figures["mean_rate_mbps"]
-        )
+    for policy, scored in run["evaluation"].items():
+        assert recorded[job.key]["evaluation"][policy]["mean_rate_mbps"] == scored["mean_rate_mbps"]
 
 
 def test_the_fast_ppo_defaults_leave_the_shipped_jobs_as_they_were() -> None:

@@ -40,7 +40,7 @@ def test_aoa_shadow_gate_hovers_after_a_lucky_frame_only():
 @pytest.mark.slow
 def test_aoa_shadow_gate_beats_the_plain_rule_on_straight_180():
     """Two groups drifting apart: the plain rule moves at full speed all the time (its SINRs stay far
-    below the hover level), the gated one keeps good shadowing draws (docs/design.md). Paired episodes."""
+    below the hover level), the gated one keeps good shadowing draws (docs/design/learning.md). Paired episodes."""
     cfg = EnvConfig(scenario="straight_180")
     plain = evaluate_policy(AoaPolicy(cfg), cfg, episodes=32, seed=1)
     gated = evaluate_policy(AoaVariant(cfg, shadow_gate_db=0.0), cfg, episodes=32, seed=1)

@@ -171,7 +171,7 @@ class TrainConfig:
     clip_range: float = setting(
         0.2, "PPO clip range (paper: 0.2)", low=0, low_open=True, paper=True
     )
-    # Ours, sized for speed (docs/design.md, "PPO settings the paper does not state"): one update
+    # Ours, sized for speed (docs/design/learning.md, "PPO settings the paper does not state"): one update
     # epoch of minibatch 1024 (at 10 epochs the update was ~80 % of the loop), 128 envs to amortise
     # the rollout's per-step cost (the policy's forward pass), and rollouts of whole episodes: a
     # rollout cut mid-episode bootstraps returns from a critic that cannot see the episode clock

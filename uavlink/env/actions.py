@@ -27,7 +27,7 @@ class ActionMapping:
     Both reach every move of the SPEC's action set. Cartesian is the default because it is
     continuous: heading for an AoA of +179 or -179 degrees takes nearly the same output, whereas
     the polar angle jumps from +1 to -1 there, which an MLP policy learns slowly (measured in
-    docs/design.md). Saved in every policy manifest.
+    docs/design/learning.md). Saved in every policy manifest.
     """
 
     r_max_m: float = 12.0
@@ -83,7 +83,7 @@ class ActionMapping:
     def towards(self, offset_m: np.ndarray, share: float | np.ndarray) -> np.ndarray:
         """The action that closes ``share`` of the way to spots at ``offset_m`` (rows, 2), r_max at
         most: a vehicle trails its setpoint, so a rule that steps the whole way from where the
-        vehicle is overshoots and swings (docs/design.md, "explore")."""
+        vehicle is overshoots and swings (docs/design/baselines.md, "explore")."""
         offset_m = np.asarray(offset_m)
         return self.from_polar(
             np.degrees(np.arctan2(offset_m[:, 1], offset_m[:, 0])),

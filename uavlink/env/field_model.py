@@ -4,10 +4,10 @@
 GPS-free for the UEs, like the memory of place (``uavlink.env.place_memory``): its inputs are the
 UAV's own position and the value it senses each frame (mean over UEs of log2(1 + SINR), bits/s/Hz).
 On the spatial channel that value is a field over the UAV's position: path loss plus the shadowing,
-which decorrelates over ``DECORRELATION_M`` (Gudmundson's exponential covariance, SPEC "The spatial
-channel"; TR 38.901 7.6.3 models spatial consistency the same way). So the value is modelled as a
-Gaussian process with that covariance, an unknown constant mean (a broad prior on a constant term:
-ordinary kriging) and a nugget for the fast fading, and its posterior is kept at spots on a grid
+which decorrelates over ``DECORRELATION_M`` (Gudmundson's exponential covariance, SPEC "A spatially
+consistent channel"; TR 38.901 7.6.3 models spatial consistency the same way). So the value is
+modelled as a Gaussian process with that covariance, an unknown constant mean (a broad prior on a
+constant term: ordinary kriging) and a nugget for the fast fading, and its posterior is kept at spots on a grid
 (``SPACING_M``) over a disc of ``RADIUS_M`` around the area's centre, where a UAV starts over its team.
 
 Each frame the model picks the spot worth most over the frames left, optimistically:

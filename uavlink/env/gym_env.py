@@ -21,7 +21,7 @@ def config_with(config: EnvConfig, named: dict[str, Any], overrides: dict[str, A
 
 class UavBsEnv(gym.Env):
     """One UAV's episode as a Gymnasium env (``gymnasium.make("uavlink/UavBs-v0", scenario=...,
-    n_ues=..., **{"radio.shadowing": False})``): the observation is the layout's float32 Box (docs/design.md, "Observation"),
+    n_ues=..., **{"radio.shadowing": False})``): the observation is the layout's float32 Box (docs/design/learning.md, "Observation"),
     the action a move in Box(-1, 1, (2,)) (``EnvConfig.action_mapping``). An episode ends by
     truncation after ``episode_frames`` steps; the info after a step carries the frame's
     ``mean_rate_mbps`` (mean UE throughput, Mbit/s) and ``fair_rate`` (R_fair, the sum over UEs of

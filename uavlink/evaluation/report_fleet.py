@@ -207,7 +207,7 @@ def fleet_sections(
         f"`D{POLICY_UAVS} PPO` is "
         f"`{fleet_folder}/<scenario>.zip`, `D1 PPO` the single-UAV spatial policy `{single_folder}/<scenario>.zip`; "
         "oracle and kmeans know the UEs' positions (GPS), aoa and PPO do not; genie knows the episode's future "
-        "(UE paths, shadowing field) and plans each UAV's path given the others' (docs/design.md), the limit.",
+        "(UE paths, shadowing field) and plans each UAV's path given the others' (docs/design/baselines.md), the limit.",
         "",
         markdown_table(*tables["fleet_throughput"]),
         "",

@@ -145,7 +145,7 @@ def map_sections(
         "",
         "Policies whose observation holds a memory of place (layout v3: the best spot the UAV sensed,",
         "relative to it, its value against now and its age; on no_move layout v5, with the spot a model",
-        "of the sensed field picks; docs/design.md), trained on the spatial",
+        "of the sensed field picks; docs/design/baselines.md), trained on the spatial",
         "channel (`sweeps/map.toml`), against the spatial policies above and the GPS-free `explore`",
         "rule (search a cross, return to the best spot sensed, follow the team when it leaves), and as a",
         "share of the `genie` (the full-knowledge yardstick). Same episodes; paired ratios with 95 %",

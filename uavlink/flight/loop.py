@@ -4,7 +4,7 @@ Connect, wait for a PX4 multicopter, upload the operating area as its geofence, 
 OFFBOARD; then for every radio report: build the observation with the env's own builder, run the
 policy, turn its move into a LOCAL_NED position target clamped to the operating area (the geofence
 lies 2 m outside it), send it at once, then tell the radio payload the frame is decided (a lockstep
-vehicle waits for that: docs/sitl.md).
+vehicle waits for that: docs/guides/sitl.md).
 Between reports the current target is re-sent every ``stream_period_vehicle_s`` so PX4's offboard
 loss timeout (COM_OF_LOSS_T, 1 s) never fires. At the end (or on Ctrl-C) it lands.
 

@@ -2,7 +2,7 @@
 
 PPO from scratch finds the moves that follow the team, but not the subtler habit of the ``aoa`` rule:
 keep moving while the SINRs sit below the hover level (shadowed) and stop when they do not, which
-under the SPEC's shadowing model is worth up to 4 % on ``no_move`` (docs/design.md). Starting PPO
+under the SPEC's shadowing model is worth up to 4 % on ``no_move`` (docs/design/radio.md). Starting PPO
 from a copy of the rule lets it keep that habit and improve on the rest. The teacher
 (``uavlink.learn.teachers``; the aoa rule reads the true AoAs where the student sees noisy ones) flies its
 own seeded rollouts of the training env on the ``TEACHER`` stream; the student's actor (MLP +

@@ -2,7 +2,7 @@
 (``uavlink.learn.teachers.AoaVariant``).
 
 Under the SPEC's shadowing (Gudmundson: it decorrelates with displacement and has no memory of
-place) a favourable draw is worth keeping by hovering, and moving re-draws it (docs/design.md). The
+place) a favourable draw is worth keeping by hovering, and moving re-draws it (docs/design/radio.md). The
 base station cannot read shadowing, but its SINR history carries much of it: path loss changes little
 from frame to frame, the shadowing changes with the UAV's and the UEs' displacement. ``ShadowEstimator``
 is a ridge regression from features of the observation window (``shadow_features``) to the mean

@@ -2,7 +2,7 @@
 teacher that flies them on the UEs' true AoAs.
 
 ``AoaVariant`` is the aoa rule with another speed span and/or a shadow gate that hovers where the
-links look favourably shadowed, a draw that moving would throw away (docs/design.md); it stays
+links look favourably shadowed, a draw that moving would throw away (docs/design/learning.md); it stays
 GPS-free, so benchmarks evaluate it like any policy. ``TrueAoaTeacher`` flies a rule on the true
 AoAs instead of the observation's estimates and says so with ``needs_truth``: under heavy AoA noise
 the student then learns what the noisy observation implies about the clean rule's move, not to copy

@@ -47,7 +47,7 @@ def make_model(cfg: EnvConfig, tc: TrainConfig, run_dir: Path | None):
 
     if tc.n_steps % cfg.episode_frames:
         # the batched env's episodes end together: a rollout of whole episodes never bootstraps a
-        # cut-off return from a critic that sees no episode clock (docs/design.md, "PPO settings")
+        # cut-off return from a critic that sees no episode clock (docs/design/learning.md, "PPO settings")
         logging.getLogger(__name__).warning(
             "train.n_steps=%d is not a multiple of env.episode_frames=%d: rollouts cut episodes, which "
             "biases PPO's advantages; set --n-steps %d",

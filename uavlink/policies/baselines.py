@@ -34,14 +34,14 @@ class StaticPolicy(RulePolicy):
 
 
 class AoaPolicy(RulePolicy):
-    """GPS-free rule (SPEC "Baselines"): fly towards the circular-mean AoA, slower as the SINRs
-    level off at the hover level.
+    """GPS-free rule (SPEC "Baselines every evaluation reports"): fly towards the circular-mean
+    AoA, slower as the SINRs level off at the hover level.
 
     Speed = r_max * clip((hover SINR - mean SINR) / ``sinr_span_db``, 0, 1), where the hover SINR is
     the link budget straight overhead (no shadowing or fading). Because a shadowed frame also lowers
     the SINRs, the rule keeps moving while its UEs are shadowed and stops when they are not, which
     under the SPEC's shadowing model (no memory of place) buys throughput even when the UEs stay put
-    (docs/design.md). The warm start's variants of it: ``uavlink.learn.teachers``.
+    (docs/design/radio.md). The warm start's variants of it: ``uavlink.learn.teachers``.
     """
 
     name = "aoa"
