@@ -1,12 +1,13 @@
 # Two entry points, each self-contained on a fresh machine:
 #   make demo  -> create .venv, install, fly a shipped policy end to end (embedded SITL)
 #   make test  -> create .venv, install with dev extras, run ruff and the test suite
+# and a lane of its own: make research-test -> the research scripts' tests (research/tests/).
 PYTHON ?= python3
 VENV := .venv
 BIN := $(VENV)/bin
 STAMP := $(VENV)/.installed
 
-.PHONY: demo test lint bench clean
+.PHONY: demo test research-test lint bench clean
 
 # pip byte-compiles what it installs one file at a time (about a minute, mostly torch's); compileall
 # does the same on every core. A file this Python cannot compile (torch ships a 3.12-only example)
@@ -28,16 +29,24 @@ demo: $(STAMP)
 # worker under pytest 9), then the `waits` tests, which mostly wait on a vehicle's clock (its report
 # follows the workers'); then the `serial` flights run alone. (Long CPU-bound tests moved beside the
 # workers made timed flight tests fail: 2 of 3 runs; the `waits` tests use a sixth of a core.)
+# The research scripts' tests are not on this path: their own lane is `research-test` (they live in
+# research/tests/, outside testpaths; every selection below also leaves out the `research` marker).
 test: $(STAMP)
-	$(BIN)/ruff check uavlink sitl_stub tests benchmarks
-	@$(BIN)/python -m pytest -q -m "px4_ports or waits" > $(VENV)/beside.log 2>&1 & beside=$$!; \
-	$(BIN)/python -m pytest -q -n 2 -m "not px4_ports and not waits and not serial" --durations=15; rest=$$?; \
+	$(BIN)/ruff check uavlink sitl_stub tests benchmarks research tools
+	@$(BIN)/python -m pytest -q -m "(px4_ports or waits) and not research" > $(VENV)/beside.log 2>&1 & beside=$$!; \
+	$(BIN)/python -m pytest -q -n 2 -m "not px4_ports and not waits and not serial and not research" --durations=15; rest=$$?; \
 	wait $$beside; beside_status=$$?; echo "--- tests on PX4's fixed ports and waiting tests (run beside the above):"; \
 	cat $(VENV)/beside.log; [ $$rest -eq 0 ] && [ $$beside_status -eq 0 ]
-	$(BIN)/python -m pytest -q -m serial
+	$(BIN)/python -m pytest -q -m "serial and not research"
+
+# The research scripts' tests (experiments behind the docs' figures; training, about N minutes on 2
+# cores): two xdist workers over research/tests/.
+research-test: $(STAMP)
+	$(BIN)/ruff check research
+	$(BIN)/python -m pytest -q -n 2 -m research research/tests
 
 lint: $(STAMP)
-	$(BIN)/ruff check uavlink sitl_stub tests benchmarks
+	$(BIN)/ruff check uavlink sitl_stub tests benchmarks research tools
 
 bench: $(STAMP)
 	$(BIN)/python benchmarks/env_throughput.py

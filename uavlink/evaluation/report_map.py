@@ -170,7 +170,7 @@ def map_sections(
                 "",
                 "Each policy over static on the same episodes, with the shadowing's sigma and its UAV-end",
                 "decorrelation set by radio overrides (the map and spatial policies were trained at 8 dB and",
-                "50 m; `uavlink.evaluation.map_sensitivity`, also `python benchmarks/map_sensitivity.py`).",
+                "50 m; `uavlink.evaluation.map_sensitivity`, also `python research/map_sensitivity.py`).",
                 "A short decorrelation puts a better spot near any other; a long one leaves little to find.",
                 "",
                 sensitivity_table(by_channel),
