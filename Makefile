@@ -39,8 +39,8 @@ test: $(STAMP)
 	cat $(VENV)/beside.log; [ $$rest -eq 0 ] && [ $$beside_status -eq 0 ]
 	$(BIN)/python -m pytest -q -m "serial and not research"
 
-# The research scripts' tests (experiments behind the docs' figures; training, about N minutes on 2
-# cores): two xdist workers over research/tests/.
+# The research scripts' tests (the experiments behind the docs' figures, some training; about 70 s
+# on 2 cores): two xdist workers over research/tests/.
 research-test: $(STAMP)
 	$(BIN)/ruff check research
 	$(BIN)/python -m pytest -q -n 2 -m research research/tests
