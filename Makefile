@@ -3,12 +3,13 @@
 #   make test  -> create .venv, install with dev extras, run the linters, the test suite, the
 #                 docs build and the wheel check
 #   make docs  -> build the docs site into site/ (mkdocs build --strict)
+#   make research-test -> the research scripts' tests (research/tests/), a lane of their own
 PYTHON ?= python3
 VENV := .venv
 BIN := $(VENV)/bin
 STAMP := $(VENV)/.installed
 
-.PHONY: demo test lint docs wheel-check bench clean
+.PHONY: demo test research-test lint docs wheel-check bench clean
 
 # pip byte-compiles what it installs one file at a time (about a minute, mostly torch's); compileall
 # does the same on every core. A file this Python cannot compile (torch ships a 3.12-only example)
@@ -39,6 +40,12 @@ test: lint
 	$(MAKE) --no-print-directory docs
 	$(MAKE) --no-print-directory wheel-check
 
+# The research scripts' tests (the experiments behind the docs' figures, some training; about 70 s
+# on 2 cores): not on make test's path (research/tests/ lies outside pytest's testpaths).
+research-test: $(STAMP)
+	$(BIN)/ruff check research
+	$(BIN)/python -m pytest -q -n 2 -m research research/tests
+
 # The docs site (mkdocs.yml): the CLI and config reference pages are generated at build time
 # (docs/hooks/reference.py), the API pages by mkdocstrings; --strict fails on any broken link.
 docs: $(STAMP)
@@ -46,7 +53,7 @@ docs: $(STAMP)
 
 # ruff's lint and format check over every Python folder, and mypy over the package (its settings:
 # pyproject.toml [tool.mypy]). .pre-commit-config.yaml runs the same before each commit.
-LINTED := uavlink sitl_stub tests benchmarks docs
+LINTED := uavlink sitl_stub tests benchmarks research tools docs
 lint: $(STAMP)
 	$(BIN)/ruff check $(LINTED)
 	$(BIN)/ruff format --check $(LINTED)

@@ -5,7 +5,7 @@ policy runtime, side by side in one run: the SB3 zip, its ONNX export, and the `
 per policy: decision latency (report arrival to setpoint sent) p50/p99, per-decision inference
 time p50/p99, the speed factor the loop sustained, and the episode's wall time.
 
-Targets (issues 4 and 5): latency p99 < 5 ms with the SB3 policy; a 128-frame episode in < 10 s
+Targets: latency p99 < 5 ms with the SB3 policy; a 128-frame episode in < 10 s
 of wall time at --speed 20; ONNX inference p99 < 50 us and >= 3x faster than SB3.
 
     python benchmarks/flight_latency.py [--policy policies/circular.zip] [--json]

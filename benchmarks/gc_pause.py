@@ -1,7 +1,7 @@
 """How long one full pass of Python's cyclic garbage collector stalls `uavlink fly` with a policy
 loaded, as the flight loop meets it (gc.collect of generation 2), and with the heap frozen as the loop
 freezes it (``uavlink.flight.steady.steady_heap``): the offboard stream of a vehicle at 20x real time
-tolerates 50 ms of wall time (docs/experiments.md, "A pause in the fleet's flights").
+tolerates 50 ms of wall time (research/log/flight.md, "A pause in the fleet's flights").
 
     python benchmarks/gc_pause.py [--policy policies/fleet/straight_180.zip] [--passes 5] [--json]
 """

@@ -2,7 +2,7 @@
 Python's cyclic collector longer than --min-ms logged with its generation, its length and when it
 ended, in seconds from the end of the mission (take-off to landing; negative: before it ended) and
 whether it fell inside the mission; as `fly` flies (the heap frozen: uavlink/flight/steady.py) or,
-with --no-freeze, as it flew before the freeze. docs/experiments.md, "A pause in the fleet's flights":
+with --no-freeze, as it flew before the freeze. research/log/flight.md, "A pause in the fleet's flights":
 
     python benchmarks/gc_watch.py [--no-freeze] [--json] -- --policy policies/fleet/straight_180.zip \\
         --seed 1 --out /tmp/gc-fly

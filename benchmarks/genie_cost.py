@@ -4,8 +4,8 @@ The genie plans each episode when it starts (``uavlink.policies.genie``): the gr
 the DP, and for a fleet the per-UAV rounds; then the episode is flown like any policy's. It plans a
 batch's episodes on one thread per CPU (``GeniePolicy.workers``). Measured here, in one run on the
 same episodes: wall and process-CPU seconds per episode of ``evaluate_policy`` with the genie on
-one thread and on its default threads, and the static baseline (the rollout alone). Target (issue
-23): 100 episodes of one UAV in minutes, not hours: ``projected_100_episodes_min`` is 100 x the
+one thread and on its default threads, and the static baseline (the rollout alone). Target:
+100 episodes of one UAV in minutes, not hours: ``projected_100_episodes_min`` is 100 x the
 threaded wall seconds per episode.
 
     python benchmarks/genie_cost.py --json

@@ -8,7 +8,7 @@ reports the median and the parts (reading the log, importing matplotlib, drawing
 PNG) in wall time and in the process's CPU time, with the machine's load average. On a shared
 machine the wall time counts the others' work too (load 10 on 2 cores: about 5x); the CPU time is
 what the drawing itself costs, the wall time it takes on an idle core (it runs on one thread).
-Target (issue 25): under 2 s for a 128-frame flight on 2 cores. With --gif, the animation's time,
+Target: under 2 s for a 128-frame flight on 2 cores. With --gif, the animation's time,
 frames and size too.
 
     python benchmarks/plot_time.py [--tlog FLIGHT.tlog] [--frames 128] [--speed 20] [--repeats 3]

@@ -2,7 +2,8 @@
 
 Two lanes: ``pytest -m "not slow"`` runs the units in about a minute; plain ``pytest`` (``make
 test``) adds every test marked ``slow`` (SITL, MAVSDK, MAVProxy, Dask, training, anything over
-~1.5 s). Helpers are plain functions in ``tests/support`` (``from support.cli import
+~1.5 s); the research scripts' tests are a lane of their own, research/tests/ (``make
+research-test``). Helpers are plain functions in ``tests/support`` (``from support.cli import
 run_uavlink``) so that a test reads as what it checks; the models are session fixtures so the whole
 suite trains each of them once.
 """

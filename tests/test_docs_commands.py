@@ -17,14 +17,10 @@ from support.cli import ROOT, cli_json
 from sitl_stub.__main__ import build_parser as sitl_parser
 from uavlink.cli import build_parser as uavlink_parser
 
-# README.md and every Markdown page under docs/ (the site's pages), but the experiment log
+# README.md and every Markdown page under docs/ (the site's pages)
 DOCS = [
     "README.md",
-    *sorted(
-        path.relative_to(ROOT).as_posix()
-        for path in (ROOT / "docs").rglob("*.md")
-        if path.name != "experiments.md"
-    ),
+    *sorted(path.relative_to(ROOT).as_posix() for path in (ROOT / "docs").rglob("*.md")),
 ]
 PROGRAMS = {"uavlink": uavlink_parser, "sitl-stub": sitl_parser}
 PLACEHOLDER = re.compile(r"^[A-Z][A-Z0-9_]*$|\.\.\.|[<>\[\]{}|]|^-?[A-Z]$|^[A-Z]\+")

@@ -1,4 +1,4 @@
-"""The fleet's PettingZoo face (issue 16, item 2): uavlink.fleet.parallel_env."""
+"""The fleet's PettingZoo face: uavlink.fleet.parallel_env."""
 
 from __future__ import annotations
 

@@ -1,7 +1,7 @@
 """The genie (SPEC "The limit, and a memory of place"): its DP is exact, its plan keeps the motion limits,
 the env flies exactly the planned path, and the realised throughput is the planned one without fading.
 
-Small worlds (a 120 m area, short episodes) keep these fast; benchmarks/genie_check.py runs the full
+Small worlds (a 120 m area, short episodes) keep these fast; research/genie_check.py runs the full
 check against every baseline and shipped policy.
 """
 

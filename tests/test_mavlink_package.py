@@ -10,7 +10,7 @@ from pathlib import Path
 
 ROOT = Path(__file__).resolve().parents[1]
 FORBIDDEN = ("uavlink.flight", "uavlink.evaluation")
-SOURCE_DIRS = ("uavlink", "sitl_stub", "tests", "benchmarks")
+SOURCE_DIRS = ("uavlink", "sitl_stub", "tests", "benchmarks", "research", "tools")
 
 
 def _run(code: str) -> str:

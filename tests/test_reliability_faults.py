@@ -2,7 +2,7 @@
 
 Flights go through the relay of ``tests/support/udp_relay.py`` (``tests/support/relay_flight.py``) on loopback (fly and the vehicle are child processes);
 the vehicle's exit stats give its own truth of the episode's throughput (whatever the link lost)
-and its safety monitors. ``pytest -s`` prints the table; ``benchmarks/link_faults.py`` makes the
+and its safety monitors. ``pytest -s`` prints the table; ``research/link_faults.py`` makes the
 full one (with 200 ms delay at --speed 1).
 """
 

@@ -17,7 +17,7 @@ CFG = EnvConfig(scenario="hotspot")
 @pytest.mark.slow
 def test_estimator_explains_most_of_the_links_shadowing_on_held_out_episodes() -> None:
     estimator = fit_shadow_estimator(CFG, episodes=64, seed=0)
-    assert estimator.r2 > 0.5  # about 0.7 with 512 episodes (benchmarks/aoa_teacher_search.py)
+    assert estimator.r2 > 0.5  # about 0.7 with 512 episodes (research/aoa_teacher_search.py)
     x, y = shadow_dataset(CFG, episodes=16, seed=9, held_out=True)
     assert np.corrcoef(x @ estimator.weights, y)[0, 1] > 0.7
     # Reproducible from its seed; a different seed gives different data.

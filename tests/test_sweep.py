@@ -793,7 +793,7 @@ def test_record_out_keeps_the_jobs_figures_and_ships_no_policy(tmp_path: Path, c
 
 
 def test_the_fast_ppo_defaults_leave_the_shipped_jobs_as_they_were() -> None:
-    """TrainConfig's PPO loop defaults changed (issue 24); the shipped sweep files pin the old loop, so
+    """TrainConfig's PPO loop defaults changed (2026-12-02); the shipped sweep files pin the old loop, so
     their jobs keep the keys (and the settings) their results and policies were made under."""
     keys = {
         (spec, j.scenario, j.seed): j.key

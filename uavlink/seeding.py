@@ -40,7 +40,7 @@ TEACHER = Stream("teacher", (0xB0,), 64)
 # TrainConfig.validation_episodes), apart from every evaluation seed's, so a policy chosen on them is
 # scored on episodes it never met.
 VALIDATION = Stream("validation", (0x5E1,), 128)
-# A copy's flying that its teacher labels, one sibling per DAgger round (benchmarks/clone_gap.py).
+# A copy's flying that its teacher labels, one sibling per DAgger round (research/clone_gap.py).
 DAGGER = Stream("dagger", (0xDA,), 64)
 # The shadowing estimator's fitting data, and its held-out check (uavlink/learn/shadow_estimation.py);
 # the data's rule hovers at random, drawn per chunk from the *_HOVERS siblings.

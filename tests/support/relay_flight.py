@@ -3,7 +3,7 @@
 
 :func:`fly_through_relay` returns fly's summary, the vehicle's exit stats (its own truth of the
 episode's throughput, whatever the link lost, and its safety monitors) and the relay's counts;
-:func:`table_row` and :func:`format_table` make the fault table of ``benchmarks/link_faults.py``.
+:func:`table_row` and :func:`format_table` make the fault table of ``research/link_faults.py``.
 """
 
 from __future__ import annotations

@@ -17,7 +17,7 @@ while it runs (e.g. a blackout, then a clear link). ``stats`` counts what it did
 ``tap(direction, datagram)``, when given, sees every datagram as it arrives (before any fault).
 
 Flights through it: ``tests/support/relay_flight.py``; a ground station for tests: ``tests/support/mavlink_gcs.py``.
-``python benchmarks/link_faults.py`` flies through it (the throughput table).
+``python research/link_faults.py`` flies through it (the throughput table).
 """
 
 from __future__ import annotations

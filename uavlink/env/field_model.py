@@ -15,7 +15,7 @@ Each frame the model picks the spot worth most over the frames left, optimistica
 horizon in it (Srinivas et al. 2010), so a look far away pays early in an episode and not late. A
 picked spot stays picked until another scores ``SWITCH_GAIN`` times more: a vehicle that changes its
 mind each frame flies reversals. The values were chosen on the validation episodes (seed 1) of
-no_move: docs/experiments.md, "A model of the field".
+no_move: research/log/memory-of-place.md, "A model of the field".
 
 The posterior is updated in O(n K) a frame (n spots sensed so far, K grid spots) by appending each
 observation to the inverse Cholesky factor of the observations' covariance, batched over rows.

@@ -1,4 +1,4 @@
-"""How much a memory of place is worth on which channel (issue 23's sensitivity table).
+"""How much a memory of place is worth on which channel.
 
 On the spatial channel with the shadowing's std (``radio.shadowing_std_db``, 4 and 8 dB) and its
 UAV-end decorrelation distance (``radio.shadowing_uav_decorrelation_m``, 25, 50 and 100 m) set by

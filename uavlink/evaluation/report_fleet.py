@@ -24,7 +24,7 @@ FLEET_SIZES = (1, 2, 3)
 POLICY_UAVS = 2  # the shipped fleet policies' D
 # Results are keyed "D<d> <baseline>"; the fleet policies' and the single-UAV policies' keys:
 FLEET_PPO, SINGLE_PPO = f"D{POLICY_UAVS} ppo", "D1 ppo"
-# The issue's bars for the D = 2 policies: share of the fleet oracle, share of one UAV's policy.
+# The bars set for the D = 2 policies: share of the fleet oracle, share of one UAV's policy.
 ORACLE_SHARE = {"straight_90": 0.95, "straight_180": 0.95, "hotspot": 0.95}
 SINGLE_SHARE = {"no_move": 0.98, "straight": 0.98, "circular": 0.98, "straight_180": 1.6}
 
@@ -211,7 +211,7 @@ def fleet_sections(
         "",
         markdown_table(*tables["fleet_throughput"]),
         "",
-        "The fleet policies' ratios (paired over episodes, 95 % bootstrap interval) and the issue's bars: "
+        "The fleet policies' ratios (paired over episodes, 95 % bootstrap interval) and the bars set for them: "
         ">= the fleet aoa rule everywhere, >= 95 % of the fleet oracle where the UEs split or spread, "
         ">= 98 % of one UAV's policy where they stay together (a second UAV must not hurt) and 1.6x on "
         "straight_180. PPO / genie: how far from the full-knowledge limit the fleet policy flies.",

@@ -1,4 +1,4 @@
-"""The results report's memory-of-place part (issue 23): the map policies (trained with a memory of
+"""The results report's memory-of-place part: the map policies (trained with a memory of
 place, ``sweeps/map.toml``) against today's spatial policies and the GPS-free ``explore`` rule.
 
 Per scenario that has a map policy, and mixed (each episode's scenario drawn): the map policy, the
@@ -170,7 +170,7 @@ def map_sections(
                 "",
                 "Each policy over static on the same episodes, with the shadowing's sigma and its UAV-end",
                 "decorrelation set by radio overrides (the map and spatial policies were trained at 8 dB and",
-                "50 m; `uavlink.evaluation.map_sensitivity`, also `python benchmarks/map_sensitivity.py`).",
+                "50 m; `uavlink.evaluation.map_sensitivity`, also `python research/map_sensitivity.py`).",
                 "A short decorrelation puts a better spot near any other; a long one leaves little to find.",
                 "",
                 sensitivity_table(by_channel),

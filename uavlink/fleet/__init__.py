@@ -1,4 +1,4 @@
-"""A fleet of D UAV base stations as a multi-agent env (SPEC "A fleet", issue 16).
+"""A fleet of D UAV base stations as a multi-agent env (SPEC "A fleet").
 
 ``parallel_env(scenario=..., n_uavs=..., **overrides)`` gives a PettingZoo ``ParallelEnv`` with
 agents ``uav_0`` ... ``uav_{D-1}`` over the batched core. PettingZoo is an optional dependency

@@ -1,8 +1,8 @@
 """Short pauses in the flight loop: with a policy loaded (torch, SB3, pymavlink), one pass of Python's
 cyclic garbage collector over every object takes 0.2-0.4 s on a 2-core machine, longer than a
 vehicle at 20x real time waits for offboard setpoints (COM_OF_LOSS_T = 1 s of vehicle time: 50 ms
-of wall time), so a flight that met one mid-episode fell back to hold (docs/experiments.md, "A
-pause in the fleet's flights")."""
+of wall time), so a flight that met one mid-episode fell back to hold (research/log/flight.md,
+"A pause in the fleet's flights")."""
 
 from __future__ import annotations
 

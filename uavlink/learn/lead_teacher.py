@@ -4,7 +4,7 @@ With one group of UEs a second active cell only takes UEs and interferes with al
 "A fleet"), so the best a fleet of D can do is one UAV's policy with the other cells empty, hence
 silent. ``SoloTeacher`` (uavlink.learn.teachers) picks its leader by GPS (nearest the UEs' centroid), which
 no UAV can read from its observation: cloned, the actor averaged the roles and both UAVs fled
-(docs/experiments.md, no_move 4.7 Mbps). Here the roles are a function of what every UAV observes:
+(research/log/fleet.md, no_move 4.7 Mbps). Here the roles are a function of what every UAV observes:
 the leader is the UAV serving the most UEs (``served_by``; ties go to the UAV farthest east, then
 north, positions every UAV sees), so a clone can learn them, and the split reinforces itself (the
 others leave, the leader's cell grows; the counts are summed over the frames in memory, so a UE

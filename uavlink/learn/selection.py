@@ -2,9 +2,10 @@
 ``best_model_save_path`` does the same for its own environments).
 
 Why: PPO started from a rule's copy at a small learning rate, where the rule is already about as
-good as the scenario allows, walks at random around the copy (docs/experiments.md, "Where the team
-moves", "DAgger on hotspot"): its last weights are a draw, above or below where it started. With
-``TrainConfig.validation_episodes`` > 0 the deterministic policy (what ``evaluate`` and ``fly`` fly,
+good as the scenario allows, walks at random around the copy (research/log/memory-of-place.md,
+"Where the team moves"; research/log/map-policies.md, "DAgger on hotspot"): its last weights are a
+draw, above or below where it started. With ``TrainConfig.validation_episodes`` > 0 the
+deterministic policy (what ``evaluate`` and ``fly`` fly,
 ``uavlink.policies.sb3_policy.ActorPolicy``) flies that many episodes of the policy's env on the
 ``VALIDATION`` stream before the first update (the warm start's weights), after each update and at
 the end, and training ships the weights that flew best. The stream's episodes are apart from every

@@ -235,7 +235,7 @@ def _records(blob: bytes) -> Iterator:
 
     Only the wanted message ids are decoded (the bulk of a log is attitude, status and setpoints
     that no picture shows: skipping them makes reading 3-5x faster than pymavlink's ``recv_match``,
-    docs/experiments.md).
+    research/log/flight.md).
     A record that does not parse (a bad start byte, a CRC error, a cut) resyncs at the next byte
     that starts a record whose packet decodes: damage costs the damaged records only."""
     mav = mavlink.MAVLink(None)

@@ -7,8 +7,9 @@ so the rule searches while a look still pays and then stays on the best spot it 
 the pick from the observation, so a policy that sees the same observation can clone it, and it flies
 from MAVLink data like any policy file. Each frame it closes ``approach_gain`` of the distance (r_max
 at most): a multicopter trails its setpoint, and a full step to a spot measured from where the
-vehicle is overshoots and swings (docs/experiments.md, "A model of the field"). A model of a still
-field: made for a team that stays put (no_move); when the team moves, the field it modelled goes.
+vehicle is overshoots and swings (research/log/memory-of-place.md, "A model of the field"). A model
+of a still field: made for a team that stays put (no_move); when the team moves, the field it
+modelled goes.
 """
 
 from __future__ import annotations

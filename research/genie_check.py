@@ -5,11 +5,11 @@ D = 1: static, oracle, aoa, kmeans and the spatial policy (``policies/spatial/<s
 the fleet baselines and the fleet policy (``policies/fleet/<scenario>.zip``); each in the env of its
 policy's manifest, the genie and the baselines in the same one. Per scenario and D: each column's mean
 (Mbps), the genie's paired ratio to it with a 95 % bootstrap interval, the episodes it wins, and
-whether the genie's mean is >= every other column's (the issue's check). Realised figures (real
+whether the genie's mean is >= every other column's (the yardstick's check). Realised figures (real
 fading): the genie plans on the mean-fading channel, so single episodes may fall a hair short.
 
-    python benchmarks/genie_check.py --episodes 20 --json > genie_check.json
-    python benchmarks/genie_check.py --episodes 2 --scenarios no_move --uavs 1   # a quick look
+    python research/genie_check.py --episodes 20 --json > genie_check.json
+    python research/genie_check.py --episodes 2 --scenarios no_move --uavs 1   # a quick look
 """
 
 from __future__ import annotations
@@ -87,7 +87,7 @@ def main(argv: list[str] | None = None) -> int:
     summary = {
         "all_met": all(r["genie_at_least_every_other"] for r in rows),
         "rows": rows,
-        "command": "python benchmarks/genie_check.py "
+        "command": "python research/genie_check.py "
         + " ".join(sys.argv[1:] if argv is None else argv),
     }
     if args.json:

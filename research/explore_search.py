@@ -17,9 +17,9 @@ changes, read from the same observation (the memory of place and the SINRs now):
   back to the best spot: new cells near it without a multicopter's reversals.
 Each variant in each memory grid (``--cell-m``; the shipped map policies and explore's default: 12
 m) against explore with its default grid and against today's spatial policy, on the same episodes
-(paired ratios, 95 % bootstrap intervals). Issue 23 asks for 1.2x the spatial policy on no_move.
+(paired ratios, 95 % bootstrap intervals). The target: 1.2x the spatial policy on no_move.
 
-    python benchmarks/explore_search.py [--cell-m 12 6] [--episodes 100] [--seed 1] [--set KEY=VALUE] [--json]
+    python research/explore_search.py [--cell-m 12 6] [--episodes 100] [--seed 1] [--set KEY=VALUE] [--json]
 """
 
 from __future__ import annotations

@@ -8,9 +8,9 @@ never goes, and its small errors take it there.
 
 The job (a scenario and training seed of a sweep file) gives the env, the teacher and the cloning
 recipe, as ``uavlink sweep`` would train it; the copy is SB3's deterministic action, as a policy file
-flies. docs/experiments.md, "DAgger on hotspot", runs:
+flies. research/log/map-policies.md, "DAgger on hotspot", runs:
 
-    python benchmarks/clone_gap.py --sweep sweeps/map.toml --scenario hotspot --rounds 2 --epochs 40 \\
+    python research/clone_gap.py --sweep sweeps/map.toml --scenario hotspot --rounds 2 --epochs 40 \\
         --policy policies/map/hotspot.zip --episodes 500 --eval-seed 7 [--json]
 """
 

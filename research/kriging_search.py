@@ -5,10 +5,10 @@ constants (made on the validation episodes, seed 1).
 The rule flies to the spot its model of the sensed field picks (``uavlink.policies.kriging``):
 GPS-free, it searches while a look still pays. Each row is the rule on the same episodes as the
 references, as a ratio over today's spatial no_move policy with a paired 95 % bootstrap interval.
-Issue 23 asks for 1.2x on no_move; ``--set uav_motion=px4`` flies every UAV as PX4's position loop
+The target is 1.2x on no_move; ``--set uav_motion=px4`` flies every UAV as PX4's position loop
 does, which says whether a gain is one a multicopter can fly.
 
-    python benchmarks/kriging_search.py [--beta 1 1.5 2] [--approach-gain 0.5 1] [--episodes 100] [--seed 1]
+    python research/kriging_search.py [--beta 1 1.5 2] [--approach-gain 0.5 1] [--episodes 100] [--seed 1]
         [--set KEY=VALUE] [--json]
 """
 

@@ -1,10 +1,11 @@
 """The figures a refactor must not move: `uavlink evaluate --json` of every shipped policy and of the
 baselines on every scenario (one UAV and two, both channels), the genie, kriging and a comparison,
 3 episodes each at seed 0, written one file per command; with --against, compared byte for byte
-with an earlier run's files. What stop 41's refactors were checked with (docs/experiments.md).
+with an earlier run's files. What the memory table's refactor was checked with (research/log/memory-of-place.md,
+"The memory's table, halved").
 
-    python benchmarks/figures_fingerprint.py --out /tmp/before        # at the commit before
-    python benchmarks/figures_fingerprint.py --out /tmp/after --against /tmp/before --json
+    python tools/figures_fingerprint.py --out /tmp/before        # at the commit before
+    python tools/figures_fingerprint.py --out /tmp/after --against /tmp/before --json
 """
 
 from __future__ import annotations

@@ -7,9 +7,9 @@
    as ``uavlink train --warm-start aoa`` does (``TrainConfig``'s defaults, the shipped sweep's
    training AoA noise), flown deterministically, against the rule itself.
 
-The variants of the rule that the warm start copies on some scenarios: benchmarks/aoa_teacher_search.py.
+The variants of the rule that the warm start copies on some scenarios: research/aoa_teacher_search.py.
 
-    python benchmarks/aoa_rule_effects.py [--episodes 100] [--seed 0] [--json]
+    python research/aoa_rule_effects.py [--episodes 100] [--seed 0] [--json]
 """
 
 from __future__ import annotations

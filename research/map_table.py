@@ -5,9 +5,9 @@ costly: more or other episodes, and without the genie's columns (about a CPU-sec
 Per scenario with a map policy, and mixed: the map policy, the spatial policy, explore, aoa, static (and the
 genie) on the spatial channel on the same seeded episodes, with paired ratios.
 
-    python benchmarks/map_table.py                                  # results.md's 100 episodes, seed 0
-    python benchmarks/map_table.py --episodes 1000 --seed 7 --no-genie   # fresh episodes
-    python benchmarks/map_table.py --set uav_motion=px4                 # every UAV flown as PX4 flies
+    python research/map_table.py                                  # results.md's 100 episodes, seed 0
+    python research/map_table.py --episodes 1000 --seed 7 --no-genie   # fresh episodes
+    python research/map_table.py --set uav_motion=px4                 # every UAV flown as PX4 flies
 """
 
 from __future__ import annotations

@@ -3,10 +3,10 @@
 For each seed, one 128-frame flight through the embedded SITL and the same episode evaluated twice,
 `uavlink evaluate --episodes 1 --seed S` with the env's instant moves and with `--set
 uav_motion=px4` (the UAV flown to its setpoint as the vehicle flies it). Reports each seed's
-figures and, per way of flying, how many flights lie within 5 % of each evaluation (issue 23: the
-map policy "within 5 % of its one-episode evaluation at the same seed").
+figures and, per way of flying, how many flights lie within 5 % of each evaluation (the target
+for the map policy: "within 5 % of its one-episode evaluation at the same seed").
 
-    python benchmarks/flight_parity.py [--policy policies/map/no_move.zip] [--scenario no_move]
+    python tools/flight_parity.py [--policy policies/map/no_move.zip] [--scenario no_move]
         [--seeds 0 1 2 ...] [--free] [--json]
 """
 

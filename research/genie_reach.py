@@ -1,4 +1,4 @@
-"""How far from the team the limit lies: the genie kept within a radius of the team (issue 23).
+"""How far from the team the limit lies: the genie kept within a radius of the team.
 
 For each seeded episode of a scenario on the spatial channel, the genie's dynamic programme
 (``uavlink.policies.genie``, one UAV, the 4 m grid) is solved again with every grid spot farther
@@ -9,10 +9,10 @@ them, the paths ``explore``, the scenario's map policy and its spatial policy fl
 episodes, scored the same way. Every figure is the planner's own: the mean UE throughput of a path
 on the mean channel (path loss and the episode's shadowing field, no fast fading), so all columns
 are comparable with each other; ``uavlink evaluate`` scores flown episodes with fast fading and
-gives the genie a few per cent less (docs/experiments.md).
+gives the genie a few per cent less (research/log/genie.md).
 
-    python benchmarks/genie_reach.py                           # no_move, 20 episodes, a table
-    python benchmarks/genie_reach.py --scenarios no_move circular --episodes 50 --json
+    python research/genie_reach.py                           # no_move, 20 episodes, a table
+    python research/genie_reach.py --scenarios no_move circular --episodes 50 --json
 """
 
 from __future__ import annotations

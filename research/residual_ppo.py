@@ -9,7 +9,7 @@ scenarios where the shipped policies stay below the rule. Prints throughput (Mbp
 the reward PPO maximises, over the same seeded evaluation episodes for the rule, the residual
 policy before training and after it.
 
-    python benchmarks/residual_ppo.py [--scenarios straight_90 straight_180 hotspot]
+    python research/residual_ppo.py [--scenarios straight_90 straight_180 hotspot]
         [--train-episodes 4000] [--n-envs 256] [--batch-size 4096] [--log-std -3]
         [--learning-rate 3e-4] [--gamma 0.99] [--gae-lambda 0.95] [--episodes 100] [--seed 0] [--json]
 """

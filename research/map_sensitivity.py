@@ -1,11 +1,11 @@
-"""How much a memory of place is worth on which channel (issue 23's sensitivity table).
+"""How much a memory of place is worth on which channel (the sensitivity table).
 
 Each of ``genie``, ``explore``, the scenario's map policy and its spatial policy over ``static`` on
 the spatial channel with its shadowing sigma (4, 8 dB) and UAV-end decorrelation (25, 50, 100 m) set
 by radio overrides (``uavlink.evaluation.map_sensitivity``; docs/results.md carries the same table).
 
-    python benchmarks/map_sensitivity.py                      # Markdown table (about 15 CPU-min)
-    python benchmarks/map_sensitivity.py --episodes 10 --json # one JSON object
+    python research/map_sensitivity.py                      # Markdown table (about 15 CPU-min)
+    python research/map_sensitivity.py --episodes 10 --json # one JSON object
 """
 
 from __future__ import annotations

@@ -6,7 +6,7 @@ any machine; on the spatial channel numpy's vectorised transcendental functions 
 bit between CPUs, and a closed-loop policy can turn that into another path in a few episodes
 (docs/design/code.md, "Reproducible by seed, to the last bit on one machine").
 
-    python benchmarks/manifest_check.py [--policies policies] [--json]
+    python tools/manifest_check.py [--policies policies] [--json]
 """
 
 from __future__ import annotations

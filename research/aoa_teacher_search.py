@@ -23,7 +23,7 @@ With ``--clone EPISODESxEPOCHS ...`` it also fits a fresh PPO actor to the pick 
 start does (no AoA noise, log std -3; imports torch) from that many teacher episodes and epochs, and
 flies the copy deterministically on the same validation episodes: how close the copy PPO starts from is.
 
-    python benchmarks/aoa_teacher_search.py [--scenarios ...] [--episodes 100] [--seed 1]
+    python research/aoa_teacher_search.py [--scenarios ...] [--episodes 100] [--seed 1]
                                             [--clone 256x20 1024x80] [--json]
 """
 
@@ -163,7 +163,7 @@ def clone_of(
 ) -> dict[str, Any]:
     """The pick copied into a fresh PPO actor (``uavlink.learn.imitation.warm_start``), flown on the
     validation episodes: Mbps, R_fair and the cloning's final mean squared error."""
-    # aoa_rule_effects is a sibling script: benchmarks/ is on the path when this one runs
+    # aoa_rule_effects is a sibling script: research/ is on the path when this one runs
     from aoa_rule_effects import ClonedActor
 
     from uavlink.config import TrainConfig, WarmStartConfig

@@ -10,10 +10,10 @@ repeatable: which packets meet which draw depends on timing);
 the delay row runs at --delay-speed (default 1: 200 ms of wall time is 200 ms of vehicle time,
 0.2 of a 1 s decision frame each way) and is compared with a clean run at that speed.
 
-Target (issue 6): under 10 % loss, within 5 % of the clean run; at 30 % loss the vehicle stays in
+Target: under 10 % loss, within 5 % of the clean run; at 30 % loss the vehicle stays in
 the geofence and never flies OFFBOARD on a setpoint older than COM_OF_LOSS_T (1 s).
 
-    python benchmarks/link_faults.py [--json] [--policy policies/circular.zip] [--quick]
+    python research/link_faults.py [--json] [--policy policies/circular.zip] [--quick]
 """
 
 from __future__ import annotations

@@ -7,7 +7,7 @@ episodes of the training seed, as ``uavlink.learn.training`` builds it:
 on the same seeded episodes as the policy; the gain is the paired throughput ratio with its 95 %
 bootstrap interval. A policy trained without a warm start has no teacher and is skipped.
 
-    python benchmarks/teacher_gain.py policies/map/*.zip [--episodes 100] [--seed 0] [--json]
+    python research/teacher_gain.py policies/map/*.zip [--episodes 100] [--seed 0] [--json]
 """
 
 from __future__ import annotations

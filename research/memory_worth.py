@@ -1,4 +1,4 @@
-"""What a memory of place is worth when the team moves: the best spot remembered, scored now (issue 23).
+"""What a memory of place is worth when the team moves: the best spot remembered, scored now.
 
 A memory of place tells a GPS-free policy where it sensed best. Going back pays only while that
 spot is still good. On the spatial channel the shadowing decorrelates over 50 m at the UE end too
@@ -15,9 +15,9 @@ spot of the best value sensed over the last A frames. Two numbers follow:
 Travel is free here, which favours the memory: a UAV needs frames to get back. A ratio "now" above
 1 is the most a return could gain; at or below 1 no memory of this kind can gain by returning.
 
-    python benchmarks/memory_worth.py                              # every scenario, 50 episodes
-    python benchmarks/memory_worth.py --scenarios no_move straight_180 --episodes 20 --json
-    python benchmarks/memory_worth.py --plot docs/img/memory_worth.png   # the figure in docs/design/learning.md
+    python research/memory_worth.py                              # every scenario, 50 episodes
+    python research/memory_worth.py --scenarios no_move straight_180 --episodes 20 --json
+    python research/memory_worth.py --plot docs/img/memory_worth.png   # the figure in docs/design/learning.md
 """
 
 from __future__ import annotations

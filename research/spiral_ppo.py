@@ -7,7 +7,7 @@ script only, so `train` runs unchanged. The policies go to a temporary folder (n
 seed's PPO and the rule against today's spatial no_move policy, with instant moves and with PX4's
 (paired ratios, 95 % bootstrap intervals).
 
-    python benchmarks/spiral_ppo.py [--seeds 0 1] [--train-episodes 24000] [--episodes 100] [--seed 1] [--json]
+    python research/spiral_ppo.py [--seeds 0 1] [--train-episodes 24000] [--episodes 100] [--seed 1] [--json]
 """
 
 from __future__ import annotations

@@ -1,0 +1,306 @@
+"""The research scripts under research/ that stand behind figures in README, docs/design.md and
+the experiment log (research/log/) run end to end (tiny budgets, each script's main in this
+process) and keep the properties their figures rely on.
+
+Their own lane, off `make test`'s critical path: `make research-test` (or `pytest research/tests`);
+the suite's default paths (`testpaths = ["tests"]`) do not reach this folder, and every test here is
+marked `research` (and `slow`) for runs that name it."""
+
+from __future__ import annotations
+
+import contextlib
+import io
+import json
+import runpy
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+pytestmark = [pytest.mark.research, pytest.mark.slow]  # experiment scripts, some training
+
+ROOT = Path(__file__).resolve().parents[2]
+FOLDER = ROOT / "research"
+
+
+def run_json(script: str, *args: str) -> dict:
+    """``python research/SCRIPT ARGS --json``: the script's ``main`` run whole in this process
+    (without a child's torch and SB3 import: ~8 s each on a loaded 2-core machine)."""
+    sys.path.insert(0, str(FOLDER))  # as for a script: its siblings are importable
+    try:
+        main = runpy.run_path(str(FOLDER / script), run_name=Path(script).stem)["main"]
+        out = io.StringIO()
+        with contextlib.redirect_stdout(out):
+            assert main([*args, "--json"]) == 0
+    finally:
+        sys.path.remove(str(FOLDER))
+    return json.loads(out.getvalue())
+
+
+def test_residual_ppo_starts_as_the_rule_and_trains() -> None:
+    result = run_json(
+        "residual_ppo.py",
+        "--scenarios",
+        "hotspot",
+        "--train-episodes",
+        "8",
+        "--n-envs",
+        "8",
+        "--batch-size",
+        "256",
+        "--episodes",
+        "6",
+    )
+    row = result["scenarios"]["hotspot"]
+    # Before any update the action head outputs ~1e-3 of a full move: the policy is the rule.
+    assert abs(row["residual_before"]["mbps"] - row["aoa"]["mbps"]) < 0.01
+    assert abs(row["residual_before"]["r_fair"] - row["aoa"]["r_fair"]) < 0.01
+    assert np.isfinite(row["residual_after"]["mbps"]) and row["train_wall_s"] > 0
+
+
+def test_residual_composition_stays_a_legal_move() -> None:
+    sys.path.insert(0, str(FOLDER))
+    try:
+        from residual_ppo import compose
+    finally:
+        sys.path.remove(str(FOLDER))
+    rule = np.array([[0.6, 0.8], [0.0, 0.0], [0.3, 0.0]])
+    residual = np.array([[0.6, 0.8], [0.5, -0.25], [3.0, 0.0]])  # the last is clipped to 1.0
+    action = compose(rule, residual)
+    np.testing.assert_allclose(
+        action[0], [0.6, 0.8], atol=1e-7
+    )  # same direction, cut to a full move
+    np.testing.assert_allclose(action[1], [0.5, -0.25], atol=1e-7)  # inside the disc: unchanged
+    np.testing.assert_allclose(action[2], [1.0, 0.0], atol=1e-7)
+    assert np.all(np.hypot(action[:, 0], action[:, 1]) <= 1.0 + 1e-6)
+
+
+def test_teacher_search_compares_variants_with_the_rule_and_picks_one_that_loses_no_throughput() -> (
+    None
+):
+    result = run_json(
+        "aoa_teacher_search.py",
+        "--scenarios",
+        "straight_180",
+        "--episodes",
+        "8",
+        "--spans-db",
+        "10",
+        "4",
+        "--jump-gates-db",
+        "0",
+        "--estimate-gates-db",
+        "1",
+        "--estimator-episodes",
+        "16",
+        "--clone",
+        "4x2",
+    )
+    row = result["scenarios"]["straight_180"]
+    assert len(row["variants"]) == 6 and {v["gate_on"] for v in row["variants"]} == {
+        "off",
+        "jump",
+        "estimate",
+    }
+    assert 0.0 < row["shadow_estimator_r2"] < 1.0
+    baseline = next(v for v in row["variants"] if v["sinr_span_db"] == 10 and v["gate_on"] == "off")
+    assert baseline["d_r_fair"] == [0.0, 0.0] and baseline["d_mbps_pct"] == [
+        0.0,
+        0.0,
+    ]  # the rule itself
+    assert (baseline["mbps"], baseline["r_fair"]) == (row["rule"]["mbps"], row["rule"]["r_fair"])
+    gaining = [v for v in row["variants"] if v["d_mbps_pct"][0] - v["d_mbps_pct"][1] > 0.0]
+    pick = row[
+        "pick"
+    ]  # with these settings a variant gains, so there is a pick (and its clone below)
+    assert (
+        gaining
+        and pick in gaining
+        and all(pick["d_r_fair"][0] >= v["d_r_fair"][0] for v in gaining)
+    )
+    assert set(row["true_shadow_gate_mbps_r_fair"]) == {"0", "1.5", "3", "4.5"}
+    (clone,) = row["clones_of_pick"]
+    assert (clone["teacher_episodes"], clone["epochs"]) == (4, 2) and np.isfinite(clone["mbps"])
+
+
+@pytest.mark.slow
+def test_map_sensitivity_puts_every_policy_over_static_on_each_channel() -> None:
+    """research/map_sensitivity.py on no_move, 2 episodes: a row per (sigma, UAV-end
+    decorrelation), the genie above static on every channel (it knows the field), each ratio
+    inside its interval."""
+    result = run_json("map_sensitivity.py", "--scenarios", "no_move", "--episodes", "2")
+    assert [(r["shadowing_std_db"], r["uav_decorrelation_m"]) for r in result["rows"]] == [
+        (s, d) for s in (4.0, 8.0) for d in (25.0, 50.0, 100.0)
+    ]
+    for row in result["rows"]:
+        assert row["genie"]["over_static"] > 1, row
+        for name in ("genie", "explore", "map", "spatial"):
+            lo, hi = row[name]["ci95"]
+            assert lo <= row[name]["over_static"] <= hi, row
+    # a larger sigma leaves more to find: the genie's gain grows with it at every decorrelation
+    by_cell = {
+        (r["shadowing_std_db"], r["uav_decorrelation_m"]): r["genie"]["over_static"]
+        for r in result["rows"]
+    }
+    assert all(by_cell[(8.0, d)] > by_cell[(4.0, d)] for d in (25.0, 50.0, 100.0))
+
+
+@pytest.mark.slow
+def test_genie_reach_keeps_each_plan_within_its_radius_below_the_next() -> None:
+    """research/genie_reach.py on no_move, 2 episodes: a plan kept nearer the team is never better
+    than one kept less near (the grids' cells are a superset), and none beats the genie."""
+    result = run_json("genie_reach.py", "--scenarios", "no_move", "--episodes", "2")
+    [row] = result["rows"]
+    shares = [row["shares"][f"within {r:g} m"]["of_genie"] for r in result["radii_m"]]
+    assert all(a <= b + 1e-6 for a, b in zip(shares, [*shares[1:], 1.0], strict=True)), shares
+    assert shares[0] > 0 and row["genie_mbps"] > 0 and row["genie_mean_distance_from_team_m"] > 0
+    for name in ("explore", "map", "spatial"):
+        assert 0 < row["shares"][name]["of_genie"] <= 1.0, row["shares"][name]
+
+
+def test_memory_worth_scores_the_remembered_spot_now_and_a_still_team_keeps_its_word(
+    tmp_path: Path,
+) -> None:
+    """research/memory_worth.py, 3 episodes: where the team stands still a spot reads now what it
+    read then (claimed == now, the SPEC's "identical value on return"); where it moves, what the whole
+    episode's memory claims is more than its pick is worth now. --plot draws the figure."""
+    figure = tmp_path / "memory_worth.png"
+    result = run_json(
+        "memory_worth.py",
+        "--scenarios",
+        "no_move",
+        "straight",
+        "--episodes",
+        "3",
+        "--plot",
+        str(figure),
+    )
+    assert figure.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+    still, moving = result["rows"]
+    for row in (still, moving):
+        for w in result["windows_frames"]:
+            assert (
+                row["windows"][str(w)]["claimed"]["ratio"] >= 1.0
+            )  # the best of a window includes now
+    for w in result["windows_frames"]:
+        assert still["windows"][str(w)]["claimed"] == still["windows"][str(w)]["now"]
+    whole = moving["windows"][str(max(result["windows_frames"]))]
+    assert whole["now"]["ratio"] < whole["claimed"]["ratio"] and whole["mean_age_frames"] > 4
+
+
+@pytest.mark.slow
+def test_teacher_gain_rebuilds_each_policys_own_teacher_from_its_manifest() -> None:
+    """research/teacher_gain.py: the map policy of straight_90 faces the aoa variant its manifest
+    names (span 3 dB, gate 2 dB), no_move's the kriging rule; the gain is the ratio of the two."""
+    result = run_json(
+        "teacher_gain.py",
+        str(ROOT / "policies" / "map" / "straight_90.zip"),
+        str(ROOT / "policies" / "map" / "no_move.zip"),
+        "--episodes",
+        "3",
+    )
+    teachers = {row["scenario"]: row["teacher"] for row in result["rows"]}
+    assert teachers == {"straight_90": "aoa (span 3, gate 2)", "no_move": "kriging"}
+    for row in result["rows"]:
+        lo, hi = row["ci95"]
+        assert lo <= row["gain"] <= hi and row["beats_teacher"] == (lo > 0)
+        assert abs(row["ppo_mbps"] / row["teacher_mbps"] - 1 - row["gain"]) < 1e-3
+
+
+def test_explore_search_pairs_every_variant_with_explore_and_the_spatial_policy() -> None:
+    result = run_json("explore_search.py", "--episodes", "4", "--cell-m", "12")
+    rows = result["rows"]
+    assert [r["variant"] for r in rows][0] == "explore" and len(rows) > 1
+    assert rows[0]["mean_rate_mbps"] == pytest.approx(
+        result["explore_mbps"], abs=1e-4
+    )  # 12 m: the baseline
+    for row in rows:
+        for ref in ("vs_explore", "vs_spatial"):
+            ratio, low, high = row[ref]
+            assert low <= ratio <= high
+
+
+def test_kriging_search_flies_the_chosen_rule_and_restores_the_model_s_optimism() -> None:
+    """Its row at the chosen constants is `uavlink evaluate --policy kriging` on the same episodes;
+    a varied beta is put back after the run (the script patches the model's module constant)."""
+    from uavlink.env import field_model
+    from uavlink.evaluation import evaluate_policy
+    from uavlink.policies.contract import EnvOverrides, load_with_env
+
+    result = run_json(
+        "kriging_search.py", "--episodes", "3", "--seed", "0", "--beta", str(field_model.BETA), "1"
+    )
+    [(rule, cfg)] = load_with_env(
+        ["kriging"],
+        EnvOverrides.from_command_line("no_move", None, ["radio.shadowing_model=spatial"]),
+    )
+    chosen = evaluate_policy(
+        rule, cfg, 3, 0
+    ).mean_rate_mbps  # after the run: beta 1 was the last tried
+    assert [r["beta"] for r in result["rows"]] == [field_model.BETA, 1.0]
+    assert result["rows"][0]["mean_rate_mbps"] == pytest.approx(chosen, abs=1e-4)
+    assert result["rows"][1]["mean_rate_mbps"] != result["rows"][0]["mean_rate_mbps"]
+    for row in result["rows"]:
+        for ref in ("vs_explore", "vs_spatial"):
+            ratio, low, high = row[ref]
+            assert low <= ratio <= high
+
+
+@pytest.mark.timeout(300)
+def test_spiral_ppo_trains_from_the_spiral_rule_and_pairs_it_with_the_spatial_policy() -> None:
+    result = run_json("spiral_ppo.py", "--seeds", "0", "--train-episodes", "256", "--episodes", "2")
+    assert [(r["motion"], r["policy"]) for r in result["rows"]] == [
+        ("instant", "rule"),
+        ("instant", "PPO seed 0"),
+        ("px4", "rule"),
+        ("px4", "PPO seed 0"),
+    ]
+    for row in result["rows"]:
+        ratio, low, high = row["vs_spatial"]
+        assert low <= ratio <= high
+
+
+def test_map_table_gives_every_map_policy_and_mixed_its_row_as_json() -> None:
+    result = run_json("map_table.py", "--episodes", "2", "--no-genie")
+    scenarios = [row["scenario"] for row in result["rows"]]
+    assert sorted(scenarios) == sorted(p.stem for p in (ROOT / "policies" / "map").glob("*.zip"))
+    assert scenarios[-1] == "mixed" and result["episodes"] == 2
+    assert all(
+        "genie" not in row and row["map vs spatial PPO"].endswith("]") for row in result["rows"]
+    )
+
+
+def test_clone_gap_fits_then_adds_dagger_rounds_and_flies_each_copy() -> None:
+    result = run_json(
+        "clone_gap.py",
+        "--sweep",
+        str(ROOT / "sweeps" / "map.toml"),
+        "--scenario",
+        "straight_90",
+        "--rounds",
+        "1",
+        "--epochs",
+        "2",
+        "--clone-episodes",
+        "2",
+        "--episodes",
+        "3",
+        "--policy",
+        str(ROOT / "policies" / "map" / "straight_90.zip"),
+    )
+    stages = [row["stage"] for row in result["rows"]]
+    assert stages == [
+        "clone",
+        "dagger 1",
+        f"policy {ROOT / 'policies' / 'map' / 'straight_90.zip'}",
+    ]
+    clone, dagger, policy = result["rows"]
+    assert (
+        dagger["samples"] == 2 * clone["samples"] == 2 * 2 * 128
+    )  # the copy's flying added to the teacher's
+    assert clone["mbps"] != dagger["mbps"] or clone["mse"] != dagger["mse"]  # refitted
+    for row in result["rows"]:
+        lo, hi = row["ci95"]
+        assert lo <= row["vs_teacher"] <= hi
+    assert policy["mbps"] > 0 and result["teacher_mbps"] > 0
