@@ -9,7 +9,7 @@ VENV := .venv
 BIN := $(VENV)/bin
 STAMP := $(VENV)/.installed
 
-.PHONY: demo test research-test lint docs wheel-check bench clean
+.PHONY: demo test research-test lint docs wheel-check results bench clean
 
 # pip byte-compiles what it installs one file at a time (about a minute, mostly torch's); compileall
 # does the same on every core. A file this Python cannot compile (torch ships a 3.12-only example)
@@ -62,6 +62,14 @@ lint: $(STAMP)
 # shipped policy and a shipped fleet policy from another folder (.ci/wheel-check).
 wheel-check: $(STAMP)
 	PYTHON=$(BIN)/python bash .ci/wheel-check
+
+# docs/results.md and docs/results/, every section, from the shipped policies and the sweep records
+# beside them (policies/*.sweep.json: a fresh clone needs no runs/): about 35 minutes on 2 cores.
+results: $(STAMP)
+	$(BIN)/uavlink evaluate --scenario all --policy policies/ --episodes 100 --seed 0 \
+		--out docs/results --markdown docs/results.md --sweep sweeps/table1.toml \
+		--sweep sweeps/table1_spatial.toml --sweep sweeps/fleet.toml --spatial policies/spatial \
+		--fleet policies/fleet --map policies/map --sweep sweeps/map.toml
 
 bench: $(STAMP)
 	$(BIN)/python benchmarks/env_throughput.py
