@@ -80,7 +80,10 @@ def run_fly(args: argparse.Namespace) -> int:
     status = StatusLine(args, loop_cfg.frames)
     start = time.monotonic()
     with steady_heap(), sitl as urls:  # frozen before the vehicles talk to us
-        flown = (_fly_fleet if fleet else _fly_one)(urls, tlog, key, pilot, cfg, loop_cfg, status)
+        if isinstance(pilot, FleetPilot):  # fleet: built above
+            flown = _fly_fleet(urls, tlog, key, pilot, cfg, loop_cfg, status)
+        else:
+            flown = _fly_one(urls, tlog, key, pilot, cfg, loop_cfg, status)
     status.end()
     summary = {
         **episode_fields(args, cfg, flown.pop("episode"), loop_cfg.frames),
