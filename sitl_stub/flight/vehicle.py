@@ -163,8 +163,8 @@ class Vehicle:
         """OFFBOARD, refused unless a setpoint arrived within COM_OF_LOSS_T (PX4 commander)."""
         if not self.offboard_stream_ok():
             return Outcome(Result.DENIED, "Switching to Offboard denied: no setpoint stream")
-        self.mode = FlightMode.OFFBOARD
         assert self.offboard.setpoint is not None  # a live stream has a setpoint
+        self.mode = FlightMode.OFFBOARD
         self._target, self._yaw_target = self.offboard.setpoint, self.offboard.yaw_rad
         return ACCEPTED
 

@@ -114,7 +114,7 @@ def plot_trajectories(row: ScenarioRow, half_width_m: float, path: Path) -> None
         )
     for key, color in (("ppo", "tab:red"), ("aoa", "tab:blue"), ("oracle", "tab:green")):
         t = row.results[key].trajectory
-        assert t is not None
+        assert t is not None  # recorded as for ppo
         ax.plot(
             t.uav_xy_m[:, 0, 0],
             t.uav_xy_m[:, 0, 1],
