@@ -22,6 +22,7 @@ import signal
 import sys
 import threading
 from collections.abc import Callable, Sequence
+from typing import TYPE_CHECKING
 
 from sitl_stub.core.geo import GeoOrigin
 from sitl_stub.core.params import PARAM_DEFS
@@ -33,6 +34,9 @@ from uavlink.config import MIXED, SCENARIO_NAMES, parse_settings
 from uavlink.errors import OneLineParser
 from uavlink.mavlink.connection import normalize_connection
 from uavlink.mavlink.signing import load_key
+
+if TYPE_CHECKING:
+    from sitl_stub.fleet import FleetServer
 
 
 class _LogFormat(logging.Formatter):
@@ -297,12 +301,11 @@ def main(argv: Sequence[str] | None = None, payload_factory: PayloadFactory | No
         print(f"{PROG}: error: cannot open {exc.strerror or exc}{hint}", file=sys.stderr)
         return 1
     signing = f"signing on (key {hashlib.sha256(key).hexdigest()[:8]})" if key else "signing off"
-    who = (
-        f"vehicle {server.system_id}"
-        if args.fleet is None
-        else f"fleet of {args.fleet} vehicles ({'no' if args.no_payload else 'one shared'} radio world)"
-    )
-    count = len(payloads) if args.fleet is None else len(server.world.views) if server.world else 0
+    if isinstance(server, SitlServer):  # one vehicle: args.fleet is None
+        who, count = f"vehicle {server.system_id}", len(payloads)
+    else:
+        who = f"fleet of {args.fleet} vehicles ({'no' if args.no_payload else 'one shared'} radio world)"
+        count = len(server.world.views) if server.world else 0
     stop = threading.Event()
 
     def _on_signal(signum: int, _frame: object) -> None:
@@ -332,7 +335,7 @@ def main(argv: Sequence[str] | None = None, payload_factory: PayloadFactory | No
     return 0
 
 
-def _fleet(args: argparse.Namespace, base: ServerConfig, options: PayloadOptions):
+def _fleet(args: argparse.Namespace, base: ServerConfig, options: PayloadOptions) -> FleetServer:
     """``--fleet D``: D vehicles around one radio world (:mod:`sitl_stub.fleet`)."""
     from sitl_stub.fleet import FleetServer, FleetWorld, fleet_configs, spawn_points_ne
     from sitl_stub.sim.radio_payload import payload_env

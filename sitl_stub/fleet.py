@@ -217,7 +217,7 @@ class FleetServer:
         while True:
             t = vehicles[0].t
             boundary = world.next_frame * world.frame_s if world else math.inf
-            if boundary <= t + 1e-6:
+            if world is not None and boundary <= t + 1e-6:  # no world: boundary is inf
                 world.tick([v.state() for v in vehicles])
                 for server in self.servers:
                     server._tick(server._slots[0], boundary)

@@ -68,7 +68,7 @@ def _to_onnx_bytes(actor: Any, obs_size: int, opset: int) -> bytes:
         torch.onnx.export(
             actor,
             (torch.zeros(1, obs_size, dtype=torch.float32),),
-            buffer,
+            buffer,  # type: ignore[arg-type]  # typed as a path; the TorchScript exporter takes a file
             input_names=[INPUT_NAME],
             output_names=[OUTPUT_NAME],
             opset_version=opset,

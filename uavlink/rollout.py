@@ -26,7 +26,8 @@ from uavlink.seeding import Stream
 class Actor(Protocol):
     """What a rollout flies: ``uavlink.policies.base.Policy``, or a teacher that reads ground truth."""
 
-    needs_truth: bool
+    @property
+    def needs_truth(self) -> bool: ...  # read-only: a class attribute satisfies it
 
     def act(self, obs: np.ndarray, truth: GroundTruth | None = None) -> np.ndarray: ...
 

@@ -11,8 +11,9 @@ PX4's multicopter position controller takes them (``vel_sp = vel_ff + K * pos_er
 from __future__ import annotations
 
 import math
-from collections.abc import Mapping
+from collections.abc import Iterable, Mapping
 from dataclasses import dataclass
+from typing import TypeVar
 
 from sitl_stub.core.modes import FlightMode
 from sitl_stub.flight.pos_control import (
@@ -34,6 +35,15 @@ YAW_HOLD_INITIAL = 1
 YAW_UNCONTROLLED = 2
 YAW_FRONT_TANGENT = 3
 
+T = TypeVar("T")
+
+
+def three(values: Iterable[T]) -> tuple[T, T, T]:
+    """The three per-axis items of ``values`` (north, east, down) as a 3-tuple: what
+    ``tuple(generator)`` over an NED vector builds, with its length known to the type checker."""
+    north, east, down = values
+    return north, east, down
+
 
 @dataclass(frozen=True)
 class Motion:
@@ -48,9 +58,8 @@ class Motion:
         self, position: tuple[float, float, float], current: list[float]
     ) -> tuple[float, float, float]:
         """``position`` with its free axes replaced by the ``current`` position."""
-        return tuple(
-            c if free else p
-            for p, c, free in zip(position, current, self.free_axes, strict=True)  # type: ignore[return-value]
+        return three(
+            c if free else p for p, c, free in zip(position, current, self.free_axes, strict=True)
         )
 
 
@@ -196,16 +205,16 @@ class Guidance:
             return ControlCommand((NAN, NAN, o.down_m), ff, o.yaw(pos[0], pos[1]))
         if mode is FlightMode.OFFBOARD and self.motion is not None:
             m = self.motion
-            tgt = tuple(NAN if free else t for free, t in zip(m.free_axes, target, strict=True))
+            tgt = three(NAN if free else t for free, t in zip(m.free_axes, target, strict=True))
             bounds = (
                 (-fence_m, fence_m, acc_xy_mps2),
                 (-fence_m, fence_m, acc_xy_mps2),
                 (-ceiling_m, 0.0, ACC_Z_MPS2),
             )
-            ff = tuple(
+            ff = three(
                 brake_before(p, v, lo, hi, acc)
                 for p, v, (lo, hi, acc) in zip(pos, m.velocity_ned, bounds, strict=True)
             )
             yaw = None if m.yaw_rate_radps is not None else yaw_target
-            return ControlCommand(tgt, ff, yaw, m.yaw_rate_radps)  # type: ignore[arg-type]
+            return ControlCommand(tgt, ff, yaw, m.yaw_rate_radps)
         return ControlCommand(target, (0.0, 0.0, 0.0), yaw_target)

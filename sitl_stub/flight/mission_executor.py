@@ -137,18 +137,21 @@ class MissionExecutor:
         if c == DO_CHANGE_SPEED:
             if item.param2 > 0:
                 self._speed = float(item.param2)
-            return self._done(item)
+            self._done(item)
+            return None
         if c == DO_JUMP:
             count = self._jumps.get(item.seq, 0)
             if count < int(item.param2) and self.store.set_current(int(item.param1)):
                 self._jumps[item.seq] = count + 1
                 return None
-            return self._advance()
+            self._advance()
+            return None
         if c == NAV_TAKEOFF:
             alt = self._altitude(item, item.z)
             alt = max(alt if alt > 0 else self.params["MIS_TAKEOFF_ALT"], -self._phase_start[2])
             if -pos[2] >= alt - ALT_ACCEPT_M:
-                return self._done(item)
+                self._done(item)
+                return None
             return Leg((self._phase_start[0], self._phase_start[1], -alt), takeoff=True)
         if c == NAV_RETURN_TO_LAUNCH:
             self._done(item)
@@ -159,17 +162,20 @@ class MissionExecutor:
             if not self._descending and math.hypot(n - pos[0], e - pos[1]) < LAND_XY_ACCEPT_M:
                 self._descending = True
             if self._descending and landed:
-                return self._done(item)
+                self._done(item)
+                return None
             down = 1.0 if self._descending else self._phase_start[2]  # 1 m below ground: touch down
             return Leg((n, e, down), self._speed, landing=self._descending)
         if c not in (NAV_WAYPOINT, NAV_LOITER_TIME, NAV_LOITER_UNLIM):
-            return self._advance()  # not flown here (PX4 refuses most at upload)
+            self._advance()  # not flown here (PX4 refuses most at upload)
+            return None
         leg = Leg((n, e, -self._altitude(item, item.z)), self._speed)
         if self._hold_since is None and self._arrived(item, leg.target_ned, pos):
             self._hold_since = t
         hold_s = item.param1 if c in (NAV_LOITER_TIME, NAV_WAYPOINT) else math.inf
         if self._hold_since is not None and t - self._hold_since >= max(0.0, hold_s):
-            return self._done(item)
+            self._done(item)
+            return None
         return leg
 
     def _arrived(
@@ -184,7 +190,7 @@ class MissionExecutor:
 
     def _done(self, item: MissionItem) -> None:
         self._reached.append(item.seq)
-        return self._advance()
+        self._advance()
 
     def _advance(self) -> None:
         seq = self.store.current_seq

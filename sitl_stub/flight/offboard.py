@@ -35,7 +35,8 @@ class OffboardStream:
         if not all(math.isfinite(v) for v in ned):
             self.setpoints_rejected += 1
             return None
-        sp = fence(tuple(float(v) for v in ned))
+        north, east, down = ned
+        sp = fence((float(north), float(east), float(down)))
         if sp != ned:
             self.setpoints_clamped += 1
         self.setpoint, self.time_s = sp, t_s

@@ -23,6 +23,7 @@ from __future__ import annotations
 
 import math
 from collections import deque
+from collections.abc import Callable
 
 from sitl_stub.core.geo import GeoOrigin
 from sitl_stub.core.mission_store import RALLY, MissionStore
@@ -162,6 +163,7 @@ class Vehicle:
         """OFFBOARD, refused unless a setpoint arrived within COM_OF_LOSS_T (PX4 commander)."""
         if not self.offboard_stream_ok():
             return Outcome(Result.DENIED, "Switching to Offboard denied: no setpoint stream")
+        assert self.offboard.setpoint is not None  # a live stream has a setpoint
         self.mode = FlightMode.OFFBOARD
         self._target, self._yaw_target = self.offboard.setpoint, self.offboard.yaw_rad
         return ACCEPTED
@@ -170,14 +172,15 @@ class Vehicle:
         """Enter ``mode`` as DO_SET_MODE would; re-entering the current mode is a no-op."""
         if mode is self.mode:
             return ACCEPTED
-        return {
+        enter: dict[FlightMode, Callable[[], Outcome]] = {
             FlightMode.TAKEOFF: self.takeoff,
             FlightMode.LOITER: self.hold,
             FlightMode.LAND: self.land,
             FlightMode.RTL: self.return_to_launch,
             FlightMode.OFFBOARD: self.start_offboard,
             FlightMode.MISSION: self.start_mission,
-        }[mode]()
+        }
+        return enter[mode]()
 
     def start_mission(self, first_seq: int | None = None) -> Outcome:
         """AUTO.MISSION, resuming at the current item (MISSION_START: from ``first_seq``)."""

@@ -150,10 +150,10 @@ class MessageHandler:
             if msg.tc1 == 0:
                 self.mav.timesync_send(int(self.vehicle.t * 1e9), msg.ts1)
         elif kind == "FILE_TRANSFER_PROTOCOL":
-            reply = ftp_reply(msg.payload) if self._for_autopilot(msg) else None
-            if reply is not None:
+            ftp = ftp_reply(msg.payload) if self._for_autopilot(msg) else None
+            if ftp is not None:
                 self.mav.file_transfer_protocol_send(
-                    0, msg.get_srcSystem(), msg.get_srcComponent(), reply
+                    0, msg.get_srcSystem(), msg.get_srcComponent(), ftp
                 )
         elif kind.startswith("MISSION_"):
             self.missions.handle(msg, wall)
@@ -307,9 +307,10 @@ class MessageHandler:
     def _request(
         msg: Any, command: int, params: tuple, confirmation: int = 0, frame: int | None = None
     ) -> CommandRequest:
+        p1, p2, p3, p4, p5, p6, p7 = (float(p) for p in params)  # a command has seven params
         return CommandRequest(
             int(command),
-            tuple(float(p) for p in params),
+            (p1, p2, p3, p4, p5, p6, p7),
             int(confirmation),
             frame,
             msg.get_srcSystem(),

@@ -28,9 +28,9 @@ class ParamProtocol:
             for name in self.store:
                 self.send_value(name)
         elif kind == "PARAM_REQUEST_READ":
-            name = self.store.name_at(msg.param_index) if msg.param_index >= 0 else _name(msg)
-            if name in self.store:
-                self.send_value(name)
+            wanted = self.store.name_at(msg.param_index) if msg.param_index >= 0 else _name(msg)
+            if wanted is not None and wanted in self.store:  # None: no parameter at that index
+                self.send_value(wanted)
         elif kind == "PARAM_SET":
             name = _name(msg)
             if name not in self.store:

@@ -246,10 +246,10 @@ class SitlServer:
         and the vehicle's safety monitors (geofence, offboard setpoint age, failsafes, battery)."""
         s = self._snapshot
         acks = {k[4:]: v for k, v in sorted(self.stats.items()) if k.startswith("ack_")}
-        payloads = {
-            str(p.component_id): p.summary()
+        payloads = {  # summary() is optional (the payload hook's contract)
+            str(p.component_id): summary()
             for p in self._payloads
-            if callable(getattr(p, "summary", None))
+            if callable(summary := getattr(p, "summary", None))
         }
         return {
             "links": [spec.describe() for spec in self.link_specs],
@@ -392,9 +392,10 @@ def step_vehicles(vehicles: Sequence[Vehicle], end_s: float, whole_substeps: boo
 
 def _holds_clock(slots: Sequence[PayloadSlot], state: VehicleState) -> bool:
     """Whether a lockstep payload holds time at its frame (its optional ``holds_clock``)."""
-    return any(
-        getattr(slot.payload, "lockstep", False)
-        and getattr(slot.payload, "holds_clock", None)
-        and slot.payload.holds_clock(state)
-        for slot in slots
-    )
+    for slot in slots:
+        if not getattr(slot.payload, "lockstep", False):
+            continue
+        holds_clock = getattr(slot.payload, "holds_clock", None)  # optional: not in the Protocol
+        if holds_clock and holds_clock(state):
+            return True
+    return False

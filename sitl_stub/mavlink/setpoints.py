@@ -13,7 +13,7 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 
-from sitl_stub.flight.guidance import Motion, body_to_ned
+from sitl_stub.flight.guidance import Motion, body_to_ned, three
 
 IGNORE_POSITION = (0x1, 0x2, 0x4)
 IGNORE_VELOCITY = (0x8, 0x10, 0x20)
@@ -49,7 +49,7 @@ def read_setpoint(
 ) -> Setpoint | Refusal:
     """The setpoint a SET_POSITION_TARGET_* message asks for. ``body_yaw_rad`` is the vehicle's
     heading when the frame is a body frame (velocity forward/right/down; positions refused)."""
-    free = tuple(bool(type_mask & bit) for bit in IGNORE_POSITION)
+    free = three(bool(type_mask & bit) for bit in IGNORE_POSITION)
     vel_used = tuple(not type_mask & bit for bit in IGNORE_VELOCITY)
     if all(free) and not any(vel_used):
         return Refusal(
@@ -73,7 +73,7 @@ def read_setpoint(
             "setpoint_frame",
             "body-frame setpoints carry velocities only: send positions in MAV_FRAME_LOCAL_NED",
         )
-    vel = tuple(v if used else 0.0 for v, used in zip(velocity, vel_used, strict=True))
+    vel = three(v if used else 0.0 for v, used in zip(velocity, vel_used, strict=True))
     if not all(math.isfinite(v) for v in vel):  # positions: the vehicle checks (and counts)
         return Refusal("setpoint_not_finite", f"setpoint with a NaN/infinite velocity {velocity}")
     if body_yaw_rad is not None:
@@ -84,7 +84,7 @@ def read_setpoint(
         if yaw is None and not type_mask & IGNORE_YAW_RATE and math.isfinite(yaw_rate_radps)
         else None
     )
-    pos = tuple(math.nan if f else p for p, f in zip(position_ned, free, strict=True))
+    pos = three(math.nan if f else p for p, f in zip(position_ned, free, strict=True))
     if not any(free) and not any(vel_used):
-        return Setpoint(pos, yaw, None)  # type: ignore[arg-type]
-    return Setpoint(pos, yaw, Motion(vel, free, rate))  # type: ignore[arg-type]
+        return Setpoint(pos, yaw, None)
+    return Setpoint(pos, yaw, Motion(vel, free, rate))

@@ -7,6 +7,7 @@ import argparse
 import dataclasses
 import json
 import sys
+from collections.abc import Sequence
 from pathlib import Path
 
 from uavlink.cli.options import (
@@ -54,6 +55,7 @@ def cmd_evaluate(args: argparse.Namespace) -> int:
     results, comparisons = [], []
     overrides = EnvOverrides.from_command_line(None, args.aoa_noise_deg, args.overrides)
     specs = [args.policy, *(args.against or [])]
+    scenarios: Sequence[str | None]
     if args.scenario is None and Path(args.policy).is_file():
         # the file's manifest names it; a baseline beside it flies the file's world
         scenarios = [None]

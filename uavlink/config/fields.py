@@ -16,7 +16,7 @@ import math
 import types
 from collections.abc import Callable
 from functools import cache
-from typing import Any, Union, get_args, get_origin, get_type_hints
+from typing import Any, TypeGuard, Union, get_args, get_origin, get_type_hints
 
 from uavlink.errors import ConfigError
 
@@ -61,11 +61,17 @@ def _hints(cls: type) -> dict[str, Any]:
     return get_type_hints(cls)
 
 
+def _is_config(hint: Any) -> TypeGuard[type]:
+    """Whether an annotation names a nested config dataclass (annotations are classes, so a
+    dataclass here is a class: the guard tells the type checker so)."""
+    return dataclasses.is_dataclass(hint)
+
+
 def _group(cls: type, path: str) -> type | None:
     """The nested config dataclass a dotted path names (``area``), or None if it names none."""
     head, _, tail = path.partition(".")
     hint = _hints(cls).get(head)
-    if not dataclasses.is_dataclass(hint):
+    if not _is_config(hint):
         return None
     return _group(hint, tail) if tail else hint
 
@@ -92,7 +98,7 @@ def field_paths(cls: type, prefix: str = "") -> list[str]:
     """Every settable dotted path of a config dataclass (``radio.shadowing``), in declaration order."""
     paths = []
     for f, hint in config_fields(cls):
-        nested_cls = hint if dataclasses.is_dataclass(hint) else None
+        nested_cls = hint if _is_config(hint) else None
         paths += field_paths(nested_cls, f"{prefix}{f.name}.") if nested_cls else [prefix + f.name]
     return paths
 
@@ -103,7 +109,7 @@ def resolve(cls: type, path: str) -> tuple[type, str] | None:
     hint = _hints(cls).get(head)
     if hint is None:
         return None
-    if dataclasses.is_dataclass(hint):
+    if _is_config(hint):
         return resolve(hint, tail) if tail else None
     return None if tail else (cls, head)
 
@@ -120,8 +126,8 @@ _WHAT = {
 def coerce(cls: type, path: str, value: Any, label: str) -> Any:
     """``value`` as the field at ``path`` of ``cls`` takes it (ints become floats where the field is
     a float, a list becomes a tuple); a ``ConfigError`` naming ``label`` if it has the wrong type."""
-    owner, name = resolve(cls, path) or (None, None)
-    if owner is None:
+    found = resolve(cls, path)
+    if found is None:
         group = _group(cls, path)
         if (
             group is not None
@@ -138,6 +144,7 @@ def coerce(cls: type, path: str, value: Any, label: str) -> Any:
             else f"the keys: the fields of {cls.__module__}.{cls.__name__}"
         )
         raise ConfigError(f"unknown config key {label!r} ({hint})")
+    owner, name = found
     base, optional = kind(_hints(owner)[name])
     if value is None and optional:
         return None
@@ -167,7 +174,7 @@ def check_fields(config: Any, name: Namer) -> None:
     declared them; a nested config must be its dataclass (its own ``validate()`` checks its fields)."""
     for f, hint in config_fields(type(config)):
         value, path = getattr(config, f.name), f.name
-        if dataclasses.is_dataclass(hint):
+        if _is_config(hint):
             if not isinstance(value, hint):
                 raise ConfigError(f"{name(path)} must be {_a(hint)}, got {value!r}")
             continue
@@ -233,7 +240,7 @@ def add_options(parser: argparse.ArgumentParser, cls: type, prefix: str = "") ->
     and help; ``from_options`` turns the parsed namespace back into the config."""
     defaults = cls()
     for f, hint in config_fields(cls):
-        if dataclasses.is_dataclass(hint):
+        if _is_config(hint):
             add_options(parser, hint, f"{prefix}{f.name}_")
             continue
         default, meta = getattr(defaults, f.name), f.metadata
@@ -264,7 +271,7 @@ def from_options(cls: type, args: argparse.Namespace, prefix: str = "") -> Any:
     """The config ``add_options``' flags describe, from the parsed namespace (not yet validated)."""
     values = {}
     for f, hint in config_fields(cls):
-        if dataclasses.is_dataclass(hint):
+        if _is_config(hint):
             values[f.name] = from_options(hint, args, f"{prefix}{f.name}_")
         else:
             value = getattr(args, prefix + f.name)

@@ -71,7 +71,9 @@ class ActionMapping:
         rad = np.radians(angle_deg)
         return distance_m[:, None] * np.stack([np.cos(rad), np.sin(rad)], axis=1)
 
-    def from_polar(self, angle_deg: np.ndarray, distance_m: np.ndarray) -> np.ndarray:
+    def from_polar(
+        self, angle_deg: float | np.ndarray, distance_m: float | np.ndarray
+    ) -> np.ndarray:
         """Inverse mapping, for rule-based policies that think in angles and metres."""
         fraction = np.clip(np.asarray(distance_m) / self.r_max_m, 0.0, 1.0)
         if self.kind == POLAR:

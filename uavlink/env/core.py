@@ -89,7 +89,7 @@ class BatchedUavEnv:
         self.uav_xy_m = self._start_xy_m.copy()
         self.setpoint_xy_m = self._start_xy_m.copy()
         self.uav_velocity_mps = np.zeros_like(self.uav_xy_m)
-        self.mobility = None
+        self.mobility: MobilityState | None = None  # both set by reset()
         self.readings: RadioReadings | None = None
 
     def _seed(self, seed: int | np.random.SeedSequence | None) -> None:
@@ -172,6 +172,7 @@ class BatchedUavEnv:
     def _sensed(self) -> dict[str, np.ndarray]:
         """The observation's inputs per agent row: position, what its UAV hears, fleet fields."""
         r, rows = self.readings, (self.n_rows, -1)
+        assert r is not None  # called after reset() set the readings
         fleet = (
             {} if self.n_uavs == 1 else fleet_quantities(self._per_env(self.uav_xy_m), r.serving)
         )

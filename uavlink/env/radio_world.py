@@ -14,6 +14,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
+import numpy.typing as npt
 
 from uavlink.config import MIXED, SCENARIOS, EnvConfig
 from uavlink.env.core import BatchedUavEnv
@@ -61,21 +62,25 @@ class RadioWorld:
     def readings(self, uav: int = 0) -> UavReadings:
         """The current frame's readings at UAV ``uav`` (index into the world's UAVs)."""
         r = self._env.readings
+        assert r is not None  # the env was reset in __init__
         return UavReadings(r.heard_sinr_db[0, uav], r.heard_aoa_deg[0, uav], r.serving[0] == uav)
 
     def ue_xy_m(self) -> np.ndarray:
         """(U, 2) the UEs' true positions now, metres east and north (truth: for pictures only)."""
+        assert self._env.mobility is not None  # the env was reset in __init__
         return self._env.mobility.position_m[0].copy()
 
     def ue_velocity_mps(self) -> np.ndarray:
         """(U, 2) the UEs' true velocities now, m/s east and north (truth: for pictures only)."""
+        assert self._env.mobility is not None  # the env was reset in __init__
         return self._env.mobility.velocity_mps[0].copy()
 
-    def advance(self, uav_xy_m: np.ndarray) -> FrameScore:
+    def advance(self, uav_xy_m: npt.ArrayLike) -> FrameScore:
         """Move the UEs one frame with the UAVs at ``uav_xy_m`` ((n_uavs, 2) or (2,), metres east
         and north, clipped to the area) and score the new frame."""
         xy = np.asarray(uav_xy_m, dtype=float).reshape(self.n_uavs, 2)
         result = self._env.step_to(xy)
+        assert self._env.readings is not None  # step_to() set them
         return FrameScore(
             float(result.mean_rate_mbps[0]),
             float(result.fair_rate[0]),

@@ -19,7 +19,6 @@ import numpy as np
 from stable_baselines3.common.vec_env.base_vec_env import (
     VecEnv,
     VecEnvIndices,
-    VecEnvObs,
     VecEnvStepReturn,
 )
 
@@ -52,7 +51,7 @@ class UavVecEnv(VecEnv):
         self._returns = np.zeros(self.core.n_rows)
         self._rate_sums = np.zeros(n_envs)
 
-    def reset(self) -> VecEnvObs:
+    def reset(self) -> np.ndarray:
         """Restart every episode (with the seed ``seed()`` set, once); observations (N D, obs)."""
         obs = self.core.reset(self._next_seed)
         self._next_seed = None
@@ -66,6 +65,7 @@ class UavVecEnv(VecEnv):
 
     def step_wait(self) -> VecEnvStepReturn:
         """Step every row; at an episode's end, reset and report as the module docstring says."""
+        assert self._actions is not None  # SB3's step() calls step_async() first
         result = self.core.step(self._actions)
         self._returns += result.reward
         self._rate_sums += result.mean_rate_mbps
@@ -99,7 +99,7 @@ class UavVecEnv(VecEnv):
         """The core's attribute (or this VecEnv's, e.g. ``render_mode``), the batch's value once
         per index (see the class docstring)."""
         owner = self.core if hasattr(self.core, attr_name) else self  # e.g. render_mode lives here
-        return [getattr(owner, attr_name)] * len(self._get_indices(indices))
+        return [getattr(owner, attr_name)] * self._count(indices)
 
     def set_attr(self, attr_name: str, value: Any, indices: VecEnvIndices = None) -> None:
         """Set the core's attribute for the whole batch; ``indices`` must cover every row (one value
@@ -117,7 +117,12 @@ class UavVecEnv(VecEnv):
         """Call the core's method once, on the whole batch, and return its result once per index
         (see the class docstring); a method that changes state changes every env."""
         result = getattr(self.core, method_name)(*method_args, **method_kwargs)
-        return [result] * len(self._get_indices(indices))
+        return [result] * self._count(indices)
+
+    def _count(self, indices: VecEnvIndices) -> int:
+        """How many entries ``indices`` names (SB3's ``_get_indices``: a range, a list or the
+        given indices)."""
+        return len(list(self._get_indices(indices)))
 
     def env_is_wrapped(
         self, wrapper_class: type[gym.Wrapper], indices: VecEnvIndices = None
@@ -125,4 +130,4 @@ class UavVecEnv(VecEnv):
         """False for every index: the batch is no gymnasium env, so no gymnasium wrapper (e.g. SB3's
         ``Monitor``, which is why SB3's ``VecMonitor`` and ``evaluate_policy`` ask) wraps it; the
         ``info["episode"]`` it would add is written by ``step_wait``."""
-        return [False] * len(self._get_indices(indices))
+        return [False] * self._count(indices)

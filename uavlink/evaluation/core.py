@@ -143,6 +143,7 @@ def evaluate_policy(
     for chunk in chunks(cfg, EVAL, episodes, seed):
         keep = record_trajectory and chunk.index == 0
         env = chunk.env
+        assert env.mobility is not None and env.readings is not None  # the chunk's env is reset
         uav, ue, serving = (
             [env.uav_xy_m[:d].copy()],
             [env.mobility.position_m[0].copy()],

@@ -53,7 +53,7 @@ def sensitivity(
                 },
             )
         )
-        specs = {
+        specs: dict[str, str | Path] = {
             "static": "static",
             "genie": "genie",
             "explore": "explore",

@@ -66,6 +66,7 @@ def fly_place_map(policy: Policy, cfg: EnvConfig, seed: int) -> PlaceMapEpisode:
         grid, truth.ue_xy_m[:1], field, cfg.radio, cfg.area.uav_altitude_m
     )  # (1, U, n, n)
     memory = env.place_memory
+    assert memory is not None  # place_cell_m > 0, checked above
     side = memory.n_side
     sensed = np.isfinite(memory.score[0]).reshape(side, side)
     remembered = np.where(sensed, per_ue_mbps * memory.value[0].reshape(side, side), np.nan)

@@ -102,6 +102,7 @@ def plot_trajectories(row: ScenarioRow, half_width_m: float, path: Path) -> None
 
     fig, ax = plt.subplots(figsize=(5.5, 5.5))
     traj = row.results["ppo"].trajectory
+    assert traj is not None  # table one's columns are evaluated with record_trajectory
     for u in range(traj.ue_xy_m.shape[1]):
         ax.plot(
             traj.ue_xy_m[:, u, 0],
@@ -113,6 +114,7 @@ def plot_trajectories(row: ScenarioRow, half_width_m: float, path: Path) -> None
         )
     for key, color in (("ppo", "tab:red"), ("aoa", "tab:blue"), ("oracle", "tab:green")):
         t = row.results[key].trajectory
+        assert t is not None  # recorded as for ppo
         ax.plot(
             t.uav_xy_m[:, 0, 0],
             t.uav_xy_m[:, 0, 1],
@@ -165,6 +167,7 @@ def write_results(
             run, policy_folder, spatial_folder, rows, sweep_sections(rel, "spatial")
         )
     if map_folder is not None and spatial_folder is not None:
+        assert teacher_of is not None  # checked above
         spatial += map_sections(
             run, map_folder, spatial_folder, sweep_sections(rel, "map"), teacher_of
         )

@@ -152,7 +152,8 @@ def plot_fleet_trajectory(
     import matplotlib.pyplot as plt
 
     t = result.trajectory
-    colors = plt.get_cmap("tab10").colors
+    assert t is not None  # evaluated with record_trajectory
+    colors = matplotlib.color_sequences["tab10"]  # the tab10 colormap's colours, as a list
     fig, ax = plt.subplots(figsize=(5.5, 5.5))
     ue = t.ue_xy_m.reshape(-1, 2)
     ax.scatter(

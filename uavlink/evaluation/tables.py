@@ -85,7 +85,7 @@ def evaluate_scenarios(
     genie on the spatial channel), and the mixed policy if any."""
     rows = []
     mixed = policy_file(policy_folder, MIXED)
-    columns = {
+    columns: dict[str, str | Path] = {
         "ppo": policy_folder,
         **{name: name for name in (*TABLE_ONE_BASELINES, *extra)},
         **({"ppo_mixed": mixed} if mixed is not None else {}),

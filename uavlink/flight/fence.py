@@ -76,6 +76,7 @@ def upload_area_fence(link: VehicleLink, half_width_m: float) -> bool:
             "(the flight loop keeps its targets inside the area)"
         )
         return False
+    assert link.target_system is not None  # a HOME_POSITION came from it: the target is known
     client = MissionClient(
         link.conn.mav, link.recv_mission, link.target_system, link.target_component
     )

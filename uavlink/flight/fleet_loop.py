@@ -85,7 +85,7 @@ def fleet_setpoints(
 class FleetPilot(PolicyPilot):
     """The policy on a fleet's D agent rows: observation rows as the env builds them."""
 
-    def decide(
+    def decide(  # type: ignore[override]  # a fleet's decide takes every vehicle's report
         self, reports: Sequence[RadioReport], uav_xy_m: np.ndarray, first: bool
     ) -> np.ndarray:
         """East/north moves (D, 2), m; holds (zero moves) if the policy misbehaves."""
@@ -228,14 +228,11 @@ class _Loop:
     def _take_reports(self, now: float) -> None:
         for i, source in enumerate(self.sources):
             for r in source.take_reports():
-                if not r.running or (
-                    self.newest[i] is not None and r.frame <= self.newest[i].frame
-                ):
+                last = self.newest[i]
+                if not r.running or (last is not None and r.frame <= last.frame):
                     continue
-                if self.newest[i] is not None and self.decided >= 0:
-                    self.result.frames_missed += (
-                        max(0, r.frame - self.newest[i].frame - 1) if i == 0 else 0
-                    )
+                if last is not None and self.decided >= 0:
+                    self.result.frames_missed += max(0, r.frame - last.frame - 1) if i == 0 else 0
                 self.newest[i] = r
                 self.seen_at.setdefault(r.frame, now)
                 self.last_radio = now
@@ -244,11 +241,17 @@ class _Loop:
                     self.result.first_frame = r.frame
                     self.result.episode = dict(self.links[i].radio_episode)
 
+    def _reports(self) -> list[RadioReport] | None:
+        """Every vehicle's newest report; None while one has sent none yet."""
+        reports = [r for r in self.newest if r is not None]
+        return reports if len(reports) == len(self.newest) else None
+
     def _frame_to_decide(self, now: float) -> int | None:
         """The newest frame, once every live vehicle has reported it (or waiting is over)."""
-        if any(r is None for r in self.newest):
+        reports = self._reports()
+        if reports is None:
             return None  # every UAV's readings are needed once, for the first observation
-        frame = max(r.frame for r in self.newest)
+        frame = max(r.frame for r in reports)
         if frame <= self.decided:
             return None
         if (
@@ -257,7 +260,7 @@ class _Loop:
             self._decided(frame)
             return None
         live = [now - link.last_rx_wall < LIVE_S for link in self.links]
-        have = [r.frame == frame for r in self.newest]
+        have = [r.frame == frame for r in reports]
         frame_wall_s = self.cfg.frame_s / self.links[0].speed_factor()
         if (
             all(h or not alive for h, alive in zip(have, live, strict=True))
@@ -269,10 +272,12 @@ class _Loop:
     def _decide(self, frame: int, arrived: float) -> None:
         links, result = self.links, self.result
         positions = np.array([[link.status.east_m, link.status.north_m] for link in links])
-        moves = self.pilot.decide(self.newest, positions, self.decided < 0)
+        reports = self._reports()
+        assert reports is not None  # _frame_to_decide waited for every vehicle's first report
+        moves = self.pilot.decide(reports, positions, self.decided < 0)
         movable = np.array(
             [
-                self.newest[i].frame == frame
+                reports[i].frame == frame
                 and not result.vehicles[i].released
                 and links[i].status.offboard
                 for i in range(len(links))
@@ -292,7 +297,7 @@ class _Loop:
             score = self.scores.get(frame)
             self.status(frame, self.targets[0], score.mean_rate_mbps if score else None)
 
-    def _decided(self, frame: int, moved: Sequence[bool] | None = None) -> None:
+    def _decided(self, frame: int, moved: Sequence[bool] | np.ndarray | None = None) -> None:
         """Frame ``frame`` is decided (every setpoint sent): a lockstep world may go on. ``moved``:
         which vehicles the policy steered in it (None: none, the frame is only let go)."""
         self.decided = frame

@@ -125,7 +125,10 @@ def fly_policy(options: FlyOptions, live_status: bool = False) -> dict[str, Any]
     status = StatusLine(live_status, loop_cfg.frames)
     start = time.monotonic()
     with steady_heap(), sitl as urls:  # frozen before the vehicles talk to us
-        flown = (_fly_fleet if fleet else _fly_one)(urls, tlog, key, pilot, cfg, loop_cfg, status)
+        if isinstance(pilot, FleetPilot):  # fleet: built above
+            flown = _fly_fleet(urls, tlog, key, pilot, cfg, loop_cfg, status)
+        else:
+            flown = _fly_one(urls, tlog, key, pilot, cfg, loop_cfg, status)
     status.end()
     summary = {
         **episode_fields(options, policy_path, cfg, flown.pop("episode"), loop_cfg.frames),

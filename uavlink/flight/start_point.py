@@ -10,12 +10,13 @@ the episode starts where evaluation's does: ``uavlink evaluate`` of the episode 
 
 from __future__ import annotations
 
+import functools
 import logging
 import math
-from collections.abc import Sequence
+from collections.abc import Iterable, Sequence
 
 from uavlink.flight.fence import local_origin
-from uavlink.flight.link import LinkError, VehicleLink
+from uavlink.flight.link import LinkError, VehicleLink, VehicleStatus
 from uavlink.mavlink.dialect import mavlink
 
 log = logging.getLogger(__name__)
@@ -26,7 +27,12 @@ AT_START_M = (
 TRANSIT_VEHICLE_S = 300.0  # vehicle seconds allowed for the transit
 
 
-def fly_to_starts(links: Sequence[VehicleLink], starts_en_m: Sequence[Sequence[float]]) -> None:
+def _at_start(st: VehicleStatus, east: float, north: float) -> bool:
+    """Whether the vehicle ``st`` reports is within :data:`AT_START_M` of (east, north)."""
+    return math.hypot(st.east_m - east, st.north_m - north) <= AT_START_M
+
+
+def fly_to_starts(links: Sequence[VehicleLink], starts_en_m: Iterable[Sequence[float]]) -> None:
     """Send every vehicle in the air that is further than :data:`AT_START_M` from its start (east,
     north in the local frame) there, then wait until all are within it (LinkError after
     :data:`TRANSIT_VEHICLE_S` of vehicle time)."""
@@ -57,9 +63,8 @@ def fly_to_starts(links: Sequence[VehicleLink], starts_en_m: Sequence[Sequence[f
             math.nan,
         )
     for link, (east, north) in away:
-        st = link.status
         link.wait_until(
-            lambda st=st, e=east, n=north: math.hypot(st.east_m - e, st.north_m - n) <= AT_START_M,
+            functools.partial(_at_start, link.status, east, north),
             TRANSIT_VEHICLE_S,
             "the flight to the episode's start position",
         )

@@ -21,6 +21,7 @@ import numpy as np
 
 from uavlink.config import EnvConfig
 from uavlink.learn.teachers import make_teacher
+from uavlink.policies.base import Policy
 from uavlink.rollout import Actor, rollout
 from uavlink.seeding import TEACHER
 
@@ -101,7 +102,7 @@ def clone_actor(
 def warm_start(
     sb3_policy: Any,
     cfg: EnvConfig,
-    teacher: str | Actor,
+    teacher: str | Policy,
     episodes: int,
     seed: int,
     epochs: int = CLONE_EPOCHS,

@@ -13,7 +13,7 @@ from __future__ import annotations
 
 import dataclasses
 from pathlib import Path
-from typing import Any
+from typing import Any, cast
 
 from uavlink.config import EnvConfig
 from uavlink.env.observation import ObservationLayout
@@ -57,7 +57,9 @@ def start_from_policy(
     _, params, _ = load_from_zip_file(path, device="cpu", print_system_info=False)
     target = sb3_policy.state_dict()
     loaded = {}
-    for name, value in params["policy"].items():
+    # SB3 types ``params`` as name -> tensor; each entry is a module's state dict.
+    policy_state = cast("dict[str, Any]", params["policy"])
+    for name, value in policy_state.items():
         if name not in target:
             raise UserError(
                 f"warm_start.policy {path}: its network has {name}, PPO's here does not"

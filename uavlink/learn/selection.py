@@ -68,10 +68,12 @@ def keep_best_callback(cfg: EnvConfig, episodes: int, seed: int):
 
         def _on_training_end(self) -> None:
             self._score()
+            assert self._best_state is not None  # _score() keeps the first point it scores
             self.model.policy.load_state_dict(self._best_state)
 
         def report(self) -> dict[str, Any]:
             """The manifest's ``training.validation``."""
+            assert self.kept is not None  # asked after training, which scored at least once
             return {
                 "episodes": episodes,
                 "stream": VALIDATION.name,

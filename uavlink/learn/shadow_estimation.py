@@ -75,7 +75,7 @@ class RandomHovers:
         self.rule, self.draws, self.name, self.layout = rule, draws, rule.name, rule.layout
 
     def act(self, obs: np.ndarray, truth: GroundTruth | None = None) -> np.ndarray:
-        hover = self.draws.random(obs.shape[0]) < HOVER_PROBABILITY
+        hover = self.draws.random(int(obs.shape[0])) < HOVER_PROBABILITY  # int: an array, (N,)
         return np.where(hover[:, None], self.rule.hover, self.rule.act(obs))
 
 

@@ -42,6 +42,7 @@ def training_env_config(cfg: EnvConfig, tc: TrainConfig) -> EnvConfig:
 def make_model(cfg: EnvConfig, tc: TrainConfig, run_dir: Path | None):
     import torch
     from stable_baselines3 import PPO
+    from stable_baselines3.common.vec_env import VecEnv
 
     from uavlink.env.vec_env import UavVecEnv
 
@@ -56,7 +57,7 @@ def make_model(cfg: EnvConfig, tc: TrainConfig, run_dir: Path | None):
             cfg.episode_frames,
         )
     torch.set_num_threads(tc.torch_threads)
-    env = UavVecEnv(training_env_config(cfg, tc), n_envs=tc.n_envs, seed=tc.seed)
+    env: VecEnv = UavVecEnv(training_env_config(cfg, tc), n_envs=tc.n_envs, seed=tc.seed)
     if tc.normalize_reward:
         from stable_baselines3.common.vec_env import VecNormalize
 
@@ -90,7 +91,7 @@ PPO_SETTINGS = (
 )
 
 
-def ppo_settings(tc: TrainConfig) -> dict[str, float | int]:
+def ppo_settings(tc: TrainConfig) -> dict[str, Any]:  # PPO's keywords: floats and ints
     return {name: getattr(tc, name) for name in PPO_SETTINGS}
 
 
@@ -117,6 +118,7 @@ def check_checkpoint(resume: Path, cfg: EnvConfig, tc: TrainConfig) -> None:
             f"--resume {resume}: not a checkpoint (an SB3 zip such as RUN_DIR/checkpoint.zip)"
         )
     data, _, _ = load_from_zip_file(resume, device="cpu", load_data=True)
+    assert data is not None  # the zip has its "data" entry (checked above)
     size, ours = data["observation_space"].shape[0], ObservationLayout.for_config(cfg).size
     if size != ours:
         raise UserError(

@@ -228,13 +228,16 @@ class MissionClient:
             def request(seq: int = seq) -> None:
                 self.mav.mission_request_int_send(ts, tc, seq, mission_type)
 
+            def is_item(m: Any, seq: int = seq) -> bool:
+                return m.seq == seq
+
             request()
             msg = self._await(
                 ("MISSION_ITEM_INT", "MISSION_ITEM"),
                 mission_type,
                 request,
                 what,
-                lambda m, seq=seq: m.seq == seq,
+                is_item,
             )
             items.append(item_from_message(msg))
         self.mav.mission_ack_send(ts, tc, mavlink.MAV_MISSION_ACCEPTED, mission_type)

@@ -84,7 +84,9 @@ def animate_flight(data: FlightData, out: Path, title: str | None = None) -> Ani
         shown = index if previous is None else np.where(index == previous, TRANSPARENT, index)
         previous = index
         image = Image.fromarray(shown.astype(np.uint8), "P")
-        image.putpalette(palette.getpalette())
+        colours = palette.getpalette()
+        assert colours is not None  # a quantized image has a palette
+        image.putpalette(colours)
         images.append(image)
     out = Path(out)
     out.parent.mkdir(parents=True, exist_ok=True)

@@ -14,8 +14,13 @@ import os
 import time
 from dataclasses import asdict
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 from uavlink.errors import UserError
+
+if TYPE_CHECKING:
+    from uavlink.plot.animation import AnimationInfo
+    from uavlink.plot.picture import PictureInfo
 
 
 def render(tlog: Path, out: Path, gif: bool = False, title: str | None = None) -> dict:
@@ -28,6 +33,7 @@ def render(tlog: Path, out: Path, gif: bool = False, title: str | None = None) -
     data = read_flight(tlog)
     out.parent.mkdir(parents=True, exist_ok=True)
     partial = out.with_name(f".{out.name}.partial{out.suffix}")
+    info: AnimationInfo | PictureInfo
     try:
         if gif:
             from uavlink.plot.animation import animate_flight

@@ -22,9 +22,13 @@ class Policy(Protocol):
     flight loop never supplies it.
     """
 
-    name: str
-    layout: ObservationLayout | None
-    needs_truth: bool
+    # Read-only: an implementation may declare a narrower type (``layout = None`` on a rule).
+    @property
+    def name(self) -> str: ...
+    @property
+    def layout(self) -> ObservationLayout | None: ...
+    @property
+    def needs_truth(self) -> bool: ...
 
     def act(self, obs: np.ndarray, truth: GroundTruth | None = None) -> np.ndarray: ...
 
@@ -34,10 +38,12 @@ class RulePolicy:
     a batch of one, returning (1, 2) as ``SB3Policy`` and ``OnnxPolicy`` do, so a rule's ``act``
     handles (N, obs) only. Subclasses' own subclasses (a teacher's variant of a rule) get it too."""
 
+    act: Callable[..., np.ndarray]  # each subclass's own (declared here only for the type checker)
+
     def __init_subclass__(cls, **kwargs: Any) -> None:
         super().__init_subclass__(**kwargs)
         if "act" in cls.__dict__:
-            cls.act = _one_as_batch(cls.__dict__["act"])  # type: ignore[method-assign]
+            cls.act = _one_as_batch(cls.__dict__["act"])
 
 
 def _one_as_batch(act: Callable[..., np.ndarray]) -> Callable[..., np.ndarray]:

@@ -82,8 +82,8 @@ class EnvOverrides:
         """``--scenario``, ``--aoa-noise-deg`` and the ``--set KEY=VALUE`` pairs of a command line."""
         return cls(scenario, aoa_noise_deg, parse_settings(set_pairs))
 
-    def on(self, scenario: str) -> EnvOverrides:
-        """The same overrides on another scenario."""
+    def on(self, scenario: str | None) -> EnvOverrides:
+        """The same overrides on another scenario (None: the policy's own)."""
         return EnvOverrides(scenario, self.aoa_noise_deg, self.settings)
 
     def changes(self) -> dict[str, Any]:

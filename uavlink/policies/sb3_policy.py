@@ -125,6 +125,8 @@ class SB3Policy(ActorPolicy):
         # without the algorithm around the policy and its optimizer, which running it never needs.
         try:
             data, params, _ = load_from_zip_file(path, device="cpu")
+            if data is None:  # SB3 returns None for a zip without its "data" entry
+                raise KeyError("data")
             kwargs = {**data["policy_kwargs"], "optimizer_class": _NoOptimizer}
             policy = data["policy_class"](
                 data["observation_space"],

@@ -86,7 +86,7 @@ class RadioChannel:
         else:
             self._field = None
             self._shadow_db = initial_shadowing_db(rng, (n_envs, self.n_ues, n_uavs), self.radio)
-        self._aoa_std_deg = self.radio.aoa_noise_deg
+        self._aoa_std_deg: float | np.ndarray = self.radio.aoa_noise_deg  # or per episode
         if self.radio.aoa_noise_max_deg > self.radio.aoa_noise_deg:  # per-episode std, (N, 1)
             self._aoa_std_deg = rng.uniform(
                 self.radio.aoa_noise_deg, self.radio.aoa_noise_max_deg, size=(n_envs, 1)
@@ -154,7 +154,9 @@ class RadioChannel:
                 rng, heard.shape, self.rbs_per_ue[:, None], radio.rician_k_db
             )
         std = (
-            self._aoa_std_deg if np.ndim(self._aoa_std_deg) == 0 else self._aoa_std_deg[:, :, None]
+            self._aoa_std_deg
+            if np.ndim(self._aoa_std_deg) == 0
+            else np.asarray(self._aoa_std_deg)[:, :, None]  # an array here: asarray is a no-op
         )
         heard_aoa = measured_aoa_deg(
             rng, true_aoa_deg(uav_xy_m[:, :, None, :], ue_xy_m[:, None, :, :]), std

@@ -33,6 +33,7 @@ def mean_rician_power_gain(
     against the trailing axes of ``shape``.
     """
     k = 10.0 ** (k_db / 10.0)
+    n: float | np.ndarray  # the RB counts, or their one value when all are equal
     n = np.asarray(n_rbs, dtype=float)
     if n.size and not np.ptp(n):
         # Every link on the same RB count (one UAV, U dividing K): numpy's scalar-shape gamma draws

@@ -25,11 +25,14 @@ import traceback
 from collections.abc import Callable, Collection
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from uavlink.errors import require
 from uavlink.sweep.jobs import result_path, run_job, write_job
 from uavlink.sweep.spec import Job, SweepSpec
+
+if TYPE_CHECKING:
+    from dask.typing import Key
 
 # The embedded cluster's settings: one job per worker at a time (none waits behind a long one);
 # no statistical profiler (its 10 ms stack sampling takes the GIL from the job's thread); and
@@ -224,7 +227,7 @@ def _run_on_dask(
         )
         log(f"dashboard: {client.dashboard_link}{hint}")
 
-    by_key: dict[str, Job] = {}
+    by_key: dict[Key, Job] = {}
     futures = []
     bar = _bar(len(pending), progress)
     try:
@@ -276,9 +279,9 @@ def _collect(future: Any, job: Job, sweep_dir: Path, outcome: SweepOutcome, bar:
             _record_success(sweep_dir, payload, outcome)
         future.release()
         return
-    exc = future.exception() if future.status == "error" else RuntimeError(f"job {future.status}")
+    error = future.exception() if future.status == "error" else RuntimeError(f"job {future.status}")
     tb = "".join(traceback.format_tb(future.traceback())) if future.status == "error" else ""
-    _record_failure(sweep_dir, job, exc, tb, outcome, bar)
+    _record_failure(sweep_dir, job, error, tb, outcome, bar)
     future.release()
 
 

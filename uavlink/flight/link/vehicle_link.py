@@ -30,7 +30,7 @@ import time
 from collections import deque
 from collections.abc import Callable, Sequence
 from pathlib import Path
-from typing import Any, BinaryIO
+from typing import Any, BinaryIO, Protocol
 
 from uavlink.errors import LinkError
 from uavlink.flight.link.vehicle_status import VehicleStatus
@@ -66,6 +66,12 @@ WRONG_KEY_PACKETS = (
 log = logging.getLogger(__name__)
 
 
+class _Group(Protocol):
+    """What a link asks of its group (``group.LinkGroup``, which imports this module)."""
+
+    def poll(self, timeout_s: float) -> None: ...
+
+
 class VehicleLink:
     """The link to one vehicle: ``target_system``/``target_component`` when given, else learnt from
     the first autopilot heartbeat. ``system_id``/``component_id`` are the link's own ids."""
@@ -93,7 +99,8 @@ class VehicleLink:
         self.conn = connection or mavutil.mavlink_connection(
             self.url, source_system=system_id, source_component=component_id, dialect="common"
         )
-        self._owns_conn, self.group = connection is None, None
+        self._owns_conn = connection is None
+        self.group: _Group | None = None
         self.signing: SigningGuard | None = None
         if signing_key is not None and connection is None:
             self.signing = SigningGuard(signing_key)
@@ -141,6 +148,7 @@ class VehicleLink:
 
     # -- I/O ---------------------------------------------------------------------------------
     def _log(self, msg) -> None:
+        assert self._tlog is not None  # the send callback is set only with a tlog
         self._tlog.write(struct.pack(">Q", int(time.time() * 1e6)) + msg.get_msgbuf())
 
     def poll(self, timeout_s: float) -> None:

@@ -366,12 +366,14 @@ class GeniePolicy(RulePolicy):
         ):
             self.plan(truth)
             step = 0
+        assert self.path_m is not None  # plan() set it
         return self.mapping.towards(self.path_m[step + 1].reshape(-1, 2) - truth.uav_xy_m, 1.0)
 
     def plan(self, truth: GroundTruth) -> None:
         """Plan every env of the batch from its present state to the episode's end."""
         cfg, n_uavs = self.cfg, self.cfg.n_uavs
         frames = cfg.episode_frames - truth.frame
+        assert truth.mobility is not None  # ground truth of an env (act() checks it)
         ue, velocity = future_ues(truth.mobility, frames, cfg.frame_s, cfg.area.half_width_m)
         start = truth.uav_xy_m.reshape(-1, n_uavs, 2)
         references = [
