@@ -57,6 +57,7 @@ LINTED := uavlink sitl_stub tests benchmarks research tools docs
 lint: $(STAMP)
 	$(BIN)/ruff check $(LINTED)
 	$(BIN)/ruff format --check $(LINTED)
+	$(BIN)/mypy
 
 # What a user installs: the wheel with [fly] only, in a fresh venv outside the checkout, flying a
 # shipped policy and a shipped fleet policy from another folder (.ci/wheel-check).

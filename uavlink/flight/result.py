@@ -39,11 +39,16 @@ log = logging.getLogger("uavlink.fly")
 class FlownOptions(Protocol):
     """What the summary reads of a flight's options (``fly.FlyOptions``) to name its replay."""
 
-    seed: int
-    connect: str | None
-    aoa_noise_deg: float | None
-    overrides: Sequence[str]
-    lockstep: bool
+    @property
+    def seed(self) -> int: ...
+    @property
+    def connect(self) -> str | None: ...
+    @property
+    def aoa_noise_deg(self) -> float | None: ...
+    @property
+    def overrides(self) -> Sequence[str]: ...
+    @property
+    def lockstep(self) -> bool: ...
 
 
 class Piloting(Protocol):
