@@ -163,7 +163,7 @@ def test_not_onnx_files_are_refused(policy_zip: Path, tmp_path: Path) -> None:
     renamed.write_bytes(policy_zip.read_bytes())
     with pytest.raises(PolicyFileError, match="renamed.onnx: is a zip archive, not an ONNX model"):
         load_policy(renamed, CFG)
-    with pytest.raises(PolicyFileError, match="missing.onnx: no such policy file"):
+    with pytest.raises(PolicyFileError, match="missing.onnx: no such file, baseline"):
         load_policy(tmp_path / "missing.onnx", CFG)
 
 
