@@ -65,7 +65,7 @@ wheel-check: $(STAMP)
 	PYTHON=$(BIN)/python bash .ci/wheel-check
 
 # docs/results.md and docs/results/, every section, from the shipped policies and the sweep records
-# beside them (policies/*.sweep.json: a fresh clone needs no runs/): about 37 minutes on 2 cores.
+# beside them (policies/*.sweep.json: a fresh clone needs no runs/): about 38 minutes on 2 cores.
 results: $(STAMP)
 	$(BIN)/uavlink evaluate --scenario all --policy policies/ --episodes 100 --seed 0 \
 		--out docs/results --markdown docs/results.md --sweep sweeps/table1.toml \
