@@ -72,8 +72,7 @@ def clone_of_the_rule(cfg: EnvConfig) -> ClonedActor:
     model = make_model(cfg, tc, None)
     warm_start(
         model.policy,
-        training_env_config(cfg, tc),
-        tc.warm_start.teacher,
+        [(training_env_config(cfg, tc), tc.warm_start.teacher)],
         tc.warm_start.episodes,
         tc.seed,
         log_std=tc.warm_start.log_std,

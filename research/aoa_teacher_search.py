@@ -178,8 +178,7 @@ def clone_of(
     )
     report = warm_start(
         model.policy,
-        cfg,
-        TrueAoaTeacher(variant_policy(cfg, pick, estimator)),
+        [(cfg, TrueAoaTeacher(variant_policy(cfg, pick, estimator)))],
         teacher_episodes,
         0,
         epochs=epochs,

@@ -53,3 +53,6 @@ SHADOW_HELD_OUT_HOVERS = SHADOW_HELD_OUT.sibling("shadow-held-out-hovers", 1)
 # SeedSequence([s, 0xE0]) before this stream had a chunk index; a trailing 0 word in an entropy of
 # at most four words draws the same state, so chunk 0 is those same episodes.
 EXPORT = Stream("export", (0xE0,), 1024)
+# Each fleet size's envs when several train together (uavlink.env.vec_env.FleetSizesVecEnv): chunk k
+# is the k-th size's batch, so the sizes fly different episodes.
+FLEET_SIZES = Stream("fleet-sizes", (0xF5,), 1 << 16)

@@ -214,6 +214,15 @@ class TrainConfig:
         low=0,
         metavar="N",
     )
+    # One any-size fleet policy (EnvConfig.fleet_slots > 0) trains on several fleet sizes at once:
+    # n_envs episodes of each, side by side in every rollout (uavlink.env.vec_env.FleetSizesVecEnv).
+    fleet_sizes_up_to: int = setting(
+        0,
+        "train on every fleet size from 2 to this together, n_envs episodes of each (ours; needs "
+        "env.fleet_slots >= this - 1; 0: env.n_uavs alone)",
+        low=0,
+        metavar="D",
+    )
     warm_start: WarmStartConfig = nested(WarmStartConfig, "behaviour-cloning warm start (ours)")
     seed: int = setting(0, "seed of the envs, the network and the warm start", low=0, high=SEED_MAX)
     torch_threads: int = setting(1, "torch CPU threads (1 is fastest for 3x128 MLPs)", low=1)
@@ -221,9 +230,19 @@ class TrainConfig:
         100_000, "save RUN_DIR/checkpoint.zip every this many env steps", low=1
     )
 
+    @property
+    def fleet_sizes(self) -> tuple[int, ...]:
+        """The fleet sizes trained on together (``fleet_sizes_up_to``); empty: the env's own."""
+        return tuple(range(2, self.fleet_sizes_up_to + 1))
+
     def total_timesteps(self, env: EnvConfig) -> int:
         """The budget in agent steps (what SB3 counts): ``episodes`` of the env's ``episode_frames``,
-        times ``n_uavs`` for a fleet, whose UAVs each take a step per frame."""
+        times ``n_uavs`` for a fleet, whose UAVs each take a step per frame (with ``fleet_sizes``,
+        the sizes' mean: the episodes are shared among them equally)."""
+        if self.fleet_sizes:
+            return (
+                self.episodes * env.episode_frames * sum(self.fleet_sizes) // len(self.fleet_sizes)
+            )
         return self.episodes * env.episode_frames * env.n_uavs
 
     def validate(self, env: EnvConfig | None = None, name: Namer = config_name) -> TrainConfig:
@@ -244,6 +263,12 @@ class TrainConfig:
         self.warm_start.validate(name)
         if env is not None:
             self.warm_start.check_env(env, name)
+            if self.fleet_sizes_up_to and not (2 <= self.fleet_sizes_up_to <= env.fleet_slots + 1):
+                raise ConfigError(
+                    f"{name('fleet_sizes_up_to')}={self.fleet_sizes_up_to} needs the any-size "
+                    f"layout with env.fleet_slots >= {max(self.fleet_sizes_up_to - 1, 1)}, "
+                    f"got fleet_slots={env.fleet_slots}"
+                )
             if env.radio.aoa_noise_max_deg:
                 raise ConfigError(
                     f"radio.aoa_noise_max_deg is the training's AoA noise randomisation: "

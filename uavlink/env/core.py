@@ -18,7 +18,7 @@ import numpy as np
 
 from uavlink.config import EnvConfig
 from uavlink.env.actions import ActionMapping
-from uavlink.env.observation import ObservationLayout, fleet_quantities
+from uavlink.env.observation import ObservationLayout, fleet_view_quantities
 from uavlink.env.observation_builder import ObservationBuilder
 from uavlink.env.place_memory import PlaceMemory
 from uavlink.env.reward import RewardBounds
@@ -173,8 +173,8 @@ class BatchedUavEnv:
         """The observation's inputs per agent row: position, what its UAV hears, fleet fields."""
         r, rows = self.readings, (self.n_rows, -1)
         assert r is not None  # called after reset() set the readings
-        fleet = (
-            {} if self.n_uavs == 1 else fleet_quantities(self._per_env(self.uav_xy_m), r.serving)
+        fleet = fleet_view_quantities(
+            self.layout, self._per_env(self.uav_xy_m), r.serving, r.heard_aoa_deg
         )
         return {
             "uav_xy_m": self.uav_xy_m,

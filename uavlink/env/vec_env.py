@@ -24,6 +24,7 @@ from stable_baselines3.common.vec_env.base_vec_env import (
 
 from uavlink.config import EnvConfig
 from uavlink.env.core import BatchedUavEnv
+from uavlink.seeding import FLEET_SIZES
 
 
 class UavVecEnv(VecEnv):
@@ -39,14 +40,16 @@ class UavVecEnv(VecEnv):
     every row.
     """
 
-    def __init__(self, cfg: EnvConfig, n_envs: int, seed: int | None = None) -> None:
+    def __init__(
+        self, cfg: EnvConfig, n_envs: int, seed: int | np.random.SeedSequence | None = None
+    ) -> None:
         self.core = BatchedUavEnv(cfg, n_envs=n_envs, seed=seed)
         obs_space = gym.spaces.Box(*self.core.layout.bounds(), dtype=np.float32)
         act_space = gym.spaces.Box(-1.0, 1.0, (2,), np.float32)
         self.render_mode = None
         super().__init__(self.core.n_rows, obs_space, act_space)
         self._actions: np.ndarray | None = None
-        self._next_seed: int | None = seed
+        self._next_seed: int | np.random.SeedSequence | None = seed
         self._start = time.time()
         self._returns = np.zeros(self.core.n_rows)
         self._rate_sums = np.zeros(n_envs)
@@ -89,7 +92,7 @@ class UavVecEnv(VecEnv):
     def close(self) -> None:
         """Nothing to release: the batch holds no processes or files."""
 
-    def seed(self, seed: int | None = None) -> Sequence[None | int]:
+    def seed(self, seed: int | np.random.SeedSequence | None = None) -> Sequence[Any]:
         """Seed the next ``reset`` of the whole batch (one seed; the core draws every env's streams
         from it), so every row reports the same ``seed``."""
         self._next_seed = seed
@@ -131,3 +134,96 @@ class UavVecEnv(VecEnv):
         ``Monitor``, which is why SB3's ``VecMonitor`` and ``evaluate_policy`` ask) wraps it; the
         ``info["episode"]`` it would add is written by ``step_wait``."""
         return [False] * self._count(indices)
+
+
+class FleetSizesVecEnv(VecEnv):
+    """Several fleet sizes trained together: one ``UavVecEnv`` (or a wrapper of one) per size, their
+    rows side by side (``parts[0]``'s first). An any-size layout (``EnvConfig.fleet_slots``) gives
+    every size the same observation, so one parameter-shared policy learns them all in each rollout.
+    The parts' episodes have one length and start together, so they end together."""
+
+    @classmethod
+    def for_sizes(
+        cls, cfg: EnvConfig, sizes: Sequence[int], n_envs: int, seed: int | None = None
+    ) -> FleetSizesVecEnv:
+        """``n_envs`` episodes of each fleet size in ``sizes`` (``cfg`` with its n_uavs replaced)."""
+        parts = [
+            UavVecEnv(cfg.replace(n_uavs=size).validate(), n_envs, _size_seed(seed, k))
+            for k, size in enumerate(sizes)
+        ]
+        return cls(parts)
+
+    def __init__(self, parts: Sequence[VecEnv]) -> None:
+        self.parts = list(parts)
+        first = self.parts[0]
+        if any(part.observation_space != first.observation_space for part in self.parts):
+            raise ValueError("every fleet size must give the same observation (fleet_slots > 0)")
+        self._edges = np.cumsum([0] + [part.num_envs for part in self.parts])
+        self.render_mode = None
+        super().__init__(int(self._edges[-1]), first.observation_space, first.action_space)
+
+    def _split(self, rows: np.ndarray) -> list[np.ndarray]:
+        return [rows[a:b] for a, b in zip(self._edges[:-1], self._edges[1:], strict=True)]
+
+    def reset(self) -> np.ndarray:
+        return np.concatenate([part.reset() for part in self.parts])
+
+    def step_async(self, actions: np.ndarray) -> None:
+        for part, rows in zip(self.parts, self._split(actions), strict=True):
+            part.step_async(rows)
+
+    def step_wait(self) -> VecEnvStepReturn:
+        results = [part.step_wait() for part in self.parts]
+        obs, rewards, dones, infos = zip(*results, strict=True)
+        return (
+            np.concatenate(obs),
+            np.concatenate(rewards),
+            np.concatenate(dones),
+            [info for part in infos for info in part],
+        )
+
+    def close(self) -> None:
+        for part in self.parts:
+            part.close()
+
+    def seed(self, seed: int | None = None) -> Sequence[Any]:
+        """Seed every size's next reset, each from its own chunk of ``FLEET_SIZES``."""
+        return [
+            s
+            for k, part in enumerate(self.parts)
+            for s in part.seed(_size_seed(seed, k))  # type: ignore[arg-type]  # UavVecEnv's take one
+        ]
+
+    def _part_of(self, indices: VecEnvIndices) -> list[tuple[VecEnv, int]]:
+        """(part, its own index) for each of ``indices``."""
+        out = []
+        for i in self._get_indices(indices):
+            k = int(np.searchsorted(self._edges, i, side="right")) - 1
+            out.append((self.parts[k], i - int(self._edges[k])))
+        return out
+
+    def get_attr(self, attr_name: str, indices: VecEnvIndices = None) -> list[Any]:
+        return [part.get_attr(attr_name, [i])[0] for part, i in self._part_of(indices)]
+
+    def set_attr(self, attr_name: str, value: Any, indices: VecEnvIndices = None) -> None:
+        if indices is not None:
+            raise ValueError(f"{attr_name!r} is set for every fleet size at once (indices=None)")
+        for part in self.parts:
+            part.set_attr(attr_name, value)
+
+    def env_method(
+        self, method_name: str, *method_args, indices: VecEnvIndices = None, **method_kwargs
+    ) -> list[Any]:
+        return [
+            part.env_method(method_name, *method_args, indices=[i], **method_kwargs)[0]
+            for part, i in self._part_of(indices)
+        ]
+
+    def env_is_wrapped(
+        self, wrapper_class: type[gym.Wrapper], indices: VecEnvIndices = None
+    ) -> list[bool]:
+        return [False] * len(list(self._get_indices(indices)))
+
+
+def _size_seed(seed: int | None, k: int) -> np.random.SeedSequence | None:
+    return None if seed is None else FLEET_SIZES.seed(seed, k)

@@ -30,7 +30,7 @@ from collections.abc import Callable, Sequence
 import numpy as np
 
 from uavlink.config import EnvConfig
-from uavlink.env.observation import fleet_quantities
+from uavlink.env.observation import fleet_view_quantities
 from uavlink.flight.link import LinkError, VehicleLink
 from uavlink.flight.loop import (
     LoopConfig,
@@ -94,9 +94,10 @@ class FleetPilot(PolicyPilot):
         for d, r in enumerate(reports):
             if r.serves is not None:
                 serving = np.where(r.serves, d, serving)
-        fleet = fleet_quantities(uav_xy_m[None], serving[None])
+        aoa = np.stack([r.aoa_deg for r in reports])
+        fleet = fleet_view_quantities(self.builder.layout, uav_xy_m[None], serving[None], aoa[None])
         step = self.builder.reset if first else self.builder.push
-        obs = step(uav_xy_m, sinr, np.stack([r.aoa_deg for r in reports]), **fleet)
+        obs = step(uav_xy_m, sinr, aoa, **fleet)
         return self.guarded_moves(obs, reports[0].frame)
 
 

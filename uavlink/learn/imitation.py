@@ -14,6 +14,7 @@ policy's values (``critic_warmup_callback``). Imports torch.
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from dataclasses import dataclass
 from typing import Any
 
@@ -101,19 +102,27 @@ def clone_actor(
 
 def warm_start(
     sb3_policy: Any,
-    cfg: EnvConfig,
-    teacher: str | Policy,
+    flights: Sequence[tuple[EnvConfig, str | Policy]],
     episodes: int,
     seed: int,
     epochs: int = CLONE_EPOCHS,
     log_std: float = -1.0,
 ) -> CloneReport:
-    """Clone ``teacher`` (a rule's name, or a policy from ``make_teacher``) into the policy's actor
-    from ``episodes`` of its own flying."""
-    policy = make_teacher(cfg, teacher) if isinstance(teacher, str) else teacher
-    observations, actions = teacher_dataset(cfg, policy, episodes, seed)
+    """Clone the teachers of ``flights`` (each an env and its teacher: a rule's name, or a policy
+    from ``make_teacher``; one per fleet size trained on) into the policy's actor from ``episodes``
+    of each one's own flying."""
+    policies = [
+        make_teacher(cfg, teacher) if isinstance(teacher, str) else teacher
+        for cfg, teacher in flights
+    ]
+    data = [
+        teacher_dataset(cfg, policy, episodes, seed)
+        for (cfg, _), policy in zip(flights, policies, strict=True)
+    ]
+    observations = np.concatenate([obs for obs, _ in data])
+    actions = np.concatenate([act for _, act in data])
     mse = clone_actor(sb3_policy, observations, actions, epochs=epochs, log_std=log_std, seed=seed)
-    return CloneReport(policy.name, len(observations), epochs, mse)
+    return CloneReport(policies[0].name, len(observations), epochs, mse)
 
 
 def critic_warmup_callback(rollouts: int):

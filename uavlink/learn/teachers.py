@@ -203,7 +203,7 @@ class SoloTeacher:
         centroid = truth.ue_xy_m.mean(axis=1)[:, None, :]  # (N, 1, 2)
         dist = np.linalg.norm(uav - centroid, axis=2)
         leader = dist.argmin(axis=1)[:, None] == np.arange(n_uavs)  # (N, D)
-        serving = (self.layout.newest_frame(obs)["served_by"] == 0).any(axis=1)
+        serving = np.asarray(self.layout.own_cell(self.layout.newest_frame(obs)).any(axis=1))
         centroids = np.repeat(centroid[:, 0], n_uavs, axis=0)  # agent rows
         away = away_target_m(self.corners, truth.uav_xy_m, centroids, serving)
         target = np.where(leader.reshape(-1, 1), centroids, away)

@@ -44,7 +44,7 @@ def make_model(cfg: EnvConfig, tc: TrainConfig, run_dir: Path | None):
     from stable_baselines3 import PPO
     from stable_baselines3.common.vec_env import VecEnv
 
-    from uavlink.env.vec_env import UavVecEnv
+    from uavlink.env.vec_env import FleetSizesVecEnv, UavVecEnv
 
     if tc.n_steps % cfg.episode_frames:
         # the batched env's episodes end together: a rollout of whole episodes never bootstraps a
@@ -57,7 +57,11 @@ def make_model(cfg: EnvConfig, tc: TrainConfig, run_dir: Path | None):
             cfg.episode_frames,
         )
     torch.set_num_threads(tc.torch_threads)
-    env: VecEnv = UavVecEnv(training_env_config(cfg, tc), n_envs=tc.n_envs, seed=tc.seed)
+    env: VecEnv = (
+        FleetSizesVecEnv.for_sizes(training_env_config(cfg, tc), tc.fleet_sizes, tc.n_envs, tc.seed)
+        if tc.fleet_sizes
+        else UavVecEnv(training_env_config(cfg, tc), n_envs=tc.n_envs, seed=tc.seed)
+    )
     if tc.normalize_reward:
         from stable_baselines3.common.vec_env import VecNormalize
 
@@ -249,10 +253,19 @@ def _warm_start(sb3_policy: Any, cfg: EnvConfig, tc: TrainConfig) -> dict[str, A
         from uavlink.learn.policy_transfer import start_from_policy
 
         return start_from_policy(sb3_policy, cfg, ws.policy, ws.log_std)
-    teacher, estimator = warm_start_teacher(cfg, tc)
     epochs = CLONE_EPOCHS if ws.epochs is None else ws.epochs
+    # Every fleet size trained on gets its share of the teacher's episodes, flown by the teacher
+    # made for that size.
+    sized = [cfg.replace(n_uavs=size).validate() for size in tc.fleet_sizes] or [cfg]
+    teachers = [(sized_cfg, *warm_start_teacher(sized_cfg, tc)) for sized_cfg in sized]
+    estimator = teachers[0][2]
     report = warm_start(
-        sb3_policy, cfg, teacher, ws.episodes, tc.seed, epochs=epochs, log_std=ws.log_std
+        sb3_policy,
+        [(sized_cfg, teacher) for sized_cfg, teacher, _ in teachers],
+        ws.episodes // len(sized),
+        tc.seed,
+        epochs=epochs,
+        log_std=ws.log_std,
     ).to_dict()
     if estimator is not None:
         report["shadow_estimator_r2"] = round(estimator.r2, 4)

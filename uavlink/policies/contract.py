@@ -41,6 +41,7 @@ BUILT_FOR = (
     "place_model",
     "n_ues",
     "n_uavs",
+    "fleet_slots",
     "area.half_width_m",
 )
 OVERRIDES_HELP = (
@@ -60,6 +61,7 @@ PER_POLICY = (
     "place_cell_m",
     "place_model",
     "n_uavs",
+    "fleet_slots",
     "uav_motion",
 )
 # Training-time randomisation: off in a policy's env unless an override turns it on.
@@ -127,7 +129,12 @@ def built_for_change(built: EnvConfig, cfg: EnvConfig) -> str | None:
     """The first ``BUILT_FOR`` field (its ``replace`` key) in which ``cfg`` differs from ``built``, the
     env a policy was built for; None when they agree."""
     ours, theirs = built.to_flat_dict(), cfg.to_flat_dict()
-    return next((path for path in BUILT_FOR if theirs[path] != ours[path]), None)
+    # An any-size fleet's policy (fleet_slots > 0) flies every fleet size its slots allow, which
+    # EnvConfig.validate() checks: its n_uavs is where it trained, not what it was built for.
+    sized = ("n_uavs",) if built.fleet_slots > 0 else ()
+    return next(
+        (path for path in BUILT_FOR if path not in sized and theirs[path] != ours[path]), None
+    )
 
 
 def check_policy_env(policy: Policy, cfg: EnvConfig) -> None:

@@ -70,8 +70,8 @@ class ExplorePolicy(RulePolicy):
     def _sinr_gap_db(self, frame: dict[str, np.ndarray]) -> np.ndarray:
         """How far the mean SINR (of the row's own cell, in a fleet) is below the hover level, dB."""
         sinr = frame["sinr_db"]
-        if "served_by" in frame:
-            mine = frame["served_by"] == 0
+        if self.layout.is_fleet:
+            mine = self.layout.own_cell(frame)
             with np.errstate(invalid="ignore"):
                 mean = np.where(mine, sinr, 0.0).sum(axis=1) / mine.sum(axis=1)
             return np.nan_to_num(self.follow.hover_sinr_db - mean)  # an empty cell: no gap

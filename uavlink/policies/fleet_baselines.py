@@ -43,7 +43,7 @@ class FleetAoaPolicy(RulePolicy):
 
     def act(self, obs: np.ndarray, truth: GroundTruth | None = None) -> np.ndarray:
         frame = self.layout.newest_frame(obs)
-        mine = frame["served_by"] == 0  # (rows, U)
+        mine = self.layout.own_cell(frame)  # (rows, U)
         count = mine.sum(axis=1)
         with np.errstate(invalid="ignore"):
             mean_sinr_db = np.where(mine, frame["sinr_db"], 0.0).sum(axis=1) / count

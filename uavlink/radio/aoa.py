@@ -61,3 +61,24 @@ def circular_stats_deg(
     resultant = np.minimum(np.fmax(np.hypot(s, c), 1e-12), 1.0)  # fmax: an empty set's NaN -> 1e-12
     std = np.degrees(np.sqrt(-2.0 * np.log(resultant)))
     return mean, std
+
+
+def bearing_fix_xy_m(uav_xy_m: np.ndarray, aoa_deg: np.ndarray, ridge: float = 1e-6) -> np.ndarray:
+    """Where each UE is, from the bearings several UAVs hear of it: the point nearest (least squares)
+    to every UAV's line of bearing. ``uav_xy_m`` (N, D, 2), ``aoa_deg`` (N, D, U) -> (N, U, 2).
+
+    Each line contributes its normal projector ``I - e e^T`` (``e`` the bearing's unit vector); the
+    normal equations sum them. Where the lines are (nearly) parallel, a UE in line with the UAVs, the
+    ``ridge`` pulls the fix towards the UAVs' centroid along the line, so it stays finite; with
+    exact bearings from two UAVs not in line with the UE the fix is the UE's position. Pure
+    geometry on what the fleet senses (positions of its own UAVs, AoAs): no UE GPS."""
+    rad = np.radians(aoa_deg)
+    e = np.stack([np.cos(rad), np.sin(rad)], axis=-1)  # (N, D, U, 2)
+    normal = np.eye(2) - e[..., :, None] * e[..., None, :]  # (N, D, U, 2, 2)
+    centroid = uav_xy_m.mean(axis=1)  # (N, 2)
+    a = normal.sum(axis=1) + ridge * np.eye(2)  # (N, U, 2, 2)
+    b = np.einsum("ndukl,ndl->nuk", normal, uav_xy_m) + ridge * centroid[:, None, :]
+    det = a[..., 0, 0] * a[..., 1, 1] - a[..., 0, 1] * a[..., 1, 0]
+    x = (a[..., 1, 1] * b[..., 0] - a[..., 0, 1] * b[..., 1]) / det
+    y = (a[..., 0, 0] * b[..., 1] - a[..., 1, 0] * b[..., 0]) / det
+    return np.stack([x, y], axis=-1)

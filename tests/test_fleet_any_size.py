@@ -1,0 +1,150 @@
+"""A fleet of any size (layout v6, ``EnvConfig.fleet_slots``): one observation for 2 to K + 1 UAVs,
+the bearing fix, the contract that lets one policy fly every size its slots allow, and training on
+several sizes at once."""
+
+from __future__ import annotations
+
+import warnings
+
+import numpy as np
+import pytest
+
+from uavlink.config import EnvConfig, TrainConfig
+from uavlink.env.core import BatchedUavEnv
+from uavlink.env.observation import ANY_FLEET_LAYOUT_VERSION, ObservationLayout
+from uavlink.env.observation.fleet_view import slot_quantities
+from uavlink.errors import ConfigError, UserError
+from uavlink.policies.contract import EnvOverrides, apply_overrides
+from uavlink.radio.aoa import bearing_fix_xy_m, true_aoa_deg
+
+SPATIAL = {"radio.shadowing_model": "spatial"}
+
+
+def _cfg(n_uavs: int, **changes: object) -> EnvConfig:
+    return EnvConfig().replace(n_uavs=n_uavs, fleet_slots=3, **SPATIAL, **changes).validate()
+
+
+def test_one_layout_for_two_three_and_four_uavs() -> None:
+    layouts = {ObservationLayout.for_config(_cfg(d)) for d in (2, 3, 4)}
+    assert len(layouts) == 1
+    (layout,) = layouts
+    assert layout.version == ANY_FLEET_LAYOUT_VERSION and layout.uav_slots == 3
+    assert "n_uavs" not in layout.to_dict() and layout.to_dict()["uav_slots"] == 3
+    assert ObservationLayout.from_dict(layout.to_dict()) == layout
+    names = layout.feature_names()
+    assert len(names) == len(set(names)) == layout.size
+    assert "t-0:slot_present_2" in names and "t-0:ue_fix_dx_9" in names
+    # the per-size layout of before is untouched: it still grows with D
+    v2 = [ObservationLayout.for_config(EnvConfig(n_uavs=d).validate()) for d in (2, 3)]
+    assert v2[0].version == v2[1].version == 2 and v2[0].size < v2[1].size
+
+
+@pytest.mark.parametrize("n_uavs", [2, 3, 4])
+def test_the_env_gives_every_size_the_same_observation_within_bounds(n_uavs: int) -> None:
+    env = BatchedUavEnv(_cfg(n_uavs, scenario="straight_90"), n_envs=3, seed=1)
+    obs = env.reset()
+    low, high = env.layout.bounds()
+    rng = np.random.default_rng(0)
+    for _ in range(20):
+        obs = env.step(rng.uniform(-1, 1, (env.n_rows, 2))).observation
+        assert obs.shape == (3 * n_uavs, env.layout.size)
+        assert np.all(obs >= low - 1e-6) and np.all(obs <= high + 1e-6)
+    frame = env.layout.newest_frame(obs)
+    assert frame["slot_present"].sum(axis=1).tolist() == [n_uavs - 1] * (3 * n_uavs)
+    # every UE is served by exactly one UAV of its env
+    served = frame["served_here"].reshape(3, n_uavs, -1).sum(axis=1)
+    assert np.all(served == 1)
+
+
+def test_slots_list_the_others_nearest_first_and_servers_relative_to_me() -> None:
+    uav = np.array([[[0.0, 0.0], [50.0, 0.0], [0.0, -30.0]]])  # (1, 3, 2)
+    serving = np.array([[2, 0, 1]])
+    aoa = true_aoa_deg(uav[:, :, None, :], np.array([[[10.0, 10.0], [-40.0, 5.0], [60.0, 60.0]]]))
+    q = slot_quantities(uav, serving, aoa, uav_slots=3, half_width_m=200.0)
+    # UAV 0 sees UAV 2 (30 m) before UAV 1 (50 m), and an empty third slot
+    np.testing.assert_allclose(q["slot_offset_m"][0], [[0.0, -30.0], [50.0, 0.0], [0.0, 0.0]])
+    assert q["slot_present"][0].tolist() == [True, True, False]
+    assert q["served_here"][1].tolist() == [False, False, True]
+    np.testing.assert_allclose(q["server_offset_m"][1, 0], [-50.0, -30.0])  # UE 0's server, UAV 2
+    # with exact bearings the fix is the UE, seen from each UAV
+    np.testing.assert_allclose(q["ue_fix_offset_m"][2, 2], [60.0, 90.0], atol=1e-3)
+    with pytest.raises(ValueError, match="slots"):
+        slot_quantities(uav, serving, aoa, uav_slots=1, half_width_m=200.0)
+
+
+def test_the_bearing_fix_finds_the_ue_and_stays_finite_in_line() -> None:
+    rng = np.random.default_rng(3)
+    uav = rng.uniform(-150, 150, (50, 3, 2))
+    ue = rng.uniform(-150, 150, (50, 10, 2))
+    aoa = true_aoa_deg(uav[:, :, None, :], ue[:, None, :, :])
+    miss_m = np.linalg.norm(bearing_fix_xy_m(uav, aoa) - ue, axis=-1)
+    assert (
+        np.quantile(miss_m, 0.99) < 0.01 and miss_m.max() < 1.0
+    )  # the ridge's pull, nearly in line
+    # a UE on the line through both UAVs: every point of it fits; the fix stays on the line
+    uav2 = np.array([[[-100.0, 0.0], [100.0, 0.0]]])
+    fix = bearing_fix_xy_m(uav2, true_aoa_deg(uav2[:, :, None, :], np.array([[[[20.0, 0.0]]]])))
+    assert np.all(np.isfinite(fix)) and abs(fix[0, 0, 1]) < 1e-6
+
+
+def test_config_refuses_sizes_the_slots_cannot_fly() -> None:
+    with pytest.raises(ConfigError, match="fleets of 2 to 4 UAVs, not n_uavs=5"):
+        EnvConfig(n_uavs=5, fleet_slots=3).validate()
+    with pytest.raises(ConfigError, match="not n_uavs=1"):
+        EnvConfig(fleet_slots=3).validate()
+    with pytest.raises(ConfigError, match="memory of place"):
+        EnvConfig(n_uavs=2, fleet_slots=3, place_cell_m=12.0).validate()
+    with pytest.raises(ConfigError, match="fleet_sizes_up_to=4 needs"):
+        TrainConfig(fleet_sizes_up_to=4).validate(EnvConfig(n_uavs=2, fleet_slots=2).validate())
+    assert TrainConfig(fleet_sizes_up_to=4).fleet_sizes == (2, 3, 4)
+
+
+def test_a_policy_built_for_any_size_flies_every_size_its_slots_allow() -> None:
+    built = _cfg(3)
+    for size in (2, 4):
+        cfg = apply_overrides(built, EnvOverrides(settings={"n_uavs": size}), built_for="p.zip")
+        assert cfg.n_uavs == size
+    with pytest.raises(UserError, match="fleets of 2 to 4"):
+        apply_overrides(built, EnvOverrides(settings={"n_uavs": 5}), built_for="p.zip")
+    with pytest.raises(UserError, match="built for fleet_slots=3"):
+        apply_overrides(built, EnvOverrides(settings={"fleet_slots": 2}), built_for="p.zip")
+    # a per-size policy (layout v2) still flies its own size only
+    v2 = EnvConfig(n_uavs=2).validate()
+    with pytest.raises(UserError, match="built for n_uavs=2"):
+        apply_overrides(v2, EnvOverrides(settings={"n_uavs": 3}), built_for="p.zip")
+
+
+@pytest.mark.parametrize("n_uavs", [2, 4])
+def test_the_pettingzoo_face_serves_any_size(n_uavs: int) -> None:
+    pytest.importorskip("pettingzoo")
+    from pettingzoo.test import parallel_api_test
+
+    from uavlink.fleet import parallel_env
+
+    env = parallel_env("hotspot", n_uavs, fleet_slots=3, episode_frames=8)
+    assert env.observation_space("uav_0").shape == (ObservationLayout.for_config(_cfg(2)).size,)
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        parallel_api_test(env, num_cycles=12)
+
+
+def test_several_sizes_train_side_by_side() -> None:
+    pytest.importorskip("stable_baselines3")
+    from uavlink.env.vec_env import FleetSizesVecEnv
+
+    venv = FleetSizesVecEnv.for_sizes(_cfg(3, episode_frames=4), (2, 3, 4), n_envs=2, seed=5)
+    assert venv.num_envs == 2 * (2 + 3 + 4)
+    obs = venv.reset()
+    for _ in range(4):
+        obs, reward, done, infos = venv.step(np.zeros((venv.num_envs, 2), np.float32))
+        assert obs.shape == (18, venv.observation_space.shape[0]) and reward.shape == (18,)
+    assert done.all() and all("terminal_observation" in info for info in infos)
+    # each size flies its own episodes (its own chunk of the seed), reproducibly
+    again = FleetSizesVecEnv.for_sizes(_cfg(3, episode_frames=4), (2, 3, 4), n_envs=2, seed=5)
+    first = again.reset()
+    np.testing.assert_array_equal(
+        first,
+        FleetSizesVecEnv.for_sizes(_cfg(3, episode_frames=4), (2, 3, 4), n_envs=2, seed=5).reset(),
+    )
+    parts = [part.core.ground_truth().ue_xy_m for part in again.parts]
+    assert not np.allclose(parts[0], parts[1])
