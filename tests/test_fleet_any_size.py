@@ -148,3 +148,42 @@ def test_several_sizes_train_side_by_side() -> None:
     )
     parts = [part.core.ground_truth().ue_xy_m for part in again.parts]
     assert not np.allclose(parts[0], parts[1])
+
+
+def test_the_bearings_teacher_heads_for_its_cells_centroid_without_gps() -> None:
+    from uavlink.learn.teachers import make_teacher
+
+    cfg = _cfg(3, scenario="straight_90")
+    env = BatchedUavEnv(cfg, n_envs=4, seed=2)
+    obs = env.reset()
+    teacher = make_teacher(cfg, "bearings")
+    assert teacher.needs_truth is False
+    move = env.actions.to_displacement_m(teacher.act(obs))
+    truth, serving = env.ground_truth(), env.readings.serving
+    for row in range(env.n_rows):
+        n, d = divmod(row, 3)
+        mine = serving[n] == d
+        if not mine.any():
+            assert np.allclose(move[row], 0.0)  # an empty cell holds
+            continue
+        offset = truth.ue_xy_m[n, mine].mean(axis=0) - truth.uav_xy_m[row]
+        cos = move[row] @ offset / (np.linalg.norm(move[row]) * np.linalg.norm(offset))
+        assert cos > 0.999
+    with pytest.raises(ConfigError, match="fleet_slots > 0"):
+        make_teacher(EnvConfig(n_uavs=2).validate(), "bearings")
+
+
+def test_the_lead_teachers_roles_read_the_same_from_either_fleet_layout() -> None:
+    from uavlink.learn.teachers import make_teacher
+    from uavlink.rollout import rollout
+    from uavlink.seeding import EVAL
+
+    flown = []
+    for slots in (0, 3):
+        cfg = EnvConfig().replace(
+            scenario="no_move", n_uavs=2, fleet_slots=slots, episode_frames=24, **SPATIAL
+        )
+        teacher = make_teacher(cfg.validate(), "lead", leader_policy="policies/spatial/no_move.zip")
+        frames = rollout(teacher, cfg.validate(), EVAL, 4, 0)
+        flown.append(np.stack([frame.action for frame in frames]))
+    np.testing.assert_array_equal(flown[0], flown[1])

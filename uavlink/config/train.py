@@ -25,9 +25,9 @@ from uavlink.errors import ConfigError
 
 # The rules a warm start can copy; uavlink.policies.registry builds them by these names.
 BASELINE_NAMES = ("static", "oracle", "aoa", "kmeans", "explore", "kriging")
-# What a warm start may imitate: a baseline, or a fleet-only teacher (uavlink.learn.teachers: solo;
-# uavlink.learn.lead_teacher: lead).
-TEACHER_NAMES = (*BASELINE_NAMES, "solo", "lead")
+# What a warm start may imitate: a baseline, or a fleet-only teacher (uavlink.learn.teachers: solo and
+# bearings, the latter for the any-size layout; uavlink.learn.lead_teacher: lead).
+TEACHER_NAMES = (*BASELINE_NAMES, "solo", "lead", "bearings")
 
 
 def config_name(path: str) -> str:
@@ -130,6 +130,11 @@ class WarmStartConfig:
         if self.teacher in ("solo", "lead") and env.n_uavs == 1:
             raise ConfigError(
                 f"{name('warm_start.teacher')} {self.teacher} is a fleet's teacher: it needs n_uavs > 1"
+            )
+        if self.teacher == "bearings" and env.fleet_slots == 0:
+            raise ConfigError(
+                f"{name('warm_start.teacher')} bearings reads the any-size fleet's bearing fixes: "
+                "it needs env.fleet_slots > 0"
             )
         if self.shadow_gate_db is not None and env.n_uavs > 1:
             raise ConfigError(

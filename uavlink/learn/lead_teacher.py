@@ -5,7 +5,7 @@ With one group of UEs a second active cell only takes UEs and interferes with al
 silent. ``SoloTeacher`` (uavlink.learn.teachers) picks its leader by GPS (nearest the UEs' centroid), which
 no UAV can read from its observation: cloned, the actor averaged the roles and both UAVs fled
 (research/log/fleet.md, no_move 4.7 Mbps). Here the roles are a function of what every UAV observes:
-the leader is the UAV serving the most UEs (``served_by``; ties go to the UAV farthest east, then
+the leader is the UAV serving the most UEs (v2's ``served_by``, v6's slots; ties go to the UAV farthest east, then
 north, positions every UAV sees), so a clone can learn them, and the split reinforces itself (the
 others leave, the leader's cell grows; the counts are summed over the frames in memory, so a UE
 that shadowing hands over for a frame does not swap the roles). The leader flies a single-UAV
@@ -54,18 +54,40 @@ def single_view(fleet: ObservationLayout, obs: np.ndarray) -> np.ndarray:
 
 
 def leader_index(layout: ObservationLayout, obs: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Which UAV leads, as each observing row numbers them (0 = itself, then the next ones in
-    fleet order): the one serving the most UEs, ties to the UAV farthest east, then north (every
-    UAV of an env picks the same). Returns the index (rows,) and the UAVs' positions (rows, D, 2)."""
+    """Which UAV leads, as each observing row numbers them (0 = itself, then the others: v2's
+    fleet order, v6's slots): the one serving the most UEs, ties to the UAV farthest east, then
+    north (every UAV of an env picks the same). Returns the index (rows,) and the UAVs' positions
+    (rows, 1 + others, 2)."""
     frame = layout.newest_frame(obs)
-    n_uavs = layout.n_uavs
-    # UEs served over the frames in memory, (rows, D) numbered me, next, ...: a UE that shadowing
-    # hands over for a frame does not swap the roles.
-    cells = (layout.history(obs, "served_by")[..., None] == np.arange(n_uavs)).sum(axis=(1, 2))
-    xy = np.concatenate([frame["uav_xy_m"][:, None], frame["others_xy_m"]], axis=1)  # (rows, D, 2)
-    # Lexicographic (cell size, x, y), positions rounded so both UAVs of an env rank alike.
+    if layout.uav_slots > 0:
+        cells, xy = _slot_cells(layout, obs, frame)
+    else:
+        # UEs served over the frames in memory, (rows, D) numbered me, next, ...: a UE that
+        # shadowing hands over for a frame does not swap the roles.
+        cells = (layout.history(obs, "served_by")[..., None] == np.arange(layout.n_uavs)).sum(
+            axis=(1, 2)
+        )
+        xy = np.concatenate([frame["uav_xy_m"][:, None], frame["others_xy_m"]], axis=1)
+    # Lexicographic (cell size, x, y), positions rounded so every UAV of an env ranks alike.
     key = np.round(xy, 3)
     return np.lexsort((key[..., 1], key[..., 0], cells), axis=1)[:, -1], xy
+
+
+def _slot_cells(
+    layout: ObservationLayout, obs: np.ndarray, frame: dict[str, np.ndarray]
+) -> tuple[np.ndarray, np.ndarray]:
+    """v6's cell sizes over the frames in memory (rows, 1 + K), this UAV's then each slot's (a UE
+    counts for the slot its server's offset equals; an empty slot, -1, never leads), and the
+    positions (rows, 1 + K, 2)."""
+    here = layout.history(obs, "served_here")  # (rows, M, U)
+    server = layout.history(obs, "server_offset_m")  # (rows, M, U, 2)
+    slots = layout.history(obs, "slot_offset_m")  # (rows, M, K, 2)
+    gap = np.linalg.norm(server[:, :, :, None] - slots[:, :, None], axis=-1)  # (rows, M, U, K)
+    theirs = ((gap < 1e-2) & ~here[..., None]).sum(axis=(1, 2))
+    theirs = np.where(frame["slot_present"], theirs, -1)
+    cells = np.concatenate([here.sum(axis=(1, 2))[:, None], theirs], axis=1)
+    me = frame["uav_xy_m"][:, None]
+    return cells, np.concatenate([me, me + frame["slot_offset_m"]], axis=1)
 
 
 class LeadTeacher:
@@ -129,7 +151,8 @@ class LeadTeacher:
         """Out of the way: the far corners from the leader (it is with the UEs), ``away_target_m``."""
         frame = self.layout.newest_frame(obs)
         me = frame["uav_xy_m"]
-        target = away_target_m(self.corners, me, leader_xy_m, (frame["served_by"] == 0).any(axis=1))
+        serving = np.asarray(self.layout.own_cell(frame).any(axis=1))
+        target = away_target_m(self.corners, me, leader_xy_m, serving)
         return self.mapping.towards(target - me, 1.0).astype(np.float32)
 
 
@@ -159,7 +182,7 @@ def make_lead_teacher(cfg: EnvConfig, leader_policy: str = "") -> LeadTeacher:
     from uavlink.policies.baselines import AoaPolicy
     from uavlink.policies.loader import load_policy
 
-    single = cfg.replace(n_uavs=1).validate()
+    single = cfg.replace(n_uavs=1, fleet_slots=0).validate()
     return LeadTeacher(
         cfg, load_policy(leader_policy, single) if leader_policy else AoaPolicy(single)
     )

@@ -125,6 +125,8 @@ def make_teacher(
         return make_lead_teacher(cfg, leader_policy)
     if teacher == "solo":
         return SoloTeacher(cfg)
+    if teacher == "bearings":
+        return BearingsTeacher(cfg)
     if teacher != "aoa":
         return make_baseline(teacher, cfg)
     if cfg.n_uavs > 1:  # a fleet's aoa rule, with its speed span replaced if asked
@@ -208,3 +210,25 @@ class SoloTeacher:
         away = away_target_m(self.corners, truth.uav_xy_m, centroids, serving)
         target = np.where(leader.reshape(-1, 1), centroids, away)
         return self.mapping.towards(target - truth.uav_xy_m, 1.0)
+
+
+class BearingsTeacher:
+    """A fleet's GPS-free teacher (any-size layout, v6): each UAV flies towards the centroid of the
+    UEs it serves, located by the bearings every UAV hears of them (the layout's ``ue_fix_offset_m``);
+    a UAV that serves none holds. With every UE attached to its strongest UAV, that is one step of
+    Lloyd's k-means per frame from where the fleet is, so the fleet settles on a k-means split of
+    the UEs without reading their GPS; an empty cell stays silent."""
+
+    name = "bearings"
+    needs_truth = False
+
+    def __init__(self, cfg: EnvConfig) -> None:
+        self.layout = ObservationLayout.for_config(cfg)
+        self.mapping = ActionMapping.for_config(cfg)
+
+    def act(self, obs: np.ndarray, truth: GroundTruth | None = None) -> np.ndarray:
+        frame = self.layout.newest_frame(obs)
+        mine = self.layout.own_cell(frame)  # (rows, U)
+        count = np.maximum(mine.sum(axis=1), 1)[:, None]
+        centroid = (frame["ue_fix_offset_m"] * mine[..., None]).sum(axis=1) / count
+        return self.mapping.towards(centroid, 1.0)
