@@ -12,10 +12,17 @@ TensorBoard logs and checkpoints in a run folder) and reports
     scaling), the policy's forward passes in the rollout (actions, values, the bootstrap values of
     cut-off episodes), the rollout buffer (add, GAE), the PPO update (with SB3's per-rollout log
     dump), and the rest (SB3's loop, callbacks, checkpoints);
-  - the env's own rate at N = 256 (``benchmarks/env_throughput.py``'s batched measurement, circular,
-    fading and shadowing on, random actions), measured just before and just after each training
-    measurement, and the ratio of the two (the target: the default settings at >= 0.1x).
+  - the env's own rate at N = 256: ``benchmarks/env_throughput.py``'s batched measurement (random
+    actions) of the env the setting trains in (``training_env_config``: its scenario, D, shadowing
+    model, fleet_slots, memory, AoA noise; the default settings': circular, fading and shadowing
+    on), measured just before and just after each training measurement, and the ratio of the two
+    (the target, >= 0.1x: the default settings' is ``meets_target``, every fleet recipe's
+    ``fleet_recipes_meet_target``, each row's its own ``meets_target``).
 An env step is one frame of one env (a fleet's frame moves all its UAVs: SB3's agent steps / D).
+A recipe that trains on several fleet sizes at once (``train.fleet_sizes_up_to``: n_envs episodes
+of each size side by side) counts SB3's agent steps / mean(sizes), so one frame of each of its
+envs is n_envs x len(sizes) env steps; its env rate is that of stepping equal numbers of envs of
+each size, len(sizes) / sum(1 / rate_D) from each size's own rate at N = 256 (reported alongside).
 A recipe's warm start (behaviour cloning) is start-up and is not run here; its critic warm-up
 rollouts (actor frozen, a cheaper update) are left out with it, so a recipe's rate is its steady
 state. Rates are wall time, with the process's CPU time alongside (steadier on a shared machine).
@@ -24,6 +31,7 @@ state. Rates are wall time, with the process's CPU time alongside (steadier on a
     python benchmarks/train_throughput.py --json          # one JSON object
     python benchmarks/train_throughput.py --min-steps 500000 --env-seconds 3   # longer, steadier
     python benchmarks/train_throughput.py --no-recipes    # the default settings only
+    python benchmarks/train_throughput.py --json --only fleet   # the fleet recipes only (a minute)
     python benchmarks/train_throughput.py --no-recipes --variant torch_threads=2 --variant n_epochs=1
                                                           # the default beside variants of it
 """
@@ -56,8 +64,23 @@ TARGET_RATIO = 0.1
 PHASES = ("env", "observation", "vecenv", "policy", "buffer", "update", "other")
 # What makes one recipe's PPO loop faster or slower than another's (not the learning rate, the
 # teacher, the seed or the budget): recipes equal in these share a measurement.
-SPEED_TRAIN = ("n_envs", "n_steps", "batch_size", "n_epochs", "normalize_reward", "net_arch")
-SPEED_ENV = ("n_uavs", "fleet_reuse", "radio.shadowing_model", "radio.aoa_noise_max_deg", "memory")
+SPEED_TRAIN = (
+    "n_envs",
+    "n_steps",
+    "batch_size",
+    "n_epochs",
+    "normalize_reward",
+    "net_arch",
+    "fleet_sizes",
+)
+SPEED_ENV = (
+    "n_uavs",
+    "fleet_reuse",
+    "fleet_slots",
+    "radio.shadowing_model",
+    "radio.aoa_noise_max_deg",
+    "memory",
+)
 
 
 @dataclasses.dataclass
@@ -66,6 +89,29 @@ class Setting:
     cfg: EnvConfig
     tc: TrainConfig
     covers: list[str]
+
+    @property
+    def sizes(self) -> tuple[int, ...]:
+        """The fleet sizes the training steps side by side (one: the env's own n_uavs)."""
+        return self.tc.fleet_sizes or (self.cfg.n_uavs,)
+
+    @property
+    def agents_per_env_step(self) -> float:
+        """SB3's agent steps per env step: D, or the sizes' mean (n_envs episodes of each)."""
+        return sum(self.sizes) / len(self.sizes)
+
+    @property
+    def is_fleet(self) -> bool:
+        return self.cfg.n_uavs > 1 or bool(self.tc.fleet_sizes)
+
+    def env_configs(self) -> list[EnvConfig]:
+        """The env the training steps, one config per fleet size (``training_env_config``'s)."""
+        from uavlink.learn.training import training_env_config
+
+        env = training_env_config(self.cfg, self.tc)
+        if not self.tc.fleet_sizes:
+            return [env]
+        return [env.replace(n_uavs=size).validate() for size in self.tc.fleet_sizes]
 
 
 def default_setting() -> Setting:
@@ -122,6 +168,16 @@ def recipe_settings(sweep_dir: Path) -> list[Setting]:
     return list(found.values())
 
 
+def env_cores(venv: Any) -> list[Any]:
+    """The batched cores under SB3's VecEnv (through VecNormalize): a ``UavVecEnv``'s one, or each
+    part's of a ``FleetSizesVecEnv`` (one ``UavVecEnv``, or a wrapper of one, per fleet size)."""
+    inner = venv.unwrapped if hasattr(venv, "unwrapped") else venv
+    parts = getattr(inner, "parts", None)
+    if parts is None:
+        return [inner.core]
+    return [core for part in parts for core in env_cores(part)]
+
+
 class LoopTimer:
     """Accumulates wall time per phase of SB3's PPO loop by wrapping the methods each phase runs.
     Built as an SB3 callback so ``train`` installs it on its own model; it only observes."""
@@ -165,12 +221,12 @@ class LoopTimer:
         class Marks(BaseCallback):
             def _on_training_start(self) -> None:
                 model, venv = self.model, self.model.get_env()
-                core = venv.unwrapped.core if hasattr(venv, "unwrapped") else venv.core
                 timer._wrap(venv, "step_wait", "vecenv")
-                timer._wrap(core, "step", "core")
-                timer._wrap(core, "reset", "core")
-                timer._wrap(core._builder, "push", "observation")
-                timer._wrap(core._builder, "reset", "observation")
+                for core in env_cores(venv):
+                    timer._wrap(core, "step", "core")
+                    timer._wrap(core, "reset", "core")
+                    timer._wrap(core._builder, "push", "observation")
+                    timer._wrap(core._builder, "reset", "observation")
                 timer._wrap(model.policy, "forward", "policy")
                 timer._wrap(model.policy, "predict_values", "policy")
                 timer._wrap(model.rollout_buffer, "add", "buffer")
@@ -205,9 +261,11 @@ class LoopTimer:
     def mark(self, steps: int) -> None:
         self.marks.append((steps, time.perf_counter(), time.process_time(), dict(self.totals)))
 
-    def report(self, n_uavs: int) -> dict[str, Any]:
+    def report(self, agents_per_env_step: float) -> dict[str, Any]:
+        """The timed span's rates; SB3's agent steps / ``agents_per_env_step`` (D, or the mean of
+        the fleet sizes trained side by side) are its env steps."""
         (s0, w0, c0, t0), (s1, w1, c1, t1) = self.marks[0], self.marks[-1]
-        env_steps, wall, cpu = (s1 - s0) / n_uavs, w1 - w0, c1 - c0
+        env_steps, wall, cpu = (s1 - s0) / agents_per_env_step, w1 - w0, c1 - c0
         d = {k: t1[k] - t0[k] for k in t1}
         phases = {
             "env": d["core"] - d["observation"],
@@ -234,9 +292,11 @@ def measure_training(setting: Setting, min_steps: int) -> dict[str, Any]:
     from uavlink.learn.training import train
 
     cfg, tc = setting.cfg, setting.tc
-    rollout_rows = tc.n_envs * cfg.n_uavs * tc.n_steps
-    k = max(2, math.ceil(min_steps * cfg.n_uavs / rollout_rows))
-    episodes = math.ceil((1 + k) * rollout_rows / (cfg.episode_frames * cfg.n_uavs))
+    # a rollout: n_steps frames of n_envs episodes of each fleet size
+    rollout_env_steps = tc.n_envs * len(setting.sizes) * tc.n_steps
+    k = max(2, math.ceil(min_steps / rollout_env_steps))
+    # tc.total_timesteps(cfg) = episodes x episode_frames x mean(sizes) >= (1 + k) rollouts' agent steps
+    episodes = math.ceil((1 + k) * rollout_env_steps / cfg.episode_frames)
     tc = dataclasses.replace(tc, episodes=episodes, warm_start=WarmStartConfig())
     timer = LoopTimer()
     with tempfile.TemporaryDirectory(prefix="uavlink-train-throughput-") as tmp:
@@ -248,26 +308,84 @@ def measure_training(setting: Setting, min_steps: int) -> dict[str, Any]:
             progress=False,
             callbacks=[timer.callback()],
         )
-    return timer.report(cfg.n_uavs)
+    return timer.report(setting.agents_per_env_step)
+
+
+class EnvRates:
+    """The env's own rate at N = 256 for every env a setting trains in, one batched bench per
+    distinct config (built and warmed up at first use), each measured just before and just after
+    a training measurement: a bench measured since the last training is not measured again."""
+
+    def __init__(self, env_seconds: float, seed: int) -> None:
+        self.env_seconds, self.seed = env_seconds, seed
+        self.benches: dict[str, tuple[EnvConfig, Bench]] = {}
+        self.trainings = 0
+        self._measured_at: dict[str, int] = {}  # bench -> trainings done when last measured
+
+    def bench(self, cfg: EnvConfig) -> tuple[str, Bench]:
+        key = json.dumps(cfg.to_dict(), sort_keys=True, default=str)
+        if key not in self.benches:
+            env = batched_bench(cfg, TARGET_BATCHED_N, self.seed)
+            env.measure(
+                min(0.2, self.env_seconds)
+            )  # warm-up: caches, the first episode's allocations
+            env.us_per_call.clear()
+            env.cpu_us_per_call.clear()
+            self.benches[key] = (cfg, env)
+        return key, self.benches[key][1]
+
+    def measure(self, key: str, bench: Bench) -> None:
+        bench.measure(self.env_seconds)
+        self._measured_at[key] = self.trainings
+
+    def before(self, setting: Setting) -> list[tuple[str, Bench, int]]:
+        """Measure (unless measured since the last training) each env the setting trains in, one
+        per fleet size; (key, bench, index of the bracket's first measurement) per size."""
+        marks = []
+        for cfg in setting.env_configs():
+            key, bench = self.bench(cfg)
+            if self._measured_at.get(key) != self.trainings:
+                self.measure(key, bench)
+            marks.append((key, bench, len(bench.us_per_call) - 1))
+        return marks
+
+    def after(self, setting: Setting, marks: list[tuple[str, Bench, int]]) -> dict[str, Any]:
+        """Measure each env again; the rates of the bracket (the mean of the two measurements' µs
+        per call), per size and for the mix (equal numbers of envs of each size)."""
+        self.trainings += 1
+        by_size, by_size_cpu = {}, {}
+        for (key, bench, before), size in zip(marks, setting.sizes, strict=True):
+            self.measure(key, bench)
+            by_size[size] = 1e6 * TARGET_BATCHED_N / float(np.mean(bench.us_per_call[before:]))
+            by_size_cpu[size] = (
+                1e6 * TARGET_BATCHED_N / float(np.mean(bench.cpu_us_per_call[before:]))
+            )
+        mix = len(by_size) / sum(1 / r for r in by_size.values())
+        mix_cpu = len(by_size_cpu) / sum(1 / r for r in by_size_cpu.values())
+        return {"rate": mix, "rate_cpu": mix_cpu, "by_size": by_size, "by_size_cpu": by_size_cpu}
+
+    def rows(self) -> list[dict[str, Any]]:
+        return [
+            {
+                "scenario": cfg.scenario,
+                "fleet_slots": cfg.fleet_slots,
+                "memory": cfg.memory,
+                "aoa_noise_max_deg": cfg.radio.aoa_noise_max_deg,
+                **Bench.row(bench),
+            }
+            for cfg, bench in self.benches.values()
+        ]
 
 
 def run(settings: list[Setting], min_steps: int, env_seconds: float, seed: int) -> dict[str, Any]:
-    env_cfg = EnvConfig().replace(scenario="circular", shadowing=True, fast_fading=True).validate()
-    env = batched_bench(env_cfg, TARGET_BATCHED_N, seed)
-    env.measure(min(0.2, env_seconds))  # warm-up: caches, the first episode's allocations
-    env.us_per_call.clear()
-    env.cpu_us_per_call.clear()
-    env.measure(env_seconds)
+    envs = EnvRates(env_seconds, seed)
     rows = []
     for setting in settings:
-        before = len(env.us_per_call) - 1
+        marks = envs.before(setting)
         row = measure_training(setting, min_steps)
-        env.measure(env_seconds)
-        bracket = env.us_per_call[before : before + 2]
-        bracket_cpu = env.cpu_us_per_call[before : before + 2]
-        env_rate = 1e6 * TARGET_BATCHED_N / float(np.mean(bracket))
-        env_cpu_rate = 1e6 * TARGET_BATCHED_N / float(np.mean(bracket_cpu))
+        env = envs.after(setting, marks)
         tc, cfg = setting.tc, setting.cfg
+        ratio = round(row["env_steps_per_s"] / env["rate"], 4)
         rows.append(
             {
                 "setting": setting.name,
@@ -278,19 +396,32 @@ def run(settings: list[Setting], min_steps: int, env_seconds: float, seed: int) 
                 "batch_size": tc.batch_size,
                 "n_epochs": tc.n_epochs,
                 "n_uavs": cfg.n_uavs,
+                "fleet_slots": cfg.fleet_slots,
+                "fleet_sizes": list(tc.fleet_sizes),
+                "agents_per_env_step": setting.agents_per_env_step,
                 "shadowing_model": cfg.radio.shadowing_model,
                 **row,
-                "env_n256_steps_per_s": round(env_rate, 1),
-                "env_n256_steps_per_cpu_s": round(env_cpu_rate, 1),
-                "ratio": round(row["env_steps_per_s"] / env_rate, 4),
-                "ratio_cpu": round(row["env_steps_per_cpu_s"] / env_cpu_rate, 4),
+                "env_n256_steps_per_s": round(env["rate"], 1),
+                "env_n256_steps_per_cpu_s": round(env["rate_cpu"], 1),
+                "env_n256_steps_per_s_by_size": {
+                    str(d): round(r, 1) for d, r in env["by_size"].items()
+                },
+                "env_n256_steps_per_cpu_s_by_size": {
+                    str(d): round(r, 1) for d, r in env["by_size_cpu"].items()
+                },
+                "ratio": ratio,
+                "ratio_cpu": round(row["env_steps_per_cpu_s"] / env["rate_cpu"], 4),
+                "meets_target": ratio >= TARGET_RATIO,
             }
         )
     report: dict[str, Any] = {
         "benchmark": "train_throughput",
         "statistic": "marginal wall-time rate from the end of the first rollout's update to the end of "
-        "training; the env's N = 256 rate is the mean of its measurements just before and just "
-        "after (env_throughput.py's batched env, circular, random actions); CPU-time rates alongside",
+        "training, in env steps (SB3's agent steps / D, or / mean(sizes) for a mix of fleet sizes); "
+        "the env's N = 256 rate is that of the env the setting trains in (env_throughput.py's "
+        "batched env, random actions), the mean of its measurements just before and just after; "
+        "for a mix of sizes, len(sizes) / sum(1 / rate_D) (equal numbers of envs of each size); "
+        "CPU-time rates alongside",
         "min_steps": min_steps,
         "env_seconds": env_seconds,
         "seed": seed,
@@ -301,7 +432,7 @@ def run(settings: list[Setting], min_steps: int, env_seconds: float, seed: int) 
             "cpus": os.cpu_count(),
             "platform": platform.platform(),
         },
-        "env_n256": Bench.row(env),
+        "env_n256": envs.rows(),
         "results": rows,
         "target_ratio": TARGET_RATIO,
     }
@@ -309,7 +440,10 @@ def run(settings: list[Setting], min_steps: int, env_seconds: float, seed: int) 
     if default is not None:
         report["default_ratio"] = default["ratio"]
         report["default_ratio_cpu"] = default["ratio_cpu"]
-        report["meets_target"] = default["ratio"] >= TARGET_RATIO
+        report["meets_target"] = default["meets_target"]
+    fleets = [r for s, r in zip(settings, rows, strict=True) if s.is_fleet]
+    if fleets:
+        report["fleet_recipes_meet_target"] = all(r["meets_target"] for r in fleets)
     return report
 
 
@@ -326,20 +460,35 @@ def markdown(report: dict[str, Any]) -> str:
     ]
     for r in report["results"]:
         us = " / ".join(f"{r['us_per_env_step'][p]:.1f}" for p in PHASES)
+        d = "+".join(map(str, r["fleet_sizes"])) or str(r["n_uavs"])
         lines.append(
             f"| {r['setting']} | {r['n_envs']} | {r['n_steps']} | {r['batch_size']} | {r['n_epochs']} "
-            f"| {r['n_uavs']} | {r['env_steps_per_s']:,.0f} | {r['env_steps_per_cpu_s']:,.0f} "
+            f"| {d} | {r['env_steps_per_s']:,.0f} | {r['env_steps_per_cpu_s']:,.0f} "
             f"| {r['env_n256_steps_per_s']:,.0f} | {r['ratio']:.3f} | {r['ratio_cpu']:.3f} | {us} |"
         )
     lines.append("")
     for r in report["results"]:
-        lines.append(f"- {r['setting']}: {', '.join(r['covers'])}")
+        env = f"env {r['scenario']}, {r['shadowing_model']}" + (
+            f", fleet_slots {r['fleet_slots']}" if r["fleet_slots"] else ""
+        )
+        if len(r["env_n256_steps_per_s_by_size"]) > 1:
+            env += ", N = 256 per size: " + ", ".join(
+                f"D = {d} {rate:,.0f}/s" for d, rate in r["env_n256_steps_per_s_by_size"].items()
+            )
+        lines.append(f"- {r['setting']} ({env}): {', '.join(r['covers'])}")
     if "meets_target" in report:
         ok = "meets" if report["meets_target"] else "MISSES"
         lines += [
             "",
             f"default `uavlink train`: {report['default_ratio']:.3f}x the env's N = 256 rate "
             f"({report['default_ratio_cpu']:.3f}x in CPU time; {ok} the target of >= {TARGET_RATIO}x)",
+        ]
+    if "fleet_recipes_meet_target" in report:
+        ok = "meet" if report["fleet_recipes_meet_target"] else "do NOT all meet"
+        lines += [
+            "",
+            f"fleet recipes, each against its own fleet env's N = 256 rate: {ok} the target of "
+            f">= {TARGET_RATIO}x",
         ]
     return "\n".join(lines)
 
@@ -374,6 +523,11 @@ def main(argv: list[str] | None = None) -> int:
         metavar="KEY=VALUE[,...]",
         help="also measure the default settings with these TrainConfig overrides (repeatable)",
     )
+    parser.add_argument(
+        "--only",
+        metavar="SUBSTRING",
+        help="measure only the settings whose name contains this (e.g. fleet)",
+    )
     parser.add_argument("--seed", type=int, default=0)
     parser.add_argument(
         "--json", action="store_true", help="print one JSON object instead of a table"
@@ -388,6 +542,10 @@ def main(argv: list[str] | None = None) -> int:
         parser.error(str(exc))
     if not args.no_recipes:
         settings += recipe_settings(args.sweeps)
+    if args.only is not None:
+        settings = [s for s in settings if args.only in s.name]
+        if not settings:
+            parser.error(f"--only {args.only!r}: no setting's name contains it")
     report = run(settings, args.min_steps, args.env_seconds, args.seed)
     print(json.dumps(report, indent=2) if args.json else markdown(report))
     return 0

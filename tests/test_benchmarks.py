@@ -62,17 +62,36 @@ def test_train_throughput_times_every_phase_of_the_loop_and_covers_every_recipe(
         TrainConfig(n_envs=4, n_steps=16, batch_size=32, n_epochs=1),
         ["test"],
     )
-    row = bench["run"]([tiny], 100, 0.05, 0)["results"][0]
-    # k >= 2 rollouts after the first (more where the budget rounds up to whole episodes)
-    assert row["rollouts"] >= 2 and row["env_steps"] == row["rollouts"] * 4 * 16
-    measured = {k: v for k, v in row["us_per_env_step"].items() if k != "other"}
-    assert all(v > 0 for v in measured.values()), measured  # every wrapper was hit
-    assert (
-        row["us_per_env_step"]["other"] >= 0
-    )  # the phases do not overlap: they fit in the wall time
-    assert row["env_steps_per_s"] > 0 and row["ratio"] == round(
-        row["env_steps_per_s"] / row["env_n256_steps_per_s"], 4
+    # an any-size fleet trained on sizes 2 and 3 side by side (FleetSizesVecEnv: a core per size)
+    mix = bench["Setting"](
+        "tiny fleet",
+        EnvConfig(scenario="straight", n_uavs=2, fleet_slots=2),
+        TrainConfig(n_envs=2, n_steps=16, batch_size=32, n_epochs=1, fleet_sizes_up_to=3),
+        ["test"],
     )
+    report = bench["run"]([tiny, mix], 100, 0.05, 0)
+    for row, frames in zip(report["results"], (4 * 16, 2 * 2 * 16), strict=True):
+        # k >= 2 rollouts after the first (more where the budget rounds up to whole episodes); a
+        # frame of the mix is n_envs x 2 env steps (SB3's agent steps / mean(sizes))
+        assert row["rollouts"] >= 2 and row["env_steps"] == row["rollouts"] * frames
+        measured = {k: v for k, v in row["us_per_env_step"].items() if k != "other"}
+        assert all(v > 0 for v in measured.values()), measured  # every wrapper was hit
+        assert (
+            row["us_per_env_step"]["other"] >= 0
+        )  # the phases do not overlap: they fit in the wall time
+        assert row["env_steps_per_s"] > 0 and row["ratio"] == round(
+            row["env_steps_per_s"] / row["env_n256_steps_per_s"], 4
+        )
+        assert row["meets_target"] == (row["ratio"] >= report["target_ratio"])
+    # each against its own env: the single UAV's, and the mix's from its sizes' rates at N = 256
+    by_size = report["results"][1]["env_n256_steps_per_s_by_size"]
+    assert list(report["results"][0]["env_n256_steps_per_s_by_size"]) == ["1"]
+    assert list(by_size) == ["2", "3"]
+    assert report["results"][1]["env_n256_steps_per_s"] == pytest.approx(
+        2 / (1 / by_size["2"] + 1 / by_size["3"]), rel=1e-4
+    )
+    assert [(e["n_uavs"], e["fleet_slots"]) for e in report["env_n256"]] == [(1, 0), (2, 2), (3, 2)]
+    assert report["fleet_recipes_meet_target"] == report["results"][1]["meets_target"]
 
 
 def test_gc_pause_a_frozen_heap_makes_a_full_collection_short() -> None:
