@@ -49,6 +49,7 @@ BAD = [
     ({"aoa_noise_max_deg": -5.0}, "train.aoa_noise_max_deg must be >= 0"),
     ({"seed": -1}, "train.seed must be >= 0"),
     ({"torch_threads": 0}, "train.torch_threads must be positive"),
+    ({"critic": "oracle"}, "train.critic must be one of 'actor', 'privileged'"),
     ({"checkpoint_every_steps": 0}, "train.checkpoint_every_steps must be positive"),
     ({"warm_start.teacher": "parrot"}, "train.warm_start.teacher must be one of"),
     ({"warm_start.episodes": 0}, "train.warm_start.episodes must be positive"),

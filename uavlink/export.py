@@ -6,7 +6,8 @@ then clipped to the action space bounds, as SB3 does with ``np.clip`` after the 
 zip runtime's own module (``SB3Policy.actor``, ``deterministic_actor``): float64 between a float32
 input ``obs`` [batch, obs_size] and a float32 output ``action`` [batch, 2], so the two runtimes
 return bit-identical actions and closed-loop evaluations of the two files coincide at every digit.
-The batch dimension is dynamic. The policy manifest (observation layout, action mapping, env
+The batch dimension is dynamic. A policy trained with a privileged critic (``TrainConfig.critic``)
+exports the same way: the graph is its actor alone, on the actor's observation. The policy manifest (observation layout, action mapping, env
 config, training record) travels in the model's metadata under ``uavlink_manifest``, plus the
 source zip's SHA-256.
 
@@ -102,6 +103,14 @@ def verification_observations(sb3_policy: Any, n: int, seed: int) -> np.ndarray:
     return np.concatenate(batches, axis=0)[:n].astype(np.float32)
 
 
+def _sb3_input(model: Any, obs: np.ndarray) -> np.ndarray:
+    """The actor's observations ``obs`` as SB3's ``predict`` takes them: a privileged critic's policy
+    (uavlink/learn/privileged.py) reads more columns, its critic's, here zeros, which its actor
+    never reads (its features are the first ``layout.size`` columns)."""
+    extra = model.observation_space.shape[0] - obs.shape[1]
+    return np.pad(obs, ((0, 0), (0, extra))) if extra else obs
+
+
 def verify_onnx(
     onnx_path: Path, sb3_policy: Any, n: int = 1000, seed: int = 0, tolerance: float = TOLERANCE
 ) -> dict[str, Any]:
@@ -112,7 +121,7 @@ def verify_onnx(
     from uavlink.policies.onnx_policy import OnnxPolicy
 
     obs = verification_observations(sb3_policy, n, seed)
-    expected, _ = sb3_policy.model.predict(obs, deterministic=True)
+    expected, _ = sb3_policy.model.predict(_sb3_input(sb3_policy.model, obs), deterministic=True)
     runtime = OnnxPolicy(onnx_path)
     got = runtime.act(obs)
     if got.shape != expected.shape or got.dtype != np.float32:

@@ -16,10 +16,21 @@ from uavlink.config.env import (
     parse_settings,
 )
 from uavlink.config.fields import SEED_MAX, check_seed
-from uavlink.config.train import BASELINE_NAMES, PAPER_HYPERPARAMETERS, TrainConfig, WarmStartConfig
+from uavlink.config.train import (
+    BASELINE_NAMES,
+    CRITIC_ACTOR,
+    CRITIC_PRIVILEGED,
+    CRITICS,
+    PAPER_HYPERPARAMETERS,
+    TrainConfig,
+    WarmStartConfig,
+)
 
 __all__ = [
     "BASELINE_NAMES",
+    "CRITICS",
+    "CRITIC_ACTOR",
+    "CRITIC_PRIVILEGED",
     "MIXED",
     "PAPER_HYPERPARAMETERS",
     "SCENARIO_NAMES",

@@ -30,6 +30,12 @@ BASELINE_NAMES = ("static", "oracle", "aoa", "kmeans", "explore", "kriging")
 TEACHER_NAMES = (*BASELINE_NAMES, "solo", "lead", "bearings")
 
 
+# What PPO's critic reads (TrainConfig.critic): the actor's observation, or that plus the
+# privileged columns uavlink.learn.privileged appends in training only.
+CRITIC_ACTOR, CRITIC_PRIVILEGED = "actor", "privileged"
+CRITICS = (CRITIC_ACTOR, CRITIC_PRIVILEGED)
+
+
 def config_name(path: str) -> str:
     """How validate() names a field by default: ``train.warm_start.episodes``."""
     return f"train.{path}"
@@ -194,6 +200,17 @@ class TrainConfig:
     n_epochs: int = setting(1, "PPO epochs per rollout (ours)", low=1)
     ent_coef: float = setting(0.0, "entropy bonus coefficient (ours, SB3 default)", low=0)
     vf_coef: float = setting(0.5, "value loss coefficient (ours, SB3 default)", low=0)
+    # An asymmetric actor-critic (uavlink/learn/privileged.py): the critic is only needed while
+    # training, so it may read what no vehicle senses; the actor, the only part a policy file flies
+    # or exports, reads the observation alone and stays GPS-free.
+    critic: str = setting(
+        CRITIC_ACTOR,
+        "what PPO's critic reads: actor (the actor's observation, as the paper's PPO) or "
+        "privileged (also, in training only, every UE's true position relative to the row's UAV "
+        "and velocity and the episode's progress; the actor and the saved policy read the "
+        "observation alone; ours)",
+        choices=CRITICS,
+    )
     # Undiscounted returns reach ~100; without the scaling the critic's gradient dominates the
     # shared max-grad-norm clip. Observations are O(1) by construction and are not normalised, so
     # a saved policy needs no statistics at inference.

@@ -23,7 +23,7 @@ from stable_baselines3.common.vec_env.base_vec_env import (
 )
 
 from uavlink.config import EnvConfig
-from uavlink.env.core import BatchedUavEnv
+from uavlink.env.core import BatchedUavEnv, GroundTruth
 from uavlink.seeding import FLEET_SIZES
 
 
@@ -53,6 +53,10 @@ class UavVecEnv(VecEnv):
         self._start = time.time()
         self._returns = np.zeros(self.core.n_rows)
         self._rate_sums = np.zeros(n_envs)
+        # The last frame's ground truth, kept at each episode's end before the batch resets: a
+        # wrapper that widens the observations (uavlink/learn/privileged.py) widens
+        # ``terminal_observation`` from it. Never part of an observation.
+        self.terminal_truth: GroundTruth | None = None
 
     def reset(self) -> np.ndarray:
         """Restart every episode (with the seed ``seed()`` set, once); observations (N D, obs)."""
@@ -77,6 +81,7 @@ class UavVecEnv(VecEnv):
         obs = result.observation
         if dones.any():  # fixed-length episodes: the whole batch ends together
             frames = self.core.frame
+            self.terminal_truth = self.core.ground_truth()
             for i, info in enumerate(infos):
                 info["terminal_observation"] = obs[i]
                 info["TimeLimit.truncated"] = bool(result.truncated[i] and not result.terminated[i])

@@ -3,7 +3,8 @@ of the new one's inputs, e.g. a map policy (layout v3) from today's spatial poli
 
 Every weight is copied; the first layer of the actor's and the critic's MLPs gets the old inputs'
 columns where the same features sit in the new observation (matched by feature name, so a frame's
-new fields may sit anywhere) and zeros for the new inputs. The new policy's actions and values are
+new fields may sit anywhere) and zeros for the new inputs (a privileged critic's own inputs,
+``TrainConfig.critic``, after the observation: copied from a privileged critic, else new). The new policy's actions and values are
 then the old one's exactly, whatever the new inputs read, and PPO can only learn to use them from
 there: it starts at the old policy instead of at a copy of a rule (``uavlink.learn.imitation``),
 so it cannot begin below it. Imports torch.
@@ -39,6 +40,19 @@ def _column_map(source: ObservationLayout, target: ObservationLayout, path: Path
     return [column[name] for name in source.feature_names()]
 
 
+def _first_layer_columns(
+    columns: list[int], width: int, size: int, target_width: int
+) -> list[int] | None:
+    """Where a first layer's ``width`` inputs sit among the new one's ``target_width``: the old
+    observation's at ``columns``, then a privileged critic's own inputs (uavlink/learn/privileged.py;
+    after the observation of ``size`` in both) at the same places; None when they do not fit. A
+    critic that reads the observation alone grows into a privileged one with those at zero."""
+    tail = list(range(size, target_width))
+    if width == len(columns):
+        return columns
+    return columns + tail if width == len(columns) + len(tail) else None
+
+
 def start_from_policy(
     sb3_policy: Any, cfg: EnvConfig, path: str | Path, log_std: float | None = None
 ) -> dict[str, Any]:
@@ -64,14 +78,19 @@ def start_from_policy(
             raise UserError(
                 f"warm_start.policy {path}: its network has {name}, PPO's here does not"
             )
-        if name in FIRST_LAYERS and value.shape == (target[name].shape[0], len(columns)):
+        mapped = (
+            _first_layer_columns(columns, value.shape[1], layout.size, target[name].shape[1])
+            if name in FIRST_LAYERS and value.shape[0] == target[name].shape[0]
+            else None
+        )
+        if mapped is not None:
             grown = torch.zeros_like(target[name])
-            grown[:, columns] = value
+            grown[:, mapped] = value
             value = grown
         if value.shape != target[name].shape:
             raise UserError(
                 f"warm_start.policy {path}: {name} is {tuple(value.shape)}, PPO's here "
-                f"{tuple(target[name].shape)} (another net_arch)"
+                f"{tuple(target[name].shape)} (another net_arch or train.critic)"
             )
         loaded[name] = value
     absent = sorted(set(target) - set(loaded))

@@ -16,7 +16,13 @@ from typing import Any
 
 import numpy as np
 
-from uavlink.config import PAPER_HYPERPARAMETERS, EnvConfig, TrainConfig
+from uavlink.config import (
+    CRITIC_ACTOR,
+    CRITIC_PRIVILEGED,
+    PAPER_HYPERPARAMETERS,
+    EnvConfig,
+    TrainConfig,
+)
 
 __all__ = [
     "check_checkpoint",
@@ -62,16 +68,20 @@ def make_model(cfg: EnvConfig, tc: TrainConfig, run_dir: Path | None):
         if tc.fleet_sizes
         else UavVecEnv(training_env_config(cfg, tc), n_envs=tc.n_envs, seed=tc.seed)
     )
+    if tc.critic == CRITIC_PRIVILEGED:  # its columns, in training only (learn/privileged.py)
+        from uavlink.learn.privileged import privileged_env
+
+        env = privileged_env(env)
     if tc.normalize_reward:
         from stable_baselines3.common.vec_env import VecNormalize
 
         env = VecNormalize(env, norm_obs=False, norm_reward=True, gamma=tc.gamma)
-    arch = list(tc.net_arch)
+    policy, policy_kwargs = policy_settings(cfg, tc)
     return PPO(
-        "MlpPolicy",
+        policy,
         env,
         **ppo_settings(tc),
-        policy_kwargs={"net_arch": {"pi": arch, "vf": arch}},
+        policy_kwargs=policy_kwargs,
         seed=tc.seed,
         device="cpu",
         tensorboard_log=str(run_dir) if run_dir else None,
@@ -99,6 +109,36 @@ def ppo_settings(tc: TrainConfig) -> dict[str, Any]:  # PPO's keywords: floats a
     return {name: getattr(tc, name) for name in PPO_SETTINGS}
 
 
+def policy_settings(cfg: EnvConfig, tc: TrainConfig) -> tuple[Any, dict[str, Any]]:
+    """PPO's policy and ``policy_kwargs``: SB3's ``MlpPolicy`` with ``tc.net_arch`` for the actor and
+    the critic, or with ``tc.critic`` privileged the policy whose critic also reads the privileged
+    columns (``uavlink.policies.sb3_policy.PrivilegedCriticPolicy``; its actor reads the first
+    ``layout.size``: the observation)."""
+    from uavlink.env.observation import ObservationLayout
+
+    arch = list(tc.net_arch)
+    kwargs: dict[str, Any] = {"net_arch": {"pi": arch, "vf": arch}}
+    if tc.critic != CRITIC_PRIVILEGED:
+        return "MlpPolicy", kwargs
+    from uavlink.policies.sb3_policy import privileged_critic_policy
+
+    kwargs["actor_obs_size"] = ObservationLayout.for_config(cfg).size
+    return privileged_critic_policy(), kwargs
+
+
+def training_observation_size(cfg: EnvConfig, tc: TrainConfig) -> int:
+    """The width of what PPO's policy reads in training: the observation, plus the privileged
+    critic's columns with ``tc.critic`` privileged."""
+    from uavlink.env.observation import ObservationLayout
+
+    size = ObservationLayout.for_config(cfg).size
+    if tc.critic == CRITIC_PRIVILEGED:
+        from uavlink.learn.privileged import privileged_size
+
+        size += privileged_size(cfg)
+    return size
+
+
 def check_checkpoint(resume: Path, cfg: EnvConfig, tc: TrainConfig) -> None:
     """Refuse checkpoint ``resume`` (a file ``model.save`` wrote) in one line when it is not one, or
     when its observation or network is not what ``cfg`` and ``tc`` build."""
@@ -123,13 +163,21 @@ def check_checkpoint(resume: Path, cfg: EnvConfig, tc: TrainConfig) -> None:
         )
     data, _, _ = load_from_zip_file(resume, device="cpu", load_data=True)
     assert data is not None  # the zip has its "data" entry (checked above)
-    size, ours = data["observation_space"].shape[0], ObservationLayout.for_config(cfg).size
-    if size != ours:
+    kwargs = data.get("policy_kwargs") or {}
+    critic = CRITIC_PRIVILEGED if "actor_obs_size" in kwargs else CRITIC_ACTOR
+    if critic != tc.critic:
+        raise UserError(
+            f"--resume {resume}: its critic is {critic!r}, not --critic {tc.critic!r}: "
+            f"resume with --critic {critic}"
+        )
+    size = kwargs.get("actor_obs_size", data["observation_space"].shape[0])
+    ours = ObservationLayout.for_config(cfg).size
+    if size != ours or data["observation_space"].shape[0] != training_observation_size(cfg, tc):
         raise UserError(
             f"--resume {resume}: its observation has {size} values, this env's {ours}: "
             f"resume in the env it was trained in (the same --scenario family and --set)"
         )
-    arch = list((data.get("policy_kwargs") or {}).get("net_arch", {}).get("pi", []))
+    arch = list(kwargs.get("net_arch", {}).get("pi", []))
     if arch != list(tc.net_arch):
         raise UserError(
             f"--resume {resume}: its network is {arch}, not --net-arch {list(tc.net_arch)}"

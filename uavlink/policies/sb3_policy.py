@@ -8,6 +8,11 @@ magnifies over a 128-frame closed loop into a different trajectory in a few epis
 difference is ~1e-16 and vanishes in the final rounding. Against SB3's own float32 ``predict`` the
 actions agree to ~1e-6. (SB3's ``predict`` itself cannot run in float64: its preprocessing casts
 observations to float32.)
+
+A policy trained with a privileged critic (``TrainConfig.critic``, uavlink/learn/privileged.py) is a
+``PrivilegedCriticPolicy``: its SB3 input is the actor's observation plus columns only the training
+env has, of which its actor reads the first ``layout.size`` alone. Here, as in its ONNX export, it
+acts from the actor's observation through the actor's own modules, so nothing else is ever needed.
 """
 
 from __future__ import annotations
@@ -15,13 +20,71 @@ from __future__ import annotations
 import copy
 import functools
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
 from uavlink.env.core import GroundTruth
 from uavlink.env.observation import ObservationLayout
 from uavlink.policies.manifest import PolicyFileError, read_zip_manifest
+
+
+@functools.cache
+def privileged_critic_policy() -> type:
+    """SB3's ``ActorCriticPolicy`` with an actor that reads only the first ``actor_obs_size`` columns
+    of its input (the actor's observation) and a critic that reads all of them (that plus the
+    privileged columns): ``PrivilegedCriticPolicy``. Each has its own features extractor and MLP
+    (``net_arch``'s pi and vf); the names of the weights are ``MlpPolicy``'s. Built on first use: it
+    subclasses SB3's class, so defining it imports torch and SB3. A policy zip's pickled
+    ``policy_class`` names it ``uavlink.policies.sb3_policy.PrivilegedCriticPolicy``, which this
+    module's ``__getattr__`` answers with this same class."""
+    from stable_baselines3.common.policies import ActorCriticPolicy
+    from stable_baselines3.common.torch_layers import BaseFeaturesExtractor, MlpExtractor
+
+    class ActorColumns(BaseFeaturesExtractor):
+        """The actor's features: the first ``columns`` values of each (flat) input."""
+
+        def __init__(self, observation_space: Any, columns: int) -> None:
+            super().__init__(observation_space, columns)
+            self.columns = columns
+
+        def forward(self, observations: Any) -> Any:
+            return observations.flatten(1)[:, : self.columns]
+
+    class PrivilegedCriticPolicy(ActorCriticPolicy):
+        def __init__(self, *args: Any, actor_obs_size: int, **kwargs: Any) -> None:
+            self.actor_obs_size = int(actor_obs_size)
+            super().__init__(*args, **{**kwargs, "share_features_extractor": False})
+
+        def _build_mlp_extractor(self) -> None:
+            # Called by SB3's _build once both extractors exist (flattening every column): the
+            # actor's becomes the actor's columns, and each MLP gets its own input width.
+            self.features_extractor = self.pi_features_extractor = ActorColumns(
+                self.observation_space, self.actor_obs_size
+            )
+            arch = self.net_arch
+            pi, vf = (
+                (arch.get("pi", []), arch.get("vf", [])) if isinstance(arch, dict) else (arch, arch)
+            )
+            act, device = self.activation_fn, self.device
+            self.mlp_extractor = MlpExtractor(self.actor_obs_size, {"pi": pi}, act, device)
+            critic = MlpExtractor(self.features_dim, {"vf": vf}, act, device)
+            self.mlp_extractor.value_net = critic.value_net
+            self.mlp_extractor.latent_dim_vf = critic.latent_dim_vf
+
+        def _get_constructor_parameters(self) -> dict[str, Any]:
+            return {**super()._get_constructor_parameters(), "actor_obs_size": self.actor_obs_size}
+
+    PrivilegedCriticPolicy.__qualname__ = "PrivilegedCriticPolicy"  # where pickle finds it
+    return PrivilegedCriticPolicy
+
+
+if not TYPE_CHECKING:  # a module attribute built on demand; type checkers see the factory only
+
+    def __getattr__(name: str) -> Any:
+        if name == "PrivilegedCriticPolicy":
+            return privileged_critic_policy()
+        raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
 
 
 def deterministic_actor(policy: Any):
@@ -45,17 +108,22 @@ def deterministic_actor(policy: Any):
     if (
         policy.squash_output
         or not isinstance(policy.action_dist, DiagGaussianDistribution)
-        or not isinstance(policy.pi_features_extractor, FlattenExtractor)
+        or not (
+            isinstance(policy, privileged_critic_policy())
+            or isinstance(policy.pi_features_extractor, FlattenExtractor)
+        )
     ):
         raise PolicyFileError(
-            "only PPO MlpPolicy with a diagonal Gaussian and squash_output=False is supported"
+            "only PPO MlpPolicy (or its privileged critic's variant) with a diagonal Gaussian and "
+            "squash_output=False is supported"
         )
     low, high = float(space.low[0]), float(space.high[0])
 
     class DeterministicActor(torch.nn.Module):
         def __init__(self) -> None:
             super().__init__()
-            # SB3's features extractor flattens, a no-op on (N, obs): left out.
+            # SB3's features extractor flattens, a no-op on (N, obs): left out. (A privileged
+            # critic's policy's actor takes the first layout.size columns: all of the actor's obs.)
             self.latent = copy.deepcopy(policy.mlp_extractor.policy_net).double()
             self.mean = copy.deepcopy(policy.action_net).double()
 
@@ -140,9 +208,11 @@ class SB3Policy(ActorPolicy):
             raise PolicyFileError(
                 f"{path}: cannot load the SB3 model ({type(exc).__name__}: {exc})"
             ) from None
-        if data["observation_space"].shape != (layout.size,):
+        # A privileged critic's policy reads more than the actor's observation; its actor reads that.
+        actor_input = (getattr(policy, "actor_obs_size", data["observation_space"].shape[0]),)
+        if actor_input != (layout.size,):
             raise PolicyFileError(
-                f"{path}: model input {data['observation_space'].shape} does not "
+                f"{path}: model input {actor_input} does not "
                 f"match its manifest's layout {layout.describe()}"
             )
         try:

@@ -41,7 +41,11 @@ NEUTRAL_ENV_DEFAULTS: dict[str, Any] = {
 # The same for the training's (nested) warm-start fields.
 NEUTRAL_WARM_START_DEFAULTS: dict[str, Any] = {"leader_policy": "", "policy": ""}
 # The same for the training's own fields.
-NEUTRAL_TRAIN_DEFAULTS: dict[str, Any] = {"validation_episodes": 0, "fleet_sizes_up_to": 0}
+NEUTRAL_TRAIN_DEFAULTS: dict[str, Any] = {
+    "validation_episodes": 0,
+    "fleet_sizes_up_to": 0,
+    "critic": "actor",
+}
 # Warm-start fields that name a policy file: a job's key holds the file's bytes (its sha256), not only
 # its path, so a re-shipped file makes the job (and a sweep record's figures of it) another one.
 POLICY_FILE_FIELDS = ("leader_policy", "policy")
