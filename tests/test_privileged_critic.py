@@ -5,6 +5,7 @@ observation alone, so a policy file flies, evaluates and exports on the actor's 
 
 from __future__ import annotations
 
+import csv
 import json
 import shutil
 import time
@@ -239,6 +240,13 @@ def test_a_privileged_critic_fleet_trains_evaluates_and_exports_the_actor_alone(
     assert training["warm_start"]["samples"] == 4 * 128 * 2
     assert np.isfinite(training["warm_start"]["final_mse"])
     assert len(training["validation"]["curve"]) == 3  # before each of 2 updates, and at the end
+    # the per-update metrics SB3 logs, as a table beside TensorBoard's events
+    with (tmp_path / "run" / "ppo_1" / "progress.csv").open() as table:
+        records = list(csv.DictReader(table))
+    updates = [r for r in records if r["train/explained_variance"] and r["train/value_loss"]]
+    assert len(updates) == 2 and records[-1] is updates[-1]  # every update's, the last one's too
+    assert records[-1]["time/total_timesteps"] == str(8 * 128 * 2)
+    assert all(r["rollout/mean_rate_mbps"] for r in records[:-1])
 
     size = ObservationLayout.for_config(FLEET).size
     zipped = SB3Policy(out)

@@ -141,6 +141,8 @@ def test_train_cli_resumes_from_checkpoint(tmp_path: Path) -> None:
     # the first run in this process (no child's torch import), the resumed one as users run it
     assert main([*args, "--episodes", "8", "--no-progress"]) == 0
     assert (run / "ppo_1").is_dir(), "TensorBoard logs"
+    header = (run / "ppo_1" / "progress.csv").read_text().splitlines()[0].split(",")
+    assert {"train/explained_variance", "train/value_loss"} <= set(header)  # the same, as a table
     manifest = read_zip_manifest(out)
     assert set(manifest["evaluation"]) == {"no_move"}
     checkpoint = run / "checkpoint.zip"

@@ -220,8 +220,16 @@ def _callback(total: int, run_dir: Path | None, checkpoint_every: int, progress:
             self.curve: list[tuple[int, float]] = []
             self._bar = None
             self._next_checkpoint = checkpoint_every
+            self._csv: Any = None
 
         def _on_training_start(self) -> None:
+            if run_dir is not None and self.logger.dir:
+                # Beside TensorBoard's events (RUN_DIR/ppo_N), the same per-update records as a
+                # table: train/explained_variance, train/value_loss, rollout/mean_rate_mbps, ...
+                from stable_baselines3.common.logger import CSVOutputFormat
+
+                self._csv = CSVOutputFormat(str(Path(self.logger.dir) / "progress.csv"))
+                self.logger.output_formats.append(self._csv)
             if progress:
                 from tqdm.auto import tqdm
 
@@ -260,6 +268,13 @@ def _callback(total: int, run_dir: Path | None, checkpoint_every: int, progress:
             if self._bar is not None:
                 self._bar.n = min(self.num_timesteps, total)
                 self._bar.close()
+            # SB3 writes an update's records (train/...) when the next rollout's are written: the
+            # last update's would be lost
+            self.logger.record("time/total_timesteps", self.num_timesteps)
+            self.logger.dump(self.num_timesteps)
+            if self._csv is not None:
+                self.logger.output_formats.remove(self._csv)
+                self._csv.close()
 
     return TrainingMonitor()
 
