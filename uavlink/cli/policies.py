@@ -29,6 +29,8 @@ def policy_row(name: str, path: Path) -> dict[str, Any]:
         "channel": env["radio"]["shadowing_model"],
         "scenario": scenario,
         "n_uavs": env.get("n_uavs", 1),
+        # an any-size fleet's policy (fleet_slots K) flies 2 to K + 1 UAVs (--set n_uavs=D)
+        "fleet_sizes": list(range(2, slots + 2)) if (slots := env.get("fleet_slots", 0)) else None,
         "layout": manifest["observation_layout"]["version"],
         "runtimes": runtimes,
         "mean_rate_mbps": own["mean_rate_mbps"] if own else None,
@@ -60,7 +62,9 @@ def cmd_policies(args: argparse.Namespace) -> int:
             r["name"],
             r["channel"],
             r["scenario"],
-            str(r["n_uavs"]),
+            f"{r['fleet_sizes'][0]}-{r['fleet_sizes'][-1]}"
+            if r["fleet_sizes"]
+            else str(r["n_uavs"]),
             f"v{r['layout']}",
             ", ".join(r["runtimes"]),
             _figure(r),
