@@ -1,5 +1,5 @@
 """Separation in transit: vehicles lag their setpoints and move at once, so the flight loop cuts
-moves whose paths would bring two within 20 m (uavlink.flight.transit), and a flown fleet keeps
+moves whose paths would bring two within 20 m (uavlink.mobility.transit), and a flown fleet keeps
 20 m between setpoints as well as at them."""
 
 from __future__ import annotations
@@ -18,10 +18,9 @@ from support.mavlink_gcs import FAST_TAKEOFF
 from sitl_stub.launcher import vehicle_process
 from uavlink.config import EnvConfig
 from uavlink.env.actions import ActionMapping
-from uavlink.flight.fleet_loop import fleet_setpoints
-from uavlink.flight.transit import guard_transit, segment_distance_m
 from uavlink.mavlink.connection import free_udp_port
-from uavlink.mobility.fleet import min_separation_m, separate, start_positions_m
+from uavlink.mobility.fleet import fleet_setpoints, min_separation_m, separate, start_positions_m
+from uavlink.mobility.transit import guard_transit, segment_distance_m
 
 
 def _paths_gap_m(start: np.ndarray, end: np.ndarray) -> float:
