@@ -13,9 +13,10 @@ move S -> S').
 :func:`guard_transit` shortens moves, vehicle after vehicle as the separation filter does, so that
 those regions keep ``min_separation_m`` apart: vehicle d's triangle against the triangles of the
 vehicles already decided and the current paths [P, S] of those after it (each of which then checks
-against d's triangle). A new setpoint only shortens the filter's move (it stays on S -> S'), so the
-setpoints still respect the 20 m; a pair already closer than the minimum (the lag of a previous
-frame) may only move apart.
+against d's triangle). A new setpoint only shortens the filter's move (it stays on S -> S'); a pair
+whose regions are already closer than the minimum (the lag of a previous frame: a PX4 vehicle's
+path curves out of its triangle when it turns at speed) may only move apart, and the setpoints
+themselves are kept the minimum apart all the same (each new one against the others' setpoints).
 
 Batched numpy over envs, (N, D, 2) (a flight is one env, (D, 2)): the flight loop and the env's
 ``uav_motion="px4"`` fleet call the same code, and every operation is element-wise (products and
@@ -90,8 +91,11 @@ def guard_transit(
             for j in range(n)
             if j != d
         ]
-        sweep = _Sweep(actual[:, d], current[:, d], out[:, d] - current[:, d], regions)
-        # a pair already closer than the minimum keeps at least its present gap (moves apart only)
+        # and each other vehicle's setpoint: its new one if decided, else its current one
+        setpoints = np.stack([out[:, j] if j < d else current[:, j] for j in range(n) if j != d])
+        sweep = _Sweep(actual[:, d], current[:, d], out[:, d] - current[:, d], regions, setpoints)
+        # a pair already closer than the minimum keeps at least its present gap (moves apart only);
+        # setpoints the minimum apart (the filter's) stay so
         sweep.need = np.minimum(min_separation_m, sweep.gaps(np.zeros(n_envs)))
         cut = np.flatnonzero(~sweep.clear(np.ones(n_envs)))
         if not len(cut):
@@ -112,8 +116,10 @@ class _Sweep:
     with t, so each gap only shrinks and a bisection on t finds the cut. The others' segments are
     stacked (K, N, 2), ``owner`` (K,) naming the other vehicle (0 .. J-1) each belongs to."""
 
-    def __init__(self, p: np.ndarray, s: np.ndarray, move: np.ndarray, regions: list) -> None:
-        self.p, self.s, self.move = p, s, move
+    def __init__(
+        self, p: np.ndarray, s: np.ndarray, move: np.ndarray, regions: list, setpoints: np.ndarray
+    ) -> None:
+        self.p, self.s, self.move, self.setpoints = p, s, move, setpoints
         self.a = np.stack([a for region in regions for a, _ in region])
         self.b = np.stack([b for region in regions for _, b in region])
         self.owner = np.array([j for j, region in enumerate(regions) for _ in region])
@@ -129,16 +135,24 @@ class _Sweep:
     def take(self, rows: np.ndarray) -> _Sweep:
         out = object.__new__(_Sweep)
         out.p, out.s, out.move = self.p[rows], self.s[rows], self.move[rows]
+        out.setpoints = self.setpoints[:, rows]
         out.a, out.b, out.owner = self.a[:, rows], self.b[:, rows], self.owner
         out.fixed, out.need = self.fixed[:, rows], self.need[:, rows]
         return out
 
     def gaps(self, t: np.ndarray) -> np.ndarray:
-        """Per other vehicle (J, N), the gap (m) between its region and d's triangle up to E(t)."""
+        """(2 J, N): per other vehicle, the gap (m) between its region and d's triangle up to E(t);
+        then the distance from E(t) to its setpoint. Where every region keeps the minimum the second
+        follows from the first (a setpoint lies in its region, E(t) in d's); where lag has already
+        brought two regions closer, it keeps the setpoints the minimum apart all the same (each pair
+        is checked at the later one's turn, against the earlier one's final setpoint)."""
         end = self.s + t[:, None] * self.move
         q = np.stack([self.p, self.s])[:, None]  # (2, 1, N, 2): the triangle's other two edges
         swept = segment_distance_m(q, end, self.a, self.b).min(axis=0)  # (K, N)
-        return np.minimum(self.fixed, self._per_other(swept))
+        apart = end - self.setpoints
+        return np.concatenate(
+            [np.minimum(self.fixed, self._per_other(swept)), np.hypot(apart[..., 0], apart[..., 1])]
+        )
 
     def clear(self, t: np.ndarray) -> np.ndarray:
         return np.asarray((self.gaps(t) >= self.need - 1e-9).all(axis=0))
