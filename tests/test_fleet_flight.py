@@ -22,10 +22,9 @@ from support.udp_relay import BLACKOUT, CLEAN, UdpRelay
 from sitl_stub.launcher import vehicle_process
 from uavlink.config import EnvConfig
 from uavlink.env.actions import ActionMapping
-from uavlink.flight.fleet_loop import fleet_setpoints
 from uavlink.mavlink.connection import free_udp_port
 from uavlink.mavlink.dialect import mavutil
-from uavlink.mobility.fleet import min_separation_m, start_positions_m
+from uavlink.mobility.fleet import fleet_setpoints, min_separation_m, start_positions_m
 
 SPATIAL = ("--set", "radio.shadowing_model=spatial")
 SHIPPED = ROOT / "policies" / "fleet" / "straight_180.zip"

@@ -73,11 +73,12 @@ def test_a_full_speed_move_from_a_hover_takes_px4_more_than_a_frame() -> None:
     assert px4[:, 0].max() <= 72.0 + 1e-9
 
 
-def test_px4_motion_is_for_one_uav() -> None:
+def test_px4_motion_flies_one_uav_or_a_fleet() -> None:
     with pytest.raises(ConfigError, match="unknown uav_motion"):
         EnvConfig(uav_motion="teleport").validate()
-    with pytest.raises(ConfigError, match="px4 flies one UAV"):
-        EnvConfig(uav_motion="px4", n_uavs=2).validate()
+    # a fleet's setpoints move as the flight loop's (tests/test_fleet_px4.py)
+    for n_uavs in (1, 2, 3):
+        assert EnvConfig(uav_motion="px4", n_uavs=n_uavs).validate().n_uavs == n_uavs
 
 
 def test_the_genie_plans_instant_moves_beside_a_px4_uav() -> None:

@@ -38,7 +38,8 @@ ACTION_MAPPINGS = ("cartesian-v1", "polar-v1")
 # How a fleet shares the band (SPEC "A fleet"): every UAV on every RB, or the band split D ways.
 FLEET_REUSE = ("full", "orthogonal")
 # How the UAV reaches its setpoint in a frame (uavlink.mobility.uav_motion): at once (the paper's),
-# or flown by PX4's position loop under its speed and acceleration limits, as sitl_stub flies.
+# or flown by PX4's position loop under its speed and acceleration limits, as sitl_stub flies (a
+# fleet's setpoints then move as `uavlink fly` moves them: separated, and cut for the transit).
 UAV_MOTIONS = ("instant", "px4")
 # What the memory of place keeps: "cells", the grid of sensed values (layout v3, v4 for a fleet);
 # "kriging", that grid and a model of the sensed field with the spot it makes worth flying to (v5,
@@ -174,10 +175,6 @@ class EnvConfig:
         if self.uav_motion not in UAV_MOTIONS:
             raise ConfigError(
                 f"unknown uav_motion {self.uav_motion!r}; choose from {', '.join(UAV_MOTIONS)}"
-            )
-        if self.uav_motion != "instant" and self.n_uavs > 1:
-            raise ConfigError(
-                "uav_motion=px4 flies one UAV; a fleet's separation filter needs instant moves"
             )
         if self.fleet_reuse not in FLEET_REUSE:
             raise ConfigError(

@@ -1,8 +1,10 @@
 """The batched environment core: N independent episodes stepped together as numpy arrays.
 
 Per frame: each UAV moves by its mapped action (clipped to the area, its geofence, and for a fleet
-shortened by the separation filter), the UEs move, the channel reports SINR/AoA/rates at the new
-positions, the reward is the normalised R_fair of all UEs (one team reward for a fleet). The core
+shortened by the separation filter; with ``uav_motion="px4"`` the action moves the UAV's setpoint
+that way, a fleet's through the flight loop's own code with its transit guard, and the UAV flies
+towards it as PX4 does), the UEs move, the channel reports SINR/AoA/rates at the new positions, the
+reward is the normalised R_fair of all UEs (one team reward for a fleet). The core
 speaks in agent rows: row i is UAV i % D of env i // D (D = ``n_uavs``), so one UAV gives the
 paper's (N, obs) / (N, 2) and a fleet of D gives N D rows for one parameter-shared policy.
 Episodes have a fixed length, so all N envs start and end together; ``reset`` restarts the batch.
@@ -23,7 +25,7 @@ from uavlink.env.observation_builder import ObservationBuilder
 from uavlink.env.place_memory import PlaceMemory
 from uavlink.env.reward import RewardBounds
 from uavlink.mobility import MobilityState, draw_scenarios, init_mobility, step_mobility
-from uavlink.mobility.fleet import apply_moves, start_positions_m
+from uavlink.mobility.fleet import apply_moves, next_setpoints, start_positions_m
 from uavlink.mobility.uav_motion import PX4_MOTION
 from uavlink.radio.channel import RadioChannel, RadioReadings
 from uavlink.radio.rates import fair_rate
@@ -125,9 +127,15 @@ class BatchedUavEnv:
         action = self.actions.validate(action, self.n_rows)
         half = self.cfg.area.half_width_m
         if self.cfg.uav_motion == "px4":  # the move shifts the setpoint, which PX4 then flies to
-            self.setpoint_xy_m = np.clip(
-                self.setpoint_xy_m + self.actions.to_displacement_m(action), -half, half
-            )
+            # as ``uavlink fly`` moves them: clipped, separated, and for a fleet cut where the
+            # lagging UAVs' transit from where they are would bring two closer than the minimum
+            self.setpoint_xy_m = next_setpoints(
+                self._per_env(self.setpoint_xy_m),
+                self._per_env(self.actions.to_displacement_m(action)),
+                half,
+                self.cfg.uav_separation_m,
+                self._per_env(self.uav_xy_m) if self.n_uavs > 1 else None,
+            ).reshape(self.n_rows, 2)
             position, self.uav_velocity_mps = PX4_MOTION.fly(
                 self.uav_xy_m, self.uav_velocity_mps, self.setpoint_xy_m, self.cfg.frame_s
             )

@@ -4,7 +4,7 @@ radio readings), ``vehicle_control`` (wait until ready, take off, OFFBOARD, land
 ``fleet_loop`` (the flight loop for one UAV and a fleet), ``result`` (what a flight did: was it
 complete, and if not why and what to do; its summary and status line), ``steady`` (a frozen
 heap while flying), ``start_point`` (a later flight flies to the episode's start first),
-``fence``, ``transit``, ``vehicles`` (the embedded SITL or the vehicles ``--connect`` names) and ``fly`` (``fly_policy`` and its ``FlyOptions``: a flight from
+``fence``, ``vehicles`` (the embedded SITL or the vehicles ``--connect`` names) and ``fly`` (``fly_policy`` and its ``FlyOptions``: a flight from
 Python; ``run_fly``: the command). Layer: the top, below only the CLI.
 
 May import: ``config``, ``errors``, ``mobility``, ``env``, ``mavlink``, ``policies``, ``plot`` (the

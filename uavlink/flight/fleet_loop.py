@@ -5,9 +5,11 @@ Each vehicle is its own MAVLink system with its own link state and offboard stre
 vehicle). Take-off is one vehicle after the other (each holds when up), then each enters OFFBOARD;
 the world's episode starts once all are in OFFBOARD. Per frame: the newest report of every vehicle
 makes the D observation rows (as the env's: own readings, the others' positions, who serves each
-UE), the policy acts on them, and :func:`fleet_setpoints` turns the moves into setpoints with the
-env's own separation filter, so what was trained is what flies, then cuts any move whose transit
-(the vehicles lag their setpoints) would bring two vehicles closer (:mod:`uavlink.flight.transit`).
+UE), the policy acts on them, and :func:`~uavlink.mobility.fleet.fleet_setpoints` turns the moves
+into setpoints with the env's own separation filter, so what was trained is what flies, then cuts
+any move whose transit (the vehicles lag their setpoints) would bring two vehicles closer
+(:mod:`uavlink.mobility.transit`); the env's ``uav_motion="px4"`` fleet moves its setpoints through
+the same code, so a lockstep flight replays as that evaluation.
 
 A vehicle whose link is lost falls back to hold on its own (PX4's offboard-loss failsafe); the
 others fly on (the loop does not wait for a vehicle not heard for :data:`LIVE_S`, and moves of a
@@ -41,7 +43,6 @@ from uavlink.flight.loop import (
 )
 from uavlink.flight.radio_source import MavlinkRadioSource
 from uavlink.flight.result import EndedBy, FleetResult, VehicleRecord, judge, signing_hint
-from uavlink.flight.transit import guard_transit
 from uavlink.flight.vehicle_control import (
     ending_mode,
     land,
@@ -51,7 +52,7 @@ from uavlink.flight.vehicle_control import (
 )
 from uavlink.mavlink.px4_modes import PX4_MAIN_OFFBOARD
 from uavlink.mavlink.radio_codec import RadioReport, ScoreReport, send_frame_decided
-from uavlink.mobility.fleet import apply_moves, min_separation_m
+from uavlink.mobility.fleet import fleet_setpoints, min_separation_m
 
 log = logging.getLogger(__name__)
 
@@ -59,27 +60,6 @@ LIVE_S = 0.5  # wall seconds: a vehicle not heard for longer is not waited for
 GATHER_FRAME_FRACTION = (
     0.3  # of a frame's wall time: the longest wait for the other vehicles' reports
 )
-
-
-def fleet_setpoints(
-    current_xy_m: np.ndarray,
-    moves_m: np.ndarray,
-    cfg: EnvConfig,
-    movable: np.ndarray | None = None,
-    actual_xy_m: np.ndarray | None = None,
-) -> np.ndarray:
-    """Next setpoints (D, 2) east/north from the current ones and the policy's moves, as the env
-    moves its UAVs: clipped to the area, then the separation filter. ``movable`` (D,) bool: a
-    vehicle that cannot be told this frame keeps its setpoint (its move is not made). With the
-    vehicles' ``actual_xy_m`` positions, moves are also cut where what they sweep until the next
-    setpoint would bring two within ``uav_separation_m``
-    (:func:`~uavlink.flight.transit.guard_transit`)."""
-    half = cfg.area.half_width_m
-    moves = np.where(movable[:, None], moves_m, 0.0) if movable is not None else moves_m
-    target = apply_moves(current_xy_m[None], moves[None], half, cfg.uav_separation_m)[0]
-    if actual_xy_m is None:
-        return target
-    return guard_transit(actual_xy_m, current_xy_m, target, cfg.uav_separation_m)
 
 
 class FleetPilot(PolicyPilot):

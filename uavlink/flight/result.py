@@ -285,9 +285,10 @@ def episode_fields(
     """Which radio episode was flown, its scenario and how to replay it: the vehicle's payload names
     it (its UL_EP_SEED / UL_EPISODE messages); an embedded vehicle serves episode 0 of ``--seed``.
     ``mixed`` draws the episode's scenario from its seed, as the replay's evaluation does: the
-    summary names the one flown. A lockstep flight of one UAV is replayed with the vehicle's
-    motion (``uav_motion=px4``); a flight of the first ``frames`` of the episode, with an episode that
-    long (none for a policy that plans over the episode's length: the model of the field's)."""
+    summary names the one flown. A lockstep flight (one UAV or a fleet) is replayed with the
+    vehicles' motion (``uav_motion=px4``); a flight of the first ``frames`` of the episode, with an
+    episode that long (none for a policy that plans over the episode's length: the model of the
+    field's)."""
     seed = episode.get("seed", options.seed if options.connect is None else None)
     scenario = {"scenario": cfg.scenario}
     if cfg.scenario == MIXED and seed is not None:
@@ -311,7 +312,7 @@ def episode_fields(
             words += ["--aoa-noise-deg", repr(float(options.aoa_noise_deg))]
         for pair in options.overrides:
             words += ["--set", pair]
-        if options.lockstep and cfg.n_uavs == 1 and cfg.uav_motion != "px4":
+        if options.lockstep and cfg.uav_motion != "px4":
             words += ["--set", "uav_motion=px4"]
         if short:  # the episode's first frames are the same in a shorter episode
             words += ["--set", f"episode_frames={frames}"]

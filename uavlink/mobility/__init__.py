@@ -1,5 +1,7 @@
 """UE mobility scenarios, batched numpy with the random generator passed in; a fleet's start
-positions and separation filter (``fleet``); how a UAV flies to its setpoint (``uav_motion``).
+positions, separation filter and setpoints (``fleet``), and the guard on what lagging vehicles sweep
+between setpoints (``transit``), shared by the env and the flight loop; how a UAV flies to its
+setpoint (``uav_motion``).
 
 May import: ``config``, ``errors``.
 """

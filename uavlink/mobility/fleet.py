@@ -3,12 +3,21 @@
 Pure numpy over batches: positions (N, D, 2) in metres, x east, y north. The separation filter is
 the one piece of code that keeps two UAVs at least ``min_separation_m`` apart horizontally; the env,
 the genie's replays and the flight loop move UAVs through ``apply_moves``, so what was trained is
-what flies.
+what flies. Vehicles that lag their setpoints (the env's ``uav_motion="px4"``, a flight) move
+their setpoints through :func:`next_setpoints`, which adds the transit guard
+(:mod:`uavlink.mobility.transit`); the env and ``uavlink fly`` call the same function.
 """
 
 from __future__ import annotations
 
+from typing import TYPE_CHECKING
+
 import numpy as np
+
+from uavlink.mobility.transit import guard_transit
+
+if TYPE_CHECKING:
+    from uavlink.config import EnvConfig
 
 # A move is cut this much short of the point where it would touch another UAV's disk, so that
 # rounding can never leave two UAVs a hair closer than the minimum.
@@ -73,6 +82,45 @@ def apply_moves(
     (``|x|, |y| <= half_width_m``), then kept apart by :func:`separate`."""
     target = np.clip(current_m + moves_m, -half_width_m, half_width_m)
     return separate(current_m, target, min_separation_m)
+
+
+def next_setpoints(
+    setpoint_m: np.ndarray,
+    moves_m: np.ndarray,
+    half_width_m: float,
+    min_separation_m: float,
+    actual_m: np.ndarray | None = None,
+) -> np.ndarray:
+    """Next setpoints (N, D, 2) from the current ones and the moves (N, D, 2), as the env moves its
+    UAVs (:func:`apply_moves`: clipped to the area, then the separation filter); with the vehicles'
+    ``actual_m`` positions (N, D, 2), moves are also cut where what they sweep until the next
+    setpoint would bring two within ``min_separation_m``
+    (:func:`~uavlink.mobility.transit.guard_transit`)."""
+    target = apply_moves(setpoint_m, moves_m, half_width_m, min_separation_m)
+    if actual_m is None:
+        return target
+    return guard_transit(actual_m, setpoint_m, target, min_separation_m)
+
+
+def fleet_setpoints(
+    current_xy_m: np.ndarray,
+    moves_m: np.ndarray,
+    cfg: EnvConfig,
+    movable: np.ndarray | None = None,
+    actual_xy_m: np.ndarray | None = None,
+) -> np.ndarray:
+    """One fleet's next setpoints (D, 2) east/north (the flight loop's): :func:`next_setpoints`
+    with ``cfg``'s area and separation. ``movable`` (D,) bool: a vehicle that cannot be told this
+    frame keeps its setpoint (its move is not made)."""
+    moves = np.where(movable[:, None], moves_m, 0.0) if movable is not None else moves_m
+    actual = None if actual_xy_m is None else np.asarray(actual_xy_m)[None]
+    return next_setpoints(
+        np.asarray(current_xy_m)[None],
+        np.asarray(moves)[None],
+        cfg.area.half_width_m,
+        cfg.uav_separation_m,
+        actual,
+    )[0]
 
 
 def min_separation_m(xy_m: np.ndarray) -> np.ndarray:

@@ -1,0 +1,200 @@
+"""A fleet with PX4's motion (``uav_motion="px4"``, n_uavs > 1): the env moves its setpoints through
+the flight loop's own code (``uavlink.mobility.fleet.next_setpoints``: the area, the separation
+filter, the transit guard) and flies the UAVs to them as the vehicle does, so a fleet's lockstep
+flight replays as its PX4-motion evaluation, and a free-running fleet keeps 20 m."""
+
+from __future__ import annotations
+
+import json
+import shlex
+from pathlib import Path
+
+import numpy as np
+import pytest
+from support.cli import ROOT, cli_json
+
+from uavlink.config import EnvConfig
+from uavlink.env.core import BatchedUavEnv
+from uavlink.mobility.fleet import fleet_setpoints, min_separation_m
+from uavlink.mobility.transit import guard_transit
+from uavlink.mobility.uav_motion import PX4_MOTION
+from uavlink.policies.manifest import read_zip_manifest
+
+# The fleets of three the flights fly: (policy, scenario). A baseline that flies from the
+# observation while no D = 3 policy ships; a policy file flies once its manifest is a fleet of three
+# (skipped before), so the shipped hotspot policy joins when it is retrained for D = 3.
+FLEETS_OF_THREE = [("aoa", "circular"), ("policies/fleet/hotspot.zip", "hotspot")]
+
+
+def _fleet_of_three(policy: str) -> list[str]:
+    """The --set a policy needs to fly three UAVs; skips a policy file that is not for three."""
+    path = ROOT / policy
+    if not path.suffix:  # a baseline: any fleet size
+        return ["--set", "n_uavs=3"]
+    n_uavs = read_zip_manifest(path)["env_config"]["n_uavs"]
+    if n_uavs != 3:
+        pytest.skip(f"{policy} is a fleet of {n_uavs}, not 3")
+    return []
+
+
+def _towards_one_point(rng: np.random.Generator, setpoints: np.ndarray) -> np.ndarray:
+    """Actions (N D, 2) driving most UAVs of each env at one point, the rest at random: the hardest
+    case for the separation."""
+    n_envs, n_uavs = setpoints.shape[:2]
+    centre = rng.uniform(-150, 150, (n_envs, 1, 2))
+    toward = np.where(
+        rng.random((n_envs, n_uavs, 1)) < 0.7, centre - setpoints, rng.normal(size=setpoints.shape)
+    )
+    action = toward / np.maximum(np.abs(toward).max(axis=2, keepdims=True), 1e-9)
+    return np.clip(action, -1, 1).reshape(-1, 2)
+
+
+@pytest.mark.parametrize("n_uavs", [2, 3])
+def test_env_px4_fleet_keeps_its_setpoints_20_m_apart(n_uavs: int) -> None:
+    """Every UAV of every env driven at one point, from a tight start (30 m circle): every frame's
+    setpoints keep uav_separation_m (20 m) and the area, and the UAVs stay in the area. (The UAVs
+    themselves can come closer than 20 m: their paths curve out of what the guard keeps apart.
+    Before the guard checked the setpoints themselves, these came to 19.3 m (D = 2, frame 88) and
+    19.95 m (D = 3, frame 58).)"""
+    cfg = EnvConfig(n_uavs=n_uavs, uav_motion="px4", fleet_start_radius_m=30.0).validate()
+    env = BatchedUavEnv(cfg, 16, seed=0)
+    env.reset()
+    rng = np.random.default_rng(0)
+    for _ in range(100):
+        env.step(_towards_one_point(rng, env.setpoint_xy_m.reshape(16, n_uavs, 2)))
+        setpoints = env.setpoint_xy_m.reshape(16, n_uavs, 2)
+        assert min_separation_m(setpoints).min() >= cfg.uav_separation_m - 1e-6
+        assert np.abs(setpoints).max() <= cfg.area.half_width_m
+        assert np.abs(env.uav_xy_m).max() <= cfg.area.half_width_m
+
+
+def test_env_px4_fleet_moves_as_the_flight_loop() -> None:
+    """Each env's step is, bit for bit, the flight loop's fleet_setpoints from that env's setpoints
+    and the UAVs' positions, then PX4_MOTION flying them there."""
+    cfg = EnvConfig(n_uavs=3, uav_motion="px4", fleet_start_radius_m=30.0).validate()
+    env = BatchedUavEnv(cfg, 6, seed=1)
+    env.reset()
+    rng = np.random.default_rng(1)
+    guarded = 0
+    for _ in range(25):
+        setpoints, positions = env.setpoint_xy_m.copy(), env.uav_xy_m.copy()
+        velocity = env.uav_velocity_mps.copy()
+        action = _towards_one_point(rng, setpoints.reshape(6, 3, 2))
+        env.step(action)
+        moves = env.actions.to_displacement_m(action).reshape(6, 3, 2)
+        flight = np.concatenate(
+            [
+                fleet_setpoints(
+                    setpoints[3 * i : 3 * i + 3], moves[i], cfg, None, positions[3 * i : 3 * i + 3]
+                )
+                for i in range(6)
+            ]
+        )
+        assert np.array_equal(env.setpoint_xy_m, flight)
+        filtered = np.concatenate(
+            [fleet_setpoints(setpoints[3 * i : 3 * i + 3], moves[i], cfg) for i in range(6)]
+        )
+        guarded += int((flight != filtered).any(axis=1).sum())  # moves the transit guard cut
+        flown, _ = PX4_MOTION.fly(positions, velocity, flight, cfg.frame_s)
+        assert np.array_equal(env.uav_xy_m, np.clip(flown, -200.0, 200.0))
+    assert guarded > 0
+
+
+def test_the_batched_guard_is_each_fleets_own() -> None:
+    """guard_transit over N fleets at once equals each fleet's own call (the flight loop's), bit for
+    bit, cut moves included."""
+    rng = np.random.default_rng(0)
+    setpoints = rng.uniform(-60, 60, (48, 3, 2))
+    setpoints[:, 1] = setpoints[:, 0] + [25.0, 0.0]  # close pairs, so that moves get cut
+    actual = setpoints + rng.normal(size=setpoints.shape) * 3
+    new = setpoints + rng.uniform(-12, 12, setpoints.shape)
+    batched = guard_transit(actual, setpoints, new, 20.0)
+    one_by_one = np.stack([guard_transit(actual[i], setpoints[i], new[i], 20.0) for i in range(48)])
+    assert np.array_equal(batched, one_by_one)
+    assert not np.array_equal(batched, new)  # some were cut
+
+
+def _lockstep_timeouts(out: Path) -> set[int]:
+    stats = json.loads((out / "sitl.log").read_text().split("sitl-stub: stats ")[-1])
+    found, todo = [], [stats]
+    while todo:
+        tree = todo.pop()
+        if isinstance(tree, dict):
+            found += [v for k, v in tree.items() if k == "lockstep_timeouts"]
+            todo += list(tree.values())
+        elif isinstance(tree, list):
+            todo += tree
+    return set(found)
+
+
+@pytest.mark.slow
+@pytest.mark.timeout(300)
+@pytest.mark.parametrize(("policy", "scenario"), FLEETS_OF_THREE)
+def test_a_fleet_of_three_in_lockstep_is_its_px4_evaluation(
+    tmp_path: Path, policy: str, scenario: str
+) -> None:
+    """Three vehicles of `sitl-stub --fleet 3 --lockstep` fly one episode; the summary's replay
+    evaluates it with PX4's motion, and the two agree within 0.5 % (aoa on circular, seeds 0-3 and
+    hotspot: equal to six decimals); every frame decided by every vehicle, none timed out."""
+    flown = cli_json(
+        "fly",
+        "--policy",
+        policy,
+        *_fleet_of_three(policy),
+        "--scenario",
+        scenario,
+        "--seed",
+        "1",
+        "--lockstep",
+        "--out",
+        str(tmp_path),
+        "--json",
+        "--no-picture",
+    )
+    replay = shlex.split(flown["replay"])
+    assert replay[:2] == ["uavlink", "evaluate"] and replay[-2:] == ["--set", "uav_motion=px4"]
+    evaluated = cli_json(*replay[1:], "--json")["mean_rate_mbps"]
+    print(
+        f"\n{policy} D=3 on {scenario} seed 1: flown in lockstep {flown['mean_rate_mbps']} Mbps, "
+        f"evaluated (px4 motion) {evaluated}; min separation flown {flown['min_separation_flown_m']} m"
+    )
+    assert flown["n_uavs"] == 3 and flown["frames"] == 128 and flown["completed"], flown
+    assert [v["decisions"] for v in flown["vehicles"]] == [128] * 3, flown["vehicles"]
+    assert _lockstep_timeouts(tmp_path) == {0}
+    assert abs(flown["mean_rate_mbps"] - evaluated) <= 0.005 * evaluated
+    assert flown["min_separation_setpoints_m"] >= 20.0
+
+
+@pytest.mark.slow
+@pytest.mark.timeout(300)
+@pytest.mark.serial  # free-running at 20x: three vehicles' loops beside another test lose frames
+@pytest.mark.parametrize(("policy", "scenario"), FLEETS_OF_THREE)
+def test_a_free_running_fleet_of_three_keeps_20_m(
+    tmp_path: Path, policy: str, scenario: str
+) -> None:
+    """Three vehicles fly a whole episode without lockstep: every frame flown, and every pair at
+    least 20 m apart all the way (positions as the loop hears them, every poll) and at every
+    setpoint."""
+    flown = cli_json(
+        "fly",
+        "--policy",
+        policy,
+        *_fleet_of_three(policy),
+        "--scenario",
+        scenario,
+        "--seed",
+        "0",
+        "--out",
+        str(tmp_path),
+        "--json",
+        "--no-picture",
+    )
+    print(
+        f"\n{policy} D=3 on {scenario} seed 0, free-running: {flown['mean_rate_mbps']} Mbps; min "
+        f"separation flown {flown['min_separation_flown_m']} m, setpoints "
+        f"{flown['min_separation_setpoints_m']} m"
+    )
+    assert flown["n_uavs"] == 3 and flown["frames"] == 128 and flown["completed"], flown
+    assert flown["radio_frames_missed"] == 0, flown
+    assert flown["min_separation_flown_m"] >= 20.0, flown
+    assert flown["min_separation_setpoints_m"] >= 20.0, flown
