@@ -65,12 +65,17 @@ wheel-check: $(STAMP)
 	PYTHON=$(BIN)/python bash .ci/wheel-check
 
 # docs/results.md and docs/results/, every section, from the shipped policies and the sweep records
-# beside them (policies/*.sweep.json: a fresh clone needs no runs/): about 38 minutes on 2 cores.
+# beside them (policies/*.sweep.json: a fresh clone needs no runs/): about 38 minutes on 2 cores with
+# the fleet part at D = 1 to 3; its D = 4 genie (about 6.5 CPU-s an episode) adds an estimated 30 to
+# 60 minutes (not yet timed).
+# The fleet part pairs the any-size policies (--fleet) with the per-size D = 2 ones (--fleet-per-size,
+# beside which a per-size sweep's record, sweeps/fleet.toml's, is read).
 results: $(STAMP)
 	$(BIN)/uavlink evaluate --scenario all --policy policies/ --episodes 100 --seed 0 \
 		--out docs/results --markdown docs/results.md --sweep sweeps/table1.toml \
 		--sweep sweeps/table1_spatial.toml --sweep sweeps/fleet.toml --spatial policies/spatial \
-		--fleet policies/fleet --map policies/map --sweep sweeps/map.toml
+		--fleet policies/fleet --fleet-per-size policies/fleet_d2 --map policies/map \
+		--sweep sweeps/map.toml
 
 bench: $(STAMP)
 	$(BIN)/python benchmarks/env_throughput.py

@@ -43,6 +43,7 @@ def cmd_evaluate(args: argparse.Namespace) -> int:
             ("--spatial", args.spatial),
             ("--map", args.map),
             ("--fleet", args.fleet),
+            ("--fleet-per-size", args.fleet_per_size),
             ("--sweep", args.sweep),
         )
         if value
@@ -120,6 +121,11 @@ def _write_results_folder(args: argparse.Namespace) -> int:
         raise UserError(
             f"--fleet {args.fleet}: needs a folder of fleet policies and --spatial (one UAV's, to compare)"
         )
+    if args.fleet_per_size is not None and (args.fleet is None or not args.fleet_per_size.is_dir()):
+        raise UserError(
+            f"--fleet-per-size {args.fleet_per_size}: needs a folder of per-size fleet policies and "
+            "--fleet (the fleet policies to pair them with)"
+        )
     if args.map is not None and (args.spatial is None or not args.map.is_dir()):
         raise UserError(
             f"--map {args.map}: needs a folder of map policies and --spatial (today's, to compare)"
@@ -136,11 +142,13 @@ def _write_results_folder(args: argparse.Namespace) -> int:
         )
 
     def shipped(spec) -> Path:
-        """The folder a sweep's median seeds were shipped to: its record lies beside them."""
+        """The folder a sweep's median seeds were shipped to: its record lies beside them (a
+        sweep of per-size fleet policies, fleet_slots 0, beside --fleet-per-size's when given)."""
+        fleet = args.fleet
+        if args.fleet_per_size is not None and spec.jobs()[0].env.fleet_slots == 0:
+            fleet = args.fleet_per_size
         return Path(
-            {"ar1": folder, "spatial": args.spatial, "fleet": args.fleet, "map": args.map}[
-                kind(spec)
-            ]
+            {"ar1": folder, "spatial": args.spatial, "fleet": fleet, "map": args.map}[kind(spec)]
             or folder
         )
 
@@ -193,6 +201,7 @@ def _write_results_folder(args: argparse.Namespace) -> int:
             spatial_folder=args.spatial,
             fleet_folder=args.fleet,
             map_folder=args.map,
+            fleet_per_size_folder=args.fleet_per_size,
             teacher_of=policy_teacher,
         )
     finally:
@@ -309,8 +318,17 @@ def add_evaluate_parser(sub) -> None:
         type=Path,
         default=None,
         metavar="FOLDER",
-        help="with --out and --spatial: add the fleet tables (D = 1, 2, 3 UAVs on the spatial channel): "
-        "FOLDER's fleet policies against the fleet baselines and --spatial's (e.g. policies/fleet)",
+        help="with --out and --spatial: add the fleet tables (D = 1 to 4 UAVs on the spatial channel): "
+        "FOLDER's fleet policies (an any-size one flown at every D its layout flies, a per-size one at "
+        "its own) against the fleet baselines and --spatial's (e.g. policies/fleet)",
+    )
+    p.add_argument(
+        "--fleet-per-size",
+        type=Path,
+        default=None,
+        metavar="FOLDER",
+        help="with --out and --fleet: add FOLDER's per-size fleet policies, each flown at its own D "
+        "and paired with --fleet's there (e.g. policies/fleet_d2)",
     )
     p.add_argument(
         "--sweep-root",

@@ -143,6 +143,7 @@ def write_results(
     spatial_folder: Path | None = None,
     fleet_folder: Path | None = None,
     map_folder: Path | None = None,
+    fleet_per_size_folder: Path | None = None,
     teacher_of: TeacherOf | None = None,
 ) -> Path:
     """Evaluate everything, then write the folder ``run.out`` and the Markdown ``run.markdown``
@@ -150,7 +151,8 @@ def write_results(
     ``sweep_sections(link_prefix, kind)`` gives the across-seed sections of the sweeps of that kind
     (``"ar1"``, ``"spatial"``, ``"fleet"``, ``"map"``); with ``spatial_folder`` (policies trained on the
     spatial channel) the report gains its spatial part (``uavlink.evaluation.report_spatial``), with
-    ``fleet_folder`` too (fleet policies) its fleet part (``uavlink.evaluation.report_fleet``), and with
+    ``fleet_folder`` too (fleet policies; ``fleet_per_size_folder``: the per-size ones to pair them
+    with) its fleet part (``uavlink.evaluation.report_fleet``), and with
     ``map_folder`` too (policies with a memory of place) its map part
     (``uavlink.evaluation.report_map``), whose ``teacher_of`` rebuilds each map policy's warm-start teacher."""
     if map_folder is not None and teacher_of is None:
@@ -174,7 +176,11 @@ def write_results(
     fleet = []
     if fleet_folder is not None and spatial_folder is not None:
         fleet = fleet_sections(
-            run, fleet_folder, spatial_folder, rows[0].cfg.area.half_width_m
+            run,
+            fleet_folder,
+            spatial_folder,
+            rows[0].cfg.area.half_width_m,
+            fleet_per_size_folder,
         ) + sweep_sections(rel, "fleet")
     write_csv(out / "table1.csv", h1, b1)
     write_csv(out / "table2.csv", h2, b2)

@@ -1,11 +1,13 @@
-"""The results report's fleet part (SPEC "A fleet"): D = 1, 2, 3 UAVs on the spatial channel.
+"""The results report's fleet part (SPEC "A fleet"): D = 1, 2, 3, 4 UAVs on the spatial channel.
 
 Every number comes from seeded evaluations on the same episodes (the UEs' motion depends on the
-scenario and seed only, so a fleet and a single UAV meet the same UEs and are paired episode by
-episode): every baseline for D = 1, 2, 3, the fleet policies (D = 2) and the single-UAV spatial
-policies; the fleet policies' ratios against the fleet oracle, the fleet aoa rule and one UAV's
-policy, each with a 95 % paired interval and the issue's target; the fleet metrics (Jain's index,
-5th-percentile UE rate, UEs per UAV); and a trajectory plot per scenario.
+scenario and seed only, so fleets of every size and a single UAV meet the same UEs and are paired
+episode by episode), each evaluated once per scenario: every baseline at every D, the fleet policy
+at each D its layout flies (an any-size policy, layout v6: D = 2 to its slots + 1; a per-size one:
+its own D), the per-size policies of the ``per_size_folder`` at theirs and one UAV's spatial policy.
+The tables (``report_fleet_tables``): throughput, per D the fleet policy's paired ratios against
+kmeans, the genie, the aoa rule and the per-size policy with the issue's bars, per D the fleet
+metrics (Jain's index, 5th-percentile UE rate, UEs per UAV); and a trajectory plot per scenario.
 """
 
 from __future__ import annotations
@@ -13,29 +15,40 @@ from __future__ import annotations
 from collections.abc import Callable
 from pathlib import Path
 
-from uavlink.evaluation.core import EvalResult, evaluate_policy, paired_ratio_ci
+from uavlink.config import EnvConfig
+from uavlink.errors import UserError
+from uavlink.evaluation.core import EvalResult, evaluate_policy
+from uavlink.evaluation.report_fleet_tables import (
+    FLEET_BASELINES,
+    FLEET_SIZES,
+    JAIN_GAP,
+    SINGLE_PPO,
+    Rows,
+    bars_text,
+    by_size,
+    fleet_sizes,
+    genie_fairness,
+    metrics_table,
+    per_size,
+    ppo,
+    ratio_table,
+    throughput_table,
+)
 from uavlink.evaluation.tables import ReportRun, markdown_table, spatial_overrides, write_csv
 from uavlink.mobility import SCENARIOS
+from uavlink.policies.base import Policy
 from uavlink.policies.contract import EnvOverrides, load_with_env
 from uavlink.policies.registry import make_baseline
 
-FLEET_BASELINES = ("static", "oracle", "aoa", "kmeans", "genie")
-FLEET_SIZES = (1, 2, 3)
-POLICY_UAVS = 2  # the shipped fleet policies' D
-# Results are keyed "D<d> <baseline>"; the fleet policies' and the single-UAV policies' keys:
-FLEET_PPO, SINGLE_PPO = f"D{POLICY_UAVS} ppo", "D1 ppo"
-# The bars set for the D = 2 policies: share of the fleet oracle, share of one UAV's policy.
-ORACLE_SHARE = {"straight_90": 0.95, "straight_180": 0.95, "hotspot": 0.95}
-SINGLE_SHARE = {"no_move": 0.98, "straight": 0.98, "circular": 0.98, "straight_180": 1.6}
+PLOT_UAVS = 3  # the fleet size of the trajectory plots (the policy's first size if it flies no 3)
 
 
-def _ratio(a: EvalResult, b: EvalResult) -> tuple[float, float, float]:
-    return paired_ratio_ci(a.episode_rate_mbps, b.episode_rate_mbps)
-
-
-def _fmt(ratio: tuple[float, float, float]) -> str:
-    r, lo, hi = ratio
-    return f"{r:.3f} [{lo:.3f}, {hi:.3f}]"
+def sizes_flown(policy: Policy, cfg: EnvConfig) -> list[int]:
+    """The fleet sizes a policy flies among ``FLEET_SIZES``: an any-size layout's (v6, K slots:
+    D = 2 to K + 1), else the policy's own ``n_uavs``."""
+    slots = getattr(policy.layout, "uav_slots", 0)
+    sizes = range(2, slots + 2) if slots > 0 else [cfg.n_uavs]
+    return [d for d in sizes if d > 1 and d in FLEET_SIZES]
 
 
 def evaluate_fleet(
@@ -45,101 +58,67 @@ def evaluate_fleet(
     seed: int,
     overrides: EnvOverrides,
     progress: Callable[[str], None] = lambda _: None,
-) -> dict[str, dict[str, EvalResult]]:
-    """Per scenario, results keyed ``"D<d> <baseline>"``, ``FLEET_PPO`` and ``SINGLE_PPO``."""
+    per_size_folder: Path | None = None,
+) -> Rows:
+    """Per scenario, results by column (``report_fleet_tables``): ``"D<d> <baseline>"`` for every
+    D and baseline, ``"D<d> PPO"`` for each D the fleet policy flies (at ``PLOT_UAVS``, or its
+    first D, with episode 0's trajectory), ``"D<d> PPO (per size)"`` for each D a
+    ``per_size_folder`` policy flies and ``"D1 PPO"`` for one UAV's. Nothing is evaluated twice."""
     on_spatial = spatial_overrides(overrides)
     out = {}
-    for scenario in SCENARIOS:
-        ((fleet, cfg2),) = load_with_env([fleet_folder], on_spatial.on(scenario))
-        ((single, cfg1),) = load_with_env([single_folder], on_spatial.on(scenario))
-        results = {}
-        for d in FLEET_SIZES:
-            cfg = cfg2.replace(n_uavs=d).validate()
-            for name in FLEET_BASELINES:
-                progress(f"fleet {scenario}: D={d} {name}")
-                results[f"D{d} {name}"] = evaluate_policy(
-                    make_baseline(name, cfg), cfg, episodes, seed
-                )
-        progress(f"fleet {scenario}: policies")
-        results[FLEET_PPO] = evaluate_policy(fleet, cfg2, episodes, seed, record_trajectory=True)
-        results[SINGLE_PPO] = evaluate_policy(single, cfg1, episodes, seed)
+    for k, scenario in enumerate(SCENARIOS, 1):
+        jobs = _fleet_jobs(scenario, fleet_folder, single_folder, on_spatial, per_size_folder)
+        results: dict[str, EvalResult] = {}
+        for key, policy, cfg, source, record in jobs:
+            assert key not in results  # each (D, policy) once: the D = 4 genie costs seconds
+            what = key if source is None else f"{key} from {source}/{scenario}"
+            progress(f"fleet {scenario} ({k}/{len(SCENARIOS)}): {what}, {episodes} episodes")
+            results[key] = evaluate_policy(policy, cfg, episodes, seed, record_trajectory=record)
         out[scenario] = results
     return out
 
 
-def throughput_table(rows: dict[str, dict[str, EvalResult]]) -> tuple[list[str], list[list[str]]]:
-    columns = [f"D{d} {b}" for d in FLEET_SIZES for b in FLEET_BASELINES]
-    # Each policy's column after the baselines with its number of UAVs.
-    columns.insert(columns.index(f"D1 {FLEET_BASELINES[-1]}") + 1, SINGLE_PPO)
-    columns.insert(columns.index(f"D{POLICY_UAVS} {FLEET_BASELINES[-1]}") + 1, FLEET_PPO)
-    header = ["scenario", *[c.replace("ppo", "PPO") for c in columns]]
-    return header, [[s, *(f"{r[c].mean_rate_mbps:.2f}" for c in columns)] for s, r in rows.items()]
+Job = tuple[str, Policy, EnvConfig, Path | None, bool]  # key, policy, env, folder, trajectory?
 
 
-def ratio_table(rows: dict[str, dict[str, EvalResult]]) -> tuple[list[str], list[list[str]]]:
-    """The fleet policies against the fleet oracle, the fleet aoa rule and one UAV's policy."""
-    header = [
-        "scenario",
-        "PPO / oracle",
-        "PPO / aoa",
-        "PPO / one UAV's PPO",
-        "target",
-        "met",
-        "PPO / genie",
-    ]
-    body = []
-    for scenario, r in rows.items():
-        ppo, fleet = r[FLEET_PPO], f"D{POLICY_UAVS}"
-        vs_oracle, vs_aoa = _ratio(ppo, r[f"{fleet} oracle"]), _ratio(ppo, r[f"{fleet} aoa"])
-        vs_single = _ratio(ppo, r[SINGLE_PPO])
-        bars = [("vs aoa", 1.0, vs_aoa)]
-        if scenario in ORACLE_SHARE:
-            bars.append(("vs oracle", ORACLE_SHARE[scenario], vs_oracle))
-        if scenario in SINGLE_SHARE:
-            bars.append(("vs one UAV", SINGLE_SHARE[scenario], vs_single))
-        target = ", ".join(f"{what} >= {bar:g}" for what, bar, _ in bars)
-        met = "yes" if all(ratio[0] >= bar for _, bar, ratio in bars) else "no"
-        body.append(
-            [
-                scenario,
-                _fmt(vs_oracle),
-                _fmt(vs_aoa),
-                _fmt(vs_single),
-                target,
-                met,
-                _fmt(_ratio(ppo, r[f"{fleet} genie"])),
-            ]
+def _fleet_jobs(
+    scenario: str,
+    fleet_folder: Path,
+    single_folder: Path,
+    on_spatial: EnvOverrides,
+    per_size_folder: Path | None,
+) -> list[Job]:
+    """The evaluations of one scenario, D by D: the baselines, then the policies flying that D."""
+    # the fleet and per-size policies fly one world (load_with_env refuses two)
+    folders = [fleet_folder] + ([per_size_folder] if per_size_folder is not None else [])
+    (fleet, fleet_cfg), *sized = load_with_env(folders, on_spatial.on(scenario))
+    ((single, single_cfg),) = load_with_env([single_folder], on_spatial.on(scenario))
+    flown = sizes_flown(fleet, fleet_cfg)
+    if not flown:
+        raise UserError(
+            f"--fleet {fleet_folder}: its {scenario} policy flies no fleet of "
+            f"{FLEET_SIZES[1]} to {FLEET_SIZES[-1]} UAVs (n_uavs={fleet_cfg.n_uavs})"
         )
-    return header, body
-
-
-def metrics_table(rows: dict[str, dict[str, EvalResult]]) -> tuple[list[str], list[list[str]]]:
-    """The fleet metrics of the fleet policies and the baselines with as many UAVs."""
-    header = [
-        "scenario",
-        f"policy (D = {POLICY_UAVS})",
-        "Mbps",
-        "R_fair",
-        "Jain",
-        "5th pct UE Mbps",
-        "UEs per UAV",
-    ]
-    body = []
-    for scenario, r in rows.items():
-        for key in (FLEET_PPO, *(f"D{POLICY_UAVS} {b}" for b in FLEET_BASELINES)):
-            x = r[key]
-            body.append(
-                [
-                    scenario,
-                    key.split(" ", 1)[1].replace("ppo", "PPO"),
-                    f"{x.mean_rate_mbps:.2f}",
-                    f"{x.mean_fair_rate:.2f}",
-                    f"{x.jain_index:.3f}",
-                    f"{x.p5_ue_rate_mbps:.2f}",
-                    " / ".join(f"{n:.1f}" for n in x.ues_per_uav),
-                ]
-            )
-    return header, body
+    plotted = PLOT_UAVS if PLOT_UAVS in flown else flown[0]
+    policies = [(ppo(d), fleet, fleet_cfg, fleet_folder, d) for d in flown]
+    if per_size_folder is not None:
+        policies += [
+            (per_size(d), policy, cfg, per_size_folder, d)
+            for policy, cfg in sized
+            for d in sizes_flown(policy, cfg)
+        ]
+    policies.append((SINGLE_PPO, single, single_cfg, single_folder, 1))
+    world = fleet_cfg.replace(fleet_slots=0)  # the baselines' (fleets of any size, one UAV)
+    jobs: list[Job] = []
+    for d in FLEET_SIZES:
+        cfg = world.replace(n_uavs=d).validate()
+        jobs += [(f"D{d} {b}", make_baseline(b, cfg), cfg, None, False) for b in FLEET_BASELINES]
+        jobs += [
+            (key, policy, own.replace(n_uavs=d).validate(), source, key == ppo(plotted))
+            for key, policy, own, source, size in policies
+            if size == d
+        ]
+    return jobs
 
 
 def plot_fleet_trajectory(
@@ -181,49 +160,106 @@ def plot_fleet_trajectory(
 
 
 def fleet_sections(
-    run: ReportRun, fleet_folder: Path, single_folder: Path, half_width_m: float
+    run: ReportRun,
+    fleet_folder: Path,
+    single_folder: Path,
+    half_width_m: float,
+    per_size_folder: Path | None = None,
 ) -> list[str]:
     """Evaluate, write the CSVs and plots into ``run.out`` and return the Markdown of the fleet part."""
-    out, rel, seed = run.out, run.rel, run.seed
     rows = evaluate_fleet(
-        fleet_folder, single_folder, run.episodes, seed, run.overrides, run.progress
+        fleet_folder,
+        single_folder,
+        run.episodes,
+        run.seed,
+        run.overrides,
+        run.progress,
+        per_size_folder,
     )
-    tables = {
-        "fleet_throughput": throughput_table(rows),
-        "fleet_ratios": ratio_table(rows),
-        "fleet_metrics": metrics_table(rows),
-    }
-    for name, (header, body) in tables.items():
-        write_csv(out / f"{name}.csv", header, body)
+    return fleet_markdown(run, rows, fleet_folder, single_folder, half_width_m, per_size_folder)
+
+
+def fleet_markdown(
+    run: ReportRun,
+    rows: Rows,
+    fleet_folder: Path,
+    single_folder: Path,
+    half_width_m: float,
+    per_size_folder: Path | None = None,
+) -> list[str]:
+    """Write the CSVs and plots of ``rows`` (``evaluate_fleet``'s) into ``run.out`` and return the
+    Markdown of the fleet part."""
+    out, rel = run.out, run.rel
+    sizes = fleet_sizes(rows)
+    throughput = throughput_table(rows)
+    ratios = {d: ratio_table(rows, d) for d in sizes}
+    metrics = {d: metrics_table(rows, d) for d in sizes}
+    write_csv(out / "fleet_throughput.csv", *throughput)
+    write_csv(out / "fleet_ratios.csv", *by_size(ratios))
+    write_csv(out / "fleet_metrics.csv", *by_size(metrics))
+    plotted = {}
     for scenario, r in rows.items():
-        plot_fleet_trajectory(
-            scenario, r[FLEET_PPO], half_width_m, out / f"fleet_trajectory_{scenario}.png"
-        )
-    n = len(next(iter(rows.values()))[FLEET_PPO].episode_rate_mbps)
-    return [
+        key = next(k for k in map(ppo, sizes) if k in r and r[k].trajectory is not None)
+        plotted[scenario] = key
+        path = out / f"fleet_trajectory_{scenario}.png"
+        plot_fleet_trajectory(scenario, r[key], half_width_m, path)
+    first = next(iter(rows.values()))
+    n = len(first[f"D{FLEET_SIZES[0]} {FLEET_BASELINES[0]}"].episode_rate_mbps)
+    per_size_sizes = sorted({d for r in rows.values() for d in FLEET_SIZES if per_size(d) in r})
+    kind = (
+        f"one policy for every fleet size, flown at D = {', '.join(map(str, sizes))}"
+        if len(sizes) > 1
+        else f"a policy for a fleet of {sizes[0]}"
+    )
+    per_size_text = (
+        " "
+        + ", ".join(f"`{per_size(d)}`" for d in per_size_sizes)
+        + f" is `{per_size_folder}/<scenario>.zip`, the policy trained for that fleet size alone."
+        if per_size_sizes
+        else " No per-size policies (`--fleet-per-size`): the per-size bar is not judged."
+    )
+    text = [
         "## A fleet of UAVs (spatial channel)",
         "",
-        f"Mean UE throughput (Mbps) over {n} episodes (seed {seed}) on the spatial channel, D UAVs sharing the "
-        'band with full reuse (SPEC "A fleet"); every column flies the same UE trajectories. '
-        f"`D{POLICY_UAVS} PPO` is "
-        f"`{fleet_folder}/<scenario>.zip`, `D1 PPO` the single-UAV spatial policy `{single_folder}/<scenario>.zip`; "
-        "oracle and kmeans know the UEs' positions (GPS), aoa and PPO do not; genie knows the episode's future "
-        "(UE paths, shadowing field) and plans each UAV's path given the others' (docs/design/baselines.md), the limit.",
+        f"Mean UE throughput (Mbps) over {n} episodes (seed {run.seed}) on the spatial channel, D UAVs "
+        'sharing the band with full reuse (SPEC "A fleet"); every column flies the same UE trajectories. '
+        f"`D<d> PPO` (d > 1) is `{fleet_folder}/<scenario>.zip`, {kind};{per_size_text} "
+        f"`{SINGLE_PPO}` is the single-UAV spatial policy `{single_folder}/<scenario>.zip`. "
+        "oracle and kmeans know the UEs' positions (GPS), aoa and PPO do not; genie knows the episode's "
+        "future (UE paths, shadowing field) and plans each UAV's path given the others' "
+        "(docs/design/baselines.md), the limit.",
         "",
-        markdown_table(*tables["fleet_throughput"]),
+        markdown_table(*throughput),
         "",
-        "The fleet policies' ratios (paired over episodes, 95 % bootstrap interval) and the bars set for them: "
-        ">= the fleet aoa rule everywhere, >= 95 % of the fleet oracle where the UEs split or spread, "
-        ">= 98 % of one UAV's policy where they stay together (a second UAV must not hurt) and 1.6x on "
-        "straight_180. PPO / genie: how far from the full-knowledge limit the fleet policy flies.",
+        "Per D, the fleet policy's ratios (paired over episodes, 95 % bootstrap interval) and the bars "
+        f"set for it: {bars_text(sizes)}. `>=` holds where the interval's upper end is not below the "
+        "bar (the episodes do not show PPO below it), `above` where its lower end is above it; `met` "
+        "says whether every bar of the row holds and names those that do not. The fleet metrics "
+        "below each: Jain's index of the UE rates (mean over frames), the 5th percentile of the UEs' "
+        "episode rates, the mean number of UEs each UAV serves.",
         "",
-        markdown_table(*tables["fleet_ratios"]),
+    ]
+    for d in sizes:
+        fairness = genie_fairness(rows, d) or [
+            f"At D = {d} the genie's Jain's index is nowhere more than {JAIN_GAP:g} below the PPO's."
+        ]
+        text += [
+            f"**D = {d}**: the fleet policy's ratios.",
+            "",
+            markdown_table(*ratios[d]),
+            "",
+            f"Fleet metrics, D = {d}.",
+            "",
+            markdown_table(*metrics[d]),
+            "",
+            *(f"- {line}" for line in fairness),
+            "",
+        ]
+    shown = sorted(set(plotted.values()))
+    return [
+        *text,
+        f"The fleet policy's episode 0 per scenario ({', '.join(f'`{key}`' for key in shown)}):",
         "",
-        f"Fleet metrics, D = {POLICY_UAVS}: Jain's index of the UE rates (mean over frames), the 5th percentile of the "
-        "UEs' episode rates, the mean number of UEs each UAV serves.",
-        "",
-        markdown_table(*tables["fleet_metrics"]),
-        "",
-        *[f"![{s} fleet]({rel / f'fleet_trajectory_{s}.png'})" for s in SCENARIOS],
+        *[f"![{s} fleet]({rel / f'fleet_trajectory_{s}.png'})" for s in rows],
         "",
     ]
