@@ -75,7 +75,7 @@ results: $(STAMP)
 		--out docs/results --markdown docs/results.md --sweep sweeps/table1.toml \
 		--sweep sweeps/table1_spatial.toml --sweep sweeps/fleet.toml --spatial policies/spatial \
 		--fleet policies/fleet --fleet-per-size policies/fleet_d2 --map policies/map \
-		--sweep sweeps/map.toml
+		--sweep sweeps/map.toml --workers 2
 
 bench: $(STAMP)
 	$(BIN)/python benchmarks/env_throughput.py

@@ -223,6 +223,16 @@ def test_the_fleet_part_flies_each_size_once_and_writes_its_tables(tmp_path, mon
         assert f"**D = {d}**" in markdown and f"Fleet metrics, D = {d}." in markdown
     assert "one policy for every fleet size, flown at D = 2, 3, 4" in markdown
     assert markdown.count("genie Jain") + markdown.count("nowhere more than 0.1") >= 3
+    # in two processes (spawned: the monkeypatch does not reach them), the same figures in the
+    # same columns as the one process above evaluated them
+    args = (folders["anysize"], root / "policies" / "spatial", 2, 0, overrides)
+    parallel = report_fleet.evaluate_fleet(*args, per_size_folder=folders["d2"], workers=2)
+    assert list(parallel) == list(SCENARIOS)
+    for scenario, results in parallel.items():
+        serial = [r for s, *_, r in flown if s == scenario]
+        assert len(results) == len(serial)
+        for result, twin in zip(results.values(), serial, strict=True):
+            np.testing.assert_array_equal(result.episode_rate_mbps, twin.episode_rate_mbps)
 
 
 @pytest.mark.parametrize(

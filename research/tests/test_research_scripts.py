@@ -304,3 +304,23 @@ def test_clone_gap_fits_then_adds_dagger_rounds_and_flies_each_copy() -> None:
         lo, hi = row["ci95"]
         assert lo <= row["vs_teacher"] <= hi
     assert policy["mbps"] > 0 and result["teacher_mbps"] > 0
+
+
+def test_fleet_bars_pair_every_size_with_kmeans_and_d2_with_the_teacher_and_the_per_size_policy() -> (
+    None
+):
+    """research/fleet_bars.py: each shipped any-size policy at D = 2, 3, 4 against kmeans on the same
+    episodes; at D = 2 also against its manifest's teacher and the per-size D = 2 policy."""
+    result = run_json("fleet_bars.py", "--episodes", "2", "--seed", "3")
+    rows = result["rows"]
+    assert [(r["scenario"], r["n_uavs"]) for r in rows] == [
+        (s, d)
+        for s in ("no_move", "straight", "circular", "straight_90", "straight_180", "hotspot")
+        for d in (2, 3, 4)
+    ]
+    for row in rows:
+        r, lo, hi = row["vs_kmeans"]
+        assert lo <= r <= hi and abs(r - row["ppo_mbps"] / row["kmeans_mbps"]) < 1e-3
+        assert ("vs_teacher" in row) == ("vs_per_size" in row) == (row["n_uavs"] == 2)
+    teachers = {r["scenario"]: r["teacher"] for r in rows if r["n_uavs"] == 2}
+    assert teachers["no_move"] == "lead" and teachers["straight_90"] == "kmeans"

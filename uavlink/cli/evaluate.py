@@ -126,6 +126,8 @@ def _write_results_folder(args: argparse.Namespace) -> int:
             f"--fleet-per-size {args.fleet_per_size}: needs a folder of per-size fleet policies and "
             "--fleet (the fleet policies to pair them with)"
         )
+    if args.workers < 1:
+        raise UserError(f"--workers must be at least 1, got {args.workers}")
     if args.map is not None and (args.spatial is None or not args.map.is_dir()):
         raise UserError(
             f"--map {args.map}: needs a folder of map policies and --spatial (today's, to compare)"
@@ -192,6 +194,7 @@ def _write_results_folder(args: argparse.Namespace) -> int:
             args.out,
             markdown,
             progress=lambda msg: status.show(f"evaluating {msg}"),
+            workers=args.workers,
         )
         path = write_results(
             run,
@@ -329,6 +332,14 @@ def add_evaluate_parser(sub) -> None:
         metavar="FOLDER",
         help="with --out and --fleet: add FOLDER's per-size fleet policies, each flown at its own D "
         "and paired with --fleet's there (e.g. policies/fleet_d2)",
+    )
+    p.add_argument(
+        "--workers",
+        type=int,
+        default=1,
+        metavar="N",
+        help="with --fleet: run the fleet part's evaluations in N processes (default 1; the figures "
+        "do not depend on it)",
     )
     p.add_argument(
         "--sweep-root",

@@ -59,23 +59,70 @@ def evaluate_fleet(
     overrides: EnvOverrides,
     progress: Callable[[str], None] = lambda _: None,
     per_size_folder: Path | None = None,
+    workers: int = 1,
 ) -> Rows:
     """Per scenario, results by column (``report_fleet_tables``): ``"D<d> <baseline>"`` for every
     D and baseline, ``"D<d> PPO"`` for each D the fleet policy flies (at ``PLOT_UAVS``, or its
     first D, with episode 0's trajectory), ``"D<d> PPO (per size)"`` for each D a
-    ``per_size_folder`` policy flies and ``"D1 PPO"`` for one UAV's. Nothing is evaluated twice."""
+    ``per_size_folder`` policy flies and ``"D1 PPO"`` for one UAV's. Nothing is evaluated twice.
+    With ``workers`` > 1 the evaluations run in that many processes (each rebuilds its scenario's
+    jobs and runs one; seeded, so the figures are the same as in one process)."""
     on_spatial = spatial_overrides(overrides)
+    folders = (fleet_folder, single_folder, on_spatial, per_size_folder)
+    if workers > 1:
+        return _evaluate_in_processes(folders, episodes, seed, progress, workers)
     out = {}
     for k, scenario in enumerate(SCENARIOS, 1):
-        jobs = _fleet_jobs(scenario, fleet_folder, single_folder, on_spatial, per_size_folder)
         results: dict[str, EvalResult] = {}
-        for key, policy, cfg, source, record in jobs:
+        for key, policy, cfg, source, record in _fleet_jobs(scenario, *folders):
             assert key not in results  # each (D, policy) once: the D = 4 genie costs seconds
             what = key if source is None else f"{key} from {source}/{scenario}"
             progress(f"fleet {scenario} ({k}/{len(SCENARIOS)}): {what}, {episodes} episodes")
             results[key] = evaluate_policy(policy, cfg, episodes, seed, record_trajectory=record)
         out[scenario] = results
     return out
+
+
+Folders = tuple[Path, Path, EnvOverrides, Path | None]  # fleet, single, overrides, per size
+
+
+def _evaluate_in_processes(
+    folders: Folders,
+    episodes: int,
+    seed: int,
+    progress: Callable[[str], None],
+    workers: int,
+) -> Rows:
+    """``evaluate_fleet``'s evaluations, one task each, in ``workers`` processes."""
+    import concurrent.futures
+    import multiprocessing
+
+    keys = {s: [job[0] for job in _fleet_jobs(s, *folders)] for s in SCENARIOS}
+    assert all(len(set(k)) == len(k) for k in keys.values())  # each (D, policy) once
+    out: Rows = {s: {} for s in SCENARIOS}
+    # spawn, not fork: the parent may hold torch's thread pools, which a fork does not copy safely
+    context = multiprocessing.get_context("spawn")
+    with concurrent.futures.ProcessPoolExecutor(workers, mp_context=context) as pool:
+        futures = {
+            pool.submit(_evaluate_one, scenario, key, folders, episodes, seed): (scenario, key)
+            for scenario in SCENARIOS
+            for key in keys[scenario]
+        }
+        for done, future in enumerate(concurrent.futures.as_completed(futures), 1):
+            scenario, key = futures[future]
+            out[scenario][key] = future.result()
+            progress(f"fleet: {done}/{len(futures)} evaluations ({scenario}: {key})")
+    return {s: {key: out[s][key] for key in keys[s]} for s in SCENARIOS}  # one process's order
+
+
+def _evaluate_one(
+    scenario: str, key: str, folders: Folders, episodes: int, seed: int
+) -> EvalResult:
+    """The evaluation ``key`` of ``scenario``'s jobs (a process of its own may run it)."""
+    ((_, policy, cfg, _, record),) = [
+        job for job in _fleet_jobs(scenario, *folders) if job[0] == key
+    ]
+    return evaluate_policy(policy, cfg, episodes, seed, record_trajectory=record)
 
 
 Job = tuple[str, Policy, EnvConfig, Path | None, bool]  # key, policy, env, folder, trajectory?
@@ -175,6 +222,7 @@ def fleet_sections(
         run.overrides,
         run.progress,
         per_size_folder,
+        run.workers,
     )
     return fleet_markdown(run, rows, fleet_folder, single_folder, half_width_m, per_size_folder)
 

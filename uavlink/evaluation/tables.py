@@ -24,7 +24,8 @@ from uavlink.policies.loader import policy_file
 class ReportRun:
     """What every part of one results report shares: the seeded episodes each cell flies
     (``episodes`` from ``seed`` under ``overrides``), the folder its files go to (``out``), the
-    Markdown file that links them and where progress is told."""
+    Markdown file that links them, where progress is told and how many processes the fleet part's
+    evaluations may use (``workers``; the figures do not depend on it)."""
 
     episodes: int
     seed: int
@@ -32,6 +33,7 @@ class ReportRun:
     out: Path
     markdown: Path
     progress: Callable[[str], None] = lambda _: None
+    workers: int = 1
 
     @property
     def rel(self) -> Path:
