@@ -3,7 +3,7 @@ loaded, as the flight loop meets it (gc.collect of generation 2), and with the h
 freezes it (``uavlink.flight.steady.steady_heap``): the offboard stream of a vehicle at 20x real time
 tolerates 50 ms of wall time (research/log/flight.md, "A pause in the fleet's flights").
 
-    python benchmarks/gc_pause.py [--policy policies/fleet/straight_180.zip] [--passes 5] [--json]
+    python benchmarks/gc_pause.py [--policy policies/fleet_d2/straight_180.zip] [--passes 5] [--json]
 """
 
 from __future__ import annotations
@@ -61,7 +61,7 @@ def run(policy: Path, passes: int, allocate: int) -> dict:
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument(
-        "--policy", type=Path, default=ROOT / "policies" / "fleet" / "straight_180.zip"
+        "--policy", type=Path, default=ROOT / "policies" / "fleet_d2" / "straight_180.zip"
     )
     parser.add_argument("--passes", type=int, default=5, help="timed full collections each way")
     parser.add_argument(

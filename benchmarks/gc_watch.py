@@ -4,7 +4,7 @@ ended, in seconds from the end of the mission (take-off to landing; negative: be
 whether it fell inside the mission; as `fly` flies (the heap frozen: uavlink/flight/steady.py) or,
 with --no-freeze, as it flew before the freeze. research/log/flight.md, "A pause in the fleet's flights":
 
-    python benchmarks/gc_watch.py [--no-freeze] [--json] -- --policy policies/fleet/straight_180.zip \\
+    python benchmarks/gc_watch.py [--no-freeze] [--json] -- --policy policies/fleet_d2/straight_180.zip \\
         --seed 1 --out /tmp/gc-fly
 """
 

@@ -144,7 +144,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--policy", default="policies/circular.zip", help="the one-UAV policy")
     parser.add_argument(
-        "--fleet-policy", default="policies/fleet/circular.zip", help="the fleet's (D = 2)"
+        "--fleet-policy", default="policies/fleet_d2/circular.zip", help="the fleet's (D = 2)"
     )
     parser.add_argument("--scenario", default="circular")
     parser.add_argument(

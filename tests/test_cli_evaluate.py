@@ -439,7 +439,7 @@ def test_evaluate_against_pairs_a_fleet_with_one_uav_on_the_same_episodes():
     """A fleet policy against a single-UAV policy: the same UEs and channel with one UAV more (the
     fleet's "a second UAV never hurts" ratio); the single-UAV policy's episodes are those it flies
     alone. Policies built for another world (here the AR(1) channel) are still refused."""
-    fleet, single = "policies/fleet/straight.zip", "policies/spatial/straight.zip"
+    fleet, single = "policies/fleet_d2/straight.zip", "policies/spatial/straight.zip"
     args = ("evaluate", "--scenario", "straight", "--episodes", "3", "--seed", "5", "--json")
     payload = cli_json(*args, "--policy", fleet, "--against", single)
     (comparison,) = payload["comparisons"]

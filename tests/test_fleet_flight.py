@@ -27,7 +27,7 @@ from uavlink.mavlink.dialect import mavutil
 from uavlink.mobility.fleet import fleet_setpoints, min_separation_m, start_positions_m
 
 SPATIAL = ("--set", "radio.shadowing_model=spatial")
-SHIPPED = ROOT / "policies" / "fleet" / "straight_180.zip"
+SHIPPED = ROOT / "policies" / "fleet_d2" / "straight_180.zip"  # a per-size D = 2 policy
 
 
 @settings(max_examples=60, deadline=None)

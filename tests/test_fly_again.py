@@ -139,7 +139,7 @@ def test_two_flights_against_one_fleet_each_fly_a_fresh_episode(tmp_path: Path) 
     its evaluation. (Seed 2 is the episode test_fleet_flight's parity test flies; the fleet's flight
     is not within 5 % of its evaluation on every episode: seed 3's first flight on a fresh vehicle
     scored 8.6 Mbps against 11.8 evaluated, without holds.)"""
-    policy = ROOT / "policies" / "fleet" / "straight_180.zip"
+    policy = ROOT / "policies" / "fleet_d2" / "straight_180.zip"
     if not policy.exists():
         pytest.skip("no shipped fleet policy")  # test_fleet_flight trains one; not repeated here
     ports = [free_udp_port(), free_udp_port()]

@@ -61,10 +61,10 @@ def test_a_start_policy_of_another_observation_is_refused_in_one_line() -> None:
     from uavlink.learn.policy_transfer import start_from_policy
 
     fleet = (
-        ROOT / "policies" / "fleet" / "hotspot.zip"
+        ROOT / "policies" / "fleet_d2" / "hotspot.zip"
     )  # two UAVs' observation: not this env's minus fields
     with pytest.raises(
-        UserError, match=r"warm_start.policy .*fleet/hotspot.zip: its observation"
+        UserError, match=r"warm_start.policy .*fleet_d2/hotspot.zip: its observation"
     ) as info:
         start_from_policy(_ppo(MAP_ENV).policy, MAP_ENV, fleet)
     assert "\n" not in str(info.value)

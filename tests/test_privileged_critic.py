@@ -324,7 +324,7 @@ def test_a_plain_fleet_policy_starts_a_privileged_critic_that_values_as_it_did()
     from uavlink.policies.contract import manifest_env
     from uavlink.policies.manifest import read_zip_manifest
 
-    path = ROOT / "policies" / "fleet" / "hotspot.zip"
+    path = ROOT / "policies" / "fleet_d2" / "hotspot.zip"
     cfg = manifest_env(read_zip_manifest(path))
     model = make_model(cfg, TrainConfig(n_envs=2, batch_size=256, critic="privileged"), None)
     report = start_from_policy(model.policy, cfg, path)

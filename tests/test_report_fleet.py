@@ -240,19 +240,29 @@ def test_the_fleet_part_flies_each_size_once_and_writes_its_tables(tmp_path, mon
     [
         ([], "--fleet-per-size goes with --out"),  # not a results folder
         (["--out", "OUT", "--spatial", "policies/spatial"], "per-size fleet policies and --fleet"),
-        # a per-size sweep's record (sweeps/fleet.toml: n_uavs 2, no slots) is read beside the
-        # per-size policies, here a folder without one
+        # a per-size sweep's record (n_uavs 2, no slots) is read beside the per-size policies,
+        # here a folder without one
         (
             ["--out", "OUT", "--spatial", "policies/spatial", "--fleet", "policies/fleet"]
-            + ["--sweep", "sweeps/fleet.toml", "--sweep-root", "RUNS", "--fleet-per-size", "EMPTY"],
-            "sweep 'fleet'",
+            + ["--sweep", "PER_SIZE", "--sweep-root", "RUNS", "--fleet-per-size", "EMPTY"],
+            "sweep 'fleet_d2'",
         ),
     ],
 )
 def test_fleet_per_size_is_refused_before_evaluating(tmp_path, extra, fragment):
     root = Path(__file__).resolve().parents[1]
     (tmp_path / "empty").mkdir()
-    named = {"OUT": tmp_path / "out", "RUNS": tmp_path / "runs", "EMPTY": tmp_path / "empty"}
+    per_size = tmp_path / "fleet_d2.toml"
+    per_size.write_text(
+        'name = "fleet_d2"\nscenarios = ["hotspot"]\nseeds = [0]\n[env]\nn_uavs = 2\n'
+        '"radio.shadowing_model" = "spatial"\n'
+    )
+    named = {
+        "OUT": tmp_path / "out",
+        "RUNS": tmp_path / "runs",
+        "EMPTY": tmp_path / "empty",
+        "PER_SIZE": per_size,
+    }
     extra = [
         str(named[a])
         if a in named

@@ -76,7 +76,8 @@ def test_uavlink_policies_lists_every_shipped_policy_with_its_manifest_figure() 
     assert set(rows) == set(shipped_policies())
     hotspot = rows["fleet/hotspot"]
     manifest = json.loads((ROOT / "policies/fleet/hotspot.json").read_text())
-    assert hotspot["n_uavs"] == 2 and hotspot["channel"] == "spatial"
+    assert hotspot["n_uavs"] == 3 and hotspot["channel"] == "spatial"
+    assert hotspot["fleet_sizes"] == [2, 3, 4] and rows["fleet_d2/hotspot"]["fleet_sizes"] is None
     assert hotspot["mean_rate_mbps"] == manifest["evaluation"]["hotspot"]["mean_rate_mbps"]
     assert hotspot["runtimes"] == ["onnx [fly]", "sb3 [train]"]
     assert rows["map/no_move"]["layout"] == 5

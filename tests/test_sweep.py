@@ -581,10 +581,30 @@ def test_fleet_fields_at_their_neutral_defaults_leave_job_keys_alone():
 
 
 def test_a_new_warm_start_field_at_its_default_keeps_the_old_keys() -> None:
-    """warm_start.leader_policy came after the fleet sweep ran: at its default ("") it stays out of
-    the key, so the circular jobs keep the key their results were made under; set, it is a new job."""
-    jobs = {(j.scenario, j.seed): j for j in load_spec(Path("sweeps/fleet.toml")).jobs()}
-    assert jobs["circular", 0].key == "a9cf0d725a16"
+    """warm_start.leader_policy came after the per-size fleet sweep ran: at its default ("") it stays
+    out of the key, so its circular jobs keep the key their results were made under (the record in
+    policies/fleet_d2/); set, it is a new job."""
+    old_circular = parse_spec(
+        {
+            "name": "fleet",
+            "scenarios": ["circular"],
+            "seeds": [0],
+            "env": {"n_uavs": 2, "radio.shadowing_model": "spatial"},
+            "train": {
+                "episodes": 2000,
+                "n_envs": 64,
+                "batch_size": 2048,
+                "n_steps": 128,
+                "n_epochs": 10,
+                "warm_start": {"teacher": "solo"},
+            },
+            "eval": {"episodes": 100, "seed": 0},
+        }
+    ).jobs()[0]
+    record = json.loads(Path("policies/fleet_d2/fleet.sweep.json").read_text())
+    assert old_circular.key == "a9cf0d725a16" and any(
+        job["key"] == "a9cf0d725a16" for job in record["jobs"]
+    )
     lead = parse_spec(
         {"seeds": [0], "env": {"n_uavs": 2}, "train": {"warm_start": {"teacher": "lead"}}}
     ).jobs()[0]

@@ -25,7 +25,7 @@ def commands() -> list[list[str]]:
     """Each `uavlink evaluate` command's arguments (without --episodes, --seed and --json)."""
     policies = sorted(
         str(p.relative_to(ROOT))
-        for folder in ("", "spatial", "fleet", "map")
+        for folder in ("", "spatial", "fleet_d2", "map")
         for p in (ROOT / "policies" / folder).glob("*.zip")
     )
     out = [["--policy", p] for p in policies]
@@ -36,7 +36,7 @@ def commands() -> list[list[str]]:
         ["--policy", "genie", "--scenario", "all", *SPATIAL],
         ["--policy", "genie", "--scenario", "straight", *SPATIAL, "--set", "n_uavs=2"],
         ["--policy", "kriging", "--scenario", "no_move", *SPATIAL, "--set", "place_cell_m=12"],
-        ["--policy", "policies/fleet/hotspot.zip", "--against", "policies/spatial/hotspot.zip"],
+        ["--policy", "policies/fleet_d2/hotspot.zip", "--against", "policies/spatial/hotspot.zip"],
     ]
     return out
 
