@@ -184,7 +184,9 @@ def test_shipped_policies_keep_their_layouts() -> None:
             cfg = EnvConfig.from_dict(data["env_config"])
             assert ObservationLayout.for_config(cfg) == layout, manifest
             if cfg.place_cell_m == 0:  # v1, v2 or the any-size fleet's v6: no memory of place
-                assert layout.version in (1, 2, 6) and "place_cell_m" not in data["observation_layout"]
+                assert (
+                    layout.version in (1, 2, 6) and "place_cell_m" not in data["observation_layout"]
+                )
 
 
 def test_map_report_refuses_without_spatial_and_skips_untrained_scenarios(tmp_path: Path) -> None:
