@@ -324,3 +324,13 @@ def test_fleet_bars_pair_every_size_with_kmeans_and_d2_with_the_teacher_and_the_
         assert ("vs_teacher" in row) == ("vs_per_size" in row) == (row["n_uavs"] == 2)
     teachers = {r["scenario"]: r["teacher"] for r in rows if r["n_uavs"] == 2}
     assert teachers["no_move"] == "lead" and teachers["straight_90"] == "kmeans"
+
+
+def test_fleet_input_sensitivity_evaluates_the_same_episodes_from_float64_and_float32_inputs() -> (
+    None
+):
+    result = run_json("fleet_input_sensitivity.py", "--episodes", "1", "--seed", "1")
+    assert result["n_uavs"] == 3 and result["scenario"] == "hotspot"
+    assert result["float64_mbps"] > 0 and result["float32_inputs_mbps"] > 0
+    change = abs(result["float32_inputs_mbps"] / result["float64_mbps"] - 1) * 100
+    assert abs(change - result["per_episode_abs_change_pct"]) < 1e-2  # one episode: the same
