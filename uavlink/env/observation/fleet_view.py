@@ -60,26 +60,24 @@ def fleet_quantities(uav_xy_m: np.ndarray, serving: np.ndarray) -> dict[str, np.
     }
 
 
+def flag_field(quantity: str, per: str) -> Field:
+    """A yes/no per ``per`` item (slot or UE), encoded 0 / 1 and decoded as bool."""
+    return Field(
+        quantity,
+        (quantity,),
+        per=per,
+        encode=lambda layout, q: q[quantity].astype(np.float32),
+        decode=lambda layout, x: x > 0.5,
+        bounds=lambda layout: (0.0, 1.0),
+    )
+
+
 # Layout v6: a fleet of any size up to ``uav_slots`` + 1 (SPEC "A fleet of any size").
 SLOT_FIELDS: tuple[Field, ...] = (
     offset_field("slot_offset_m", ("slot_dx", "slot_dy"), per="slot"),
-    Field(
-        "slot_present",
-        ("slot_present",),
-        per="slot",
-        encode=lambda layout, q: q["slot_present"].astype(np.float32),
-        decode=lambda layout, x: x > 0.5,
-        bounds=lambda layout: (0.0, 1.0),
-    ),
+    flag_field("slot_present", per="slot"),
     *aoa_fields("cell_aoa"),
-    Field(
-        "served_here",
-        ("served_here",),
-        per="ue",
-        encode=lambda layout, q: q["served_here"].astype(np.float32),
-        decode=lambda layout, x: x > 0.5,
-        bounds=lambda layout: (0.0, 1.0),
-    ),
+    flag_field("served_here", per="ue"),
     offset_field("server_offset_m", ("server_dx", "server_dy"), per="ue"),
     offset_field("ue_fix_offset_m", ("ue_fix_dx", "ue_fix_dy"), per="ue"),
 )
