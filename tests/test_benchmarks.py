@@ -149,3 +149,10 @@ def test_gc_watch_flies_and_places_each_long_pass_against_the_mission(
     assert any(
         p["generation"] == 2 and p["s_from_mission_end"] < 0 for p in outside
     )  # the freeze's
+
+
+def test_transit_guard_times_every_setting_it_is_asked_for() -> None:
+    result = run_json("transit_guard.py", "--calls", "2", "--envs", "1", "3", "--uavs", "2", "4")
+    settings = [(r["n_envs"], r["n_uavs"]) for r in result["rows"]]
+    assert settings == [(1, 2), (1, 4), (3, 2), (3, 4)]
+    assert all(0 < r["best_ms"] <= r["median_ms"] for r in result["rows"])

@@ -26,9 +26,9 @@ from uavlink.policies.manifest import read_zip_manifest
 FLEETS_OF_THREE = [("aoa", "circular"), ("policies/fleet/hotspot.zip", "hotspot")]
 
 # The shipped any-size hotspot policy does not replay its lockstep flight within 0.5 %: seed 1 flies
-# 11.47 Mbps against 10.57 evaluated. Its episode moves with the last bits of its inputs: the same
+# 11.47 Mbps against 10.80 evaluated. Its episode moves with the last bits of its inputs: the same
 # evaluation with the positions, SINRs and AoAs rounded to float32 (as MAVLink carries them) gives
-# 10.35. Kept as a strict xfail so that a fix (inputs the env and flight round alike, or a policy
+# 10.30 (research/fleet_input_sensitivity.py). Kept as a strict xfail so that a fix (inputs the env and flight round alike, or a policy
 # less sensitive to them) shows here.
 LOCKSTEP_CASES = [
     pytest.param(
@@ -69,10 +69,8 @@ def _towards_one_point(rng: np.random.Generator, setpoints: np.ndarray) -> np.nd
 @pytest.mark.parametrize("n_uavs", [2, 3])
 def test_env_px4_fleet_keeps_its_setpoints_20_m_apart(n_uavs: int) -> None:
     """Every UAV of every env driven at one point, from a tight start (30 m circle): every frame's
-    setpoints keep uav_separation_m (20 m) and the area, and the UAVs stay in the area. (The UAVs
-    themselves can come closer than 20 m: their paths curve out of what the guard keeps apart.
-    Before the guard checked the setpoints themselves, these came to 19.3 m (D = 2, frame 88) and
-    19.95 m (D = 3, frame 58).)"""
+    setpoints keep uav_separation_m (20 m) and the area, and so do the UAVs themselves at every
+    frame (tests/test_fleet_transit.py checks every substep)."""
     cfg = EnvConfig(n_uavs=n_uavs, uav_motion="px4", fleet_start_radius_m=30.0).validate()
     env = BatchedUavEnv(cfg, 16, seed=0)
     env.reset()
@@ -81,6 +79,7 @@ def test_env_px4_fleet_keeps_its_setpoints_20_m_apart(n_uavs: int) -> None:
         env.step(_towards_one_point(rng, env.setpoint_xy_m.reshape(16, n_uavs, 2)))
         setpoints = env.setpoint_xy_m.reshape(16, n_uavs, 2)
         assert min_separation_m(setpoints).min() >= cfg.uav_separation_m - 1e-6
+        assert min_separation_m(env.uav_xy_m.reshape(16, n_uavs, 2)).min() >= 20.0 - 1e-6
         assert np.abs(setpoints).max() <= cfg.area.half_width_m
         assert np.abs(env.uav_xy_m).max() <= cfg.area.half_width_m
 
@@ -102,7 +101,12 @@ def test_env_px4_fleet_moves_as_the_flight_loop() -> None:
         flight = np.concatenate(
             [
                 fleet_setpoints(
-                    setpoints[3 * i : 3 * i + 3], moves[i], cfg, None, positions[3 * i : 3 * i + 3]
+                    setpoints[3 * i : 3 * i + 3],
+                    moves[i],
+                    cfg,
+                    None,
+                    positions[3 * i : 3 * i + 3],
+                    velocity[3 * i : 3 * i + 3],
                 )
                 for i in range(6)
             ]
@@ -124,9 +128,12 @@ def test_the_batched_guard_is_each_fleets_own() -> None:
     setpoints = rng.uniform(-60, 60, (48, 3, 2))
     setpoints[:, 1] = setpoints[:, 0] + [25.0, 0.0]  # close pairs, so that moves get cut
     actual = setpoints + rng.normal(size=setpoints.shape) * 3
+    velocity = rng.normal(size=setpoints.shape) * 3
     new = setpoints + rng.uniform(-12, 12, setpoints.shape)
-    batched = guard_transit(actual, setpoints, new, 20.0)
-    one_by_one = np.stack([guard_transit(actual[i], setpoints[i], new[i], 20.0) for i in range(48)])
+    batched = guard_transit(actual, setpoints, new, 20.0, velocity)
+    one_by_one = np.stack(
+        [guard_transit(actual[i], setpoints[i], new[i], 20.0, velocity[i]) for i in range(48)]
+    )
     assert np.array_equal(batched, one_by_one)
     assert not np.array_equal(batched, new)  # some were cut
 

@@ -128,13 +128,15 @@ class BatchedUavEnv:
         half = self.cfg.area.half_width_m
         if self.cfg.uav_motion == "px4":  # the move shifts the setpoint, which PX4 then flies to
             # as ``uavlink fly`` moves them: clipped, separated, and for a fleet cut where the
-            # lagging UAVs' transit from where they are would bring two closer than the minimum
+            # UAVs' predicted flight from where they are, as fast as they fly, would bring two
+            # closer than the minimum
             self.setpoint_xy_m = next_setpoints(
                 self._per_env(self.setpoint_xy_m),
                 self._per_env(self.actions.to_displacement_m(action)),
                 half,
                 self.cfg.uav_separation_m,
                 self._per_env(self.uav_xy_m) if self.n_uavs > 1 else None,
+                self._per_env(self.uav_velocity_mps),
             ).reshape(self.n_rows, 2)
             position, self.uav_velocity_mps = PX4_MOTION.fly(
                 self.uav_xy_m, self.uav_velocity_mps, self.setpoint_xy_m, self.cfg.frame_s

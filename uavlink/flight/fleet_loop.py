@@ -264,7 +264,10 @@ class _Loop:
                 for i in range(len(links))
             ]
         )
-        self.targets[:] = fleet_setpoints(self.targets, moves, self.cfg, movable, positions)
+        velocity = np.array([[link.status.east_mps, link.status.north_mps] for link in links])
+        self.targets[:] = fleet_setpoints(
+            self.targets, moves, self.cfg, movable, positions, velocity
+        )
         result.setpoint_min_separation_m = min(
             result.setpoint_min_separation_m, float(min_separation_m(self.targets[None])[0])
         )

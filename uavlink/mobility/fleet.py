@@ -90,16 +90,17 @@ def next_setpoints(
     half_width_m: float,
     min_separation_m: float,
     actual_m: np.ndarray | None = None,
+    velocity_mps: np.ndarray | None = None,
 ) -> np.ndarray:
     """Next setpoints (N, D, 2) from the current ones and the moves (N, D, 2), as the env moves its
     UAVs (:func:`apply_moves`: clipped to the area, then the separation filter); with the vehicles'
-    ``actual_m`` positions (N, D, 2), moves are also cut where what they sweep until the next
-    setpoint would bring two within ``min_separation_m``
+    ``actual_m`` positions (N, D, 2) and ``velocity_mps``, moves are also cut where what they sweep
+    until the next setpoint would bring two within ``min_separation_m``
     (:func:`~uavlink.mobility.transit.guard_transit`)."""
     target = apply_moves(setpoint_m, moves_m, half_width_m, min_separation_m)
     if actual_m is None:
         return target
-    return guard_transit(actual_m, setpoint_m, target, min_separation_m)
+    return guard_transit(actual_m, setpoint_m, target, min_separation_m, velocity_mps)
 
 
 def fleet_setpoints(
@@ -108,18 +109,21 @@ def fleet_setpoints(
     cfg: EnvConfig,
     movable: np.ndarray | None = None,
     actual_xy_m: np.ndarray | None = None,
+    velocity_mps: np.ndarray | None = None,
 ) -> np.ndarray:
     """One fleet's next setpoints (D, 2) east/north (the flight loop's): :func:`next_setpoints`
     with ``cfg``'s area and separation. ``movable`` (D,) bool: a vehicle that cannot be told this
     frame keeps its setpoint (its move is not made)."""
     moves = np.where(movable[:, None], moves_m, 0.0) if movable is not None else moves_m
     actual = None if actual_xy_m is None else np.asarray(actual_xy_m)[None]
+    velocity = None if velocity_mps is None else np.asarray(velocity_mps)[None]
     return next_setpoints(
         np.asarray(current_xy_m)[None],
         np.asarray(moves)[None],
         cfg.area.half_width_m,
         cfg.uav_separation_m,
         actual,
+        velocity,
     )[0]
 
 

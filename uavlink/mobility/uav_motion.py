@@ -34,28 +34,45 @@ class PositionLoop:
         setpoint_m: np.ndarray,
         duration_s: float,
     ) -> tuple[np.ndarray, np.ndarray]:
-        """Position and velocity (rows, 2) after flying ``duration_s`` towards ``setpoint_m`` (rows, 2)."""
+        """Position and velocity (..., 2) after flying ``duration_s`` towards ``setpoint_m``."""
         pos, vel = position_m.astype(float, copy=True), velocity_mps.astype(float, copy=True)
         left = float(duration_s)
         while left > 1e-12:
             h = min(self.substep_s, left)
-            error = setpoint_m - pos
-            dist = np.hypot(error[:, 0], error[:, 1])
-            speed = np.minimum(
-                np.minimum(self.max_speed_mps, self.gain_per_s * dist),
-                np.sqrt(2.0 * self.brake_fraction * self.max_accel_mps2 * dist),
-            )
-            wanted = error * (speed / np.maximum(dist, 1e-9))[:, None]
-            change = _limit_norm(wanted - vel, self.max_accel_mps2 * h)
-            vel = _limit_norm(vel + change, self.max_speed_mps)
-            pos += vel * h
+            pos, vel = self._substep(pos, vel, setpoint_m, h)
             left -= h
         return pos, vel
 
+    def path(
+        self, position_m: np.ndarray, velocity_mps: np.ndarray, setpoint_m: np.ndarray, steps: int
+    ) -> np.ndarray:
+        """Positions (steps, ..., 2) at the end of each of the next ``steps`` substeps towards
+        ``setpoint_m``: what :meth:`fly` passes through."""
+        pos, vel = np.asarray(position_m, dtype=float), np.asarray(velocity_mps, dtype=float)
+        out = np.empty((steps, *np.broadcast_shapes(pos.shape, np.shape(setpoint_m))))
+        for k in range(steps):
+            pos, vel = self._substep(pos, vel, setpoint_m, self.substep_s)
+            out[k] = pos
+        return out
+
+    def _substep(
+        self, pos: np.ndarray, vel: np.ndarray, setpoint_m: np.ndarray, h: float
+    ) -> tuple[np.ndarray, np.ndarray]:
+        error = setpoint_m - pos
+        dist = np.hypot(error[..., 0], error[..., 1])
+        speed = np.minimum(
+            np.minimum(self.max_speed_mps, self.gain_per_s * dist),
+            np.sqrt(2.0 * self.brake_fraction * self.max_accel_mps2 * dist),
+        )
+        wanted = error * (speed / np.maximum(dist, 1e-9))[..., None]
+        change = _limit_norm(wanted - vel, self.max_accel_mps2 * h)
+        vel = _limit_norm(vel + change, self.max_speed_mps)
+        return pos + vel * h, vel
+
 
 def _limit_norm(v: np.ndarray, max_norm: float) -> np.ndarray:
-    n = np.hypot(v[:, 0], v[:, 1])
-    return v * np.minimum(1.0, max_norm / np.maximum(n, 1e-300))[:, None]
+    n = np.hypot(v[..., 0], v[..., 1])
+    return v * np.minimum(1.0, max_norm / np.maximum(n, 1e-300))[..., None]
 
 
 PX4_MOTION = PositionLoop()

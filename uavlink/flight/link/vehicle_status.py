@@ -35,6 +35,8 @@ class VehicleStatus:
     north_m: float = 0.0
     east_m: float = 0.0
     down_m: float = 0.0
+    north_mps: float = 0.0  # LOCAL_POSITION_NED's vx, vy (0 where not finite)
+    east_mps: float = 0.0
     time_boot_ms: int = 0
     heartbeats: int = 0
     landed_known: bool = False
@@ -77,6 +79,8 @@ class VehicleStatus:
             elif msg.time_boot_ms * 1e-3 < newest:
                 return  # a late (reordered) sample: the vehicle has moved on since
             self.north_m, self.east_m, self.down_m = msg.x, msg.y, msg.z
+            vx, vy = msg.vx, msg.vy
+            self.north_mps, self.east_mps = (vx, vy) if math.isfinite(vx + vy) else (0.0, 0.0)
             self.time_boot_ms = msg.time_boot_ms
             now = time.monotonic()
             samples.append((now, msg.time_boot_ms * 1e-3))

@@ -1,0 +1,84 @@
+"""The transit guard's cost: milliseconds per decision of ``guard_transit`` for fleets of 2-4.
+
+A flight loop runs the guard once per frame (one env, (D, 2)) before it sends the setpoints; the
+env's ``uav_motion="px4"`` fleet runs it once per step over all its envs. Each call here guards a
+fleet driven at one point (every move cut somewhere: the guard's worst case, each vehicle's grid of
+shorter moves predicted) from vehicles moving at up to 12 m/s. No target: the figure tells how much
+of a 1 s frame the guard takes (docs/design/radio.md, "A fleet in flight").
+
+    python benchmarks/transit_guard.py            # a table
+    python benchmarks/transit_guard.py --json     # one JSON object
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import platform
+import sys
+import time
+
+import numpy as np
+
+from uavlink.mobility.transit import guard_transit
+
+
+def _fleets(rng: np.random.Generator, n_envs: int, n_uavs: int) -> tuple[np.ndarray, ...]:
+    """Positions 30-60 m from a common point, moving, each move 12 m straight at that point."""
+    angle = rng.uniform(0, 2 * np.pi, (n_envs, n_uavs))
+    radius = rng.uniform(30, 60, (n_envs, n_uavs))
+    actual = np.stack([np.cos(angle), np.sin(angle)], axis=-1) * radius[..., None]
+    velocity = rng.uniform(-12, 12, actual.shape)
+    new = actual - 12 * actual / radius[..., None]
+    return actual, actual.copy(), new, velocity
+
+
+def measure(n_envs: int, n_uavs: int, calls: int, seed: int) -> dict:
+    """Best and median milliseconds per call over ``calls`` calls on fresh fleets."""
+    rng = np.random.default_rng(seed)
+    inputs = [_fleets(rng, n_envs, n_uavs) for _ in range(calls)]
+    times = []
+    for actual, current, new, velocity in inputs:
+        start = time.perf_counter()
+        guard_transit(actual if n_envs > 1 else actual[0], current, new, 20.0, velocity)
+        times.append(time.perf_counter() - start)
+    return {
+        "n_envs": n_envs,
+        "n_uavs": n_uavs,
+        "calls": calls,
+        "best_ms": round(min(times) * 1e3, 3),
+        "median_ms": round(float(np.median(times)) * 1e3, 3),
+    }
+
+
+def main(argv: list[str] | None = None) -> int:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--calls", type=int, default=50, help="per setting (default 50)")
+    parser.add_argument("--envs", nargs="+", type=int, default=[1, 100])
+    parser.add_argument("--uavs", nargs="+", type=int, default=[2, 3, 4])
+    parser.add_argument("--seed", type=int, default=0)
+    parser.add_argument("--json", action="store_true")
+    args = parser.parse_args(argv)
+    rows = [measure(n, d, args.calls, args.seed) for n in args.envs for d in args.uavs]
+    out = {
+        "rows": rows,
+        "machine": {
+            "cpus": os.cpu_count(),
+            "load_1min": round(os.getloadavg()[0], 2),
+            "python": platform.python_version(),
+        },
+        "command": "python benchmarks/transit_guard.py "
+        + " ".join(sys.argv[1:] if argv is None else argv),
+    }
+    if args.json:
+        print(json.dumps(out, indent=2))
+    else:
+        print("| envs | UAVs | best ms/call | median ms/call |\n|---|---|---|---|")
+        for r in rows:
+            print(f"| {r['n_envs']} | {r['n_uavs']} | {r['best_ms']} | {r['median_ms']} |")
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())
