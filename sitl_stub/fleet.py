@@ -35,6 +35,8 @@ from collections.abc import Sequence
 from dataclasses import replace
 from typing import Any
 
+import numpy as np
+
 from sitl_stub.core.modes import FlightMode
 from sitl_stub.core.vehicle_state import VehicleState
 from sitl_stub.mavlink.server import LOOP_WAIT_S, ServerConfig, SitlServer, step_vehicles
@@ -51,8 +53,12 @@ log = logging.getLogger("sitl_stub.fleet")
 
 
 def spawn_points_ne(cfg: EnvConfig) -> list[tuple[float, float]]:
-    """Each vehicle's spawn point and home (LOCAL_NED north, east): the env's start positions."""
-    xy = start_positions_m(cfg.n_uavs, cfg.fleet_start_radius_m)
+    """Each vehicle's spawn point and home (LOCAL_NED north, east): the env's start positions,
+    rounded to float32 as a PX4-motion env starts its UAVs (``BatchedUavEnv._as_sensed``): a flight
+    holds each vehicle at the float32 position it reports until the episode starts, so a vehicle
+    spawned between two float32 values would creep by micrometres before frame 0, and a lockstep
+    flight would part from its replay in the last bits."""
+    xy = start_positions_m(cfg.n_uavs, cfg.fleet_start_radius_m).astype(np.float32)
     return [(float(y), float(x)) for x, y in xy]
 
 
@@ -123,7 +129,7 @@ class FleetRadioView:
             sim_time_s,
             episodes,
             self.fleet.score,
-            encode_readings(r.sinr_db, r.aoa_deg, episodes.started, r.serves),
+            encode_readings(r.sinr_db, r.aoa_deg, episodes.started, r.serves, self.fleet.lockstep),
             self.fleet.truth_origin if self.uav == 0 else None,
         )  # the UEs once for the fleet
 

@@ -3,11 +3,13 @@ the move shifts the setpoint (as ``uavlink fly`` sends it); "instant", the defau
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 import pytest
 
 from sitl_stub.core.params import ParamStore
-from sitl_stub.flight.pos_control import track
+from sitl_stub.flight.pos_control import hold_in_fence, track
 from sitl_stub.flight.vehicle import SUBSTEP_S
 from uavlink.config import EnvConfig
 from uavlink.env.core import BatchedUavEnv
@@ -15,13 +17,16 @@ from uavlink.errors import ConfigError
 from uavlink.mobility.uav_motion import PX4_MOTION
 
 
-def test_the_position_loop_is_sitl_stubs() -> None:
+@pytest.mark.parametrize("fence_m", [math.inf, 40.0])
+def test_the_position_loop_is_sitl_stubs(fence_m: float) -> None:
     """Random starts, velocities and setpoints: one frame of the batched loop lands where
-    sitl_stub's controller, substep by substep, flies the same vehicle."""
+    sitl_stub's controller and hard fence, substep by substep, fly the same vehicle, to the bit (a
+    lockstep flight is to equal its PX4-motion evaluation, and a policy's episode turns on the last
+    bits); with a 40 m fence most vehicles are carried onto it."""
     rng = np.random.default_rng(0)
-    pos, vel = rng.uniform(-50, 50, (20, 2)), rng.uniform(-8, 8, (20, 2))
-    setpoint = pos + rng.uniform(-30, 30, (20, 2))
-    got_pos, got_vel = PX4_MOTION.fly(pos, vel, setpoint, 1.0)
+    pos, vel = rng.uniform(-40, 40, (200, 2)), rng.uniform(-12, 12, (200, 2))
+    setpoint = np.clip(pos + rng.uniform(-30, 30, (200, 2)), -fence_m, fence_m)
+    got_pos, got_vel = PX4_MOTION.fly(pos, vel, setpoint, 1.0, fence_m)
     assert PX4_MOTION.substep_s == SUBSTEP_S
     # the limits are the vehicle's default parameters (the gain and braking are track()'s own, below)
     params = ParamStore()
@@ -29,6 +34,7 @@ def test_the_position_loop_is_sitl_stubs() -> None:
         params["MPC_XY_VEL_MAX"],
         params["MPC_ACC_HOR_MAX"],
     )
+    fenced = 0
     for i in range(len(pos)):
         p, v = [pos[i, 0], pos[i, 1], -95.0], [vel[i, 0], vel[i, 1], 0.0]
         for _ in range(round(1.0 / SUBSTEP_S)):
@@ -40,8 +46,11 @@ def test_the_position_loop_is_sitl_stubs() -> None:
                 PX4_MOTION.max_accel_mps2,
                 SUBSTEP_S,
             )
-        np.testing.assert_allclose(got_pos[i], p[:2], atol=1e-9)
-        np.testing.assert_allclose(got_vel[i], v[:2], atol=1e-9)
+            hold_in_fence(p, v, fence_m)
+            fenced += max(abs(p[0]), abs(p[1])) == fence_m
+        np.testing.assert_array_equal(got_pos[i], p[:2])
+        np.testing.assert_array_equal(got_vel[i], v[:2])
+    assert (fenced > 0) == (fence_m < math.inf)
 
 
 def _flown(motion: str, moves: list[tuple[float, float]]) -> tuple[np.ndarray, np.ndarray]:

@@ -45,7 +45,15 @@ from sitl_stub.flight.guidance import ControlCommand, Guidance, Motion
 from sitl_stub.flight.land_detector import LandDetector
 from sitl_stub.flight.mission_executor import Leg, MissionExecutor
 from sitl_stub.flight.offboard import OffboardStream
-from sitl_stub.flight.pos_control import fall, stopping_point, tilt, track, turn, wrap
+from sitl_stub.flight.pos_control import (
+    fall,
+    hold_in_fence,
+    stopping_point,
+    tilt,
+    track,
+    turn,
+    wrap,
+)
 from sitl_stub.flight.rtl import ReturnPhases, rally_points, return_destination
 from uavlink.config import AreaConfig
 
@@ -391,10 +399,7 @@ class Vehicle:
         fall(self.pos, self.vel, h)
 
     def _enforce_limits(self) -> None:
-        for i in (0, 1):
-            if abs(self.pos[i]) > self.fence_m:
-                self.pos[i] = math.copysign(self.fence_m, self.pos[i])
-                self.vel[i] = 0.0
+        hold_in_fence(self.pos, self.vel, self.fence_m)
         if self.pos[2] > 0.0:
             self.pos[2] = 0.0
             self.vel[2] = min(self.vel[2], 0.0)

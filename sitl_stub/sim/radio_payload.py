@@ -116,7 +116,9 @@ class RadioPayload:
             sim_time_s,
             episodes,
             None if result is None else encode_score(result.rate_bps, result.fair_rate),
-            encode_readings(readings.sinr_db, readings.aoa_deg, episodes.started),
+            encode_readings(
+                readings.sinr_db, readings.aoa_deg, episodes.started, waits=self.lockstep
+            ),
             self.truth_origin,
         )
         if self.lockstep and episodes.awaits_decision([state]):

@@ -103,7 +103,7 @@ def add_fly_parser(sub) -> None:
         help="run the embedded SITL in lockstep (sitl-stub --lockstep): its time waits for "
         "each frame's decision, so the flight replays exactly and follows `uavlink "
         "evaluate --episodes 1 --seed S --set uav_motion=px4` (the summary's replay) "
-        "up to MAVLink's float32 positions",
+        "to the last digit",
     )
     p.add_argument(
         "--frames",

@@ -39,7 +39,8 @@ ACTION_MAPPINGS = ("cartesian-v1", "polar-v1")
 FLEET_REUSE = ("full", "orthogonal")
 # How the UAV reaches its setpoint in a frame (uavlink.mobility.uav_motion): at once (the paper's),
 # or flown by PX4's position loop under its speed and acceleration limits, as sitl_stub flies (a
-# fleet's setpoints then move as `uavlink fly` moves them: separated, and cut for the transit).
+# fleet's setpoints then move as `uavlink fly` moves them: separated, and cut for the transit; what
+# the policy reads and the vehicle receives is rounded to float32, as MAVLink carries it).
 UAV_MOTIONS = ("instant", "px4")
 # What the memory of place keeps: "cells", the grid of sensed values (layout v3, v4 for a fleet);
 # "kriging", that grid and a model of the sensed field with the spot it makes worth flying to (v5,

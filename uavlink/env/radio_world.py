@@ -11,7 +11,7 @@ and the world advances once per frame with every vehicle's position.
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 import numpy.typing as npt
@@ -45,7 +45,11 @@ class RadioWorld:
     def __init__(self, cfg: EnvConfig, seed: int) -> None:
         self.cfg = cfg.validate()
         self.n_uavs = self.cfg.n_uavs
-        self._env = BatchedUavEnv(self.cfg, n_envs=1, seed=EVAL.seed(seed, 0))
+        # its UAVs are vehicles flown by their position loop: the world starts them where a
+        # PX4-motion evaluation does (a lockstep flight's replay; only the start differs here, as
+        # the world moves its UAVs with step_to)
+        flown = replace(self.cfg, uav_motion="px4")
+        self._env = BatchedUavEnv(flown, n_envs=1, seed=EVAL.seed(seed, 0))
         self._env.reset()
 
     @property

@@ -8,7 +8,8 @@ starts) and ``time_usec`` the simulated time.
 ``UL_RADIO`` (what the base station senses; the policy's input):
     data[0] = U (number of UEs), data[1 : 1+U] = effective SINR (dB),
     data[1+U : 1+2U] = measured AoA (deg from east, [-180, 180)),
-    data[1+2U] = 1 while the episode runs, 0 while it waits for the mission to start,
+    data[1+2U] = 1 while the episode runs, 2 while it runs with the vehicle's time held at each
+    frame until FRAME_DECIDED (a lockstep vehicle, below), 0 while it waits for the mission to start,
     data[2+2U : 2+3U] (a fleet's UAV only) = +1 for each UE this UAV serves, -1 for the others
     (all 0, the padding, when not reported: one UAV serves every UE).
 ``UL_SCORE`` (the simulator's truth, for scoring and logs only; never fed to the policy):
@@ -61,6 +62,7 @@ class RadioReport:
     serves: np.ndarray | None = (
         None  # (U,) bool: the UEs in this UAV's cell (a fleet's); None: not reported
     )
+    waits: bool = False  # the vehicle's time waits for this frame's FRAME_DECIDED (lockstep)
 
 
 @dataclass(frozen=True)
@@ -75,7 +77,11 @@ def _pad(values: list[float]) -> list[float]:
 
 
 def encode_readings(
-    sinr_db: np.ndarray, aoa_deg: np.ndarray, running: bool, serves: np.ndarray | None = None
+    sinr_db: np.ndarray,
+    aoa_deg: np.ndarray,
+    running: bool,
+    serves: np.ndarray | None = None,
+    waits: bool = False,
 ) -> list[float]:
     n = len(sinr_db)
     cell = [] if serves is None else [1.0 if s else -1.0 for s in serves]
@@ -84,7 +90,8 @@ def encode_readings(
             f"cannot encode {n} UEs in one DEBUG_FLOAT_ARRAY (max {MAX_UES}, "
             f"{(DATA_LEN - 2) // 3} with a fleet's cell flags)"
         )
-    return _pad([float(n), *map(float, sinr_db), *map(float, aoa_deg), float(running), *cell])
+    state = (2.0 if waits else 1.0) if running else 0.0
+    return _pad([float(n), *map(float, sinr_db), *map(float, aoa_deg), state, *cell])
 
 
 def encode_score(rate_bps: np.ndarray, fair_rate: float) -> list[float]:
@@ -123,8 +130,9 @@ def decode_readings(msg, expected_ues: int) -> RadioReport:
         msg.time_usec * 1e-6,
         sinr,
         aoa,
-        running=data[1 + 2 * expected_ues] == 1.0,
+        running=data[1 + 2 * expected_ues] in (1.0, 2.0),
         serves=serves,
+        waits=data[1 + 2 * expected_ues] == 2.0,
     )
 
 

@@ -91,6 +91,7 @@ def next_setpoints(
     min_separation_m: float,
     actual_m: np.ndarray | None = None,
     velocity_mps: np.ndarray | None = None,
+    margin_m: float = 0.0,
 ) -> np.ndarray:
     """Next setpoints (N, D, 2) from the current ones and the moves (N, D, 2), as the env moves its
     UAVs (:func:`apply_moves`: clipped to the area, then the separation filter); with the vehicles'
@@ -100,7 +101,9 @@ def next_setpoints(
     target = apply_moves(setpoint_m, moves_m, half_width_m, min_separation_m)
     if actual_m is None:
         return target
-    return guard_transit(actual_m, setpoint_m, target, min_separation_m, velocity_mps)
+    return guard_transit(
+        actual_m, setpoint_m, target, min_separation_m, velocity_mps, half_width_m, margin_m
+    )
 
 
 def fleet_setpoints(
@@ -110,6 +113,7 @@ def fleet_setpoints(
     movable: np.ndarray | None = None,
     actual_xy_m: np.ndarray | None = None,
     velocity_mps: np.ndarray | None = None,
+    margin_m: float = 0.0,
 ) -> np.ndarray:
     """One fleet's next setpoints (D, 2) east/north (the flight loop's): :func:`next_setpoints`
     with ``cfg``'s area and separation. ``movable`` (D,) bool: a vehicle that cannot be told this
@@ -124,6 +128,7 @@ def fleet_setpoints(
         cfg.uav_separation_m,
         actual,
         velocity,
+        margin_m,
     )[0]
 
 

@@ -31,6 +31,8 @@ minimum, so an env's row is what a flight of that env computes, bit for bit.
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 
 from uavlink.mobility.uav_motion import PX4_MOTION, PositionLoop
@@ -45,11 +47,14 @@ def guard_transit(
     new_m: np.ndarray,
     min_separation_m: float,
     velocity_mps: np.ndarray | None = None,
+    fence_m: float = math.inf,
+    margin_m: float = 0.0,
     loop: PositionLoop = PX4_MOTION,
 ) -> np.ndarray:
     """New setpoints (N, D, 2) or (D, 2), each on its vehicle's move ``current_m`` -> ``new_m``,
     cut where the vehicles flown by ``loop`` from ``actual_m`` at ``velocity_mps`` (None: at rest)
-    would come within ``min_separation_m`` of each other (see the module)."""
+    inside the fence ``fence_m`` would come within ``min_separation_m`` (+ ``margin_m``: what the
+    prediction may miss) of each other (see the module)."""
     one = np.ndim(new_m) == 2
     actual, current, out = (
         np.array(x, dtype=float, ndmin=3) for x in (actual_m, current_m, new_m)
@@ -64,13 +69,15 @@ def guard_transit(
         return out[0] if one else out
     steps = round(HORIZON_S / loop.substep_s)
     # every vehicle's path to its current setpoint (kept until it is decided) and to its new one
-    paths, whole = loop.path(actual, velocity, np.stack([current, out]), steps).swapaxes(0, 1)
+    paths, whole = loop.path(actual, velocity, np.stack([current, out]), steps, fence_m).swapaxes(
+        0, 1
+    )
     for d in range(n):
         others = [j for j in range(n) if j != d]
         setpoints = np.stack([out[:, j] if j < d else current[:, j] for j in others], axis=1)
         held = _Try(paths[:, :, d], current[:, d], paths[:, :, others], setpoints)
         need = (
-            np.minimum(min_separation_m, held.closest),
+            np.minimum(min_separation_m + margin_m, held.closest),
             np.minimum(min_separation_m, held.spacing),
         )
         cut = np.flatnonzero(
@@ -79,7 +86,7 @@ def guard_transit(
         if len(cut):  # the grid of shorter moves, on the envs whose whole move does not pass
             t = (np.arange(GRID + 1) / GRID)[:, None, None]
             tries = current[None, cut, d] + t * (out[None, cut, d] - current[None, cut, d])
-            tried = loop.path(actual[None, cut, d], velocity[None, cut, d], tries, steps)
+            tried = loop.path(actual[None, cut, d], velocity[None, cut, d], tries, steps, fence_m)
             grid = _Try(
                 tried, tries, paths[:, None][:, :, cut][:, :, :, others], setpoints[None, cut]
             )
