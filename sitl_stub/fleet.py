@@ -54,10 +54,10 @@ log = logging.getLogger("sitl_stub.fleet")
 
 def spawn_points_ne(cfg: EnvConfig) -> list[tuple[float, float]]:
     """Each vehicle's spawn point and home (LOCAL_NED north, east): the env's start positions,
-    rounded to float32 as a PX4-motion env starts its UAVs (``BatchedUavEnv._as_sensed``): a flight
-    holds each vehicle at the float32 position it reports until the episode starts, so a vehicle
-    spawned between two float32 values would creep by micrometres before frame 0, and a lockstep
-    flight would part from its replay in the last bits."""
+    rounded to float32 as a PX4-motion env starts its UAVs (``BatchedUavEnv._as_carried``): a
+    flight holds each vehicle at the float32 position it reports until the episode starts, so a
+    vehicle spawned between two float32 values would creep by micrometres before frame 0, and a
+    lockstep flight would part from its replay in the last bits."""
     xy = start_positions_m(cfg.n_uavs, cfg.fleet_start_radius_m).astype(np.float32)
     return [(float(y), float(x)) for x, y in xy]
 

@@ -83,7 +83,7 @@ class BatchedUavEnv:
             self.cfg.radio, self.cfg.area, self.cfg.n_ues, self.cfg.fleet_reuse
         )
         self._builder = ObservationBuilder(self.layout, self.n_rows)
-        self._start_xy_m = self._as_sensed(
+        self._start_xy_m = self._as_carried(
             np.tile(start_positions_m(self.n_uavs, self.cfg.fleet_start_radius_m), (self.n_envs, 1))
         )  # with uav_motion px4, where a vehicle holding its reported position holds
         self._seed(seed)
@@ -135,13 +135,13 @@ class BatchedUavEnv:
                 self._per_env(self.actions.to_displacement_m(action)),
                 half,
                 self.cfg.uav_separation_m,
-                self._per_env(self._as_sensed(self.uav_xy_m)) if self.n_uavs > 1 else None,
-                self._per_env(self._as_sensed(self.uav_velocity_mps)),
+                self._per_env(self._as_carried(self.uav_xy_m)) if self.n_uavs > 1 else None,
+                self._per_env(self._as_carried(self.uav_velocity_mps)),
             ).reshape(self.n_rows, 2)
             position, self.uav_velocity_mps = PX4_MOTION.fly(
                 self.uav_xy_m,
                 self.uav_velocity_mps,
-                self._as_sensed(self.setpoint_xy_m),
+                self._as_carried(self.setpoint_xy_m),
                 self.cfg.frame_s,
                 half,
             )
@@ -183,7 +183,7 @@ class BatchedUavEnv:
         """Agent rows (N D, ...) as (N, D, ...)."""
         return rows.reshape(self.n_envs, self.n_uavs, *rows.shape[1:])
 
-    def _as_sensed(self, values: np.ndarray) -> np.ndarray:
+    def _as_carried(self, values: np.ndarray) -> np.ndarray:
         """``values`` as a flight's policy and vehicle get them: with ``uav_motion="px4"`` rounded
         to float32, as MAVLink carries positions, velocities, setpoints (LOCAL_POSITION_NED,
         SET_POSITION_TARGET_LOCAL_NED) and the radio payload (DEBUG_FLOAT_ARRAY); unchanged
@@ -199,11 +199,11 @@ class BatchedUavEnv:
         """The observation's inputs per agent row: position, what its UAV hears, fleet fields."""
         r, rows = self.readings, (self.n_rows, -1)
         assert r is not None  # called after reset() set the readings
-        uav_xy_m, aoa_deg = self._as_sensed(self.uav_xy_m), self._as_sensed(r.heard_aoa_deg)
+        uav_xy_m, aoa_deg = self._as_carried(self.uav_xy_m), self._as_carried(r.heard_aoa_deg)
         fleet = fleet_view_quantities(self.layout, self._per_env(uav_xy_m), r.serving, aoa_deg)
         return {
             "uav_xy_m": uav_xy_m,
-            "sinr_db": self._as_sensed(r.heard_sinr_db).reshape(rows),
+            "sinr_db": self._as_carried(r.heard_sinr_db).reshape(rows),
             "aoa_deg": aoa_deg.reshape(rows),
             **fleet,
         }

@@ -336,8 +336,8 @@ class _Loop:
         times = {link.status.time_boot_ms for link in links}
         self.one_clock |= len(times) == 1
         # at an instant every vehicle reported: vehicles on one clock (sitl-stub --fleet's) report
-        # together; the newest positions of vehicles on their own clocks may be a quarter of a second
-        # apart, metres at full speed, and are paired as they are
+        # together; the newest positions of vehicles on their own clocks may be a quarter of a
+        # second apart, metres at full speed, and are paired as they are
         if flying and (len(times) == 1 or not self.one_clock):
             xy = np.array([[link.status.east_m, link.status.north_m] for link in links])
             result.min_separation_flown_m = min(

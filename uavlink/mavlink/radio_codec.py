@@ -44,6 +44,7 @@ SCORE_NAME = "UL_SCORE"
 EPISODE_SEED_NAME = "UL_EP_SEED"  # NAMED_VALUE_INT names: at most 10 characters
 EPISODE_COUNT_NAME = "UL_EPISODE"
 FRAME_DECIDED_COMMAND = 31010  # MAV_CMD_USER_1: param1 = the frame, param2 = 1 decided / 0 let go
+RUNNING = (1.0, 2.0)  # data[1+2U] while the episode runs: 2.0 when the vehicle's time waits
 DATA_LEN = 58
 MAX_UES = (DATA_LEN - 2) // 2
 
@@ -130,7 +131,7 @@ def decode_readings(msg, expected_ues: int) -> RadioReport:
         msg.time_usec * 1e-6,
         sinr,
         aoa,
-        running=data[1 + 2 * expected_ues] in (1.0, 2.0),
+        running=data[1 + 2 * expected_ues] in RUNNING,
         serves=serves,
         waits=data[1 + 2 * expected_ues] == 2.0,
     )

@@ -10,19 +10,20 @@ closer between setpoints than at either end (a crossing, a slide past each other
 :func:`guard_transit` predicts: it flies every vehicle's position loop ahead from where it is and
 how fast it moves (:data:`HORIZON_S`, in the loop's own 20 ms substeps) and shortens moves, vehicle
 after vehicle as the separation filter does, so that each pair's predicted paths keep
-``min_separation_m`` apart at every substep. Vehicle d tries the points E(t) = S + t (S' - S) of its
-filtered move (t on a grid of :data:`GRID` steps) against the decided vehicles' (j < d) paths to their
-new setpoints and the others' paths to their current ones, and keeps the largest t that passes
-(each later vehicle is then checked against d's chosen path, so every pair's final paths are).
-Keeping S (t = 0) continues the previous frame's checked prediction, so it passes unless the
-previous frame's horizon ran out or the vehicles did not fly as predicted (a free-running flight
-decides on telemetry tens of milliseconds old); then a pair may not come closer than keeping S
-would bring it. New setpoints also keep the minimum from the others' setpoints.
+``min_separation_m`` (plus an optional margin) apart at every substep. Vehicle d tries the points
+E(t) = S + t (S' - S) of its filtered move (t on a grid of :data:`GRID` steps) against the decided
+vehicles' (j < d) paths to their new setpoints and the others' paths to their current ones, and
+keeps the largest t that passes (each later vehicle is then checked against d's chosen path, so
+every pair's final paths are). Keeping S (t = 0) continues the previous frame's checked
+prediction, so it passes unless the previous frame's horizon ran out or the vehicles did not fly
+as predicted (a free-running flight predicts from telemetry flown on for its estimated age); then
+a pair may not come closer than keeping S would bring it. New setpoints also keep the minimum from
+the others' setpoints.
 
 Before this guard predicted, it kept the regions the vehicles sweep (the triangle of P, S and S')
 apart; a turning vehicle's path leaves that triangle by metres, and a free-running fleet of three
-flew to 17.2 m with its setpoints 20 m apart (``tests/test_fleet_transit.py`` drives 64 fleets at one
-point: 14.5-15.7 m at some 20 ms substep with the triangles, 20.0 m predicted).
+flew to 17.2 m with its setpoints 20 m apart (``tests/test_fleet_transit.py`` drives 64 fleets at
+one point: 14.5-15.7 m at some 20 ms substep with the triangles, 20.0 m predicted).
 
 Batched numpy over envs, (N, D, 2) (a flight is one env, (D, 2)): the flight loop and the env's
 ``uav_motion="px4"`` fleet call the same code, and every operation is element-wise or an exact

@@ -48,6 +48,7 @@ from uavlink.mavlink.radio_codec import (
     FRAME_DECIDED_COMMAND,
     MAX_UES,
     RADIO_COMPONENT_ID,
+    RUNNING,
     message_kind,
 )
 from uavlink.mavlink.ue_truth import decode_ue_fix
@@ -172,7 +173,7 @@ class _Reader:
             if which == "readings":
                 self.last_frame[sys_id] = msg.array_id
                 n = int(data[0])
-                if 0 < n <= MAX_UES and data[1 + 2 * n] == 1.0:
+                if 0 < n <= MAX_UES and data[1 + 2 * n] in RUNNING:
                     got = self.readings.setdefault(sys_id, {})
                     if got and msg.array_id < max(got) - RESTART_FRAMES:
                         got.clear()  # the payload started a new episode: draw the latest flight
