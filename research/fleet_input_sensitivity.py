@@ -1,10 +1,11 @@
-"""How far a fleet policy's episode moves when its inputs are rounded to float32, as MAVLink carries them.
+"""How far a fleet policy's episode moves when what MAVLink carries is rounded to float32.
 
 A lockstep flight feeds the policy the vehicles' positions (LOCAL_POSITION_NED) and the radio
-payload's SINRs and AoAs (DEBUG_FLOAT_ARRAY), all float32; the env builds the same observation from
-float64. This evaluates the policy both ways on the same seeded episodes (PX4's motion, as a
-lockstep flight's replay), so a flight's departure from its evaluation can be read against what the
-rounding alone does.
+payload's SINRs and AoAs (DEBUG_FLOAT_ARRAY), and sends the vehicles setpoints
+(SET_POSITION_TARGET_LOCAL_NED), all float32. With PX4's motion the env rounds where the flight does
+(``BatchedUavEnv._as_carried``), so that a lockstep flight equals its evaluation to the bit. This
+evaluates the policy on the same seeded episodes that way and with every value kept in float64:
+how much the last bits alone move a policy's episodes.
 
     python research/fleet_input_sensitivity.py --policy policies/fleet/hotspot.zip --seed 1 [--json]
 """
@@ -21,32 +22,14 @@ import numpy as np
 
 def run(policy_path: str, scenario: str | None, episodes: int, seed: int) -> dict:
     from uavlink.env.core import BatchedUavEnv
-    from uavlink.env.observation import fleet_view_quantities
     from uavlink.evaluation import evaluate_policy
     from uavlink.policies.contract import EnvOverrides, load_with_env
 
     overrides = EnvOverrides(scenario=scenario, settings={"uav_motion": "px4"})
     [(policy, cfg)] = load_with_env([policy_path], overrides)
-    plain = evaluate_policy(policy, cfg, episodes, seed)
-
-    def as_mavlink(env: BatchedUavEnv) -> dict[str, np.ndarray]:
-        r = env.readings
-        assert r is not None
-        xy = env.uav_xy_m.astype(np.float32).astype(float)
-        aoa = r.heard_aoa_deg.astype(np.float32).astype(float)
-        fleet = fleet_view_quantities(
-            env.layout, xy.reshape(env.n_envs, env.n_uavs, 2), r.serving, aoa
-        )
-        sinr = r.heard_sinr_db.astype(np.float32).astype(float)
-        return {
-            "uav_xy_m": xy,
-            "sinr_db": sinr.reshape(env.n_rows, -1),
-            "aoa_deg": aoa.reshape(env.n_rows, -1),
-            **fleet,
-        }
-
-    with mock.patch.object(BatchedUavEnv, "_sensed", as_mavlink):
-        rounded = evaluate_policy(policy, cfg, episodes, seed)
+    rounded = evaluate_policy(policy, cfg, episodes, seed)  # the env's own: MAVLink's float32
+    with mock.patch.object(BatchedUavEnv, "_as_carried", lambda self, values: values):
+        plain = evaluate_policy(policy, cfg, episodes, seed)
     return {
         "policy": policy_path,
         "scenario": cfg.scenario,
