@@ -60,7 +60,7 @@ def test_env_px4_fleet_keeps_its_setpoints_20_m_apart(n_uavs: int) -> None:
     env = BatchedUavEnv(cfg, 16, seed=0)
     env.reset()
     rng = np.random.default_rng(0)
-    for _ in range(100):
+    for _ in range(50):
         env.step(_towards_one_point(rng, env.setpoint_xy_m.reshape(16, n_uavs, 2)))
         setpoints = env.setpoint_xy_m.reshape(16, n_uavs, 2)
         assert min_separation_m(setpoints).min() >= cfg.uav_separation_m - 1e-6
