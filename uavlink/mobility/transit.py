@@ -61,7 +61,7 @@ def guard_transit(
         if velocity_mps is None
         else np.array(velocity_mps, dtype=float, ndmin=3).reshape(actual.shape)
     )
-    n_envs, n = out.shape[:2]
+    n = out.shape[1]
     if n < 2:
         return out[0] if one else out
     steps = round(HORIZON_S / loop.substep_s)
