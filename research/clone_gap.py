@@ -23,41 +23,6 @@ from pathlib import Path
 from typing import Any
 
 
-def student_dataset(
-    sb3_policy: Any, cfg: Any, teacher: Any, episodes: int, seed: int, round_index: int
-) -> tuple[Any, Any]:
-    """(observations, the teacher's actions) float32 from ``episodes`` seeded episodes flown by the
-    copy in ``sb3_policy`` (SB3's deterministic action): round ``round_index``'s sibling of the DAGGER
-    stream."""
-    import numpy as np
-    import torch
-
-    from uavlink.env.observation import ObservationLayout
-    from uavlink.policies.sb3_policy import deterministic_actor
-    from uavlink.rollout import rollout
-    from uavlink.seeding import DAGGER
-
-    class LabelledFlight:
-        name, needs_truth = "dagger", bool(getattr(teacher, "needs_truth", False))
-        layout, actor, labels = (
-            ObservationLayout.for_config(cfg),
-            deterministic_actor(sb3_policy),
-            [],
-        )
-
-        def act(self, obs, truth=None):
-            self.labels.append(teacher.act(obs, truth))
-            with torch.no_grad():
-                return self.actor(torch.as_tensor(obs, dtype=torch.float32)).numpy()
-
-    flight = LabelledFlight()
-    stream = DAGGER.sibling(f"dagger-round-{round_index}", round_index)
-    observations = [frame.observation for frame in rollout(flight, cfg, stream, episodes, seed)]
-    return np.concatenate(observations).astype(np.float32), np.concatenate(flight.labels).astype(
-        np.float32
-    )
-
-
 def run(
     sweep: Path,
     scenario: str,
@@ -75,7 +40,7 @@ def run(
     from uavlink.env.observation import ObservationLayout
     from uavlink.errors import UserError
     from uavlink.evaluation import evaluate_policy, paired_ratio_ci
-    from uavlink.learn.imitation import clone_actor, teacher_dataset
+    from uavlink.learn.imitation import clone_actor, student_dataset, teacher_dataset
     from uavlink.learn.teachers import warm_start_teacher
     from uavlink.learn.training import make_model, training_env_config
     from uavlink.policies.contract import EnvOverrides, load_with_env

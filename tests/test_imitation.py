@@ -10,7 +10,7 @@ import pytest
 
 from uavlink.cli import main
 from uavlink.config import EnvConfig, TrainConfig
-from uavlink.learn.imitation import clone_actor, teacher_dataset
+from uavlink.learn.imitation import clone_actor, student_dataset, teacher_dataset, warm_start
 from uavlink.learn.teachers import AoaVariant, make_teacher
 from uavlink.learn.training import make_model
 from uavlink.policies.baselines import AoaPolicy
@@ -44,6 +44,48 @@ def test_teacher_dataset_flies_what_the_teacher_says_it_is() -> None:
     privileged_obs, privileged = teacher_dataset(noisy, "aoa", episodes=2, seed=1)
     np.testing.assert_array_equal(privileged_obs[:2], obs[:2])  # the same episodes
     assert np.abs(privileged[:2] - actions[:2]).max() > 0.1
+
+
+def test_dagger_data_is_the_copys_flying_labelled_by_the_teacher() -> None:
+    """A DAgger round: the copy (here an untrained actor, which flies nothing like the rule) picks
+    the moves, so the frames are its own; the labels are what the teacher does in them; seeded per
+    round. A fleet's GPS teacher labels from the truth of the copy's own frames."""
+    import torch
+
+    model = make_model(CFG, TrainConfig(n_envs=2), None)
+    teacher = make_baseline("aoa", CFG)
+    obs, labels = student_dataset(model.policy, CFG, teacher, episodes=2, seed=3, round_index=0)
+    assert obs.shape == (2 * CFG.episode_frames, 60) and labels.shape == (
+        2 * CFG.episode_frames,
+        2,
+    )
+    np.testing.assert_allclose(labels, teacher.act(obs), atol=1e-6)
+    rule_obs, _ = teacher_dataset(CFG, teacher, episodes=2, seed=3)
+    half = CFG.episode_frames // 2
+    assert not np.allclose(obs[half:], rule_obs[half:])
+    again = student_dataset(model.policy, CFG, teacher, episodes=2, seed=3, round_index=0)
+    np.testing.assert_array_equal(obs, again[0])
+    other_round = student_dataset(model.policy, CFG, teacher, episodes=2, seed=3, round_index=1)
+    assert not np.array_equal(obs[:1], other_round[0][:1])  # another round's episodes
+    with torch.no_grad():
+        weights = [p.clone() for p in model.policy.parameters()]
+    report = warm_start(
+        model.policy, [(CFG, teacher)], episodes=2, seed=3, epochs=1, dagger_rounds=2
+    )
+    assert (report.samples, report.dagger_rounds) == (3 * 2 * CFG.episode_frames, 2)
+    assert report.to_dict()["dagger_rounds"] == 2
+    assert any(
+        not torch.equal(a, b) for a, b in zip(weights, model.policy.parameters(), strict=True)
+    )
+
+    fleet = EnvConfig(scenario="hotspot", n_uavs=2, fleet_slots=3, episode_frames=8)
+    fleet_model = make_model(fleet, TrainConfig(n_envs=2), None)
+    kmeans = make_baseline("kmeans", fleet)
+    fleet_obs, fleet_labels = student_dataset(
+        fleet_model.policy, fleet, kmeans, episodes=2, seed=3, round_index=0
+    )
+    assert fleet_obs.shape[0] == fleet_labels.shape[0] == 2 * 2 * fleet.episode_frames
+    assert np.abs(fleet_labels).max() > 0.5  # kmeans flies towards its groups, not at rest
 
 
 @pytest.mark.slow

@@ -107,8 +107,22 @@ class WarmStartConfig:
         metavar="FILE",
     )
 
+    dagger_rounds: int = setting(
+        0,
+        "after the first fit, this many rounds in which the copy flies the same number of "
+        "episodes, the teacher labels the frames it meets and the copy is fitted again on all "
+        "the data (DAgger, Ross et al. 2011; ours; default: off)",
+        low=0,
+        metavar="N",
+    )
+
     def validate(self, name: Namer = config_name) -> WarmStartConfig:
         check_fields(self, lambda path: name(f"warm_start.{path}"))
+        if self.dagger_rounds and not self.teacher:
+            raise ConfigError(
+                f"{name('warm_start.dagger_rounds')} needs a {name('warm_start.teacher')} to label "
+                "the copy's flying"
+            )
         for knob in ("shadow_gate_db", "sinr_span_db", "shadow_estimator_episodes"):
             if getattr(self, knob) is not None and self.teacher != "aoa":
                 raise ConfigError(

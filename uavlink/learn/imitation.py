@@ -10,6 +10,11 @@ action head) is fitted to the teacher's actions by mean squared error, and its e
 reset. The critic knows nothing yet, and PPO's first updates with its random advantages would undo
 the copy, so the actor stays frozen for the first few rollouts while the critic learns the cloned
 policy's values (``critic_warmup_callback``). Imports torch.
+
+A copy fitted on the teacher's own flying errs most where the teacher never goes, and the copy's
+small errors take it there (Ross et al. 2011, "A reduction of imitation learning ... to no-regret
+online learning"). ``dagger_rounds`` adds DAgger's remedy: the copy flies, the teacher labels the
+frames it meets, and the copy is fitted again on everything gathered so far.
 """
 
 from __future__ import annotations
@@ -21,10 +26,12 @@ from typing import Any
 import numpy as np
 
 from uavlink.config import EnvConfig
+from uavlink.env.core import GroundTruth
+from uavlink.env.observation import ObservationLayout
 from uavlink.learn.teachers import make_teacher
 from uavlink.policies.base import Policy
 from uavlink.rollout import Actor, rollout
-from uavlink.seeding import TEACHER
+from uavlink.seeding import DAGGER, TEACHER
 
 CLONE_EPOCHS = (
     20  # passes over the cloning data unless TrainConfig.warm_start.epochs says otherwise
@@ -37,13 +44,16 @@ class CloneReport:
     samples: int
     epochs: int
     final_mse: float
+    dagger_rounds: int = 0
 
     def to_dict(self) -> dict[str, Any]:
+        rounds = {"dagger_rounds": self.dagger_rounds} if self.dagger_rounds else {}
         return {
             "teacher": self.teacher,
             "samples": self.samples,
             "epochs": self.epochs,
             "final_mse": round(self.final_mse, 6),
+            **rounds,
         }
 
 
@@ -58,6 +68,42 @@ def teacher_dataset(
         observations.append(frame.observation)
         actions.append(frame.action)
     return np.concatenate(observations).astype(np.float32), np.concatenate(actions).astype(
+        np.float32
+    )
+
+
+class _LabelledFlight:
+    """The copy flies (SB3's deterministic action, as its policy file would) while the teacher says
+    what it would do in each frame: DAgger's data. Asks for ground truth when the teacher needs it."""
+
+    name = "dagger"
+
+    def __init__(self, sb3_policy: Any, teacher: Actor, cfg: EnvConfig) -> None:
+        from uavlink.policies.sb3_policy import deterministic_actor
+
+        self.actor = deterministic_actor(sb3_policy)
+        self.teacher = teacher
+        self.needs_truth = bool(teacher.needs_truth)
+        self.layout = ObservationLayout.for_config(cfg)
+        self.labels: list[np.ndarray] = []
+
+    def act(self, obs: np.ndarray, truth: GroundTruth | None = None) -> np.ndarray:
+        import torch
+
+        self.labels.append(self.teacher.act(obs, truth))
+        with torch.no_grad():
+            return self.actor(torch.as_tensor(obs, dtype=torch.float32)).numpy()
+
+
+def student_dataset(
+    sb3_policy: Any, cfg: EnvConfig, teacher: Actor, episodes: int, seed: int, round_index: int
+) -> tuple[np.ndarray, np.ndarray]:
+    """(observations, the teacher's actions) float32 from ``episodes`` seeded episodes flown by the
+    copy in ``sb3_policy``: DAgger round ``round_index``, on its own sibling of the DAGGER stream."""
+    flight = _LabelledFlight(sb3_policy, teacher, cfg)
+    stream = DAGGER.sibling(f"dagger-round-{round_index}", round_index)
+    observations = [frame.observation for frame in rollout(flight, cfg, stream, episodes, seed)]
+    return np.concatenate(observations).astype(np.float32), np.concatenate(flight.labels).astype(
         np.float32
     )
 
@@ -107,10 +153,12 @@ def warm_start(
     seed: int,
     epochs: int = CLONE_EPOCHS,
     log_std: float = -1.0,
+    dagger_rounds: int = 0,
 ) -> CloneReport:
     """Clone the teachers of ``flights`` (each an env and its teacher: a rule's name, or a policy
     from ``make_teacher``; one per fleet size trained on) into the policy's actor from ``episodes``
-    of each one's own flying."""
+    of each one's own flying; then ``dagger_rounds`` times, ``episodes`` of the copy's flying in
+    each env, labelled by that env's teacher, are added and the copy is fitted again on all of it."""
     policies = [
         make_teacher(cfg, teacher) if isinstance(teacher, str) else teacher
         for cfg, teacher in flights
@@ -122,7 +170,17 @@ def warm_start(
     observations = np.concatenate([obs for obs, _ in data])
     actions = np.concatenate([act for _, act in data])
     mse = clone_actor(sb3_policy, observations, actions, epochs=epochs, log_std=log_std, seed=seed)
-    return CloneReport(policies[0].name, len(observations), epochs, mse)
+    for round_index in range(dagger_rounds):
+        data = [
+            student_dataset(sb3_policy, cfg, policy, episodes, seed, round_index)
+            for (cfg, _), policy in zip(flights, policies, strict=True)
+        ]
+        observations = np.concatenate([observations, *(obs for obs, _ in data)])
+        actions = np.concatenate([actions, *(act for _, act in data)])
+        mse = clone_actor(
+            sb3_policy, observations, actions, epochs=epochs, log_std=log_std, seed=seed
+        )
+    return CloneReport(policies[0].name, len(observations), epochs, mse, dagger_rounds)
 
 
 def critic_warmup_callback(rollouts: int):

@@ -329,6 +329,7 @@ def _warm_start(sb3_policy: Any, cfg: EnvConfig, tc: TrainConfig) -> dict[str, A
         tc.seed,
         epochs=epochs,
         log_std=ws.log_std,
+        dagger_rounds=ws.dagger_rounds,
     ).to_dict()
     if estimator is not None:
         report["shadow_estimator_r2"] = round(estimator.r2, 4)

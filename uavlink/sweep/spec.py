@@ -39,7 +39,11 @@ NEUTRAL_ENV_DEFAULTS: dict[str, Any] = {
     "fleet_slots": 0,
 }
 # The same for the training's (nested) warm-start fields.
-NEUTRAL_WARM_START_DEFAULTS: dict[str, Any] = {"leader_policy": "", "policy": ""}
+NEUTRAL_WARM_START_DEFAULTS: dict[str, Any] = {
+    "leader_policy": "",
+    "policy": "",
+    "dagger_rounds": 0,
+}
 # The same for the training's own fields.
 NEUTRAL_TRAIN_DEFAULTS: dict[str, Any] = {
     "validation_episodes": 0,
