@@ -84,6 +84,14 @@ BAD = [
         {"warm_start.teacher": "aoa", "warm_start.shadow_estimator_episodes": 8},
         "train.warm_start.shadow_estimator_episodes needs train.warm_start.shadow_gate_db",
     ),
+    (
+        {"warm_start.dagger_rounds": 2},
+        "train.warm_start.dagger_rounds needs a train.warm_start.teacher",
+    ),
+    (
+        {"warm_start.teacher": "aoa", "warm_start.dagger_rounds": -1},
+        "train.warm_start.dagger_rounds must be",
+    ),
 ]
 
 
@@ -227,6 +235,7 @@ def test_cli_refuses_bad_values_in_one_line(tmp_path: Path, capsys) -> None:
     for args, named in (
         (["--episodes", "0"], "--episodes must be positive"),
         (["--warm-start-sinr-span-db", "2"], "--warm-start-sinr-span-db needs --warm-start aoa"),
+        (["--warm-start-dagger-rounds", "1"], "--warm-start-dagger-rounds needs a --warm-start"),
         (["--aoa-noise-deg", "10", "--aoa-noise-max-deg", "5"], "--aoa-noise-max-deg must be 0"),
         (["--set", "radio.aoa_noise_max_deg=5"], "set --aoa-noise-max-deg instead"),
         (["--eval-episodes", "-1"], "--eval-episodes must be >= 0"),
