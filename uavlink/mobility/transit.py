@@ -24,6 +24,10 @@ Before this guard predicted, it kept the regions the vehicles sweep (the triangl
 apart; a turning vehicle's path leaves that triangle by metres, and a free-running fleet of three
 flew to 17.2 m with its setpoints 20 m apart (``tests/test_fleet_transit.py`` drives 24 fleets at
 one point: 10.7-18.7 m at some 20 ms substep with the triangles, 20.0 m predicted).
+
+Batched numpy over envs, (N, D, 2) (a flight is one env, (D, 2)): the flight loop and the env's
+``uav_motion="px4"`` fleet call the same code, and every operation is element-wise or an exact
+minimum, so an env's row is what a flight of that env computes, bit for bit.
 """
 
 from __future__ import annotations
