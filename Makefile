@@ -65,9 +65,8 @@ wheel-check: $(STAMP)
 	PYTHON=$(BIN)/python bash .ci/wheel-check
 
 # docs/results.md and docs/results/, every section, from the shipped policies and the sweep records
-# beside them (policies/*.sweep.json: a fresh clone needs no runs/): about 38 minutes on 2 cores with
-# the fleet part at D = 1 to 3; its D = 4 genie (about 6.5 CPU-s an episode) adds an estimated 30 to
-# 60 minutes (not yet timed).
+# beside them (policies/*.sweep.json: a fresh clone needs no runs/): 53 minutes on 2 cores, the fleet
+# part at D = 1 to 4 included (2026-12-04, beside two training jobs at nice 19).
 # The fleet part pairs the any-size policies (--fleet) with the per-size D = 2 ones (--fleet-per-size,
 # beside which a per-size sweep's record, sweeps/fleet.toml's, is read).
 results: $(STAMP)

@@ -334,3 +334,15 @@ def test_fleet_input_sensitivity_evaluates_the_same_episodes_from_float64_and_fl
     assert result["float64_mbps"] > 0 and result["float32_inputs_mbps"] > 0
     change = abs(result["float32_inputs_mbps"] / result["float64_mbps"] - 1) * 100
     assert abs(change - result["per_episode_abs_change_pct"]) < 1e-2  # one episode: the same
+
+
+@pytest.mark.parametrize("path", sorted((FOLDER / "sweeps").glob("*.toml")), ids=lambda p: p.name)
+def test_research_sweep_files_load_and_name_their_own_runs(path: Path) -> None:
+    """research/sweeps/: the log's sweep recipes (not shipped: benchmarks/train_throughput.py
+    measures sweeps/ alone) still load with today's configs, and the command in each file's
+    comment names the file where it now lies."""
+    from uavlink.sweep.sweep_file import load_spec
+
+    spec = load_spec(path)
+    assert spec.name == path.stem and len(spec.jobs()) == len(spec.scenarios) * len(spec.seeds)
+    assert f"uavlink sweep research/sweeps/{path.name}" in path.read_text()
