@@ -40,8 +40,15 @@ def test_manifest_check_gives_back_a_paper_channel_policys_figure_to_the_last_di
 def test_flight_parity_flies_a_seed_in_lockstep_onto_its_px4_motion_evaluation() -> None:
     result = run_json("flight_parity.py", "--seeds", "2")
     [row] = result["rows"]
-    assert set(row) == {"seed", "evaluated_instant", "evaluated_px4", "flown_lockstep"}
-    assert result["summary"]["lockstep_vs_px4"]["within_5pct"] == 1
+    assert set(row) == {
+        "seed",
+        "evaluated_instant",
+        "evaluated_px4",
+        "flown_lockstep",
+        "lockstep_timeouts",
+    }
+    assert row["lockstep_timeouts"] == 0
+    assert result["summary"]["lockstep_vs_px4"]["equal"] == 1  # to the summary's six decimals
 
 
 def test_figures_fingerprint_finds_the_same_figures_and_a_moved_one(tmp_path: Path) -> None:

@@ -4,7 +4,10 @@ For each seed, one 128-frame flight through the embedded SITL and the same episo
 `uavlink evaluate --episodes 1 --seed S` with the env's instant moves and with `--set
 uav_motion=px4` (the UAV flown to its setpoint as the vehicle flies it). Reports each seed's
 figures and, per way of flying, how many flights lie within 5 % of each evaluation (the target
-for the map policy: "within 5 % of its one-episode evaluation at the same seed").
+for the map policy: "within 5 % of its one-episode evaluation at the same seed"). A lockstep
+flight equals its PX4-motion evaluation only while the SITL held every frame for its decision:
+each row counts the frames it stopped holding (`lockstep_timeouts`, 2 s of wall time each: a
+loaded machine), which should be 0.
 
     python tools/flight_parity.py [--policy policies/map/no_move.zip] [--scenario no_move]
         [--seeds 0 1 2 ...] [--free] [--json]
@@ -51,6 +54,22 @@ def fly(policy: str, scenario: str, seed: int, lockstep: bool, out: Path) -> flo
     return json.loads(proc.stdout)["mean_rate_mbps"]
 
 
+def lockstep_timeouts(out: Path) -> int:
+    """Frames the embedded SITL stopped holding for want of a decision (its exit stats in
+    sitl.log): a loaded machine's late decisions, after which a lockstep flight no longer replays
+    its evaluation."""
+    stats = json.loads((out / "sitl.log").read_text().split("sitl-stub: stats ")[-1])
+    found, todo = 0, [stats]
+    while todo:
+        tree = todo.pop()
+        if isinstance(tree, dict):
+            found += sum(v for k, v in tree.items() if k == "lockstep_timeouts")
+            todo += list(tree.values())
+        elif isinstance(tree, list):
+            todo += tree
+    return found
+
+
 def evaluate(policy: str, scenario: str, seed: int, settings: list[str]) -> float:
     [(actor, cfg)] = load_with_env(
         [policy], EnvOverrides.from_command_line(scenario, None, settings)
@@ -58,8 +77,11 @@ def evaluate(policy: str, scenario: str, seed: int, settings: list[str]) -> floa
     return float(evaluate_policy(actor, cfg, episodes=1, seed=seed).mean_rate_mbps)
 
 
-def within(flown: list[float], evaluated: list[float], share: float = 0.05) -> int:
-    return int(sum(abs(f - e) <= share * e for f, e in zip(flown, evaluated, strict=True)))
+def within(
+    flown: list[float], evaluated: list[float], share: float = 0.05, abs_tol: float = 0.0
+) -> int:
+    pairs = zip(flown, evaluated, strict=True)
+    return int(sum(abs(f - e) <= share * e + abs_tol for f, e in pairs))
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -81,11 +103,12 @@ def main(argv: list[str] | None = None) -> int:
                 "evaluated_px4": evaluate(args.policy, args.scenario, seed, ["uav_motion=px4"]),
             }
             for mode, lockstep in modes.items():
-                row[f"flown_{mode}"] = fly(
-                    args.policy, args.scenario, seed, lockstep, Path(tmp) / f"{mode}{seed}"
-                )
+                out = Path(tmp) / f"{mode}{seed}"
+                row[f"flown_{mode}"] = fly(args.policy, args.scenario, seed, lockstep, out)
+                if lockstep:
+                    row["lockstep_timeouts"] = lockstep_timeouts(out)
             rows.append(row)
-    column = {k: [r[k] for r in rows] for k in rows[0]}
+    column = {k: [r[k] for r in rows] for k in rows[0] if k != "lockstep_timeouts"}
     summary = {}
     for mode in modes:
         flown = column[f"flown_{mode}"]
@@ -93,6 +116,8 @@ def main(argv: list[str] | None = None) -> int:
             diff = np.array(flown) / np.array(column[f"evaluated_{ev}"]) - 1
             summary[f"{mode}_vs_{ev}"] = {
                 "within_5pct": within(flown, column[f"evaluated_{ev}"]),
+                # the flight's summary rounds to six decimals
+                "equal": within(flown, column[f"evaluated_{ev}"], share=0.0, abs_tol=1e-6),
                 "flights": len(flown),
                 "max_abs_diff_pct": round(float(np.abs(diff).max()) * 100, 2),
                 "mean_of_flights_vs_mean_evaluated_pct": round(
@@ -115,7 +140,8 @@ def main(argv: list[str] | None = None) -> int:
     print()
     for name, s in summary.items():
         print(
-            f"{name}: {s['within_5pct']} of {s['flights']} flights within 5 %, largest difference "
+            f"{name}: {s['within_5pct']} of {s['flights']} flights within 5 % ({s['equal']} equal), "
+            f"largest difference "
             f"{s['max_abs_diff_pct']} %, mean of the flights {s['mean_of_flights_vs_mean_evaluated_pct']:+} %"
         )
     return 0
