@@ -13,6 +13,7 @@ folder goes first on its PYTHONPATH), so caller and vehicle run the same code fr
 
 from __future__ import annotations
 
+import json
 import os
 import re
 import subprocess
@@ -24,7 +25,7 @@ from contextlib import contextmanager
 from dataclasses import dataclass
 from pathlib import Path
 
-__all__ = ["VehicleExited", "VehicleProcess", "vehicle_process"]
+__all__ = ["VehicleExited", "VehicleProcess", "exit_stats", "lockstep_timeouts", "vehicle_process"]
 
 PACKAGE_ROOT = Path(__file__).resolve().parent.parent
 # The program's name, which begins every message the vehicle prints (its log lines too); once its
@@ -34,6 +35,34 @@ PROG = "sitl-stub"
 READY_LINE = re.compile(
     re.escape(f"{PROG}: ") + r"(vehicle \d+|fleet of \d+ vehicles \([^)]*\)) on .*x real time"
 )
+
+
+STATS_PREFIX = f"{PROG}: stats "  # the line a vehicle prints on exit: its counters as JSON
+
+
+def exit_stats(output: str) -> dict | None:
+    """The counters a vehicle printed on exit (the last ``sitl-stub: stats {json}`` line of its
+    output); None while it runs, or where it was killed before printing them."""
+    for line in reversed(output.splitlines()):
+        if line.startswith(STATS_PREFIX):
+            return json.loads(line[len(STATS_PREFIX) :])
+    return None
+
+
+def lockstep_timeouts(stats: dict) -> int:
+    """Frames a lockstep vehicle went on without the flight computer's decision (each held at most
+    ``sitl_stub.sim.lockstep.LOCKSTEP_WAIT_WALL_S`` of wall time), from its exit stats: the largest
+    count any payload reports, since a fleet's vehicles each report their shared world's one hold;
+    0 without lockstep."""
+    found, todo = [0], [stats]
+    while todo:
+        tree = todo.pop()
+        if isinstance(tree, dict):
+            found += [v for k, v in tree.items() if k == "lockstep_timeouts"]
+            todo += list(tree.values())
+        elif isinstance(tree, list):
+            todo += tree
+    return max(found)
 
 
 class VehicleExited(RuntimeError):

@@ -15,6 +15,7 @@ import pytest
 from support.cli import ROOT, assert_user_error, cli_json, run_uavlink_in_process
 
 import sitl_stub.sim.lockstep as lockstep
+from sitl_stub import launcher
 from sitl_stub.mavlink.server import ServerConfig, SitlServer
 from sitl_stub.sim.payload import PayloadOptions
 from sitl_stub.sim.radio_payload import RadioPayload
@@ -124,6 +125,17 @@ def test_time_waits_at_each_frame_until_it_is_decided() -> None:
         server.close()
 
 
+def test_a_fleets_timeouts_count_once_though_each_vehicle_reports_them() -> None:
+    """`sitl-stub --fleet`'s stats: every vehicle's payload repeats the shared world's count."""
+    view = {"uav": 0, "episode": 0, "lockstep_timeouts": 3}
+    stats = {
+        "vehicles": {str(i): {"payloads": {"200": {**view, "uav": i}}} for i in (1, 2, 3)},
+        "world": {"episode": 0, "lockstep_timeouts": 3},
+    }
+    assert launcher.lockstep_timeouts(stats) == 3
+    assert launcher.lockstep_timeouts({"vehicles": {}}) == 0  # not in lockstep
+
+
 def test_an_unanswered_frame_is_let_go_after_the_wall_wait(monkeypatch) -> None:
     server, payload, gcs = _offboard_server()
     try:
@@ -137,6 +149,10 @@ def test_an_unanswered_frame_is_let_go_after_the_wall_wait(monkeypatch) -> None:
             server.report()["payloads"][str(radio_codec.RADIO_COMPONENT_ID)]["lockstep_timeouts"]
             == 1
         )
+        # what `uavlink fly` reads from the line the vehicle prints on exit
+        printed = f"sitl-stub: other\nsitl-stub: stats {json.dumps(server.report())}\n"
+        assert launcher.lockstep_timeouts(launcher.exit_stats(printed) or {}) == 1
+        assert launcher.exit_stats("sitl-stub: killed before its stats\n") is None
     finally:
         gcs.close()
         server.close()
@@ -249,11 +265,8 @@ def test_a_lockstep_flight_replays_and_matches_the_px4_motion_evaluation(
         f"\n{policy} on no_move seed {seed}: flown in lockstep {flown} Mbps, evaluated (px4 motion) {evaluated:.6f}"
     )
     assert all(f["frames"] == 128 and f["decisions"] == 128 and f["completed"] for f in flights)
-    for k in range(2):  # the vehicle waited for every decision (a timeout would part the two runs)
-        stats = json.loads(
-            (tmp_path / str(k) / "sitl.log").read_text().split("sitl-stub: stats ")[-1]
-        )
-        assert set(_found(stats, "lockstep_timeouts")) == {0}, stats
+    # the vehicle waited for every decision (a timeout would part the two runs)
+    assert [f["lockstep_timeouts"] for f in flights] == [0, 0]
     assert flown[0] == flown[1]
     assert abs(flown[0] - evaluated) <= 1e-6
 
@@ -287,19 +300,24 @@ def test_a_fleet_flies_in_lockstep_and_replays(tmp_path) -> None:
         f["vehicles"] for f in flights
     ]
     assert flights[0]["mean_rate_mbps"] == flights[1]["mean_rate_mbps"]
-    for k in range(2):  # every vehicle's world waited for each decision; none timed out
-        stats = json.loads(
-            (tmp_path / str(k) / "sitl.log").read_text().split("sitl-stub: stats ")[-1]
-        )
-        assert _found(stats, "lockstep_timeouts") and set(_found(stats, "lockstep_timeouts")) == {
-            0
-        }, stats
+    # the vehicles' world waited for each decision; none timed out
+    assert [f["lockstep_timeouts"] for f in flights] == [0, 0]
 
 
-def _found(tree, key: str) -> list:
-    """Every value of ``key`` anywhere in a JSON tree."""
-    if isinstance(tree, dict):
-        return [v for k, v in tree.items() if k == key] + [
-            x for v in tree.values() for x in _found(v, key)
-        ]
-    return [x for v in tree for x in _found(v, key)] if isinstance(tree, list) else []
+@pytest.mark.parametrize("late", [0, 2])
+def test_the_line_after_a_flight_says_when_lockstep_did_not_hold(tmp_path, late: int) -> None:
+    from uavlink.flight.result import flown_line
+
+    summary = {
+        "frames": 128,
+        "scenario": "no_move",
+        "policy": "aoa",
+        "mean_rate_mbps": 8.1,
+        "latency_ms_p50": 1.0,
+        "latency_ms_p99": 2.0,
+        "tlog": "flight.tlog",
+        "lockstep_timeouts": late,
+    }
+    line = flown_line(summary, tmp_path)
+    assert ("2 frame(s) went on without a decision" in line) == (late == 2), line
+    assert "mean UE throughput 8.1 Mbps" in line

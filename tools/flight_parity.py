@@ -6,8 +6,8 @@ uav_motion=px4` (the UAV flown to its setpoint as the vehicle flies it). Reports
 figures and, per way of flying, how many flights lie within 5 % of each evaluation (the target
 for the map policy: "within 5 % of its one-episode evaluation at the same seed"). A lockstep
 flight equals its PX4-motion evaluation only while the SITL held every frame for its decision:
-each row counts the frames it stopped holding (`lockstep_timeouts`, 2 s of wall time each: a
-loaded machine), which should be 0.
+each row gives the flight summary's count of frames it stopped holding (`lockstep_timeouts`, 2 s
+of wall time each: a loaded machine), which should be 0.
 
     python tools/flight_parity.py [--policy policies/map/no_move.zip] [--scenario no_move]
         [--seeds 0 1 2 ...] [--free] [--json]
@@ -30,7 +30,7 @@ from uavlink.policies.contract import EnvOverrides, load_with_env
 ROOT = Path(__file__).resolve().parents[1]
 
 
-def fly(policy: str, scenario: str, seed: int, lockstep: bool, out: Path) -> float:
+def fly(policy: str, scenario: str, seed: int, lockstep: bool, out: Path) -> dict:
     cmd = [
         sys.executable,
         "-m",
@@ -51,23 +51,7 @@ def fly(policy: str, scenario: str, seed: int, lockstep: bool, out: Path) -> flo
     proc = subprocess.run(cmd, capture_output=True, text=True, cwd=ROOT, timeout=600)
     if proc.returncode != 0:
         raise SystemExit(f"fly failed at seed {seed}: {proc.stderr.strip()[-500:]}")
-    return json.loads(proc.stdout)["mean_rate_mbps"]
-
-
-def lockstep_timeouts(out: Path) -> int:
-    """Frames the embedded SITL stopped holding for want of a decision (its exit stats in
-    sitl.log): a loaded machine's late decisions, after which a lockstep flight no longer replays
-    its evaluation."""
-    stats = json.loads((out / "sitl.log").read_text().split("sitl-stub: stats ")[-1])
-    found, todo = 0, [stats]
-    while todo:
-        tree = todo.pop()
-        if isinstance(tree, dict):
-            found += sum(v for k, v in tree.items() if k == "lockstep_timeouts")
-            todo += list(tree.values())
-        elif isinstance(tree, list):
-            todo += tree
-    return found
+    return json.loads(proc.stdout)
 
 
 def evaluate(policy: str, scenario: str, seed: int, settings: list[str]) -> float:
@@ -103,10 +87,10 @@ def main(argv: list[str] | None = None) -> int:
                 "evaluated_px4": evaluate(args.policy, args.scenario, seed, ["uav_motion=px4"]),
             }
             for mode, lockstep in modes.items():
-                out = Path(tmp) / f"{mode}{seed}"
-                row[f"flown_{mode}"] = fly(args.policy, args.scenario, seed, lockstep, out)
+                flown = fly(args.policy, args.scenario, seed, lockstep, Path(tmp) / f"{mode}{seed}")
+                row[f"flown_{mode}"] = flown["mean_rate_mbps"]
                 if lockstep:
-                    row["lockstep_timeouts"] = lockstep_timeouts(out)
+                    row["lockstep_timeouts"] = flown["lockstep_timeouts"]
             rows.append(row)
     column = {k: [r[k] for r in rows] for k in rows[0] if k != "lockstep_timeouts"}
     summary = {}

@@ -36,7 +36,12 @@ from uavlink.flight.result import (
     report,
 )
 from uavlink.flight.steady import steady_heap
-from uavlink.flight.vehicles import check_vehicle_options, embedded_vehicles, split_urls
+from uavlink.flight.vehicles import (
+    check_vehicle_options,
+    embedded_lockstep,
+    embedded_vehicles,
+    split_urls,
+)
 from uavlink.mavlink.signing import load_key
 from uavlink.policies.contract import EnvOverrides, load_with_env
 from uavlink.policies.loader import locate
@@ -110,6 +115,7 @@ def fly_policy(options: FlyOptions, live_status: bool = False) -> dict[str, Any]
     out_dir = options.out
     out_dir.mkdir(parents=True, exist_ok=True)
     tlog = out_dir / "flight.tlog"
+    embedded = urls is None
     sitl = (
         embedded_vehicles(
             cfg,
@@ -134,6 +140,7 @@ def fly_policy(options: FlyOptions, live_status: bool = False) -> dict[str, Any]
         **episode_fields(options, policy_path, cfg, flown.pop("episode"), loop_cfg.frames),
         "policy": policy_path,
         "connect": options.connect or "embedded sitl_stub" + (" --fleet" if fleet else ""),
+        **(embedded_lockstep(out_dir / "sitl.log") if embedded and options.lockstep else {}),
         **flown,
         "wall_s": round(time.monotonic() - start, 2),
         "tlog": str(tlog),

@@ -347,6 +347,12 @@ def flown_line(summary: dict, out_dir: Path) -> str:
             f": mean UE throughput {summary['mean_rate_mbps']} Mbps; decision latency p50 "
             f"{summary['latency_ms_p50']} ms, p99 {summary['latency_ms_p99']} ms"
         )
+    late = summary.get("lockstep_timeouts")
+    if late:  # the replay no longer matches: say so where the figures are
+        how += (
+            f"; {late} frame(s) went on without a decision (a busy machine): the flight no longer "
+            f"replays as its evaluation"
+        )
     line = (
         f"flew {summary['frames']} frames of {flown_name(summary)} with {summary['policy']}{how}; "
         f"log {summary['tlog']}, summary {out_dir / 'summary.json'}"

@@ -81,6 +81,17 @@ def vehicle_args(
     return args + ([] if signing_key_file is None else ["--signing-key", str(signing_key_file)])
 
 
+def embedded_lockstep(log_path: Path) -> dict:
+    """How well the embedded vehicle held lockstep, from the stats it printed on exit to its log:
+    ``lockstep_timeouts``, the frames it went on without a decision (a machine too busy to decide
+    within 2 s of wall time), after which the flight no longer replays as its evaluation; None
+    where it printed no stats."""
+    from sitl_stub.launcher import exit_stats, lockstep_timeouts
+
+    stats = exit_stats(log_path.read_text(errors="replace")) if log_path.exists() else None
+    return {"lockstep_timeouts": None if stats is None else lockstep_timeouts(stats)}
+
+
 @contextlib.contextmanager
 def embedded_vehicles(
     cfg: EnvConfig,
