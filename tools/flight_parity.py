@@ -125,8 +125,8 @@ def main(argv: list[str] | None = None) -> int:
     for name, s in summary.items():
         print(
             f"{name}: {s['within_5pct']} of {s['flights']} flights within 5 % ({s['equal']} equal), "
-            f"largest difference "
-            f"{s['max_abs_diff_pct']} %, mean of the flights {s['mean_of_flights_vs_mean_evaluated_pct']:+} %"
+            f"largest difference {s['max_abs_diff_pct']} %, "
+            f"mean of the flights {s['mean_of_flights_vs_mean_evaluated_pct']:+} %"
         )
     return 0
 

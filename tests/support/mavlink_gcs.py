@@ -5,10 +5,11 @@ line a vehicle prints on exit) and a quick climb: :data:`FAST_CLIMB_PARAMS`, as 
 
 from __future__ import annotations
 
-import json
 import time
 from collections.abc import Callable
 from typing import Any
+
+from sitl_stub.launcher import exit_stats
 
 FAST_CLIMB_PARAMS = {"MPC_TKO_SPEED": 5.0, "MPC_Z_VEL_MAX_UP": 5.0}  # 95 m in ~20 s sim
 FAST_TAKEOFF = tuple(
@@ -115,7 +116,6 @@ def wait_for_vehicle(gcs: Gcs, vehicle: Any, timeout: float = 20.0) -> None:
 
 
 def parse_vehicle_stats(output: str) -> dict[str, Any]:
-    for line in reversed(output.splitlines()):
-        if line.startswith("sitl-stub: stats "):
-            return json.loads(line.split(" ", 2)[2])
-    raise AssertionError(f"no stats line in the vehicle's output:\n{output[-2000:]}")
+    stats = exit_stats(output)
+    assert stats is not None, f"no stats line in the vehicle's output:\n{output[-2000:]}"
+    return stats
