@@ -9,6 +9,7 @@ column flies the same seeded episodes. The genie's ratio is the results report's
 
     python research/fleet_bars.py --episodes 1000 --seed 7            # a seed no choice used
     python research/fleet_bars.py --episodes 100 --seed 0 --json      # results.md's episodes
+    python research/fleet_bars.py --fleet DIR --scenario no_move       # DIR/no_move.zip alone
 """
 
 from __future__ import annotations
@@ -28,7 +29,13 @@ def _ratio(a: Any, b: Any) -> list[float]:
     return [round(x, 4) for x in paired_ratio_ci(a.episode_rate_mbps, b.episode_rate_mbps)]
 
 
-def run(fleet: Path, per_size: Path | None, episodes: int, seed: int) -> dict[str, Any]:
+def run(
+    fleet: Path,
+    per_size: Path | None,
+    episodes: int,
+    seed: int,
+    scenarios: tuple[str, ...] | None = None,
+) -> dict[str, Any]:
     from uavlink.config import SCENARIOS
     from uavlink.evaluation import evaluate_policy
     from uavlink.learn.teachers import policy_teacher
@@ -36,7 +43,7 @@ def run(fleet: Path, per_size: Path | None, episodes: int, seed: int) -> dict[st
     from uavlink.policies.registry import make_baseline
 
     rows = []
-    for scenario in SCENARIOS:
+    for scenario in scenarios or SCENARIOS:
         [(policy, built)] = load_with_env([fleet / f"{scenario}.zip"], EnvOverrides())
         for size in SIZES:
             cfg = built.replace(n_uavs=size).validate()
@@ -98,6 +105,8 @@ def markdown(report: dict[str, Any]) -> str:
 
 
 def main(argv: list[str] | None = None) -> int:
+    from uavlink.config import SCENARIOS
+
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--fleet", type=Path, default=Path("policies/fleet"))
     parser.add_argument(
@@ -108,12 +117,20 @@ def main(argv: list[str] | None = None) -> int:
     )
     parser.add_argument("--episodes", type=int, default=100)
     parser.add_argument("--seed", type=int, default=0)
+    parser.add_argument(
+        "--scenario",
+        action="append",
+        dest="scenarios",
+        choices=SCENARIOS,
+        help="only this scenario's policy (repeatable; default: every scenario)",
+    )
     parser.add_argument("--json", action="store_true", help="print one JSON object")
     args = parser.parse_args(argv)
     if args.episodes < 1:
         parser.error("--episodes must be positive")
     per_size = args.per_size if args.per_size.is_dir() else None
-    report = run(args.fleet, per_size, args.episodes, args.seed)
+    scenarios = tuple(args.scenarios) if args.scenarios else None
+    report = run(args.fleet, per_size, args.episodes, args.seed, scenarios)
     print(json.dumps(report, indent=2) if args.json else markdown(report))
     return 0
 

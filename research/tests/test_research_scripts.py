@@ -324,6 +324,8 @@ def test_fleet_bars_pair_every_size_with_kmeans_and_d2_with_the_teacher_and_the_
         assert ("vs_teacher" in row) == ("vs_per_size" in row) == (row["n_uavs"] == 2)
     teachers = {r["scenario"]: r["teacher"] for r in rows if r["n_uavs"] == 2}
     assert teachers["no_move"] == "lead" and teachers["straight_90"] == "kmeans"
+    alone = run_json("fleet_bars.py", "--episodes", "2", "--seed", "3", "--scenario", "hotspot")
+    assert alone["rows"] == [r for r in rows if r["scenario"] == "hotspot"]
 
 
 def test_fleet_input_sensitivity_evaluates_the_same_episodes_from_float64_and_float32_inputs() -> (
