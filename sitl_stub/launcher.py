@@ -49,12 +49,13 @@ def exit_stats(output: str) -> dict | None:
     return None
 
 
-def lockstep_timeouts(stats: dict) -> int:
+def lockstep_timeouts(stats: dict) -> int | None:
     """Frames a lockstep vehicle went on without the flight computer's decision (each held at most
     ``sitl_stub.sim.lockstep.LOCKSTEP_WAIT_WALL_S`` of wall time), from its exit stats: the largest
     count any payload reports, since a fleet's vehicles each report their shared world's one hold;
-    0 without lockstep."""
-    found, todo = [0], [stats]
+    None where no payload reports one (a vehicle not in lockstep)."""
+    found: list[int] = []
+    todo: list = [stats]
     while todo:
         tree = todo.pop()
         if isinstance(tree, dict):
@@ -62,7 +63,7 @@ def lockstep_timeouts(stats: dict) -> int:
             todo += list(tree.values())
         elif isinstance(tree, list):
             todo += tree
-    return max(found)
+    return max(found, default=None)
 
 
 class VehicleExited(RuntimeError):

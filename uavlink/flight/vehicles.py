@@ -85,7 +85,7 @@ def embedded_lockstep(log_path: Path) -> dict:
     """How well the embedded vehicle held lockstep, from the stats it printed on exit to its log:
     ``lockstep_timeouts``, the frames it went on without a decision (a machine too busy to decide
     within 2 s of wall time), after which the flight no longer replays as its evaluation; None
-    where it printed no stats."""
+    where it printed no stats or no lockstep counter."""
     from sitl_stub.launcher import exit_stats, lockstep_timeouts
 
     stats = exit_stats(log_path.read_text(errors="replace")) if log_path.exists() else None
