@@ -312,6 +312,42 @@ def test_worker_killed_mid_job_is_retried_elsewhere(tmp_path: Path, cluster_fact
     assert all(r["worker"]["pid"] != victim.pid for r in results.values())
 
 
+@pytest.mark.slow
+@pytest.mark.timeout(180)
+def test_embedded_cluster_moves_a_busy_dashboard_port_quietly_and_on_loopback(
+    tmp_path: Path,
+) -> None:
+    """A second sweep beside a first one: the dashboard's port is taken, so Dask serves it on a free
+    one; the sweep names that one and prints no warning about the move."""
+    sweep_file = tmp_path / "one.toml"
+    sweep_file.write_text(
+        TINY.replace('["straight", "circular"]', '["straight"]').replace("[0, 1]", "[0]")
+    )
+    holder = socket.socket()
+    holder.setsockopt(socket.SOL_SOCKET, socket.SO_REUSEADDR, 1)
+    try:
+        holder.bind(("127.0.0.1", 8787))
+        holder.listen()
+    except OSError:
+        pass  # something already holds it, which is the case under test
+    try:
+        proc = subprocess.run(
+            [sys.executable, "-m", "uavlink.cli", "sweep", str(sweep_file), "--workers", "1"]
+            + ["--out-root", str(tmp_path / "runs"), "--no-progress"],
+            capture_output=True,
+            text=True,
+            timeout=170,
+        )
+    finally:
+        holder.close()
+    assert proc.returncode == 0, proc.stderr
+    assert "already in use" not in proc.stderr and "Warning" not in proc.stderr, proc.stderr
+    dashboard = [line for line in proc.stderr.splitlines() if line.startswith("dashboard: ")]
+    assert len(dashboard) == 1, proc.stderr
+    assert dashboard[0].startswith("dashboard: http://127.0.0.1:"), dashboard
+    assert ":8787/" not in dashboard[0], dashboard
+
+
 BAD_SPECS = [
     ("frobnicate = 1\n", "'frobnicate'"),
     ("[train]\nlernin_rate = 0.1\n", "'lernin_rate'"),

@@ -22,6 +22,7 @@ import signal
 import sys
 import time
 import traceback
+import warnings
 from collections.abc import Callable, Collection
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -43,6 +44,10 @@ LOCAL_CLUSTER_CONFIG = {
     "distributed.worker.profile.enabled": False,
     "distributed.nanny.pre-spawn-environ.MALLOC_TRIM_THRESHOLD_": None,
 }
+
+# The embedded cluster's dashboard listens on loopback only (as its scheduler does): Dask's default
+# serves it on every interface, a field laptop's network included.
+DASHBOARD_ADDRESS = "127.0.0.1:8787"
 
 
 class EngineError(RuntimeError):
@@ -197,11 +202,15 @@ def _run_on_dask(
             # the cluster down in order.
             previous = signal.signal(signal.SIGINT, signal.SIG_IGN)
             try:
-                with dask.config.set(LOCAL_CLUSTER_CONFIG):
+                # A busy dashboard port (another sweep's) moves to a free one; the dashboard line
+                # below names it, so distributed's warning about the move is noise.
+                with dask.config.set(LOCAL_CLUSTER_CONFIG), warnings.catch_warnings():
+                    warnings.filterwarnings("ignore", message="Port .* is already in use")
                     cluster = LocalCluster(
                         n_workers=n,
                         threads_per_worker=1,
                         processes=True,
+                        dashboard_address=DASHBOARD_ADDRESS,
                         silence_logs=logging.CRITICAL,
                     )  # failures: ours
             finally:
