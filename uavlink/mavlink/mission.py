@@ -102,28 +102,16 @@ def send_item(
     int_mode: bool = True,
     current: bool = False,
 ) -> None:
-    """Send ``item`` as MISSION_ITEM_INT (``int_mode``) or as the legacy float MISSION_ITEM."""
+    """Send ``item`` as MISSION_ITEM_INT (``int_mode``) or as the legacy float MISSION_ITEM, whose
+    global x / y are degrees where the int message carries degE7 (the two share their field order)."""
+    x: float
+    y: float
     if int_mode:
-        mav.mission_item_int_send(
-            target_system,
-            target_component,
-            item.seq,
-            item.frame,
-            item.command,
-            int(current),
-            item.autocontinue,
-            item.param1,
-            item.param2,
-            item.param3,
-            item.param4,
-            item.x,
-            item.y,
-            item.z,
-            item.mission_type,
-        )
-        return
-    scale = 1e-7 if item.frame in GLOBAL_FRAMES else 1.0
-    mav.mission_item_send(
+        send, x, y = mav.mission_item_int_send, item.x, item.y
+    else:
+        scale = 1e-7 if item.frame in GLOBAL_FRAMES else 1.0
+        send, x, y = mav.mission_item_send, item.x * scale, item.y * scale
+    send(
         target_system,
         target_component,
         item.seq,
@@ -135,8 +123,8 @@ def send_item(
         item.param2,
         item.param3,
         item.param4,
-        item.x * scale,
-        item.y * scale,
+        x,
+        y,
         item.z,
         item.mission_type,
     )
