@@ -348,3 +348,45 @@ def test_research_sweep_files_load_and_name_their_own_runs(path: Path) -> None:
     spec = load_spec(path)
     assert spec.name == path.stem and len(spec.jobs()) == len(spec.scenarios) * len(spec.seeds)
     assert f"uavlink sweep research/sweeps/{path.name}" in path.read_text()
+
+
+def test_cell_teacher_shows_each_uav_its_own_cells_ues_and_pairs_the_rule_with_kmeans() -> None:
+    """research/cell_teacher.py: the single-UAV view holds only the SINRs of the UEs this UAV
+    serves (all of them for an empty cell), and each row flies the rule, kmeans and the fleet
+    policy on the same episodes."""
+    sys.path.insert(0, str(FOLDER))
+    try:
+        from cell_teacher import CellTeacher
+    finally:
+        sys.path.remove(str(FOLDER))
+    from uavlink.env.core import BatchedUavEnv
+    from uavlink.policies.contract import EnvOverrides, load_with_env
+    from uavlink.policies.loader import load_policy
+
+    [(_, cfg)] = load_with_env(["policies/fleet/straight_180.zip"], EnvOverrides())
+    single = cfg.replace(n_uavs=1, fleet_slots=0).validate()
+    rule = CellTeacher(cfg, load_policy("policies/spatial/straight_180.zip", single))
+    env = BatchedUavEnv(cfg, n_envs=4, seed=5)
+    obs = env.reset()
+    for _ in range(6):
+        obs = env.step(rule.act(obs)).observation
+    view = rule.single.frames(rule.view(obs))  # (rows, memory, v1 frame)
+    assert view.shape[1:] == (rule.single.memory, rule.single.frame_size)
+    here = rule.layout.history(obs, "served_here")
+    sinr = rule.layout.encoded_history(obs, "sinr_db")
+    columns = rule.single.slices["sinr_db"]
+    for row, frame in np.ndindex(here.shape[:2]):
+        cell = here[row, frame] if here[row, frame].any() else np.ones(cfg.n_ues, bool)
+        shown, served = (
+            set(view[row, frame, columns].tolist()),
+            set(sinr[row, frame, cell].tolist()),
+        )
+        assert shown == served  # every served UE's SINR, and nothing else
+    result = run_json("cell_teacher.py", "--episodes", "2", "--seed", "3", "--sizes", "2", "3")
+    assert [(r["scenario"], r["n_uavs"]) for r in result["rows"]] == [
+        ("straight_180", 2),
+        ("straight_180", 3),
+    ]
+    for row in result["rows"]:
+        r, lo, hi = row["cell_vs_kmeans"]
+        assert lo <= r <= hi and abs(r - row["cell_mbps"] / row["kmeans_mbps"]) < 1e-3
