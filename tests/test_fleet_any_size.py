@@ -1,4 +1,4 @@
-"""A fleet of any size (layout v6, ``EnvConfig.fleet_slots``): one observation for 2 to K + 1 UAVs,
+"""A fleet of any size (layout v6, ``EnvConfig.fleet_slots``; v7 with a memory of place): one observation for 2 to K + 1 UAVs,
 the bearing fix, the contract that lets one policy fly every size its slots allow, and training on
 several sizes at once."""
 
@@ -11,7 +11,12 @@ import pytest
 
 from uavlink.config import EnvConfig, TrainConfig
 from uavlink.env.core import BatchedUavEnv
-from uavlink.env.observation import ANY_FLEET_LAYOUT_VERSION, ObservationLayout
+from uavlink.env.observation import (
+    ANY_FLEET_LAYOUT_VERSION,
+    ANY_FLEET_PLACE_LAYOUT_VERSION,
+    PLACE_FIELDS,
+    ObservationLayout,
+)
 from uavlink.env.observation.fleet_view import slot_quantities
 from uavlink.errors import ConfigError, UserError
 from uavlink.policies.contract import EnvOverrides, apply_overrides
@@ -92,8 +97,8 @@ def test_config_refuses_sizes_the_slots_cannot_fly() -> None:
         EnvConfig(n_uavs=5, fleet_slots=3).validate()
     with pytest.raises(ConfigError, match="not n_uavs=1"):
         EnvConfig(fleet_slots=3).validate()
-    with pytest.raises(ConfigError, match="memory of place"):
-        EnvConfig(n_uavs=2, fleet_slots=3, place_cell_m=12.0).validate()
+    with pytest.raises(ConfigError, match="kriging models one UAV's memory of place"):
+        EnvConfig(n_uavs=2, fleet_slots=3, place_cell_m=12.0, place_model="kriging").validate()
     with pytest.raises(ConfigError, match="fleet_sizes_up_to=4 needs"):
         TrainConfig(fleet_sizes_up_to=4).validate(EnvConfig(n_uavs=2, fleet_slots=2).validate())
     assert TrainConfig(fleet_sizes_up_to=4).fleet_sizes == (2, 3, 4)
@@ -187,3 +192,31 @@ def test_the_lead_teachers_roles_read_the_same_from_either_fleet_layout() -> Non
         frames = rollout(teacher, cfg.validate(), EVAL, 4, 0)
         flown.append(np.stack([frame.action for frame in frames]))
     np.testing.assert_array_equal(flown[0], flown[1])
+
+
+def test_a_memory_of_place_makes_layout_v7_for_every_size_with_each_uavs_own_memory() -> None:
+    """v6 plus the memory of place (``place_cell_m`` > 0): one layout for 2-4 UAVs, and each UAV's
+    place fields are the ones the fleet of a given size (v4) keeps for it on the same episodes."""
+    layouts = {ObservationLayout.for_config(_cfg(d, place_cell_m=12.0)) for d in (2, 3, 4)}
+    assert len(layouts) == 1
+    (layout,) = layouts
+    v6 = ObservationLayout.for_config(_cfg(2))
+    assert layout.version == ANY_FLEET_PLACE_LAYOUT_VERSION and layout.uav_slots == 3
+    assert layout.frame_size == v6.frame_size + sum(f.width(layout) for f in PLACE_FIELDS)
+    assert ObservationLayout.from_dict(layout.to_dict()) == layout
+    assert "t-0:place_best_dx" in layout.feature_names()
+    assert "t-3:slot_present_2" in layout.feature_names()
+    v7 = BatchedUavEnv(_cfg(3, place_cell_m=12.0, scenario="no_move"), n_envs=2, seed=4)
+    v4_cfg = EnvConfig().replace(n_uavs=3, place_cell_m=12.0, scenario="no_move", **SPATIAL)
+    v4 = BatchedUavEnv(v4_cfg.validate(), n_envs=2, seed=4)
+    assert v4.layout.version == 4
+    obs7, obs4 = v7.reset(), v4.reset()
+    rng = np.random.default_rng(2)
+    for _ in range(12):
+        action = rng.uniform(-1, 1, (v7.n_rows, 2))
+        obs7, obs4 = v7.step(action).observation, v4.step(action).observation
+    for field in PLACE_FIELDS:
+        np.testing.assert_array_equal(
+            v7.layout.history(obs7, field.quantity), v4.layout.history(obs4, field.quantity)
+        )
+    assert np.all(v7.layout.newest_frame(obs7)["place_frames"] == 13)  # the reset and 12 steps

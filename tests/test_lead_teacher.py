@@ -122,3 +122,29 @@ def test_make_teacher_and_config_name_the_lead_teacher() -> None:
         UserError, match="layout mismatch"
     ):  # a fleet policy cannot lead: v2, not v1
         LeadTeacher(FLEET, make_baseline("aoa", FLEET))
+
+
+def test_in_a_fleet_with_a_memory_of_place_a_v1_leader_flies_as_before_and_a_v3_leader_reads_it() -> (
+    None
+):
+    """Layout v7 (v6 + the memory of place): a v1 leader gets the v1 fields alone and flies the same
+    episodes as in v6, to the bit; a rule that reads the memory (``explore``, v3) gets it."""
+    v6 = FLEET.replace(fleet_slots=3).validate()
+    v7 = v6.replace(place_cell_m=12.0).validate()
+    before = evaluate_policy(make_lead_teacher(v6, str(SINGLE_POLICY)), v6, 2, 5)
+    after_teacher = make_lead_teacher(v7, str(SINGLE_POLICY))
+    assert after_teacher.single.version == 1
+    after = evaluate_policy(after_teacher, v7, 2, 5)
+    np.testing.assert_array_equal(before.episode_rate_mbps, after.episode_rate_mbps)
+    explore = make_lead_teacher(v7, "explore")
+    assert explore.single == ObservationLayout.for_config(v7.replace(n_uavs=1, fleet_slots=0))
+    assert explore.single.version == 3
+    env = BatchedUavEnv(v7, n_envs=2, seed=5)
+    obs = env.reset()
+    for _ in range(3):
+        obs = env.step(explore.act(obs)).observation
+    view = single_view(explore.layout, obs)
+    np.testing.assert_array_equal(
+        explore.single.history(view, "place_best_offset_m"),
+        explore.layout.history(obs, "place_best_offset_m"),
+    )

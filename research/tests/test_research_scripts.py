@@ -390,3 +390,14 @@ def test_cell_teacher_shows_each_uav_its_own_cells_ues_and_pairs_the_rule_with_k
     for row in result["rows"]:
         r, lo, hi = row["cell_vs_kmeans"]
         assert lo <= r <= hi and abs(r - row["cell_mbps"] / row["kmeans_mbps"]) < 1e-3
+
+
+def test_fleet_memory_lead_flies_the_spatial_leader_alike_in_v6_and_v7() -> None:
+    """research/fleet_memory_lead.py: the lead teacher whose leader reads no memory flies the same
+    episodes in layout v6 and v7; the explore leader's row is paired with it and the fleet policy."""
+    result = run_json("fleet_memory_lead.py", "--episodes", "2", "--seed", "3", "--sizes", "2")
+    [row] = result["rows"]
+    assert row["lead_spatial_v6_mbps"] == row["lead_spatial_v7_mbps"]
+    r, lo, hi = row["lead_explore_vs_lead_spatial"]
+    assert lo <= r <= hi
+    assert abs(r - row["lead_explore_v7_mbps"] / row["lead_spatial_v6_mbps"]) < 1e-3

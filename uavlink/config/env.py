@@ -155,8 +155,8 @@ class EnvConfig:
     uav_separation_m: float = 20.0  # horizontal minimum between two UAVs
     fleet_start_radius_m: float = 100.0  # UAV d starts at this radius, 360 d / D degrees from east
     # A fleet of any size (SPEC "A fleet of any size"): K > 0 shows each UAV the others in K slots,
-    # nearest first (layout v6), so one policy flies fleets of 2 to K + 1; 0 (default) is layout
-    # v2, a policy for exactly n_uavs.
+    # nearest first (layout v6; v7 with a memory of place), so one policy flies fleets of 2 to
+    # K + 1; 0 (default) is layout v2, a policy for exactly n_uavs.
     fleet_slots: int = 0
     area: AreaConfig = field(default_factory=AreaConfig)
     radio: RadioConfig = field(default_factory=RadioConfig)
@@ -225,8 +225,6 @@ class EnvConfig:
                 f"env.fleet_slots={self.fleet_slots} flies fleets of 2 to {self.fleet_slots + 1} "
                 f"UAVs, not n_uavs={self.n_uavs}"
             )
-        if self.fleet_slots > 0 and self.place_cell_m > 0:
-            raise ConfigError("env.fleet_slots has no memory of place: set place_cell_m=0")
         if self.n_uavs > 1:  # the start circle must fit the area and keep the UAVs apart
             if self.fleet_start_radius_m >= self.area.half_width_m:
                 raise ConfigError("env.fleet_start_radius_m must be smaller than area.half_width_m")

@@ -10,7 +10,7 @@ north, positions every UAV sees), so a clone can learn them, and the split reinf
 others leave, the leader's cell grows; the counts are summed over the frames in memory, so a UE
 that shadowing hands over for a frame does not swap the roles). The leader flies a single-UAV
 policy (the single-UAV spatial policy of the scenario: it exploits the good shadowing spots) on its
-single-UAV view, the v1 fields of its own fleet frames (``single_view``); the others head for the
+single-UAV view, the v1 fields (and v3's memory of place) of its own fleet frames (``single_view``); the others head for the
 corner farthest from the leader and, while their cell still holds a UE, on along the wall to the
 next farthest, holding once their cell is empty (as ``SoloTeacher`` does around the UEs' centroid).
 GPS-free: it reads nothing but the observation.
@@ -23,16 +23,24 @@ import numpy as np
 from uavlink.config import EnvConfig
 from uavlink.env.actions import ActionMapping
 from uavlink.env.core import GroundTruth
-from uavlink.env.observation import FIELDS, OBS_LAYOUT_VERSION, ObservationLayout
+from uavlink.env.observation import (
+    FIELDS,
+    OBS_LAYOUT_VERSION,
+    PLACE_FIELDS,
+    PLACE_LAYOUT_VERSION,
+    ObservationLayout,
+)
 from uavlink.errors import UserError
 from uavlink.policies.baselines import hover_sinr_db
 from uavlink.rollout import Actor
 
 
-def single_layout(fleet: ObservationLayout) -> ObservationLayout:
-    """The single-UAV layout (v1) with a fleet layout's UEs, memory and area."""
+def single_layout(fleet: ObservationLayout, place: bool = True) -> ObservationLayout:
+    """The single-UAV layout with a fleet layout's UEs, memory and area: v1, or with ``place`` v3
+    where the fleet's layout (v4, v7) has a memory of place."""
+    place_cell_m = fleet.place_cell_m if place else 0.0
     return ObservationLayout(
-        version=OBS_LAYOUT_VERSION,
+        version=PLACE_LAYOUT_VERSION if place_cell_m > 0 else OBS_LAYOUT_VERSION,
         n_ues=fleet.n_ues,
         n_uavs=1,
         memory=fleet.memory,
@@ -41,15 +49,19 @@ def single_layout(fleet: ObservationLayout) -> ObservationLayout:
         sinr_scale_db=fleet.sinr_scale_db,
         sinr_clip_db=fleet.sinr_clip_db,
         aoa_std_max_rad=fleet.aoa_std_max_rad,
+        place_cell_m=place_cell_m,
     )
 
 
-def single_view(fleet: ObservationLayout, obs: np.ndarray) -> np.ndarray:
+def single_view(fleet: ObservationLayout, obs: np.ndarray, place: bool = True) -> np.ndarray:
     """What one UAV of a fleet would observe alone: the single-UAV fields of each of its frames,
-    (rows, v1 size) float32 from fleet observations (rows, v2 size)."""
+    with ``place`` and its memory of place where the fleet's layout has one, (rows,
+    ``single_layout(fleet, place).size``) float32 from fleet observations (rows, size). Each UAV's
+    memory holds what it sensed where it flew."""
+    fields = FIELDS + PLACE_FIELDS if place and fleet.place_cell_m > 0 else FIELDS
     frames = fleet.encoded_history(
-        obs, *(field.quantity for field in FIELDS)
-    )  # (rows, memory, v1 frame)
+        obs, *(field.quantity for field in fields)
+    )  # (rows, memory, single frame)
     return frames.reshape(len(obs), -1).astype(np.float32)
 
 
@@ -91,7 +103,8 @@ def _slot_cells(
 
 
 class LeadTeacher:
-    """The leader flies ``leader`` (a single-UAV policy: its layout is v1) on its single-UAV view;
+    """The leader flies ``leader`` (a single-UAV policy: its layout is v1, or v3 in a fleet with a
+    memory of place) on its single-UAV view;
     every other UAV keeps to the far corners (``away``). Fleet only (n_uavs > 1)."""
 
     name = "lead"
@@ -107,8 +120,10 @@ class LeadTeacher:
         if cfg.n_uavs < 2:
             raise UserError("the lead teacher is a fleet's (n_uavs > 1)")
         self.layout = ObservationLayout.for_config(cfg)
-        self.single = single_layout(self.layout)
         own = getattr(leader, "layout", None)
+        # a leader without a memory of place (v1) flies in a fleet with one on the v1 fields alone
+        self.place = own is None or own.place_cell_m > 0
+        self.single = single_layout(self.layout, self.place)
         if own is not None:
             own.check_matches(
                 self.single, what=f"the lead teacher's leader {getattr(leader, 'name', leader)!r}"
@@ -143,9 +158,9 @@ class LeadTeacher:
         dash = self.mapping.from_polar(
             frame["aoa_mean_deg"], np.full(len(obs), self.mapping.r_max_m)
         )
-        return np.where(far[:, None], dash, self.leader.act(single_view(self.layout, obs))).astype(
-            np.float32
-        )
+        return np.where(
+            far[:, None], dash, self.leader.act(single_view(self.layout, obs, self.place))
+        ).astype(np.float32)
 
     def away(self, obs: np.ndarray, leader_xy_m: np.ndarray) -> np.ndarray:
         """Out of the way: the far corners from the leader (it is with the UEs), ``away_target_m``."""

@@ -22,6 +22,7 @@ PLACE_LAYOUT_VERSION = 3  # v1 + the memory of place
 FLEET_PLACE_LAYOUT_VERSION = 4  # v2 + the memory of place
 KRIGING_LAYOUT_VERSION = 5  # v3 + the model of the sensed field
 ANY_FLEET_LAYOUT_VERSION = 6  # v1 + a fleet of any size up to uav_slots + 1 (fleet_view.py)
+ANY_FLEET_PLACE_LAYOUT_VERSION = 7  # v6 + the memory of place
 
 
 @dataclass(frozen=True)
@@ -58,7 +59,7 @@ class ObservationLayout:
         }[fleet, place]
         kriging = place and cfg.place_model == "kriging"
         if cfg.fleet_slots > 0:  # one layout for every fleet size: it records no n_uavs
-            version = ANY_FLEET_LAYOUT_VERSION
+            version = ANY_FLEET_PLACE_LAYOUT_VERSION if place else ANY_FLEET_LAYOUT_VERSION
         return cls(
             version=KRIGING_LAYOUT_VERSION if kriging else version,
             n_ues=cfg.n_ues,

@@ -1,0 +1,93 @@
+"""A fleet with a memory of place (layout v7): does the lead teacher gain from a leader that reads it?
+
+Where the team stays together the fleet's lead teacher has one UAV fly a single-UAV policy and the
+others keep their cells empty (uavlink/learn/lead_teacher.py). One UAV alone gains from a memory of
+place where the team holds still (the `explore` rule +12.5 % over the spatial policy on no_move,
+docs/results.md). Here, on the same episodes: the shipped any-size fleet policy (v6), the lead
+teacher with the scenario's spatial policy leading (in v6, and in v7 where it reads the v1 fields
+alone, which must fly the same), and the lead teacher with `explore` leading in v7 (its v3 view:
+the v1 fields and the leader's own memory of place).
+
+    python research/fleet_memory_lead.py --scenario no_move --episodes 100 --seed 1
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+from typing import Any
+
+PLACE_CELL_M = 12.0  # sweeps/map.toml's grid
+
+
+def run(scenario: str, sizes: list[int], episodes: int, seed: int) -> dict[str, Any]:
+    from uavlink.evaluation import evaluate_policy, paired_ratio_ci
+    from uavlink.learn.lead_teacher import make_lead_teacher
+    from uavlink.policies.contract import EnvOverrides, load_with_env
+
+    def ratio(a: Any, b: Any) -> list[float]:
+        return [round(x, 4) for x in paired_ratio_ci(a.episode_rate_mbps, b.episode_rate_mbps)]
+
+    rows = []
+    for d in sizes:
+        [(fleet, v6)] = load_with_env(
+            [f"policies/fleet/{scenario}.zip"], EnvOverrides(settings={"n_uavs": d})
+        )
+        v7 = v6.replace(place_cell_m=PLACE_CELL_M).validate()
+        leader = f"policies/spatial/{scenario}.zip"
+        ppo = evaluate_policy(fleet, v6, episodes, seed)
+        lead_v6 = evaluate_policy(make_lead_teacher(v6, leader), v6, episodes, seed)
+        lead_v7 = evaluate_policy(make_lead_teacher(v7, leader), v7, episodes, seed)
+        explore = evaluate_policy(make_lead_teacher(v7, "explore"), v7, episodes, seed)
+        rows.append(
+            {
+                "n_uavs": d,
+                "ppo_mbps": round(ppo.mean_rate_mbps, 4),
+                "lead_spatial_v6_mbps": round(lead_v6.mean_rate_mbps, 4),
+                "lead_spatial_v7_mbps": round(lead_v7.mean_rate_mbps, 4),
+                "lead_explore_v7_mbps": round(explore.mean_rate_mbps, 4),
+                "lead_explore_vs_lead_spatial": ratio(explore, lead_v6),
+                "lead_explore_vs_ppo": ratio(explore, ppo),
+            }
+        )
+    return {"scenario": scenario, "episodes": episodes, "seed": seed, "rows": rows}
+
+
+def markdown(report: dict[str, Any]) -> str:
+    def cell(r: list[float]) -> str:
+        return f"{r[0]:.3f} [{r[1]:.3f}, {r[2]:.3f}]"
+
+    lines = [
+        "| D | fleet PPO (v6) | lead, spatial leader (v6 / v7) | lead, explore leader (v7) "
+        "| explore lead / spatial lead | explore lead / PPO |",
+        "|---|---|---|---|---|---|",
+    ]
+    for row in report["rows"]:
+        lines.append(
+            f"| {row['n_uavs']} | {row['ppo_mbps']:.2f} | {row['lead_spatial_v6_mbps']:.2f} / "
+            f"{row['lead_spatial_v7_mbps']:.2f} | {row['lead_explore_v7_mbps']:.2f} | "
+            f"{cell(row['lead_explore_vs_lead_spatial'])} | {cell(row['lead_explore_vs_ppo'])} |"
+        )
+    return "\n".join(lines)
+
+
+def main(argv: list[str] | None = None) -> int:
+    from uavlink.config import SCENARIOS
+
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--scenario", choices=SCENARIOS, default="no_move")
+    parser.add_argument("--sizes", type=int, nargs="+", default=[2, 3], choices=(2, 3, 4))
+    parser.add_argument("--episodes", type=int, default=100)
+    parser.add_argument("--seed", type=int, default=1)
+    parser.add_argument("--json", action="store_true", help="print one JSON object")
+    args = parser.parse_args(argv)
+    if args.episodes < 1:
+        parser.error("--episodes must be positive")
+    report = run(args.scenario, args.sizes, args.episodes, args.seed)
+    print(json.dumps(report, indent=2) if args.json else markdown(report))
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
