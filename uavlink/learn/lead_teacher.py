@@ -10,9 +10,10 @@ north, positions every UAV sees), so a clone can learn them, and the split reinf
 others leave, the leader's cell grows; the counts are summed over the frames in memory, so a UE
 that shadowing hands over for a frame does not swap the roles). The leader flies a single-UAV
 policy (the single-UAV spatial policy of the scenario: it exploits the good shadowing spots) on its
-single-UAV view, the v1 fields (and v3's memory of place) of its own fleet frames (``single_view``); the others head for the
-corner farthest from the leader and, while their cell still holds a UE, on along the wall to the
-next farthest, holding once their cell is empty (as ``SoloTeacher`` does around the UEs' centroid).
+single-UAV view, the v1 fields (and v3's memory of place) of its own fleet frames
+(``single_view``); the others head for the corner farthest from the leader and, while their cell
+still holds a UE, on along the wall to the next farthest, holding once their cell is empty (as
+``SoloTeacher`` does around the UEs' centroid).
 GPS-free: it reads nothing but the observation.
 """
 
@@ -104,8 +105,8 @@ def _slot_cells(
 
 class LeadTeacher:
     """The leader flies ``leader`` (a single-UAV policy: its layout is v1, or v3 in a fleet with a
-    memory of place) on its single-UAV view;
-    every other UAV keeps to the far corners (``away``). Fleet only (n_uavs > 1)."""
+    memory of place) on its single-UAV view; every other UAV keeps to the far corners (``away``).
+    Fleet only (n_uavs > 1)."""
 
     name = "lead"
     needs_truth = False
