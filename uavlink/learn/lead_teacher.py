@@ -24,13 +24,7 @@ import numpy as np
 from uavlink.config import EnvConfig
 from uavlink.env.actions import ActionMapping
 from uavlink.env.core import GroundTruth
-from uavlink.env.observation import (
-    FIELDS,
-    OBS_LAYOUT_VERSION,
-    PLACE_FIELDS,
-    PLACE_LAYOUT_VERSION,
-    ObservationLayout,
-)
+from uavlink.env.observation import OBS_LAYOUT_VERSION, PLACE_LAYOUT_VERSION, ObservationLayout
 from uavlink.errors import UserError
 from uavlink.policies.baselines import hover_sinr_db
 from uavlink.rollout import Actor
@@ -59,9 +53,9 @@ def single_view(fleet: ObservationLayout, obs: np.ndarray, place: bool = True) -
     with ``place`` and its memory of place where the fleet's layout has one, (rows,
     ``single_layout(fleet, place).size``) float32 from fleet observations (rows, size). Each UAV's
     memory holds what it sensed where it flew."""
-    fields = FIELDS + PLACE_FIELDS if place and fleet.place_cell_m > 0 else FIELDS
+    single = single_layout(fleet, place)
     frames = fleet.encoded_history(
-        obs, *(field.quantity for field in fields)
+        obs, *(field.quantity for field in single.fields)
     )  # (rows, memory, single frame)
     return frames.reshape(len(obs), -1).astype(np.float32)
 
