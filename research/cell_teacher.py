@@ -24,6 +24,7 @@ import sys
 from typing import Any
 
 import numpy as np
+from fleet_bars import paired_ratio, ratio_text
 
 from uavlink.config import EnvConfig
 from uavlink.env.actions import ActionMapping
@@ -88,12 +89,6 @@ class CellTeacher:
         return np.where(far[:, None], dash, self.leader.act(self.view(obs))).astype(np.float32)
 
 
-def _ratio(a: Any, b: Any) -> list[float]:
-    from uavlink.evaluation import paired_ratio_ci
-
-    return [round(x, 4) for x in paired_ratio_ci(a.episode_rate_mbps, b.episode_rate_mbps)]
-
-
 def run(
     scenarios: list[str], leader: str | None, sizes: list[int], episodes: int, seed: int
 ) -> dict[str, Any]:
@@ -122,8 +117,8 @@ def run(
                     "cell_mbps": round(cell.mean_rate_mbps, 4),
                     "kmeans_mbps": round(kmeans.mean_rate_mbps, 4),
                     "ppo_mbps": round(ppo.mean_rate_mbps, 4),
-                    "cell_vs_kmeans": _ratio(cell, kmeans),
-                    "ppo_vs_kmeans": _ratio(ppo, kmeans),
+                    "cell_vs_kmeans": paired_ratio(cell, kmeans),
+                    "ppo_vs_kmeans": paired_ratio(ppo, kmeans),
                     "cell_ues_per_uav": [round(float(x), 3) for x in cell.ues_per_uav],
                     "kmeans_ues_per_uav": [round(float(x), 3) for x in kmeans.ues_per_uav],
                 }
@@ -132,9 +127,6 @@ def run(
 
 
 def markdown(report: dict[str, Any]) -> str:
-    def cell(r: list[float]) -> str:
-        return f"{r[0]:.3f} [{r[1]:.3f}, {r[2]:.3f}]"
-
     lines = [
         "| scenario | D | leader | cell rule Mbps | kmeans Mbps | PPO Mbps | rule / kmeans | PPO / kmeans |",
         "|---|---|---|---|---|---|---|---|",
@@ -142,8 +134,8 @@ def markdown(report: dict[str, Any]) -> str:
     for row in report["rows"]:
         lines.append(
             f"| {row['scenario']} | {row['n_uavs']} | {row['leader']} | {row['cell_mbps']:.2f} | "
-            f"{row['kmeans_mbps']:.2f} | {row['ppo_mbps']:.2f} | {cell(row['cell_vs_kmeans'])} | "
-            f"{cell(row['ppo_vs_kmeans'])} |"
+            f"{row['kmeans_mbps']:.2f} | {row['ppo_mbps']:.2f} | "
+            f"{ratio_text(row['cell_vs_kmeans'])} | {ratio_text(row['ppo_vs_kmeans'])} |"
         )
     return "\n".join(lines)
 

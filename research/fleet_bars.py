@@ -23,10 +23,16 @@ from typing import Any
 SIZES = (2, 3, 4)
 
 
-def _ratio(a: Any, b: Any) -> list[float]:
+def paired_ratio(a: Any, b: Any) -> list[float]:
+    """Evaluation ``a``'s mean throughput over ``b``'s with its paired 95 % interval, rounded."""
     from uavlink.evaluation import paired_ratio_ci
 
     return [round(x, 4) for x in paired_ratio_ci(a.episode_rate_mbps, b.episode_rate_mbps)]
+
+
+def ratio_text(r: list[float]) -> str:
+    """A ``paired_ratio`` as ``ratio [low, high]``."""
+    return f"{r[0]:.3f} [{r[1]:.3f}, {r[2]:.3f}]"
 
 
 def run(
@@ -54,7 +60,7 @@ def run(
                 "n_uavs": size,
                 "ppo_mbps": round(ppo.mean_rate_mbps, 4),
                 "kmeans_mbps": round(kmeans.mean_rate_mbps, 4),
-                "vs_kmeans": _ratio(ppo, kmeans),
+                "vs_kmeans": paired_ratio(ppo, kmeans),
             }
             if size == 2:
                 teacher, name = policy_teacher(policy, cfg)
@@ -63,14 +69,14 @@ def run(
                     row |= {
                         "teacher": name,
                         "teacher_mbps": round(taught.mean_rate_mbps, 4),
-                        "vs_teacher": _ratio(ppo, taught),
+                        "vs_teacher": paired_ratio(ppo, taught),
                     }
                 if per_size is not None:
                     [(old, old_cfg)] = load_with_env([per_size / f"{scenario}.zip"], EnvOverrides())
                     before = evaluate_policy(old, old_cfg, episodes, seed)
                     row |= {
                         "per_size_mbps": round(before.mean_rate_mbps, 4),
-                        "vs_per_size": _ratio(ppo, before),
+                        "vs_per_size": paired_ratio(ppo, before),
                     }
             rows.append(row)
     return {"fleet": str(fleet), "episodes": episodes, "seed": seed, "rows": rows}
@@ -79,9 +85,9 @@ def run(
 def _cell(row: dict[str, Any], key: str) -> str:
     if key not in row:
         return "-"
-    r, lo, hi = row[key]
+    _, lo, hi = row[key]
     mark = " (above)" if lo > 1 else " (below)" if hi < 1 else ""
-    return f"{r:.3f} [{lo:.3f}, {hi:.3f}]{mark}"
+    return ratio_text(row[key]) + mark
 
 
 def markdown(report: dict[str, Any]) -> str:

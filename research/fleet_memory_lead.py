@@ -18,16 +18,15 @@ import json
 import sys
 from typing import Any
 
+from fleet_bars import paired_ratio, ratio_text
+
 PLACE_CELL_M = 12.0  # sweeps/map.toml's grid
 
 
 def run(scenario: str, sizes: list[int], episodes: int, seed: int) -> dict[str, Any]:
-    from uavlink.evaluation import evaluate_policy, paired_ratio_ci
+    from uavlink.evaluation import evaluate_policy
     from uavlink.learn.lead_teacher import make_lead_teacher
     from uavlink.policies.contract import EnvOverrides, load_with_env
-
-    def ratio(a: Any, b: Any) -> list[float]:
-        return [round(x, 4) for x in paired_ratio_ci(a.episode_rate_mbps, b.episode_rate_mbps)]
 
     rows = []
     for d in sizes:
@@ -47,17 +46,14 @@ def run(scenario: str, sizes: list[int], episodes: int, seed: int) -> dict[str, 
                 "lead_spatial_v6_mbps": round(lead_v6.mean_rate_mbps, 4),
                 "lead_spatial_v7_mbps": round(lead_v7.mean_rate_mbps, 4),
                 "lead_explore_v7_mbps": round(explore.mean_rate_mbps, 4),
-                "lead_explore_vs_lead_spatial": ratio(explore, lead_v6),
-                "lead_explore_vs_ppo": ratio(explore, ppo),
+                "lead_explore_vs_lead_spatial": paired_ratio(explore, lead_v6),
+                "lead_explore_vs_ppo": paired_ratio(explore, ppo),
             }
         )
     return {"scenario": scenario, "episodes": episodes, "seed": seed, "rows": rows}
 
 
 def markdown(report: dict[str, Any]) -> str:
-    def cell(r: list[float]) -> str:
-        return f"{r[0]:.3f} [{r[1]:.3f}, {r[2]:.3f}]"
-
     lines = [
         "| D | fleet PPO (v6) | lead, spatial leader (v6 / v7) | lead, explore leader (v7) "
         "| explore lead / spatial lead | explore lead / PPO |",
@@ -67,7 +63,8 @@ def markdown(report: dict[str, Any]) -> str:
         lines.append(
             f"| {row['n_uavs']} | {row['ppo_mbps']:.2f} | {row['lead_spatial_v6_mbps']:.2f} / "
             f"{row['lead_spatial_v7_mbps']:.2f} | {row['lead_explore_v7_mbps']:.2f} | "
-            f"{cell(row['lead_explore_vs_lead_spatial'])} | {cell(row['lead_explore_vs_ppo'])} |"
+            f"{ratio_text(row['lead_explore_vs_lead_spatial'])} | "
+            f"{ratio_text(row['lead_explore_vs_ppo'])} |"
         )
     return "\n".join(lines)
 
