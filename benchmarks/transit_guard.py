@@ -4,7 +4,10 @@ A flight loop runs the guard once per frame (one env, (D, 2)) before it sends th
 env's ``uav_motion="px4"`` fleet runs it once per step over all its envs. Each call here guards a
 fleet driven at one point (every move cut somewhere: the guard's worst case, each vehicle's grid of
 shorter moves predicted) from vehicles moving at up to 12 m/s. No target: the figure tells how much
-of a 1 s frame the guard takes (docs/design/radio.md, "A fleet in flight").
+of a 1 s frame the guard takes (docs/design/radio.md, "A fleet in flight"). Each setting runs
+twice, side by side: as in use (a flight's few rows in the position loop's Python-float kernel, its
+cut moves' grid searched longest first; a batch in numpy, its grid flown at once) and with the
+batch's way forced for every size; ``float_speedup`` is their ratio of medians.
 
     python benchmarks/transit_guard.py            # a table
     python benchmarks/transit_guard.py --json     # one JSON object
@@ -21,6 +24,8 @@ import time
 
 import numpy as np
 
+import uavlink.mobility.transit as transit
+import uavlink.mobility.uav_motion as uav_motion
 from uavlink.mobility.transit import guard_transit
 
 
@@ -34,21 +39,36 @@ def _fleets(rng: np.random.Generator, n_envs: int, n_uavs: int) -> tuple[np.ndar
     return actual, actual.copy(), new, velocity
 
 
-def measure(n_envs: int, n_uavs: int, calls: int, seed: int) -> dict:
-    """Best and median milliseconds per call over ``calls`` calls on fresh fleets."""
-    rng = np.random.default_rng(seed)
-    inputs = [_fleets(rng, n_envs, n_uavs) for _ in range(calls)]
+def _median_ms(inputs: list[tuple[np.ndarray, ...]], one_env: bool) -> tuple[float, float]:
+    """Best and median milliseconds per guard call over ``inputs``."""
     times = []
     for actual, current, new, velocity in inputs:
         start = time.perf_counter()
-        guard_transit(actual if n_envs > 1 else actual[0], current, new, 20.0, velocity)
+        guard_transit(actual[0] if one_env else actual, current, new, 20.0, velocity)
         times.append(time.perf_counter() - start)
+    return min(times) * 1e3, float(np.median(times)) * 1e3
+
+
+def measure(n_envs: int, n_uavs: int, calls: int, seed: int) -> dict:
+    """Best and median milliseconds per call over ``calls`` calls on fresh fleets, with the kernel
+    in use and with numpy's forced (the same calls, one after the other)."""
+    rng = np.random.default_rng(seed)
+    inputs = [_fleets(rng, n_envs, n_uavs) for _ in range(calls)]
+    best, median = _median_ms(inputs, n_envs == 1)
+    in_use = uav_motion.FLOAT_KERNEL_MAX_ROWS, transit.SCAN_MAX_ENVS
+    uav_motion.FLOAT_KERNEL_MAX_ROWS, transit.SCAN_MAX_ENVS = 0, 0
+    try:
+        _, numpy_median = _median_ms(inputs, n_envs == 1)
+    finally:
+        uav_motion.FLOAT_KERNEL_MAX_ROWS, transit.SCAN_MAX_ENVS = in_use
     return {
         "n_envs": n_envs,
         "n_uavs": n_uavs,
         "calls": calls,
-        "best_ms": round(min(times) * 1e3, 3),
-        "median_ms": round(float(np.median(times)) * 1e3, 3),
+        "best_ms": round(best, 3),
+        "median_ms": round(median, 3),
+        "numpy_median_ms": round(numpy_median, 3),
+        "float_speedup": round(numpy_median / median, 2),
     }
 
 
@@ -74,9 +94,15 @@ def main(argv: list[str] | None = None) -> int:
     if args.json:
         print(json.dumps(out, indent=2))
     else:
-        print("| envs | UAVs | best ms/call | median ms/call |\n|---|---|---|---|")
+        print(
+            "| envs | UAVs | best ms/call | median ms/call | numpy median ms/call | speed-up |\n"
+            "|---|---|---|---|---|---|"
+        )
         for r in rows:
-            print(f"| {r['n_envs']} | {r['n_uavs']} | {r['best_ms']} | {r['median_ms']} |")
+            print(
+                f"| {r['n_envs']} | {r['n_uavs']} | {r['best_ms']} | {r['median_ms']} "
+                f"| {r['numpy_median_ms']} | {r['float_speedup']} |"
+            )
     return 0
 
 

@@ -15,6 +15,7 @@ from hypothesis import strategies as st
 from support.cli import ROOT, UAVLINK
 from support.mavlink_gcs import FAST_TAKEOFF
 
+import uavlink.mobility.transit as transit
 from sitl_stub.launcher import vehicle_process
 from uavlink.config import EnvConfig
 from uavlink.env.actions import ActionMapping
@@ -188,3 +189,26 @@ def test_fleet_aoa_flight_keeps_20_m_in_transit(tmp_path: Path) -> None:
     ]
     assert flown["min_separation_setpoints_m"] >= 20.0
     assert flown["min_separation_flown_m"] >= 20.0, flown
+
+
+@pytest.mark.parametrize("n_envs", [1, 3])
+@pytest.mark.parametrize("n_uavs", [2, 3, 4])
+def test_a_flights_search_of_the_grid_is_the_batchs(n_uavs: int, n_envs: int) -> None:
+    """A few envs search each cut move's grid longest first; a batch flies the whole grid at once:
+    fleets driven at one point from any motion (20 draws, some moves cut) get the same setpoints,
+    to the bit, either way (a flight decides what the env's batch would)."""
+    rng = np.random.default_rng(n_uavs * 10 + n_envs)
+    cut = 0
+    for _ in range(20):
+        angle = rng.uniform(0, 2 * np.pi, (n_envs, n_uavs))
+        radius = rng.uniform(20, 60, (n_envs, n_uavs, 1))
+        actual = np.stack([np.cos(angle), np.sin(angle)], axis=-1) * radius
+        velocity = rng.uniform(-12, 12, actual.shape)
+        new = actual - rng.uniform(0, 14, radius.shape) * actual / radius
+        searched = guard_transit(actual, actual, new, 20.0, velocity, fence_m=150.0)
+        with pytest.MonkeyPatch.context() as patch:
+            patch.setattr(transit, "SCAN_MAX_ENVS", 0)
+            batched = guard_transit(actual, actual, new, 20.0, velocity, fence_m=150.0)
+        np.testing.assert_array_equal(searched, batched)
+        cut += not np.array_equal(searched, new)
+    assert cut > 0

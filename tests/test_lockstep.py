@@ -321,3 +321,36 @@ def test_the_line_after_a_flight_says_when_lockstep_did_not_hold(tmp_path, late:
     line = flown_line(summary, tmp_path)
     assert ("2 frame(s) went on without a decision" in line) == (late == 2), line
     assert "mean UE throughput 8.1 Mbps" in line
+
+
+@pytest.mark.parametrize(
+    ("connect", "held", "hint"),
+    [
+        ("embedded sitl_stub", 3, True),
+        ("embedded sitl_stub", 0, False),
+        ("udpin:0.0.0.0:14540", 3, False),
+    ],
+)
+def test_the_line_after_a_flight_says_when_an_embedded_vehicle_could_not_wait(
+    tmp_path, connect: str, held: int, hint: bool
+) -> None:
+    """An embedded vehicle that fell back to hold waiting for setpoints (a machine too slow for the
+    speed factor) gets the fix in the line: fly slower or in lockstep; a vehicle you connect to (in
+    real time, where a hold is the operator's or a link's) does not."""
+    from uavlink.flight.result import flown_line
+
+    summary = {
+        "frames": 128,
+        "scenario": "no_move",
+        "policy": "aoa",
+        "mean_rate_mbps": 8.1,
+        "latency_ms_p50": 40.0,
+        "latency_ms_p99": 56.0,
+        "tlog": "flight.tlog",
+        "connect": connect,
+        "speed_factor": 20.0,
+        "offboard_reentries": held,
+    }
+    line = flown_line(summary, tmp_path)
+    assert ("fell back to hold 3 time(s)" in line) == hint, line
+    assert ("a vehicle waits 50 ms): fly slower (--speed 5) or in --lockstep" in line) == hint, line

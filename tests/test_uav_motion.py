@@ -7,7 +7,10 @@ import math
 
 import numpy as np
 import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
 
+import uavlink.mobility.uav_motion as uav_motion
 from sitl_stub.core.params import ParamStore
 from sitl_stub.flight.pos_control import hold_in_fence, track
 from sitl_stub.flight.vehicle import SUBSTEP_S
@@ -64,6 +67,37 @@ def _flown(motion: str, moves: list[tuple[float, float]]) -> tuple[np.ndarray, n
         positions.append(env.uav_xy_m[0].copy())
         setpoints.append(env.setpoint_xy_m[0].copy())
     return np.array(positions), np.array(setpoints)
+
+
+@settings(max_examples=80, deadline=None)
+@given(
+    seed=st.integers(0, 2**31 - 1),
+    rows=st.integers(1, 8),
+    fence_m=st.sampled_from([math.inf, 30.0]),
+    duration_s=st.sampled_from([0.0, 0.013, 1.0, 2.37]),
+)
+def test_the_float_kernel_flies_numpys_bits(
+    seed: int, rows: int, fence_m: float, duration_s: float
+) -> None:
+    """A few rows fly in Python floats, many in numpy: the same starts, velocities and setpoints
+    (some at the setpoint, some carried onto the fence) give the same positions, paths and
+    velocities to the bit, so a flight's guard predicts what the env's batch does."""
+    rng = np.random.default_rng(seed)
+    pos, vel = rng.uniform(-40, 40, (rows, 2)), rng.uniform(-12, 12, (rows, 2))
+    setpoint = np.where(rng.random((rows, 1)) < 0.2, pos, pos + rng.uniform(-30, 30, (rows, 2)))
+    vel[rng.random(rows) < 0.2] = 0.0
+
+    def both_kernels() -> tuple[np.ndarray, ...]:
+        flown = PX4_MOTION.fly(pos, vel, setpoint, duration_s, fence_m)
+        return (*flown, PX4_MOTION.path(pos, vel, setpoint, 40, fence_m))
+
+    floats = both_kernels()
+    with pytest.MonkeyPatch.context() as patch:
+        patch.setattr(uav_motion, "FLOAT_KERNEL_MAX_ROWS", 0)
+        numpy = both_kernels()
+    for a, b in zip(floats, numpy, strict=True):
+        assert a.shape == b.shape
+        np.testing.assert_array_equal(a, b)
 
 
 def test_a_full_speed_move_from_a_hover_takes_px4_more_than_a_frame() -> None:

@@ -353,6 +353,16 @@ def flown_line(summary: dict, out_dir: Path) -> str:
             f"; {late} frame(s) went on without a decision (a busy machine): the flight no longer "
             f"replays as its evaluation"
         )
+    held = summary.get("offboard_reentries", 0)
+    if held and str(summary.get("connect", "")).startswith("embedded"):
+        # an embedded vehicle runs faster than real time: its offboard-loss timeout (COM_OF_LOSS_T,
+        # 1 s of its time) is 1/speed s of ours, and a slow machine's decisions outlast it
+        how += (
+            f"; the vehicle(s) fell back to hold {held} time(s) waiting for setpoints (decision "
+            f"latency p99 {summary['latency_ms_p99']} ms; at {summary['speed_factor']:g}x a "
+            f"vehicle waits {1000 / summary['speed_factor']:.0f} ms): fly slower (--speed 5) or "
+            f"in --lockstep"
+        )
     line = (
         f"flew {summary['frames']} frames of {flown_name(summary)} with {summary['policy']}{how}; "
         f"log {summary['tlog']}, summary {out_dir / 'summary.json'}"

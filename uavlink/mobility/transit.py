@@ -40,6 +40,10 @@ from uavlink.mobility.uav_motion import PX4_MOTION, PositionLoop
 
 HORIZON_S = 6.0  # how far ahead paths are predicted (4 s left pairs 0.1 m short at D = 4)
 GRID = 32  # a move is cut to a multiple of 1/GRID of itself (12 m: 0.375 m steps)
+# up to this many envs with a cut move search their grid one move at a time, longest first, in the
+# position loop's float kernel (a flight: a few ms where the move is cut little); more fly the
+# whole grid at once in numpy
+SCAN_MAX_ENVS = 4
 
 
 def guard_transit(
@@ -84,7 +88,17 @@ def guard_transit(
         cut = np.flatnonzero(
             ~_Try(whole[:, :, d], out[:, d], paths[:, :, others], setpoints).meets(*need)
         )
-        if len(cut):  # the grid of shorter moves, on the envs whose whole move does not pass
+        if 0 < len(cut) <= SCAN_MAX_ENVS:  # a flight: the grid's longest moves first, one by one
+            for e in cut:
+                out[e, d], whole[:, e, d] = _longest_passing_move(
+                    loop,
+                    (actual[e, d], velocity[e, d], current[e, d], out[e, d]),
+                    (paths[:, e, others], setpoints[e]),
+                    (need[0][e], need[1][e]),
+                    steps,
+                    fence_m,
+                )
+        elif len(cut):  # the grid of shorter moves, on the envs whose whole move does not pass
             t = (np.arange(GRID + 1) / GRID)[:, None, None]
             tries = current[None, cut, d] + t * (out[None, cut, d] - current[None, cut, d])
             tried = loop.path(actual[None, cut, d], velocity[None, cut, d], tries, steps, fence_m)
@@ -97,6 +111,28 @@ def guard_transit(
             whole[:, cut, d] = tried[:, best, np.arange(len(cut))]
         paths[:, :, d] = whole[:, :, d]
     return out[0] if one else out
+
+
+def _longest_passing_move(
+    loop: PositionLoop,
+    vehicle: tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray],
+    others: tuple[np.ndarray, np.ndarray],
+    need: tuple[np.ndarray, np.ndarray],
+    steps: int,
+    fence_m: float,
+) -> tuple[np.ndarray, np.ndarray]:
+    """One env's vehicle: the longest move of the grid that passes, and its path, found from the
+    longest down (the grid's answer and bits, without flying the 33 moves when one of the first
+    passes). ``vehicle``: its position, velocity, current and new setpoint (2,); ``others``: the
+    others' paths (T, J, 2) and setpoints (J, 2); ``need``: the closest approach and spacing (J,)."""
+    actual, velocity, current, new = vehicle
+    t = np.arange(GRID + 1) / GRID
+    for g in range(GRID, -1, -1):
+        point = current + t[g] * (new - current)
+        path = loop.path(actual, velocity, point, steps, fence_m)
+        if g == 0 or _Try(path, point, *others).meets(*need):  # t = 0 always passes
+            break
+    return point, path
 
 
 class _Try:

@@ -8,6 +8,13 @@ the horizontal part of ``sitl_stub.flight.pos_control.track`` (the same controll
 20 ms substeps): velocity setpoint min(MPC_XY_VEL_MAX, gain x error, sqrt(2 x 0.9 a x error)) along
 the error, reached at no more than a per second squared. In offboard the setpoint is the previous
 setpoint plus the policy's move (as ``uavlink fly`` sends it), not the position plus the move.
+
+Two kernels do the same operations: numpy over every row at once (the env's thousands of UAVs), and
+Python floats row by row for a few. A flight's transit guard predicts a fleet of two 300 substeps
+ahead every decision: 37 ms in numpy's per-call overhead on a 2-core machine, 4 ms in floats
+(``python benchmarks/transit_guard.py``), where a vehicle at 20x real time waits 50 ms for its next
+setpoint (COM_OF_LOSS_T). Both round alike (IEEE doubles, ``sqrt`` correctly rounded, ``min``
+exact), so a row is the same bits whichever kernel flies it (``tests/test_uav_motion.py``).
 """
 
 from __future__ import annotations
@@ -16,6 +23,10 @@ import math
 from dataclasses import dataclass
 
 import numpy as np
+
+# up to this many rows (UAVs x setpoints) fly in Python floats: 300 substeps cost about 1 ms a row in
+# floats and 33-37 ms in numpy for up to a hundred rows: even at about 34
+FLOAT_KERNEL_MAX_ROWS = 32
 
 
 @dataclass(frozen=True)
@@ -38,16 +49,17 @@ class PositionLoop:
     ) -> tuple[np.ndarray, np.ndarray]:
         """Position and velocity (..., 2) after flying ``duration_s`` towards ``setpoint_m``, inside
         the square fence ``|x|, |y| <= fence_m``."""
-        pos, vel = position_m.astype(float, copy=True), velocity_mps.astype(float, copy=True)
         # whole substeps of exactly substep_s, as a lockstep sitl_stub steps its vehicles
         # (subtracting 0.02 fifty times from 1.0 would leave a last step a few ulps short)
         whole = math.floor(duration_s / self.substep_s + 1e-9)
-        for _ in range(whole):
-            pos, vel = self._substep(pos, vel, setpoint_m, self.substep_s, fence_m)
         rest = duration_s - whole * self.substep_s
-        if rest > 1e-12:
-            pos, vel = self._substep(pos, vel, setpoint_m, rest, fence_m)
-        return pos, vel
+        substeps_s = [self.substep_s] * whole + ([rest] if rest > 1e-12 else [])
+        if not substeps_s:
+            return np.array(position_m, dtype=float), np.array(velocity_mps, dtype=float)
+        positions, velocity = self._fly_substeps(
+            position_m, velocity_mps, setpoint_m, substeps_s, fence_m
+        )
+        return positions[-1], velocity
 
     def path(
         self,
@@ -59,12 +71,68 @@ class PositionLoop:
     ) -> np.ndarray:
         """Positions (steps, ..., 2) at the end of each of the next ``steps`` substeps towards
         ``setpoint_m``: what :meth:`fly` passes through."""
+        substeps_s = [self.substep_s] * steps
+        return self._fly_substeps(position_m, velocity_mps, setpoint_m, substeps_s, fence_m)[0]
+
+    def _fly_substeps(
+        self,
+        position_m: np.ndarray,
+        velocity_mps: np.ndarray,
+        setpoint_m: np.ndarray,
+        substeps_s: list[float],
+        fence_m: float,
+    ) -> tuple[np.ndarray, np.ndarray]:
+        """Positions after each substep (len(substeps_s), ..., 2) and the last velocity (..., 2),
+        by whichever kernel is faster for this many rows (the same bits)."""
         pos, vel = np.asarray(position_m, dtype=float), np.asarray(velocity_mps, dtype=float)
-        out = np.empty((steps, *np.broadcast_shapes(pos.shape, np.shape(setpoint_m))))
-        for k in range(steps):
-            pos, vel = self._substep(pos, vel, setpoint_m, self.substep_s, fence_m)
-            out[k] = pos
-        return out
+        shape = np.broadcast_shapes(pos.shape, vel.shape, np.shape(setpoint_m))
+        positions = np.empty((len(substeps_s), *shape))
+        if math.prod(shape[:-1]) > FLOAT_KERNEL_MAX_ROWS:
+            for k, h in enumerate(substeps_s):
+                pos, vel = self._substep(pos, vel, setpoint_m, h, fence_m)
+                positions[k] = pos
+            return positions, np.broadcast_to(vel, shape).copy()
+        rows = (np.broadcast_to(a, shape).reshape(-1, 2).tolist() for a in (pos, vel, setpoint_m))
+        flat = positions.reshape(len(substeps_s), -1, 2)  # a view: rows written in place
+        last_vel = np.empty((flat.shape[1], 2))
+        for m, ((px, py), (vx, vy), (sx, sy)) in enumerate(zip(*rows, strict=True)):
+            row = []
+            for h in substeps_s:
+                px, py, vx, vy = self._substep_floats(px, py, vx, vy, sx, sy, h, fence_m)
+                row.append((px, py))
+            flat[:, m] = row
+            last_vel[m] = vx, vy
+        return positions, last_vel.reshape(shape)
+
+    def _substep_floats(
+        self,
+        px: float,
+        py: float,
+        vx: float,
+        vy: float,
+        sx: float,
+        sy: float,
+        h: float,
+        fence_m: float,
+    ) -> tuple[float, float, float, float]:
+        # _substep's operations, in its order, on one row's Python floats (IEEE doubles as numpy's)
+        ex, ey = sx - px, sy - py
+        dist = math.sqrt(ex * ex + ey * ey)
+        speed = min(
+            self.max_speed_mps,
+            self.gain_per_s * dist,
+            math.sqrt(2.0 * self.brake_fraction * self.max_accel_mps2 * dist),
+        )
+        wx, wy = (ex / dist * speed, ey / dist * speed) if dist > 1e-9 else (0.0, 0.0)
+        wx, wy = _limit_norm_floats(wx, wy, self.max_speed_mps)
+        ax, ay = _limit_norm_floats(wx - vx, wy - vy, self.max_accel_mps2 * h)
+        vx, vy = _limit_norm_floats(vx + ax, vy + ay, self.max_speed_mps)
+        px, py = px + vx * h, py + vy * h
+        if abs(px) > fence_m:
+            px, vx = math.copysign(fence_m, px), 0.0
+        if abs(py) > fence_m:
+            py, vy = math.copysign(fence_m, py), 0.0
+        return px, py, vx, vy
 
     def _substep(
         self, pos: np.ndarray, vel: np.ndarray, setpoint_m: np.ndarray, h: float, fence_m: float
@@ -104,6 +172,12 @@ def _limit_norm(v: np.ndarray, max_norm: float) -> np.ndarray:
     """``v`` scaled to ``max_norm`` where longer (v max / n, as sitl_stub's ``_limit_norm``)."""
     n = _norm(v)[..., None]
     return np.where(n > max_norm, v * max_norm / np.where(n > max_norm, n, 1.0), v)
+
+
+def _limit_norm_floats(x: float, y: float, max_norm: float) -> tuple[float, float]:
+    """:func:`_limit_norm` on one row's floats."""
+    n = math.sqrt(x * x + y * y)
+    return (x * max_norm / n, y * max_norm / n) if n > max_norm else (x, y)
 
 
 PX4_MOTION = PositionLoop()
