@@ -156,9 +156,8 @@ def test_fly_one_url_carrying_both_systems(tmp_path: Path) -> None:
     _require_free(14550)
     frames = 40
     # FAST_TAKEOFF: fly takes off one vehicle after the other (95 m at 1.5 m/s each: 13 s of wall time)
-    # speed 5: at 10 a slower 2-core machine held 4 of 40 frames of each vehicle
     with sitl_vehicle(
-        ["--fleet", "2", "--scenario", "straight_180", *FAST_TAKEOFF], speed=5.0
+        ["--fleet", "2", "--scenario", "straight_180", *FAST_TAKEOFF], speed=10.0
     ) as vehicle:
         proc = subprocess.run(
             [

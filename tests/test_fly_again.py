@@ -155,9 +155,7 @@ def test_two_flights_against_one_fleet_each_fly_a_fresh_episode(tmp_path: Path) 
         ",".join(f"udpin:127.0.0.1:{p}" for p in ports),
     ]
     args = [*vehicle_args(_policy_env(policy, "straight_180"), 1), *PATIENT]
-    # LOADED_SPEED: two vehicles' decisions a frame; at 20x a slower 2-core machine held some
-    # frames (the fleet's flight then scored 8.82 Mbps against 9.58 evaluated)
-    with vehicle_process([f"udpout:127.0.0.1:{p}" for p in ports], LOADED_SPEED, args):
+    with vehicle_process([f"udpout:127.0.0.1:{p}" for p in ports], SPEED, args):
         first = cli_json(*fly, "--out", str(tmp_path / "first"))
         second = cli_json(*fly, "--out", str(tmp_path / "second"))
     for summary in (first, second):
