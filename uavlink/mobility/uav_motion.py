@@ -111,8 +111,8 @@ class PositionLoop:
         fence_m: float,
     ) -> tuple[list[tuple[float, float]], tuple[float, float]]:
         """One row flown in Python floats: its positions after each substep and its last velocity.
-        :meth:`_substep`'s operations in its order (``min`` and ``<`` pick the same value as
-        ``np.minimum``), inlined: a call per substep and per norm limit cost 40 % more."""
+        :meth:`_substep`'s operations in its order (``min`` picks what ``np.minimum`` does), inlined:
+        a call per substep and per norm limit cost 40 % more."""
         sqrt, copysign = math.sqrt, math.copysign
         vmax, gain = self.max_speed_mps, self.gain_per_s
         brake = 2.0 * self.brake_fraction * self.max_accel_mps2
