@@ -39,7 +39,7 @@ def _fleets(rng: np.random.Generator, n_envs: int, n_uavs: int) -> tuple[np.ndar
     return actual, actual.copy(), new, velocity
 
 
-def _median_ms(inputs: list[tuple[np.ndarray, ...]], one_env: bool) -> tuple[float, float]:
+def _call_ms(inputs: list[tuple[np.ndarray, ...]], one_env: bool) -> tuple[float, float]:
     """Best and median milliseconds per guard call over ``inputs``."""
     times = []
     for actual, current, new, velocity in inputs:
@@ -51,14 +51,14 @@ def _median_ms(inputs: list[tuple[np.ndarray, ...]], one_env: bool) -> tuple[flo
 
 def measure(n_envs: int, n_uavs: int, calls: int, seed: int) -> dict:
     """Best and median milliseconds per call over ``calls`` calls on fresh fleets, with the kernel
-    in use and with numpy's forced (the same calls, one after the other)."""
+    in use and with the batch's way forced (the same calls, one after the other)."""
     rng = np.random.default_rng(seed)
     inputs = [_fleets(rng, n_envs, n_uavs) for _ in range(calls)]
-    best, median = _median_ms(inputs, n_envs == 1)
+    best, median = _call_ms(inputs, n_envs == 1)
     in_use = uav_motion.FLOAT_KERNEL_MAX_ROWS, transit.SCAN_MAX_ENVS
     uav_motion.FLOAT_KERNEL_MAX_ROWS, transit.SCAN_MAX_ENVS = 0, 0
     try:
-        _, numpy_median = _median_ms(inputs, n_envs == 1)
+        _, numpy_median = _call_ms(inputs, n_envs == 1)
     finally:
         uav_motion.FLOAT_KERNEL_MAX_ROWS, transit.SCAN_MAX_ENVS = in_use
     return {
