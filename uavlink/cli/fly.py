@@ -95,7 +95,9 @@ def add_fly_parser(sub) -> None:
         "--speed",
         type=float,
         default=20.0,
-        help="embedded SITL speed factor, > 0 (simulated seconds per wall second; default 20)",
+        help="embedded SITL speed factor, > 0 (simulated seconds per wall second; default 20): "
+        "a vehicle waits 1/speed s of wall time for setpoints, so where the flight says its "
+        "vehicles fell back to hold, fly slower or with --lockstep",
     )
     p.add_argument(
         "--lockstep",
