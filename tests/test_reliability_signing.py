@@ -18,7 +18,13 @@ from pathlib import Path
 
 import pytest
 from support.cli import run_uavlink_in_process
-from support.mavlink_gcs import FAST_TAKEOFF, Gcs, parse_vehicle_stats, wait_for_vehicle
+from support.mavlink_gcs import (
+    FAST_TAKEOFF,
+    Gcs,
+    param_args,
+    parse_vehicle_stats,
+    wait_for_vehicle,
+)
 
 from sitl_stub.launcher import vehicle_process
 from uavlink.mavlink.connection import free_udp_port
@@ -44,13 +50,9 @@ LAND = 4 << 16 | 6 << 24
 OFFBOARD = 6 << 16
 FORCE = 21196
 # The operator takes over while the vehicle is still landing after the flight: fly writes its report
-# before it exits, which on a loaded machine outlasted the default 100 m landing (70 s sim, 3.5 s
-# wall at 20x). From 95 m this one lasts 340 s sim, 17 s wall.
-SLOW_LANDING = tuple(
-    a
-    for name, value in {"MPC_Z_VEL_MAX_DN": 0.5, "MPC_LAND_ALT2": 50, "MPC_LAND_SPEED": 0.2}.items()
-    for a in ("--param", f"{name}={value:g}")
-)
+# before it exits, which on a loaded machine outlasted the default landing from 95 m (about 70 s
+# sim, 3.5 s wall at 20x). This one lasts 340 s sim, 17 s wall.
+SLOW_LANDING = param_args({"MPC_Z_VEL_MAX_DN": 0.5, "MPC_LAND_ALT2": 50, "MPC_LAND_SPEED": 0.2})
 
 
 class _Wire:

@@ -1,7 +1,7 @@
 """Test helpers that talk to a vehicle process as a ground station would: :class:`Gcs` (a stock
 pymavlink client), :func:`wait_for_vehicle`, :func:`parse_vehicle_stats` (the ``sitl-stub: stats``
-line a vehicle prints on exit) and a quick climb: :data:`FAST_CLIMB_PARAMS`, as vehicle args
-:data:`FAST_TAKEOFF`."""
+line a vehicle prints on exit), :func:`param_args` (a vehicle's ``--param`` arguments) and a quick
+climb: :data:`FAST_CLIMB_PARAMS`, as vehicle args :data:`FAST_TAKEOFF`."""
 
 from __future__ import annotations
 
@@ -11,10 +11,14 @@ from typing import Any
 
 from sitl_stub.launcher import exit_stats
 
+
+def param_args(params: dict[str, float]) -> tuple[str, ...]:
+    """A vehicle's ``--param NAME=VALUE`` arguments for ``params``."""
+    return tuple(a for name, value in params.items() for a in ("--param", f"{name}={value:g}"))
+
+
 FAST_CLIMB_PARAMS = {"MPC_TKO_SPEED": 5.0, "MPC_Z_VEL_MAX_UP": 5.0}  # 95 m in ~20 s sim
-FAST_TAKEOFF = tuple(
-    a for name, value in FAST_CLIMB_PARAMS.items() for a in ("--param", f"{name}={value:g}")
-)
+FAST_TAKEOFF = param_args(FAST_CLIMB_PARAMS)
 
 
 class Gcs:
