@@ -131,7 +131,7 @@ def test_cut_vehicle_holds_while_the_other_flies_on_then_rejoins(tmp_path: Path)
         "--set",
         'radio.shadowing_model="spatial"',
         *FAST_TAKEOFF,
-    ]  # fly takes off one vehicle after the other: 95 m at 5 m/s, not 1.5
+    ]  # the fleet climbs 95 m at 5 m/s, not 1.5
     fly = [
         *UAVLINK,
         "fly",

@@ -12,6 +12,7 @@ metrics (Jain's index, 5th-percentile UE rate, UEs per UAV); and a trajectory pl
 
 from __future__ import annotations
 
+import functools
 from collections.abc import Callable
 from pathlib import Path
 
@@ -102,9 +103,11 @@ def _evaluate_in_processes(
     out: Rows = {s: {} for s in SCENARIOS}
     # spawn, not fork: the parent may hold torch's thread pools, which a fork does not copy safely
     context = multiprocessing.get_context("spawn")
-    with concurrent.futures.ProcessPoolExecutor(workers, mp_context=context) as pool:
+    with concurrent.futures.ProcessPoolExecutor(
+        workers, mp_context=context, initializer=_worker_folders, initargs=(folders,)
+    ) as pool:
         futures = {
-            pool.submit(_evaluate_one, scenario, key, folders, episodes, seed): (scenario, key)
+            pool.submit(_evaluate_one, scenario, key, episodes, seed): (scenario, key)
             for scenario in SCENARIOS
             for key in keys[scenario]
         }
@@ -115,13 +118,26 @@ def _evaluate_in_processes(
     return {s: {key: out[s][key] for key in keys[s]} for s in SCENARIOS}  # one process's order
 
 
-def _evaluate_one(
-    scenario: str, key: str, folders: Folders, episodes: int, seed: int
-) -> EvalResult:
-    """The evaluation ``key`` of ``scenario``'s jobs (a process of its own may run it)."""
-    ((_, policy, cfg, _, record),) = [
-        job for job in _fleet_jobs(scenario, *folders) if job[0] == key
-    ]
+_FOLDERS: Folders | None = None  # a worker process's folders (_worker_folders)
+
+
+def _worker_folders(folders: Folders) -> None:
+    """A worker process's initializer: the folders every one of its evaluations reads."""
+    global _FOLDERS
+    _FOLDERS = folders
+
+
+@functools.cache
+def _worker_jobs(scenario: str) -> dict[str, Job]:
+    """``scenario``'s jobs in a worker process, by key: its policies are loaded once per process,
+    not once per evaluation (25 a scenario; a load costs as much as an evaluation of the tests')."""
+    assert _FOLDERS is not None
+    return {job[0]: job for job in _fleet_jobs(scenario, *_FOLDERS)}
+
+
+def _evaluate_one(scenario: str, key: str, episodes: int, seed: int) -> EvalResult:
+    """The evaluation ``key`` of ``scenario``'s jobs, in a worker process."""
+    _, policy, cfg, _, record = _worker_jobs(scenario)[key]
     return evaluate_policy(policy, cfg, episodes, seed, record_trajectory=record)
 
 

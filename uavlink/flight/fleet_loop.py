@@ -2,7 +2,7 @@
 
 Each vehicle is its own MAVLink system with its own link state and offboard stream (a
 :class:`~uavlink.flight.link.group.LinkGroup` keeps every stream alive while the loop waits on one
-vehicle). Take-off is one vehicle after the other (each holds when up), then each enters OFFBOARD;
+vehicle). Every vehicle takes off at once (each holds when up), then each enters OFFBOARD;
 the world's episode starts once all are in OFFBOARD. Per frame: the newest report of every vehicle
 makes the D observation rows (as the env's: own readings, the others' positions, who serves each
 UE), the policy acts on them, and :func:`~uavlink.mobility.fleet.fleet_setpoints` turns the moves
@@ -119,14 +119,18 @@ def _fly_fleet(links, pilot, cfg, loop_cfg, status, result: FleetResult) -> None
         link.on_score = lambda s: scores.setdefault(s.frame, s)
     for link in links:  # every vehicle ready before any arms: the first arming begins the episode
         wait_ready(link, loop_cfg.takeoff, loop_cfg.landing_wait_vehicle_s)
-    for link in links:
-        resumed = take_off_or_resume(
-            link,
-            cfg.area.uav_altitude_m,
-            cfg.area.half_width_m if loop_cfg.fence else None,
-            loop_cfg.takeoff,
-        )
-        result.resumed = result.resumed or resumed
+    # Every vehicle climbs at once (MAVSDK's examples/multiple_drones "take off and land in parallel"):
+    # PX4's take-off is vertical, so vehicles standing apart stay apart, and the fleet is up in
+    # one climb's time, not D.
+    altitude_m = cfg.area.uav_altitude_m
+    fence_m = cfg.area.half_width_m if loop_cfg.fence else None
+    resumed = [
+        take_off_or_resume(link, altitude_m, fence_m, loop_cfg.takeoff, False) for link in links
+    ]
+    for link, up in zip(links, resumed, strict=True):
+        if loop_cfg.takeoff and not up:
+            link.wait_altitude(altitude_m)
+    result.resumed = any(resumed)
     if not result.resumed:
         result.met_start = to_start(links, sources, cfg)
         scores.clear()

@@ -43,11 +43,15 @@ def wait_ready(link: VehicleLink, takeoff: bool, landing_wait_vehicle_s: float) 
 
 
 def take_off_or_resume(
-    link: VehicleLink, altitude_m: float, fence_half_width_m: float | None, takeoff: bool
+    link: VehicleLink,
+    altitude_m: float,
+    fence_half_width_m: float | None,
+    takeoff: bool,
+    wait: bool = True,
 ) -> bool:
     """Upload the area as the geofence (``fence_half_width_m``, None: none), then arm and take off to
-    ``altitude_m`` (when ``takeoff``), or resume a vehicle already armed and in the air; whether it
-    resumed."""
+    ``altitude_m`` (when ``takeoff``; with ``wait`` until there), or resume a vehicle already armed
+    and in the air; whether it resumed."""
     st = link.status
     if fence_half_width_m is not None:
         upload_area_fence(link, fence_half_width_m)
@@ -60,7 +64,7 @@ def take_off_or_resume(
         return True
     if takeoff:
         link.arm()
-        link.takeoff(altitude_m)
+        link.takeoff(altitude_m, wait)
     return False
 
 

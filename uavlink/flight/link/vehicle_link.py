@@ -406,9 +406,16 @@ class VehicleLink:
             lambda: self.status.armed == armed, 3.0, f"{'' if armed else 'dis'}armed heartbeat"
         )
 
-    def takeoff(self, altitude_m: float) -> None:
+    def takeoff(self, altitude_m: float, wait: bool = True) -> None:
+        """Take off to ``altitude_m`` (PX4: MIS_TAKEOFF_ALT, then NAV_TAKEOFF); with ``wait``, until
+        there (:meth:`wait_altitude`)."""
         self.set_param("MIS_TAKEOFF_ALT", altitude_m)
         self.command(MAV.MAV_CMD_NAV_TAKEOFF)
+        if wait:
+            self.wait_altitude(altitude_m)
+
+    def wait_altitude(self, altitude_m: float) -> None:
+        """Poll until the vehicle is within 1 m of ``altitude_m``; LinkError after 120 s of its time."""
         self.wait_until(
             lambda: -self.status.down_m >= altitude_m - 1.0, 120.0, f"take-off to {altitude_m:g} m"
         )
