@@ -6,9 +6,12 @@ place where the team holds still (the `explore` rule +12.5 % over the spatial po
 docs/results.md). Here, on the same episodes: the shipped any-size fleet policy (v6), the lead
 teacher with the scenario's spatial policy leading (in v6, and in v7 where it reads the v1 fields
 alone, which must fly the same), and the lead teacher with `explore` leading in v7 (its v3 view:
-the v1 fields and the leader's own memory of place).
+the v1 fields and the leader's own memory of place), and where the scenario's map policy reads the
+memory alone (layout v3: every scenario but no_move, whose map policy reads a model of the field,
+v5, one UAV's only) the lead teacher with that map policy leading in v7.
 
     python research/fleet_memory_lead.py --scenario no_move --episodes 100 --seed 1
+    python research/fleet_memory_lead.py --scenario straight --sizes 2 --episodes 100 --seed 1
 """
 
 from __future__ import annotations
@@ -16,11 +19,25 @@ from __future__ import annotations
 import argparse
 import json
 import sys
+from pathlib import Path
 from typing import Any
 
 from fleet_bars import paired_ratio, ratio_text
 
 PLACE_CELL_M = 12.0  # sweeps/map.toml's grid
+
+
+def map_leader(scenario: str) -> str | None:
+    """The scenario's map policy where a fleet's leader can fly it (the memory alone, layout v3),
+    else None (a model of the field, v5, is one UAV's)."""
+    from uavlink.config.env import PLACE_MODELS
+    from uavlink.policies.contract import manifest_env
+    from uavlink.policies.manifest import read_zip_manifest
+
+    path = f"policies/map/{scenario}.zip"
+    return (
+        path if manifest_env(read_zip_manifest(Path(path))).place_model == PLACE_MODELS[0] else None
+    )
 
 
 def run(scenario: str, sizes: list[int], episodes: int, seed: int) -> dict[str, Any]:
@@ -39,6 +56,10 @@ def run(scenario: str, sizes: list[int], episodes: int, seed: int) -> dict[str, 
         lead_v6 = evaluate_policy(make_lead_teacher(v6, leader), v6, episodes, seed)
         lead_v7 = evaluate_policy(make_lead_teacher(v7, leader), v7, episodes, seed)
         explore = evaluate_policy(make_lead_teacher(v7, "explore"), v7, episodes, seed)
+        mapped = map_leader(scenario)
+        lead_map = (
+            evaluate_policy(make_lead_teacher(v7, mapped), v7, episodes, seed) if mapped else None
+        )
         rows.append(
             {
                 "n_uavs": d,
@@ -48,6 +69,9 @@ def run(scenario: str, sizes: list[int], episodes: int, seed: int) -> dict[str, 
                 "lead_explore_v7_mbps": round(explore.mean_rate_mbps, 4),
                 "lead_explore_vs_lead_spatial": paired_ratio(explore, lead_v6),
                 "lead_explore_vs_ppo": paired_ratio(explore, ppo),
+                "lead_map_v7_mbps": round(lead_map.mean_rate_mbps, 4) if lead_map else None,
+                "lead_map_vs_lead_spatial": paired_ratio(lead_map, lead_v6) if lead_map else None,
+                "lead_map_vs_ppo": paired_ratio(lead_map, ppo) if lead_map else None,
             }
         )
     return {"scenario": scenario, "episodes": episodes, "seed": seed, "rows": rows}
@@ -56,15 +80,23 @@ def run(scenario: str, sizes: list[int], episodes: int, seed: int) -> dict[str, 
 def markdown(report: dict[str, Any]) -> str:
     lines = [
         "| D | fleet PPO (v6) | lead, spatial leader (v6 / v7) | lead, explore leader (v7) "
-        "| explore lead / spatial lead | explore lead / PPO |",
-        "|---|---|---|---|---|---|",
+        "| explore lead / spatial lead | explore lead / PPO | lead, map leader (v7) "
+        "| map lead / spatial lead | map lead / PPO |",
+        "|---|---|---|---|---|---|---|---|---|",
     ]
     for row in report["rows"]:
+        mapped = row["lead_map_v7_mbps"] is not None
         lines.append(
             f"| {row['n_uavs']} | {row['ppo_mbps']:.2f} | {row['lead_spatial_v6_mbps']:.2f} / "
             f"{row['lead_spatial_v7_mbps']:.2f} | {row['lead_explore_v7_mbps']:.2f} | "
             f"{ratio_text(row['lead_explore_vs_lead_spatial'])} | "
-            f"{ratio_text(row['lead_explore_vs_ppo'])} |"
+            f"{ratio_text(row['lead_explore_vs_ppo'])} | "
+            + (
+                f"{row['lead_map_v7_mbps']:.2f} | {ratio_text(row['lead_map_vs_lead_spatial'])} | "
+                f"{ratio_text(row['lead_map_vs_ppo'])} |"
+                if mapped
+                else "- | - | - |"
+            )
         )
     return "\n".join(lines)
 

@@ -401,3 +401,24 @@ def test_fleet_memory_lead_flies_the_spatial_leader_alike_in_v6_and_v7() -> None
     r, lo, hi = row["lead_explore_vs_lead_spatial"]
     assert lo <= r <= hi
     assert abs(r - row["lead_explore_v7_mbps"] / row["lead_spatial_v6_mbps"]) < 1e-3
+    # no_move's map policy reads a model of the field (v5, one UAV's): no map leader
+    assert row["lead_map_v7_mbps"] is None and row["lead_map_vs_ppo"] is None
+
+
+def test_fleet_memory_lead_pairs_a_map_leader_where_the_map_policy_reads_the_memory() -> None:
+    """research/fleet_memory_lead.py: on straight the map policy (v3) leads in v7, paired."""
+    result = run_json(
+        "fleet_memory_lead.py",
+        "--scenario",
+        "straight",
+        "--episodes",
+        "2",
+        "--seed",
+        "3",
+        "--sizes",
+        "2",
+    )
+    [row] = result["rows"]
+    r, lo, hi = row["lead_map_vs_lead_spatial"]
+    assert lo <= r <= hi
+    assert abs(r - row["lead_map_v7_mbps"] / row["lead_spatial_v6_mbps"]) < 1e-3
