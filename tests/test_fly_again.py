@@ -13,6 +13,7 @@ from pathlib import Path
 
 import pytest
 from support.cli import ROOT, UAVLINK, cli_json, run_uavlink
+from support.mavlink_gcs import FAST_TAKEOFF
 
 from sitl_stub.launcher import vehicle_process
 from uavlink.flight.vehicles import vehicle_args
@@ -154,7 +155,7 @@ def test_two_flights_against_one_fleet_each_fly_a_fresh_episode(tmp_path: Path) 
         "--connect",
         ",".join(f"udpin:127.0.0.1:{p}" for p in ports),
     ]
-    args = [*vehicle_args(_policy_env(policy, "straight_180"), 1), *PATIENT]
+    args = [*vehicle_args(_policy_env(policy, "straight_180"), 1), *PATIENT, *FAST_TAKEOFF]
     with vehicle_process([f"udpout:127.0.0.1:{p}" for p in ports], SPEED, args):
         first = cli_json(*fly, "--out", str(tmp_path / "first"))
         second = cli_json(*fly, "--out", str(tmp_path / "second"))
