@@ -155,7 +155,7 @@ def test_fly_one_url_carrying_both_systems(tmp_path: Path) -> None:
     the one GCS port in system id order, fly the fleet aoa rule to the end."""
     _require_free(14550)
     frames = 40
-    # FAST_TAKEOFF: 95 m at 1.5 m/s is 6 s of wall time at 10x
+    # FAST_TAKEOFF: 95 m at 5 m/s, not 1.5 (6 s of wall time at 10x)
     with sitl_vehicle(
         ["--fleet", "2", "--scenario", "straight_180", *FAST_TAKEOFF], speed=10.0
     ) as vehicle:

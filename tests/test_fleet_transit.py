@@ -136,10 +136,10 @@ def test_fleet_aoa_flight_keeps_20_m_in_transit(tmp_path: Path) -> None:
     separation flown is 20 m as well as the setpoints'."""
     settings = ["--set", "radio.shadowing_model=spatial", "--set", "fleet_start_radius_m=12"]
     ports = [free_udp_port(), free_udp_port()]
-    # the fleet vehicle as fly's embedded one would be, plus FAST_TAKEOFF (95 m at 1.5 m/s is 3 s
-    # of wall time at 20x). At 20x PX4's 1 s
-    # offboard-loss time is 50 ms of wall time, which a loaded CI machine can stall the client for
-    # (one CI run: a hold); 5 s keeps this test on separation, test_reliability_* on failsafes.
+    # the fleet vehicle as fly's embedded one would be, plus FAST_TAKEOFF (95 m at 5 m/s, not 1.5).
+    # At 20x PX4's 1 s offboard-loss time is 50 ms of wall time, which a loaded CI machine can
+    # stall the client for (one CI run: a hold); 5 s keeps this test on separation,
+    # test_reliability_* on failsafes.
     sitl_args = [
         "--fleet",
         "2",

@@ -130,7 +130,7 @@ def _worker_folders(folders: Folders) -> None:
 @functools.cache
 def _worker_jobs(scenario: str) -> dict[str, Job]:
     """``scenario``'s jobs in a worker process, by key: its policies are loaded once per process,
-    not once per evaluation (25 a scenario; a load costs as much as an evaluation of the tests')."""
+    not once for each of its 25 evaluations."""
     assert _FOLDERS is not None
     return {job[0]: job for job in _fleet_jobs(scenario, *_FOLDERS)}
 
