@@ -13,7 +13,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 from support.cli import assert_user_error, cli_json, run_uavlink_in_process
-from support.mavlink_gcs import FAST_CLIMB_PARAMS
+from support.mavlink_gcs import FAST_CLIMB_PARAMS, FAST_TAKEOFF
 from support.mavproxy_console import MAVPROXY, mavproxy
 
 from sitl_stub.__main__ import build_parser
@@ -441,7 +441,7 @@ def test_plot_a_mavproxy_session_log(tmp_path: Path) -> None:
         vehicle_process(
             f"udpout:127.0.0.1:{p_master}",
             10.0,
-            ["--param", "MPC_TKO_SPEED=5", "--param", "MPC_Z_VEL_MAX_UP=5"],
+            list(FAST_TAKEOFF),
         ),
     ):
         flown = cli_json(

@@ -9,6 +9,7 @@ from __future__ import annotations
 from pathlib import Path
 
 import pytest
+from support.mavlink_gcs import FAST_TAKEOFF
 
 from sitl_stub.launcher import vehicle_process
 from uavlink.flight.link import LinkError, VehicleLink
@@ -16,7 +17,7 @@ from uavlink.mavlink.connection import free_udp_port
 
 pytestmark = [pytest.mark.slow, pytest.mark.timeout(120)]
 
-FAST = ("--param", "MPC_TKO_SPEED=5", "--param", "MPC_Z_VEL_MAX_UP=5", "--no-payload")
+FAST = (*FAST_TAKEOFF, "--no-payload")
 
 
 def test_link_learns_system_2_from_its_heartbeat_and_commands_it(tmp_path: Path) -> None:
