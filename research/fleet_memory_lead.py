@@ -45,6 +45,7 @@ def run(scenario: str, sizes: list[int], episodes: int, seed: int) -> dict[str, 
     from uavlink.learn.lead_teacher import make_lead_teacher
     from uavlink.policies.contract import EnvOverrides, load_with_env
 
+    mapped = map_leader(scenario)
     rows = []
     for d in sizes:
         [(fleet, v6)] = load_with_env(
@@ -56,7 +57,6 @@ def run(scenario: str, sizes: list[int], episodes: int, seed: int) -> dict[str, 
         lead_v6 = evaluate_policy(make_lead_teacher(v6, leader), v6, episodes, seed)
         lead_v7 = evaluate_policy(make_lead_teacher(v7, leader), v7, episodes, seed)
         explore = evaluate_policy(make_lead_teacher(v7, "explore"), v7, episodes, seed)
-        mapped = map_leader(scenario)
         lead_map = (
             evaluate_policy(make_lead_teacher(v7, mapped), v7, episodes, seed) if mapped else None
         )

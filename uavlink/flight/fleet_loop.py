@@ -125,7 +125,8 @@ def _fly_fleet(links, pilot, cfg, loop_cfg, status, result: FleetResult) -> None
     altitude_m = cfg.area.uav_altitude_m
     fence_m = cfg.area.half_width_m if loop_cfg.fence else None
     resumed = [
-        take_off_or_resume(link, altitude_m, fence_m, loop_cfg.takeoff, False) for link in links
+        take_off_or_resume(link, altitude_m, fence_m, loop_cfg.takeoff, wait=False)
+        for link in links
     ]
     for link, up in zip(links, resumed, strict=True):
         if loop_cfg.takeoff and not up:
