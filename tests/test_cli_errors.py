@@ -54,17 +54,36 @@ def test_a_missing_optional_package_names_its_extra(modules, args, extra, tmp_pa
 
 
 def test_a_shipped_zip_flies_as_its_onnx_twin_without_torch(tmp_path):
-    """The [fly] install has no torch: a shipped zip is evaluated through its ONNX twin (one line
-    says so) and gives the zip's figures to the last digit."""
-    args = ("evaluate", "--policy", "circular.zip", "--episodes", "2", "--seed", "3", "--json")
-    proc = _without(("torch", "stable_baselines3"), *args, cwd=tmp_path)
+    """The [fly] install has no torch: a shipped zip is evaluated through its ONNX twin and gives
+    the figures the zip gives in stable-baselines3 (here a copy of it with no twin beside it) to
+    the last digit."""
+    args = ("--episodes", "2", "--seed", "3", "--scenario", "circular", "--json")
+    proc = _without(("torch", "stable_baselines3"), "evaluate", "--policy", "circular.zip", *args)
     assert proc.returncode == 0, proc.stderr
-    assert "flying its ONNX twin" in proc.stderr and "circular.onnx" in proc.stderr
-    with_torch = run_uavlink_in_process(*args)
+    lone = tmp_path / "lone"
+    lone.mkdir()
+    shutil.copy(ROOT / "policies" / "circular.zip", lone)
+    with_torch = run_uavlink_in_process("evaluate", "--policy", str(lone / "circular.zip"), *args)
     assert with_torch.returncode == 0, with_torch.stderr
     twin, zipped = json.loads(proc.stdout), json.loads(with_torch.stdout)
     assert twin["mean_rate_mbps"] == zipped["mean_rate_mbps"]
     assert twin["mean_fair_rate"] == zipped["mean_fair_rate"]
+
+
+def test_a_twin_exported_from_other_bytes_is_refused_without_torch(tmp_path):
+    """A zip beside an ONNX twin of another policy (a retrained zip, its old twin left beside it):
+    without stable-baselines3 the zip cannot run, and the twin is not flown in its place."""
+    shutil.copy(ROOT / "policies" / "circular.zip", tmp_path / "circular.zip")
+    shutil.copy(ROOT / "policies" / "straight.onnx", tmp_path / "circular.onnx")
+    proc = _without(
+        ("torch", "stable_baselines3"),
+        "evaluate",
+        "--policy",
+        str(tmp_path / "circular.zip"),
+        "--episodes",
+        "1",
+    )
+    assert_user_error(proc, "was exported from another version", "uavlink export")
 
 
 def test_the_results_folder_needs_matplotlib_before_it_writes_a_table(tmp_path):

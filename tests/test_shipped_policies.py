@@ -26,6 +26,22 @@ def test_the_checkout_ships_every_zip_with_an_onnx_twin_and_a_manifest() -> None
         assert path.with_suffix(".json").is_file(), path
 
 
+def test_a_zip_runs_as_the_twin_exported_from_its_bytes_and_only_that_one(tmp_path) -> None:
+    """Every shipped zip loads as its ONNX twin (the twin's manifest records the zip's sha256), so
+    flying or evaluating one needs no torch; a zip beside a twin of other bytes runs in SB3."""
+    from uavlink.policies.loader import load_policy
+    from uavlink.policies.onnx_policy import OnnxPolicy
+    from uavlink.policies.sb3_policy import SB3Policy
+
+    cfg = EnvConfig()
+    for path in SHIPPED_ZIPS:
+        policy = load_policy(path, cfg)
+        assert isinstance(policy, OnnxPolicy) and policy.name == path.stem, path
+    (tmp_path / "circular.zip").write_bytes((ROOT / "policies" / "circular.zip").read_bytes())
+    (tmp_path / "circular.onnx").write_bytes((ROOT / "policies" / "straight.onnx").read_bytes())
+    assert isinstance(load_policy(tmp_path / "circular.zip", cfg), SB3Policy)
+
+
 @pytest.mark.parametrize(
     ("name", "file"),
     [

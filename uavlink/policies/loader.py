@@ -3,9 +3,13 @@ name; and load it (an SB3 zip, an ONNX file, or a folder's policy for a scenario
 
 The shipped policies are the repository's ``policies/`` folder; a wheel carries them as
 ``uavlink/shipped`` (``setup.py``'s build step copies them there), so an installed package flies them
-from any folder. Each zip has an ONNX twin beside it: where stable-baselines3 is not installed (the
-``[fly]`` install of a companion computer), a zip flies as its twin, which acts alike to the last bit
-(``uavlink export`` checks it; ``tests/test_shipped_policies.py`` keeps it so).
+from any folder. Each zip has an ONNX twin beside it, which acts alike to the last bit (``uavlink
+export`` checks it; ``tests/test_shipped_policies.py`` keeps it so). A zip whose twin was exported
+from these very bytes (the twin's manifest records the zip's sha256) runs as its twin: the same
+decisions without torch, so the ``[fly]`` install of a companion computer flies it, and every install
+starts a flight or an evaluation seconds sooner (torch's import is 3-4 s of CPU) and evaluates
+faster (docs/design/flight.md, "A zip flies as its ONNX twin"). A twin left from other bytes is
+never flown: the zip runs in stable-baselines3, or, without it, is refused in one line.
 """
 
 from __future__ import annotations
@@ -89,23 +93,42 @@ def load_policy(spec: str | Path, cfg: EnvConfig) -> Policy:
     if path.is_dir():
         return load_policy(policy_for_scenario(path, cfg.scenario), cfg)
     if path.suffix == ".zip":
-        twin = path.with_suffix(".onnx")
-        if twin.is_file() and importlib.util.find_spec("stable_baselines3") is None:
-            print(
-                f"uavlink: {path.name}: stable-baselines3 is not installed (the [train] extra): "
-                f"flying its ONNX twin {twin}",
-                file=sys.stderr,
+        twin = _exported_twin(path)
+        if twin is not None:
+            return twin
+        if (
+            importlib.util.find_spec("stable_baselines3") is None
+            and path.with_suffix(".onnx").is_file()
+        ):
+            raise PolicyFileError(
+                f"{path}: its ONNX twin {path.with_suffix('.onnx')} was exported from another version "
+                "of this zip, and stable-baselines3 (the [train] extra) is not installed to run the zip "
+                f"itself: export it again (uavlink export {path}) where it is"
             )
-            path = twin
-        else:
-            from uavlink.policies.sb3_policy import SB3Policy
+        from uavlink.policies.sb3_policy import SB3Policy
 
-            return SB3Policy(path)
+        return SB3Policy(path)
     if path.suffix == ".onnx":
         from uavlink.policies.onnx_policy import OnnxPolicy
 
         return OnnxPolicy(path)
     raise PolicyFileError(f"{spec}: unknown policy file type (expected .zip or .onnx)")
+
+
+def _exported_twin(zip_path: Path) -> Policy | None:
+    """The ONNX twin beside ``zip_path``, loaded, when its manifest records ``zip_path``'s sha256
+    (``uavlink export`` writes it); None when there is none, onnxruntime is missing, or the twin was
+    exported from other bytes."""
+    twin = zip_path.with_suffix(".onnx")
+    if not twin.is_file() or importlib.util.find_spec("onnxruntime") is None:
+        return None
+    from uavlink.policies.manifest import file_sha256
+    from uavlink.policies.onnx_policy import OnnxPolicy
+
+    policy = OnnxPolicy(twin)
+    if policy.manifest.get("source_policy_sha256") != file_sha256(zip_path):
+        return None
+    return policy
 
 
 def policy_for_scenario(folder: Path, scenario: str) -> Path:
