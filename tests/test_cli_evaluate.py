@@ -114,6 +114,7 @@ def test_bad_arguments_exit_2_with_one_line(args, fragments):
     )
 
 
+@pytest.mark.slow
 def test_a_policy_file_flies_its_own_scenario_unless_told_otherwise():
     """Without --scenario a policy file flies the scenario its manifest names (a no_move policy is
     not measured on circular by default), and a folder beside it gives its policy for that scenario;

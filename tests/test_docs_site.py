@@ -63,6 +63,7 @@ def citations() -> list[tuple[str, str]]:
     return out
 
 
+@pytest.mark.slow
 def test_every_spec_citation_names_a_heading_of_the_spec_page() -> None:
     found = citations()
     assert len(found) >= 30, found  # the search still finds the tree's citations
@@ -89,6 +90,7 @@ def test_the_spec_page_has_the_sections_the_project_needs() -> None:
         assert name in headings, sorted(headings)
 
 
+@pytest.mark.slow
 def test_nothing_refers_to_a_specification_outside_the_repository() -> None:
     outside = "../" + "shared"  # spelled apart, so this file does not match itself
     found = [rel for rel, text in _files() if outside in text]

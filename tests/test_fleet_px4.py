@@ -50,6 +50,7 @@ def _towards_one_point(rng: np.random.Generator, setpoints: np.ndarray) -> np.nd
     return np.clip(action, -1, 1).reshape(-1, 2)
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("n_uavs", [2, 3])
 def test_env_px4_fleet_keeps_its_setpoints_20_m_apart(n_uavs: int) -> None:
     """Every UAV of every env driven at one point, from a tight start (30 m circle): every frame's
@@ -84,6 +85,7 @@ def test_sitl_vehicles_spawn_where_a_px4_motion_env_starts_its_uavs(n_uavs: int)
     np.testing.assert_array_equal(world._env.uav_xy_m, env.uav_xy_m)
 
 
+@pytest.mark.slow
 def test_env_px4_fleet_moves_as_the_flight_loop() -> None:
     """Each env's step is, bit for bit, the flight loop's fleet_setpoints from that env's setpoints
     and the UAVs' positions and velocities as MAVLink carries them (float32), then PX4_MOTION
@@ -126,6 +128,7 @@ def test_env_px4_fleet_moves_as_the_flight_loop() -> None:
     assert guarded > 0
 
 
+@pytest.mark.slow
 def test_the_batched_guard_is_each_fleets_own() -> None:
     """guard_transit over N fleets at once equals each fleet's own call (the flight loop's), bit for
     bit, cut moves included."""

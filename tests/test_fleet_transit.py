@@ -78,6 +78,7 @@ def test_a_pair_already_too_close_may_only_move_apart() -> None:
     assert np.array_equal(apart[0], [-5.0, 0.0])
 
 
+@pytest.mark.slow
 @settings(max_examples=30, deadline=None)
 @given(n_uavs=st.integers(2, 4), seed=st.integers(0, 2**31 - 1), lag_m=st.floats(0.0, 10.0))
 def test_setpoints_keep_20_m_wherever_the_vehicles_are(
@@ -100,6 +101,7 @@ def test_setpoints_keep_20_m_wherever_the_vehicles_are(
     assert np.abs(along).max() <= 1e-6 * (1.0 + np.abs(new - setpoints).max() ** 2)
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("n_uavs", [2, 3, 4])
 def test_px4_fleets_keep_20_m_at_every_substep(n_uavs: int) -> None:
     """24 fleets driven at one point through the env's setpoint chain (filter, then the transit
@@ -191,6 +193,7 @@ def test_fleet_aoa_flight_keeps_20_m_in_transit(tmp_path: Path) -> None:
     assert flown["min_separation_flown_m"] >= 20.0, flown
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("n_envs", [1, 3])
 @pytest.mark.parametrize("n_uavs", [2, 3, 4])
 def test_a_flights_search_of_the_grid_is_the_batchs(n_uavs: int, n_envs: int) -> None:

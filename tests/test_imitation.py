@@ -46,6 +46,7 @@ def test_teacher_dataset_flies_what_the_teacher_says_it_is() -> None:
     assert np.abs(privileged[:2] - actions[:2]).max() > 0.1
 
 
+@pytest.mark.slow
 def test_dagger_data_is_the_copys_flying_labelled_by_the_teacher() -> None:
     """A DAgger round: the copy (here an untrained actor, which flies nothing like the rule) picks
     the moves, so the frames are its own; the labels are what the teacher does in them; seeded per

@@ -124,6 +124,7 @@ def test_make_teacher_and_config_name_the_lead_teacher() -> None:
         LeadTeacher(FLEET, make_baseline("aoa", FLEET))
 
 
+@pytest.mark.slow
 def test_in_a_fleet_with_a_memory_of_place_a_v1_leader_flies_as_before_and_a_v3_leader_reads_it() -> (
     None
 ):

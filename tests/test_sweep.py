@@ -828,6 +828,7 @@ def test_sweep_reruns_only_what_its_shipped_record_lacks(tmp_path: Path, capsys)
     assert straight in {job.key for job in changed.jobs() if job.scenario == "straight"}
 
 
+@pytest.mark.slow
 def test_record_out_keeps_the_jobs_figures_and_ships_no_policy(tmp_path: Path, capsys) -> None:
     """`--record-out DIR` writes the record of every finished job (a rerun over finished runs runs
     nothing) and copies no policy: the record of policies trained before stands beside them."""
