@@ -8,7 +8,7 @@ export`` checks it; ``tests/test_shipped_policies.py`` keeps it so). A zip whose
 from these very bytes (the twin's manifest records the zip's sha256) runs as its twin: the same
 decisions without torch, so the ``[fly]`` install of a companion computer flies it, and every install
 starts a flight or an evaluation seconds sooner (torch's import is 3-4 s of CPU) and evaluates
-faster (docs/design/flight.md, "A zip flies as its ONNX twin"). A twin left from other bytes is
+faster (docs/design/flight.md, "A zip runs as its ONNX twin"). A twin left from other bytes is
 never flown: the zip runs in stable-baselines3, or, without it, is refused in one line.
 """
 
