@@ -422,3 +422,38 @@ def test_fleet_memory_lead_pairs_a_map_leader_where_the_map_policy_reads_the_mem
     r, lo, hi = row["lead_map_vs_lead_spatial"]
     assert lo <= r <= hi
     assert abs(r - row["lead_map_v7_mbps"] / row["lead_spatial_v6_mbps"]) < 1e-3
+
+
+def test_fleet_field_worth_blinds_the_genie_to_the_field_alone() -> None:
+    """The field-blind genie plans the same paths whatever the field (its plan reads none of it),
+    and the report puts every column beside the genie on the same episodes."""
+    import dataclasses
+
+    sys.path.insert(0, str(FOLDER))
+    try:
+        from fleet_field_worth import field_blind_genie
+    finally:
+        sys.path.remove(str(FOLDER))
+    from uavlink.config import EnvConfig
+    from uavlink.env.core import BatchedUavEnv
+
+    cfg = EnvConfig(scenario="hotspot", n_uavs=2, episode_frames=8)
+    cfg = cfg.replace(**{"radio.shadowing_model": "spatial"}).validate()
+    env = BatchedUavEnv(cfg, n_envs=2, seed=3)
+    env.reset()
+    truth = env.ground_truth()
+    assert truth.shadow_field is not None
+    blind = field_blind_genie(cfg)
+    blind.plan(truth)
+    with_field = blind.path_m.copy()
+    blind.plan(dataclasses.replace(truth, shadow_field=None))
+    np.testing.assert_array_equal(blind.path_m, with_field)
+
+    result = run_json(
+        "fleet_field_worth.py", "--scenario", "hotspot", "--sizes", "2", "--episodes", "2"
+    )
+    [row] = result["rows"]
+    assert set(row["mbps"]) == {"genie", "field-blind genie", "kmeans", "PPO"}
+    assert set(row["of_genie"]) == {"field-blind genie", "kmeans", "PPO"}
+    ratio, low, high = row["of_genie"]["field-blind genie"]
+    assert low <= ratio <= high < 1.0  # on hotspot the field is worth half the genie's throughput
