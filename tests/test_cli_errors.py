@@ -58,7 +58,9 @@ def test_a_shipped_zip_flies_as_its_onnx_twin_without_torch(tmp_path):
     the figures the zip gives in stable-baselines3 (here a copy of it with no twin beside it) to
     the last digit."""
     args = ("--episodes", "2", "--seed", "3", "--scenario", "circular", "--json")
-    proc = _without(("torch", "stable_baselines3"), "evaluate", "--policy", "circular.zip", *args)
+    proc = _without(
+        ("torch", "stable_baselines3"), "evaluate", "--policy", "circular.zip", *args, cwd=tmp_path
+    )
     assert proc.returncode == 0, proc.stderr
     lone = tmp_path / "lone"
     lone.mkdir()
