@@ -35,6 +35,17 @@ def _without(modules: tuple[str, ...], *args: str, cwd: Path = ROOT) -> subproce
             ("evaluate", "--policy", "lone/circular.zip", "--episodes", "1"),  # no ONNX twin
             "train",
         ),
+        (
+            ("torch", "stable_baselines3", "onnxruntime"),
+            (
+                "evaluate",
+                "--policy",
+                "policies/circular.zip",
+                "--episodes",
+                "1",
+            ),  # a twin, no runtime
+            "train",
+        ),
         (("stable_baselines3",), ("train", "--out", "never.zip", "--episodes", "1"), "train"),
         (("onnx",), ("export", "policies/circular.zip", "--out", "never.onnx"), "export"),
     ],

@@ -93,18 +93,20 @@ def load_policy(spec: str | Path, cfg: EnvConfig) -> Policy:
     if path.is_dir():
         return load_policy(policy_for_scenario(path, cfg.scenario), cfg)
     if path.suffix == ".zip":
-        twin = _exported_twin(path)
-        if twin is not None:
-            return twin
-        if (
-            importlib.util.find_spec("stable_baselines3") is None
-            and path.with_suffix(".onnx").is_file()
-        ):
-            raise PolicyFileError(
-                f"{path}: its ONNX twin {path.with_suffix('.onnx')} was exported from another version "
-                "of this zip, and stable-baselines3 (the [train] extra) is not installed to run the zip "
-                f"itself: export it again (uavlink export {path}) where it is"
-            )
+        twin = path.with_suffix(".onnx")
+        if twin.is_file() and importlib.util.find_spec("onnxruntime") is not None:
+            from uavlink.policies.manifest import file_sha256
+            from uavlink.policies.onnx_policy import OnnxPolicy
+
+            exported = OnnxPolicy(twin)  # its manifest records the bytes it was exported from
+            if exported.manifest.get("source_policy_sha256") == file_sha256(path):
+                return exported
+            if importlib.util.find_spec("stable_baselines3") is None:
+                raise PolicyFileError(
+                    f"{path}: its ONNX twin {twin} was exported from another version of this zip, "
+                    "and stable-baselines3 (the [train] extra) is not installed to run the zip "
+                    f"itself: export it again (uavlink export {path}) where it is"
+                )
         from uavlink.policies.sb3_policy import SB3Policy
 
         return SB3Policy(path)
@@ -113,22 +115,6 @@ def load_policy(spec: str | Path, cfg: EnvConfig) -> Policy:
 
         return OnnxPolicy(path)
     raise PolicyFileError(f"{spec}: unknown policy file type (expected .zip or .onnx)")
-
-
-def _exported_twin(zip_path: Path) -> Policy | None:
-    """The ONNX twin beside ``zip_path``, loaded, when its manifest records ``zip_path``'s sha256
-    (``uavlink export`` writes it); None when there is none, onnxruntime is missing, or the twin was
-    exported from other bytes."""
-    twin = zip_path.with_suffix(".onnx")
-    if not twin.is_file() or importlib.util.find_spec("onnxruntime") is None:
-        return None
-    from uavlink.policies.manifest import file_sha256
-    from uavlink.policies.onnx_policy import OnnxPolicy
-
-    policy = OnnxPolicy(twin)
-    if policy.manifest.get("source_policy_sha256") != file_sha256(zip_path):
-        return None
-    return policy
 
 
 def policy_for_scenario(folder: Path, scenario: str) -> Path:
