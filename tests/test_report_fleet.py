@@ -149,7 +149,7 @@ def _untrained(cfg: EnvConfig, path) -> None:
     write_zip_manifest(path, build_manifest(cfg, {}))
 
 
-@pytest.mark.slow  # about 35 s on 2 cores: 175 evaluations, seven genies of four UAVs
+@pytest.mark.slow  # about 42 s in make test's workers: 175 evaluations, seven genies of four UAVs
 def test_the_fleet_part_flies_each_size_once_and_writes_its_tables(tmp_path, monkeypatch):
     """Untrained policies (their numbers mean nothing): an any-size one (3 slots) at D = 2, 3, 4, a
     per-size one at D = 2, every baseline at D = 1 to 4, 2 episodes of 8 frames."""

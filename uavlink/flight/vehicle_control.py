@@ -64,7 +64,7 @@ def take_off_or_resume(
         return True
     if takeoff:
         link.arm()
-        link.takeoff(altitude_m, wait)
+        link.takeoff(altitude_m, wait=wait)
     return False
 
 
