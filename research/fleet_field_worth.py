@@ -22,18 +22,17 @@ import sys
 from pathlib import Path
 from typing import Any
 
-SPLIT = (
-    "straight_90",
-    "straight_180",
-    "hotspot",
-)  # where the UEs part, and the genie bar is missed
+from fleet_bars import paired_ratio, ratio_text
+
+# where the UEs part, and the genie bar is missed
+SPLIT = ("straight_90", "straight_180", "hotspot")
 COLUMNS = ("genie", "field-blind genie", "kmeans", "PPO")
 
 
-def field_blind_genie(cfg: Any) -> Any:
-    """The fleet genie of ``cfg`` (its references and grid) planning without the shadowing field."""
+def field_blind_genie(genie: Any) -> Any:
+    """A copy of the fleet genie ``genie`` (the registry's: its env, references and workers) that
+    plans without the shadowing field."""
     from uavlink.policies.genie import GeniePolicy
-    from uavlink.policies.registry import make_baseline
 
     class FieldBlindGenie(GeniePolicy):
         name = "field-blind genie"
@@ -41,15 +40,13 @@ def field_blind_genie(cfg: Any) -> Any:
         def plan(self, truth: Any) -> None:
             super().plan(dataclasses.replace(truth, shadow_field=None))
 
-    genie = make_baseline("genie", cfg)
-    assert isinstance(genie, GeniePolicy)  # the registry's genie, whose settings are copied
-    return FieldBlindGenie(cfg, genie.references, workers=genie.workers)
+    return FieldBlindGenie(genie.cfg, genie.references, workers=genie.workers)
 
 
 def run(
     fleet: Path, scenarios: tuple[str, ...], sizes: tuple[int, ...], episodes: int, seed: int
 ) -> dict[str, Any]:
-    from uavlink.evaluation import evaluate_policy, paired_ratio_ci
+    from uavlink.evaluation import evaluate_policy
     from uavlink.policies.contract import EnvOverrides, load_with_env
     from uavlink.policies.registry import make_baseline
 
@@ -58,21 +55,21 @@ def run(
         [(policy, built)] = load_with_env([fleet / f"{scenario}.zip"], EnvOverrides())
         for size in sizes:
             cfg = built.replace(n_uavs=size).validate()
+            genie = make_baseline("genie", cfg)
             flown = {
-                "genie": make_baseline("genie", cfg),
-                "field-blind genie": field_blind_genie(cfg),
+                "genie": genie,
+                "field-blind genie": field_blind_genie(genie),
                 "kmeans": make_baseline("kmeans", cfg),
                 "PPO": policy,
             }
             results = {name: evaluate_policy(p, cfg, episodes, seed) for name, p in flown.items()}
-            genie = results["genie"].episode_rate_mbps
             rows.append(
                 {
                     "scenario": scenario,
                     "n_uavs": size,
                     "mbps": {k: round(r.mean_rate_mbps, 4) for k, r in results.items()},
                     "of_genie": {
-                        k: [round(x, 4) for x in paired_ratio_ci(r.episode_rate_mbps, genie)]
+                        k: paired_ratio(r, results["genie"])
                         for k, r in results.items()
                         if k != "genie"
                     },
@@ -95,9 +92,7 @@ def markdown(report: dict[str, Any]) -> str:
     ]
     for row in report["rows"]:
         mbps = " | ".join(f"{row['mbps'][c]:.2f}" for c in COLUMNS)
-        shares = " | ".join(
-            "{:.3f} [{:.3f}, {:.3f}]".format(*row["of_genie"][c]) for c in COLUMNS[1:]
-        )
+        shares = " | ".join(ratio_text(row["of_genie"][c]) for c in COLUMNS[1:])
         lines.append(f"| {row['scenario']} | {row['n_uavs']} | {mbps} | {shares} |")
     return "\n".join(lines)
 

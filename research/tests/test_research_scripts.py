@@ -436,6 +436,7 @@ def test_fleet_field_worth_blinds_the_genie_to_the_field_alone() -> None:
         sys.path.remove(str(FOLDER))
     from uavlink.config import EnvConfig
     from uavlink.env.core import BatchedUavEnv
+    from uavlink.policies.registry import make_baseline
 
     cfg = EnvConfig(scenario="hotspot", n_uavs=2, episode_frames=8)
     cfg = cfg.replace(**{"radio.shadowing_model": "spatial"}).validate()
@@ -443,7 +444,7 @@ def test_fleet_field_worth_blinds_the_genie_to_the_field_alone() -> None:
     env.reset()
     truth = env.ground_truth()
     assert truth.shadow_field is not None
-    blind = field_blind_genie(cfg)
+    blind = field_blind_genie(make_baseline("genie", cfg))
     blind.plan(truth)
     with_field = blind.path_m.copy()
     blind.plan(dataclasses.replace(truth, shadow_field=None))
