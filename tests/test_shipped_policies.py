@@ -28,7 +28,9 @@ def test_the_checkout_ships_every_zip_with_an_onnx_twin_and_a_manifest() -> None
 
 def test_a_zip_runs_as_the_twin_exported_from_its_bytes_and_only_that_one(tmp_path) -> None:
     """Every shipped zip loads as its ONNX twin (the twin's manifest records the zip's sha256), so
-    flying or evaluating one needs no torch; a zip beside a twin of other bytes runs in SB3."""
+    flying or evaluating one needs no torch; a zip beside a twin of other bytes runs in SB3, and
+    `uavlink policies` lists that twin as stale."""
+    from uavlink.cli.policies import policy_row
     from uavlink.policies.loader import load_policy
     from uavlink.policies.onnx_policy import OnnxPolicy
     from uavlink.policies.sb3_policy import SB3Policy
@@ -40,6 +42,9 @@ def test_a_zip_runs_as_the_twin_exported_from_its_bytes_and_only_that_one(tmp_pa
     (tmp_path / "circular.zip").write_bytes((ROOT / "policies" / "circular.zip").read_bytes())
     (tmp_path / "circular.onnx").write_bytes((ROOT / "policies" / "straight.onnx").read_bytes())
     assert isinstance(load_policy(tmp_path / "circular.zip", cfg), SB3Policy)
+    (tmp_path / "circular.json").write_bytes((ROOT / "policies" / "circular.json").read_bytes())
+    listed = policy_row("circular", tmp_path / "circular.zip")["runtimes"]
+    assert listed == ["onnx: stale, uavlink export again", "sb3 [train]"]
 
 
 @pytest.mark.parametrize(

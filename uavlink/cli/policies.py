@@ -13,16 +13,20 @@ from uavlink.errors import UserError
 def policy_row(name: str, path: Path) -> dict[str, Any]:
     """One shipped policy as ``uavlink policies`` lists it: what it was built for (its manifest
     beside it), the runtimes it can fly with and its shipped evaluation figure."""
+    from uavlink.policies.loader import twin_is_current
+
     manifest = json.loads(path.with_suffix(".json").read_text())
     env = manifest["env_config"]
     scenario = env["scenario"]
     evaluation = manifest.get("evaluation", {})
     own = evaluation.get(scenario)
-    runtimes = [
-        runtime
-        for suffix, runtime in ((".onnx", "onnx [fly]"), (".zip", "sb3 [train]"))
-        if path.with_suffix(suffix).is_file()
-    ]
+    runtimes = []
+    if path.with_suffix(".onnx").is_file():
+        # a twin exported from other bytes than the zip's is never flown (policies.loader)
+        stale = path.suffix == ".zip" and twin_is_current(path) is False
+        runtimes.append("onnx: stale, uavlink export again" if stale else "onnx [fly]")
+    if path.suffix == ".zip":
+        runtimes.append("sb3 [train]")
     return {
         "name": name,
         "file": str(path),

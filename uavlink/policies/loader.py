@@ -83,6 +83,19 @@ def locate(spec: str | Path) -> str | Path:
     )
 
 
+def twin_is_current(zip_path: Path) -> bool | None:
+    """Whether the ONNX twin beside ``zip_path`` was exported from these bytes (its manifest's
+    ``source_policy_sha256``, which ``uavlink export`` writes); None where there is no twin, or no
+    onnxruntime to read it."""
+    twin = zip_path.with_suffix(".onnx")
+    if not twin.is_file() or importlib.util.find_spec("onnxruntime") is None:
+        return None
+    from uavlink.policies.manifest import file_sha256
+    from uavlink.policies.onnx_policy import OnnxPolicy
+
+    return OnnxPolicy(twin).manifest.get("source_policy_sha256") == file_sha256(zip_path)
+
+
 def load_policy(spec: str | Path, cfg: EnvConfig) -> Policy:
     """A Policy for ``spec`` (see :func:`locate`); raises PolicyFileError / ValueError with a
     one-line message."""
@@ -93,20 +106,17 @@ def load_policy(spec: str | Path, cfg: EnvConfig) -> Policy:
     if path.is_dir():
         return load_policy(policy_for_scenario(path, cfg.scenario), cfg)
     if path.suffix == ".zip":
-        twin = path.with_suffix(".onnx")
-        if twin.is_file() and importlib.util.find_spec("onnxruntime") is not None:
-            from uavlink.policies.manifest import file_sha256
+        current = twin_is_current(path)
+        if current:
             from uavlink.policies.onnx_policy import OnnxPolicy
 
-            exported = OnnxPolicy(twin)  # its manifest records the bytes it was exported from
-            if exported.manifest.get("source_policy_sha256") == file_sha256(path):
-                return exported
-            if importlib.util.find_spec("stable_baselines3") is None:
-                raise PolicyFileError(
-                    f"{path}: its ONNX twin {twin} was exported from another version of this zip, "
-                    "and stable-baselines3 (the [train] extra) is not installed to run the zip "
-                    f"itself: export it again (uavlink export {path}) where it is"
-                )
+            return OnnxPolicy(path.with_suffix(".onnx"))
+        if current is False and importlib.util.find_spec("stable_baselines3") is None:
+            raise PolicyFileError(
+                f"{path}: its ONNX twin {path.with_suffix('.onnx')} was exported from another "
+                "version of this zip, and stable-baselines3 (the [train] extra) is not installed to "
+                f"run the zip itself: export it again (uavlink export {path}) where it is"
+            )
         from uavlink.policies.sb3_policy import SB3Policy
 
         return SB3Policy(path)
