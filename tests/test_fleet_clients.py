@@ -163,6 +163,7 @@ def test_fly_one_url_carrying_both_systems(tmp_path: Path) -> None:
             [
                 *UAVLINK,
                 "fly",
+                "--no-picture",
                 "--policy",
                 "aoa",
                 "--set",

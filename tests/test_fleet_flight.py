@@ -99,7 +99,9 @@ def test_embedded_fleet_flight_matches_its_evaluation(tmp_path: Path, fleet_poli
     # fly's loop and the evaluation in this process (the fleet vehicle is a child as always): the
     # policy's torch and SB3 are imported once, not in two children (~8 s each under load)
     simulated = cli_json("evaluate", *common, "--episodes", "1", "--json")["mean_rate_mbps"]
-    flown = cli_json("fly", *common, "--out", str(tmp_path), "--json", "--speed", "20")
+    flown = cli_json(
+        "fly", "--no-picture", *common, "--out", str(tmp_path), "--json", "--speed", "20"
+    )
     assert flown["n_uavs"] == 2 and flown["frames"] == 128, flown
     assert abs(flown["mean_rate_mbps"] - simulated) <= 0.05 * simulated, (
         flown["mean_rate_mbps"],
@@ -135,6 +137,7 @@ def test_cut_vehicle_holds_while_the_other_flies_on_then_rejoins(tmp_path: Path)
     fly = [
         *UAVLINK,
         "fly",
+        "--no-picture",
         "--policy",
         "aoa",
         "--set",

@@ -159,6 +159,7 @@ def test_fleet_aoa_flight_keeps_20_m_in_transit(tmp_path: Path) -> None:
             [
                 *UAVLINK,
                 "fly",
+                "--no-picture",
                 "--policy",
                 "aoa",
                 "--set",

@@ -23,7 +23,7 @@ def run(args: list[str], timeout: float = 120) -> subprocess.CompletedProcess:
 
 
 def fly_json(tmp_path: Path, *extra: str) -> dict:
-    proc = run([*UAVLINK, "fly", "--out", str(tmp_path), "--json", *extra])
+    proc = run([*UAVLINK, "fly", "--no-picture", "--out", str(tmp_path), "--json", *extra])
     assert proc.returncode == 0, proc.stderr
     return json.loads(proc.stdout)
 
@@ -60,6 +60,7 @@ def test_sim_to_sitl_parity(tmp_path: Path, policy: str, scenario: str, seed: in
     # torch and SB3 are imported once, not in two children (~8 s each on a loaded 2-core machine)
     flown = cli_json(
         "fly",
+        "--no-picture",
         "--out",
         str(tmp_path),
         "--json",
@@ -108,6 +109,7 @@ def test_fly_status_line_quiet_when_piped(tmp_path: Path) -> None:
         [
             *UAVLINK,
             "fly",
+            "--no-picture",
             "--policy",
             "aoa",
             "--scenario",

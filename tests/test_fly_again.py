@@ -87,6 +87,7 @@ def test_two_flights_against_one_vehicle_each_fly_a_fresh_episode(tmp_path: Path
     vehicle = [f"udpout:127.0.0.1:{port}", f"udpout:127.0.0.1:{gcs_port}"]
     fly = [
         "fly",
+        "--no-picture",
         "--policy",
         str(policy),
         "--scenario",
@@ -146,6 +147,7 @@ def test_two_flights_against_one_fleet_each_fly_a_fresh_episode(tmp_path: Path) 
     ports = [free_udp_port(), free_udp_port()]
     fly = [
         "fly",
+        "--no-picture",
         "--policy",
         str(policy),
         "--scenario",
@@ -188,6 +190,7 @@ def test_fly_against_a_silent_payload_fails_with_one_line(tmp_path: Path) -> Non
     with vehicle_process(f"udpout:127.0.0.1:{port}", LOADED_SPEED, ["--no-payload"]):
         proc = run_uavlink(
             "fly",
+            "--no-picture",
             "--policy",
             "aoa",
             "--connect",
@@ -228,7 +231,7 @@ def test_ctrl_c_lands_writes_the_summary_and_exits_130(tmp_path: Path) -> None:
     """SIGINT mid-episode (the embedded vehicle): one line on stderr, exit 130, summary.json with
     `completed: false`, `interrupted: true`."""
     proc = subprocess.Popen(
-        [*UAVLINK, "fly", "--policy", "aoa", "--out", str(tmp_path), "--quiet"],
+        [*UAVLINK, "fly", "--no-picture", "--policy", "aoa", "--out", str(tmp_path), "--quiet"],
         stdout=subprocess.PIPE,
         stderr=subprocess.PIPE,
         text=True,

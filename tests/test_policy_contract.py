@@ -321,6 +321,7 @@ def test_fly_and_the_embedded_sitl_run_the_policy_env(polar_zip: Path, tmp_path:
     # fly's loop in this process (its vehicle is a child as always): no second torch import
     flown = cli_json(
         "fly",
+        "--no-picture",
         "--policy",
         str(polar_zip),
         "--scenario",

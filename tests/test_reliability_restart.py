@@ -41,6 +41,7 @@ def _fly(port: int, out: Path) -> subprocess.Popen:
             "-m",
             "uavlink.cli",
             "fly",
+            "--no-picture",
             "--connect",
             f"udpout:127.0.0.1:{port}",
             "--policy",

@@ -270,6 +270,7 @@ def test_signed_flight_ignores_ground_stations_without_the_key(tmp_path: Path) -
             [
                 *UAVLINK,
                 "fly",
+                "--no-picture",
                 "--connect",
                 f"udpout:127.0.0.1:{port}",
                 "--signing-key",
@@ -394,6 +395,7 @@ def test_a_flight_with_another_key_than_the_vehicles_fails_at_once(tmp_path: Pat
         started = time.monotonic()
         proc = run_uavlink_in_process(
             "fly",
+            "--no-picture",
             "--policy",
             "aoa",
             "--connect",

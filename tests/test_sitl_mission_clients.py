@@ -161,6 +161,7 @@ def test_client_gives_up_on_a_silent_vehicle():
 def test_fly_uploads_the_operating_area_as_fence(tmp_path: Path):
     proc = run_uavlink(
         "fly",
+        "--no-picture",
         "--policy",
         "static",
         "--frames",

@@ -104,6 +104,7 @@ def fly_through_relay(
             "-m",
             "uavlink.cli",
             "fly",
+            "--no-picture",
             "--connect",
             f"udpin:127.0.0.1:{fly_port}",
             "--policy",
