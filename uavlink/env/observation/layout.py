@@ -89,8 +89,9 @@ class ObservationLayout:
             start += field.width(self)
         return out
 
-    @property
+    @functools.cached_property
     def frame_size(self) -> int:
+        """Columns of one frame (read at every step: cached, as the names behind it are built)."""
         return sum(field.width(self) for field in self.fields)
 
     @property
