@@ -34,6 +34,8 @@ state. Rates are wall time, with the process's CPU time alongside (steadier on a
     python benchmarks/train_throughput.py --json --only fleet   # the fleet recipes only (a minute)
     python benchmarks/train_throughput.py --no-recipes --variant torch_threads=2 --variant n_epochs=1
                                                           # the default beside variants of it
+    python benchmarks/train_throughput.py --only fleet --sweeps sweeps --sweeps research/sweeps/X.toml
+                                                          # shipped recipes beside a research one
 """
 
 from __future__ import annotations
@@ -150,12 +152,13 @@ def _speed_key(cfg: EnvConfig, tc: TrainConfig) -> tuple:
     )
 
 
-def recipe_settings(sweep_dir: Path) -> list[Setting]:
-    """One Setting per distinct PPO-loop setting of the shipped sweep files, naming the recipes it covers."""
+def recipe_settings(sweeps: Path) -> list[Setting]:
+    """One Setting per distinct PPO-loop setting of the sweep files in the folder ``sweeps`` (or of
+    that one file), naming the recipes it covers."""
     from uavlink.learn.training import training_env_config
 
     found: dict[tuple, Setting] = {}
-    for path in sorted(sweep_dir.glob("*.toml")):
+    for path in sorted(sweeps.glob("*.toml")) if sweeps.is_dir() else [sweeps]:
         spec = load_spec(path)
         for scenario in spec.scenarios:
             for point in spec.points():
@@ -510,8 +513,9 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument(
         "--sweeps",
         type=Path,
-        default=ROOT / "sweeps",
-        help="folder of the sweep files whose recipes are measured (default: sweeps/)",
+        action="append",
+        help="folder of the sweep files whose recipes are measured, or one sweep file; "
+        "repeatable, side by side in one run (default: sweeps/)",
     )
     parser.add_argument(
         "--no-recipes", action="store_true", help="measure the default settings only"
@@ -535,13 +539,16 @@ def main(argv: list[str] | None = None) -> int:
     args = parser.parse_args(argv)
     if args.min_steps < 1 or args.env_seconds <= 0:
         parser.error("--min-steps and --env-seconds must be positive")
+    args.sweeps = args.sweeps or [ROOT / "sweeps"]
+    if missing := [str(path) for path in args.sweeps if not path.exists()]:
+        parser.error(f"--sweeps {', '.join(missing)}: no such folder or file")
     settings = [default_setting()]
     try:
         settings += [variant_setting(v) for v in args.variant]
     except (ValueError, ConfigError) as exc:
         parser.error(str(exc))
     if not args.no_recipes:
-        settings += recipe_settings(args.sweeps)
+        settings += [setting for path in args.sweeps for setting in recipe_settings(path)]
     if args.only is not None:
         settings = [s for s in settings if args.only in s.name]
         if not settings:

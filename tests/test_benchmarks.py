@@ -56,6 +56,10 @@ def test_train_throughput_times_every_phase_of_the_loop_and_covers_every_recipe(
     }
     specs = [load_spec(p) for p in sorted((ROOT / "sweeps").glob("*.toml"))]
     assert covered == {f"{spec.name}:{scenario}" for spec in specs for scenario in spec.scenarios}
+    one_file = bench["recipe_settings"](ROOT / "sweeps" / "fleet.toml")  # --sweeps FILE
+    assert {label.split()[0] for s in one_file for label in s.covers} == {
+        f"fleet:{scenario}" for scenario in load_spec(ROOT / "sweeps" / "fleet.toml").scenarios
+    }
     tiny = bench["Setting"](
         "tiny",
         EnvConfig(scenario="straight"),
