@@ -91,7 +91,7 @@ class ObservationLayout:
 
     @functools.cached_property
     def frame_size(self) -> int:
-        """Columns of one frame (read at every step: cached, as the names behind it are built)."""
+        """Columns of one frame; cached, as every step reads it and each field counts its names."""
         return sum(field.width(self) for field in self.fields)
 
     @property
