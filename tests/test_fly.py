@@ -56,8 +56,8 @@ def evaluate_one(policy: str, scenario: str, seed: int) -> float:
 def test_sim_to_sitl_parity(tmp_path: Path, policy: str, scenario: str, seed: int) -> None:
     """Flown through the SITL (whose payload simulates the policy's channel: the spatial policy's
     manifest carries radio.shadowing_model to it), a policy scores within 5 % of its evaluation."""
-    # fly's loop and the evaluation in this process (the vehicle is a child as always): the policy's
-    # torch and SB3 are imported once, not in two children (~8 s each on a loaded 2-core machine)
+    # fly's loop and the evaluation in this process (the vehicle is a child as always): the policy
+    # and its runtime load once, not in two children
     flown = cli_json(
         "fly",
         "--no-picture",
