@@ -13,7 +13,7 @@ from uavlink.errors import UserError
 def policy_row(name: str, path: Path) -> dict[str, Any]:
     """One shipped policy as ``uavlink policies`` lists it: what it was built for (its manifest
     beside it), the runtimes it can fly with and its shipped evaluation figure."""
-    from uavlink.policies.loader import twin_is_current
+    from uavlink.policies.loader import zip_twin
 
     manifest = json.loads(path.with_suffix(".json").read_text())
     env = manifest["env_config"]
@@ -23,7 +23,8 @@ def policy_row(name: str, path: Path) -> dict[str, Any]:
     runtimes = []
     if path.with_suffix(".onnx").is_file():
         # a twin exported from other bytes than the zip's is never flown (policies.loader)
-        stale = path.suffix == ".zip" and twin_is_current(path) is False
+        twin = zip_twin(path) if path.suffix == ".zip" else None
+        stale = twin is not None and not twin[1]
         runtimes.append("onnx: stale, uavlink export again" if stale else "onnx [fly]")
     if path.suffix == ".zip":
         runtimes.append("sb3 [train]")

@@ -18,11 +18,15 @@ import difflib
 import importlib.util
 import sys
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 from uavlink.config import MIXED, EnvConfig
 from uavlink.policies.base import Policy
 from uavlink.policies.manifest import PolicyFileError
 from uavlink.policies.registry import BASELINES, make_baseline
+
+if TYPE_CHECKING:
+    from uavlink.policies.onnx_policy import OnnxPolicy
 
 POLICY_SUFFIXES = (".zip", ".onnx")
 _PACKAGE = Path(__file__).resolve().parents[1]  # the installed or checked-out ``uavlink``
@@ -83,17 +87,18 @@ def locate(spec: str | Path) -> str | Path:
     )
 
 
-def twin_is_current(zip_path: Path) -> bool | None:
-    """Whether the ONNX twin beside ``zip_path`` was exported from these bytes (its manifest's
-    ``source_policy_sha256``, which ``uavlink export`` writes); None where there is no twin, or no
-    onnxruntime to read it."""
+def zip_twin(zip_path: Path) -> tuple[OnnxPolicy, bool] | None:
+    """The ONNX twin beside ``zip_path``, loaded, and whether it was exported from these bytes (its
+    manifest's ``source_policy_sha256``, which ``uavlink export`` writes); None where there is no
+    twin, or no onnxruntime to read it."""
     twin = zip_path.with_suffix(".onnx")
     if not twin.is_file() or importlib.util.find_spec("onnxruntime") is None:
         return None
     from uavlink.policies.manifest import file_sha256
     from uavlink.policies.onnx_policy import OnnxPolicy
 
-    return OnnxPolicy(twin).manifest.get("source_policy_sha256") == file_sha256(zip_path)
+    policy = OnnxPolicy(twin)
+    return policy, policy.manifest.get("source_policy_sha256") == file_sha256(zip_path)
 
 
 def load_policy(spec: str | Path, cfg: EnvConfig) -> Policy:
@@ -106,12 +111,10 @@ def load_policy(spec: str | Path, cfg: EnvConfig) -> Policy:
     if path.is_dir():
         return load_policy(policy_for_scenario(path, cfg.scenario), cfg)
     if path.suffix == ".zip":
-        current = twin_is_current(path)
-        if current:
-            from uavlink.policies.onnx_policy import OnnxPolicy
-
-            return OnnxPolicy(path.with_suffix(".onnx"))
-        if current is False and importlib.util.find_spec("stable_baselines3") is None:
+        twin = zip_twin(path)
+        if twin is not None and twin[1]:
+            return twin[0]
+        if twin is not None and importlib.util.find_spec("stable_baselines3") is None:
             raise PolicyFileError(
                 f"{path}: its ONNX twin {path.with_suffix('.onnx')} was exported from another "
                 "version of this zip, and stable-baselines3 (the [train] extra) is not installed to "
