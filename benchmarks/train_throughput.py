@@ -17,7 +17,10 @@ TensorBoard logs and checkpoints in a run folder) and reports
     model, fleet_slots, memory, AoA noise; the default settings': circular, fading and shadowing
     on), measured just before and just after each training measurement, and the ratio of the two
     (the target, >= 0.1x: the default settings' is ``meets_target``, every fleet recipe's
-    ``fleet_recipes_meet_target``, each row's its own ``meets_target``).
+    ``fleet_recipes_meet_target``, each row's its own ``meets_target``). With ``--repeats`` every
+    setting is measured that many times, the settings interleaved; each ratio is then the repeats'
+    mean with a 95 % interval, and ">=" is the issues' (not below with the interval: a tie meets
+    it; ``above_target`` where the whole interval clears it).
 An env step is one frame of one env (a fleet's frame moves all its UAVs: SB3's agent steps / D).
 A recipe that trains on several fleet sizes at once (``train.fleet_sizes_up_to``: n_envs episodes
 of each size side by side) counts SB3's agent steps / mean(sizes), so one frame of each of its
@@ -36,6 +39,8 @@ state. Rates are wall time, with the process's CPU time alongside (steadier on a
                                                           # the default beside variants of it
     python benchmarks/train_throughput.py --only fleet --sweeps sweeps --sweeps research/sweeps/X.toml
                                                           # shipped recipes beside a research one
+    python benchmarks/train_throughput.py --only fleet --repeats 5 --json
+                                                          # each ratio with a 95 % interval
 """
 
 from __future__ import annotations
@@ -59,6 +64,7 @@ from env_throughput import TARGET_BATCHED_N, Bench, batched_bench
 from uavlink.config import EnvConfig, TrainConfig
 from uavlink.config.train import WarmStartConfig
 from uavlink.errors import ConfigError
+from uavlink.sweep.rows import t975
 from uavlink.sweep.sweep_file import load_spec, tomllib
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -380,43 +386,91 @@ class EnvRates:
         ]
 
 
-def run(settings: list[Setting], min_steps: int, env_seconds: float, seed: int) -> dict[str, Any]:
+def measure_row(
+    setting: Setting, envs: EnvRates, min_steps: int
+) -> tuple[dict[str, Any], dict[str, Any]]:
+    """One training measurement of ``setting`` inside its bracket of env measurements: the training
+    row (``LoopTimer.report``) and the env's rates."""
+    marks = envs.before(setting)
+    row = measure_training(setting, min_steps)
+    return row, envs.after(setting, marks)
+
+
+def ratio_interval(ratios: list[float]) -> tuple[float, float, float]:
+    """The mean of the repeats' ratios and its 95 % Student-t interval (nan bounds for one)."""
+    mean = float(np.mean(ratios))
+    if len(ratios) < 2:
+        return mean, math.nan, math.nan
+    half = t975(len(ratios) - 1) * float(np.std(ratios, ddof=1)) / math.sqrt(len(ratios))
+    return mean, mean - half, mean + half
+
+
+def setting_row(
+    setting: Setting, measured: list[tuple[dict[str, Any], dict[str, Any]]]
+) -> dict[str, Any]:
+    """A setting's row from its repeats: each repeat's ratio is its training rate over the env's rate
+    in its own bracket (paired); rates and µs per step are the repeats' means. ``meets_target``: one
+    repeat at or above the target, or with repeats the interval not below it (a tie meets it: the
+    issues' ">="); ``above_target``: the whole interval above it."""
+    tc, cfg = setting.tc, setting.cfg
+    ratios = [row["env_steps_per_s"] / env["rate"] for row, env in measured]
+    ratios_cpu = [row["env_steps_per_cpu_s"] / env["rate_cpu"] for row, env in measured]
+    ratio, lo, hi = ratio_interval(ratios)
+    rows, envs = [row for row, _ in measured], [env for _, env in measured]
+
+    def mean(values: list[float]) -> float:
+        return float(np.mean(values))
+
+    return {
+        "setting": setting.name,
+        "covers": setting.covers,
+        "scenario": cfg.scenario,
+        "n_envs": tc.n_envs,
+        "n_steps": tc.n_steps,
+        "batch_size": tc.batch_size,
+        "n_epochs": tc.n_epochs,
+        "n_uavs": cfg.n_uavs,
+        "fleet_slots": cfg.fleet_slots,
+        "fleet_sizes": list(tc.fleet_sizes),
+        "agents_per_env_step": setting.agents_per_env_step,
+        "shadowing_model": cfg.radio.shadowing_model,
+        "env_steps": sum(r["env_steps"] for r in rows),
+        "rollouts": sum(r["rollouts"] for r in rows),
+        "seconds": round(sum(r["seconds"] for r in rows), 3),
+        "env_steps_per_s": round(mean([r["env_steps_per_s"] for r in rows]), 1),
+        "env_steps_per_cpu_s": round(mean([r["env_steps_per_cpu_s"] for r in rows]), 1),
+        "us_per_env_step": {
+            k: round(mean([r["us_per_env_step"][k] for r in rows]), 3)
+            for k in rows[0]["us_per_env_step"]
+        },
+        "share": {k: round(mean([r["share"][k] for r in rows]), 4) for k in rows[0]["share"]},
+        "env_n256_steps_per_s": round(mean([e["rate"] for e in envs]), 1),
+        "env_n256_steps_per_cpu_s": round(mean([e["rate_cpu"] for e in envs]), 1),
+        "env_n256_steps_per_s_by_size": {
+            str(d): round(mean([e["by_size"][d] for e in envs]), 1) for d in setting.sizes
+        },
+        "env_n256_steps_per_cpu_s_by_size": {
+            str(d): round(mean([e["by_size_cpu"][d] for e in envs]), 1) for d in setting.sizes
+        },
+        "repeats": len(measured),
+        "ratios": [round(r, 4) for r in ratios],
+        "ratio": round(ratio, 4),
+        "ratio_ci95": None if math.isnan(lo) else [round(lo, 4), round(hi, 4)],
+        "ratio_cpu": round(mean(ratios_cpu), 4),
+        "meets_target": bool((ratio if math.isnan(hi) else hi) >= TARGET_RATIO),
+        "above_target": bool((ratio if math.isnan(lo) else lo) >= TARGET_RATIO),
+    }
+
+
+def run(
+    settings: list[Setting], min_steps: int, env_seconds: float, seed: int, repeats: int = 1
+) -> dict[str, Any]:
     envs = EnvRates(env_seconds, seed)
-    rows = []
-    for setting in settings:
-        marks = envs.before(setting)
-        row = measure_training(setting, min_steps)
-        env = envs.after(setting, marks)
-        tc, cfg = setting.tc, setting.cfg
-        ratio = round(row["env_steps_per_s"] / env["rate"], 4)
-        rows.append(
-            {
-                "setting": setting.name,
-                "covers": setting.covers,
-                "scenario": cfg.scenario,
-                "n_envs": tc.n_envs,
-                "n_steps": tc.n_steps,
-                "batch_size": tc.batch_size,
-                "n_epochs": tc.n_epochs,
-                "n_uavs": cfg.n_uavs,
-                "fleet_slots": cfg.fleet_slots,
-                "fleet_sizes": list(tc.fleet_sizes),
-                "agents_per_env_step": setting.agents_per_env_step,
-                "shadowing_model": cfg.radio.shadowing_model,
-                **row,
-                "env_n256_steps_per_s": round(env["rate"], 1),
-                "env_n256_steps_per_cpu_s": round(env["rate_cpu"], 1),
-                "env_n256_steps_per_s_by_size": {
-                    str(d): round(r, 1) for d, r in env["by_size"].items()
-                },
-                "env_n256_steps_per_cpu_s_by_size": {
-                    str(d): round(r, 1) for d, r in env["by_size_cpu"].items()
-                },
-                "ratio": ratio,
-                "ratio_cpu": round(row["env_steps_per_cpu_s"] / env["rate_cpu"], 4),
-                "meets_target": ratio >= TARGET_RATIO,
-            }
-        )
+    measured: list[list[tuple[dict[str, Any], dict[str, Any]]]] = [[] for _ in settings]
+    for _ in range(repeats):  # the settings interleaved, so a slow spell of the machine hits all
+        for setting, found in zip(settings, measured, strict=True):
+            found.append(measure_row(setting, envs, min_steps))
+    rows = [setting_row(s, m) for s, m in zip(settings, measured, strict=True)]
     report: dict[str, Any] = {
         "benchmark": "train_throughput",
         "statistic": "marginal wall-time rate from the end of the first rollout's update to the end of "
@@ -424,8 +478,11 @@ def run(settings: list[Setting], min_steps: int, env_seconds: float, seed: int) 
         "the env's N = 256 rate is that of the env the setting trains in (env_throughput.py's "
         "batched env, random actions), the mean of its measurements just before and just after; "
         "for a mix of sizes, len(sizes) / sum(1 / rate_D) (equal numbers of envs of each size); "
-        "CPU-time rates alongside",
+        "CPU-time rates alongside; with repeats, each repeat's ratio is paired with its own "
+        "bracket of env measurements, the settings interleaved, and the ratio is the repeats' mean "
+        "with a 95 % Student-t interval",
         "min_steps": min_steps,
+        "repeats": repeats,
         "env_seconds": env_seconds,
         "seed": seed,
         "load_average": list(os.getloadavg()) if hasattr(os, "getloadavg") else None,
@@ -447,14 +504,23 @@ def run(settings: list[Setting], min_steps: int, env_seconds: float, seed: int) 
     fleets = [r for s, r in zip(settings, rows, strict=True) if s.is_fleet]
     if fleets:
         report["fleet_recipes_meet_target"] = all(r["meets_target"] for r in fleets)
+        report["fleet_recipes_above_target"] = all(r["above_target"] for r in fleets)
     return report
+
+
+def ratio_text(row: dict[str, Any]) -> str:
+    """A row's ratio, with its 95 % interval over the repeats where there are several."""
+    ci = row["ratio_ci95"]
+    return f"{row['ratio']:.3f}" + (f" [{ci[0]:.3f}, {ci[1]:.3f}]" if ci else "")
 
 
 def markdown(report: dict[str, Any]) -> str:
     load = report.get("load_average")
     lines = [
         f"training throughput (marginal rate after the first rollout, >= {report['min_steps']:,} env steps "
-        f"per setting; {report['machine']['cpus']} CPUs"
+        f"per setting"
+        + (f" x {report['repeats']} repeats" if report["repeats"] > 1 else "")
+        + f"; {report['machine']['cpus']} CPUs"
         + (f", load average {load[0]:.1f} at the start)" if load else ")"),
         "",
         "| setting | N | n_steps | batch | epochs | D | env steps/s | per CPU-s | env N=256/s | ratio | ratio (CPU) "
@@ -467,7 +533,7 @@ def markdown(report: dict[str, Any]) -> str:
         lines.append(
             f"| {r['setting']} | {r['n_envs']} | {r['n_steps']} | {r['batch_size']} | {r['n_epochs']} "
             f"| {d} | {r['env_steps_per_s']:,.0f} | {r['env_steps_per_cpu_s']:,.0f} "
-            f"| {r['env_n256_steps_per_s']:,.0f} | {r['ratio']:.3f} | {r['ratio_cpu']:.3f} | {us} |"
+            f"| {r['env_n256_steps_per_s']:,.0f} | {ratio_text(r)} | {r['ratio_cpu']:.3f} | {us} |"
         )
     lines.append("")
     for r in report["results"]:
@@ -488,6 +554,12 @@ def markdown(report: dict[str, Any]) -> str:
         ]
     if "fleet_recipes_meet_target" in report:
         ok = "meet" if report["fleet_recipes_meet_target"] else "do NOT all meet"
+        if report["repeats"] > 1:
+            ok += " (not below it with the 95 % interval; " + (
+                "every interval above it)"
+                if report["fleet_recipes_above_target"]
+                else "not every interval above it)"
+            )
         lines += [
             "",
             f"fleet recipes, each against its own fleet env's N = 256 rate: {ok} the target of "
@@ -532,13 +604,20 @@ def main(argv: list[str] | None = None) -> int:
         metavar="SUBSTRING",
         help="measure only the settings whose name contains this (e.g. fleet)",
     )
+    parser.add_argument(
+        "--repeats",
+        type=int,
+        default=1,
+        help="measure every setting this many times, interleaved, and give each ratio a 95 %% "
+        "interval (default 1)",
+    )
     parser.add_argument("--seed", type=int, default=0)
     parser.add_argument(
         "--json", action="store_true", help="print one JSON object instead of a table"
     )
     args = parser.parse_args(argv)
-    if args.min_steps < 1 or args.env_seconds <= 0:
-        parser.error("--min-steps and --env-seconds must be positive")
+    if args.min_steps < 1 or args.env_seconds <= 0 or args.repeats < 1:
+        parser.error("--min-steps, --env-seconds and --repeats must be positive")
     args.sweeps = args.sweeps or [ROOT / "sweeps"]
     if missing := [str(path) for path in args.sweeps if not path.exists()]:
         parser.error(f"--sweeps {', '.join(missing)}: no such folder or file")
@@ -553,7 +632,7 @@ def main(argv: list[str] | None = None) -> int:
         settings = [s for s in settings if args.only in s.name]
         if not settings:
             parser.error(f"--only {args.only!r}: no setting's name contains it")
-    report = run(settings, args.min_steps, args.env_seconds, args.seed)
+    report = run(settings, args.min_steps, args.env_seconds, args.seed, args.repeats)
     print(json.dumps(report, indent=2) if args.json else markdown(report))
     return 0
 

@@ -96,6 +96,33 @@ def test_train_throughput_times_every_phase_of_the_loop_and_covers_every_recipe(
     )
     assert [(e["n_uavs"], e["fleet_slots"]) for e in report["env_n256"]] == [(1, 0), (2, 2), (3, 2)]
     assert report["fleet_recipes_meet_target"] == report["results"][1]["meets_target"]
+    assert report["results"][0]["ratio_ci95"] is None  # one repeat: no interval
+
+
+def test_train_throughput_repeats_give_each_ratio_an_interval() -> None:
+    bench = scripts.load_script("benchmarks", "train_throughput.py")
+    from uavlink.config import EnvConfig, TrainConfig
+
+    tiny = bench["Setting"](
+        "tiny",
+        EnvConfig(scenario="straight"),
+        TrainConfig(n_envs=4, n_steps=16, batch_size=32, n_epochs=1),
+        ["test"],
+    )
+    report = bench["run"]([tiny], 100, 0.05, 0, repeats=3)
+    row = report["results"][0]
+    assert report["repeats"] == row["repeats"] == len(row["ratios"]) == 3
+    mean, lo, hi = bench["ratio_interval"](row["ratios"])
+    assert row["ratio"] == pytest.approx(mean, abs=1e-4) and lo < mean < hi
+    assert row["ratio_ci95"] == pytest.approx([lo, hi], abs=1e-4)
+    # ">=" as the issues read it: not below with the interval; "above": the whole interval clears it
+    assert row["meets_target"] == (hi >= report["target_ratio"])
+    assert row["above_target"] == (lo >= report["target_ratio"])
+    assert f"{row['ratio']:.3f} [{lo:.3f}, {hi:.3f}]" in bench["markdown"](report)
+    # the interval of known values: mean 0.1, sd 0.01, n = 4 -> 0.1 +- 3.182 x 0.005
+    assert bench["ratio_interval"]([0.09, 0.1, 0.1, 0.11]) == pytest.approx(
+        (0.1, 0.1 - 0.0130, 0.1 + 0.0130), abs=2e-4
+    )
 
 
 def test_gc_pause_a_frozen_heap_makes_a_full_collection_short() -> None:
