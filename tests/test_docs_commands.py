@@ -110,3 +110,36 @@ def test_the_api_pages_python_runs_and_prints_what_the_cli_prints(monkeypatch) -
         cli,
     )
     assert 4.0 < float(printed[1]) < 8.0, printed
+
+
+FLEET_PAGE = "docs/guides/fleets.md"
+
+
+@pytest.mark.slow  # flies a fleet episode, and the CLI's evaluation of it
+def test_the_fleet_guides_python_flies_a_shipped_policy_as_evaluate_does(monkeypatch) -> None:
+    """The fleet guide's blocks: a PettingZoo episode of the shipped any-size hotspot policy at D = 3
+    gives the figure its comment quotes, which is `uavlink evaluate`'s for the same episode."""
+    monkeypatch.chdir(ROOT)
+    text = (ROOT / FLEET_PAGE).read_text()
+    blocks = re.findall(r"```python\n(.*?)```", text, re.S)
+    assert len(blocks) == 2
+    out = io.StringIO()
+    with contextlib.redirect_stdout(out):
+        for block in blocks:
+            exec(compile(block, FLEET_PAGE, "exec"), {})  # noqa: S102 - the page's own code
+    printed = out.getvalue().split("\n")
+    assert printed[0] == "['uav_0', 'uav_1']"
+    [quoted] = re.findall(r"# (\d+\.\d{6}) Mbps, as the evaluation", text)
+    cli = cli_json(
+        "evaluate",
+        "--policy",
+        "fleet/hotspot",
+        "--set",
+        "n_uavs=3",
+        "--episodes",
+        "1",
+        "--seed",
+        "0",
+        "--json",
+    )
+    assert float(printed[1]) == float(quoted) == cli["mean_rate_mbps"], (printed, quoted, cli)
