@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import json
 import os
+import re
 import signal
 import socket
 import subprocess
@@ -182,7 +183,6 @@ def test_sweep_on_scheduler_and_two_workers(tmp_path: Path, cluster_factory, cap
                 cluster.address,
                 "--out-root",
                 str(out),
-                "--no-progress",
             ]
         )
         == 0
@@ -191,6 +191,9 @@ def test_sweep_on_scheduler_and_two_workers(tmp_path: Path, cluster_factory, cap
     keys = {job.key for job in spec.jobs()}
     results = _results(out / "tiny4")
     assert len(keys) == 4 and {r["key"] for r in results.values()} == keys
+    # stderr is no terminal here: a line per finished job, as the jobs come back from the workers
+    err = capsys.readouterr().err
+    assert sorted(re.findall(r"^job (\S+) done \(\d/4\)", err, re.M)) == sorted(results), err
 
     # Every job ran exactly once, and both worker processes ran some.
     events = cluster.events()
@@ -205,8 +208,13 @@ def test_sweep_on_scheduler_and_two_workers(tmp_path: Path, cluster_factory, cap
     assert "| straight | 2/2 |" in summary and (out / "tiny4" / "throughput.png").is_file()
 
     # The same jobs run one after another in this process, without Dask: the same figures.
-    sequential = run_sweep(spec, tmp_path / "seq", workers=0, progress=False, log=lambda _: None)
+    # Its stderr is no terminal (pytest's capture): no bar, a line per finished job instead.
+    lines: list[str] = []
+    sequential = run_sweep(spec, tmp_path / "seq", workers=0, log=lines.append)
     assert sequential.finished == 4
+    done = [line for line in lines if line.startswith("job ")]
+    assert [line.split(" done (")[1].split(")")[0] for line in done] == ["1/4", "2/4", "3/4", "4/4"]
+    assert all(re.search(r"PPO \d+\.\d{3} Mbps on \d+ episodes of seed 0, ", x) for x in done)
     for name, result in _results(tmp_path / "seq" / "tiny4").items():
         assert result["worker"]["address"] == "in-process"
         assert figures(result) == figures(results[name])

@@ -149,5 +149,9 @@ def add_sweep_parser(sub) -> None:
     p.add_argument(
         "--dry-run", action="store_true", help="list the jobs and whether each is done, run nothing"
     )
-    p.add_argument("--no-progress", action="store_true", help="no progress bar")
+    p.add_argument(
+        "--no-progress",
+        action="store_true",
+        help="no progress bar (on a terminal) nor a line per finished job (in a log or a pipe)",
+    )
     p.set_defaults(func=cmd_sweep)

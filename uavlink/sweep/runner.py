@@ -126,7 +126,7 @@ def run_sweep(
     else:
         begin()
         if pending:
-            _run_in_process(pending, sweep_dir, outcome, progress)
+            _run_in_process(pending, sweep_dir, outcome, progress, log)
     outcome.wall_s = time.perf_counter() - start
     return outcome
 
@@ -148,10 +148,15 @@ def _check_address(scheduler: str) -> None:
 
 
 def _run_in_process(
-    pending: list[Job], sweep_dir: Path, outcome: SweepOutcome, progress: bool
+    pending: list[Job],
+    sweep_dir: Path,
+    outcome: SweepOutcome,
+    progress: bool,
+    log: Callable[[str], None],
 ) -> None:
     outcome.engine = "in-process, sequential"
     bar = _bar(len(pending), progress)
+    done_line = _done_lines(bar, progress, len(pending), log)
     try:
         for job in pending:
             bar.set_postfix_str(f"running {job.name}")
@@ -161,6 +166,7 @@ def _run_in_process(
                 _record_failure(sweep_dir, job, exc, traceback.format_exc(), outcome, bar)
             else:
                 _record_success(sweep_dir, payload, outcome)
+                done_line(outcome, payload)
             bar.update(1)
     except KeyboardInterrupt:
         outcome.interrupted = True
@@ -239,6 +245,7 @@ def _run_on_dask(
     by_key: dict[Key, Job] = {}
     futures = []
     bar = _bar(len(pending), progress)
+    done_line = _done_lines(bar, progress, len(pending), log)
     try:
         for job in pending:
             future = client.submit(
@@ -252,7 +259,9 @@ def _run_on_dask(
         while not queue.is_empty():
             batch = queue.next_batch(block=False)
             for future in batch:
-                _collect(future, by_key[future.key], sweep_dir, outcome, bar)
+                payload = _collect(future, by_key[future.key], sweep_dir, outcome, bar)
+                if payload is not None:
+                    done_line(outcome, payload)
                 remaining.discard(future)
                 bar.update(1)
             if time.monotonic() - last_poll > 1.0 or batch:
@@ -278,7 +287,11 @@ def _run_on_dask(
                 cluster.close(timeout=10)
 
 
-def _collect(future: Any, job: Job, sweep_dir: Path, outcome: SweepOutcome, bar: Any) -> None:
+def _collect(
+    future: Any, job: Job, sweep_dir: Path, outcome: SweepOutcome, bar: Any
+) -> dict[str, Any] | None:
+    """Record a settled future's job; its result's payload if it finished, else None."""
+    payload = None
     if future.status == "finished":
         try:
             payload = future.result()
@@ -286,12 +299,14 @@ def _collect(future: Any, job: Job, sweep_dir: Path, outcome: SweepOutcome, bar:
             _record_failure(sweep_dir, job, exc, "", outcome, bar)
         else:
             _record_success(sweep_dir, payload, outcome)
-        future.release()
-        return
-    error = future.exception() if future.status == "error" else RuntimeError(f"job {future.status}")
-    tb = "".join(traceback.format_tb(future.traceback())) if future.status == "error" else ""
-    _record_failure(sweep_dir, job, error, tb, outcome, bar)
+    else:
+        error = (
+            future.exception() if future.status == "error" else RuntimeError(f"job {future.status}")
+        )
+        tb = "".join(traceback.format_tb(future.traceback())) if future.status == "error" else ""
+        _record_failure(sweep_dir, job, error, tb, outcome, bar)
     future.release()
+    return payload
 
 
 def _record_success(sweep_dir: Path, payload: dict[str, Any], outcome: SweepOutcome) -> None:
@@ -325,6 +340,25 @@ def _running(client: Any, remaining: set[Any]) -> int:
         min(sum(1 for k in tasks if k in keys), threads.get(w, 1))
         for w, tasks in processing.items()
     )
+
+
+def _done_lines(
+    bar: Any, progress: bool, total: int, log: Callable[[str], None]
+) -> Callable[[SweepOutcome, dict[str, Any]], None]:
+    """Where no bar shows (stderr is a log or a pipe) a long sweep would be silent for hours: one
+    line per finished job there instead, with its PPO figure; nothing with ``progress`` off."""
+
+    def done_line(outcome: SweepOutcome, payload: dict[str, Any]) -> None:
+        if not progress or not bar.disable:
+            return
+        ppo = payload["evaluation"]["ppo"]
+        log(
+            f"job {payload['name']} done ({outcome.finished}/{total}): PPO {ppo['mean_rate_mbps']:.3f}"
+            f" Mbps on {ppo['episodes']} episodes of seed {ppo['seed']}, "
+            f"{payload['timing']['job_s'] / 60:.1f} min"
+        )
+
+    return done_line
 
 
 def _bar(total: int, progress: bool) -> Any:
