@@ -168,6 +168,10 @@ def test_train_cli_resumes_from_checkpoint(tmp_path: Path) -> None:
     )
     assert second.returncode == 0, second.stderr
     assert "\r" not in second.stderr, "no progress bar when stderr is not a terminal"
+    # a line at every tenth of the budget instead, from where the checkpoint left off (8 of 16 episodes)
+    lines = [line for line in second.stderr.splitlines() if line.startswith("train: ")]
+    assert [line.split(" %")[0] for line in lines] == [f"train: {p}" for p in range(60, 101, 10)]
+    assert lines[-1].startswith("train: 100 % (2,048 of 2,048 steps), ") and " Mbps, " in lines[-1]
     assert "no_move: " in second.stdout and " Mbps " in second.stdout  # its evaluation, printed
     training = read_zip_manifest(out)["training"]
     assert training["total_timesteps"] == 16 * 128

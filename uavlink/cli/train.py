@@ -116,5 +116,9 @@ def add_train_parser(sub) -> None:
         default=100,
         help="evaluate after training into the manifest (default 100; 0: skip)",
     )
-    p.add_argument("--no-progress", action="store_true", help="no progress bar")
+    p.add_argument(
+        "--no-progress",
+        action="store_true",
+        help="no progress bar (on a terminal) nor a line at every tenth of the budget (in a log)",
+    )
     p.set_defaults(func=cmd_train)

@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import json
 import logging
+import sys
 import time
 from collections.abc import Iterator, Sequence
 from contextlib import contextmanager
@@ -213,7 +214,8 @@ def _callback(total: int, run_dir: Path | None, checkpoint_every: int, progress:
     from stable_baselines3.common.callbacks import BaseCallback
 
     class TrainingMonitor(BaseCallback):
-        """Progress bar with the mean episode throughput, learning curve, periodic checkpoint."""
+        """Progress bar with the mean episode throughput (on a terminal; in a log or a pipe a line
+        at every tenth of the budget instead), learning curve, periodic checkpoint."""
 
         def __init__(self) -> None:
             super().__init__()
@@ -221,6 +223,8 @@ def _callback(total: int, run_dir: Path | None, checkpoint_every: int, progress:
             self._bar = None
             self._next_checkpoint = checkpoint_every
             self._csv: Any = None
+            self._next_line: int | None = None  # steps at which the next log line is due
+            self._start = time.perf_counter()
 
         def _on_training_start(self) -> None:
             if run_dir is not None and self.logger.dir:
@@ -234,13 +238,15 @@ def _callback(total: int, run_dir: Path | None, checkpoint_every: int, progress:
                 from tqdm.auto import tqdm
 
                 # disable=None: no bar when stderr is not a terminal (logs, pipes, CI)
-                self._bar = tqdm(
+                self._bar = bar = tqdm(
                     total=total,
                     initial=self.num_timesteps,
                     unit="step",
                     dynamic_ncols=True,
                     disable=None,
                 )
+                if bar.disable:  # hours of silence in a log otherwise
+                    self._next_line = self._tenth_after(self.num_timesteps)
 
         def _on_step(self) -> bool:
             # Fixed-length episodes end together: look at the infos only on a step where some did.
@@ -259,10 +265,29 @@ def _callback(total: int, run_dir: Path | None, checkpoint_every: int, progress:
             if self._bar is not None:
                 self._bar.n = min(self.num_timesteps, total)
                 self._bar.refresh() if self.num_timesteps % 4096 < self.training_env.num_envs else None
+            if self._next_line is not None and self.num_timesteps >= self._next_line:
+                self._log_line()
             if run_dir is not None and self.num_timesteps >= self._next_checkpoint:
                 save_checkpoint(self.model, run_dir)
                 self._next_checkpoint += checkpoint_every
             return True
+
+        def _log_line(self) -> None:
+            steps = min(self.num_timesteps, total)
+            rate = f", {self.curve[-1][1]:.2f} Mbps" if self.curve else ""
+            minutes = (time.perf_counter() - self._start) / 60
+            print(
+                f"train: {100 * steps // total} % ({steps:,} of {total:,} steps){rate}, "
+                f"{minutes:.1f} min",
+                file=sys.stderr,
+                flush=True,
+            )
+            self._next_line = None if steps >= total else self._tenth_after(steps)
+
+        @staticmethod
+        def _tenth_after(steps: int) -> int:
+            """The first step of the next tenth of the budget after ``steps`` (k x total / 10, up)."""
+            return -(-(steps * 10 // total + 1) * total // 10)
 
         def _on_training_end(self) -> None:
             if self._bar is not None:
