@@ -275,7 +275,9 @@ def test_results_folder_has_the_tables_and_figures_and_is_reproducible(tmp_path,
     # the spatial part plans a genie per episode: more than the default 120 s on a loaded machine
     proc = uavlink(*command, "--out", str(b), "--spatial", str(root / "policies"), timeout=360)
     assert proc.returncode == 0, proc.stderr[-2000:]
-    assert "evaluating" not in proc.stderr  # stderr is a pipe here: no progress lines in logs
+    # stderr is a pipe here: no status line rewritten in place, a line per step of the report
+    lines = [line for line in proc.stderr.splitlines() if line.startswith("evaluating ")]
+    assert "\r" not in proc.stderr and len(lines) == len(set(lines)) >= len(SCENARIOS), lines
     table1 = (a / "table1.csv").read_text().splitlines()
     assert len(table1) == 1 + len(SCENARIOS) and all(
         row.split(",")[0] in SCENARIOS for row in table1[1:]
@@ -311,13 +313,18 @@ def test_results_folder_has_the_tables_and_figures_and_is_reproducible(tmp_path,
     assert "## On the spatial channel" not in markdown
 
 
-def test_report_progress_is_one_line_on_a_terminal_and_quiet_elsewhere(monkeypatch, capsys):
+def test_report_progress_is_one_line_on_a_terminal_and_lines_or_quiet_elsewhere(monkeypatch, capsys):
     from uavlink.cli.evaluate import StatusLine
 
     quiet = StatusLine()  # pytest captures stderr: not a terminal
     quiet.show("evaluating no_move: ppo")
     quiet.close()
     assert capsys.readouterr().err == ""
+    logged = StatusLine(log_lines=True)  # the results report's, in a log: a line per message
+    logged.show("evaluating no_move: ppo")
+    logged.show("evaluating no_move: static")
+    logged.close()
+    assert capsys.readouterr().err == "evaluating no_move: ppo\nevaluating no_move: static\n"
     monkeypatch.setattr(sys.stderr, "isatty", lambda: True)
     live = StatusLine()
     live.show("evaluating no_move: ppo")

@@ -185,7 +185,7 @@ def _write_results_folder(args: argparse.Namespace) -> int:
             )
         ]
 
-    status = StatusLine()
+    status = StatusLine(log_lines=True)  # the report runs for hours: a log says how far it got
     try:
         run = ReportRun(
             args.episodes,
@@ -214,16 +214,19 @@ def _write_results_folder(args: argparse.Namespace) -> int:
 
 
 class StatusLine:
-    """One line of progress on stderr, rewritten in place; quiet when stderr is not a terminal
-    (logs, pipes, CI), like the training and sweep bars (tqdm's ``disable=None``)."""
+    """One line of progress on stderr, rewritten in place; where stderr is not a terminal (logs,
+    pipes, CI) quiet, or with ``log_lines`` one line per message, as the training and sweep print
+    where their bars do not show (for work that runs for hours, such as the results report)."""
 
-    def __init__(self) -> None:
-        self.live, self.shown = sys.stderr.isatty(), False
+    def __init__(self, log_lines: bool = False) -> None:
+        self.live, self.shown, self.log_lines = sys.stderr.isatty(), False, log_lines
 
     def show(self, message: str) -> None:
         if self.live:
             print(f"\r\033[K{message}", end="", file=sys.stderr, flush=True)
             self.shown = True
+        elif self.log_lines:
+            print(message, file=sys.stderr, flush=True)
 
     def close(self) -> None:
         if self.shown:
