@@ -313,7 +313,9 @@ def test_results_folder_has_the_tables_and_figures_and_is_reproducible(tmp_path,
     assert "## On the spatial channel" not in markdown
 
 
-def test_report_progress_is_one_line_on_a_terminal_and_lines_or_quiet_elsewhere(monkeypatch, capsys):
+def test_report_progress_is_one_line_on_a_terminal_and_lines_or_quiet_elsewhere(
+    monkeypatch, capsys
+):
     from uavlink.cli.evaluate import StatusLine
 
     quiet = StatusLine()  # pytest captures stderr: not a terminal
