@@ -104,7 +104,7 @@ def test_cloned_actor_flies_like_its_teacher() -> None:
 
 
 @pytest.mark.slow
-def test_train_with_warm_start_records_it_and_starts_from_the_rule(tmp_path: Path) -> None:
+def test_train_with_warm_start_records_it_and_starts_from_the_rule(tmp_path: Path, capsys) -> None:
     out = tmp_path / "ws.zip"
     code = main(
         [
@@ -125,12 +125,14 @@ def test_train_with_warm_start_records_it_and_starts_from_the_rule(tmp_path: Pat
             "16",
             "--eval-episodes",
             "0",
-            "--no-progress",
             "--run-dir",
             str(tmp_path / "run"),
         ]
     )
     assert code == 0
+    # the copy runs before PPO's first step: its start and end are said (stderr: a line each)
+    err = capsys.readouterr().err
+    assert "warm start: copying aoa (16 episodes)\nwarm start: done in " in err, err
     warm = read_zip_manifest(out)["training"]["warm_start"]
     assert warm["teacher"] == "aoa" and warm["samples"] == 16 * CFG.episode_frames
     assert json.loads(out.with_suffix(".json").read_text())["training"]["warm_start"] == warm

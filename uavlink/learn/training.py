@@ -382,7 +382,22 @@ def train(
     start = time.perf_counter()  # the wall time counts the warm start too
     cloned = None
     if (tc.warm_start.teacher or tc.warm_start.policy) and resume is None:
+        ws = tc.warm_start
+        if progress:  # a copy with DAgger rounds runs for minutes before PPO's first step
+            rounds = f", {ws.dagger_rounds} DAgger rounds" if ws.dagger_rounds else ""
+            source = (
+                f"from {ws.policy}"
+                if ws.policy
+                else f"copying {ws.teacher} ({ws.episodes} episodes{rounds})"
+            )
+            print(f"warm start: {source}", file=sys.stderr, flush=True)
         cloned = _warm_start(model.policy, training_env_config(cfg, tc), tc)
+        if progress:
+            print(
+                f"warm start: done in {(time.perf_counter() - start) / 60:.1f} min",
+                file=sys.stderr,
+                flush=True,
+            )
     if run_dir is None:
         # Without a run folder SB3 would make an empty one under the temp dir for every run.
         from stable_baselines3.common.logger import Logger
