@@ -111,12 +111,23 @@ def _int_in(low: int, high: int) -> Callable[[str], int]:
     return parse
 
 
+def _version() -> str:
+    """The installed distribution's version (sitl_stub ships inside uavlink's)."""
+    from importlib.metadata import PackageNotFoundError, version
+
+    try:
+        return version("uavlink")
+    except PackageNotFoundError:  # run from a source tree that was never installed
+        return "(not installed)"
+
+
 def build_parser() -> argparse.ArgumentParser:
     p = OneLineParser(
         prog=PROG,
         description="A lightweight PX4-style SITL multicopter speaking "
         "MAVLink 2, with a radio payload component.",
     )
+    p.add_argument("--version", action="version", version=f"{PROG} {_version()}")
     p.add_argument(
         "--connect",
         type=_connection,

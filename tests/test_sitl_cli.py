@@ -48,6 +48,15 @@ def test_help_lists_every_scenario_the_cli_accepts(capsys: pytest.CaptureFixture
         assert build_parser().parse_args(["--scenario", scenario]).scenario == scenario
 
 
+def test_version_is_the_distributions_as_uavlinks(capsys: pytest.CaptureFixture[str]) -> None:
+    import uavlink
+
+    with pytest.raises(SystemExit) as exited:
+        main(["--version"])
+    assert exited.value.code == 0
+    assert capsys.readouterr().out == f"sitl-stub {uavlink.__version__}\n"
+
+
 @pytest.mark.parametrize("extra", [[], ["--fleet", "2"]])
 def test_lockstep_without_the_radio_payload_is_refused_in_one_line(capsys, extra) -> None:
     line = _one_line_error(capsys, ["--no-payload", "--lockstep", *extra])
