@@ -270,6 +270,37 @@ def test_sweep_on_scheduler_and_two_workers(tmp_path: Path, cluster_factory, cap
     assert {p.name: p.read_bytes() for p in policies.iterdir()} == shipped
 
 
+@pytest.mark.slow  # trains one small job three times
+def test_a_job_stopped_mid_training_continues_from_its_snapshot_to_the_same_figures(
+    tmp_path: Path,
+) -> None:
+    from support.interrupt import stopping_at
+
+    from uavlink.learn.training import train
+    from uavlink.sweep.jobs import run_job
+    from uavlink.sweep.sweep_file import tomllib
+
+    longer = TINY.replace("episodes = 4\nn_envs", "episodes = 12\nn_envs")
+    job = parse_spec(tomllib.loads(longer)).jobs()[0]
+    whole = run_job(job.to_dict())  # 3 rollouts of 4 envs x 128 frames
+    folder = tmp_path / "sweep"
+    folder.mkdir()
+    snapshot = folder / f"{job.name}.snapshot"
+    with pytest.raises(KeyboardInterrupt):  # as a worker killed at the third rollout's start
+        train(
+            job.env,
+            job.train,
+            tmp_path / "cut.zip",
+            progress=False,
+            snapshot=snapshot,
+            snapshot_every_s=0.0,
+            callbacks=[stopping_at(3)],
+        )
+    assert snapshot.is_file()
+    continued = run_job(job.to_dict(), str(folder))
+    assert figures(continued) == figures(whole) and not snapshot.exists()
+
+
 @pytest.mark.slow
 @pytest.mark.timeout(120)
 def test_worker_killed_mid_job_is_retried_elsewhere(tmp_path: Path, cluster_factory) -> None:

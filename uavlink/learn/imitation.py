@@ -198,7 +198,9 @@ def critic_warmup_callback(rollouts: int):
                 param.requires_grad_(not frozen)
 
         def _on_training_start(self) -> None:
-            self._set_frozen(rollouts > 0)
+            # frozen until rollout rollouts + 1 has ended (a run continued from a snapshot may
+            # start past that)
+            self._set_frozen(rollouts > 0 and self.rollouts_done <= rollouts)
 
         def _on_rollout_end(self) -> None:
             self.rollouts_done += 1

@@ -22,6 +22,8 @@ wrapper's base class).
 
 from __future__ import annotations
 
+import inspect
+
 import gymnasium as gym
 import numpy as np
 from stable_baselines3.common.vec_env.base_vec_env import VecEnv, VecEnvStepReturn, VecEnvWrapper
@@ -85,6 +87,17 @@ class PrivilegedVecEnv(VecEnvWrapper):
             np.concatenate([space.low, low]), np.concatenate([space.high, high]), dtype=np.float32
         )
         super().__init__(venv, observation_space=wide)
+
+    def __getstate__(self) -> dict:
+        # SB3's VecEnvWrapper keeps its class's members (a mappingproxy among them), which do not
+        # pickle; a training snapshot (uavlink.learn.snapshot) pickles the env stack
+        state = self.__dict__.copy()
+        del state["class_attributes"]
+        return state
+
+    def __setstate__(self, state: dict) -> None:
+        self.__dict__.update(state)
+        self.class_attributes = dict(inspect.getmembers(self.__class__))
 
     def _widen(self, obs: np.ndarray, truth: GroundTruth) -> np.ndarray:
         return np.concatenate([obs, privileged_columns(truth, self.cfg)], axis=1)

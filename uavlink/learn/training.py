@@ -24,11 +24,11 @@ from uavlink.config import (
     EnvConfig,
     TrainConfig,
 )
+from uavlink.learn.monitor import save_checkpoint, training_monitor
 
 __all__ = [
     "check_checkpoint",
     "make_model",
-    "save_checkpoint",
     "time_to_fraction",
     "train",
     "training_env_config",
@@ -202,108 +202,6 @@ def _resumed(
     )
 
 
-def save_checkpoint(model: Any, run_dir: Path) -> Path:
-    """``run_dir``/checkpoint.zip, written whole (to a partial file, then renamed)."""
-    checkpoint, partial = run_dir / "checkpoint.zip", run_dir / "checkpoint.partial.zip"
-    model.save(partial)
-    partial.replace(checkpoint)
-    return checkpoint
-
-
-def _callback(total: int, run_dir: Path | None, checkpoint_every: int, progress: bool):
-    from stable_baselines3.common.callbacks import BaseCallback
-
-    class TrainingMonitor(BaseCallback):
-        """Progress bar with the mean episode throughput (on a terminal; in a log or a pipe a line
-        at every tenth of the budget instead), learning curve, periodic checkpoint."""
-
-        def __init__(self) -> None:
-            super().__init__()
-            self.curve: list[tuple[int, float]] = []
-            self._bar = None
-            self._next_checkpoint = checkpoint_every
-            self._csv: Any = None
-            self._next_line: int | None = None  # steps at which the next log line is due
-            self._start = time.perf_counter()
-
-        def _on_training_start(self) -> None:
-            if run_dir is not None and self.logger.dir:
-                # Beside TensorBoard's events (RUN_DIR/ppo_N), the same per-update records as a
-                # table: train/explained_variance, train/value_loss, rollout/mean_rate_mbps, ...
-                from stable_baselines3.common.logger import CSVOutputFormat
-
-                self._csv = CSVOutputFormat(str(Path(self.logger.dir) / "progress.csv"))
-                self.logger.output_formats.append(self._csv)
-            if progress:
-                from tqdm.auto import tqdm
-
-                # disable=None: no bar when stderr is not a terminal (logs, pipes, CI)
-                self._bar = bar = tqdm(
-                    total=total,
-                    initial=self.num_timesteps,
-                    unit="step",
-                    dynamic_ncols=True,
-                    disable=None,
-                )
-                if bar.disable:  # hours of silence in a log otherwise
-                    self._next_line = self._tenth_after(self.num_timesteps)
-
-        def _on_step(self) -> bool:
-            # Fixed-length episodes end together: look at the infos only on a step where some did.
-            done = self.locals["dones"].any()
-            rates = (
-                [i["episode"]["mean_rate_mbps"] for i in self.locals["infos"] if "episode" in i]
-                if done
-                else []
-            )
-            if rates:
-                mean = float(np.mean(rates))
-                self.curve.append((int(self.num_timesteps), round(mean, 4)))
-                self.logger.record("rollout/mean_rate_mbps", mean)
-                if self._bar is not None:
-                    self._bar.set_postfix_str(f"{mean:.2f} Mbps")
-            if self._bar is not None:
-                self._bar.n = min(self.num_timesteps, total)
-                self._bar.refresh() if self.num_timesteps % 4096 < self.training_env.num_envs else None
-            if self._next_line is not None and self.num_timesteps >= self._next_line:
-                self._log_line()
-            if run_dir is not None and self.num_timesteps >= self._next_checkpoint:
-                save_checkpoint(self.model, run_dir)
-                self._next_checkpoint += checkpoint_every
-            return True
-
-        def _log_line(self) -> None:
-            steps = min(self.num_timesteps, total)
-            rate = f", {self.curve[-1][1]:.2f} Mbps" if self.curve else ""
-            minutes = (time.perf_counter() - self._start) / 60
-            print(
-                f"train: {100 * steps // total} % ({steps:,} of {total:,} steps){rate}, "
-                f"{minutes:.1f} min",
-                file=sys.stderr,
-                flush=True,
-            )
-            self._next_line = None if steps >= total else self._tenth_after(steps)
-
-        @staticmethod
-        def _tenth_after(steps: int) -> int:
-            """The first step of the next tenth of the budget after ``steps`` (k x total / 10, up)."""
-            return -(-(steps * 10 // total + 1) * total // 10)
-
-        def _on_training_end(self) -> None:
-            if self._bar is not None:
-                self._bar.n = min(self.num_timesteps, total)
-                self._bar.close()
-            # SB3 writes an update's records (train/...) when the next rollout's are written: the
-            # last update's would be lost
-            self.logger.record("time/total_timesteps", self.num_timesteps)
-            self.logger.dump(self.num_timesteps)
-            if self._csv is not None:
-                self.logger.output_formats.remove(self._csv)
-                self._csv.close()
-
-    return TrainingMonitor()
-
-
 def time_to_fraction(
     curve: list[tuple[int, float]], fraction: float = 0.95, window: int = 10
 ) -> int | None:
@@ -369,19 +267,32 @@ def train(
     resume: Path | None = None,
     progress: bool = True,
     callbacks: Sequence[Any] = (),
+    snapshot: Path | None = None,
+    snapshot_every_s: float = 60.0,
 ) -> dict[str, Any]:
     """Train, save ``out`` (SB3 zip with manifest) and return the manifest's training section.
     ``tc`` is validated against ``cfg`` here, so a bad setting fails before any work. ``callbacks``:
-    extra SB3 callbacks that only observe (benchmarks/train_throughput.py times the loop with one)."""
+    extra SB3 callbacks that only observe (benchmarks/train_throughput.py times the loop with one).
+    ``snapshot``: a file the run writes between rollouts (every ``snapshot_every_s`` of wall time)
+    and, when it is there at the start, continues from, to the weights the uninterrupted run gives
+    (uavlink/learn/snapshot.py); removed once ``out`` is written."""
     from uavlink.policies.manifest import build_manifest, write_zip_manifest
 
     tc.validate(cfg)
+    if snapshot is not None and (tc.validation_episodes or resume is not None):
+        raise ValueError("a training snapshot holds no validation state and no --resume")
+    snapped = None
+    if snapshot is not None:
+        from uavlink.learn.snapshot import read_snapshot
+
+        snapped = read_snapshot(snapshot, cfg, tc)
     model = make_model(cfg, tc, run_dir)
     if resume is not None:
         model = _resumed(model, resume, cfg, tc, run_dir)
-    start = time.perf_counter()  # the wall time counts the warm start too
-    cloned = None
-    if (tc.warm_start.teacher or tc.warm_start.policy) and resume is None:
+    # the wall time counts the warm start too, and a snapshot's time before it was taken
+    start = time.perf_counter() - (snapped["elapsed_s"] if snapped else 0.0)
+    cloned = snapped["warm_start"] if snapped else None
+    if (tc.warm_start.teacher or tc.warm_start.policy) and resume is None and snapped is None:
         ws = tc.warm_start
         if progress:  # a copy with DAgger rounds runs for minutes before PPO's first step
             rounds = f", {ws.dagger_rounds} DAgger rounds" if ws.dagger_rounds else ""
@@ -406,24 +317,49 @@ def train(
     if run_dir is not None:  # made once the inputs have loaded: a bad one leaves no empty folder
         run_dir.mkdir(parents=True, exist_ok=True)
     total_timesteps = tc.total_timesteps(cfg)
-    monitor = _callback(total_timesteps, run_dir, tc.checkpoint_every_steps, progress)
+    monitor = training_monitor(total_timesteps, run_dir, tc.checkpoint_every_steps, progress)
     callbacks = [monitor, *callbacks]
+    warmup = None
     if cloned is not None:
         from uavlink.learn.imitation import critic_warmup_callback
 
-        callbacks.append(critic_warmup_callback(tc.warm_start.critic_rollouts))
+        warmup = critic_warmup_callback(tc.warm_start.critic_rollouts)
+        callbacks.append(warmup)
     keep_best = None
     if tc.validation_episodes:
         from uavlink.learn.selection import keep_best_callback
 
         keep_best = keep_best_callback(cfg, tc.validation_episodes, tc.seed)
         callbacks.append(keep_best)  # last: the weights it leaves are the ones saved
+    if snapshot is not None:
+        from uavlink.learn.snapshot import restore_model, snapshot_callback
+
+        def carried() -> dict[str, Any]:
+            return {
+                "elapsed_s": time.perf_counter() - start,
+                "warm_start": cloned,
+                "curve": list(monitor.curve),
+                "next_checkpoint": monitor._next_checkpoint,
+                "warmup_rollouts": warmup.rollouts_done if warmup is not None else 0,
+            }
+
+        callbacks.append(snapshot_callback(snapshot, cfg, tc, carried, snapshot_every_s))
+        if snapped is not None:
+            monitor.curve[:] = snapped["curve"]
+            monitor._next_checkpoint = snapped["next_checkpoint"]
+            if warmup is not None:
+                warmup.rollouts_done = snapped["warmup_rollouts"]
+            model = restore_model(snapped)  # last: it sets the global random states
+            if run_dir is None:
+                from stable_baselines3.common.logger import Logger
+
+                model.set_logger(Logger(folder=None, output_formats=[]))
     try:
         with _without_distribution_checks():
             model.learn(
                 total_timesteps=total_timesteps - model.num_timesteps,
                 callback=callbacks,
-                reset_num_timesteps=resume is None,
+                reset_num_timesteps=resume is None and snapped is None,
                 tb_log_name="ppo",
             )
     except KeyboardInterrupt:
@@ -456,4 +392,6 @@ def train(
     tmp.with_suffix(".json").replace(out.with_suffix(".json"))
     if run_dir is not None:
         (run_dir / "training.json").write_text(json.dumps(training, indent=2))
+    if snapshot is not None:
+        snapshot.unlink(missing_ok=True)
     return training

@@ -29,8 +29,11 @@ RESULT_FORMAT = "uavlink-sweep-result-v1"
 RUN_FIELDS = ("worker", "timing")
 
 
-def run_job(job_data: dict[str, Any]) -> dict[str, Any]:
-    """Train and evaluate one job; returns the payload ``write_job`` stores."""
+def run_job(job_data: dict[str, Any], snapshot_dir: str | None = None) -> dict[str, Any]:
+    """Train and evaluate one job; returns the payload ``write_job`` stores. With ``snapshot_dir``
+    (a folder this worker can write: the sweep's own on a local cluster) the training keeps a
+    snapshot there, ``<job>.snapshot``, and a job that finds one continues from it to the same
+    figures (uavlink/learn/snapshot.py): a sweep stopped mid-job loses a minute, not the job."""
     start, cpu_start = time.perf_counter(), time.process_time()
     job = Job.from_dict(job_data)
     _trace("start", job.key)
@@ -56,7 +59,12 @@ def run_job(job_data: dict[str, Any]) -> dict[str, Any]:
     with tempfile.TemporaryDirectory(prefix=f"uavlink-{job.key}-") as tmp:
         path = Path(tmp) / "policy.zip"
         t0 = time.perf_counter()
-        training = train(cfg, tc, path, run_dir=None, progress=False)
+        snapshot = (
+            Path(snapshot_dir) / f"{job.name}.snapshot"
+            if snapshot_dir and not tc.validation_episodes  # a snapshot holds no validation state
+            else None
+        )
+        training = train(cfg, tc, path, run_dir=None, progress=False, snapshot=snapshot)
         train_s = time.perf_counter() - t0
         policy_bytes = path.read_bytes()
         manifest = read_zip_manifest(path)

@@ -161,7 +161,7 @@ def _run_in_process(
         for job in pending:
             bar.set_postfix_str(f"running {job.name}")
             try:
-                payload = run_job(job.to_dict())
+                payload = run_job(job.to_dict(), str(sweep_dir.resolve()))
             except Exception as exc:  # noqa: BLE001 - a failed job must not stop the sweep
                 _record_failure(sweep_dir, job, exc, traceback.format_exc(), outcome, bar)
             else:
@@ -242,6 +242,8 @@ def _run_on_dask(
         )
         log(f"dashboard: {client.dashboard_link}{hint}")
 
+    # The local cluster's workers write the sweep's folder; a remote scheduler's may not see it.
+    snapshots = None if scheduler else str(sweep_dir.resolve())
     by_key: dict[Key, Job] = {}
     futures = []
     bar = _bar(len(pending), progress)
@@ -249,7 +251,12 @@ def _run_on_dask(
     try:
         for job in pending:
             future = client.submit(
-                run_job, job.to_dict(), key=f"uavlink-sweep-{job.key}", pure=False, retries=retries
+                run_job,
+                job.to_dict(),
+                snapshots,
+                key=f"uavlink-sweep-{job.key}",
+                pure=False,
+                retries=retries,
             )
             by_key[future.key] = job
             futures.append(future)

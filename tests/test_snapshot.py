@@ -1,0 +1,91 @@
+"""Training snapshots (uavlink/learn/snapshot.py): a run stopped between rollouts and continued from
+its snapshot ends with the uninterrupted run's weights and learning curve, bit for bit."""
+
+from __future__ import annotations
+
+import pickle
+from pathlib import Path
+
+import numpy as np
+import pytest
+from support.interrupt import stopping_at
+
+from uavlink.config import EnvConfig, TrainConfig
+from uavlink.config.train import WarmStartConfig
+from uavlink.errors import UserError
+from uavlink.learn.training import train
+
+pytestmark = pytest.mark.slow  # trains four tiny runs
+
+FLEET = EnvConfig(scenario="straight", n_uavs=2, fleet_slots=3, episode_frames=16)
+ONE = EnvConfig(scenario="circular", episode_frames=16)
+
+
+def _fleet_settings(cfg: EnvConfig) -> TrainConfig:
+    """Sizes 2-4 side by side, the privileged critic, a kmeans copy with a 2-rollout critic warm-up."""
+    return TrainConfig(
+        n_envs=2,
+        n_steps=16,
+        batch_size=32,
+        n_epochs=2,
+        episodes=2 * 3 * 8,
+        fleet_sizes_up_to=4,
+        critic="privileged",
+        warm_start=WarmStartConfig(teacher="kmeans", episodes=6, epochs=2, critic_rollouts=2),
+        seed=3,
+    ).validate(cfg)
+
+
+def _weights(path: Path) -> dict[str, np.ndarray]:
+    from stable_baselines3 import PPO
+
+    return {k: v.numpy() for k, v in PPO.load(path, device="cpu").policy.state_dict().items()}
+
+
+@pytest.mark.parametrize(
+    ("cfg", "settings", "stop_at"),
+    [
+        (FLEET, _fleet_settings, 3),  # within the critic's warm-up (the actor frozen)
+        (FLEET, _fleet_settings, 6),  # past it
+        (ONE, lambda cfg: TrainConfig(n_envs=4, n_steps=16, batch_size=32, episodes=32, seed=1), 4),
+    ],
+)
+def test_a_run_continued_from_its_snapshot_is_the_uninterrupted_run(
+    tmp_path: Path, cfg: EnvConfig, settings, stop_at: int
+) -> None:
+    cfg = cfg.validate()
+    tc = settings(cfg)
+    whole = train(cfg, tc, tmp_path / "whole.zip", progress=False)
+    snapshot = tmp_path / "run.snapshot"
+    with pytest.raises(KeyboardInterrupt):
+        train(
+            cfg,
+            tc,
+            tmp_path / "cut.zip",
+            progress=False,
+            snapshot=snapshot,
+            snapshot_every_s=0.0,  # at every rollout's start
+            callbacks=[stopping_at(stop_at)],
+        )
+    assert snapshot.is_file() and not (tmp_path / "cut.zip").exists()
+    continued = train(cfg, tc, tmp_path / "cut.zip", progress=False, snapshot=snapshot)
+    assert not snapshot.exists()  # the run finished: its snapshot is gone
+    a, b = _weights(tmp_path / "whole.zip"), _weights(tmp_path / "cut.zip")
+    assert a.keys() == b.keys() and all(np.array_equal(a[k], b[k]) for k in a)
+    for key in ("learning_curve", "total_timesteps", "warm_start", "steps_to_95pct_final"):
+        assert continued[key] == whole[key], key
+
+
+def test_a_snapshot_of_another_training_or_no_snapshot_is_refused_in_one_line(
+    tmp_path: Path,
+) -> None:
+    cfg = ONE.validate()
+    tc = TrainConfig(n_envs=4, n_steps=16, batch_size=32, episodes=16, seed=1)
+    snapshot = tmp_path / "run.snapshot"
+    snapshot.write_bytes(pickle.dumps({"format": "uavlink-train-snapshot-v1", "key": "other"}))
+    with pytest.raises(UserError, match="a snapshot of another training"):
+        train(cfg, tc, tmp_path / "p.zip", progress=False, snapshot=snapshot)
+    snapshot.write_bytes(b"not a pickle")
+    with pytest.raises(UserError, match="not a training snapshot"):
+        train(cfg, tc, tmp_path / "p.zip", progress=False, snapshot=snapshot)
+    assert snapshot.read_bytes() == b"not a pickle"  # left as it was
