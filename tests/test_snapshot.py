@@ -89,3 +89,36 @@ def test_a_snapshot_of_another_training_or_no_snapshot_is_refused_in_one_line(
     with pytest.raises(UserError, match="not a training snapshot"):
         train(cfg, tc, tmp_path / "p.zip", progress=False, snapshot=snapshot)
     assert snapshot.read_bytes() == b"not a pickle"  # left as it was
+
+
+def test_uavlink_train_snapshot_continues_a_stopped_run_and_refuses_resume(
+    tmp_path: Path, capsys
+) -> None:
+    from uavlink.cli import main
+
+    args = ["train", "--scenario", "circular", "--set", "episode_frames=16", "--n-envs", "4"]
+    args += ["--n-steps", "16", "--batch-size", "32", "--episodes", "32", "--seed", "1"]
+    args += ["--eval-episodes", "0", "--no-progress"]
+    assert main([*args, "--out", str(tmp_path / "whole.zip")]) == 0
+    # a run stopped at its third rollout, as `uavlink train --snapshot FILE` builds it
+    cfg = ONE.replace(scenario="circular").validate()
+    tc = TrainConfig(n_envs=4, n_steps=16, batch_size=32, episodes=32, seed=1)
+    snapshot = tmp_path / "snaps" / "run.snapshot"  # its folder is made
+    with pytest.raises(KeyboardInterrupt, match="the same command again"):
+        train(
+            cfg,
+            tc,
+            tmp_path / "cut.zip",
+            progress=False,
+            snapshot=snapshot,
+            snapshot_every_s=0.0,
+            callbacks=[stopping_at(3)],
+        )
+    capsys.readouterr()
+    assert main([*args, "--out", str(tmp_path / "cut.zip"), "--snapshot", str(snapshot)]) == 0
+    assert f"continuing from the snapshot {snapshot}" in capsys.readouterr().err
+    a, b = _weights(tmp_path / "whole.zip"), _weights(tmp_path / "cut.zip")
+    assert all(np.array_equal(a[k], b[k]) for k in a) and not snapshot.exists()
+    refused = [*args, "--out", str(tmp_path / "r.zip"), "--snapshot", str(snapshot)]
+    assert main([*refused, "--resume", str(tmp_path / "whole.zip")]) == 2
+    assert "--snapshot continues a run exactly" in capsys.readouterr().err

@@ -38,6 +38,17 @@ def cmd_train(args: argparse.Namespace) -> int:
     require("stable_baselines3")
     if args.resume is not None:
         check_checkpoint(args.resume, cfg, tc)
+    if args.snapshot is not None:
+        if args.resume is not None or tc.validation_episodes:
+            raise UserError(
+                "--snapshot continues a run exactly; it cannot start from --resume or keep the "
+                "--validation-episodes selection's state"
+            )
+        output_file(args.snapshot, "--snapshot", ())
+        from uavlink.learn.snapshot import read_snapshot
+
+        if read_snapshot(args.snapshot, cfg, tc) is not None:
+            print(f"continuing from the snapshot {args.snapshot}", file=sys.stderr)
     run_dir = output_folder(
         args.run_dir or Path("runs") / f"{args.out.stem}-seed{tc.seed}", "--run-dir"
     )
@@ -46,7 +57,15 @@ def cmd_train(args: argparse.Namespace) -> int:
         f"TensorBoard logs and checkpoint in {run_dir}",
         file=sys.stderr,
     )
-    training = train(cfg, tc, args.out, run_dir, resume=args.resume, progress=not args.no_progress)
+    training = train(
+        cfg,
+        tc,
+        args.out,
+        run_dir,
+        resume=args.resume,
+        progress=not args.no_progress,
+        snapshot=args.snapshot,
+    )
     print(
         f"saved {args.out} ({training['total_timesteps']:,} steps in {training['wall_time_s']:.0f} s)"
     )
@@ -109,6 +128,15 @@ def add_train_parser(sub) -> None:
         help="continue from a checkpoint (RUN_DIR/checkpoint.zip, written every --checkpoint-every-steps "
         "and on Ctrl-C) or a policy zip this command saved; the PPO settings are this "
         "command's",
+    )
+    p.add_argument(
+        "--snapshot",
+        type=Path,
+        default=None,
+        metavar="FILE",
+        help="keep a snapshot of the run here (between rollouts, every minute); when FILE is "
+        "there, continue from it to the weights the uninterrupted run gives (run the same "
+        "command again after Ctrl-C or a crash); removed once the policy is saved",
     )
     p.add_argument(
         "--eval-episodes",

@@ -89,6 +89,7 @@ def save_snapshot(
         "python_rng": random.getstate(),
         **extra,
     }
+    path.parent.mkdir(parents=True, exist_ok=True)
     partial = path.with_name(path.name + ".partial")
     with partial.open("wb") as f:
         pickle.dump(state, f, protocol=pickle.HIGHEST_PROTOCOL)

@@ -363,13 +363,18 @@ def train(
                 tb_log_name="ppo",
             )
     except KeyboardInterrupt:
-        if run_dir is None:
+        kept = []
+        if snapshot is not None and snapshot.is_file():
+            kept.append(f"the snapshot {snapshot} continues this run exactly: the same command again")
+        if run_dir is not None:
+            checkpoint = save_checkpoint(model, run_dir)
+            kept.append(
+                f"checkpoint at {model.num_timesteps:,} steps in {checkpoint}; "
+                f"--resume {checkpoint} continues"
+            )
+        if not kept:
             raise
-        checkpoint = save_checkpoint(model, run_dir)
-        raise KeyboardInterrupt(
-            f"checkpoint at {model.num_timesteps:,} steps in {checkpoint}; "
-            f"--resume {checkpoint} continues"
-        ) from None
+        raise KeyboardInterrupt("; ".join(kept)) from None
     wall_s = time.perf_counter() - start
     out.parent.mkdir(parents=True, exist_ok=True)
     tmp = out.with_name(out.stem + ".partial.zip")
