@@ -8,7 +8,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from support.interrupt import stopping_at
+from support.interrupt import cut_training
 
 from uavlink.config import EnvConfig, TrainConfig
 from uavlink.config.train import WarmStartConfig
@@ -57,16 +57,7 @@ def test_a_run_continued_from_its_snapshot_is_the_uninterrupted_run(
     tc = settings(cfg)
     whole = train(cfg, tc, tmp_path / "whole.zip", progress=False)
     snapshot = tmp_path / "run.snapshot"
-    with pytest.raises(KeyboardInterrupt):
-        train(
-            cfg,
-            tc,
-            tmp_path / "cut.zip",
-            progress=False,
-            snapshot=snapshot,
-            snapshot_every_s=0.0,  # at every rollout's start
-            callbacks=[stopping_at(stop_at)],
-        )
+    cut_training(cfg, tc, tmp_path / "cut.zip", snapshot, stop_at)
     assert snapshot.is_file() and not (tmp_path / "cut.zip").exists()
     continued = train(cfg, tc, tmp_path / "cut.zip", progress=False, snapshot=snapshot)
     assert not snapshot.exists()  # the run finished: its snapshot is gone
@@ -104,16 +95,7 @@ def test_uavlink_train_snapshot_continues_a_stopped_run_and_refuses_resume(
     cfg = ONE.replace(scenario="circular").validate()
     tc = TrainConfig(n_envs=4, n_steps=16, batch_size=32, episodes=32, seed=1)
     snapshot = tmp_path / "snaps" / "run.snapshot"  # its folder is made
-    with pytest.raises(KeyboardInterrupt, match="the same command again"):
-        train(
-            cfg,
-            tc,
-            tmp_path / "cut.zip",
-            progress=False,
-            snapshot=snapshot,
-            snapshot_every_s=0.0,
-            callbacks=[stopping_at(3)],
-        )
+    cut_training(cfg, tc, tmp_path / "cut.zip", snapshot, 3)
     capsys.readouterr()
     assert main([*args, "--out", str(tmp_path / "cut.zip"), "--snapshot", str(snapshot)]) == 0
     assert f"continuing from the snapshot {snapshot}" in capsys.readouterr().err

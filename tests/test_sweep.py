@@ -274,9 +274,8 @@ def test_sweep_on_scheduler_and_two_workers(tmp_path: Path, cluster_factory, cap
 def test_a_job_stopped_mid_training_continues_from_its_snapshot_to_the_same_figures(
     tmp_path: Path,
 ) -> None:
-    from support.interrupt import stopping_at
+    from support.interrupt import cut_training
 
-    from uavlink.learn.training import train
     from uavlink.sweep.jobs import run_job
     from uavlink.sweep.sweep_file import tomllib
 
@@ -286,16 +285,7 @@ def test_a_job_stopped_mid_training_continues_from_its_snapshot_to_the_same_figu
     folder = tmp_path / "sweep"
     folder.mkdir()
     snapshot = folder / f"{job.name}.snapshot"
-    with pytest.raises(KeyboardInterrupt):  # as a worker killed at the third rollout's start
-        train(
-            job.env,
-            job.train,
-            tmp_path / "cut.zip",
-            progress=False,
-            snapshot=snapshot,
-            snapshot_every_s=0.0,
-            callbacks=[stopping_at(3)],
-        )
+    cut_training(job.env, job.train, tmp_path / "cut.zip", snapshot, 3)
     assert snapshot.is_file()
     continued = run_job(job.to_dict(), str(folder))
     assert figures(continued) == figures(whole) and not snapshot.exists()

@@ -23,3 +23,22 @@ def stopping_at(rollout: int) -> Any:
             return True
 
     return Stop()
+
+
+def cut_training(cfg: Any, tc: Any, out: Any, snapshot: Any, rollout: int) -> None:
+    """``train`` with a snapshot at every rollout's start, stopped when rollout ``rollout`` starts
+    (as a killed process would be): the snapshot of the rollout before it is left."""
+    import pytest
+
+    from uavlink.learn.training import train
+
+    with pytest.raises(KeyboardInterrupt, match="the same command again"):
+        train(
+            cfg,
+            tc,
+            out,
+            progress=False,
+            snapshot=snapshot,
+            snapshot_every_s=0.0,
+            callbacks=[stopping_at(rollout)],
+        )
