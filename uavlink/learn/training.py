@@ -365,7 +365,9 @@ def train(
     except KeyboardInterrupt:
         kept = []
         if snapshot is not None and snapshot.is_file():
-            kept.append(f"the snapshot {snapshot} continues this run exactly: the same command again")
+            kept.append(
+                f"the snapshot {snapshot} continues this run exactly: the same command again"
+            )
         if run_dir is not None:
             checkpoint = save_checkpoint(model, run_dir)
             kept.append(
