@@ -3,8 +3,8 @@
 A thin face over ``BatchedUavEnv(n_envs=1)``: agent ``uav_d`` is the core's agent row d, so its
 observation is the per-UAV layout its config declares (``ObservationLayout.for_config``: v1 for
 D = 1, v2 for a fleet of its size, v6 for any size with ``fleet_slots``) and one parameter-shared
-policy serves every agent. Every agent gets the team reward (the normalised R_fair of all UEs); no state
-is terminal; every agent is truncated at frame ``episode_frames`` and ``agents`` is emptied then,
+policy serves every agent. Every agent gets the team reward (the normalised R_fair of all UEs); no
+state is terminal; every agent is truncated at frame ``episode_frames`` and ``agents`` is emptied then,
 as PettingZoo's Parallel API asks (https://pettingzoo.farama.org/api/parallel/ and pettingzoo
 1.27's ``ParallelEnv`` and ``pettingzoo.test.parallel_api_test``). Seeding follows the
 Gymnasium face (``uavlink.env.gym_env.UavBsEnv``): ``reset(seed=S)`` replays the same episode,

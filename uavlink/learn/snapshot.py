@@ -15,8 +15,8 @@ run continued from it is the uninterrupted run, weight for weight:
   warm start's report, which the manifest records.
 
 It is taken where a rollout starts (the last update done, the rollout buffer empty) and only after
-the first update. A sweep's jobs write one (``uavlink.sweep.jobs``), so a sweep stopped mid-job,
-or a session that ends, loses a minute rather than the job. Not for a run that keeps its best
+the first update. A sweep's jobs write one (``uavlink.sweep.jobs``), so a sweep stopped mid-job
+(Ctrl-C, a killed worker, a machine taken away) loses a minute rather than the job. Not for a run that keeps its best
 validated weights (``TrainConfig.validation_episodes``), whose selection state it does not hold.
 """
 
@@ -36,7 +36,13 @@ import numpy as np
 from uavlink.config import EnvConfig, TrainConfig
 from uavlink.errors import UserError
 
-__all__ = ["SNAPSHOT_FORMAT", "read_snapshot", "restore_model", "snapshot_callback"]
+__all__ = [
+    "SNAPSHOT_FORMAT",
+    "read_snapshot",
+    "restore_model",
+    "save_snapshot",
+    "snapshot_callback",
+]
 
 SNAPSHOT_FORMAT = "uavlink-train-snapshot-v1"
 
@@ -57,7 +63,7 @@ def read_snapshot(path: Path, cfg: EnvConfig, tc: TrainConfig) -> dict[str, Any]
         raise UserError(f"{path}: not a training snapshot ({type(exc).__name__})") from None
     if not isinstance(state, dict) or state.get("format") != SNAPSHOT_FORMAT:
         raise UserError(f"{path}: not a training snapshot")
-    if state["key"] != _training_key(cfg, tc):
+    if state.get("key") != _training_key(cfg, tc):
         raise UserError(
             f"{path}: a snapshot of another training (other env or train settings): "
             "remove it to start afresh"
