@@ -453,7 +453,7 @@ def setting_row(
             str(d): round(mean([e["by_size_cpu"][d] for e in envs]), 1) for d in setting.sizes
         },
         "repeats": len(measured),
-        "ratios": [round(r, 4) for r in ratios],
+        "ratios": [round(r, 6) for r in ratios],
         "ratio": round(ratio, 4),
         "ratio_ci95": None if math.isnan(lo) else [round(lo, 4), round(hi, 4)],
         "ratio_cpu": round(mean(ratios_cpu), 4),

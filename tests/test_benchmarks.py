@@ -112,6 +112,7 @@ def test_train_throughput_repeats_give_each_ratio_an_interval() -> None:
     report = bench["run"]([tiny], 100, 0.05, 0, repeats=3)
     row = report["results"][0]
     assert report["repeats"] == row["repeats"] == len(row["ratios"]) == 3
+    # the ratios to 6 decimals, the reported mean and interval to 4: equal within the rounding
     mean, lo, hi = bench["ratio_interval"](row["ratios"])
     assert row["ratio"] == pytest.approx(mean, abs=1e-4) and lo < mean < hi
     assert row["ratio_ci95"] == pytest.approx([lo, hi], abs=1e-4)
