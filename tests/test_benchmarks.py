@@ -119,7 +119,8 @@ def test_train_throughput_repeats_give_each_ratio_an_interval() -> None:
     # ">=" as the issues read it: not below with the interval; "above": the whole interval clears it
     assert row["meets_target"] == (hi >= report["target_ratio"])
     assert row["above_target"] == (lo >= report["target_ratio"])
-    assert f"{row['ratio']:.3f} [{lo:.3f}, {hi:.3f}]" in bench["markdown"](report)
+    low, high = row["ratio_ci95"]
+    assert f"{row['ratio']:.3f} [{low:.3f}, {high:.3f}]" in bench["markdown"](report)
     # the interval of known values: mean 0.1, sd 0.01, n = 4 -> 0.1 +- 3.182 x 0.005
     assert bench["ratio_interval"]([0.09, 0.1, 0.1, 0.11]) == pytest.approx(
         (0.1, 0.1 - 0.0130, 0.1 + 0.0130), abs=2e-4
