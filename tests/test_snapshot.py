@@ -67,6 +67,29 @@ def test_a_run_continued_from_its_snapshot_is_the_uninterrupted_run(
         assert continued[key] == whole[key], key
 
 
+def test_a_continued_run_logs_to_its_run_folder_from_where_it_stopped(tmp_path: Path) -> None:
+    from tensorboard.backend.event_processing.event_accumulator import EventAccumulator
+
+    cfg = ONE.validate()
+    tc = TrainConfig(n_envs=4, n_steps=16, batch_size=32, episodes=32, seed=1)
+    snapshot = tmp_path / "run.snapshot"
+    cut_training(cfg, tc, tmp_path / "p.zip", snapshot, 4, run_dir=tmp_path / "stopped")
+    train(
+        cfg,
+        tc,
+        tmp_path / "p.zip",
+        run_dir=tmp_path / "continued",
+        progress=False,
+        snapshot=snapshot,
+    )
+    steps: set[int] = set()
+    for events in (tmp_path / "continued").rglob("events.out.tfevents.*"):
+        log = EventAccumulator(str(events))
+        log.Reload()
+        steps |= {s.step for s in log.Scalars("rollout/ep_rew_mean")}
+    assert max(steps) == tc.total_timesteps(cfg) and min(steps) > 128  # the rollouts after the cut
+
+
 def test_a_snapshot_of_another_training_or_no_snapshot_is_refused_in_one_line(
     tmp_path: Path,
 ) -> None:

@@ -25,7 +25,7 @@ def stopping_at(rollout: int) -> Any:
     return Stop()
 
 
-def cut_training(cfg: Any, tc: Any, out: Any, snapshot: Any, rollout: int) -> None:
+def cut_training(cfg: Any, tc: Any, out: Any, snapshot: Any, rollout: int, **train_kwargs) -> None:
     """``train`` with a snapshot at every rollout's start, stopped when rollout ``rollout`` starts
     (as a killed process would be): the snapshot of the rollout before it is left."""
     import pytest
@@ -41,4 +41,5 @@ def cut_training(cfg: Any, tc: Any, out: Any, snapshot: Any, rollout: int) -> No
             snapshot=snapshot,
             snapshot_every_s=0.0,
             callbacks=[stopping_at(rollout)],
+            **train_kwargs,
         )

@@ -102,13 +102,15 @@ def save_snapshot(
     partial.replace(path)
 
 
-def restore_model(state: dict[str, Any]) -> Any:
-    """The PPO model of ``state`` on its env, with the global random states as they were; call it
-    last before ``learn``, as building anything that draws from torch or numpy would move them."""
+def restore_model(state: dict[str, Any], tensorboard_log: str | None) -> Any:
+    """The PPO model of ``state`` on its env, logging to ``tensorboard_log`` (this run's folder, not
+    the stopped one's), with the global random states as they were; call it after building anything
+    that draws from torch or numpy, which would move them."""
     import torch
     from stable_baselines3 import PPO
 
     model = PPO.load(io.BytesIO(state["model"]), env=None, device="cpu")
+    model.tensorboard_log = tensorboard_log
     env = pickle.loads(state["env"])  # noqa: S301 - our own snapshot
     if state["normalize"] is not None:
         normalize = pickle.loads(state["normalize"])  # noqa: S301 - our own snapshot

@@ -287,6 +287,11 @@ def train(
 
         snapped = read_snapshot(snapshot, cfg, tc)
     model = make_model(cfg, tc, run_dir)
+    if snapped is not None:
+        from uavlink.learn.snapshot import restore_model
+
+        # it sets the global random states: nothing from here to `learn` draws from them
+        model = restore_model(snapped, tensorboard_log=model.tensorboard_log)
     if resume is not None:
         model = _resumed(model, resume, cfg, tc, run_dir)
     # the wall time counts the warm start too, and a snapshot's time before it was taken
@@ -332,7 +337,7 @@ def train(
         keep_best = keep_best_callback(cfg, tc.validation_episodes, tc.seed)
         callbacks.append(keep_best)  # last: the weights it leaves are the ones saved
     if snapshot is not None:
-        from uavlink.learn.snapshot import restore_model, snapshot_callback
+        from uavlink.learn.snapshot import snapshot_callback
 
         def carried() -> dict[str, Any]:
             return {
@@ -349,11 +354,6 @@ def train(
             monitor._next_checkpoint = snapped["next_checkpoint"]
             if warmup is not None:
                 warmup.rollouts_done = snapped["warmup_rollouts"]
-            model = restore_model(snapped)  # last: it sets the global random states
-            if run_dir is None:
-                from stable_baselines3.common.logger import Logger
-
-                model.set_logger(Logger(folder=None, output_formats=[]))
     try:
         with _without_distribution_checks():
             model.learn(
