@@ -173,6 +173,24 @@ def test_fly_refuses_bad_policy_before_arming(tmp_path: Path, policy: str, messa
     assert not (tmp_path / "flight.tlog").exists(), "nothing was flown"
 
 
+def test_fly_on_a_port_another_program_holds_says_so_in_one_line(tmp_path: Path) -> None:
+    """QGroundControl listens on 14550, the default: a second listener there is the user's to move."""
+    import socket
+
+    with socket.socket(socket.AF_INET, socket.SOCK_DGRAM) as holder:
+        holder.bind(("127.0.0.1", 0))
+        port = holder.getsockname()[1]
+        proc = run(
+            [*UAVLINK, "fly", "--policy", "aoa", "--connect", f"udpin:127.0.0.1:{port}"]
+            + ["--out", str(tmp_path)],
+            timeout=60,
+        )
+    assert proc.returncode == 2 and "Traceback" not in proc.stderr, proc.stderr
+    [line] = proc.stderr.strip().splitlines()
+    assert f"cannot open udpin:127.0.0.1:{port}" in line and "another ground station" in line
+    assert not (tmp_path / "flight.tlog").exists(), "nothing was flown"
+
+
 class _BadPolicy:
     name, layout, needs_truth = "bad", None, False
 

@@ -32,7 +32,7 @@ from collections.abc import Callable, Sequence
 from pathlib import Path
 from typing import Any, BinaryIO, Protocol
 
-from uavlink.errors import LinkError
+from uavlink.errors import LinkError, UserError
 from uavlink.flight.link.vehicle_status import VehicleStatus
 from uavlink.mavlink import radio_codec as radio
 from uavlink.mavlink.connection import normalize_connection
@@ -96,9 +96,15 @@ class VehicleLink:
                 raise ValueError(f"{name} must be in 1..255, got {value}")
         self.url = normalize_connection(url)
         # ``connection``: another link's (one URL carrying several systems; see ``group``)
-        self.conn = connection or mavutil.mavlink_connection(
-            self.url, source_system=system_id, source_component=component_id, dialect="common"
-        )
+        try:
+            self.conn = connection or mavutil.mavlink_connection(
+                self.url, source_system=system_id, source_component=component_id, dialect="common"
+            )
+        except OSError as exc:  # e.g. a ground station (QGroundControl: 14550) holds the port
+            raise UserError(
+                f"cannot open {self.url}: {exc.strerror or exc} "
+                "(another ground station on this port? pick another with --connect)"
+            ) from None
         self._owns_conn = connection is None
         self.group: _Group | None = None
         self.signing: SigningGuard | None = None
