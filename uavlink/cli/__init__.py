@@ -1,4 +1,4 @@
-"""The uavlink command line: train | evaluate | fly | plot | export | sweep | keygen.
+"""The uavlink command line: train | evaluate | fly | plot | export | sweep | keygen | policies.
 
 A module per command (``evaluate``, ``train``, ``export``, ``sweep``, ``keygen``, ``fly``, ``plot``:
 each declares its options and imports what runs it, such as ``uavlink.flight.fly``, when it runs)
