@@ -45,6 +45,19 @@ def subcommands(parser: argparse.ArgumentParser) -> dict[str, argparse.ArgumentP
     return {}
 
 
+def _default(action: argparse.Action) -> Any:
+    """An option's default as the table shows it: blank where it has none (None, a flag's False,
+    SUPPRESS; 0 and 0.0 are shown, ``0 == False`` notwithstanding), the form in effect for a
+    ``--x/--no-x`` pair, blank for the other flags (``store_true``, ``store_const``, ``count``)."""
+    default = action.default
+    if default is None or default is False or default is argparse.SUPPRESS:
+        return ""
+    if isinstance(action, argparse.BooleanOptionalAction):
+        on, off = (o for o in action.option_strings if o.startswith("--"))
+        return on if default else off
+    return "" if action.nargs == 0 else default
+
+
 def _options_table(parser: argparse.ArgumentParser) -> list[str]:
     formatter = parser._get_formatter()  # noqa: SLF001
     rows = ["| option | value | default | what |", "|---|---|---|---|"]
@@ -60,8 +73,7 @@ def _options_table(parser: argparse.ArgumentParser) -> list[str]:
             value = formatter._format_args(action, action.dest)  # noqa: SLF001
         else:
             value = ""
-        default = action.default
-        shown = "" if default in (None, False, argparse.SUPPRESS) or action.nargs == 0 else default
+        shown = _default(action)
         help_text = formatter._expand_help(action) if action.help else ""  # noqa: SLF001
         rows.append(
             f"| {_code(_cell(names))} | {_code(_cell(value))} | {_code(_cell(shown))} "
@@ -154,14 +166,19 @@ def env_choices() -> dict[str, tuple[str, ...]]:
 def _range(meta: Any, choices: tuple[str, ...] | None = None) -> str:
     choices = meta.get("choices") or choices
     if choices:
-        return ", ".join(f"`{c}`" for c in choices)
+        return ", ".join(f"`{c}`" if c else "`''` (none)" for c in choices)
     low, high = meta.get("low"), meta.get("high")
     if low is None and high is None:
         return ""
     left = "(" if meta.get("low_open") else "["
-    return (
-        f"{left}{'-inf' if low is None else f'{low:g}'}, {'inf' if high is None else f'{high:g}'}]"
-    )
+    return f"{left}{_bound(low, '-inf')}, {_bound(high, 'inf')}]"
+
+
+def _bound(value: Any, unbounded: str) -> str:
+    """A range's end: an int exactly (a seed's 2147483647, not 2.14748e+09), a float by ``:g``."""
+    if value is None:
+        return unbounded
+    return str(value) if isinstance(value, int) else f"{value:g}"
 
 
 def _type_name(hint: Any) -> str:
