@@ -3,6 +3,7 @@ its snapshot ends with the uninterrupted run's weights and learning curve, bit f
 
 from __future__ import annotations
 
+import dataclasses
 import pickle
 from pathlib import Path
 
@@ -103,6 +104,9 @@ def test_a_snapshot_of_another_training_or_no_snapshot_is_refused_in_one_line(
     with pytest.raises(UserError, match="not a training snapshot"):
         train(cfg, tc, tmp_path / "p.zip", progress=False, snapshot=snapshot)
     assert snapshot.read_bytes() == b"not a pickle"  # left as it was
+    keeps_best = dataclasses.replace(tc, validation_episodes=4)
+    with pytest.raises(UserError, match="cannot start from --resume or keep the --validation"):
+        train(cfg, keeps_best, tmp_path / "p.zip", progress=False, snapshot=snapshot)
 
 
 def test_uavlink_train_snapshot_continues_a_stopped_run_and_refuses_resume(

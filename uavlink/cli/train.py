@@ -38,15 +38,11 @@ def cmd_train(args: argparse.Namespace) -> int:
     require("stable_baselines3")
     if args.resume is not None:
         check_checkpoint(args.resume, cfg, tc)
-    if args.snapshot is not None:
-        if args.resume is not None or tc.validation_episodes:
-            raise UserError(
-                "--snapshot continues a run exactly; it cannot start from --resume or keep the "
-                "--validation-episodes selection's state"
-            )
-        output_file(args.snapshot, "--snapshot", ())
-        from uavlink.learn.snapshot import read_snapshot
+    if args.snapshot is not None:  # train() checks again; here, before any output or folder
+        from uavlink.learn.snapshot import check_can_snapshot, read_snapshot
 
+        check_can_snapshot(tc, args.resume)
+        output_file(args.snapshot, "--snapshot", ())
         if read_snapshot(args.snapshot, cfg, tc) is not None:
             print(f"continuing from the snapshot {args.snapshot}", file=sys.stderr)
     run_dir = output_folder(

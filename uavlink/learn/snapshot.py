@@ -38,6 +38,8 @@ from uavlink.errors import UserError
 
 __all__ = [
     "SNAPSHOT_FORMAT",
+    "can_snapshot",
+    "check_can_snapshot",
     "read_snapshot",
     "restore_model",
     "save_snapshot",
@@ -45,6 +47,21 @@ __all__ = [
 ]
 
 SNAPSHOT_FORMAT = "uavlink-train-snapshot-v1"
+
+
+def can_snapshot(tc: TrainConfig, resume: Path | None = None) -> bool:
+    """Whether a snapshot can hold this run: not one started from a ``--resume`` checkpoint (whose
+    random streams are gone) nor one keeping its best validated weights (selection state not held)."""
+    return resume is None and not tc.validation_episodes
+
+
+def check_can_snapshot(tc: TrainConfig, resume: Path | None = None) -> None:
+    """``can_snapshot``, refused in one line."""
+    if not can_snapshot(tc, resume):
+        raise UserError(
+            "--snapshot continues a run exactly; it cannot start from --resume or keep the "
+            "--validation-episodes selection's state"
+        )
 
 
 def _training_key(cfg: EnvConfig, tc: TrainConfig) -> str:

@@ -279,12 +279,11 @@ def train(
     from uavlink.policies.manifest import build_manifest, write_zip_manifest
 
     tc.validate(cfg)
-    if snapshot is not None and (tc.validation_episodes or resume is not None):
-        raise ValueError("a training snapshot holds no validation state and no --resume")
     snapped = None
     if snapshot is not None:
-        from uavlink.learn.snapshot import read_snapshot
+        from uavlink.learn.snapshot import check_can_snapshot, read_snapshot
 
+        check_can_snapshot(tc, resume)
         snapped = read_snapshot(snapshot, cfg, tc)
     model = make_model(cfg, tc, run_dir)
     if snapped is not None:

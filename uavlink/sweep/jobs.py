@@ -44,6 +44,7 @@ def run_job(job_data: dict[str, Any], snapshot_dir: str | None = None) -> dict[s
 
     torch.set_num_threads(1)
     from uavlink.evaluation import evaluate_policy
+    from uavlink.learn.snapshot import can_snapshot
     from uavlink.learn.training import train
     from uavlink.policies.contract import EnvOverrides, load_with_env
     from uavlink.policies.manifest import read_zip_manifest
@@ -61,7 +62,7 @@ def run_job(job_data: dict[str, Any], snapshot_dir: str | None = None) -> dict[s
         t0 = time.perf_counter()
         snapshot = (
             Path(snapshot_dir) / f"{job.name}.snapshot"
-            if snapshot_dir and not tc.validation_episodes  # a snapshot holds no validation state
+            if snapshot_dir and can_snapshot(tc)
             else None
         )
         training = train(cfg, tc, path, run_dir=None, progress=False, snapshot=snapshot)
