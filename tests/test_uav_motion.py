@@ -30,7 +30,6 @@ def test_the_position_loop_is_sitl_stubs(fence_m: float) -> None:
     pos, vel = rng.uniform(-40, 40, (200, 2)), rng.uniform(-12, 12, (200, 2))
     setpoint = np.clip(pos + rng.uniform(-30, 30, (200, 2)), -fence_m, fence_m)
     got_pos, got_vel = PX4_MOTION.fly(pos, vel, setpoint, 1.0, fence_m)
-    assert PX4_MOTION.substep_s == SUBSTEP_S
     # the limits are the vehicle's default parameters (the gain and braking are track()'s own, below)
     params = ParamStore()
     assert (PX4_MOTION.max_speed_mps, PX4_MOTION.max_accel_mps2) == (

@@ -18,11 +18,10 @@ from typing import TypeVar
 from sitl_stub.core.modes import FlightMode
 from sitl_stub.flight.pos_control import (
     ACC_Z_MPS2,
-    BRAKE_FRACTION,
     GROUND_EPS_M,
-    POS_GAIN,
     wrap,
 )
+from uavlink.config.position_loop import BRAKE_FRACTION, POS_GAIN_PER_S
 
 NAN = math.nan
 ORBIT_RADIUS_MIN_M = 1.0  # PX4 FlightTaskOrbit _radius_min
@@ -87,10 +86,10 @@ class Orbit:
         rn, re = north_m - self.center_north_m, east_m - self.center_east_m
         dist = math.hypot(rn, re)
         if dist < 1e-6:  # at the centre: head out north
-            return POS_GAIN * self.radius_m, 0.0
+            return POS_GAIN_PER_S * self.radius_m, 0.0
         un, ue = rn / dist, re / dist
         tn, te = -ue, un  # clockwise (azimuth increasing) tangent in NED
-        radial = POS_GAIN * (self.radius_m - dist)
+        radial = POS_GAIN_PER_S * (self.radius_m - dist)
         return self.speed_mps * tn + radial * un, self.speed_mps * te + radial * ue
 
     def yaw(self, north_m: float, east_m: float) -> float | None:

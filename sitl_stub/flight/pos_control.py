@@ -10,12 +10,12 @@ from __future__ import annotations
 
 import math
 
+from uavlink.config.position_loop import BRAKE_FRACTION, POS_GAIN_PER_S
+
 GRAVITY_MPS2 = 9.81
 ACC_Z_MPS2 = 3.0  # PX4 MPC_ACC_DOWN_MAX (and below MPC_ACC_UP_MAX 4)
-POS_GAIN = 1.0  # PX4 MPC_XY_P / MPC_Z_P ~ 1 /s
 YAW_RATE_RADPS = math.radians(45.0)  # PX4 MPC_YAWRAUTO_MAX
 GROUND_EPS_M = 0.05  # "on the ground" below this altitude
-BRAKE_FRACTION = 0.9  # braking curves use 90 % of the acceleration limit
 
 
 def track(
@@ -40,7 +40,9 @@ def track(
     if not (math.isnan(tn) or math.isnan(te)):
         en, ee = tn - pos[0], te - pos[1]
         dist = norm(en, ee)
-        speed = min(xy_max, POS_GAIN * dist, math.sqrt(2.0 * BRAKE_FRACTION * acc_xy_mps2 * dist))
+        speed = min(
+            xy_max, POS_GAIN_PER_S * dist, math.sqrt(2.0 * BRAKE_FRACTION * acc_xy_mps2 * dist)
+        )
         if dist > 1e-9:
             vdn, vde = vdn + en / dist * speed, vde + ee / dist * speed
     vdn, vde = _limit_norm(vdn, vde, xy_max)
@@ -54,7 +56,11 @@ def track(
         ed = td - pos[2]
         vmax = down_max if ed > 0 else up_max
         vd_des += math.copysign(
-            min(vmax, POS_GAIN * abs(ed), math.sqrt(2.0 * BRAKE_FRACTION * ACC_Z_MPS2 * abs(ed))),
+            min(
+                vmax,
+                POS_GAIN_PER_S * abs(ed),
+                math.sqrt(2.0 * BRAKE_FRACTION * ACC_Z_MPS2 * abs(ed)),
+            ),
             ed,
         )
     vd_des = max(-up_max, min(down_max, vd_des))

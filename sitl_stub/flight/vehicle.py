@@ -56,8 +56,8 @@ from sitl_stub.flight.pos_control import (
 )
 from sitl_stub.flight.rtl import ReturnPhases, rally_points, return_destination
 from uavlink.config import AreaConfig
+from uavlink.config.position_loop import SUBSTEP_S
 
-SUBSTEP_S = 0.02  # integration step; step(dt) subdivides
 ALT_ACCEPT_M = 0.5  # takeoff done within this of the target altitude
 MAX_ALTITUDE_M = 500.0  # vertical fence: setpoints above are clamped (= the altitude params' max)
 

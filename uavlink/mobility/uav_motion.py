@@ -24,6 +24,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from uavlink.config.position_loop import BRAKE_FRACTION, POS_GAIN_PER_S, SUBSTEP_S
+
 # up to this many rows (UAVs x setpoints) fly in Python floats: 300 substeps cost about 0.7 ms a row
 # in floats and 34-38 ms in numpy for up to a hundred rows: even at about 54
 FLOAT_KERNEL_MAX_ROWS = 48
@@ -35,9 +37,9 @@ class PositionLoop:
 
     max_speed_mps: float = 12.0  # MPC_XY_VEL_MAX
     max_accel_mps2: float = 5.0  # MPC_ACC_HOR_MAX
-    gain_per_s: float = 1.0  # MPC_XY_P (PX4 0.95)
-    brake_fraction: float = 0.9  # braking curves use 90 % of the acceleration limit
-    substep_s: float = 0.02  # sitl_stub's integration step
+    gain_per_s: float = POS_GAIN_PER_S
+    brake_fraction: float = BRAKE_FRACTION
+    substep_s: float = SUBSTEP_S
 
     def fly(
         self,
