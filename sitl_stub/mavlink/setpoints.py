@@ -14,11 +14,7 @@ import math
 from dataclasses import dataclass
 
 from sitl_stub.flight.guidance import Motion, body_to_ned, three
-
-IGNORE_POSITION = (0x1, 0x2, 0x4)
-IGNORE_VELOCITY = (0x8, 0x10, 0x20)
-IGNORE_YAW = 0x400
-IGNORE_YAW_RATE = 0x800
+from uavlink.mavlink.typemask import IGNORE_POSITION, IGNORE_VELOCITY, IGNORE_YAW, IGNORE_YAW_RATE
 
 
 @dataclass(frozen=True)

@@ -5,6 +5,7 @@
 - :mod:`~uavlink.mavlink.signing`: MAVLink 2 message signing and key files;
 - :mod:`~uavlink.mavlink.rejects`: counting and logging rejected input;
 - :mod:`~uavlink.mavlink.px4_modes`: PX4's flight-mode encoding;
+- :mod:`~uavlink.mavlink.typemask`: SET_POSITION_TARGET_*'s type-mask bits;
 - :mod:`~uavlink.mavlink.frames`: the MAV_FRAME sets (global, AMSL, relative) and the mission items' frame pairs;
 - :mod:`~uavlink.mavlink.radio_codec`: how radio readings travel (DEBUG_FLOAT_ARRAY);
 - :mod:`~uavlink.mavlink.ue_truth`: where the simulated UEs are (ADSB_VEHICLE), for pictures only;

@@ -41,6 +41,7 @@ from uavlink.mavlink.mission import MISSION_REPLIES
 from uavlink.mavlink.px4_modes import PX4_MAIN_OFFBOARD
 from uavlink.mavlink.rejects import RejectLog, rescan_bad_frame
 from uavlink.mavlink.signing import SigningGuard
+from uavlink.mavlink.typemask import POSITION_ONLY
 
 MAV = mavlink
 MULTIROTOR_TYPES = {
@@ -50,7 +51,6 @@ MULTIROTOR_TYPES = {
     MAV.MAV_TYPE_TRICOPTER,
     MAV.MAV_TYPE_COAXIAL,
 }
-POSITION_ONLY_MASK = 0x0DF8  # ignore velocity, acceleration, yaw, yaw rate: position bits clear
 HEARTBEAT_PERIOD_S = 1.0  # our own HEARTBEAT, wall time
 STREAM_PERIOD_VEHICLE_S = (
     0.1  # offboard keep-alive: 10 setpoints per COM_OF_LOSS_T survive a lossy link
@@ -457,7 +457,7 @@ class VehicleLink:
             self.target_system,
             self.target_component,
             MAV.MAV_FRAME_LOCAL_NED,
-            POSITION_ONLY_MASK,
+            POSITION_ONLY,
             north_m,
             east_m,
             down_m,
