@@ -40,6 +40,7 @@ import numpy as np
 from sitl_stub.core.modes import FlightMode
 from sitl_stub.core.vehicle_state import VehicleState
 from sitl_stub.mavlink.server import LOOP_WAIT_S, ServerConfig, SitlServer, step_vehicles
+from sitl_stub.sim.background import BackgroundLoop
 from sitl_stub.sim.clock import SimClock
 from sitl_stub.sim.lockstep import FrameHold
 from sitl_stub.sim.radio_episodes import RadioEpisodes
@@ -168,12 +169,15 @@ def fleet_configs(
     ]
 
 
-class FleetServer:
+class FleetServer(BackgroundLoop):
     """D :class:`SitlServer` vehicles on one simulated clock, around one :class:`FleetWorld`."""
+
+    thread_name = "sitl_stub_fleet"
 
     def __init__(self, configs: Sequence[ServerConfig], world: FleetWorld | None) -> None:
         if world is not None and len(world.views) != len(configs):
             raise ValueError("one radio view per vehicle")
+        super().__init__()
         self.world = world
         self.servers = [
             SitlServer(c, [world.views[i]] if world else []) for i, c in enumerate(configs)
@@ -181,8 +185,6 @@ class FleetServer:
         self.speed = configs[0].speed
         self.duration_s = configs[0].duration_s
         self.clock: SimClock | None = None
-        self._stop = threading.Event()
-        self._thread: threading.Thread | None = None
 
     @property
     def connection(self) -> str:
@@ -226,7 +228,7 @@ class FleetServer:
             if world is not None and boundary <= t + 1e-6:  # no world: boundary is inf
                 world.tick([v.state() for v in vehicles])
                 for server in self.servers:
-                    server._tick(server._slots[0], boundary)
+                    server.tick_payloads(boundary)
                 continue
             if world is not None and world.hold.holding(
                 flying=any(v.mode is FlightMode.OFFBOARD for v in vehicles)
@@ -247,21 +249,6 @@ class FleetServer:
             if self.duration_s is not None and self.servers[0].vehicle.t >= self.duration_s:
                 break
             select.select(fds, [], [], LOOP_WAIT_S)
-
-    def start(self) -> FleetServer:
-        """Open and run in a daemon thread (for tests); returns self."""
-        self.open()
-        self._stop.clear()
-        self._thread = threading.Thread(target=self.run, name="sitl_stub_fleet", daemon=True)
-        self._thread.start()
-        return self
-
-    def stop(self, timeout_s: float = 5.0) -> None:
-        self._stop.set()
-        if self._thread is not None:
-            self._thread.join(timeout_s)
-            self._thread = None
-        self.close()
 
     def report(self) -> dict[str, Any]:
         """Each vehicle's :meth:`SitlServer.report`, and the shared world's episode."""

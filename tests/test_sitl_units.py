@@ -13,6 +13,7 @@ from sitl_stub.core.geo import GeoOrigin
 from sitl_stub.core.modes import FlightMode
 from sitl_stub.core.params import ParamStore, ParamType, int_to_param_float, param_float_to_int
 from sitl_stub.mavlink.ftp import ERR_FILE_NOT_FOUND, OP_ACK, OP_NAK, ftp_reply
+from sitl_stub.mavlink.server import ServerConfig
 from sitl_stub.mavlink.streams import StreamScheduler
 from sitl_stub.sim.clock import SimClock
 from sitl_stub.sim.payload import check_payload
@@ -144,6 +145,23 @@ def test_geo_validation():
         GeoOrigin(lat_deg=91.0).validate()
     with pytest.raises(ValueError, match="longitude"):
         GeoOrigin(lon_deg=math.nan).validate()
+
+
+@pytest.mark.parametrize(
+    ("settings", "message"),
+    [
+        ({"speed": 0.0}, "speed must be a positive number"),
+        ({"speed": math.inf}, "speed must be a positive number"),
+        ({"system_id": 256}, "system_id must be in 1..255"),
+        ({"system_id": 0}, "system_id must be in 1..255"),
+        ({"home": GeoOrigin(lat_deg=91.0)}, "latitude"),
+        ({"connect": []}, "give at least one connection"),
+    ],
+)
+def test_a_server_config_says_what_is_wrong(settings: dict, message: str) -> None:
+    assert ServerConfig(instance=3).validate().vehicle_id == 4
+    with pytest.raises(ValueError, match=message):
+        ServerConfig(**settings).validate()
 
 
 # ---------------------------------------------------------------- streams

@@ -53,6 +53,7 @@ from sitl_stub.mavlink.message_handler import AUTOPILOT_COMPONENT, MessageHandle
 from sitl_stub.mavlink.param_protocol import ParamProtocol
 from sitl_stub.mavlink.streams import StreamScheduler
 from sitl_stub.mavlink.telemetry import TelemetrySender
+from sitl_stub.sim.background import BackgroundLoop
 from sitl_stub.sim.battery import Battery
 from sitl_stub.sim.clock import SimClock
 from sitl_stub.sim.payload import Payload, PayloadSlot, check_payload
@@ -101,23 +102,30 @@ class ServerConfig:
         """The MAVLink system id: ``system_id``, else ``instance + 1``."""
         return self.instance + 1 if self.system_id is None else self.system_id
 
+    def validate(self) -> ServerConfig:
+        """``self``, or a ValueError saying what is wrong (the CLI prints it as one line)."""
+        self.link_specs()
+        self.home.validate()
+        if not (
+            isinstance(self.speed, (int, float)) and math.isfinite(self.speed) and self.speed > 0
+        ):
+            raise ValueError(f"speed must be a positive number, got {self.speed}")
+        if not 1 <= self.vehicle_id <= 255:
+            raise ValueError(f"system_id must be in 1..255, got {self.vehicle_id}")
+        return self
 
-class SitlServer:
+
+class SitlServer(BackgroundLoop):
     """A PX4-style SITL multicopter speaking MAVLink 2 on one or more links."""
 
     def __init__(
         self, config: ServerConfig | None = None, payloads: Sequence[Payload] = ()
     ) -> None:
-        self.config = config or ServerConfig()
-        c = self.config
+        super().__init__()
+        self.config = c = (config or ServerConfig()).validate()
         self.link_specs = c.link_specs()
         self.connection = ", ".join(spec.describe() for spec in self.link_specs)
         self.system_id = c.vehicle_id
-        c.home.validate()
-        if not (isinstance(c.speed, (int, float)) and math.isfinite(c.speed) and c.speed > 0):
-            raise ValueError(f"speed must be a positive number, got {c.speed}")
-        if not 1 <= self.system_id <= 255:
-            raise ValueError(f"system_id must be in 1..255, got {self.system_id}")
         self.params = ParamStore(c.params)
         self.battery = Battery(self.params)
         self.vehicle = Vehicle(self.params, c.area, origin=c.home, home_ne=c.home_ne)
@@ -142,10 +150,7 @@ class SitlServer:
         self.links: list[Link] = []
         self.route = Route()
         self.clock: SimClock | None = None
-        self._stop = threading.Event()
-        self._thread: threading.Thread | None = None
         self._snapshot = self.vehicle.state()
-        self.error: BaseException | None = None
 
     # --------------------------------------------------------------- lifecycle
     def open(self) -> None:
@@ -208,28 +213,6 @@ class SitlServer:
         None when closed."""
         return self.links[0].conn if self.links else None
 
-    def start(self) -> SitlServer:
-        """Open and run in a daemon thread; returns self."""
-        self.open()
-        self._stop.clear()
-        self._thread = threading.Thread(target=self._run_thread, name="sitl_stub", daemon=True)
-        self._thread.start()
-        return self
-
-    def stop(self, timeout_s: float = 5.0) -> None:
-        """Stop the loop (thread or :meth:`run`) and close the connection."""
-        self._stop.set()
-        if self._thread is not None and self._thread is not threading.current_thread():
-            self._thread.join(timeout_s)
-            self._thread = None
-        self.close()
-
-    def __enter__(self) -> SitlServer:
-        return self.start()
-
-    def __exit__(self, *exc: object) -> None:
-        self.stop()
-
     @property
     def address(self) -> tuple[str, int]:
         """Local (host, port) of the first link's socket: where to send when it listens."""
@@ -283,13 +266,6 @@ class SitlServer:
                 break
             select.select([link.fd for link in self.links], [], [], LOOP_WAIT_S)
 
-    def _run_thread(self) -> None:
-        try:
-            self.run()
-        except BaseException as exc:  # reported to the embedding code via .error
-            self.error = exc
-            log.exception("sitl_stub loop failed")
-
     # -------------------------------------------------------------- one tick
     def iterate(self) -> None:
         """Handle input, advance simulated time to the wall clock, send what is due."""
@@ -338,6 +314,12 @@ class SitlServer:
             )
             if not step_vehicles([v], min(target_s, next_frame), self._lockstep):
                 return False
+
+    def tick_payloads(self, sim_time_s: float) -> None:
+        """Every payload's frame at ``sim_time_s``, whatever their own clocks say: for a fleet, whose
+        shared world clocks every vehicle's radio view (``sitl_stub.fleet``)."""
+        for slot in self._slots:
+            self._tick(slot, sim_time_s)
 
     def _tick(self, slot: PayloadSlot, sim_time_s: float) -> None:
         state = self.vehicle.state()
