@@ -1,8 +1,8 @@
 """The uavlink command line: train | evaluate | fly | plot | export | sweep | keygen | policies.
 
-A module per command (``evaluate``, ``train``, ``export``, ``sweep``, ``keygen``, ``fly``, ``plot``:
-each declares its options and imports what runs it, such as ``uavlink.flight.fly``, when it runs)
-and the options they share (``options``).
+A module per command (``evaluate``, ``train``, ``export``, ``sweep``, ``keygen``, ``fly``, ``plot``,
+``policies``: each declares its options and imports what runs it, such as ``uavlink.flight.fly``,
+when it runs) and the options they share (``options``).
 
 User errors (bad arguments, unknown scenarios, unusable policy files, a missing optional package)
 print one line on stderr and exit with status 2, without a traceback. Heavy modules are imported

@@ -32,20 +32,24 @@ SCENARIOS: tuple[str, ...] = (
 MIXED = "mixed"
 SCENARIO_NAMES: tuple[str, ...] = (*SCENARIOS, MIXED)  # every scenario a config accepts
 # Shadowing: the SPEC's per-link AR(1) (the paper's) or the spatially consistent field.
-SHADOWING_MODELS = ("ar1", "spatial")
+SHADOWING_AR1, SHADOWING_SPATIAL = "ar1", "spatial"
+SHADOWING_MODELS = (SHADOWING_AR1, SHADOWING_SPATIAL)
 # How a policy's output becomes a move (uavlink.env.actions.ActionMapping implements them).
 ACTION_MAPPINGS = ("cartesian-v1", "polar-v1")
 # How a fleet shares the band (SPEC "A fleet"): every UAV on every RB, or the band split D ways.
-FLEET_REUSE = ("full", "orthogonal")
+REUSE_FULL, REUSE_ORTHOGONAL = "full", "orthogonal"
+FLEET_REUSE = (REUSE_FULL, REUSE_ORTHOGONAL)
 # How the UAV reaches its setpoint in a frame (uavlink.mobility.uav_motion): at once (the paper's),
 # or flown by PX4's position loop under its speed and acceleration limits, as sitl_stub flies (a
 # fleet's setpoints then move as `uavlink fly` moves them: separated, and cut for the transit; what
 # the policy reads and the vehicle receives is rounded to float32, as MAVLink carries it).
-UAV_MOTIONS = ("instant", "px4")
+MOTION_INSTANT, MOTION_PX4 = "instant", "px4"
+UAV_MOTIONS = (MOTION_INSTANT, MOTION_PX4)
 # What the memory of place keeps: "cells", the grid of sensed values (layout v3, v4 for a fleet);
 # "kriging", that grid and a model of the sensed field with the spot it makes worth flying to (v5,
 # one UAV; uavlink/env/field_model.py).
-PLACE_MODELS = ("cells", "kriging")
+PLACE_CELLS, PLACE_KRIGING = "cells", "kriging"
+PLACE_MODELS = (PLACE_CELLS, PLACE_KRIGING)
 # The finest memory-of-place grid validate() accepts: cells of at least PLACE_CELL_MIN_M, and at most
 # PLACE_CELLS_ACROSS of them across the area (EnvConfig.place_cell_m says why).
 PLACE_CELL_MIN_M = 1.0
@@ -86,7 +90,7 @@ class RadioConfig:
     shadowing_decorrelation_m: float = 50.0  # the UE end's (and the AR(1) model's) distance
     # "ar1": the SPEC's per-link AR(1) over displacement (the paper's channel, no memory of place);
     # "spatial": one field per episode over (UE, UAV) positions (uavlink/radio/spatial_shadowing.py).
-    shadowing_model: str = "ar1"
+    shadowing_model: str = SHADOWING_AR1
     shadowing_uav_decorrelation_m: float = 50.0  # the UAV end's distance, spatial model only
     fast_fading: bool = True
     rician_k_db: float = 10.0
@@ -143,8 +147,8 @@ class EnvConfig:
     # grids are 12 m (one frame's longest move) and 6 m. validate() wants cells of at least
     # PLACE_CELL_MIN_M = 1 m (in flight the UAV knows its own position, LOCAL_POSITION_NED, to about a
     # metre: finer cells would file its readings by noise) and at most PLACE_CELLS_ACROSS = 400 across
-    # the area: the memory keeps 24 bytes per cell and UAV, so 400 x 400 cells are 3.8 MB a UAV (0.5 GB
-    # for 128 envs), and it grows as 1 / cell^2 (1 mm cells over the default area: 3.5 TiB a UAV).
+    # the area: the memory keeps 12 bytes per cell and UAV, so 400 x 400 cells are 1.9 MB a UAV (0.25
+    # GB for 128 envs), and it grows as 1 / cell^2 (1 mm cells over the default area: 1.7 TiB a UAV).
     place_cell_m: float = 0.0
     place_model: str = PLACE_MODELS[0]  # what the memory keeps: PLACE_MODELS above
     ue_speed_mps: float = 8.0
@@ -205,7 +209,7 @@ class EnvConfig:
             raise ConfigError(
                 f"unknown place_model {self.place_model!r}; choose from {', '.join(PLACE_MODELS)}"
             )
-        if self.place_model == "kriging" and (self.place_cell_m <= 0 or self.n_uavs > 1):
+        if self.place_model == PLACE_KRIGING and (self.place_cell_m <= 0 or self.n_uavs > 1):
             raise ConfigError(
                 "env.place_model=kriging models one UAV's memory of place: it needs "
                 "place_cell_m > 0 and n_uavs = 1"

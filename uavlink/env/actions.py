@@ -10,6 +10,7 @@ import numpy as np
 
 from uavlink.config.env import ACTION_MAPPINGS
 from uavlink.errors import ConfigError
+from uavlink.radio.aoa import wrap_deg
 
 if TYPE_CHECKING:
     from uavlink.config import EnvConfig
@@ -58,10 +59,10 @@ class ActionMapping:
     def to_polar(self, action: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """(angle_deg, distance_m) for clipped actions (N, 2)."""
         if self.kind == POLAR:
-            angle_deg = (180.0 * action[:, 0] + 180.0) % 360.0 - 180.0
+            angle_deg = wrap_deg(180.0 * action[:, 0])
             distance_m = self.r_max_m * (action[:, 1] + 1.0) / 2.0
         else:
-            angle_deg = (np.degrees(np.arctan2(action[:, 1], action[:, 0])) + 180.0) % 360.0 - 180.0
+            angle_deg = wrap_deg(np.degrees(np.arctan2(action[:, 1], action[:, 0])))
             distance_m = self.r_max_m * np.minimum(1.0, np.hypot(action[:, 0], action[:, 1]))
         return angle_deg, distance_m
 
@@ -77,7 +78,7 @@ class ActionMapping:
         """Inverse mapping, for rule-based policies that think in angles and metres."""
         fraction = np.clip(np.asarray(distance_m) / self.r_max_m, 0.0, 1.0)
         if self.kind == POLAR:
-            a0 = ((np.asarray(angle_deg) + 180.0) % 360.0 - 180.0) / 180.0
+            a0 = wrap_deg(angle_deg) / 180.0
             return np.stack([a0, 2.0 * fraction - 1.0], axis=-1)
         rad = np.radians(angle_deg)
         return np.stack([fraction * np.cos(rad), fraction * np.sin(rad)], axis=-1)

@@ -19,6 +19,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from uavlink.config import EnvConfig
+from uavlink.config.env import MOTION_PX4
 from uavlink.env.actions import ActionMapping
 from uavlink.env.observation import ObservationLayout, fleet_view_quantities
 from uavlink.env.observation_builder import ObservationBuilder
@@ -126,7 +127,8 @@ class BatchedUavEnv:
             raise RuntimeError("call reset() before step()")
         action = self.actions.validate(action, self.n_rows)
         half = self.cfg.area.half_width_m
-        if self.cfg.uav_motion == "px4":  # the move shifts the setpoint, which PX4 then flies to
+        # the move shifts the setpoint, which PX4 then flies to
+        if self.cfg.uav_motion == MOTION_PX4:
             # as ``uavlink fly`` moves them: clipped, separated, and for a fleet cut where the
             # UAVs' predicted flight from where they are, as fast as they fly, would bring two
             # closer than the minimum
@@ -191,7 +193,7 @@ class BatchedUavEnv:
         a lockstep flight is to equal must round where the flight does; the UAVs start where they
         are float32-exact (``sitl_stub.fleet.spawn_points_ne``), so that a vehicle told to hold its
         reported position before the episode does not creep."""
-        if self.cfg.uav_motion != "px4":
+        if self.cfg.uav_motion != MOTION_PX4:
             return values
         return values.astype(np.float32).astype(float)
 

@@ -6,6 +6,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from uavlink.config.env import PLACE_KRIGING
 from uavlink.env.field_model import FieldModel
 from uavlink.env.observation import ObservationLayout
 from uavlink.env.place_memory import PlaceMemory, sensed_value_bits
@@ -25,7 +26,7 @@ class ObservationBuilder:
         )
         self.field = (
             FieldModel(n_rows, layout.episode_frames, layout.r_max_m, layout.half_width_m)
-            if layout.place_model == "kriging"
+            if layout.place_model == PLACE_KRIGING
             else None
         )
 

@@ -19,6 +19,7 @@ from pathlib import Path
 import numpy as np
 
 from uavlink.config import EnvConfig
+from uavlink.config.env import SHADOWING_SPATIAL
 from uavlink.policies.base import Policy
 from uavlink.policies.genie.grid import Grid, grid_rx_dbm, one_uav_rate_mbps
 from uavlink.policies.genie.policy import GENIE_GRID_M, env_field
@@ -47,7 +48,7 @@ class PlaceMapEpisode:
 
 def fly_place_map(policy: Policy, cfg: EnvConfig, seed: int) -> PlaceMapEpisode:
     """Fly episode 0 of ``seed`` and read the memory and the truth at its end."""
-    if cfg.place_cell_m <= 0 or cfg.n_uavs != 1 or cfg.radio.shadowing_model != "spatial":
+    if cfg.place_cell_m <= 0 or cfg.n_uavs != 1 or cfg.radio.shadowing_model != SHADOWING_SPATIAL:
         raise ValueError(
             "a place map needs one UAV with a memory of place (place_cell_m > 0) on the "
             "spatial channel (radio.shadowing_model = spatial)"

@@ -28,7 +28,7 @@ from uavlink.flight.link import VehicleLink
 from uavlink.flight.link.group import open_fleet_links
 from uavlink.flight.loop import LoopConfig, PolicyPilot, fly_vehicle
 from uavlink.flight.result import (
-    StatusLine,
+    FrameStatusLine,
     episode_fields,
     flown_line,
     link_fields,
@@ -128,7 +128,7 @@ def fly_policy(options: FlyOptions, live_status: bool = False) -> dict[str, Any]
         if urls is None
         else contextlib.nullcontext(urls)
     )
-    status = StatusLine(live_status, loop_cfg.frames)
+    status = FrameStatusLine(live_status, loop_cfg.frames)
     start = time.monotonic()
     with steady_heap(), sitl as urls:  # frozen before the vehicles talk to us
         if isinstance(pilot, FleetPilot):  # fleet: built above
@@ -163,7 +163,7 @@ def _fly_one(
     pilot: PolicyPilot,
     cfg: EnvConfig,
     loop_cfg: LoopConfig,
-    status: StatusLine,
+    status: FrameStatusLine,
 ) -> dict:
     """One vehicle's flight; the summary's part of it (``episode``: what the payload said it flew)."""
     [url] = urls
@@ -188,7 +188,7 @@ def _fly_fleet(
     pilot: FleetPilot,
     cfg: EnvConfig,
     loop_cfg: LoopConfig,
-    status: StatusLine,
+    status: FrameStatusLine,
 ) -> dict:
     """A fleet's flight, one vehicle per UAV; the summary's part of it, as ``_fly_one``'s."""
     group, tlog_file = open_fleet_links(urls, cfg.n_uavs, tlog, key)

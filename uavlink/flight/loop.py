@@ -16,12 +16,12 @@ until it has landed and disarmed; one landed but still armed is disarmed first: 
 with an arming, which gives it a fresh radio episode (``sitl_stub.sim.radio_episodes``). When the
 vehicle falls back to hold (offboard-loss failsafe after lost setpoints), the loop re-enters OFFBOARD,
 trying again about once a second until the vehicle takes it. If the vehicle goes to AUTO.LAND or
-AUTO.RTL, or disarms (an operator with the key, or a failsafe meant to end the flight), the loop_cfg
+AUTO.RTL, or disarms (an operator with the key, or a failsafe meant to end the flight), the loop
 ends and leaves it alone. Lost radio reports cost their frame's decision only; a backlog of reports
 (the loop was held up) is decided once, on the newest, the older ones only entering the observation
 history; lost scores do not stall the end of the episode. Without any message from the vehicle for
 ``link_timeout_s`` of wall time, or without a fresh radio frame for ``radio_timeout_s`` in
-OFFBOARD, the loop_cfg gives up.
+OFFBOARD, the loop gives up.
 
 The result says whether the flight flew the frames it set out to
 (:func:`~uavlink.flight.result.judge`): every frame of a fresh episode from its start (a flight
@@ -271,7 +271,7 @@ def _fly(link, pilot, cfg, loop_cfg, radio, status, result: FlightResult) -> Non
             if not st.armed or ending_mode(st):
                 result.ended_by = f"vehicle in {mode_name(st)}"
                 log.warning(
-                    "vehicle is now %s (operator or failsafe): ending the loop_cfg, "
+                    "vehicle is now %s (operator or failsafe): ending the loop, "
                     "leaving the vehicle alone",
                     mode_name(st),
                 )

@@ -26,6 +26,7 @@ from typing import Protocol
 import numpy as np
 
 from uavlink.config import MIXED, EnvConfig
+from uavlink.config.env import MOTION_PX4, PLACE_KRIGING
 from uavlink.env.radio_world import episode_scenario
 from uavlink.flight.link import VehicleLink
 from uavlink.flight.vehicle_control import mode_name
@@ -172,7 +173,7 @@ class FleetResult(FlightResult):
         }
 
 
-class StatusLine:
+class FrameStatusLine:
     """The live status line, one frame at a time, rewritten in place on stderr (the first UAV's
     target for a fleet); silent with --quiet or --json or when stderr is not a terminal."""
 
@@ -295,7 +296,7 @@ def episode_fields(
         scenario = {"scenario": episode_scenario(cfg, seed), "scenario_drawn_from": MIXED}
     replay = None
     short = frames < cfg.episode_frames
-    if seed is not None and not (short and cfg.place_model == "kriging"):
+    if seed is not None and not (short and cfg.place_model == PLACE_KRIGING):
         words = [
             "uavlink",
             "evaluate",
@@ -312,7 +313,7 @@ def episode_fields(
             words += ["--aoa-noise-deg", repr(float(options.aoa_noise_deg))]
         for pair in options.overrides:
             words += ["--set", pair]
-        if options.lockstep and cfg.uav_motion != "px4":
+        if options.lockstep and cfg.uav_motion != MOTION_PX4:
             words += ["--set", "uav_motion=px4"]
         if short:  # the episode's first frames are the same in a shorter episode
             words += ["--set", f"episode_frames={frames}"]

@@ -71,7 +71,8 @@ class OraclePolicy(RulePolicy):
     """Knows the UEs' true positions and velocities (GPS) and each frame takes the reachable move
     that maximises the expected R_fair at the UEs' next positions (mean channel: no shadowing or
     fading). Moves searched: ``n_angles`` directions x ``n_radii`` distances up to r_max, plus hover.
-    An upper bound for a GPS-free agent, not a true optimum (it is greedy over one frame)."""
+    A GPS greedy reference, not a bound: greedy over one frame and blind to shadowing, it flies below
+    the GPS-free ``aoa`` rule in some scenarios (docs/design/baselines.md)."""
 
     name = "oracle"
     layout = None

@@ -17,6 +17,7 @@ from __future__ import annotations
 import numpy as np
 
 from uavlink.config import EnvConfig
+from uavlink.config.env import PLACE_KRIGING
 from uavlink.env.actions import ActionMapping
 from uavlink.env.core import GroundTruth
 from uavlink.env.observation import ObservationLayout
@@ -28,7 +29,7 @@ from uavlink.policies.explore import EXPLORE_PLACE_CELL_M
 def kriging_env(cfg: EnvConfig) -> EnvConfig:
     """The env the rule flies in: ``cfg`` with the model of the field (and a memory of place)."""
     cell_m = cfg.place_cell_m if cfg.place_cell_m > 0 else EXPLORE_PLACE_CELL_M
-    return cfg.replace(place_cell_m=cell_m, place_model="kriging").validate()
+    return cfg.replace(place_cell_m=cell_m, place_model=PLACE_KRIGING).validate()
 
 
 class KrigingPolicy(RulePolicy):
@@ -38,7 +39,7 @@ class KrigingPolicy(RulePolicy):
     needs_truth = False
 
     def __init__(self, cfg: EnvConfig, approach_gain: float = 0.4) -> None:
-        if cfg.place_model != "kriging" or cfg.n_uavs > 1:
+        if cfg.place_model != PLACE_KRIGING or cfg.n_uavs > 1:
             raise UserError(
                 "the kriging rule flies one UAV with a model of the field: env.place_model=kriging"
             )

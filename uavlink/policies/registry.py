@@ -10,6 +10,7 @@ from dataclasses import dataclass
 from functools import cache
 
 from uavlink.config import EnvConfig
+from uavlink.config.env import MOTION_INSTANT
 from uavlink.errors import UserError
 from uavlink.policies.base import Policy
 from uavlink.policies.baselines import AoaPolicy, OraclePolicy, StaticPolicy
@@ -36,7 +37,7 @@ def _genie(cfg: EnvConfig) -> Policy:
 def _instant(cfg: EnvConfig) -> EnvConfig:
     """The genie moves at once: its plan is over instant moves of up to r_max, which every path PX4's
     position loop flies (``uav_motion="px4"``) also keeps to, so on the same episodes it still bounds them."""
-    return cfg.replace(uav_motion="instant").validate()
+    return cfg.replace(uav_motion=MOTION_INSTANT).validate()
 
 
 # Every baseline, in the order the CLI lists them: the warm start's teachers (config's BASELINE_NAMES,

@@ -14,6 +14,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from uavlink.config import RadioConfig
+from uavlink.config.env import REUSE_ORTHOGONAL
 from uavlink.radio.noise import noise_power_dbm
 
 
@@ -64,7 +65,7 @@ def mean_channel_rate_bps(
     rx_mw = 10.0 ** (rx_dbm / 10.0)
     signal = np.take_along_axis(rx_mw, serving[..., None], axis=-1)[..., 0]
     noise_mw = 10.0 ** (noise_power_dbm(radio.bandwidth_hz, radio) / 10.0)
-    if fleet_reuse == "orthogonal":
+    if fleet_reuse == REUSE_ORTHOGONAL:
         share = (radio.n_resource_blocks // n_uavs) / radio.n_resource_blocks
         return share * radio.bandwidth_hz / ues_in_cell * np.log2(1.0 + signal / share / noise_mw)
     interference = (rx_mw * (size > 0)[..., None, :]).sum(axis=-1) - signal if n_uavs > 1 else 0.0

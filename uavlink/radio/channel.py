@@ -17,6 +17,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from uavlink.config import AreaConfig, RadioConfig
+from uavlink.config.env import REUSE_ORTHOGONAL, SHADOWING_SPATIAL
 from uavlink.radio.aoa import measured_aoa_deg, true_aoa_deg
 from uavlink.radio.cells import Cells
 from uavlink.radio.fading import mean_rician_power_gain, tabulated_rician_power_gain
@@ -80,7 +81,7 @@ class RadioChannel:
     ) -> RadioReadings:
         """Draw fresh shadowing for every link and return the readings of the first frame."""
         n_envs, n_uavs = uav_xy_m.shape[0], uav_xy_m.shape[1]
-        if self.radio.shadowing and self.radio.shadowing_model == "spatial":
+        if self.radio.shadowing and self.radio.shadowing_model == SHADOWING_SPATIAL:
             self._field = SpatialShadowField.draw(rng, n_envs, self.radio)
             self._shadow_db = self._field.shadow_db(uav_xy_m, ue_xy_m)
         else:
@@ -142,7 +143,7 @@ class RadioChannel:
     ) -> RadioReadings:
         radio = self.radio
         cells = Cells.associate(rx_dbm)
-        if self.fleet_reuse == "orthogonal":
+        if self.fleet_reuse == REUSE_ORTHOGONAL:
             sinr, bandwidth_hz = self._orthogonal_sinr(rng, rx_dbm, cells)
         else:
             sinr, bandwidth_hz = self._full_reuse_sinr(rng, rx_dbm, cells)

@@ -11,6 +11,7 @@ from typing import Any
 import numpy as np
 
 from uavlink.config import EnvConfig
+from uavlink.config.env import PLACE_CELLS, PLACE_KRIGING
 from uavlink.env.observation.fields import FIELDS, KRIGING_FIELDS, PLACE_FIELDS, Field
 from uavlink.env.observation.fleet_view import FLEET_FIELDS, SLOT_FIELDS
 from uavlink.errors import UserError
@@ -43,7 +44,9 @@ class ObservationLayout:
     sinr_clip_db: tuple[float, float] = (-30.0, 50.0)
     aoa_std_max_rad: float = 2 * np.pi
     place_cell_m: float = 0.0  # the memory of place's grid (0: none; layouts v1 and v2)
-    place_model: str = "cells"  # "kriging": v5, with the model of the field, which plans over an
+    place_model: str = (
+        PLACE_CELLS  # "kriging": v5, with the model of the field, which plans over an
+    )
     episode_frames: int = 128  # episode of this many frames at this longest move a frame (recorded
     r_max_m: float = 12.0  # for v5 only)
     uav_slots: int = 0  # v6: the other UAVs' slots (flies fleets of 2 to uav_slots + 1); n_uavs 1
@@ -57,7 +60,7 @@ class ObservationLayout:
             (False, True): PLACE_LAYOUT_VERSION,
             (True, True): FLEET_PLACE_LAYOUT_VERSION,
         }[fleet, place]
-        kriging = place and cfg.place_model == "kriging"
+        kriging = place and cfg.place_model == PLACE_KRIGING
         if cfg.fleet_slots > 0:  # one layout for every fleet size: it records no n_uavs
             version = ANY_FLEET_PLACE_LAYOUT_VERSION if place else ANY_FLEET_LAYOUT_VERSION
         return cls(
@@ -68,7 +71,7 @@ class ObservationLayout:
             memory=cfg.memory,
             half_width_m=cfg.area.half_width_m,
             place_cell_m=float(cfg.place_cell_m),
-            place_model=cfg.place_model if kriging else "cells",
+            place_model=cfg.place_model if kriging else PLACE_CELLS,
             episode_frames=cfg.episode_frames if kriging else cls.episode_frames,
             r_max_m=cfg.r_max_m if kriging else cls.r_max_m,
         )
@@ -78,7 +81,7 @@ class ObservationLayout:
         fields = FIELDS if self.n_uavs == 1 else FIELDS + FLEET_FIELDS
         fields = fields + SLOT_FIELDS if self.uav_slots > 0 else fields
         fields = fields + PLACE_FIELDS if self.place_cell_m > 0 else fields
-        return fields + KRIGING_FIELDS if self.place_model == "kriging" else fields
+        return fields + KRIGING_FIELDS if self.place_model == PLACE_KRIGING else fields
 
     @functools.cached_property
     def slices(self) -> dict[str, slice]:
@@ -121,7 +124,7 @@ class ObservationLayout:
             del data["n_uavs"]
         if self.place_cell_m == 0:  # so does a record without a memory of place
             del data["place_cell_m"]
-        if self.place_model == "cells":  # and one without a model of the field
+        if self.place_model == PLACE_CELLS:  # and one without a model of the field
             del data["place_model"], data["episode_frames"], data["r_max_m"]
         if self.uav_slots == 0:  # and one for a fleet of a given size
             del data["uav_slots"]
@@ -151,7 +154,7 @@ class ObservationLayout:
         fleet += f"place_cell_m={self.place_cell_m:g}, " if self.place_cell_m > 0 else ""
         fleet += (
             f"place_model=kriging, episode_frames={self.episode_frames}, r_max_m={self.r_max_m:g}, "
-            if self.place_model == "kriging"
+            if self.place_model == PLACE_KRIGING
             else ""
         )
         return (

@@ -25,6 +25,7 @@ from concurrent.futures import ThreadPoolExecutor
 import numpy as np
 
 from uavlink.config import EnvConfig, RadioConfig
+from uavlink.config.env import MOTION_INSTANT, REUSE_ORTHOGONAL
 from uavlink.env.actions import ActionMapping
 from uavlink.env.core import GroundTruth
 from uavlink.mobility import MobilityState, step_mobility
@@ -109,7 +110,7 @@ def fleet_mean_rate_bps(
     n_their = (
         member.sum(axis=-1)[..., None] - member @ mine_f
     )  # (T, D-1, G): each other cell's UEs left
-    if fleet_reuse == "orthogonal":
+    if fleet_reuse == REUSE_ORTHOGONAL:
         share = np.float32((radio.n_resource_blocks // (n_others + 1)) / radio.n_resource_blocks)
         sinr = np.where(mine, mine_mw, signal_theirs) / (share * noise_mw)
         bandwidth = share * np.float32(radio.bandwidth_hz)
@@ -332,7 +333,7 @@ class GeniePolicy(RulePolicy):
         best of their paths); ``uavlink.policies.registry.make_baseline("genie", cfg)`` passes them.
         ``workers``: threads that plan a batch's episodes side by side (default: one per CPU)."""
         self.cfg = cfg.validate()
-        if cfg.uav_motion != "instant":
+        if cfg.uav_motion != MOTION_INSTANT:
             raise ValueError(
                 "the genie plans instant moves: plan it in the env with uav_motion='instant' "
                 "(uavlink.policies.registry.baseline_env)"
