@@ -133,57 +133,20 @@ def _write_results_folder(args: argparse.Namespace) -> int:
             f"--map {args.map}: needs a folder of map policies and --spatial (today's, to compare)"
         )
 
-    def kind(spec) -> str:
-        env = spec.jobs()[0].env
-        return (
-            "fleet"
-            if env.n_uavs > 1
-            else "map"
-            if env.place_cell_m > 0
-            else env.radio.shadowing_model
-        )
+    from uavlink.sweep.report_sections import ReportSweeps
+    from uavlink.sweep.sweep_file import load_spec
 
-    def shipped(spec) -> Path:
-        """The folder a sweep's median seeds were shipped to: its record lies beside them (a
-        sweep of per-size fleet policies, fleet_slots 0, beside --fleet-per-size's when given)."""
-        fleet = args.fleet
-        if args.fleet_per_size is not None and spec.jobs()[0].env.fleet_slots == 0:
-            fleet = args.fleet_per_size
-        return Path(
-            {"ar1": folder, "spatial": args.spatial, "fleet": fleet, "map": args.map}[kind(spec)]
-            or folder
-        )
-
-    specs = []
-    if args.sweep:  # checked before the long evaluation, which would write the folder
-        from uavlink.sweep.aggregate import finished_rows, read_record, record_path
-        from uavlink.sweep.sweep_file import load_spec
-
-        specs = [load_spec(path) for path in args.sweep]
-        for spec in specs:
-            finished_rows(
-                spec, args.sweep_root / spec.name, read_record(record_path(shipped(spec), spec))
-            )
-
-    def sweep_sections(link_prefix: Path, wanted: str) -> list[str]:
-        from uavlink.sweep.aggregate import results_section
-
-        return [
-            section
-            for spec in specs
-            if kind(spec) == wanted
-            for section in (
-                results_section(
-                    spec,
-                    args.sweep_root / spec.name,
-                    args.out,
-                    link_prefix,
-                    shipped(spec),
-                    "##" if wanted == "ar1" else "###",
-                ),
-                "",
-            )
-        ]
+    sweeps = ReportSweeps(
+        [load_spec(path) for path in args.sweep or []],
+        args.sweep_root,
+        args.out,
+        folder,
+        spatial=args.spatial,
+        fleet=args.fleet,
+        fleet_per_size=args.fleet_per_size,
+        map=args.map,
+    )
+    sweeps.check_finished()  # before the long evaluation, which would write the folder
 
     status = StatusLine(log_lines=True)  # the report runs for hours: a log says how far it got
     try:
@@ -200,7 +163,7 @@ def _write_results_folder(args: argparse.Namespace) -> int:
             run,
             folder,
             command,
-            sweep_sections=sweep_sections,
+            sweep_sections=sweeps.sections,
             spatial_folder=args.spatial,
             fleet_folder=args.fleet,
             map_folder=args.map,

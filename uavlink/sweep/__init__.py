@@ -2,7 +2,8 @@
 
 ``sweep_file`` reads and checks a sweep file into a ``spec``, which expands into jobs with stable
 keys (no dask needed); ``jobs`` is the job function a worker runs; ``runner`` is the client side (embedded LocalCluster or
-``--scheduler``); ``aggregate`` writes the per-setting tables and plots. Only ``runner`` imports
+``--scheduler``); ``aggregate`` writes the per-setting tables and plots, and ``report_sections``
+sorts a results report's sweeps into its parts. Only ``runner`` imports
 dask, so the core and flight installs never need it.
 
 May import: ``config``, ``errors``, ``seeding``, ``env``, ``rollout``, ``policies``, ``learn``, ``evaluation``.
