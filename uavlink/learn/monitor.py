@@ -40,7 +40,7 @@ def training_monitor(total: int, run_dir: Path | None, checkpoint_every: int, pr
             super().__init__()
             self.curve: list[tuple[int, float]] = []
             self._bar = None
-            self._next_checkpoint = checkpoint_every
+            self.next_checkpoint = checkpoint_every  # steps; a training snapshot carries it
             self._csv: Any = None
             self._next_line: int | None = None  # steps at which the next log line is due
             self._start = time.perf_counter()
@@ -86,9 +86,9 @@ def training_monitor(total: int, run_dir: Path | None, checkpoint_every: int, pr
                 self._bar.refresh() if self.num_timesteps % 4096 < self.training_env.num_envs else None
             if self._next_line is not None and self.num_timesteps >= self._next_line:
                 self._log_line()
-            if run_dir is not None and self.num_timesteps >= self._next_checkpoint:
+            if run_dir is not None and self.num_timesteps >= self.next_checkpoint:
                 save_checkpoint(self.model, run_dir)
-                self._next_checkpoint += checkpoint_every
+                self.next_checkpoint += checkpoint_every
             return True
 
         def _log_line(self) -> None:

@@ -259,6 +259,27 @@ def _warm_start(sb3_policy: Any, cfg: EnvConfig, tc: TrainConfig) -> dict[str, A
     return report
 
 
+def _announced_warm_start(
+    model: Any, cfg: EnvConfig, tc: TrainConfig, progress: bool
+) -> dict[str, Any]:
+    """``_warm_start`` with a line before and after it on stderr (unless ``progress`` is off): a
+    copy with DAgger rounds runs for minutes before PPO's first step."""
+    ws, start = tc.warm_start, time.perf_counter()
+    if progress:
+        rounds = f", {ws.dagger_rounds} DAgger rounds" if ws.dagger_rounds else ""
+        source = (
+            f"from {ws.policy}"
+            if ws.policy
+            else f"copying {ws.teacher} ({ws.episodes} episodes{rounds})"
+        )
+        print(f"warm start: {source}", file=sys.stderr, flush=True)
+    cloned = _warm_start(model.policy, training_env_config(cfg, tc), tc)
+    if progress:
+        minutes = (time.perf_counter() - start) / 60
+        print(f"warm start: done in {minutes:.1f} min", file=sys.stderr, flush=True)
+    return cloned
+
+
 def train(
     cfg: EnvConfig,
     tc: TrainConfig,
@@ -297,22 +318,7 @@ def train(
     start = time.perf_counter() - (snapped["elapsed_s"] if snapped else 0.0)
     cloned = snapped["warm_start"] if snapped else None
     if (tc.warm_start.teacher or tc.warm_start.policy) and resume is None and snapped is None:
-        ws = tc.warm_start
-        if progress:  # a copy with DAgger rounds runs for minutes before PPO's first step
-            rounds = f", {ws.dagger_rounds} DAgger rounds" if ws.dagger_rounds else ""
-            source = (
-                f"from {ws.policy}"
-                if ws.policy
-                else f"copying {ws.teacher} ({ws.episodes} episodes{rounds})"
-            )
-            print(f"warm start: {source}", file=sys.stderr, flush=True)
-        cloned = _warm_start(model.policy, training_env_config(cfg, tc), tc)
-        if progress:
-            print(
-                f"warm start: done in {(time.perf_counter() - start) / 60:.1f} min",
-                file=sys.stderr,
-                flush=True,
-            )
+        cloned = _announced_warm_start(model, cfg, tc, progress)
     if run_dir is None:
         # Without a run folder SB3 would make an empty one under the temp dir for every run.
         from stable_baselines3.common.logger import Logger
@@ -343,14 +349,14 @@ def train(
                 "elapsed_s": time.perf_counter() - start,
                 "warm_start": cloned,
                 "curve": list(monitor.curve),
-                "next_checkpoint": monitor._next_checkpoint,
+                "next_checkpoint": monitor.next_checkpoint,
                 "warmup_rollouts": warmup.rollouts_done if warmup is not None else 0,
             }
 
         callbacks.append(snapshot_callback(snapshot, cfg, tc, carried, snapshot_every_s))
         if snapped is not None:
             monitor.curve[:] = snapped["curve"]
-            monitor._next_checkpoint = snapped["next_checkpoint"]
+            monitor.next_checkpoint = snapped["next_checkpoint"]
             if warmup is not None:
                 warmup.rollouts_done = snapped["warmup_rollouts"]
     try:
