@@ -69,13 +69,9 @@ class ExplorePolicy(RulePolicy):
 
     def _sinr_gap_db(self, frame: dict[str, np.ndarray]) -> np.ndarray:
         """How far the mean SINR (of the row's own cell, in a fleet) is below the hover level, dB."""
-        sinr = frame["sinr_db"]
-        if self.layout.is_fleet:
-            mine = self.layout.own_cell(frame)
-            with np.errstate(invalid="ignore"):
-                mean = np.where(mine, sinr, 0.0).sum(axis=1) / mine.sum(axis=1)
-            return np.nan_to_num(self.follow.hover_sinr_db - mean)  # an empty cell: no gap
-        return self.follow.hover_sinr_db - sinr.mean(axis=1)
+        if isinstance(self.follow, FleetAoaPolicy):
+            return self.follow.sinr_gap_db(frame)
+        return self.follow.hover_sinr_db - frame["sinr_db"].mean(axis=1)
 
     def act(self, obs: np.ndarray, truth: GroundTruth | None = None) -> np.ndarray:
         frame = self.layout.newest_frame(obs)

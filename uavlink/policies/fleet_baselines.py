@@ -41,15 +41,17 @@ class FleetAoaPolicy(RulePolicy):
         self.mapping = ActionMapping.for_config(cfg)
         self.hover_sinr_db = hover_sinr_db(cfg)
 
+    def sinr_gap_db(self, frame: dict[str, np.ndarray]) -> np.ndarray:
+        """How far the mean SINR of each row's own cell lies below the hover level, dB (an empty
+        cell: 0, so its UAV holds)."""
+        mine = self.layout.own_cell(frame)  # (rows, U)
+        with np.errstate(invalid="ignore"):
+            mean_sinr_db = np.where(mine, frame["sinr_db"], 0.0).sum(axis=1) / mine.sum(axis=1)
+        return np.nan_to_num(self.hover_sinr_db - mean_sinr_db)
+
     def act(self, obs: np.ndarray, truth: GroundTruth | None = None) -> np.ndarray:
         frame = self.layout.newest_frame(obs)
-        mine = self.layout.own_cell(frame)  # (rows, U)
-        count = mine.sum(axis=1)
-        with np.errstate(invalid="ignore"):
-            mean_sinr_db = np.where(mine, frame["sinr_db"], 0.0).sum(axis=1) / count
-        gap = np.nan_to_num(
-            (self.hover_sinr_db - mean_sinr_db) / self.sinr_span_db
-        )  # empty cell: 0, hold
+        gap = self.sinr_gap_db(frame) / self.sinr_span_db
         distance = self.mapping.r_max_m * np.clip(gap, 0.0, 1.0)
         return self.mapping.from_polar(frame["cell_aoa_mean_deg"], distance)
 
