@@ -1,8 +1,8 @@
-"""A simulation loop run in the background, for code that embeds the vehicle (tests, ``uavlink fly``'s
-embedded ``sitl-stub``): :meth:`BackgroundLoop.start` opens and runs ``run`` in a daemon thread,
-:meth:`BackgroundLoop.stop` ends it and closes, and an exception that ends the thread is kept in
-``error`` rather than lost with it. One vehicle (``SitlServer``) and a fleet (``FleetServer``)
-run this way."""
+"""A simulation loop run in the background, for code that runs the vehicle in its own process (tests,
+scripts; ``python -m sitl_stub`` calls ``run`` in the foreground): :meth:`BackgroundLoop.start`
+opens and runs ``run`` in a daemon thread, :meth:`BackgroundLoop.stop` ends it and closes, and an
+exception that ends the thread is kept in ``error`` rather than lost with it. One vehicle
+(``SitlServer``) and a fleet (``FleetServer``) run this way."""
 
 from __future__ import annotations
 

@@ -138,7 +138,7 @@ class EnvConfig:
     episode_frames: int = 128
     frame_s: float = 1.0
     r_max_m: float = 12.0  # PX4 MPC_XY_VEL_MAX default, 12 m/s x 1 s frame
-    uav_motion: str = UAV_MOTIONS[0]
+    uav_motion: str = MOTION_INSTANT
     action_mapping: str = ACTION_MAPPINGS[0]  # see uavlink.env.actions.ActionMapping
     memory: int = 4
     # A memory of place (SPEC "The limit, and a memory of place"): what the UAV sensed where, on a
@@ -150,12 +150,12 @@ class EnvConfig:
     # the area: the memory keeps 12 bytes per cell and UAV, so 400 x 400 cells are 1.9 MB a UAV (0.25
     # GB for 128 envs), and it grows as 1 / cell^2 (1 mm cells over the default area: 1.7 TiB a UAV).
     place_cell_m: float = 0.0
-    place_model: str = PLACE_MODELS[0]  # what the memory keeps: PLACE_MODELS above
+    place_model: str = PLACE_CELLS  # what the memory keeps: PLACE_MODELS above
     ue_speed_mps: float = 8.0
     cluster_size_m: float = 10.0
     # The fleet (SPEC "A fleet"): D UAVs, start spread on a circle, kept apart by a safety filter.
     n_uavs: int = 1
-    fleet_reuse: str = FLEET_REUSE[0]
+    fleet_reuse: str = REUSE_FULL
     uav_separation_m: float = 20.0  # horizontal minimum between two UAVs
     fleet_start_radius_m: float = 100.0  # UAV d starts at this radius, 360 d / D degrees from east
     # A fleet of any size (SPEC "A fleet of any size"): K > 0 shows each UAV the others in K slots,
