@@ -38,11 +38,12 @@ from uavlink.flight.loop import (
     LoopConfig,
     PolicyPilot,
     episode_over,
+    judged_episode,
     stream_then_offboard,
     to_start,
 )
 from uavlink.flight.radio_source import MavlinkRadioSource
-from uavlink.flight.result import EndedBy, FleetResult, VehicleRecord, judge, signing_hint
+from uavlink.flight.result import EndedBy, FleetResult, VehicleRecord
 from uavlink.flight.vehicle_control import (
     ending_mode,
     land,
@@ -98,17 +99,9 @@ def fly_fleet(
     """Fly one episode with every vehicle (links in UAV order); land them at the end. Never
     raises LinkError: the result says what went wrong."""
     result = FleetResult()
-    try:
-        _fly_fleet(links, pilot, cfg, loop_cfg, status, result)
-    except LinkError as exc:
-        result.failure, result.fix = str(exc), next(filter(None, map(signing_hint, links)), "")
-    except KeyboardInterrupt:  # before the episode's loop (which lands by itself)
-        result.interrupted, result.ended_by = True, EndedBy.INTERRUPTED
-        for link in links:
-            if loop_cfg.land and link.status.armed and not ending_mode(link.status):
-                land(link)
-    judge(result, loop_cfg.frames)
-    return result
+    return judged_episode(
+        links, loop_cfg, result, lambda: _fly_fleet(links, pilot, cfg, loop_cfg, status, result)
+    )
 
 
 def _fly_fleet(links, pilot, cfg, loop_cfg, status, result: FleetResult) -> None:

@@ -37,6 +37,7 @@ import math
 import time
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
+from typing import TypeVar
 
 import numpy as np
 
@@ -63,6 +64,7 @@ from uavlink.mobility.fleet import start_positions_m
 from uavlink.policies.base import Policy
 
 log = logging.getLogger(__name__)
+ResultT = TypeVar("ResultT", bound=FlightResult)  # one vehicle's result or a fleet's
 
 
 @dataclass
@@ -193,14 +195,26 @@ def fly_vehicle(
     a failsafe takes over, or the link is lost; then land unless someone else is already ending the
     flight. Ctrl-C lands too. Never raises LinkError: the result says what went wrong."""
     result = FlightResult()
+    return judged_episode(
+        [link], loop_cfg, result, lambda: _fly(link, pilot, cfg, loop_cfg, radio, status, result)
+    )
+
+
+def judged_episode(
+    links: Sequence[VehicleLink], loop_cfg: LoopConfig, result: ResultT, fly: Callable[[], None]
+) -> ResultT:
+    """``fly()`` the episode into ``result`` and judge it, one vehicle or a fleet alike: a LinkError
+    becomes the result's failure (with what to do about signing, where that was the cause), and a
+    Ctrl-C before the episode's loop (which lands by itself) lands every vehicle still flying."""
     try:
-        _fly(link, pilot, cfg, loop_cfg, radio, status, result)
+        fly()
     except LinkError as exc:
-        result.failure, result.fix = str(exc), signing_hint(link)
-    except KeyboardInterrupt:  # before the episode's loop (which lands by itself)
+        result.failure, result.fix = str(exc), next(filter(None, map(signing_hint, links)), "")
+    except KeyboardInterrupt:
         result.interrupted, result.ended_by = True, EndedBy.INTERRUPTED
-        if loop_cfg.land and link.status.armed and not ending_mode(link.status):
-            land(link)
+        for link in links:
+            if loop_cfg.land and link.status.armed and not ending_mode(link.status):
+                land(link)
     judge(result, loop_cfg.frames)
     return result
 
