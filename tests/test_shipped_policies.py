@@ -65,6 +65,8 @@ def test_a_shipped_policy_by_name_from_any_folder(
 ) -> None:
     monkeypatch.chdir(tmp_path)
     assert locate(name) == ROOT / "policies" / file
+    assert capsys.readouterr().err == ""  # a Python caller gets the path, nothing on stderr
+    assert locate(name, announce=True) == ROOT / "policies" / file
     line = capsys.readouterr().err.strip()
     assert line == f"uavlink: --policy {name}: the shipped {ROOT / 'policies' / file}"
 

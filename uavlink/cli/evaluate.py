@@ -28,8 +28,10 @@ from uavlink.policies.registry import BASELINES
 def cmd_evaluate(args: argparse.Namespace) -> int:
     from uavlink.evaluation import compare, evaluate_policy
 
-    args.policy = str(locate(args.policy))  # a shipped policy by name: its file from here on
-    args.against = [str(locate(spec)) for spec in args.against or []]
+    args.policy = str(
+        locate(args.policy, announce=True)
+    )  # a shipped policy by name: its file from here on
+    args.against = [str(locate(spec, announce=True)) for spec in args.against or []]
     if args.episodes < 1:
         raise UserError(f"--episodes must be a positive integer, got {args.episodes}")
     if args.out is not None:

@@ -91,7 +91,7 @@ def fly_policy(options: FlyOptions, live_status: bool = False) -> dict[str, Any]
     )
     key = load_key(options.signing_key) if options.signing_key else None  # before anything flies
     urls = None if options.connect is None else split_urls(options.connect)
-    policy_path = str(locate(options.policy))
+    policy_path = str(locate(options.policy, announce=True))
     overrides = EnvOverrides.from_command_line(
         options.scenario, options.aoa_noise_deg, list(options.overrides)
     )

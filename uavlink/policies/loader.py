@@ -53,11 +53,12 @@ def shipped_policies() -> dict[str, Path]:
     return dict(sorted(found.items()))
 
 
-def locate(spec: str | Path) -> str | Path:
+def locate(spec: str | Path, announce: bool = False) -> str | Path:
     """What ``--policy`` names, in order: an existing file or folder (as given), a baseline, a
     shipped policy or folder by name (``circular``, ``circular.zip``, ``spatial/circular``,
-    ``map/no_move``, ``fleet/straight_180``, ``policies/circular.zip``; one line on stderr says which
-    file it is). Anything else is a PolicyFileError naming the closest shipped policies."""
+    ``map/no_move``, ``fleet/straight_180``, ``policies/circular.zip``). Anything else is a
+    PolicyFileError naming the closest shipped policies. ``announce``: say on stderr which shipped
+    file a name became (the commands do; a Python caller gets the path and no output)."""
     text = str(spec)
     if text in BASELINES or Path(text).exists():
         return spec
@@ -77,7 +78,8 @@ def locate(spec: str | Path) -> str | Path:
         else:
             found = None
         if found is not None:
-            print(f"uavlink: --policy {text}: the shipped {found}", file=sys.stderr)
+            if announce:
+                print(f"uavlink: --policy {text}: the shipped {found}", file=sys.stderr)
             return found
     close = difflib.get_close_matches(stem, [*shipped, *BASELINES], n=3, cutoff=0.6)
     hint = f"; closest: {', '.join(close)}" if close else ""
