@@ -16,6 +16,7 @@ from dataclasses import dataclass
 
 from sitl_stub.core.geo import GeoOrigin
 from sitl_stub.core.mission_store import FENCE, MissionItem, MissionStore
+from uavlink.mavlink.frames import e7_to_deg
 
 POLYGON_INCLUSION = 5001  # MAV_CMD_NAV_FENCE_POLYGON_VERTEX_INCLUSION
 POLYGON_EXCLUSION = 5002
@@ -144,7 +145,7 @@ def fence_from_items(items: Sequence[MissionItem], origin: GeoOrigin) -> Geofenc
 
 
 def _local(item: MissionItem, origin: GeoOrigin) -> Point:
-    return origin.to_local(item.x / 1e7, item.y / 1e7)
+    return origin.to_local(e7_to_deg(item.x), e7_to_deg(item.y))
 
 
 def _lerp(a: Point, b: Point, f: float) -> Point:

@@ -25,7 +25,7 @@ from sitl_stub.flight.guidance import (
     sanitize_orbit,
 )
 from sitl_stub.flight.vehicle import Vehicle
-from uavlink.mavlink.frames import LOCAL_NED, RELATIVE_ALT_FRAMES
+from uavlink.mavlink.frames import LOCAL_NED, RELATIVE_ALT_FRAMES, e7_to_deg
 
 INT32_MAX = 2**31 - 1
 INT32_MIN = -(2**31)  # what a NaN latitude cast to int32 becomes (MAVSDK's do_orbit with NaN)
@@ -54,7 +54,7 @@ def global_point(params: Sequence[float], frame: int | None) -> tuple[float, flo
     if frame is not None:
         if x in (INT32_MAX, INT32_MIN) or y in (INT32_MAX, INT32_MIN):
             return None
-        x, y = x / 1e7, y / 1e7
+        x, y = e7_to_deg(x), e7_to_deg(y)
     if math.isnan(x) or math.isnan(y):
         return None
     if not (-90.0 <= x <= 90.0 and -180.0 <= y <= 180.0):

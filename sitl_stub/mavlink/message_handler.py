@@ -29,7 +29,7 @@ from sitl_stub.mavlink.setpoints import Refusal, read_setpoint
 from sitl_stub.mavlink.telemetry import TelemetrySender
 from sitl_stub.sim.payload import PayloadSlot
 from uavlink.mavlink.dialect import mavlink
-from uavlink.mavlink.frames import GLOBAL_FRAMES, height_above_home_m
+from uavlink.mavlink.frames import GLOBAL_FRAMES, e7_to_deg, height_above_home_m
 from uavlink.mavlink.px4_modes import decode_custom_mode
 from uavlink.mavlink.rejects import RejectLog, rescan_bad_frame
 from uavlink.mavlink.signing import SigningGuard
@@ -221,7 +221,7 @@ class MessageHandler:
     ) -> tuple[float, float, float]:
         """LOCAL_NED of a global setpoint; the world is flat at home, so terrain = home."""
         origin = self.vehicle.origin
-        north, east = origin.to_local(lat_int / 1e7, lon_int / 1e7)
+        north, east = origin.to_local(e7_to_deg(lat_int), e7_to_deg(lon_int))
         return north, east, -height_above_home_m(alt_m, frame, origin.alt_amsl_m)
 
     def _on_command(self, msg: Any, kind: str, wall: float) -> None:

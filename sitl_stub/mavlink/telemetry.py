@@ -21,6 +21,7 @@ from sitl_stub.core.geo import GeoOrigin
 from sitl_stub.core.vehicle_state import VehicleState
 from sitl_stub.sim.battery import CELL_COUNT, Battery
 from uavlink.mavlink.dialect import mavlink
+from uavlink.mavlink.frames import deg_to_e7
 
 # PX4 reports every sensor present, enabled and healthy in SITL; GEOFENCE healthy keeps MAVProxy
 # from announcing "fence breach" (it is unhealthy while VehicleState.fence_breached), PREARM_CHECK
@@ -192,8 +193,8 @@ class TelemetrySender:
         o, (north, east) = self.origin, self.home_ne
         lat, lon = o.to_global(north, east)
         self.mav.home_position_send(
-            _e7(lat),
-            _e7(lon),
+            deg_to_e7(lat),
+            deg_to_e7(lon),
             _mm(o.alt_amsl_m),
             north,
             east,
@@ -214,8 +215,8 @@ class TelemetrySender:
         self.mav.gps_raw_int_send(
             _us(s.time_s),
             fix,
-            _e7(lat),
-            _e7(lon),
+            deg_to_e7(lat),
+            deg_to_e7(lon),
             _mm(self.origin.alt_amsl_m + s.altitude_m),
             70,
             110,
@@ -234,8 +235,8 @@ class TelemetrySender:
         lat, lon = self.origin.to_global(s.north_m, s.east_m)
         self.mav.global_position_int_send(
             _ms(s.time_s),
-            _e7(lat),
-            _e7(lon),
+            deg_to_e7(lat),
+            deg_to_e7(lon),
             _mm(self.origin.alt_amsl_m + s.altitude_m),
             _mm(s.altitude_m),
             _cms(s.vn_mps),
@@ -294,17 +295,13 @@ class TelemetrySender:
             _us(s.time_s),
             o.signed_radius_m,
             mavlink.MAV_FRAME_GLOBAL,
-            _e7(lat),
-            _e7(lon),
+            deg_to_e7(lat),
+            deg_to_e7(lon),
             self.origin.alt_amsl_m - o.down_m,
         )
 
     def statustext(self, severity: int, text: str) -> None:
         self.announce.statustext_send(severity, text[:50].encode("ascii", "replace"))
-
-
-def _e7(deg: float) -> int:
-    return int(round(deg * 1e7))
 
 
 def _mm(m: float) -> int:

@@ -21,6 +21,7 @@ import logging
 
 from uavlink.flight.link import LinkError, VehicleLink
 from uavlink.mavlink.dialect import mavlink
+from uavlink.mavlink.frames import deg_to_e7, e7_to_deg
 from uavlink.mavlink.geo import GeoOrigin
 from uavlink.mavlink.mission import FENCE, MissionClient, MissionItem, MissionTransferError
 
@@ -45,8 +46,8 @@ def area_fence(
                 mavlink.MAV_FRAME_GLOBAL,
                 mavlink.MAV_CMD_NAV_FENCE_POLYGON_VERTEX_INCLUSION,
                 float(len(corners_ne)),
-                x=round(lat * 1e7),
-                y=round(lon * 1e7),
+                x=deg_to_e7(lat),
+                y=deg_to_e7(lon),
                 mission_type=FENCE,
             )
         )
@@ -62,7 +63,9 @@ def local_origin(link: VehicleLink) -> GeoOrigin | None:
         if not link.wait_wall(lambda: st.home is not None, HOME_WAIT_S):
             return None
     home = st.home
-    lat, lon = GeoOrigin(home.latitude * 1e-7, home.longitude * 1e-7).to_global(-home.x, -home.y)
+    lat, lon = GeoOrigin(e7_to_deg(home.latitude), e7_to_deg(home.longitude)).to_global(
+        -home.x, -home.y
+    )
     return GeoOrigin(lat, lon)
 
 

@@ -26,6 +26,17 @@ TO_INT_FRAME = {GLOBAL: GLOBAL_INT, GLOBAL_RELATIVE_ALT: GLOBAL_RELATIVE_ALT_INT
 TO_FLOAT_FRAME = {v: k for k, v in TO_INT_FRAME.items()}
 
 
+def deg_to_e7(deg: float) -> int:
+    """Degrees as MAVLink's int32 degrees * 1e7 (the *_INT messages' latitude/longitude; 1e-7 degree
+    is about 1 cm), rounded to the nearest."""
+    return int(round(deg * 1e7))
+
+
+def e7_to_deg(value: float) -> float:
+    """MAVLink's degrees * 1e7 as degrees: a division, correctly rounded (``* 1e-7`` is not)."""
+    return value / 1e7
+
+
 def height_above_home_m(z_m: float, frame: int, home_amsl_m: float) -> float:
     """The height above home of a global frame's altitude ``z_m`` (AMSL or above home/ground)."""
     return z_m - home_amsl_m if frame in AMSL_FRAMES else z_m

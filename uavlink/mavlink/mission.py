@@ -18,7 +18,7 @@ from dataclasses import dataclass, replace
 from typing import Any
 
 from uavlink.mavlink.dialect import enum_name, mavlink
-from uavlink.mavlink.frames import GLOBAL_FRAMES, height_above_home_m
+from uavlink.mavlink.frames import GLOBAL_FRAMES, deg_to_e7, e7_to_deg, height_above_home_m
 
 MISSION = 0  # MAV_MISSION_TYPE_MISSION
 FENCE = 1  # MAV_MISSION_TYPE_FENCE
@@ -76,8 +76,7 @@ def item_from_message(msg: Any) -> MissionItem:
     """A MISSION_ITEM_INT or (legacy, float x/y) MISSION_ITEM as a :class:`MissionItem`."""
     x, y = msg.x, msg.y
     if msg.get_type() == "MISSION_ITEM":
-        scale = 1e7 if msg.frame in GLOBAL_FRAMES else 1.0
-        x, y = round(x * scale), round(y * scale)
+        x, y = (deg_to_e7(x), deg_to_e7(y)) if msg.frame in GLOBAL_FRAMES else (round(x), round(y))
     return MissionItem(
         int(msg.seq),
         int(msg.frame),
@@ -109,8 +108,9 @@ def send_item(
     if int_mode:
         send, x, y = mav.mission_item_int_send, item.x, item.y
     else:
-        scale = 1e-7 if item.frame in GLOBAL_FRAMES else 1.0
-        send, x, y = mav.mission_item_send, item.x * scale, item.y * scale
+        send, x, y = mav.mission_item_send, item.x, item.y
+        if item.frame in GLOBAL_FRAMES:
+            x, y = e7_to_deg(item.x), e7_to_deg(item.y)
     send(
         target_system,
         target_component,

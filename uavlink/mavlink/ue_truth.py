@@ -20,6 +20,7 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 
+from uavlink.mavlink.frames import deg_to_e7, e7_to_deg
 from uavlink.mavlink.geo import GeoOrigin
 
 UE_ICAO_BASE = 0xE0E000
@@ -53,8 +54,8 @@ def adsb_arguments(
     heading_cdeg = int(round(math.degrees(math.atan2(ve_mps, vn_mps)) * 100)) % 36000
     return (
         UE_ICAO_BASE + ue,
-        int(round(lat * 1e7)),
-        int(round(lon * 1e7)),
+        deg_to_e7(lat),
+        deg_to_e7(lon),
         ALTITUDE_GEOMETRIC,
         int(round((origin.alt_amsl_m + UE_ANTENNA_HEIGHT_M) * 1000)),
         heading_cdeg,
@@ -77,4 +78,4 @@ def decode_ue_fix(msg) -> UeFix | None:
         return None
     if not (math.isfinite(msg.lat) and math.isfinite(msg.lon)):
         return None
-    return UeFix(ue, msg.lat * 1e-7, msg.lon * 1e-7)
+    return UeFix(ue, e7_to_deg(msg.lat), e7_to_deg(msg.lon))

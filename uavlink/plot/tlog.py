@@ -42,6 +42,7 @@ import numpy as np
 
 from uavlink.errors import UserError
 from uavlink.mavlink.dialect import mavlink
+from uavlink.mavlink.frames import e7_to_deg
 from uavlink.mavlink.geo import GeoOrigin
 from uavlink.mavlink.px4_modes import PX4_MAIN_OFFBOARD, decode_custom_mode
 from uavlink.mavlink.radio_codec import (
@@ -161,10 +162,10 @@ class _Reader:
                 self.local.setdefault(sys_id, []).append((msg.time_boot_ms * 1e-3, msg.y, msg.x))
         elif kind == "GLOBAL_POSITION_INT":
             self.glob.setdefault(sys_id, []).append(
-                (msg.time_boot_ms * 1e-3, msg.lat * 1e-7, msg.lon * 1e-7)
+                (msg.time_boot_ms * 1e-3, e7_to_deg(msg.lat), e7_to_deg(msg.lon))
             )
         elif kind == "HOME_POSITION":
-            home = GeoOrigin(msg.latitude * 1e-7, msg.longitude * 1e-7)
+            home = GeoOrigin(e7_to_deg(msg.latitude), e7_to_deg(msg.longitude))
             lat, lon = home.to_global(-msg.x, -msg.y)  # the local origin, as the fence upload does
             self.home[sys_id] = GeoOrigin(lat, lon)
         elif kind == "DEBUG_FLOAT_ARRAY" and comp == RADIO_COMPONENT_ID:
@@ -209,7 +210,7 @@ class _Reader:
             and msg.mission_type == FENCE_MISSION_TYPE
             and msg.command == FENCE_VERTEX
         ):
-            self.fence[msg.seq] = (msg.x * 1e-7, msg.y * 1e-7)
+            self.fence[msg.seq] = (e7_to_deg(msg.x), e7_to_deg(msg.y))
 
 
 def read_flight(path: Path) -> FlightData:
