@@ -16,7 +16,6 @@ from dataclasses import dataclass
 
 from sitl_stub.core.geo import GeoOrigin
 from sitl_stub.core.mission_store import FENCE, MissionItem, MissionStore
-from uavlink.mavlink.frames import e7_to_deg
 
 POLYGON_INCLUSION = 5001  # MAV_CMD_NAV_FENCE_POLYGON_VERTEX_INCLUSION
 POLYGON_EXCLUSION = 5002
@@ -145,7 +144,7 @@ def fence_from_items(items: Sequence[MissionItem], origin: GeoOrigin) -> Geofenc
 
 
 def _local(item: MissionItem, origin: GeoOrigin) -> Point:
-    return origin.to_local(e7_to_deg(item.x), e7_to_deg(item.y))
+    return origin.to_local(*item.lat_lon_deg())
 
 
 def _lerp(a: Point, b: Point, f: float) -> Point:

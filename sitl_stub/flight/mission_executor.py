@@ -31,7 +31,6 @@ from dataclasses import dataclass
 
 from sitl_stub.core.geo import GeoOrigin
 from sitl_stub.core.mission_store import MISSION, MissionItem, MissionStore
-from uavlink.mavlink.frames import e7_to_deg
 
 NAV_WAYPOINT = 16
 NAV_LOITER_UNLIM = 17
@@ -224,7 +223,7 @@ class MissionExecutor:
     def _horizontal(self, item: MissionItem) -> tuple[float, float]:
         if item.x == 0 and item.y == 0:
             return self._phase_start[0], self._phase_start[1]
-        return self.origin.to_local(e7_to_deg(item.x), e7_to_deg(item.y))
+        return self.origin.to_local(*item.lat_lon_deg())
 
     def _altitude(self, item: MissionItem, z: float) -> float:
         """Height above home of an item's altitude ``z`` in its frame."""

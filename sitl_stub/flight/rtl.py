@@ -13,7 +13,6 @@ from collections.abc import Sequence
 
 from sitl_stub.core.geo import GeoOrigin
 from sitl_stub.core.mission_store import MissionItem
-from uavlink.mavlink.frames import e7_to_deg
 
 NAV_RALLY_POINT = 5100
 HOME_NE = (0.0, 0.0)
@@ -25,11 +24,7 @@ Ned = tuple[float, float, float]
 
 def rally_points(items: Sequence[MissionItem], origin: GeoOrigin) -> list[tuple[float, float]]:
     """(north_m, east_m) of every NAV_RALLY_POINT of a stored RALLY list."""
-    return [
-        origin.to_local(e7_to_deg(i.x), e7_to_deg(i.y))
-        for i in items
-        if i.command == NAV_RALLY_POINT
-    ]
+    return [origin.to_local(*i.lat_lon_deg()) for i in items if i.command == NAV_RALLY_POINT]
 
 
 def return_destination(

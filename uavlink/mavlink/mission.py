@@ -58,6 +58,10 @@ class MissionItem:
     autocontinue: int = 1
     mission_type: int = MISSION
 
+    def lat_lon_deg(self) -> tuple[float, float]:
+        """x/y as latitude/longitude in degrees (meaningful in a global frame)."""
+        return e7_to_deg(self.x), e7_to_deg(self.y)
+
     def height_above_home_m(self, z_m: float, home_amsl_m: float) -> float:
         """The height above home of an altitude ``z_m`` given in this item's frame."""
         return height_above_home_m(z_m, self.frame, home_amsl_m)
@@ -110,7 +114,7 @@ def send_item(
     else:
         send, x, y = mav.mission_item_send, item.x, item.y
         if item.frame in GLOBAL_FRAMES:
-            x, y = e7_to_deg(item.x), e7_to_deg(item.y)
+            x, y = item.lat_lon_deg()
     send(
         target_system,
         target_component,
