@@ -128,6 +128,15 @@ class RadioConfig:
     def rb_bandwidth_hz(self) -> float:
         return self.bandwidth_hz / self.n_resource_blocks
 
+    def rbs_per_cell(self, n_cells: int) -> int:
+        """RBs each of ``n_cells`` cells holds under orthogonal reuse: an equal split of the band,
+        the remainder left unused."""
+        return self.n_resource_blocks // n_cells
+
+    def orthogonal_share(self, n_cells: int) -> float:
+        """The fraction of the band each of ``n_cells`` cells holds under orthogonal reuse."""
+        return self.rbs_per_cell(n_cells) / self.n_resource_blocks
+
 
 @dataclass(frozen=True)
 class EnvConfig:

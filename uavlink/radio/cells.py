@@ -66,7 +66,7 @@ def mean_channel_rate_bps(
     signal = np.take_along_axis(rx_mw, serving[..., None], axis=-1)[..., 0]
     noise_mw = 10.0 ** (noise_power_dbm(radio.bandwidth_hz, radio) / 10.0)
     if fleet_reuse == REUSE_ORTHOGONAL:
-        share = (radio.n_resource_blocks // n_uavs) / radio.n_resource_blocks
+        share = radio.orthogonal_share(n_uavs)
         return share * radio.bandwidth_hz / ues_in_cell * np.log2(1.0 + signal / share / noise_mw)
     interference = (rx_mw * (size > 0)[..., None, :]).sum(axis=-1) - signal if n_uavs > 1 else 0.0
     return radio.bandwidth_hz / ues_in_cell * np.log2(1.0 + signal / (interference + noise_mw))

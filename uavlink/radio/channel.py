@@ -206,7 +206,7 @@ class RadioChannel:
     ) -> tuple[np.ndarray, np.ndarray]:
         """Each UAV alone on K // D RBs at full power: no interference; the bandwidth B_d / U_d."""
         radio = self.radio
-        rbs_per_uav = radio.n_resource_blocks // rx_dbm.shape[2]
+        rbs_per_uav = radio.rbs_per_cell(rx_dbm.shape[2])
         serving_dbm = np.take_along_axis(rx_dbm, cells.serving[:, :, None], axis=2)[..., 0]
         noise_rb_dbm = noise_power_dbm(radio.rb_bandwidth_hz, radio)
         sinr = 10.0 ** ((serving_dbm - 10.0 * np.log10(rbs_per_uav) - noise_rb_dbm) / 10.0)

@@ -111,7 +111,7 @@ def fleet_mean_rate_bps(
         member.sum(axis=-1)[..., None] - member @ mine_f
     )  # (T, D-1, G): each other cell's UEs left
     if fleet_reuse == REUSE_ORTHOGONAL:
-        share = np.float32((radio.n_resource_blocks // (n_others + 1)) / radio.n_resource_blocks)
+        share = np.float32(radio.orthogonal_share(n_others + 1))
         sinr = np.where(mine, mine_mw, signal_theirs) / (share * noise_mw)
         bandwidth = share * np.float32(radio.bandwidth_hz)
     else:  # every active other cell's power, less the UE's own for a UE of another cell
