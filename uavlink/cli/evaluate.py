@@ -28,9 +28,8 @@ from uavlink.policies.registry import BASELINES
 def cmd_evaluate(args: argparse.Namespace) -> int:
     from uavlink.evaluation import compare, evaluate_policy
 
-    args.policy = str(
-        locate(args.policy, announce=True)
-    )  # a shipped policy by name: its file from here on
+    # a shipped policy by name: its file from here on
+    args.policy = str(locate(args.policy, announce=True))
     args.against = [str(locate(spec, announce=True)) for spec in args.against or []]
     if args.episodes < 1:
         raise UserError(f"--episodes must be a positive integer, got {args.episodes}")
