@@ -18,7 +18,7 @@ from uavlink.env.core import BatchedUavEnv
 from uavlink.evaluation import evaluate_policy
 from uavlink.mobility.fleet import min_separation_m
 from uavlink.policies.genie import GeniePolicy, fleet_mean_rate_bps
-from uavlink.policies.genie.grid import Grid, best_grid_path, grid_rx_dbm
+from uavlink.policies.genie.grid import Grid, MoveBox, best_grid_path, grid_rx_dbm
 from uavlink.policies.registry import make_baseline
 from uavlink.radio.cells import mean_channel_rate_bps
 from uavlink.radio.pathloss import distance_3d_m, mean_rx_power_dbm
@@ -67,13 +67,29 @@ def test_dp_is_exact_against_brute_force(r_max_m: float, frames: int, masked: bo
     for _ in range(3):
         reward = rng.normal(size=(frames, grid.n, grid.n))
         reward[rng.random(reward.shape) < 0.1] = -np.inf  # forbidden cells
-        allowed = (
-            rng.random((frames - 1, len(grid.offsets), grid.n, grid.n)) > 0.3 if masked else None
-        )
+        allowed, boxes = None, None
+        if masked:  # a random box of forbidden moves per frame, every move outside it allowed
+            allowed = np.ones((frames - 1, len(grid.offsets), grid.n, grid.n), dtype=bool)
+            boxes = []
+            for t in range(frames - 1):
+                row, col = rng.integers(0, grid.n - 1, 2)
+                h, w = rng.integers(1, grid.n - row + 1), rng.integers(1, grid.n - col + 1)
+                box = MoveBox(int(row), int(col), rng.random((len(grid.offsets), h, w)) > 0.3)
+                allowed[t, :, row : row + h, col : col + w] = box.allowed
+                boxes.append([box])
         first = grid.cells_within(np.array([0.0, 0.0]), r_max_m)
-        path, value = best_grid_path(reward, grid, first, allowed)
+        path, value = best_grid_path(reward, grid, first, boxes)
         assert value == pytest.approx(brute_force(reward, grid, first, allowed))
         assert value == pytest.approx(sum(reward[t][tuple(c)] for t, c in enumerate(path)))
+        if allowed is not None:  # every move of the path one the boxes allow
+            moves = [
+                list(map(tuple, grid.offsets)).index(tuple(b - a))
+                for a, b in zip(path[:-1], path[1:], strict=True)
+            ]
+            assert all(
+                allowed[t, k, a[0], a[1]]
+                for t, (k, a) in enumerate(zip(moves, path[:-1], strict=True))
+            )
 
 
 def test_grid_offsets_are_the_reachable_moves() -> None:

@@ -39,6 +39,7 @@ from uavlink.evaluation.tables import ReportRun, markdown_table, spatial_overrid
 from uavlink.mobility import SCENARIOS
 from uavlink.policies.base import Policy
 from uavlink.policies.contract import EnvOverrides, load_with_env
+from uavlink.policies.genie import GeniePolicy
 from uavlink.policies.registry import make_baseline
 
 PLOT_UAVS = 3  # the fleet size of the trajectory plots (the policy's first size if it flies no 3)
@@ -132,7 +133,13 @@ def _worker_jobs(scenario: str) -> dict[str, Job]:
     """``scenario``'s jobs in a worker process, by key: its policies are loaded once per process,
     not once for each of its 25 evaluations."""
     assert _FOLDERS is not None
-    return {job[0]: job for job in _fleet_jobs(scenario, *_FOLDERS)}
+    jobs = {job[0]: job for job in _fleet_jobs(scenario, *_FOLDERS)}
+    for _, policy, *_ in jobs.values():
+        if isinstance(policy, GeniePolicy):
+            # the pool's processes fill the cores: the genie's planning threads would only contend
+            # for the GIL (benchmarks/genie_cost.py: two threads cost 1.15-1.25x one thread's CPU)
+            policy.workers = 1
+    return jobs
 
 
 def _evaluate_one(scenario: str, key: str, episodes: int, seed: int) -> EvalResult:

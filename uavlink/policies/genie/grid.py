@@ -9,6 +9,7 @@ from it next frame, a max-filter with the disc's footprint (shifted maxima over 
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from dataclasses import dataclass
 
 import numpy as np
@@ -129,22 +130,42 @@ def one_uav_rate_mbps(rx_dbm: np.ndarray, radio: RadioConfig) -> np.ndarray:
     )
 
 
+@dataclass(frozen=True)
+class MoveBox:
+    """The moves allowed from one box of cells in one frame: ``allowed`` (K, h, w) bool, move k
+    from cell [row + i, col + j] at ``allowed[k, i, j]``. Every move from a cell outside a frame's
+    boxes (disjoint) is allowed: a fleet's separation forbids moves only near another UAV, so the
+    DP's mask is a few boxes per frame, not a (K, n, n) array."""
+
+    row: int
+    col: int
+    allowed: np.ndarray
+
+    def at(self, cell: np.ndarray) -> np.ndarray | None:
+        """(K,) the moves allowed from ``cell`` [ix, iy], or None when it lies outside the box."""
+        i, j = int(cell[0]) - self.row, int(cell[1]) - self.col
+        h, w = self.allowed.shape[1:]
+        return self.allowed[:, i, j] if 0 <= i < h and 0 <= j < w else None
+
+
 def best_grid_path(
-    reward: np.ndarray, grid: Grid, first: np.ndarray, allowed_moves: np.ndarray | None = None
+    reward: np.ndarray,
+    grid: Grid,
+    first: np.ndarray,
+    boxes: Sequence[Sequence[MoveBox]] | None = None,
 ) -> tuple[np.ndarray | None, float]:
     """The path of cells (T, 2) maximising the summed ``reward`` (T, n, n) (entry t: frame t + 1;
     -inf marks a forbidden cell), its first cell among ``first`` (n, n) bool, each later cell one
-    grid offset from the one before; ``allowed_moves`` (T - 1, K, n, n) bool may forbid the move
-    of offset k from a cell at frame t + 1. Returns (None, -inf) when no path is allowed. Exact:
-    the DP's value is the best over all such paths (tests/test_genie.py checks by brute force).
+    grid offset from the one before; ``boxes`` (T - 1 entries of disjoint ``MoveBox``) may forbid
+    moves from cells at frame t + 1. Returns (None, -inf) when no path is allowed.
+    Exact: the DP's value is the best over all such paths (tests/test_genie.py checks by brute
+    force).
 
     Backward, only maxima are kept (the value of every cell in every frame, contiguous shifted
-    maxima); the path is read forward from the values, the first of equal moves (hover) winning."""
+    maxima, then recomputed inside the frame's box over its allowed moves); the path is read forward
+    from the values, the first of equal moves (hover) winning."""
     n_frames, n = reward.shape[0], grid.n
     pad = int(np.abs(grid.offsets).max())
-    windows = [
-        (slice(pad + di, pad + di + n), slice(pad + dj, pad + dj + n)) for di, dj in grid.offsets
-    ]
     values = np.empty((n_frames, n, n))
     values[-1] = reward[-1]
     padded = np.full((n + 2 * pad, n + 2 * pad), -np.inf)
@@ -152,14 +173,16 @@ def best_grid_path(
     for t in range(n_frames - 2, -1, -1):
         padded[pad : pad + n, pad : pad + n] = values[t + 1]
         best.fill(-np.inf)
-        for k, window in enumerate(windows):
-            # a forbidden move leaves ``best`` as it is (ufunc ``where``: no masked copy per move)
-            np.maximum(
-                best,
-                padded[window],
-                out=best,
-                where=True if allowed_moves is None else allowed_moves[t, k],
-            )
+        for di, dj in grid.offsets:
+            np.maximum(best, padded[pad + di : pad + di + n, pad + dj : pad + dj + n], out=best)
+        for box in () if boxes is None else boxes[t]:
+            (h, w), r, c = box.allowed.shape[1:], pad + box.row, pad + box.col
+            inside = np.full((h, w), -np.inf)
+            for (di, dj), allowed in zip(grid.offsets, box.allowed, strict=True):
+                # a forbidden move leaves ``inside`` as it is (ufunc ``where``: no masked copy)
+                window = padded[r + di : r + di + h, c + dj : c + dj + w]
+                np.maximum(inside, window, out=inside, where=allowed)
+            best[box.row : box.row + h, box.col : box.col + w] = inside
         np.add(reward[t], best, out=values[t])
     total = np.where(first, values[0], -np.inf)
     cell = np.unravel_index(int(np.argmax(total)), total.shape)
@@ -172,7 +195,9 @@ def best_grid_path(
         inside = ((nxt >= 0) & (nxt < n)).all(axis=1)
         score = np.full(len(nxt), -np.inf)
         score[inside] = values[t + 1][nxt[inside, 0], nxt[inside, 1]]
-        if allowed_moves is not None:
-            score[~allowed_moves[t, :, path[t, 0], path[t, 1]]] = -np.inf
+        for box in () if boxes is None else boxes[t]:
+            allowed = box.at(path[t])
+            if allowed is not None:
+                score[~allowed] = -np.inf
         path[t + 1] = nxt[int(np.argmax(score))]
     return path, float(total[cell])

@@ -31,7 +31,14 @@ from uavlink.env.core import GroundTruth
 from uavlink.mobility import MobilityState, step_mobility
 from uavlink.mobility.fleet import apply_moves
 from uavlink.policies.base import RulePolicy
-from uavlink.policies.genie.grid import Grid, best_grid_path, grid_rx_dbm, one_uav_rate_mbps
+from uavlink.policies.genie.grid import (
+    Grid,
+    MoveBox,
+    best_grid_path,
+    grid_rx_dbm,
+    one_uav_rate_mbps,
+)
+from uavlink.policies.genie.separation import merged_boxes, segment_clear
 from uavlink.radio.cells import mean_channel_rate_bps
 from uavlink.radio.noise import noise_power_dbm
 from uavlink.radio.pathloss import distance_3d_m, mean_rx_power_dbm
@@ -73,17 +80,6 @@ def env_field(field: SpatialShadowField | None, env: int, frames: int) -> Spatia
         uav_wave_per_m=rows(field.uav_wave_per_m),
         phase_rad=rows(field.phase_rad),
     )
-
-
-def segment_clear(a: np.ndarray, b: np.ndarray, c: np.ndarray, distance_m: float) -> np.ndarray:
-    """Whether points ``c`` lie at least ``distance_m`` from segments [a, b] (all (..., 2), broadcasting)."""
-    abx, aby = b[..., 0] - a[..., 0], b[..., 1] - a[..., 1]
-    acx, acy = c[..., 0] - a[..., 0], c[..., 1] - a[..., 1]
-    length2 = abx * abx + aby * aby
-    with np.errstate(divide="ignore", invalid="ignore"):
-        t = np.clip(np.where(length2 > 0.0, (acx * abx + acy * aby) / length2, 0.0), 0.0, 1.0)
-    dx, dy = acx - t * abx, acy - t * aby
-    return dx * dx + dy * dy >= distance_m * distance_m
 
 
 def fleet_mean_rate_bps(
@@ -148,7 +144,11 @@ class EpisodePlanner:
         self.frames = len(ue_xy_m) - 1
         self.field = env_field(field, 0, self.frames) if field is not None else None
         self.rx_grid = grid_rx_dbm(grid, ue_xy_m[1:], field, cfg.radio, cfg.area.uav_altitude_m)
+        # (T, U, n n) float32, mW: a fleet's rewards (_reward) read it in every UAV's plan
+        self._rx_grid_mw: np.ndarray | None = None
         self.separation_m = cfg.uav_separation_m + SEPARATION_SLACK_M
+        # (n, n, 2): the grid's points, where the separation checks look
+        self._points_m = np.stack(np.meshgrid(grid.x_m, grid.x_m, indexing="ij"), axis=-1)
 
     def rx_dbm(self, path_m: np.ndarray) -> np.ndarray:
         """Mean received power (T, U, D) for a path (T + 1, D, 2), as the env computes it."""
@@ -207,13 +207,13 @@ class EpisodePlanner:
             reward[~self._cells_clear(d, path_m)] = -np.inf
             first &= self._first_moves_clear(self._blockers(d, path_m, 0), path_m[0, d])
         cells, _ = best_grid_path(
-            reward, grid, first, self._offsets_clear(d, path_m) if n_uavs > 1 else None
+            reward, grid, first, self._moves_clear(d, path_m) if n_uavs > 1 else None
         )
         if cells is None:
             return None
         return np.concatenate([path_m[:1, d], grid.points_m(cells)])
 
-    def _reward(self, d: int, path_m: np.ndarray, block: int = 8) -> np.ndarray:
+    def _reward(self, d: int, path_m: np.ndarray, block: int = 2) -> np.ndarray:
         """Mean UE rate (T, n, n), Mbps, with UAV ``d`` at each cell and the others on ``path_m``."""
         radio, n = self.cfg.radio, self.grid.n
         n_ues, n_uavs = self.rx_grid.shape[1], path_m.shape[1]
@@ -223,34 +223,51 @@ class EpisodePlanner:
         others_mw = (10.0 ** (self.rx_dbm(path_m)[..., others] / 10.0)).astype(
             np.float32
         )  # (T, U, D-1)
-        reward = np.empty((self.frames, n, n))
-        for t0 in range(0, self.frames, block):
-            rx_mw = np.exp(
-                self.rx_grid[t0 : t0 + block].reshape(-1, n_ues, n * n)
-                * np.float32(np.log(10.0) / 10.0)
+        if self._rx_grid_mw is None:  # the same in every UAV's plan: computed once
+            self._rx_grid_mw = np.exp(
+                self.rx_grid.reshape(self.frames, n_ues, n * n) * np.float32(np.log(10.0) / 10.0)
             )
+        reward = np.empty((self.frames, n, n))
+        for t0 in range(0, self.frames, block):  # a block of frames at a time: arrays in cache
             rate = fleet_mean_rate_bps(
-                rx_mw, others_mw[t0 : t0 + block], radio, self.cfg.fleet_reuse
+                self._rx_grid_mw[t0 : t0 + block],
+                others_mw[t0 : t0 + block],
+                radio,
+                self.cfg.fleet_reuse,
             )
             reward[t0 : t0 + block] = rate.reshape(-1, n, n) * 1e-6
         return reward
 
+    def _windows(self, centre_m: np.ndarray, reach_m: float) -> tuple[np.ndarray, np.ndarray]:
+        """The squares of w x w grid cells holding every cell within ``reach_m`` of each centre
+        (..., 2), moved inside the grid where they would cross an edge: their row and column
+        indices (..., w) each."""
+        grid = self.grid
+        w = min(grid.n, 2 * int(np.ceil(reach_m / grid.spacing_m)) + 3)
+        origin = np.clip(
+            np.rint((centre_m + grid.x_m[-1]) / grid.spacing_m).astype(int) - w // 2, 0, grid.n - w
+        )
+        return origin[..., 0, None] + np.arange(w), origin[..., 1, None] + np.arange(w)
+
     def _cells_clear(self, d: int, path_m: np.ndarray) -> np.ndarray:
         """(T, n, n): cells where UAV d may be at frame t + 1 without cutting another's move: clear of
-        a later UAV's move into that frame and of an earlier UAV's move out of it."""
-        points = np.stack(
-            np.meshgrid(self.grid.x_m, self.grid.x_m, indexing="ij"), axis=-1
-        )  # (n, n, 2)
+        a later UAV's move into that frame and of an earlier UAV's move out of it. Only cells within
+        the separation plus the move's length of its start can come close: each move is checked on
+        that window of cells, every frame at once."""
         clear = np.ones((self.frames, self.grid.n, self.grid.n), dtype=bool)
         for j in range(path_m.shape[1]):
-            if j > d:
-                a, b, frames = path_m[:-1, j], path_m[1:, j], slice(None)
-            elif j < d:
-                a, b, frames = path_m[1:-1, j], path_m[2:, j], slice(0, self.frames - 1)
+            if j > d:  # its move into frame t + 1
+                a, b = path_m[:-1, j], path_m[1:, j]
+            elif j < d:  # its move out of frame t + 1
+                a, b = path_m[1:-1, j], path_m[2:, j]
             else:
                 continue
-            clear[frames] &= segment_clear(
-                a[:, None, None], b[:, None, None], points, self.separation_m
+            reach_m = self.separation_m + float(np.hypot(*(b - a).T).max(initial=0.0))
+            rows, cols = self._windows(a, reach_m)  # (F, w) each
+            frames = np.arange(len(a))[:, None, None]
+            cells = (frames, rows[:, :, None], cols[:, None, :])  # (F, w, w) indices
+            clear[cells] &= segment_clear(
+                a[:, None, None], b[:, None, None], self._points_m[cells[1:]], self.separation_m
             )
         return clear
 
@@ -264,45 +281,37 @@ class EpisodePlanner:
 
     def _first_moves_clear(self, blockers: np.ndarray, source_m: np.ndarray) -> np.ndarray:
         """(n, n): grid cells a straight move from ``source_m`` reaches clear of every blocker."""
-        points = np.stack(np.meshgrid(self.grid.x_m, self.grid.x_m, indexing="ij"), axis=-1)
-        clear = np.ones(points.shape[:2], dtype=bool)
+        clear = np.ones(self._points_m.shape[:2], dtype=bool)
         for c in blockers:
-            clear &= segment_clear(source_m, points, c, self.separation_m)
+            clear &= segment_clear(source_m, self._points_m, c, self.separation_m)
         return clear
 
-    def _offsets_clear(self, d: int, path_m: np.ndarray) -> np.ndarray:
-        """(T - 1, K, n, n): the grid moves (offset, source cell) of UAV d from frame t + 1 to t + 2
-        that stay clear of every other UAV as the filter sees it. Only cells near another UAV can
-        come close, so each is checked on a window of w x w cells around it, all frames at once."""
-        grid, x, frames = self.grid, self.grid.x_m, self.frames
-        clear = np.ones((frames - 1, len(grid.offsets), grid.n, grid.n), dtype=bool)
-        step = grid.offsets * grid.spacing_m  # (K, 2)
-        w = min(grid.n, 2 * int(np.ceil((self.separation_m + grid.r_max_m) / grid.spacing_m)) + 3)
+    def _moves_clear(self, d: int, path_m: np.ndarray, block: int = 4) -> list[list[MoveBox]]:
+        """Per frame t + 1 (T - 1 lists of disjoint boxes), the grid moves of UAV d to frame t + 2
+        that stay clear of every other UAV as the filter sees it. Only sources within the separation
+        plus r_max of another UAV can come close: each is checked on that window of cells (``block``
+        frames at a time, in cache); overlapping windows merge into the box that spans them."""
+        grid = self.grid
+        step = (grid.offsets * grid.spacing_m)[:, None, None]  # (K, 1, 1, 2)
         blockers = np.stack(
-            [self._blockers(d, path_m, t) for t in range(1, frames)]
+            [self._blockers(d, path_m, t + 1) for t in range(self.frames - 1)]
         )  # (T - 1, D - 1, 2)
-        rows = np.arange(frames - 1)[:, None, None]
-        for c in blockers.transpose(1, 0, 2):  # (T - 1, 2): one other UAV over the frames
-            origin = np.clip(
-                np.rint((c + x[-1]) / grid.spacing_m).astype(int) - w // 2, 0, grid.n - w
-            )
-            ix, iy = origin[:, :1] + np.arange(w), origin[:, 1:] + np.arange(w)  # (T - 1, w)
-            source = np.stack(
-                np.broadcast_arrays(x[ix][:, :, None], x[iy][:, None, :]), axis=-1
-            )  # (T-1, w, w, 2)
-            far = segment_clear(
-                source[:, None],
-                source[:, None] + step[None, :, None, None],
-                c[:, None, None, None],
+        rows, cols = self._windows(blockers, self.separation_m + grid.r_max_m)  # (T-1, D-1, w)
+        boxes = []
+        for t0 in range(0, self.frames - 1, block):
+            span = slice(t0, t0 + block)
+            source = self._points_m[rows[span, :, :, None], cols[span, :, None, :]]
+            clear = segment_clear(
+                source[:, :, None],
+                source[:, :, None] + step,
+                blockers[span, :, None, None, None],
                 self.separation_m,
-            )  # (T - 1, K, w, w)
-            view = clear.transpose(0, 2, 3, 1)[
-                rows, ix[:, :, None], iy[:, None, :]
-            ]  # (T - 1, w, w, K)
-            clear.transpose(0, 2, 3, 1)[rows, ix[:, :, None], iy[:, None, :]] = (
-                view & far.transpose(0, 2, 3, 1)
-            )
-        return clear
+            )  # (block, D - 1, K, w, w)
+            boxes += [
+                merged_boxes(r.tolist(), c.tolist(), far)
+                for r, c, far in zip(rows[span, :, 0], cols[span, :, 0], clear, strict=True)
+            ]
+        return boxes
 
 
 def _plan_episode(task: tuple) -> tuple[np.ndarray, float]:
