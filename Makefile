@@ -65,9 +65,8 @@ wheel-check: $(STAMP)
 	PYTHON=$(BIN)/python bash .ci/wheel-check
 
 # docs/results.md and docs/results/, every section, from the shipped policies and the sweep records
-# beside them (policies/*.sweep.json: a fresh clone needs no runs/): about 3 hours on 2 cores, the fleet
-# part at D = 1 to 4 included, most of it its genie at D = 3 and 4 (2026-12-06, idle: still on the last
-# of 150 fleet evaluations after 2 h 55 min).
+# beside them (policies/*.sweep.json: a fresh clone needs no runs/): 75 minutes on 2 cores, the fleet
+# part at D = 1 to 4 included, most of it its genie at D = 3 and 4 (2026-12-06, idle: 74 min 42 s).
 # The fleet part pairs the any-size policies (--fleet) with the per-size D = 2 ones (--fleet-per-size,
 # beside which a per-size sweep's record, sweeps/fleet.toml's, is read).
 results: $(STAMP)
