@@ -19,6 +19,7 @@ from uavlink.evaluation import evaluate_policy
 from uavlink.mobility.fleet import min_separation_m
 from uavlink.policies.genie import GeniePolicy, fleet_mean_rate_bps
 from uavlink.policies.genie.grid import Grid, MoveBox, best_grid_path, grid_rx_dbm
+from uavlink.policies.genie.separation import merged_boxes
 from uavlink.policies.registry import make_baseline
 from uavlink.radio.cells import mean_channel_rate_bps
 from uavlink.radio.pathloss import distance_3d_m, mean_rx_power_dbm
@@ -90,6 +91,33 @@ def test_dp_is_exact_against_brute_force(r_max_m: float, frames: int, masked: bo
                 allowed[t, k, a[0], a[1]]
                 for t, (k, a) in enumerate(zip(moves, path[:-1], strict=True))
             )
+
+
+def test_merged_boxes_are_disjoint_and_forbid_what_any_window_forbids() -> None:
+    """Windows of allowed moves (some overlapping, some not) as the DP's boxes: the boxes do not
+    overlap, and a move is allowed from a cell exactly where every window holding the cell allows it
+    (every move from a cell outside all windows)."""
+    rng, n, k, w = np.random.default_rng(5), 30, 4, 6
+    for _ in range(50):
+        windows = int(rng.integers(1, 4))
+        rows, cols = (
+            rng.integers(0, n - w, windows).tolist(),
+            rng.integers(0, n - w, windows).tolist(),
+        )
+        allowed = rng.random((windows, k, w, w)) > 0.2
+        want = np.ones((k, n, n), dtype=bool)
+        for r, c, one in zip(rows, cols, allowed, strict=True):
+            want[:, r : r + w, c : c + w] &= one
+        got, covered = np.ones((k, n, n), dtype=bool), np.zeros((n, n), dtype=int)
+        for box in merged_boxes(rows, cols, allowed):
+            h, v = box.allowed.shape[1:]
+            got[:, box.row : box.row + h, box.col : box.col + v] = box.allowed
+            covered[box.row : box.row + h, box.col : box.col + v] += 1
+            cell = np.array([box.row + h - 1, box.col])
+            np.testing.assert_array_equal(box.at(cell), want[:, cell[0], cell[1]])
+            assert box.at(np.array([box.row + h, box.col])) is None  # just outside
+        assert covered.max() == 1
+        np.testing.assert_array_equal(got, want)
 
 
 def test_grid_offsets_are_the_reachable_moves() -> None:

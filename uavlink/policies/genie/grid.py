@@ -157,13 +157,12 @@ def best_grid_path(
     """The path of cells (T, 2) maximising the summed ``reward`` (T, n, n) (entry t: frame t + 1;
     -inf marks a forbidden cell), its first cell among ``first`` (n, n) bool, each later cell one
     grid offset from the one before; ``boxes`` (T - 1 entries of disjoint ``MoveBox``) may forbid
-    moves from cells at frame t + 1. Returns (None, -inf) when no path is allowed.
-    Exact: the DP's value is the best over all such paths (tests/test_genie.py checks by brute
-    force).
+    moves from cells at frame t + 1. Returns (None, -inf) when no path is allowed. Exact: the DP's
+    value is the best over all such paths (tests/test_genie.py checks by brute force).
 
     Backward, only maxima are kept (the value of every cell in every frame, contiguous shifted
-    maxima, then recomputed inside the frame's box over its allowed moves); the path is read forward
-    from the values, the first of equal moves (hover) winning."""
+    maxima, then recomputed inside the frame's boxes over their allowed moves); the path is read
+    forward from the values, the first of equal moves (hover) winning."""
     n_frames, n = reward.shape[0], grid.n
     pad = int(np.abs(grid.offsets).max())
     values = np.empty((n_frames, n, n))

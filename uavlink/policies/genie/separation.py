@@ -53,8 +53,7 @@ def merged_boxes(rows: list[int], cols: list[int], allowed: np.ndarray) -> list[
         h, v = max(rows[i] for i in group) + w - row, max(cols[i] for i in group) + w - col
         box = np.ones((allowed.shape[1], h, v), dtype=bool)
         for i in group:
-            box[:, rows[i] - row : rows[i] - row + w, cols[i] - col : cols[i] - col + w] &= allowed[
-                i
-            ]
+            r, c = rows[i] - row, cols[i] - col
+            box[:, r : r + w, c : c + w] &= allowed[i]
         boxes.append(MoveBox(row, col, box))
     return boxes
