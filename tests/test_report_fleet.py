@@ -278,3 +278,15 @@ def test_fleet_per_size_is_refused_before_evaluating(tmp_path, extra, fragment):
     args = ["evaluate", "--scenario", "all", "--policy", str(root / "policies"), "--episodes", "2"]
     assert_user_error(run_uavlink_in_process(*args, *extra), fragment)
     assert not (tmp_path / "out").exists()
+
+
+def test_the_pool_takes_the_genie_first_largest_fleet_first() -> None:
+    """The long evaluations start first, so the report's pool does not end on one of them alone;
+    then the rest, the largest fleet first, in their order within a size (the results are put back
+    in the report's order: test_the_fleet_part_flies_each_size_once_and_writes_its_tables)."""
+    keys = [f"D{d} {name}" for d in (1, 2, 3, 4) for name in ("static", "genie", "PPO")]
+    jobs = sorted((("hotspot", key) for key in keys), key=report_fleet._longest_first)
+    assert [key for _, key in jobs] == [
+        *(f"D{d} genie" for d in (4, 3, 2, 1)),
+        *(f"D{d} {name}" for d in (4, 3, 2, 1) for name in ("static", "PPO")),
+    ]

@@ -107,16 +107,24 @@ def _evaluate_in_processes(
     with concurrent.futures.ProcessPoolExecutor(
         workers, mp_context=context, initializer=_worker_folders, initargs=(folders,)
     ) as pool:
+        jobs = sorted(((s, key) for s in SCENARIOS for key in keys[s]), key=_longest_first)
         futures = {
             pool.submit(_evaluate_one, scenario, key, episodes, seed): (scenario, key)
-            for scenario in SCENARIOS
-            for key in keys[scenario]
+            for scenario, key in jobs
         }
         for done, future in enumerate(concurrent.futures.as_completed(futures), 1):
             scenario, key = futures[future]
             out[scenario][key] = future.result()
             progress(f"fleet: {done}/{len(futures)} evaluations ({scenario}: {key})")
     return {s: {key: out[s][key] for key in keys[s]} for s in SCENARIOS}  # one process's order
+
+
+def _longest_first(job: tuple[str, str]) -> tuple[bool, int]:
+    """The order the pool takes a (scenario, key) evaluation in: the genie's first, the largest
+    fleet first (minutes each; the rest take seconds), so that the run does not end on one long
+    evaluation with the other cores idle."""
+    size, name = job[1].split(" ", 1)  # "D<d> <policy>"
+    return name != "genie", -int(size[1:])
 
 
 _FOLDERS: Folders | None = None  # a worker process's folders (_worker_folders)
