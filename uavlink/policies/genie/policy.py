@@ -145,7 +145,13 @@ class EpisodePlanner:
         self.field = env_field(field, 0, self.frames) if field is not None else None
         self.rx_grid = grid_rx_dbm(grid, ue_xy_m[1:], field, cfg.radio, cfg.area.uav_altitude_m)
         # (T, U, n n) float32, mW: a fleet's rewards (_reward) read it in every UAV's plan
-        self._rx_grid_mw: np.ndarray | None = None
+        self.rx_grid_mw = (
+            np.exp(
+                self.rx_grid.reshape(*self.rx_grid.shape[:2], -1) * np.float32(np.log(10.0) / 10.0)
+            )
+            if len(start_m) > 1
+            else None
+        )
         self.separation_m = cfg.uav_separation_m + SEPARATION_SLACK_M
         # (n, n, 2): the grid's points, where the separation checks look
         self._points_m = np.stack(np.meshgrid(grid.x_m, grid.x_m, indexing="ij"), axis=-1)
@@ -216,21 +222,18 @@ class EpisodePlanner:
     def _reward(self, d: int, path_m: np.ndarray, block: int = 2) -> np.ndarray:
         """Mean UE rate (T, n, n), Mbps, with UAV ``d`` at each cell and the others on ``path_m``."""
         radio, n = self.cfg.radio, self.grid.n
-        n_ues, n_uavs = self.rx_grid.shape[1], path_m.shape[1]
+        n_uavs = path_m.shape[1]
         if n_uavs == 1:
             return one_uav_rate_mbps(self.rx_grid, radio)
+        assert self.rx_grid_mw is not None  # a fleet's planner (__init__)
         others = [j for j in range(n_uavs) if j != d]
         others_mw = (10.0 ** (self.rx_dbm(path_m)[..., others] / 10.0)).astype(
             np.float32
         )  # (T, U, D-1)
-        if self._rx_grid_mw is None:  # the same in every UAV's plan: computed once
-            self._rx_grid_mw = np.exp(
-                self.rx_grid.reshape(self.frames, n_ues, n * n) * np.float32(np.log(10.0) / 10.0)
-            )
         reward = np.empty((self.frames, n, n))
         for t0 in range(0, self.frames, block):  # a block of frames at a time: arrays in cache
             rate = fleet_mean_rate_bps(
-                self._rx_grid_mw[t0 : t0 + block],
+                self.rx_grid_mw[t0 : t0 + block],
                 others_mw[t0 : t0 + block],
                 radio,
                 self.cfg.fleet_reuse,
