@@ -21,8 +21,9 @@ from sitl_stub.launcher import VehicleExited, VehicleProcess, vehicle_process
 from uavlink.cli import main
 from uavlink.config import BASELINE_NAMES, EnvConfig
 from uavlink.env.radio_world import episode_scenario
-from uavlink.flight.link import VehicleLink
-from uavlink.flight.result import FlightResult, judge, signing_hint
+from uavlink.flight.link import LinkError, VehicleLink
+from uavlink.flight.loop import LoopConfig, timed_out
+from uavlink.flight.result import EndedBy, FlightResult, judge, signing_hint
 from uavlink.mavlink.connection import free_udp_port
 from uavlink.mavlink.dialect import mavlink
 from uavlink.mavlink.signing import SigningGuard, write_key
@@ -173,6 +174,21 @@ def test_judge_puts_the_fix_in_place_of_check_the_vehicle_is_running() -> None:
     plain = FlightResult(failure="link lost")
     judge(plain, 128)
     assert "check the vehicle is running and reachable" in plain.reason
+
+
+def test_a_loop_ends_on_radio_silence_and_fails_on_a_silent_link() -> None:
+    """One rule for both loops (one vehicle, a fleet): radio silence ends the episode, a silent
+    link raises LinkError (which the judged result turns into its failure); within both limits the
+    loop goes on."""
+    loop_cfg = LoopConfig(radio_timeout_s=10.0, link_timeout_s=20.0)
+    going = FlightResult()
+    assert not timed_out(loop_cfg, going, 9.9, 19.9) and going.ended_by == ""
+    quiet = FlightResult()
+    assert timed_out(loop_cfg, quiet, 10.1, 0.0) and quiet.ended_by == EndedBy.NO_RADIO_REPORTS
+    lost = FlightResult()
+    with pytest.raises(LinkError, match="no message from any vehicle for 20 s"):
+        timed_out(loop_cfg, lost, 0.0, 20.1, "any vehicle")
+    assert lost.ended_by == EndedBy.LINK_LOST
 
 
 # ------------------------------------------------------------------ real vehicles (slow)

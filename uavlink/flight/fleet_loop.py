@@ -33,20 +33,21 @@ import numpy as np
 
 from uavlink.config import EnvConfig
 from uavlink.env.observation import fleet_view_quantities
-from uavlink.flight.link import LinkError, VehicleLink
+from uavlink.flight.link import VehicleLink
 from uavlink.flight.loop import (
     LoopConfig,
     PolicyPilot,
+    close_episode,
     episode_over,
     judged_episode,
     stream_then_offboard,
+    timed_out,
     to_start,
 )
 from uavlink.flight.radio_source import MavlinkRadioSource
 from uavlink.flight.result import EndedBy, FleetResult, VehicleRecord
 from uavlink.flight.vehicle_control import (
     ending_mode,
-    land,
     mode_name,
     take_off_or_resume,
     wait_ready,
@@ -184,33 +185,25 @@ class _Loop:
                 if all(v.released for v in result.vehicles):
                     result.ended_by = EndedBy.EVERY_VEHICLE_RELEASED
                     break
-                if now - self.last_radio > loop_cfg.radio_timeout_s:
-                    result.ended_by = EndedBy.NO_RADIO_REPORTS
-                    break
                 self._watch(now, started is not None)
-                if min(now - link.last_rx_wall for link in links) > loop_cfg.link_timeout_s:
-                    result.ended_by = EndedBy.LINK_LOST
-                    raise LinkError(
-                        f"no message from any vehicle for {loop_cfg.link_timeout_s:g} s"
-                    )
+                silence_s = min(now - link.last_rx_wall for link in links)
+                if timed_out(loop_cfg, result, now - self.last_radio, silence_s, "any vehicle"):
+                    break
         except KeyboardInterrupt:
             result.interrupted, result.ended_by = True, EndedBy.INTERRUPTED
         finally:
-            result.episode_wall_s = time.monotonic() - started if started else 0.0
-            result.take_scores(
-                self.scores, loop_cfg.frames, self.pilot, sum(s.rejected for s in self.sources)
+            # a vehicle released to an operator or a failsafe, or not heard lately, is not told
+            heard = [time.monotonic() - link.last_rx_wall < LIVE_S * 4 for link in links]
+            close_episode(
+                links,
+                [h and not v.released for h, v in zip(heard, result.vehicles, strict=True)],
+                loop_cfg,
+                result,
+                started_wall=started,
+                scores=self.scores,
+                pilot=self.pilot,
+                rejected=sum(s.rejected for s in self.sources),
             )
-            for link, record in zip(links, result.vehicles, strict=True):
-                st = link.status
-                if (
-                    loop_cfg.land
-                    and st.armed
-                    and not ending_mode(st)
-                    and not record.released
-                    and time.monotonic() - link.last_rx_wall < LIVE_S * 4
-                ):
-                    land(link)
-                link.stream_ned = None
 
     def _take_reports(self, now: float) -> None:
         for i, source in enumerate(self.sources):

@@ -182,6 +182,50 @@ def episode_over(loop_cfg: LoopConfig, scores: dict[int, ScoreReport], last_fram
     )
 
 
+def timed_out(
+    loop_cfg: LoopConfig,
+    result: FlightResult,
+    radio_silence_s: float,
+    link_silence_s: float,
+    who: str = "the vehicle",
+) -> bool:
+    """Whether the loop must end for want of fresh radio frames (``result.ended_by`` says so);
+    raises LinkError when nothing has been heard from ``who`` (a fleet: any vehicle) for
+    ``link_timeout_s``. Both silences are wall seconds."""
+    if radio_silence_s > loop_cfg.radio_timeout_s:
+        result.ended_by = EndedBy.NO_RADIO_REPORTS
+        return True
+    if link_silence_s > loop_cfg.link_timeout_s:
+        result.ended_by = EndedBy.LINK_LOST
+        raise LinkError(
+            f"no message from {who} for {loop_cfg.link_timeout_s:g} s: {EndedBy.LINK_LOST}"
+        )
+    return False
+
+
+def close_episode(
+    links: Sequence[VehicleLink],
+    may_land: Sequence[bool],
+    loop_cfg: LoopConfig,
+    result: FlightResult,
+    *,
+    started_wall: float | None,
+    scores: dict[int, ScoreReport],
+    pilot: PolicyPilot,
+    rejected: int,
+) -> None:
+    """The end of an episode's loop, however it ended: the result takes its wall time, the scores
+    and the count of rejected radio reports; every vehicle that ``may_land`` and is still flying
+    and ours (armed, not already landing or returning) lands; every offboard stream stops."""
+    result.episode_wall_s = time.monotonic() - started_wall if started_wall else 0.0
+    result.take_scores(scores, loop_cfg.frames, pilot, rejected)
+    for link, allowed in zip(links, may_land, strict=True):
+        st = link.status
+        if loop_cfg.land and allowed and st.armed and not ending_mode(st):
+            land(link)
+        link.stream_ned = None
+
+
 def fly_vehicle(
     link: VehicleLink,
     pilot: PolicyPilot,
@@ -291,34 +335,24 @@ def _fly(link, pilot, cfg, loop_cfg, radio, status, result: FlightResult) -> Non
                 )
                 break
             now = time.monotonic()
-            if now - last_radio > loop_cfg.radio_timeout_s:
-                result.ended_by = EndedBy.NO_RADIO_REPORTS
-                break
             if not st.offboard and now - last_reentry >= loop_cfg.reenter_interval_s:
                 last_reentry = now
                 _reenter_offboard(link, result)
-            if now - link.last_rx_wall > loop_cfg.link_timeout_s:
-                result.ended_by = EndedBy.LINK_LOST
-                raise LinkError(
-                    f"no message from the vehicle for {loop_cfg.link_timeout_s:g} s: "
-                    f"{EndedBy.LINK_LOST}"
-                )
+            if timed_out(loop_cfg, result, now - last_radio, now - link.last_rx_wall):
+                break
     except KeyboardInterrupt:
-        result.interrupted = True
-        result.ended_by = EndedBy.INTERRUPTED
+        result.interrupted, result.ended_by = True, EndedBy.INTERRUPTED
     finally:
-        result.episode_wall_s = (
-            time.monotonic() - frames.started_wall if frames.started_wall else 0.0
+        close_episode(
+            [link],
+            [result.ended_by != EndedBy.LINK_LOST],
+            loop_cfg,
+            result,
+            started_wall=frames.started_wall,
+            scores=scores,
+            pilot=pilot,
+            rejected=getattr(source, "rejected", 0),
         )
-        result.take_scores(scores, loop_cfg.frames, pilot, getattr(source, "rejected", 0))
-        if (
-            loop_cfg.land
-            and st.armed
-            and not ending_mode(st)
-            and result.ended_by != EndedBy.LINK_LOST
-        ):
-            land(link)
-        link.stream_ned = None
 
 
 class _FrameTracker:
