@@ -65,8 +65,9 @@ wheel-check: $(STAMP)
 	PYTHON=$(BIN)/python bash .ci/wheel-check
 
 # docs/results.md and docs/results/, every section, from the shipped policies and the sweep records
-# beside them (policies/*.sweep.json: a fresh clone needs no runs/): 75 minutes on 2 cores, the fleet
-# part at D = 1 to 4 included, most of it its genie at D = 3 and 4 (2026-12-06, idle: 74 min 42 s).
+# beside them (policies/*.sweep.json: a fresh clone needs no runs/): 41 to 75 minutes on 2 cores, the
+# fleet part at D = 1 to 4 included, most of it its genie at D = 3 and 4 (2026-12-06: 74 min 42 s
+# idle in one session, 41 min 8 s in another: the machines differ).
 # The fleet part pairs the any-size policies (--fleet) with the per-size D = 2 ones (--fleet-per-size,
 # beside which a per-size sweep's record, sweeps/fleet.toml's, is read).
 results: $(STAMP)
