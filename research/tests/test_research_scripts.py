@@ -458,3 +458,41 @@ def test_fleet_field_worth_blinds_the_genie_to_the_field_alone() -> None:
     assert set(row["of_genie"]) == {"field-blind genie", "kmeans", "PPO"}
     ratio, low, high = row["of_genie"]["field-blind genie"]
     assert low <= ratio <= high < 1.0  # on hotspot the field is worth half the genie's throughput
+
+
+def test_frozen_std_train_holds_the_std_that_plain_training_moves(tmp_path: Path) -> None:
+    from stable_baselines3 import PPO
+
+    from uavlink.learn.training import train
+    from uavlink.sweep.sweep_file import load_spec
+
+    sweep = tmp_path / "tiny.toml"
+    sweep.write_text(
+        'name = "tiny"\nscenarios = ["straight_180"]\nseeds = [0]\n'
+        "[env]\nn_uavs = 2\nfleet_slots = 1\n"
+        "[train]\nepisodes = 64\nn_envs = 32\nlearning_rate = 0.05\n"
+        'warm_start.teacher = "kmeans"\nwarm_start.episodes = 8\nwarm_start.epochs = 1\n'
+        "warm_start.log_std = -2.0\nwarm_start.critic_rollouts = 0\n"
+    )
+    sys.path.insert(0, str(FOLDER))
+    try:
+        main = runpy.run_path(str(FOLDER / "frozen_std_train.py"), run_name="frozen_std_train")[
+            "main"
+        ]
+        frozen = tmp_path / "frozen.zip"
+        with contextlib.redirect_stdout(io.StringIO()):
+            assert (
+                main(
+                    [str(sweep), "--scenario", "straight_180", "--seed", "0", "--out", str(frozen)]
+                )
+                == 0
+            )
+    finally:
+        sys.path.remove(str(FOLDER))
+    job = load_spec(sweep).jobs()[0]
+    plain = tmp_path / "plain.zip"
+    train(job.env, job.train, plain, progress=False)
+    held = PPO.load(frozen, device="cpu").policy  # its optimizer state loads as any other's
+    moved = PPO.load(plain, device="cpu").policy
+    assert np.allclose(held.log_std.detach().numpy(), -2.0)
+    assert not np.allclose(moved.log_std.detach().numpy(), -2.0)

@@ -1,0 +1,86 @@
+"""Train one sweep job with PPO's exploration std held where the warm start left it.
+
+PPO updates the Gaussian policy's log std with the rest of the actor; in the fleet recipes it grew
+(straight: 0.135 -> 0.36 over 36,000 episodes) while the mean action, which is what ``evaluate`` and
+``fly`` use, stayed where the copy put it (research/log/fleet.md, "More of straight's recipe does
+not learn past its start"). Does PPO improve the mean action past its teacher when the std cannot
+grow? This runs a job of a sweep file (its env and train settings, unchanged) with ``log_std``
+taken out of the optimizer after the warm start, and saves the policy as ``uavlink train`` would.
+
+    python research/frozen_std_train.py sweeps/fleet.toml --scenario straight_180 --seed 0 \
+        --out runs/trials/s180_frozen_std_seed0.zip
+    python research/fleet_bars.py --fleet DIR --scenario straight_180 --episodes 1000 --seed 7
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+from pathlib import Path
+from typing import Any
+
+
+def frozen_std_callback() -> Any:
+    """An SB3 callback that takes the policy's ``log_std`` out of the optimizer for the training:
+    gradients still reach it, no step moves it (the critic warm-up may toggle its
+    ``requires_grad``; the optimizer does not hold it either way). It is put back at the end, so the
+    saved optimizer state loads as any other."""
+    from stable_baselines3.common.callbacks import BaseCallback
+
+    class FrozenStd(BaseCallback):
+        def _on_training_start(self) -> None:
+            policy = self.model.policy
+            self.removed = []
+            for group in policy.optimizer.param_groups:
+                ids = [i for i, p in enumerate(group["params"]) if p is policy.log_std]
+                self.removed.append(ids)
+                group["params"] = [p for p in group["params"] if p is not policy.log_std]
+
+        def _on_training_end(self) -> None:
+            policy = self.model.policy
+            for group, ids in zip(policy.optimizer.param_groups, self.removed, strict=True):
+                for i in ids:
+                    group["params"].insert(i, policy.log_std)
+
+        def _on_step(self) -> bool:
+            return True
+
+    return FrozenStd()
+
+
+def main(argv: list[str] | None = None) -> int:
+    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    ap.add_argument("sweep", help="sweep file whose job is trained, e.g. sweeps/fleet.toml")
+    ap.add_argument("--scenario", required=True)
+    ap.add_argument("--seed", type=int, required=True)
+    ap.add_argument("--out", type=Path, required=True, help="policy zip to write")
+    ap.add_argument("--torch-threads", type=int, default=1)
+    args = ap.parse_args(argv)
+
+    import torch
+
+    from uavlink.learn.training import train
+    from uavlink.sweep.sweep_file import load_spec
+
+    jobs = [
+        j
+        for j in load_spec(args.sweep).jobs()
+        if (j.scenario, j.seed) == (args.scenario, args.seed)
+    ]
+    if len(jobs) != 1:
+        print(
+            f"{args.sweep}: {len(jobs)} jobs for {args.scenario} seed {args.seed}", file=sys.stderr
+        )
+        return 2
+    torch.set_num_threads(args.torch_threads)
+    args.out.parent.mkdir(parents=True, exist_ok=True)
+    training = train(
+        jobs[0].env, jobs[0].train, args.out, progress=False, callbacks=[frozen_std_callback()]
+    )
+    curve = training["learning_curve"]
+    print(f"{jobs[0].name} with the std frozen -> {args.out}; learning curve {curve}")
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())
