@@ -1,11 +1,10 @@
 """Train one sweep job with PPO's exploration std held where the warm start left it.
 
-PPO updates the Gaussian policy's log std with the rest of the actor; in the fleet recipes it grew
-(straight: 0.135 -> 0.36 over 36,000 episodes) while the mean action, which is what ``evaluate`` and
-``fly`` use, stayed where the copy put it (research/log/fleet.md, "More of straight's recipe does
-not learn past its start"). Does PPO improve the mean action past its teacher when the std cannot
-grow? This runs a job of a sweep file (its env and train settings, unchanged) with ``log_std``
-taken out of the optimizer after the warm start, and saves the policy as ``uavlink train`` would.
+PPO updates the Gaussian policy's log std with the rest of the actor, while ``evaluate`` and
+``fly`` use the mean action alone. Does PPO move the mean action further past its teacher when the
+std cannot change? This runs a job of a sweep file (its env and train settings, unchanged) with
+``log_std`` taken out of the optimizer after the warm start, and saves the policy as ``uavlink
+train`` would (research/log/fleet.md, "Holding the exploration std": it does not).
 
     python research/frozen_std_train.py sweeps/fleet.toml --scenario straight_180 --seed 0 \
         --out runs/trials/s180_frozen_std_seed0.zip
