@@ -101,7 +101,8 @@ class WarmStartConfig:
         "",
         "instead of a teacher, start from this policy file's weights: one whose observation lacks "
         "some of this env's fields (e.g. policies/spatial/hotspot.zip for a map policy); its inputs keep "
-        "their weights and the new ones start at zero, so PPO starts from its actions exactly "
+        "their weights and the new ones start at zero, so PPO starts from its actions exactly; its "
+        "exploration std is reset to exp(--warm-start-log-std), not kept "
         "(uavlink/learn/policy_transfer.py; ours)",
         flag="--start-from",
         metavar="FILE",
