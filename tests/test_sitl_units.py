@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import math
+import socket
 import struct
 
 import pytest
@@ -17,7 +18,8 @@ from sitl_stub.mavlink.server import ServerConfig
 from sitl_stub.mavlink.streams import StreamScheduler
 from sitl_stub.sim.clock import SimClock
 from sitl_stub.sim.payload import check_payload
-from uavlink.mavlink.connection import normalize_connection
+from uavlink.mavlink import connection
+from uavlink.mavlink.connection import free_udp_port, free_udp_ports, normalize_connection
 from uavlink.mavlink.px4_modes import decode_custom_mode, encode_custom_mode, px4_mode_name
 
 pytestmark = pytest.mark.timeout(30)
@@ -126,6 +128,22 @@ def test_bad_connections_are_one_line_errors(bad):
     with pytest.raises(ValueError) as err:
         normalize_connection(bad)
     assert "\n" not in str(err.value)
+
+
+def test_free_udp_port_is_bindable_and_outside_the_ephemeral_range(monkeypatch):
+    ports = {free_udp_port() for _ in range(20)}
+    assert all(p in connection._PICK_PORTS for p in ports)
+    assert all(p < 32768 for p in ports)  # below Linux's ephemeral ports: bind(0) cannot take them
+    busy = ports.pop()
+    with socket.socket(socket.AF_INET, socket.SOCK_DGRAM) as s:
+        s.bind(("127.0.0.1", busy))  # free as promised
+        # Every port it may pick is taken: the kernel's pick, still a free port.
+        monkeypatch.setattr(connection, "_PICK_PORTS", range(busy, busy + 1))
+        fallback = free_udp_port()
+    assert fallback != busy and 0 < fallback <= 65535
+    monkeypatch.undo()
+    fleet = free_udp_ports(4)  # a fleet's vehicles, one port each
+    assert len(set(fleet)) == 4 and all(p in connection._PICK_PORTS for p in fleet)
 
 
 # -------------------------------------------------------------------- geo

@@ -12,7 +12,7 @@ from pathlib import Path
 
 from uavlink.config import EnvConfig, changed_settings, check_seed
 from uavlink.errors import LinkError, UserError
-from uavlink.mavlink.connection import free_udp_port, normalize_connection
+from uavlink.mavlink.connection import free_udp_ports, normalize_connection
 
 VEHICLE_START_S = (
     30.0  # wall seconds for the embedded vehicle to open its links (as the heartbeat wait)
@@ -104,7 +104,7 @@ def embedded_vehicles(
     """The embedded SITL (:func:`started_vehicle`), its radio payload simulating ``cfg``
     (:func:`vehicle_args`; ``sitl_stub --fleet D`` for ``n_uavs`` = D > 1), vehicle i sending to free
     loopback port i; yields the URLs to listen on, in vehicle (UAV) order."""
-    ports = [free_udp_port() for _ in range(cfg.n_uavs)]
+    ports = free_udp_ports(cfg.n_uavs)
     args = vehicle_args(cfg, seed, lockstep, signing_key_file)
     with started_vehicle([f"udpout:127.0.0.1:{p}" for p in ports], speed, args, log_path):
         yield [f"udpin:127.0.0.1:{p}" for p in ports]

@@ -13,6 +13,7 @@ Accepted (all normalised to what ``pymavlink.mavutil.mavlink_connection`` takes)
 
 from __future__ import annotations
 
+import random
 import socket
 
 _LISTEN = {"udp": "udpin", "udpin": "udpin", "tcpin": "tcpin"}
@@ -45,11 +46,44 @@ def normalize_connection(url: str) -> str:
     return f"{(_LISTEN if listen else _SEND)[scheme]}:{host}:{port}"
 
 
+# Ports free_udp_port picks from: below Linux's default ephemeral range (32768-60999,
+# /proc/sys/net/ipv4/ip_local_port_range) and macOS's and IANA's (49152-65535), above the
+# registered ports most services use. A port the kernel hands out for bind(("", 0)) or an unbound
+# sendto comes from the ephemeral range, so it cannot take a port picked here in the moment
+# between the pick and its bind (a flight's listening port was once taken that way).
+_PICK_PORTS = range(20000, 32768)
+_PICK_TRIES = 64
+
+
 def free_udp_port(host: str = "127.0.0.1") -> int:
-    """A UDP port that was free a moment ago (for tests and embedding)."""
-    with socket.socket(socket.AF_INET, socket.SOCK_DGRAM) as s:
-        s.bind((host, 0))
-        return int(s.getsockname()[1])
+    """A UDP port that was free a moment ago (for tests and embedding), outside the kernel's
+    ephemeral ports where one is free there (``_PICK_PORTS``), else any the kernel gives."""
+    return free_udp_ports(1, host)[0]
+
+
+def free_udp_ports(count: int, host: str = "127.0.0.1") -> list[int]:
+    """``count`` distinct UDP ports, each picked as :func:`free_udp_port` picks one."""
+    rng = random.SystemRandom()  # not the seeded streams: a port is no part of a result
+    ports: list[int] = []
+    tries = 0
+    while len(ports) < count:
+        with socket.socket(socket.AF_INET, socket.SOCK_DGRAM) as s:
+            if tries < _PICK_TRIES * count:
+                tries += 1
+                port = rng.choice(_PICK_PORTS)
+                if port in ports:
+                    continue
+                try:
+                    s.bind((host, port))
+                except OSError:
+                    continue
+            else:
+                s.bind((host, 0))
+                port = int(s.getsockname()[1])
+                if port in ports:
+                    continue
+        ports.append(port)
+    return ports
 
 
 def _parse_port(text: str, url: str) -> int:
