@@ -47,8 +47,8 @@ def normalize_connection(url: str) -> str:
 
 
 # Ports free_udp_port picks from: below Linux's default ephemeral range (32768-60999,
-# /proc/sys/net/ipv4/ip_local_port_range) and macOS's and IANA's (49152-65535), above the
-# registered ports most services use. A port the kernel hands out for bind(("", 0)) or an unbound
+# /proc/sys/net/ipv4/ip_local_port_range) and macOS's and IANA's (49152-65535), above the ports
+# PX4 SITL and ground stations use (14540-14580, 14550, 18570). A port the kernel hands out for bind(("", 0)) or an unbound
 # sendto comes from the ephemeral range, so it cannot take a port picked here in the moment
 # between the pick and its bind (a flight's listening port was once taken that way).
 _PICK_PORTS = range(20000, 32768)
