@@ -24,18 +24,23 @@ ROOT = Path(__file__).resolve().parents[2]
 FOLDER = ROOT / "research"
 
 
-def run_json(script: str, *args: str) -> dict:
-    """``python research/SCRIPT ARGS --json``: the script's ``main`` run whole in this process
-    (without a child's torch and SB3 import: ~8 s each on a loaded 2-core machine)."""
+def run_main(script: str, *args: str) -> str:
+    """``python research/SCRIPT ARGS``: the script's ``main`` run whole in this process (without a
+    child's torch and SB3 import: ~8 s each on a loaded 2-core machine); what it printed."""
     sys.path.insert(0, str(FOLDER))  # as for a script: its siblings are importable
     try:
         main = runpy.run_path(str(FOLDER / script), run_name=Path(script).stem)["main"]
         out = io.StringIO()
         with contextlib.redirect_stdout(out):
-            assert main([*args, "--json"]) == 0
+            assert main(list(args)) == 0
     finally:
         sys.path.remove(str(FOLDER))
-    return json.loads(out.getvalue())
+    return out.getvalue()
+
+
+def run_json(script: str, *args: str) -> dict:
+    """``python research/SCRIPT ARGS --json``, its JSON read (:func:`run_main`)."""
+    return json.loads(run_main(script, *args, "--json"))
 
 
 def test_residual_ppo_starts_as_the_rule_and_trains() -> None:
@@ -474,21 +479,17 @@ def test_frozen_std_train_holds_the_std_that_plain_training_moves(tmp_path: Path
         'warm_start.teacher = "kmeans"\nwarm_start.episodes = 8\nwarm_start.epochs = 1\n'
         "warm_start.log_std = -2.0\nwarm_start.critic_rollouts = 0\n"
     )
-    sys.path.insert(0, str(FOLDER))
-    try:
-        main = runpy.run_path(str(FOLDER / "frozen_std_train.py"), run_name="frozen_std_train")[
-            "main"
-        ]
-        frozen = tmp_path / "frozen.zip"
-        with contextlib.redirect_stdout(io.StringIO()):
-            assert (
-                main(
-                    [str(sweep), "--scenario", "straight_180", "--seed", "0", "--out", str(frozen)]
-                )
-                == 0
-            )
-    finally:
-        sys.path.remove(str(FOLDER))
+    frozen = tmp_path / "frozen.zip"
+    run_main(
+        "frozen_std_train.py",
+        str(sweep),
+        "--scenario",
+        "straight_180",
+        "--seed",
+        "0",
+        "--out",
+        str(frozen),
+    )
     job = load_spec(sweep).jobs()[0]
     plain = tmp_path / "plain.zip"
     train(job.env, job.train, plain, progress=False)

@@ -192,7 +192,8 @@ class _Loop:
         except KeyboardInterrupt:
             result.interrupted, result.ended_by = True, EndedBy.INTERRUPTED
         finally:
-            # a vehicle released to an operator or a failsafe, or not heard lately, is not told to land
+            # a vehicle released to an operator or a failsafe, or not heard lately, is not told
+            # to land
             heard = [time.monotonic() - link.last_rx_wall < LIVE_S * 4 for link in links]
             close_episode(
                 links,

@@ -48,9 +48,10 @@ def normalize_connection(url: str) -> str:
 
 # Ports free_udp_port picks from: below Linux's default ephemeral range (32768-60999,
 # /proc/sys/net/ipv4/ip_local_port_range) and macOS's and IANA's (49152-65535), above the ports
-# PX4 SITL and ground stations use (14540-14580, 14550, 18570). A port the kernel hands out for bind(("", 0)) or an unbound
-# sendto comes from the ephemeral range, so it cannot take a port picked here in the moment
-# between the pick and its bind (a flight's listening port was once taken that way).
+# PX4 SITL and ground stations use (14540-14580, 14550, 18570). A port the kernel hands out for
+# bind(("", 0)) or an unbound sendto comes from the ephemeral range, so it cannot take a port
+# picked here in the moment between the pick and its bind (a flight's listening port was once
+# taken that way).
 _PICK_PORTS = range(20000, 32768)
 _PICK_TRIES = 64
 
@@ -65,25 +66,28 @@ def free_udp_ports(count: int, host: str = "127.0.0.1") -> list[int]:
     """``count`` distinct UDP ports, each picked as :func:`free_udp_port` picks one."""
     rng = random.SystemRandom()  # not the seeded streams: a port is no part of a result
     ports: list[int] = []
-    tries = 0
-    while len(ports) < count:
-        with socket.socket(socket.AF_INET, socket.SOCK_DGRAM) as s:
-            if tries < _PICK_TRIES * count:
-                tries += 1
-                port = rng.choice(_PICK_PORTS)
-                if port in ports:
-                    continue
-                try:
-                    s.bind((host, port))
-                except OSError:
-                    continue
-            else:
-                s.bind((host, 0))
-                port = int(s.getsockname()[1])
-                if port in ports:
-                    continue
-        ports.append(port)
+    for _ in range(_PICK_TRIES * count):
+        if len(ports) == count:
+            return ports
+        port = rng.choice(_PICK_PORTS)
+        if port not in ports and _bound_port(host, port) is not None:
+            ports.append(port)
+    while len(ports) < count:  # every try taken: the kernel's picks
+        kernel_port = _bound_port(host, 0)
+        if kernel_port is not None and kernel_port not in ports:
+            ports.append(kernel_port)
     return ports
+
+
+def _bound_port(host: str, port: int) -> int | None:
+    """The port a UDP socket bound to ``(host, port)`` got (0: the kernel picks), or None when
+    that port is taken; the socket is closed again."""
+    with socket.socket(socket.AF_INET, socket.SOCK_DGRAM) as s:
+        try:
+            s.bind((host, port))
+        except OSError:
+            return None
+        return int(s.getsockname()[1])
 
 
 def _parse_port(text: str, url: str) -> int:
