@@ -118,7 +118,7 @@ def test_validate_against_the_env() -> None:
     assert TrainConfig().validate(EnvConfig()) == TrainConfig()
     # the teacher against the env it flies: before any model is built, not in the teacher's factory
     fleet, one = EnvConfig(n_uavs=2), EnvConfig()
-    for teacher in ("solo", "lead"):
+    for teacher in ("solo", "lead", "spread"):
         assert TrainConfig(warm_start=WarmStartConfig(teacher=teacher)).validate(fleet)
         with pytest.raises(
             ConfigError, match=rf"^train.warm_start.teacher {teacher} is a fleet's teacher"

@@ -59,14 +59,36 @@ def test_fleet_aoa_rule_follows_its_cell_and_an_empty_cell_holds():
     np.testing.assert_allclose(move[1], 0.0, atol=1e-9)  # UAV 1 serves nobody: it holds
 
 
-def test_kmeans_splits_two_groups_and_sends_each_uav_to_the_nearer_one():
-    cfg = EnvConfig(scenario="straight_180", n_uavs=2, r_max_m=500.0)
-    env = BatchedUavEnv(cfg, n_envs=1, seed=0)
+def two_groups_env() -> BatchedUavEnv:
+    """A fleet of two over two groups of five UEs, at (-150, 10) and (150, -10); no speed limit."""
+    env = BatchedUavEnv(EnvConfig(scenario="straight_180", n_uavs=2, r_max_m=500.0), 1, seed=0)
     env.reset()
     env.mobility.position_m[0, :5] = [-150.0, 10.0]
     env.mobility.position_m[0, 5:] = [150.0, -10.0]
-    move = env.actions.to_displacement_m(KMeansPolicy(cfg).act(None, env.ground_truth()))
+    return env
+
+
+def test_kmeans_splits_two_groups_and_sends_each_uav_to_the_nearer_one():
+    env = two_groups_env()
+    move = env.actions.to_displacement_m(KMeansPolicy(env.cfg).act(None, env.ground_truth()))
     np.testing.assert_allclose(env.uav_xy_m + move, [[150.0, -10.0], [-150.0, 10.0]], atol=1e-6)
+
+
+def test_the_spread_teacher_aims_ahead_of_each_group_and_away_from_the_others():
+    from uavlink.learn.teachers import SpreadTeacher
+
+    env = two_groups_env()
+    cfg, truth = env.cfg, env.ground_truth()
+    velocity = truth.ue_velocity_mps.reshape(2, 5, 2).mean(axis=1)  # the groups' mean velocity
+    teacher = SpreadTeacher(cfg, spread_m=20.0, lead_frames=2.0)
+    move = env.actions.to_displacement_m(teacher.act(None, truth))
+    ahead = np.array([[150.0, -10.0], [-150.0, 10.0]]) + 2.0 * cfg.frame_s * velocity[::-1]
+    away = ahead - ahead[::-1]
+    away /= np.linalg.norm(away, axis=1, keepdims=True)
+    np.testing.assert_allclose(env.uav_xy_m + move, ahead + 20.0 * away, atol=1e-6)
+    kmeans = env.actions.to_displacement_m(KMeansPolicy(cfg).act(None, truth))
+    still = SpreadTeacher(cfg, spread_m=0.0, lead_frames=0.0)  # no knobs: kmeans itself
+    np.testing.assert_allclose(env.actions.to_displacement_m(still.act(None, truth)), kmeans)
 
 
 def test_mean_fleet_fair_rate_reduces_to_one_uav_and_rewards_splitting():

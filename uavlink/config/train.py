@@ -25,9 +25,9 @@ from uavlink.errors import ConfigError
 
 # The rules a warm start can copy; uavlink.policies.registry builds them by these names.
 BASELINE_NAMES = ("static", "oracle", "aoa", "kmeans", "explore", "kriging")
-# What a warm start may imitate: a baseline, or a fleet-only teacher (uavlink.learn.teachers: solo and
-# bearings, the latter for the any-size layout; uavlink.learn.lead_teacher: lead).
-TEACHER_NAMES = (*BASELINE_NAMES, "solo", "lead", "bearings")
+# What a warm start may imitate: a baseline, or a fleet-only teacher (uavlink.learn.teachers: solo,
+# spread and bearings, the latter for the any-size layout; uavlink.learn.lead_teacher: lead).
+TEACHER_NAMES = (*BASELINE_NAMES, "solo", "lead", "bearings", "spread")
 
 
 # What PPO's critic reads (TrainConfig.critic): the actor's observation, or that plus the
@@ -148,7 +148,7 @@ class WarmStartConfig:
     def check_env(self, env: EnvConfig, name: Namer = config_name) -> None:
         """The checks against the env the teacher flies: a fleet's teachers need a fleet, the shadow
         gate is the single-UAV aoa rule's and compares frames."""
-        if self.teacher in ("solo", "lead") and env.n_uavs == 1:
+        if self.teacher in ("solo", "lead", "spread") and env.n_uavs == 1:
             raise ConfigError(
                 f"{name('warm_start.teacher')} {self.teacher} is a fleet's teacher: it needs n_uavs > 1"
             )

@@ -125,6 +125,12 @@ class KMeansPolicy(RulePolicy):
             raise ValueError(
                 "the kmeans baseline needs ground truth; it cannot fly from MAVLink data"
             )
+        centroid_m, _ = self.groups(truth)
+        return self.mapping.towards(centroid_m.reshape(-1, 2) - truth.uav_xy_m, 1.0)
+
+    def groups(self, truth: GroundTruth) -> tuple[np.ndarray, np.ndarray]:
+        """Each UAV's group: its centroid and its UEs' mean velocity (N, D, 2 each, m and m/s),
+        groups matched to UAVs by the least total distance to the centroids."""
         n_uavs = self.cfg.n_uavs
         uav = truth.uav_xy_m.reshape(-1, n_uavs, 2)
         ue = truth.ue_xy_m
@@ -137,7 +143,9 @@ class KMeansPolicy(RulePolicy):
             count = member.sum(axis=1)[..., None]
             mean = np.einsum("nud,nuk->ndk", member, ue) / np.maximum(count, 1)
             centroid = np.where(count > 0, mean, centroid)  # an empty group keeps its centre
+        velocity = np.einsum("nud,nuk->ndk", member, truth.ue_velocity_mps) / np.maximum(count, 1)
         gap = np.linalg.norm(uav[:, :, None] - centroid[:, None], axis=-1)  # (N, UAV, group)
         cost = gap[:, np.arange(n_uavs), self.matchings].sum(axis=2)  # (N, D!)
-        target = centroid[np.arange(len(uav))[:, None], self.matchings[cost.argmin(axis=1)]]
-        return self.mapping.towards(target.reshape(-1, 2) - truth.uav_xy_m, 1.0)
+        order = self.matchings[cost.argmin(axis=1)]  # (N, D): UAV d flies to group order[:, d]
+        rows = np.arange(len(uav))[:, None]
+        return centroid[rows, order], velocity[rows, order]
