@@ -497,3 +497,23 @@ def test_frozen_std_train_holds_the_std_that_plain_training_moves(tmp_path: Path
     moved = PPO.load(plain, device="cpu").policy
     assert np.allclose(held.log_std.detach().numpy(), -2.0)
     assert not np.allclose(moved.log_std.detach().numpy(), -2.0)
+
+
+def test_spread_search_pairs_each_pair_with_kmeans_and_no_spread_is_kmeans() -> None:
+    """research/spread_search.py: every (spread_m, lead_frames) pair at every size flies beside
+    kmeans on the same episodes; 0 m and no lead is kmeans itself (a ratio of exactly 1)."""
+    result = run_json(
+        "spread_search.py",
+        *("--scenario", "straight_180", "--sizes", "2", "3"),
+        *("--spread-m", "0", "20", "--lead-frames", "0", "1", "--episodes", "2", "--seed", "3"),
+    )
+    rows = result["rows"]
+    assert [(r["n_uavs"], r["spread_m"], r["lead_frames"]) for r in rows] == [
+        (d, s, lead) for d in (2, 3) for s in (0.0, 20.0) for lead in (0.0, 1.0)
+    ]
+    for row in rows:
+        r, lo, hi = row["spread_vs_kmeans"]
+        assert lo <= r <= hi and abs(r - row["spread_mbps"] / row["kmeans_mbps"]) < 1e-3
+        if row["spread_m"] == 0 and row["lead_frames"] == 0:
+            assert row["spread_vs_kmeans"] == [1.0, 1.0, 1.0]
+    assert len({r["spread_mbps"] for r in rows if r["n_uavs"] == 2}) > 1  # the knobs move the UAVs
