@@ -107,9 +107,10 @@ def make_teacher(
 ) -> Any:
     """The warm start's teacher named ``teacher``: the aoa rule (or its variant, when
     ``shadow_gate_db``, ``sinr_span_db`` or ``shadow_estimator`` is set) on the true AoAs, a
-    fleet's ``solo``, ``lead``, ``bearings`` or ``spread`` teacher (the latter's leader flies ``leader_policy``, a single-UAV
-    policy file, or the single-UAV aoa rule), or another baseline as it is. A combination no teacher
-    takes is refused by ``WarmStartConfig``'s own checks, as ``uavlink train`` refuses it."""
+    fleet's ``solo``, ``bearings``, ``spread`` or ``lead`` teacher (the latter's leader flies
+    ``leader_policy``, a single-UAV policy file, or the single-UAV aoa rule), or another baseline as
+    it is. A combination no teacher takes is refused by ``WarmStartConfig``'s own checks, as
+    ``uavlink train`` refuses it."""
     if teacher not in TEACHER_NAMES:
         raise UserError(f"unknown teacher {teacher!r}; choose from {', '.join(TEACHER_NAMES)}")
     ws = WarmStartConfig(
