@@ -24,7 +24,7 @@ import sys
 from typing import Any
 
 import numpy as np
-from fleet_bars import paired_ratio, ratio_text
+from fleet_bars import episode_args, paired_ratio, ratio_text
 
 from uavlink.config import EnvConfig
 from uavlink.env.actions import ActionMapping
@@ -157,12 +157,7 @@ def main(argv: list[str] | None = None) -> int:
         help="fly policies/spatial/<LEADER>.zip in every cell (default: the scenario's own)",
     )
     parser.add_argument("--sizes", type=int, nargs="+", default=[2], choices=(2, 3, 4))
-    parser.add_argument("--episodes", type=int, default=100)
-    parser.add_argument("--seed", type=int, default=1)
-    parser.add_argument("--json", action="store_true", help="print one JSON object")
-    args = parser.parse_args(argv)
-    if args.episodes < 1:
-        parser.error("--episodes must be positive")
+    args = episode_args(parser, argv, episodes=100, seed=1)
     report = run(
         args.scenarios or ["straight_180"], args.leader, args.sizes, args.episodes, args.seed
     )

@@ -23,6 +23,20 @@ from typing import Any
 SIZES = (2, 3, 4)
 
 
+def episode_args(
+    parser: argparse.ArgumentParser, argv: list[str] | None, episodes: int, seed: int
+) -> argparse.Namespace:
+    """``parser``'s arguments with the options every fleet research script takes (``--episodes``,
+    ``--seed``, ``--json``) added, an ``--episodes`` below 1 refused in one line."""
+    parser.add_argument("--episodes", type=int, default=episodes)
+    parser.add_argument("--seed", type=int, default=seed)
+    parser.add_argument("--json", action="store_true", help="print one JSON object")
+    args = parser.parse_args(argv)
+    if args.episodes < 1:
+        parser.error("--episodes must be positive")
+    return args
+
+
 def paired_ratio(a: Any, b: Any) -> list[float]:
     """Evaluation ``a``'s mean throughput over ``b``'s with its paired 95 % interval, rounded."""
     from uavlink.evaluation import paired_ratio_ci
@@ -121,8 +135,6 @@ def main(argv: list[str] | None = None) -> int:
         default=Path("policies/fleet_d2"),
         help="the per-size D = 2 policies to compare at D = 2 (a missing folder: skipped)",
     )
-    parser.add_argument("--episodes", type=int, default=100)
-    parser.add_argument("--seed", type=int, default=0)
     parser.add_argument(
         "--scenario",
         action="append",
@@ -130,10 +142,7 @@ def main(argv: list[str] | None = None) -> int:
         choices=SCENARIOS,
         help="only this scenario's policy (repeatable; default: every scenario)",
     )
-    parser.add_argument("--json", action="store_true", help="print one JSON object")
-    args = parser.parse_args(argv)
-    if args.episodes < 1:
-        parser.error("--episodes must be positive")
+    args = episode_args(parser, argv, episodes=100, seed=0)
     per_size = args.per_size if args.per_size.is_dir() else None
     scenarios = tuple(args.scenarios) if args.scenarios else None
     report = run(args.fleet, per_size, args.episodes, args.seed, scenarios)

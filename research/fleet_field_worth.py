@@ -22,7 +22,7 @@ import sys
 from pathlib import Path
 from typing import Any
 
-from fleet_bars import paired_ratio, ratio_text
+from fleet_bars import episode_args, paired_ratio, ratio_text
 
 # where the UEs part, and the genie bar is missed
 SPLIT = ("straight_90", "straight_180", "hotspot")
@@ -110,12 +110,7 @@ def main(argv: list[str] | None = None) -> int:
         help=f"a scenario (repeatable; default: {', '.join(SPLIT)})",
     )
     parser.add_argument("--sizes", type=int, nargs="+", default=[2, 3], choices=[2, 3, 4])
-    parser.add_argument("--episodes", type=int, default=30)
-    parser.add_argument("--seed", type=int, default=1)
-    parser.add_argument("--json", action="store_true", help="print one JSON object")
-    args = parser.parse_args(argv)
-    if args.episodes < 1:
-        parser.error("--episodes must be positive")
+    args = episode_args(parser, argv, episodes=30, seed=1)
     scenarios = tuple(args.scenarios) if args.scenarios else SPLIT
     report = run(args.fleet, scenarios, tuple(args.sizes), args.episodes, args.seed)
     print(json.dumps(report, indent=2) if args.json else markdown(report))

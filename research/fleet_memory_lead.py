@@ -22,7 +22,7 @@ import sys
 from pathlib import Path
 from typing import Any
 
-from fleet_bars import paired_ratio, ratio_text
+from fleet_bars import episode_args, paired_ratio, ratio_text
 
 PLACE_CELL_M = 12.0  # sweeps/map.toml's grid
 
@@ -107,12 +107,7 @@ def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--scenario", choices=SCENARIOS, default="no_move")
     parser.add_argument("--sizes", type=int, nargs="+", default=[2, 3], choices=(2, 3, 4))
-    parser.add_argument("--episodes", type=int, default=100)
-    parser.add_argument("--seed", type=int, default=1)
-    parser.add_argument("--json", action="store_true", help="print one JSON object")
-    args = parser.parse_args(argv)
-    if args.episodes < 1:
-        parser.error("--episodes must be positive")
+    args = episode_args(parser, argv, episodes=100, seed=1)
     report = run(args.scenario, args.sizes, args.episodes, args.seed)
     print(json.dumps(report, indent=2) if args.json else markdown(report))
     return 0

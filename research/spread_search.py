@@ -19,7 +19,7 @@ import json
 import sys
 from typing import Any
 
-from fleet_bars import paired_ratio, ratio_text
+from fleet_bars import episode_args, paired_ratio, ratio_text
 
 
 def run(
@@ -90,12 +90,7 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--sizes", type=int, nargs="+", default=[2, 3, 4], choices=(2, 3, 4))
     parser.add_argument("--spread-m", type=float, nargs="+", default=[0.0, 10.0, 15.0, 20.0, 30.0])
     parser.add_argument("--lead-frames", type=float, nargs="+", default=[0.0, 1.0, 2.0])
-    parser.add_argument("--episodes", type=int, default=100)
-    parser.add_argument("--seed", type=int, default=1)
-    parser.add_argument("--json", action="store_true", help="print one JSON object")
-    args = parser.parse_args(argv)
-    if args.episodes < 1:
-        parser.error("--episodes must be positive")
+    args = episode_args(parser, argv, episodes=100, seed=1)
     report = run(
         args.scenarios or ["straight_180", "hotspot"],
         args.sizes,
