@@ -5,11 +5,14 @@ frames ahead of its group's centroid (along the group's mean velocity) and ``spr
 the other groups. Each row flies one (spread_m, lead_frames) pair and kmeans on the same seeded
 episodes of the scenario's fleet env at D UAVs (the shipped any-size policy's env: spatial channel,
 layout v6), with the paired throughput ratio and its 95 % bootstrap interval, beside the shipped
-policy's own ratio to kmeans on those episodes. Both rules read GPS:
+policy's own ratio to kmeans on those episodes. ``--away nearest`` spreads each UAV from the
+nearest other group instead of the others' mean (the same rule at D = 2). Both rules read GPS:
 this chooses a teacher, not a policy. Seconds on 2 cores.
 
     python research/spread_search.py --episodes 100 --seed 1
     python research/spread_search.py --scenario hotspot --sizes 2 --spread-m 0 20 --lead-frames 0 1
+    python research/spread_search.py --scenario hotspot --sizes 3 4 --spread-m 20 30 40 \
+        --lead-frames 1 --away nearest
 """
 
 from __future__ import annotations
@@ -22,6 +25,31 @@ from typing import Any
 from fleet_bars import episode_args, paired_ratio, ratio_text
 
 
+def nearest_spread_teacher(cfg: Any, spread_m: float, lead_frames: float) -> Any:
+    """The spread teacher with each UAV pushed away from the nearest other group's target instead
+    of the other groups' mean (the same at D = 2): interference falls with distance, so the nearest
+    neighbour's cell is the one that costs most."""
+    import numpy as np
+
+    from uavlink.learn.teachers import SpreadTeacher
+
+    class NearestSpread(SpreadTeacher):
+        def act(self, obs: Any, truth: Any = None) -> Any:
+            if truth is None:
+                raise ValueError("the spread teacher needs ground truth")
+            centroid_m, velocity_mps = self.groups(truth)
+            target_m = centroid_m + self.lead_frames * self.cfg.frame_s * velocity_mps
+            gap = np.linalg.norm(target_m[:, :, None] - target_m[:, None], axis=-1)
+            gap[:, np.arange(self.cfg.n_uavs), np.arange(self.cfg.n_uavs)] = np.inf
+            rows = np.arange(len(target_m))[:, None]
+            away = target_m - target_m[rows, gap.argmin(axis=2)]
+            away /= np.maximum(np.linalg.norm(away, axis=2, keepdims=True), 1e-9)
+            target_m = target_m + self.spread_m * away
+            return self.mapping.towards(target_m.reshape(-1, 2) - truth.uav_xy_m, 1.0)
+
+    return NearestSpread(cfg, spread_m, lead_frames)
+
+
 def run(
     scenarios: list[str],
     sizes: list[int],
@@ -29,6 +57,7 @@ def run(
     leads: list[float],
     episodes: int,
     seed: int,
+    away: str = "mean",
 ) -> dict[str, Any]:
     from uavlink.evaluation import evaluate_policy
     from uavlink.learn.teachers import SpreadTeacher
@@ -45,7 +74,8 @@ def run(
             shipped = paired_ratio(evaluate_policy(policy, cfg, episodes, seed), kmeans)
             for spread_m in spreads_m:
                 for lead in leads:
-                    rule = evaluate_policy(SpreadTeacher(cfg, spread_m, lead), cfg, episodes, seed)
+                    make = SpreadTeacher if away == "mean" else nearest_spread_teacher
+                    rule = evaluate_policy(make(cfg, spread_m, lead), cfg, episodes, seed)
                     rows.append(
                         {
                             "scenario": scenario,
@@ -58,7 +88,7 @@ def run(
                             "policy_vs_kmeans": shipped,
                         }
                     )
-    return {"episodes": episodes, "seed": seed, "rows": rows}
+    return {"episodes": episodes, "seed": seed, "away": away, "rows": rows}
 
 
 def markdown(report: dict[str, Any]) -> str:
@@ -90,6 +120,13 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--sizes", type=int, nargs="+", default=[2, 3, 4], choices=(2, 3, 4))
     parser.add_argument("--spread-m", type=float, nargs="+", default=[0.0, 10.0, 15.0, 20.0, 30.0])
     parser.add_argument("--lead-frames", type=float, nargs="+", default=[0.0, 1.0, 2.0])
+    parser.add_argument(
+        "--away",
+        choices=("mean", "nearest"),
+        default="mean",
+        help="what each UAV spreads away from: the other groups' mean (the shipped teacher) or "
+        "the nearest other group",
+    )
     args = episode_args(parser, argv, episodes=100, seed=1)
     report = run(
         args.scenarios or ["straight_180", "hotspot"],
@@ -98,6 +135,7 @@ def main(argv: list[str] | None = None) -> int:
         args.lead_frames,
         args.episodes,
         args.seed,
+        args.away,
     )
     print(json.dumps(report, indent=2) if args.json else markdown(report))
     return 0

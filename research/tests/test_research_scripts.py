@@ -517,3 +517,18 @@ def test_spread_search_pairs_each_pair_with_kmeans_and_no_spread_is_kmeans() -> 
         if row["spread_m"] == 0 and row["lead_frames"] == 0:
             assert row["spread_vs_kmeans"] == [1.0, 1.0, 1.0]
     assert len({r["spread_mbps"] for r in rows if r["n_uavs"] == 2}) > 1  # the knobs move the UAVs
+
+
+def test_spread_search_nearest_is_the_mean_at_two_uavs_only() -> None:
+    """research/spread_search.py --away nearest: with one other group its nearest is the mean, so
+    D = 2 flies as the shipped teacher; with two others the targets differ."""
+    common = ("--scenario", "hotspot", "--sizes", "2", "3", "--spread-m", "30")
+    args = (*common, "--lead-frames", "1", "--episodes", "2", "--seed", "3")
+    mean = run_json("spread_search.py", *args)
+    nearest = run_json("spread_search.py", *args, "--away", "nearest")
+    assert (mean["away"], nearest["away"]) == ("mean", "nearest")
+    by_size = [
+        (m["n_uavs"], m["spread_mbps"], n["spread_mbps"])
+        for m, n in zip(mean["rows"], nearest["rows"], strict=True)
+    ]
+    assert [(d, a == b) for d, a, b in by_size] == [(2, True), (3, False)]
