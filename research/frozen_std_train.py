@@ -14,7 +14,6 @@ train`` would (research/log/fleet.md, "Holding the exploration std": it does not
 from __future__ import annotations
 
 import argparse
-import sys
 from pathlib import Path
 from typing import Any
 
@@ -47,18 +46,23 @@ def frozen_std_callback() -> Any:
     return FrozenStd()
 
 
-def main(argv: list[str] | None = None) -> int:
-    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+def sweep_job(description: str, argv: list[str] | None, *extra: tuple[str, dict]) -> tuple:
+    """The command line of a script that trains one job of a sweep file (``sweep --scenario X
+    --seed S --out OUT.zip [--torch-threads N]``, and ``extra`` options as (flag, keywords)): its
+    parsed arguments and that job, torch's threads set and OUT's folder made; a one-line refusal
+    (exit 2) when the file has no such job."""
+    ap = argparse.ArgumentParser(description=description)
     ap.add_argument("sweep", help="sweep file whose job is trained, e.g. sweeps/fleet.toml")
     ap.add_argument("--scenario", required=True)
     ap.add_argument("--seed", type=int, required=True)
     ap.add_argument("--out", type=Path, required=True, help="policy zip to write")
     ap.add_argument("--torch-threads", type=int, default=1)
+    for flag, keywords in extra:
+        ap.add_argument(flag, **keywords)
     args = ap.parse_args(argv)
 
     import torch
 
-    from uavlink.learn.training import train
     from uavlink.sweep.sweep_file import load_spec
 
     jobs = [
@@ -67,17 +71,22 @@ def main(argv: list[str] | None = None) -> int:
         if (j.scenario, j.seed) == (args.scenario, args.seed)
     ]
     if len(jobs) != 1:
-        print(
-            f"{args.sweep}: {len(jobs)} jobs for {args.scenario} seed {args.seed}", file=sys.stderr
-        )
-        return 2
+        ap.exit(2, f"{args.sweep}: {len(jobs)} jobs for {args.scenario} seed {args.seed}\n")
     torch.set_num_threads(args.torch_threads)
     args.out.parent.mkdir(parents=True, exist_ok=True)
+    return args, jobs[0]
+
+
+def main(argv: list[str] | None = None) -> int:
+    args, job = sweep_job(__doc__.split("\n\n")[0], argv)
+
+    from uavlink.learn.training import train
+
     training = train(
-        jobs[0].env, jobs[0].train, args.out, progress=False, callbacks=[frozen_std_callback()]
+        job.env, job.train, args.out, progress=False, callbacks=[frozen_std_callback()]
     )
     curve = training["learning_curve"]
-    print(f"{jobs[0].name} with the std frozen -> {args.out}; learning curve {curve}")
+    print(f"{job.name} with the std frozen -> {args.out}; learning curve {curve}")
     return 0
 
 

@@ -532,3 +532,83 @@ def test_spread_search_nearest_is_the_mean_at_two_uavs_only() -> None:
         for m, n in zip(mean["rows"], nearest["rows"], strict=True)
     ]
     assert [(d, a == b) for d, a, b in by_size] == [(2, True), (3, False)]
+
+
+def test_field_critic_columns_hold_each_rows_probes_and_the_fleets_best_link() -> None:
+    """research/field_critic.py: each agent row reads its own link shadowing (the first probe is the
+    UAV itself, as the channel draws it) and its probes', UEs innermost, then every UE's best fleet
+    link; the wrapper appends them after the shipped privileged columns, terminal rows included."""
+    sys.path.insert(0, str(FOLDER))
+    try:
+        from field_critic import field_columns, field_critic_env_class, field_width, probe_offsets_m
+    finally:
+        sys.path.remove(str(FOLDER))
+    from uavlink.config import EnvConfig
+    from uavlink.env.core import BatchedUavEnv
+    from uavlink.env.vec_env import UavVecEnv
+    from uavlink.learn.privileged import privileged_size
+
+    cfg = EnvConfig(scenario="hotspot", n_uavs=3, fleet_slots=3, episode_frames=3)
+    cfg = cfg.replace(**{"radio.shadowing_model": "spatial"}).validate()
+    core = BatchedUavEnv(cfg, n_envs=2, seed=4)
+    core.reset(4)
+    truth = core.ground_truth()
+    cols = field_columns(truth, cfg)
+    u, d, p = cfg.n_ues, cfg.n_uavs, len(probe_offsets_m())
+    assert cols.shape == (2 * d, field_width(u)) == (6, (p + 1) * u)
+    links = truth.shadow_field.shadow_db(
+        truth.uav_xy_m.reshape(2, d, 2), truth.ue_xy_m
+    )  # (N, U, D)
+    links = links / cfg.radio.shadowing_std_db
+    own = links.transpose(0, 2, 1).reshape(2 * d, u)
+    np.testing.assert_allclose(cols[:, :u], own, atol=1e-5)
+    np.testing.assert_allclose(cols[:, -u:], np.repeat(links.max(axis=2), d, axis=0), atol=1e-5)
+    assert not np.allclose(cols[:, u : 2 * u], cols[:, :u])  # a probe 20 m off reads another link
+
+    wide = field_critic_env_class()(UavVecEnv(cfg, n_envs=2, seed=4))
+    width = wide.observation_space.shape[0]
+    obs = wide.reset()
+    assert obs.shape == (6, width) and width - field_width(u) - privileged_size(cfg) > 0
+    for _ in range(cfg.episode_frames):
+        obs, _, dones, infos = wide.step(np.zeros((6, 2), np.float32))
+    assert dones.all() and all(info["terminal_observation"].shape == (width,) for info in infos)
+
+
+def test_field_critic_trains_a_policy_whose_critic_reads_the_field_and_actor_does_not(
+    tmp_path: Path,
+) -> None:
+    """research/field_critic.py end to end on a tiny job: the saved policy's critic reads the field's
+    columns after the shipped privileged ones, its actor the observation alone, and it evaluates as
+    any policy file."""
+    from stable_baselines3 import PPO
+
+    from uavlink.env.observation import ObservationLayout
+    from uavlink.learn.privileged import privileged_size
+    from uavlink.sweep.sweep_file import load_spec
+
+    sweep = tmp_path / "tiny.toml"
+    sweep.write_text(
+        'name = "tiny"\nscenarios = ["hotspot"]\nseeds = [0]\n'
+        '[env]\nn_uavs = 2\nfleet_slots = 1\n"radio.shadowing_model" = "spatial"\n'
+        '[train]\nepisodes = 64\nn_envs = 32\ncritic = "privileged"\n'
+    )
+    out = tmp_path / "field.zip"
+    args = ("--scenario", "hotspot", "--seed", "0", "--out", str(out))
+    printed = run_main("field_critic.py", str(sweep), *args)
+    assert "learning curve in sixths" in printed
+    cfg = load_spec(sweep).jobs()[0].env
+    policy = PPO.load(out, device="cpu").policy
+    actor = ObservationLayout.for_config(cfg).size
+    assert policy.actor_obs_size == actor
+    sys.path.insert(0, str(FOLDER))
+    try:
+        from field_critic import field_width
+    finally:
+        sys.path.remove(str(FOLDER))
+    wide = actor + privileged_size(cfg) + field_width(cfg.n_ues)
+    assert policy.observation_space.shape == (wide,)
+    from uavlink.evaluation import evaluate_policy
+    from uavlink.policies.contract import EnvOverrides, load_with_env
+
+    [(flown, env)] = load_with_env([str(out)], EnvOverrides())
+    assert evaluate_policy(flown, env, 1, 0).mean_rate_mbps > 0  # the actor alone flies

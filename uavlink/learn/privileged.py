@@ -74,7 +74,8 @@ class PrivilegedVecEnv(VecEnvWrapper):
     """``UavVecEnv`` with the privileged columns appended to every row's observation, the returned
     ones and ``info["terminal_observation"]`` alike (that one from the last frame's ground truth,
     ``UavVecEnv.terminal_truth``, kept before the batch reset). The env itself is untouched: its
-    steps, rewards and episodes are ``UavVecEnv``'s."""
+    steps, rewards and episodes are ``UavVecEnv``'s. A critic that reads other columns (a research
+    variant) overrides ``bounds`` and ``columns``."""
 
     venv: UavVecEnv
 
@@ -82,7 +83,7 @@ class PrivilegedVecEnv(VecEnvWrapper):
         self.cfg = venv.core.cfg
         space = venv.observation_space
         assert isinstance(space, gym.spaces.Box)  # UavVecEnv's, a Box of the layout's bounds
-        low, high = privileged_bounds(self.cfg)
+        low, high = self.bounds()
         wide = gym.spaces.Box(
             np.concatenate([space.low, low]), np.concatenate([space.high, high]), dtype=np.float32
         )
@@ -99,8 +100,16 @@ class PrivilegedVecEnv(VecEnvWrapper):
         self.__dict__.update(state)
         self.class_attributes = dict(inspect.getmembers(self.__class__))
 
+    def bounds(self) -> tuple[np.ndarray, np.ndarray]:
+        """(low, high) of the appended columns."""
+        return privileged_bounds(self.cfg)
+
+    def columns(self, truth: GroundTruth) -> np.ndarray:
+        """The appended columns (N D, width) of every agent row of ``truth``."""
+        return privileged_columns(truth, self.cfg)
+
     def _widen(self, obs: np.ndarray, truth: GroundTruth) -> np.ndarray:
-        return np.concatenate([obs, privileged_columns(truth, self.cfg)], axis=1)
+        return np.concatenate([obs, self.columns(truth)], axis=1)
 
     def reset(self) -> np.ndarray:
         obs = self.venv.reset()
@@ -113,7 +122,7 @@ class PrivilegedVecEnv(VecEnvWrapper):
         if dones.any():
             truth = self.venv.terminal_truth
             assert truth is not None  # UavVecEnv keeps it on every step that ends episodes
-            last = privileged_columns(truth, self.cfg)
+            last = self.columns(truth)
             for i, info in enumerate(infos):
                 if "terminal_observation" in info:
                     info["terminal_observation"] = np.concatenate(
