@@ -86,8 +86,7 @@ def main(argv: list[str] | None = None) -> int:
     with mock.patch("uavlink.learn.privileged.PrivilegedVecEnv", field_critic_env_class()):
         training = train(job.env, tc, args.out, progress=False)
     curve = [rate for _, rate in training["learning_curve"]]
-    sixth = max(len(curve) // 6, 1)
-    sixths = [round(float(np.mean(curve[i : i + sixth])), 2) for i in range(0, len(curve), sixth)]
+    sixths = [round(float(part.mean()), 2) for part in np.array_split(curve, min(6, len(curve)))]
     print(f"{job.name} with the field critic -> {args.out}; learning curve in sixths {sixths}")
     return 0
 
