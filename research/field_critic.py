@@ -76,10 +76,11 @@ def main(argv: list[str] | None = None) -> int:
     episodes = ("--episodes", {"type": int, "help": "PPO episodes (default: the job's)"})
     args, job = sweep_job(__doc__.split("\n\n")[0], argv, episodes)
 
+    from uavlink.config.train import CRITIC_PRIVILEGED
     from uavlink.learn.training import train
 
     tc = job.train if args.episodes is None else job.train.replace(episodes=args.episodes)
-    if tc.critic != "privileged" or job.env.radio.shadowing_model != "spatial":
+    if tc.critic != CRITIC_PRIVILEGED or job.env.radio.shadowing_model != "spatial":
         print(f"{job.name}: needs a privileged critic on the spatial channel", file=sys.stderr)
         return 2
     # privileged_env builds its wrapper by this module-level name when train() makes the model

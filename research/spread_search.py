@@ -34,18 +34,10 @@ def nearest_spread_teacher(cfg: Any, spread_m: float, lead_frames: float) -> Any
     from uavlink.learn.teachers import SpreadTeacher
 
     class NearestSpread(SpreadTeacher):
-        def act(self, obs: Any, truth: Any = None) -> Any:
-            if truth is None:
-                raise ValueError("the spread teacher needs ground truth")
-            centroid_m, velocity_mps = self.groups(truth)
-            target_m = centroid_m + self.lead_frames * self.cfg.frame_s * velocity_mps
+        def others_m(self, target_m: Any) -> Any:
             gap = np.linalg.norm(target_m[:, :, None] - target_m[:, None], axis=-1)
             gap[:, np.arange(self.cfg.n_uavs), np.arange(self.cfg.n_uavs)] = np.inf
-            rows = np.arange(len(target_m))[:, None]
-            away = target_m - target_m[rows, gap.argmin(axis=2)]
-            away /= np.maximum(np.linalg.norm(away, axis=2, keepdims=True), 1e-9)
-            target_m = target_m + self.spread_m * away
-            return self.mapping.towards(target_m.reshape(-1, 2) - truth.uav_xy_m, 1.0)
+            return target_m[np.arange(len(target_m))[:, None], gap.argmin(axis=2)]
 
     return NearestSpread(cfg, spread_m, lead_frames)
 

@@ -260,9 +260,11 @@ class SpreadTeacher(KMeansPolicy):
             raise ValueError("the spread teacher needs ground truth")
         centroid_m, velocity_mps = self.groups(truth)
         target_m = centroid_m + self.lead_frames * self.cfg.frame_s * velocity_mps
-        n_uavs = self.cfg.n_uavs
-        others_m = (target_m.sum(axis=1, keepdims=True) - target_m) / (n_uavs - 1)
-        away = target_m - others_m
+        away = target_m - self.others_m(target_m)
         away /= np.maximum(np.linalg.norm(away, axis=2, keepdims=True), 1e-9)
         target_m = target_m + self.spread_m * away
         return self.mapping.towards(target_m.reshape(-1, 2) - truth.uav_xy_m, 1.0)
+
+    def others_m(self, target_m: np.ndarray) -> np.ndarray:
+        """The point (N, D, 2) each UAV's target moves away from: the other targets' mean."""
+        return (target_m.sum(axis=1, keepdims=True) - target_m) / (self.cfg.n_uavs - 1)
