@@ -91,6 +91,29 @@ def test_a_continued_run_logs_to_its_run_folder_from_where_it_stopped(tmp_path: 
     assert max(steps) == tc.total_timesteps(cfg) and min(steps) > 128  # the rollouts after the cut
 
 
+def _rates_by_step(table: Path) -> list[tuple[str, str]]:
+    import csv
+
+    with table.open() as f:
+        return [(r["time/total_timesteps"], r["rollout/mean_rate_mbps"]) for r in csv.DictReader(f)]
+
+
+def test_a_run_continued_in_its_run_folder_keeps_its_progress_table(tmp_path: Path) -> None:
+    """SB3 opens progress.csv empty; the continued run's table is the uninterrupted run's."""
+    cfg = ONE.validate()
+    tc = TrainConfig(n_envs=4, n_steps=16, batch_size=32, episodes=32, seed=1)
+    train(cfg, tc, tmp_path / "whole.zip", run_dir=tmp_path / "whole", progress=False)
+    snapshot = tmp_path / "run.snapshot"
+    cut_training(cfg, tc, tmp_path / "p.zip", snapshot, 4, run_dir=tmp_path / "run")
+    cut = _rates_by_step(tmp_path / "run" / "ppo_1" / "progress.csv")
+    train(cfg, tc, tmp_path / "p.zip", run_dir=tmp_path / "run", progress=False, snapshot=snapshot)
+    whole = _rates_by_step(tmp_path / "whole" / "ppo_1" / "progress.csv")
+    continued = _rates_by_step(tmp_path / "run" / "ppo_1" / "progress.csv")
+    # the rows up to the snapshot kept, the one logged after it (before the stop) not doubled
+    assert len(cut) >= 3 and continued[: len(cut) - 1] == cut[:-1]
+    assert continued == whole
+
+
 def test_a_snapshot_of_another_training_or_no_snapshot_is_refused_in_one_line(
     tmp_path: Path,
 ) -> None:

@@ -26,6 +26,26 @@ def save_checkpoint(model: Any, run_dir: Path) -> Path:
     return checkpoint
 
 
+def _continued_csv(path: Path, steps: int) -> Any:
+    """SB3's CSV table at ``path``, keeping the rows of the first ``steps`` env steps already in it.
+
+    A run continued from a snapshot or a checkpoint logs into the same ``ppo_N`` folder, and SB3's
+    ``CSVOutputFormat`` opens its file empty: the table would lose the run's start. Rows past
+    ``steps`` (logged after the snapshot, before the stop) are the ones the continued run repeats.
+    """
+    from stable_baselines3.common.logger import CSVOutputFormat
+
+    lines = path.read_text().splitlines() if steps and path.is_file() else []
+    table = CSVOutputFormat(str(path))
+    if lines and "time/total_timesteps" in lines[0].split(","):
+        table.keys = lines[0].split(",")
+        column = table.keys.index("time/total_timesteps")
+        kept = [row for row in lines[1:] if int(row.split(",")[column] or 0) <= steps]
+        table.file.write("\n".join([lines[0], *kept]) + "\n")
+        table.file.flush()
+    return table
+
+
 def training_monitor(total: int, run_dir: Path | None, checkpoint_every: int, progress: bool):
     """The SB3 callback of every ``train`` run: ``total`` env steps' progress (a bar on a terminal,
     a line at every tenth of it in a log), the learning curve the manifest keeps, a checkpoint in
@@ -49,9 +69,9 @@ def training_monitor(total: int, run_dir: Path | None, checkpoint_every: int, pr
             if run_dir is not None and self.logger.dir:
                 # Beside TensorBoard's events (RUN_DIR/ppo_N), the same per-update records as a
                 # table: train/explained_variance, train/value_loss, rollout/mean_rate_mbps, ...
-                from stable_baselines3.common.logger import CSVOutputFormat
-
-                self._csv = CSVOutputFormat(str(Path(self.logger.dir) / "progress.csv"))
+                self._csv = _continued_csv(
+                    Path(self.logger.dir) / "progress.csv", self.num_timesteps
+                )
                 self.logger.output_formats.append(self._csv)
             if progress:
                 from tqdm.auto import tqdm
