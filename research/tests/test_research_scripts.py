@@ -612,3 +612,70 @@ def test_field_critic_trains_a_policy_whose_critic_reads_the_field_and_actor_doe
 
     [(flown, env)] = load_with_env([str(out)], EnvOverrides())
     assert evaluate_policy(flown, env, 1, 0).mean_rate_mbps > 0  # the actor alone flies
+
+
+def _paired_ppo():
+    sys.path.insert(0, str(FOLDER))
+    try:
+        import paired_ppo
+    finally:
+        sys.path.remove(str(FOLDER))
+    return paired_ppo
+
+
+def test_paired_ppo_advantage_is_each_copys_own_less_the_others_mean() -> None:
+    """research/paired_ppo.py: returns to go stop at an episode's start; a term every copy of a row
+    shares (the episode's luck) cancels, each copy keeps its own less the others' mean."""
+    paired = _paired_ppo()
+    rewards = np.array([[1.0], [2.0], [3.0], [4.0]])
+    starts = np.array([[1.0], [0.0], [1.0], [0.0]])
+    assert paired.returns_to_go(rewards, starts, 1.0)[:, 0].tolist() == [3.0, 2.0, 7.0, 4.0]
+    rng = np.random.default_rng(0)
+    edges = np.array([0, 2, 4, 6, 9, 12, 15])  # two sizes, three copies each (2 and 3 rows)
+    shared = rng.normal(size=(5, 5))  # per time step and row of a copy, sizes side by side
+    own = rng.normal(size=(5, 15))
+    luck = np.concatenate([np.tile(shared[:, :2], 3), np.tile(shared[:, 2:], 3)], axis=1)
+    out = paired.leave_one_out(luck + own, edges, 3)
+    for a, b in ((0, 6), (6, 15)):
+        block = own[:, a:b].reshape(5, 3, -1)
+        expected = block - (block.sum(axis=1, keepdims=True) - block) / 2
+        assert np.allclose(out[:, a:b], expected.reshape(5, -1))
+
+
+def test_paired_ppo_copies_fly_the_same_ues_wherever_their_uavs_go() -> None:
+    from uavlink.config import EnvConfig, TrainConfig
+
+    paired = _paired_ppo()
+    cfg = EnvConfig(scenario="hotspot", n_uavs=2, fleet_slots=3, episode_frames=8).validate()
+    tc = TrainConfig(
+        n_envs=4, n_steps=8, batch_size=16, fleet_sizes_up_to=3, critic="privileged", seed=5
+    )
+    env = paired.paired_env(cfg, tc.validate(cfg), copies=2)
+    env.reset()
+    rng = np.random.default_rng(1)
+    apart_m = 0.0
+    for _ in range(2 * cfg.episode_frames):  # past an episode's end and the batch's reset
+        env.step(rng.uniform(-1, 1, (env.num_envs, 2)).astype(np.float32))
+        paired.check_copies_agree(env, 2)  # SystemExit where they part
+        uavs = [part.venv.core.uav_xy_m for part in env.parts[:2]]
+        apart_m = max(apart_m, float(np.abs(uavs[0] - uavs[1]).max()))
+    assert apart_m > 10.0  # while the UAVs flew apart
+
+
+def test_paired_ppo_trains_a_policy_that_evaluates_as_any_other(tmp_path: Path) -> None:
+    from uavlink.evaluation import evaluate_policy
+    from uavlink.policies.contract import EnvOverrides, load_with_env
+
+    sweep = tmp_path / "tiny.toml"
+    sweep.write_text(
+        'name = "tiny"\nscenarios = ["hotspot"]\nseeds = [0]\n'
+        "[env]\nn_uavs = 2\nfleet_slots = 3\n"
+        '[train]\nepisodes = 96\nn_envs = 8\nfleet_sizes_up_to = 3\ncritic = "privileged"\n'
+    )
+    out = tmp_path / "paired.zip"
+    printed = run_main(
+        "paired_ppo.py", str(sweep), "--scenario", "hotspot", "--seed", "0", "--out", str(out)
+    )
+    assert "4 copies of each world" in printed
+    [(flown, env)] = load_with_env([str(out)], EnvOverrides())
+    assert evaluate_policy(flown, env, 1, 0).mean_rate_mbps > 0

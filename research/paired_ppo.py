@@ -1,0 +1,138 @@
+"""Train one sweep job with PPO's advantages taken against copies of the policy flying the same episodes.
+
+From a good copy PPO's gradient is below its noise (research/log/fleet.md, "What moves hotspot's
+good copy down"): most of one episode's return against another's is the episode's own (the UEs'
+paths, the field), not what the policy's exploration did in it. Here each fleet size's ``n_envs``
+episodes are ``--copies`` copies of ``n_envs / copies`` worlds: every copy is a core of its own
+seeded alike, so it draws the same UE paths, field and noises (the core's draws do not depend on
+where the UAVs fly; the script checks that the copies' UEs stay together). Each agent row's
+advantage is its Monte-Carlo advantage (return-to-go less the critic's value) less the mean of the
+same row's in the other copies, a leave-one-out baseline (Kool et al. 2019, "Buy 4 REINFORCE
+samples, get a baseline for free!"): the episode's own luck cancels, what this copy's exploration
+changed remains. No other copy's term depends on this copy's actions, so the estimate stays
+unbiased. The critic still learns GAE's returns. Training only: the actor and the saved policy are
+the product's, and evaluate, export and fly as any other.
+
+    python research/paired_ppo.py sweeps/fleet.toml --scenario straight_180 --seed 1 \\
+        --out runs/trials/straight_180_paired_seed1.zip [--copies 4]
+"""
+
+from __future__ import annotations
+
+from typing import Any
+from unittest import mock
+
+import numpy as np
+
+
+def paired_env(cfg: Any, tc: Any, copies: int) -> Any:
+    """The fleet sizes' VecEnv of ``make_model``, each size's batch as ``copies`` cores seeded alike
+    (parts in the order size 0 copy 0, size 0 copy 1, ...), each behind the privileged critic's
+    wrapper."""
+    from uavlink.env.vec_env import FleetSizesVecEnv, UavVecEnv
+    from uavlink.learn.privileged import PrivilegedVecEnv
+    from uavlink.learn.training import training_env_config
+    from uavlink.seeding import FLEET_SIZES
+
+    train_cfg = training_env_config(cfg, tc)
+    parts = [
+        PrivilegedVecEnv(
+            UavVecEnv(
+                train_cfg.replace(n_uavs=size).validate(),
+                tc.n_envs // copies,
+                FLEET_SIZES.seed(tc.seed, k),  # a fresh SeedSequence each: spawning moves one on
+            )
+        )
+        for k, size in enumerate(tc.fleet_sizes)
+        for _ in range(copies)
+    ]
+    return FleetSizesVecEnv(parts)
+
+
+def returns_to_go(rewards: np.ndarray, episode_starts: np.ndarray, gamma: float) -> np.ndarray:
+    """(T, R) discounted returns to the episode's end within the rollout (whole episodes)."""
+    out = np.zeros_like(rewards)
+    running = np.zeros(rewards.shape[1], dtype=rewards.dtype)
+    for t in reversed(range(len(rewards))):
+        if t + 1 < len(rewards):
+            running = running * (1.0 - episode_starts[t + 1])
+        running = rewards[t] + gamma * running
+        out[t] = running
+    return out
+
+
+def leave_one_out(advantages: np.ndarray, edges: np.ndarray, copies: int) -> np.ndarray:
+    """Each row's advantage less the mean of the same row's in the other copies of its size; the
+    parts between ``edges`` run size by size, ``copies`` of each, alike in rows."""
+    out = advantages.copy()
+    for start in range(0, len(edges) - 1, copies):
+        a, b = int(edges[start]), int(edges[start + copies])
+        block = advantages[:, a:b].reshape(len(advantages), copies, -1)
+        others = (block.sum(axis=1, keepdims=True) - block) / (copies - 1)
+        out[:, a:b] = (block - others).reshape(len(advantages), -1)
+    return out
+
+
+def paired_model_maker(copies: int):
+    """``make_model`` with the paired env and the leave-one-out advantages."""
+    from uavlink.learn import training
+
+    plain_make_model = training.make_model
+
+    def make_model(cfg: Any, tc: Any, run_dir: Any) -> Any:
+        if not tc.fleet_sizes or tc.n_envs % copies:
+            raise SystemExit(
+                "paired_ppo: a job of several fleet sizes, n_envs a multiple of --copies"
+            )
+        model = plain_make_model(cfg, tc, run_dir)
+        sizes = paired_env(cfg, tc, copies)
+        env = sizes
+        if tc.normalize_reward:  # as make_model wraps it
+            from stable_baselines3.common.vec_env import VecNormalize
+
+            env = VecNormalize(sizes, norm_obs=False, norm_reward=True, gamma=tc.gamma)
+        assert env.num_envs == model.env.num_envs
+        model.set_env(env)
+        buffer, gamma = model.rollout_buffer, tc.gamma
+        gae = buffer.compute_returns_and_advantage
+
+        def compute_returns_and_advantage(last_values: Any, dones: np.ndarray) -> None:
+            gae(last_values, dones)  # the critic's targets, as the product trains it
+            mc = returns_to_go(buffer.rewards, buffer.episode_starts, gamma) - buffer.values
+            buffer.advantages[:] = leave_one_out(mc, sizes._edges, copies)
+            check_copies_agree(sizes, copies)
+
+        buffer.compute_returns_and_advantage = compute_returns_and_advantage
+        return model
+
+    return make_model
+
+
+def check_copies_agree(env: Any, copies: int) -> None:
+    """The copies of a size fly the same UEs (else the pairing is lost: stop)."""
+    for start in range(0, len(env.parts), copies):
+        ues = [part.venv.core.mobility.position_m for part in env.parts[start : start + copies]]
+        if any(not np.array_equal(ues[0], other) for other in ues[1:]):
+            raise SystemExit(
+                "paired_ppo: the copies' UEs parted; the core's draws depend on the UAVs"
+            )
+
+
+def main(argv: list[str] | None = None) -> int:
+    from frozen_std_train import sweep_job
+
+    copies = ("--copies", {"type": int, "default": 4, "help": "copies of each world (default 4)"})
+    args, job = sweep_job(__doc__.split("\n\n")[0], argv, copies)
+
+    from uavlink.learn.training import train
+
+    with mock.patch("uavlink.learn.training.make_model", paired_model_maker(args.copies)):
+        training = train(job.env, job.train, args.out, progress=False)
+    curve = [rate for _, rate in training["learning_curve"]]
+    sixths = [round(float(part.mean()), 2) for part in np.array_split(curve, min(6, len(curve)))]
+    print(f"{job.name}, {args.copies} copies of each world -> {args.out}; curve in sixths {sixths}")
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())
