@@ -71,7 +71,7 @@ def field_critic_env_class() -> type:
 
 
 def main(argv: list[str] | None = None) -> int:
-    from frozen_std_train import sweep_job
+    from frozen_std_train import curve_sixths, sweep_job
 
     episodes = ("--episodes", {"type": int, "help": "PPO episodes (default: the job's)"})
     args, job = sweep_job(__doc__.split("\n\n")[0], argv, episodes)
@@ -86,8 +86,7 @@ def main(argv: list[str] | None = None) -> int:
     # privileged_env builds its wrapper by this module-level name when train() makes the model
     with mock.patch("uavlink.learn.privileged.PrivilegedVecEnv", field_critic_env_class()):
         training = train(job.env, tc, args.out, progress=False)
-    curve = [rate for _, rate in training["learning_curve"]]
-    sixths = [round(float(part.mean()), 2) for part in np.array_split(curve, min(6, len(curve)))]
+    sixths = curve_sixths(training)
     print(f"{job.name} with the field critic -> {args.out}; learning curve in sixths {sixths}")
     return 0
 

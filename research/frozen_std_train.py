@@ -77,6 +77,14 @@ def sweep_job(description: str, argv: list[str] | None, *extra: tuple[str, dict]
     return args, jobs[0]
 
 
+def curve_sixths(training: dict) -> list[float]:
+    """A training section's learning curve (mean UE rate of the rollouts) averaged in sixths."""
+    import numpy as np
+
+    curve = [rate for _, rate in training["learning_curve"]]
+    return [round(float(part.mean()), 2) for part in np.array_split(curve, min(6, len(curve)))]
+
+
 def main(argv: list[str] | None = None) -> int:
     args, job = sweep_job(__doc__.split("\n\n")[0], argv)
 

@@ -119,7 +119,7 @@ def check_copies_agree(env: Any, copies: int) -> None:
 
 
 def main(argv: list[str] | None = None) -> int:
-    from frozen_std_train import sweep_job
+    from frozen_std_train import curve_sixths, sweep_job
 
     copies = ("--copies", {"type": int, "default": 4, "help": "copies of each world (default 4)"})
     args, job = sweep_job(__doc__.split("\n\n")[0], argv, copies)
@@ -128,8 +128,7 @@ def main(argv: list[str] | None = None) -> int:
 
     with mock.patch("uavlink.learn.training.make_model", paired_model_maker(args.copies)):
         training = train(job.env, job.train, args.out, progress=False)
-    curve = [rate for _, rate in training["learning_curve"]]
-    sixths = [round(float(part.mean()), 2) for part in np.array_split(curve, min(6, len(curve)))]
+    sixths = curve_sixths(training)
     print(f"{job.name}, {args.copies} copies of each world -> {args.out}; curve in sixths {sixths}")
     return 0
 
