@@ -46,20 +46,25 @@ def frozen_std_callback() -> Any:
     return FrozenStd()
 
 
-def sweep_job(description: str, argv: list[str] | None, *extra: tuple[str, dict]) -> tuple:
+def sweep_job(
+    description: str, argv: list[str] | None, *extra: tuple[str, dict], out_unless: str = ""
+) -> tuple:
     """The command line of a script that trains one job of a sweep file (``sweep --scenario X
-    --seed S --out OUT.zip [--torch-threads N]``, and ``extra`` options as (flag, keywords)): its
-    parsed arguments and that job, torch's threads set and OUT's folder made; a one-line refusal
-    (exit 2) when the file has no such job."""
+    --seed S --out OUT.zip [--torch-threads N]``, and ``extra`` options as (flag, keywords); OUT
+    not needed where the extra option ``out_unless`` names is given): its parsed arguments and
+    that job, torch's threads set and OUT's folder made; a one-line refusal (exit 2) when the file
+    has no such job."""
     ap = argparse.ArgumentParser(description=description)
     ap.add_argument("sweep", help="sweep file whose job is trained, e.g. sweeps/fleet.toml")
     ap.add_argument("--scenario", required=True)
     ap.add_argument("--seed", type=int, required=True)
-    ap.add_argument("--out", type=Path, required=True, help="policy zip to write")
+    ap.add_argument("--out", type=Path, required=not out_unless, help="policy zip to write")
     ap.add_argument("--torch-threads", type=int, default=1)
     for flag, keywords in extra:
         ap.add_argument(flag, **keywords)
     args = ap.parse_args(argv)
+    if args.out is None and not getattr(args, out_unless):
+        ap.error("the following arguments are required: --out")
 
     import torch
 
@@ -73,7 +78,8 @@ def sweep_job(description: str, argv: list[str] | None, *extra: tuple[str, dict]
     if len(jobs) != 1:
         ap.exit(2, f"{args.sweep}: {len(jobs)} jobs for {args.scenario} seed {args.seed}\n")
     torch.set_num_threads(args.torch_threads)
-    args.out.parent.mkdir(parents=True, exist_ok=True)
+    if args.out is not None:
+        args.out.parent.mkdir(parents=True, exist_ok=True)
     return args, jobs[0]
 
 

@@ -14,7 +14,7 @@ unbiased. The critic still learns GAE's returns. Training only: the actor and th
 the product's, and evaluate, export and fly as any other.
 
     python research/paired_ppo.py sweeps/fleet.toml --scenario straight_180 --seed 1 \\
-        --out runs/trials/straight_180_paired_seed1.zip [--copies 4]
+        --out runs/trials/straight_180_paired_seed1.zip [--copies 4] [--measure POLICY]
 """
 
 from __future__ import annotations
@@ -73,39 +73,54 @@ def leave_one_out(advantages: np.ndarray, edges: np.ndarray, copies: int) -> np.
     return out
 
 
-def paired_model_maker(copies: int):
-    """``make_model`` with the paired env and the leave-one-out advantages."""
+def pair(model: Any, cfg: Any, tc: Any, copies: int, spread: list) -> Any:
+    """``model`` on the paired env, its advantages the leave-one-out ones; each rollout appends to
+    ``spread`` the std of its Monte-Carlo advantages and of the paired ones."""
+    if not tc.fleet_sizes or tc.n_envs % copies:
+        raise SystemExit("paired_ppo: a job of several fleet sizes, n_envs a multiple of --copies")
+    sizes = paired_env(cfg, tc, copies)
+    env = sizes
+    if tc.normalize_reward:  # as make_model wraps it
+        from stable_baselines3.common.vec_env import VecNormalize
+
+        env = VecNormalize(sizes, norm_obs=False, norm_reward=True, gamma=tc.gamma)
+    assert env.num_envs == model.env.num_envs
+    model.set_env(env)
+    buffer, gamma = model.rollout_buffer, tc.gamma
+    gae = buffer.compute_returns_and_advantage
+
+    def compute_returns_and_advantage(last_values: Any, dones: np.ndarray) -> None:
+        gae(last_values, dones)  # the critic's targets, as the product trains it
+        mc = returns_to_go(buffer.rewards, buffer.episode_starts, gamma) - buffer.values
+        buffer.advantages[:] = leave_one_out(mc, sizes._edges, copies)
+        spread.append((float(mc.std()), float(buffer.advantages.std())))
+        check_copies_agree(sizes, copies)
+
+    buffer.compute_returns_and_advantage = compute_returns_and_advantage
+    return model
+
+
+def paired_model_maker(copies: int, spread: list):
+    """``make_model`` with the paired env and the leave-one-out advantages (:func:`pair`)."""
     from uavlink.learn import training
 
     plain_make_model = training.make_model
 
     def make_model(cfg: Any, tc: Any, run_dir: Any) -> Any:
-        if not tc.fleet_sizes or tc.n_envs % copies:
-            raise SystemExit(
-                "paired_ppo: a job of several fleet sizes, n_envs a multiple of --copies"
-            )
-        model = plain_make_model(cfg, tc, run_dir)
-        sizes = paired_env(cfg, tc, copies)
-        env = sizes
-        if tc.normalize_reward:  # as make_model wraps it
-            from stable_baselines3.common.vec_env import VecNormalize
-
-            env = VecNormalize(sizes, norm_obs=False, norm_reward=True, gamma=tc.gamma)
-        assert env.num_envs == model.env.num_envs
-        model.set_env(env)
-        buffer, gamma = model.rollout_buffer, tc.gamma
-        gae = buffer.compute_returns_and_advantage
-
-        def compute_returns_and_advantage(last_values: Any, dones: np.ndarray) -> None:
-            gae(last_values, dones)  # the critic's targets, as the product trains it
-            mc = returns_to_go(buffer.rewards, buffer.episode_starts, gamma) - buffer.values
-            buffer.advantages[:] = leave_one_out(mc, sizes._edges, copies)
-            check_copies_agree(sizes, copies)
-
-        buffer.compute_returns_and_advantage = compute_returns_and_advantage
-        return model
+        return pair(plain_make_model(cfg, tc, run_dir), cfg, tc, copies, spread)
 
     return make_model
+
+
+def measure(policy: Any, job: Any, copies: int) -> list:
+    """One rollout (and update) of ``policy`` on the job's paired env: the advantages' spread."""
+    from stable_baselines3 import PPO
+
+    spread: list = []
+    model = PPO.load(policy, device="cpu", env=paired_env(job.env, job.train, copies))
+    pair(model, job.env, job.train, copies, spread)
+    model.learn(total_timesteps=model.n_envs * model.n_steps)
+    return spread
 
 
 def check_copies_agree(env: Any, copies: int) -> None:
@@ -122,14 +137,24 @@ def main(argv: list[str] | None = None) -> int:
     from frozen_std_train import curve_sixths, sweep_job
 
     copies = ("--copies", {"type": int, "default": 4, "help": "copies of each world (default 4)"})
-    args, job = sweep_job(__doc__.split("\n\n")[0], argv, copies)
+    probe = ("--measure", {"metavar": "POLICY", "help": "fly POLICY one rollout, print the spread"})
+    args, job = sweep_job(__doc__.split("\n\n")[0], argv, copies, probe, out_unless="measure")
+    if args.measure:
+        [(mc, paired)] = measure(args.measure, job, args.copies)
+        print(f"{args.measure}: advantage std {mc:.4f} Monte-Carlo, {paired:.4f} paired")
+        return 0
 
     from uavlink.learn.training import train
 
-    with mock.patch("uavlink.learn.training.make_model", paired_model_maker(args.copies)):
+    spread: list = []
+    with mock.patch("uavlink.learn.training.make_model", paired_model_maker(args.copies, spread)):
         training = train(job.env, job.train, args.out, progress=False)
     sixths = curve_sixths(training)
-    print(f"{job.name}, {args.copies} copies of each world -> {args.out}; curve in sixths {sixths}")
+    ratio = np.mean([p / m for m, p in spread])
+    print(
+        f"{job.name}, {args.copies} copies of each world -> {args.out}; curve in sixths {sixths}; "
+        f"paired / Monte-Carlo advantage std {ratio:.3f} (mean over rollouts)"
+    )
     return 0
 
 

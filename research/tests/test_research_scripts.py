@@ -676,6 +676,10 @@ def test_paired_ppo_trains_a_policy_that_evaluates_as_any_other(tmp_path: Path) 
     printed = run_main(
         "paired_ppo.py", str(sweep), "--scenario", "hotspot", "--seed", "0", "--out", str(out)
     )
-    assert "4 copies of each world" in printed
+    assert "4 copies of each world" in printed and "paired / Monte-Carlo advantage std" in printed
     [(flown, env)] = load_with_env([str(out)], EnvOverrides())
     assert evaluate_policy(flown, env, 1, 0).mean_rate_mbps > 0
+    job = ("--scenario", "hotspot", "--seed", "0", "--measure", str(out))
+    measured = run_main("paired_ppo.py", str(sweep), *job)
+    mc, paired = (float(w.rstrip(",")) for w in measured.split() if w[0].isdigit())
+    assert 0 < paired < mc  # the episodes' own luck gone
