@@ -4,8 +4,11 @@ From a good copy PPO's gradient is below its noise (research/log/fleet.md, "What
 good copy down"): most of one episode's return against another's is the episode's own (the UEs'
 paths, the field), not what the policy's exploration did in it. Here each fleet size's ``n_envs``
 episodes are ``--copies`` copies of ``n_envs / copies`` worlds: every copy is a core of its own
-seeded alike, so it draws the same UE paths, field and noises (the core's draws do not depend on
-where the UAVs fly; the script checks that the copies' UEs stay together). Each agent row's
+seeded alike, so it draws the same UE paths and shadowing field. The UEs' stream does not depend
+on where the UAVs fly; the radio's does (fast fading is drawn per scheduled resource block, and a
+cell's share of them follows who it serves), so each copy's radio stream is set to the first
+copy's at every episode's start: the field and the episode's draws at reset are shared, fast fading
+and AoA noise within an episode are not (the script stops if the copies' UEs or fields part). Each agent row's
 advantage is its Monte-Carlo advantage (return-to-go less the critic's value) less the mean of the
 same row's in the other copies, a leave-one-out baseline (Kool et al. 2019, "Buy 4 REINFORCE
 samples, get a baseline for free!"): the episode's own luck cancels, what this copy's exploration
@@ -46,7 +49,30 @@ def paired_env(cfg: Any, tc: Any, copies: int) -> Any:
         for k, size in enumerate(tc.fleet_sizes)
         for _ in range(copies)
     ]
+    for start in range(0, len(parts), copies):
+        share_radio_at_reset([part.venv.core for part in parts[start : start + copies]])
     return FleetSizesVecEnv(parts)
+
+
+def share_radio_at_reset(cores: list) -> None:
+    """Every episode of ``cores[1:]`` starts from the radio stream ``cores[0]``'s started from (the
+    cores reset in list order: FleetSizesVecEnv resets and steps its parts in order)."""
+    lead, held = cores[0], {}
+    lead_reset = lead.reset
+
+    def reset_lead(seed: Any = None) -> np.ndarray:
+        held["state"] = lead.radio_rng.bit_generator.state
+        return lead_reset(seed)
+
+    lead.reset = reset_lead
+    for core in cores[1:]:
+
+        def reset_copy(seed: Any = None, core: Any = core, plain: Any = core.reset) -> np.ndarray:
+            if seed is None and "state" in held:  # a seeded reset reseeds every copy alike
+                core.radio_rng.bit_generator.state = held["state"]
+            return plain(seed)
+
+        core.reset = reset_copy
 
 
 def returns_to_go(rewards: np.ndarray, episode_starts: np.ndarray, gamma: float) -> np.ndarray:
@@ -124,13 +150,18 @@ def measure(policy: Any, job: Any, copies: int) -> list:
 
 
 def check_copies_agree(env: Any, copies: int) -> None:
-    """The copies of a size fly the same UEs (else the pairing is lost: stop)."""
+    """The copies of a size fly the same UEs in the same field (else the pairing is lost: stop)."""
+    grid_m = np.linspace(-150.0, 150.0, 4)
+    probes_m = np.stack(np.meshgrid(grid_m, grid_m), axis=-1).reshape(1, -1, 2)  # (1, 16, 2)
     for start in range(0, len(env.parts), copies):
-        ues = [part.venv.core.mobility.position_m for part in env.parts[start : start + copies]]
-        if any(not np.array_equal(ues[0], other) for other in ues[1:]):
-            raise SystemExit(
-                "paired_ppo: the copies' UEs parted; the core's draws depend on the UAVs"
-            )
+        seen = []
+        for part in env.parts[start : start + copies]:
+            truth = part.venv.core.ground_truth()
+            ues = truth.ue_xy_m
+            field_db = truth.shadow_field.shadow_db(np.repeat(probes_m, len(ues), axis=0), ues)
+            seen.append(np.concatenate([ues.ravel(), field_db.ravel()]))
+        if any(not np.array_equal(seen[0], other) for other in seen[1:]):
+            raise SystemExit("paired_ppo: the copies' UEs or fields parted")
 
 
 def main(argv: list[str] | None = None) -> int:

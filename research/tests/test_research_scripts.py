@@ -646,7 +646,8 @@ def test_paired_ppo_copies_fly_the_same_ues_wherever_their_uavs_go() -> None:
     from uavlink.config import EnvConfig, TrainConfig
 
     paired = _paired_ppo()
-    cfg = EnvConfig(scenario="hotspot", n_uavs=2, fleet_slots=3, episode_frames=8).validate()
+    cfg = EnvConfig(scenario="hotspot", n_uavs=2, fleet_slots=3, episode_frames=8)
+    cfg = cfg.replace(**{"radio.shadowing_model": "spatial"}).validate()
     tc = TrainConfig(
         n_envs=4, n_steps=8, batch_size=16, fleet_sizes_up_to=3, critic="privileged", seed=5
     )
@@ -669,7 +670,7 @@ def test_paired_ppo_trains_a_policy_that_evaluates_as_any_other(tmp_path: Path) 
     sweep = tmp_path / "tiny.toml"
     sweep.write_text(
         'name = "tiny"\nscenarios = ["hotspot"]\nseeds = [0]\n'
-        "[env]\nn_uavs = 2\nfleet_slots = 3\n"
+        '[env]\nn_uavs = 2\nfleet_slots = 3\n"radio.shadowing_model" = "spatial"\n'
         '[train]\nepisodes = 96\nn_envs = 8\nfleet_sizes_up_to = 3\ncritic = "privileged"\n'
     )
     out = tmp_path / "paired.zip"
