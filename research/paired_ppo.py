@@ -138,14 +138,15 @@ def paired_model_maker(copies: int, spread: list):
     return make_model
 
 
-def measure(policy: Any, job: Any, copies: int) -> list:
-    """One rollout (and update) of ``policy`` on the job's paired env: the advantages' spread."""
+def measure(policy: Any, job: Any, copies: int, rollouts: int = 3) -> list:
+    """``rollouts`` rollouts (and updates) of ``policy`` on the job's paired env: the advantages'
+    spread in each (the pairing must hold past the first episode, not only in it)."""
     from stable_baselines3 import PPO
 
     spread: list = []
     model = PPO.load(policy, device="cpu", env=paired_env(job.env, job.train, copies))
     pair(model, job.env, job.train, copies, spread)
-    model.learn(total_timesteps=model.n_envs * model.n_steps)
+    model.learn(total_timesteps=rollouts * model.n_envs * model.n_steps)
     return spread
 
 
@@ -171,8 +172,10 @@ def main(argv: list[str] | None = None) -> int:
     probe = ("--measure", {"metavar": "POLICY", "help": "fly POLICY one rollout, print the spread"})
     args, job = sweep_job(__doc__.split("\n\n")[0], argv, copies, probe, out_unless="measure")
     if args.measure:
-        [(mc, paired)] = measure(args.measure, job, args.copies)
-        print(f"{args.measure}: advantage std {mc:.4f} Monte-Carlo, {paired:.4f} paired")
+        for k, (mc, paired) in enumerate(measure(args.measure, job, args.copies)):
+            print(
+                f"{args.measure}, rollout {k}: advantage std {mc:.4f} Monte-Carlo, {paired:.4f} paired"
+            )
         return 0
 
     from uavlink.learn.training import train
