@@ -1,20 +1,20 @@
 """Train one sweep job with PPO's advantages taken against copies of the policy flying the same episodes.
 
-From a good copy PPO's gradient is below its noise (research/log/fleet.md, "What moves hotspot's
-good copy down"): most of one episode's return against another's is the episode's own (the UEs'
+Is PPO held at a good copy by its gradient's noise (research/log/fleet.md, "What moves hotspot's
+good copy down")? Most of one episode's return against another's is the episode's own (the UEs'
 paths, the field), not what the policy's exploration did in it. Here each fleet size's ``n_envs``
 episodes are ``--copies`` copies of ``n_envs / copies`` worlds: every copy is a core of its own
 seeded alike, so it draws the same UE paths and shadowing field. The UEs' stream does not depend
 on where the UAVs fly; the radio's does (fast fading is drawn per scheduled resource block, and a
-cell's share of them follows who it serves), so each copy's radio stream is set to the first
-copy's at every episode's start: the field and the episode's draws at reset are shared, fast fading
-and AoA noise within an episode are not (the script stops if the copies' UEs or fields part). Each agent row's
-advantage is its Monte-Carlo advantage (return-to-go less the critic's value) less the mean of the
-same row's in the other copies, a leave-one-out baseline (Kool et al. 2019, "Buy 4 REINFORCE
-samples, get a baseline for free!"): the episode's own luck cancels, what this copy's exploration
-changed remains. No other copy's term depends on this copy's actions, so the estimate stays
-unbiased. The critic still learns GAE's returns. Training only: the actor and the saved policy are
-the product's, and evaluate, export and fly as any other.
+cell's share of them follows whom it serves), so each copy's radio stream is set to the first
+copy's at every episode's start: the field and the draws at reset are shared, fast fading and AoA
+noise within an episode are not (the script stops if the copies' UEs or fields part). Each agent
+row's advantage is its Monte-Carlo advantage (return-to-go less the critic's value) less the mean
+of the same row's in the other copies, a leave-one-out baseline (Kool et al. 2019, "Buy 4
+REINFORCE samples, get a baseline for free!"): the episode's own luck cancels, what this copy's
+exploration changed remains. No other copy's term depends on this copy's actions, so the estimate
+stays unbiased. The critic still learns GAE's returns. Training only: the actor and the saved
+policy are the product's, and evaluate, export and fly as any other.
 
     python research/paired_ppo.py sweeps/fleet.toml --scenario straight_180 --seed 1 \\
         --out runs/trials/straight_180_paired_seed1.zip [--copies 4] [--measure POLICY]
@@ -110,7 +110,7 @@ def pair(model: Any, cfg: Any, tc: Any, copies: int, spread: list) -> Any:
         from stable_baselines3.common.vec_env import VecNormalize
 
         env = VecNormalize(sizes, norm_obs=False, norm_reward=True, gamma=tc.gamma)
-    assert env.num_envs == model.env.num_envs
+    assert env.num_envs == model.n_envs  # the same agent rows as the job's own env
     model.set_env(env)
     buffer, gamma = model.rollout_buffer, tc.gamma
     gae = buffer.compute_returns_and_advantage
@@ -144,8 +144,7 @@ def measure(policy: Any, job: Any, copies: int, rollouts: int = 3) -> list:
     from stable_baselines3 import PPO
 
     spread: list = []
-    model = PPO.load(policy, device="cpu", env=paired_env(job.env, job.train, copies))
-    pair(model, job.env, job.train, copies, spread)
+    model = pair(PPO.load(policy, device="cpu"), job.env, job.train, copies, spread)
     model.learn(total_timesteps=rollouts * model.n_envs * model.n_steps)
     return spread
 
@@ -169,7 +168,10 @@ def main(argv: list[str] | None = None) -> int:
     from frozen_std_train import curve_sixths, sweep_job
 
     copies = ("--copies", {"type": int, "default": 4, "help": "copies of each world (default 4)"})
-    probe = ("--measure", {"metavar": "POLICY", "help": "fly POLICY one rollout, print the spread"})
+    probe = (
+        "--measure",
+        {"metavar": "POLICY", "help": "fly POLICY three rollouts, print the spread"},
+    )
     args, job = sweep_job(__doc__.split("\n\n")[0], argv, copies, probe, out_unless="measure")
     if args.measure:
         for k, (mc, paired) in enumerate(measure(args.measure, job, args.copies)):
