@@ -36,10 +36,11 @@ def _continued_csv(path: Path, steps: int) -> Any:
     from stable_baselines3.common.logger import CSVOutputFormat
 
     lines = path.read_text().splitlines() if steps and path.is_file() else []
+    keys = lines[0].split(",") if lines else []
     table = CSVOutputFormat(str(path))
-    if lines and "time/total_timesteps" in lines[0].split(","):
-        table.keys = lines[0].split(",")
-        column = table.keys.index("time/total_timesteps")
+    if "time/total_timesteps" in keys:
+        table.keys = keys
+        column = keys.index("time/total_timesteps")
         kept = [row for row in lines[1:] if int(row.split(",")[column] or 0) <= steps]
         table.file.write("\n".join([lines[0], *kept]) + "\n")
         table.file.flush()
