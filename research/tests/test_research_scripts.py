@@ -9,6 +9,7 @@ marked `research` (and `slow`) for runs that name it."""
 from __future__ import annotations
 
 import contextlib
+import importlib
 import io
 import json
 import runpy
@@ -43,6 +44,15 @@ def run_json(script: str, *args: str) -> dict:
     return json.loads(run_main(script, *args, "--json"))
 
 
+def research_module(name: str):
+    """The research script ``name`` imported as a module (its siblings importable, as for a script)."""
+    sys.path.insert(0, str(FOLDER))
+    try:
+        return importlib.import_module(name)
+    finally:
+        sys.path.remove(str(FOLDER))
+
+
 def test_residual_ppo_starts_as_the_rule_and_trains() -> None:
     result = run_json(
         "residual_ppo.py",
@@ -65,11 +75,7 @@ def test_residual_ppo_starts_as_the_rule_and_trains() -> None:
 
 
 def test_residual_composition_stays_a_legal_move() -> None:
-    sys.path.insert(0, str(FOLDER))
-    try:
-        from residual_ppo import compose
-    finally:
-        sys.path.remove(str(FOLDER))
+    compose = research_module("residual_ppo").compose
     rule = np.array([[0.6, 0.8], [0.0, 0.0], [0.3, 0.0]])
     residual = np.array([[0.6, 0.8], [0.5, -0.25], [3.0, 0.0]])  # the last is clipped to 1.0
     action = compose(rule, residual)
@@ -359,11 +365,7 @@ def test_cell_teacher_shows_each_uav_its_own_cells_ues_and_pairs_the_rule_with_k
     """research/cell_teacher.py: the single-UAV view holds only the SINRs of the UEs this UAV
     serves (all of them for an empty cell), and each row flies the rule, kmeans and the fleet
     policy on the same episodes."""
-    sys.path.insert(0, str(FOLDER))
-    try:
-        from cell_teacher import CellTeacher
-    finally:
-        sys.path.remove(str(FOLDER))
+    CellTeacher = research_module("cell_teacher").CellTeacher
     from uavlink.env.core import BatchedUavEnv
     from uavlink.policies.contract import EnvOverrides, load_with_env
     from uavlink.policies.loader import load_policy
@@ -434,11 +436,7 @@ def test_fleet_field_worth_blinds_the_genie_to_the_field_alone() -> None:
     and the report puts every column beside the genie on the same episodes."""
     import dataclasses
 
-    sys.path.insert(0, str(FOLDER))
-    try:
-        from fleet_field_worth import field_blind_genie
-    finally:
-        sys.path.remove(str(FOLDER))
+    field_blind_genie = research_module("fleet_field_worth").field_blind_genie
     from uavlink.config import EnvConfig
     from uavlink.env.core import BatchedUavEnv
     from uavlink.policies.registry import make_baseline
@@ -538,11 +536,9 @@ def test_field_critic_columns_hold_each_rows_probes_and_the_fleets_best_link() -
     """research/field_critic.py: each agent row reads its own link shadowing (the first probe is the
     UAV itself, as the channel draws it) and its probes', UEs innermost, then every UE's best fleet
     link; the wrapper appends them after the shipped privileged columns, terminal rows included."""
-    sys.path.insert(0, str(FOLDER))
-    try:
-        from field_critic import field_columns, field_critic_env_class, field_width, probe_offsets_m
-    finally:
-        sys.path.remove(str(FOLDER))
+    critic = research_module("field_critic")
+    field_columns, field_critic_env_class = critic.field_columns, critic.field_critic_env_class
+    field_width, probe_offsets_m = critic.field_width, critic.probe_offsets_m
     from uavlink.config import EnvConfig
     from uavlink.env.core import BatchedUavEnv
     from uavlink.env.vec_env import UavVecEnv
@@ -600,11 +596,7 @@ def test_field_critic_trains_a_policy_whose_critic_reads_the_field_and_actor_doe
     policy = PPO.load(out, device="cpu").policy
     actor = ObservationLayout.for_config(cfg).size
     assert policy.actor_obs_size == actor
-    sys.path.insert(0, str(FOLDER))
-    try:
-        from field_critic import field_width
-    finally:
-        sys.path.remove(str(FOLDER))
+    field_width = research_module("field_critic").field_width
     wide = actor + privileged_size(cfg) + field_width(cfg.n_ues)
     assert policy.observation_space.shape == (wide,)
     from uavlink.evaluation import evaluate_policy
@@ -614,19 +606,10 @@ def test_field_critic_trains_a_policy_whose_critic_reads_the_field_and_actor_doe
     assert evaluate_policy(flown, env, 1, 0).mean_rate_mbps > 0  # the actor alone flies
 
 
-def _paired_ppo():
-    sys.path.insert(0, str(FOLDER))
-    try:
-        import paired_ppo
-    finally:
-        sys.path.remove(str(FOLDER))
-    return paired_ppo
-
-
 def test_paired_ppo_advantage_is_each_copys_own_less_the_others_mean() -> None:
     """research/paired_ppo.py: returns to go stop at an episode's start; a term every copy of a row
     shares (the episode's luck) cancels, each copy keeps its own less the others' mean."""
-    paired = _paired_ppo()
+    paired = research_module("paired_ppo")
     rewards = np.array([[1.0], [2.0], [3.0], [4.0]])
     starts = np.array([[1.0], [0.0], [1.0], [0.0]])
     assert paired.returns_to_go(rewards, starts, 1.0)[:, 0].tolist() == [3.0, 2.0, 7.0, 4.0]
@@ -645,7 +628,7 @@ def test_paired_ppo_advantage_is_each_copys_own_less_the_others_mean() -> None:
 def test_paired_ppo_copies_fly_the_same_ues_wherever_their_uavs_go() -> None:
     from uavlink.config import EnvConfig, TrainConfig
 
-    paired = _paired_ppo()
+    paired = research_module("paired_ppo")
     cfg = EnvConfig(scenario="hotspot", n_uavs=2, fleet_slots=3, episode_frames=8)
     cfg = cfg.replace(**{"radio.shadowing_model": "spatial"}).validate()
     tc = TrainConfig(
