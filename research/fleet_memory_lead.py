@@ -1,16 +1,16 @@
-"""A fleet with a memory of place (layout v7): does the lead teacher gain from a leader that reads it?
+"""A fleet with a memory of place (layout v7, v8): does the lead teacher gain from a leader that reads it?
 
 Where the team stays together the fleet's lead teacher has one UAV fly a single-UAV policy and the
 others keep their cells empty (uavlink/learn/lead_teacher.py). One UAV alone gains from a memory of
 place where the team holds still (the `explore` rule +12.5 % over the spatial policy on no_move,
 docs/results.md). Here, on the same episodes: the shipped any-size fleet policy (v6), the lead
 teacher with the scenario's spatial policy leading (in v6, and in v7 where it reads the v1 fields
-alone, which must fly the same), and the lead teacher with `explore` leading in v7 (its v3 view:
-the v1 fields and the leader's own memory of place), and where the scenario's map policy reads the
-memory alone (layout v3: every scenario but no_move, whose map policy reads a model of the field,
-v5, one UAV's only) the lead teacher with that map policy leading in v7.
+alone, which must fly the same), the lead teacher with `explore` leading in v7 (its v3 view:
+the v1 fields and the leader's own memory of place), and the lead teacher with the scenario's map
+policy leading: in v7 where that policy reads the memory alone (layout v3), in v8 where it reads a
+model of the field too (v5: no_move's; each UAV keeps its own model, and the leader is not dashed).
 
-    python research/fleet_memory_lead.py --scenario no_move --episodes 100 --seed 1
+    python research/fleet_memory_lead.py --scenario no_move --sizes 2 3 4 --episodes 100 --seed 1
     python research/fleet_memory_lead.py --scenario straight --sizes 2 --episodes 100 --seed 1
 """
 
@@ -27,25 +27,23 @@ from fleet_bars import episode_args, paired_ratio, ratio_text
 PLACE_CELL_M = 12.0  # sweeps/map.toml's grid
 
 
-def map_leader(scenario: str) -> str | None:
-    """The scenario's map policy where a fleet's leader can fly it (the memory alone, layout v3),
-    else None (a model of the field, v5, is one UAV's)."""
-    from uavlink.config.env import PLACE_MODELS
+def map_leader(scenario: str) -> tuple[str, str]:
+    """The scenario's map policy and what its memory keeps (``place_model``: the cells, v3, or a
+    model of the field too, v5), which the fleet's env must keep for every UAV (v7, v8)."""
     from uavlink.policies.contract import manifest_env
     from uavlink.policies.manifest import read_zip_manifest
 
     path = f"policies/map/{scenario}.zip"
-    return (
-        path if manifest_env(read_zip_manifest(Path(path))).place_model == PLACE_MODELS[0] else None
-    )
+    return path, manifest_env(read_zip_manifest(Path(path))).place_model
 
 
 def run(scenario: str, sizes: list[int], episodes: int, seed: int) -> dict[str, Any]:
+    from uavlink.env.observation import ObservationLayout
     from uavlink.evaluation import evaluate_policy
     from uavlink.learn.lead_teacher import make_lead_teacher
     from uavlink.policies.contract import EnvOverrides, load_with_env
 
-    mapped = map_leader(scenario)
+    mapped, place_model = map_leader(scenario)
     rows = []
     for d in sizes:
         [(fleet, v6)] = load_with_env(
@@ -57,9 +55,8 @@ def run(scenario: str, sizes: list[int], episodes: int, seed: int) -> dict[str, 
         lead_v6 = evaluate_policy(make_lead_teacher(v6, leader), v6, episodes, seed)
         lead_v7 = evaluate_policy(make_lead_teacher(v7, leader), v7, episodes, seed)
         explore = evaluate_policy(make_lead_teacher(v7, "explore"), v7, episodes, seed)
-        lead_map = (
-            evaluate_policy(make_lead_teacher(v7, mapped), v7, episodes, seed) if mapped else None
-        )
+        with_map = v7.replace(place_model=place_model).validate()
+        lead_map = evaluate_policy(make_lead_teacher(with_map, mapped), with_map, episodes, seed)
         rows.append(
             {
                 "n_uavs": d,
@@ -69,9 +66,10 @@ def run(scenario: str, sizes: list[int], episodes: int, seed: int) -> dict[str, 
                 "lead_explore_v7_mbps": round(explore.mean_rate_mbps, 4),
                 "lead_explore_vs_lead_spatial": paired_ratio(explore, lead_v6),
                 "lead_explore_vs_ppo": paired_ratio(explore, ppo),
-                "lead_map_v7_mbps": round(lead_map.mean_rate_mbps, 4) if lead_map else None,
-                "lead_map_vs_lead_spatial": paired_ratio(lead_map, lead_v6) if lead_map else None,
-                "lead_map_vs_ppo": paired_ratio(lead_map, ppo) if lead_map else None,
+                "lead_map_layout": ObservationLayout.for_config(with_map).version,
+                "lead_map_mbps": round(lead_map.mean_rate_mbps, 4),
+                "lead_map_vs_lead_spatial": paired_ratio(lead_map, lead_v6),
+                "lead_map_vs_ppo": paired_ratio(lead_map, ppo),
             }
         )
     return {"scenario": scenario, "episodes": episodes, "seed": seed, "rows": rows}
@@ -80,23 +78,18 @@ def run(scenario: str, sizes: list[int], episodes: int, seed: int) -> dict[str, 
 def markdown(report: dict[str, Any]) -> str:
     lines = [
         "| D | fleet PPO (v6) | lead, spatial leader (v6 / v7) | lead, explore leader (v7) "
-        "| explore lead / spatial lead | explore lead / PPO | lead, map leader (v7) "
+        "| explore lead / spatial lead | explore lead / PPO | lead, map leader (layout) "
         "| map lead / spatial lead | map lead / PPO |",
         "|---|---|---|---|---|---|---|---|---|",
     ]
     for row in report["rows"]:
-        mapped = row["lead_map_v7_mbps"] is not None
         lines.append(
             f"| {row['n_uavs']} | {row['ppo_mbps']:.2f} | {row['lead_spatial_v6_mbps']:.2f} / "
             f"{row['lead_spatial_v7_mbps']:.2f} | {row['lead_explore_v7_mbps']:.2f} | "
             f"{ratio_text(row['lead_explore_vs_lead_spatial'])} | "
             f"{ratio_text(row['lead_explore_vs_ppo'])} | "
-            + (
-                f"{row['lead_map_v7_mbps']:.2f} | {ratio_text(row['lead_map_vs_lead_spatial'])} | "
-                f"{ratio_text(row['lead_map_vs_ppo'])} |"
-                if mapped
-                else "- | - | - |"
-            )
+            f"{row['lead_map_mbps']:.2f} (v{row['lead_map_layout']}) | "
+            f"{ratio_text(row['lead_map_vs_lead_spatial'])} | {ratio_text(row['lead_map_vs_ppo'])} |"
         )
     return "\n".join(lines)
 

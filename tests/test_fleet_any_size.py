@@ -11,13 +11,16 @@ import pytest
 
 from uavlink.config import EnvConfig, TrainConfig
 from uavlink.env.core import BatchedUavEnv
+from uavlink.env.field_model import FieldModel
 from uavlink.env.observation import (
+    ANY_FLEET_KRIGING_LAYOUT_VERSION,
     ANY_FLEET_LAYOUT_VERSION,
     ANY_FLEET_PLACE_LAYOUT_VERSION,
     PLACE_FIELDS,
     ObservationLayout,
 )
 from uavlink.env.observation.fleet_view import slot_quantities
+from uavlink.env.place_memory import sensed_value_bits
 from uavlink.errors import ConfigError, UserError
 from uavlink.policies.contract import EnvOverrides, apply_overrides
 from uavlink.radio.aoa import bearing_fix_xy_m, true_aoa_deg
@@ -97,8 +100,6 @@ def test_config_refuses_sizes_the_slots_cannot_fly() -> None:
         EnvConfig(n_uavs=5, fleet_slots=3).validate()
     with pytest.raises(ConfigError, match="not n_uavs=1"):
         EnvConfig(fleet_slots=3).validate()
-    with pytest.raises(ConfigError, match="kriging models one UAV's memory of place"):
-        EnvConfig(n_uavs=2, fleet_slots=3, place_cell_m=12.0, place_model="kriging").validate()
     with pytest.raises(ConfigError, match="fleet_sizes_up_to=4 needs"):
         TrainConfig(fleet_sizes_up_to=4).validate(EnvConfig(n_uavs=2, fleet_slots=2).validate())
     assert TrainConfig(fleet_sizes_up_to=4).fleet_sizes == (2, 3, 4)
@@ -220,3 +221,41 @@ def test_a_memory_of_place_makes_layout_v7_for_every_size_with_each_uavs_own_mem
             v7.layout.history(obs7, field.quantity), v4.layout.history(obs4, field.quantity)
         )
     assert np.all(v7.layout.newest_frame(obs7)["place_frames"] == 13)  # the reset and 12 steps
+
+
+def test_a_model_of_the_field_makes_layout_v8_for_every_size_with_each_uavs_own_model() -> None:
+    """v7 plus the model of the sensed field (``place_model = "kriging"``): one layout for 2-4
+    UAVs, v7's fields unchanged, and each UAV's pick the one its own model (fed its own position and
+    what it senses, as one UAV's v5 is) makes."""
+    kriging = {"place_cell_m": 12.0, "place_model": "kriging", "scenario": "no_move"}
+    layouts = {ObservationLayout.for_config(_cfg(d, **kriging)) for d in (2, 3, 4)}
+    assert len(layouts) == 1
+    (layout,) = layouts
+    assert layout.version == ANY_FLEET_KRIGING_LAYOUT_VERSION
+    assert ObservationLayout.from_dict(layout.to_dict()) == layout
+    assert "t-0:place_pick_dx" in layout.feature_names()
+    v8 = BatchedUavEnv(_cfg(3, **kriging), n_envs=2, seed=4)
+    v7 = BatchedUavEnv(_cfg(3, place_cell_m=12.0, scenario="no_move"), n_envs=2, seed=4)
+    model = FieldModel(v8.n_rows, layout.episode_frames, layout.r_max_m, layout.half_width_m)
+
+    def own_model() -> dict[str, np.ndarray]:
+        sinr_db = v8.readings.heard_sinr_db.reshape(v8.n_rows, -1)
+        return model.update(v8.uav_xy_m, sensed_value_bits(sinr_db))
+
+    obs8, obs7 = v8.reset(), v7.reset()
+    model.reset()
+    picked = own_model()
+    rng = np.random.default_rng(2)
+    for _ in range(12):
+        action = rng.uniform(-1, 1, (v8.n_rows, 2))
+        obs8, obs7 = v8.step(action).observation, v7.step(action).observation
+        picked = own_model()
+    for field in v7.layout.fields:
+        np.testing.assert_array_equal(
+            v8.layout.history(obs8, field.quantity), v7.layout.history(obs7, field.quantity)
+        )
+    np.testing.assert_allclose(
+        v8.layout.newest_frame(obs8)["place_pick_offset_m"],
+        picked["place_pick_offset_m"],
+        atol=1e-3,
+    )

@@ -30,6 +30,7 @@ FLEET = (
     .validate()
 )
 SINGLE_POLICY = Path(__file__).resolve().parents[1] / "policies" / "spatial" / "no_move.zip"
+MAP_POLICY = SINGLE_POLICY.parents[1] / "map" / "no_move.zip"
 
 
 def _fleet_obs(steps: int = 5) -> tuple[LeadTeacher, np.ndarray]:
@@ -149,3 +150,25 @@ def test_in_a_fleet_with_a_memory_of_place_a_v1_leader_flies_as_before_and_a_v3_
         explore.single.history(view, "place_best_offset_m"),
         explore.layout.history(obs, "place_best_offset_m"),
     )
+
+
+def test_in_a_fleet_with_a_model_of_the_field_a_v5_leader_reads_its_own_and_is_never_dashed() -> (
+    None
+):
+    """Layout v8 (v7 + each UAV's model of the field): a leader that reads a model (no_move's map
+    policy, v5) gets its own, and flies its own moves from the start, 100 m off the UEs, where a
+    leader without a model is dashed towards them."""
+    v8 = FLEET.replace(fleet_slots=3, place_cell_m=12.0, place_model="kriging").validate()
+    teacher = make_lead_teacher(v8, str(MAP_POLICY))
+    assert teacher.single == ObservationLayout.for_config(v8.replace(n_uavs=1, fleet_slots=0))
+    assert teacher.single.version == 5 and not teacher.dash
+    assert make_lead_teacher(v8.replace(place_model="cells").validate(), str(SINGLE_POLICY)).dash
+    obs = BatchedUavEnv(v8, n_envs=4, seed=5).reset()
+    view = single_view(teacher.layout, obs)
+    np.testing.assert_array_equal(
+        teacher.single.history(view, "place_pick_offset_m"),
+        teacher.layout.history(obs, "place_pick_offset_m"),
+    )
+    lead = leader_index(teacher.layout, obs)[0] == 0
+    assert lead.any()
+    np.testing.assert_array_equal(teacher.act(obs)[lead], teacher.leader.act(view)[lead])

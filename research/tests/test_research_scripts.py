@@ -408,8 +408,10 @@ def test_fleet_memory_lead_flies_the_spatial_leader_alike_in_v6_and_v7() -> None
     r, lo, hi = row["lead_explore_vs_lead_spatial"]
     assert lo <= r <= hi
     assert abs(r - row["lead_explore_v7_mbps"] / row["lead_spatial_v6_mbps"]) < 1e-3
-    # no_move's map policy reads a model of the field (v5, one UAV's): no map leader
-    assert row["lead_map_v7_mbps"] is None and row["lead_map_vs_ppo"] is None
+    # no_move's map policy reads a model of the field (v5): it leads in v8, each UAV its own model
+    assert row["lead_map_layout"] == 8
+    r, lo, hi = row["lead_map_vs_ppo"]
+    assert lo <= r <= hi and abs(r - row["lead_map_mbps"] / row["ppo_mbps"]) < 1e-3
 
 
 def test_fleet_memory_lead_pairs_a_map_leader_where_the_map_policy_reads_the_memory() -> None:
@@ -428,7 +430,8 @@ def test_fleet_memory_lead_pairs_a_map_leader_where_the_map_policy_reads_the_mem
     [row] = result["rows"]
     r, lo, hi = row["lead_map_vs_lead_spatial"]
     assert lo <= r <= hi
-    assert abs(r - row["lead_map_v7_mbps"] / row["lead_spatial_v6_mbps"]) < 1e-3
+    assert row["lead_map_layout"] == 7
+    assert abs(r - row["lead_map_mbps"] / row["lead_spatial_v6_mbps"]) < 1e-3
 
 
 def test_fleet_field_worth_blinds_the_genie_to_the_field_alone() -> None:

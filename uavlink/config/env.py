@@ -46,8 +46,8 @@ FLEET_REUSE = (REUSE_FULL, REUSE_ORTHOGONAL)
 MOTION_INSTANT, MOTION_PX4 = "instant", "px4"
 UAV_MOTIONS = (MOTION_INSTANT, MOTION_PX4)
 # What the memory of place keeps: "cells", the grid of sensed values (layout v3, v4 for a fleet);
-# "kriging", that grid and a model of the sensed field with the spot it makes worth flying to (v5,
-# one UAV; uavlink/env/field_model.py).
+# "kriging", that grid and a model of the sensed field with the spot it makes worth flying to (v5
+# for one UAV, v8 for a fleet of any size, each UAV its own; uavlink/env/field_model.py).
 PLACE_CELLS, PLACE_KRIGING = "cells", "kriging"
 PLACE_MODELS = (PLACE_CELLS, PLACE_KRIGING)
 # The finest memory-of-place grid validate() accepts: cells of at least PLACE_CELL_MIN_M, and at most
@@ -168,8 +168,8 @@ class EnvConfig:
     uav_separation_m: float = 20.0  # horizontal minimum between two UAVs
     fleet_start_radius_m: float = 100.0  # UAV d starts at this radius, 360 d / D degrees from east
     # A fleet of any size (SPEC "A fleet of any size"): K > 0 shows each UAV the others in K slots,
-    # nearest first (layout v6; v7 with a memory of place), so one policy flies fleets of 2 to
-    # K + 1; 0 (default) is layout v2, a policy for exactly n_uavs.
+    # nearest first (layout v6; v7 with a memory of place, v8 with a model of the field too), so one
+    # policy flies fleets of 2 to K + 1; 0 (default) is layout v2, a policy for exactly n_uavs.
     fleet_slots: int = 0
     area: AreaConfig = field(default_factory=AreaConfig)
     radio: RadioConfig = field(default_factory=RadioConfig)
@@ -218,10 +218,12 @@ class EnvConfig:
             raise ConfigError(
                 f"unknown place_model {self.place_model!r}; choose from {', '.join(PLACE_MODELS)}"
             )
-        if self.place_model == PLACE_KRIGING and (self.place_cell_m <= 0 or self.n_uavs > 1):
+        if self.place_model == PLACE_KRIGING and (
+            self.place_cell_m <= 0 or (self.n_uavs > 1 and self.fleet_slots == 0)
+        ):
             raise ConfigError(
-                "env.place_model=kriging models one UAV's memory of place: it needs "
-                "place_cell_m > 0 and n_uavs = 1"
+                "env.place_model=kriging models each UAV's memory of place: it needs "
+                "place_cell_m > 0, and in a fleet fleet_slots > 0 (layout v8)"
             )
         _non_negative("env.ue_speed_mps", self.ue_speed_mps)
         _non_negative("env.cluster_size_m", self.cluster_size_m)

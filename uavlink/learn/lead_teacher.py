@@ -10,7 +10,8 @@ north, positions every UAV sees), so a clone can learn them, and the split reinf
 others leave, the leader's cell grows; the counts are summed over the frames in memory, so a UE
 that shadowing hands over for a frame does not swap the roles). The leader flies a single-UAV
 policy (the single-UAV spatial policy of the scenario: it exploits the good shadowing spots) on its
-single-UAV view, the v1 fields (and v3's memory of place) of its own fleet frames
+single-UAV view, the v1 fields (and v3's memory of place, v5's model of the field) of its own fleet
+frames
 (``single_view``); the others head for the corner farthest from the leader and, while their cell
 still holds a UE, on along the wall to the next farthest, holding once their cell is empty (as
 ``SoloTeacher`` does around the UEs' centroid).
@@ -19,12 +20,20 @@ GPS-free: it reads nothing but the observation.
 
 from __future__ import annotations
 
+import dataclasses
+
 import numpy as np
 
 from uavlink.config import EnvConfig
+from uavlink.config.env import PLACE_KRIGING
 from uavlink.env.actions import ActionMapping
 from uavlink.env.core import GroundTruth
-from uavlink.env.observation import OBS_LAYOUT_VERSION, PLACE_LAYOUT_VERSION, ObservationLayout
+from uavlink.env.observation import (
+    KRIGING_LAYOUT_VERSION,
+    OBS_LAYOUT_VERSION,
+    PLACE_LAYOUT_VERSION,
+    ObservationLayout,
+)
 from uavlink.errors import UserError
 from uavlink.policies.baselines import hover_sinr_db
 from uavlink.rollout import Actor
@@ -32,9 +41,10 @@ from uavlink.rollout import Actor
 
 def single_layout(fleet: ObservationLayout, place: bool = True) -> ObservationLayout:
     """The single-UAV layout with a fleet layout's UEs, memory and area: v1, or with ``place`` v3
-    where the fleet's layout (v4, v7) has a memory of place."""
+    where the fleet's layout (v4, v7) has a memory of place, v5 where it (v8) has a model of the
+    field too."""
     place_cell_m = fleet.place_cell_m if place else 0.0
-    return ObservationLayout(
+    single = ObservationLayout(
         version=PLACE_LAYOUT_VERSION if place_cell_m > 0 else OBS_LAYOUT_VERSION,
         n_ues=fleet.n_ues,
         n_uavs=1,
@@ -45,6 +55,15 @@ def single_layout(fleet: ObservationLayout, place: bool = True) -> ObservationLa
         sinr_clip_db=fleet.sinr_clip_db,
         aoa_std_max_rad=fleet.aoa_std_max_rad,
         place_cell_m=place_cell_m,
+    )
+    if place_cell_m == 0 or fleet.place_model != PLACE_KRIGING:
+        return single
+    return dataclasses.replace(
+        single,
+        version=KRIGING_LAYOUT_VERSION,
+        place_model=PLACE_KRIGING,
+        episode_frames=fleet.episode_frames,
+        r_max_m=fleet.r_max_m,
     )
 
 
@@ -99,7 +118,7 @@ def _slot_cells(
 
 class LeadTeacher:
     """The leader flies ``leader`` (a single-UAV policy: its layout is v1, or v3 in a fleet with a
-    memory of place) on its single-UAV view; every other UAV keeps to the far corners (``away``).
+    memory of place, v5 in one with a model of the field) on its single-UAV view; every other UAV keeps to the far corners (``away``).
     Fleet only (n_uavs > 1)."""
 
     name = "lead"
@@ -124,6 +143,11 @@ class LeadTeacher:
                 self.single, what=f"the lead teacher's leader {getattr(leader, 'name', leader)!r}"
             )
         self.leader = leader
+        # A leader with a model of the field (v5) plans its own way to the team over the episode,
+        # searching spots away from it: a dash back would cut its search short (no_move, D = 2, on
+        # 30 episodes of seed 1: 8.79 Mbps with the dash, 10.56 without; research/log/fleet.md,
+        # "A fleet that models the field").
+        self.dash = not (own is not None and own.place_model == PLACE_KRIGING)
         self.cfg = cfg
         self.mapping = ActionMapping.for_config(cfg)
         self.hover_sinr_db = hover_sinr_db(cfg)
@@ -145,10 +169,13 @@ class LeadTeacher:
         """The leader policy's move on the single-UAV view; but full speed towards the UEs while they
         look far: AoAs spread less than ``close_spread_deg`` and the mean SINR below the hover level
         plus ``far_sinr_margin_db`` (a single UAV starts on top of the UEs: its policy never learned
-        to close in from a fleet's start 100 m off, nor to leave a badly shadowed spot far from them)."""
+        to close in from a fleet's start 100 m off, nor to leave a badly shadowed spot far from them); a
+        leader with a model of the field is never dashed (``dash``)."""
         frame = self.layout.newest_frame(obs)
-        far = (frame["aoa_std_deg"] < self.close_spread_deg) & (
-            frame["sinr_db"].mean(axis=1) < self.hover_sinr_db + self.far_sinr_margin_db
+        far = (
+            self.dash
+            & (frame["aoa_std_deg"] < self.close_spread_deg)
+            & (frame["sinr_db"].mean(axis=1) < self.hover_sinr_db + self.far_sinr_margin_db)
         )
         dash = self.mapping.from_polar(
             frame["aoa_mean_deg"], np.full(len(obs), self.mapping.r_max_m)

@@ -16,7 +16,8 @@ v4 for a fleet) every frame also carries ``PLACE_FIELDS``: a summary of what the
 (``uavlink.env.place_memory``), kept by the builder, so env and flight build it with the same code.
 A fleet of any size (layout v6, ``EnvConfig.fleet_slots`` > 0) replaces v2's per-D fields with
 ``SLOT_FIELDS``, whose size does not depend on D (``fleet_view``): one policy flies 2 to
-``fleet_slots`` + 1 UAVs; with a memory of place too, layout v7.
+``fleet_slots`` + 1 UAVs; with a memory of place too, layout v7; with each UAV's own model of the
+sensed field too (``place_model = "kriging"``), layout v8.
 
 Modules: ``fields`` (one UAV's fields, the memory of place's), ``fleet_view`` (a fleet's fields and
 quantities) and ``layout`` (:class:`ObservationLayout`).
@@ -39,6 +40,7 @@ from uavlink.env.observation.fleet_view import (
     fleet_view_quantities,
 )
 from uavlink.env.observation.layout import (
+    ANY_FLEET_KRIGING_LAYOUT_VERSION,
     ANY_FLEET_LAYOUT_VERSION,
     ANY_FLEET_PLACE_LAYOUT_VERSION,
     FLEET_LAYOUT_VERSION,
@@ -50,6 +52,7 @@ from uavlink.env.observation.layout import (
 )
 
 __all__ = [
+    "ANY_FLEET_KRIGING_LAYOUT_VERSION",
     "ANY_FLEET_LAYOUT_VERSION",
     "ANY_FLEET_PLACE_LAYOUT_VERSION",
     "FIELDS",

@@ -24,6 +24,7 @@ FLEET_PLACE_LAYOUT_VERSION = 4  # v2 + the memory of place
 KRIGING_LAYOUT_VERSION = 5  # v3 + the model of the sensed field
 ANY_FLEET_LAYOUT_VERSION = 6  # v1 + a fleet of any size up to uav_slots + 1 (fleet_view.py)
 ANY_FLEET_PLACE_LAYOUT_VERSION = 7  # v6 + the memory of place
+ANY_FLEET_KRIGING_LAYOUT_VERSION = 8  # v7 + the model of the sensed field
 
 
 @dataclass(frozen=True)
@@ -61,10 +62,13 @@ class ObservationLayout:
             (True, True): FLEET_PLACE_LAYOUT_VERSION,
         }[fleet, place]
         kriging = place and cfg.place_model == PLACE_KRIGING
+        if kriging:
+            version = KRIGING_LAYOUT_VERSION
         if cfg.fleet_slots > 0:  # one layout for every fleet size: it records no n_uavs
             version = ANY_FLEET_PLACE_LAYOUT_VERSION if place else ANY_FLEET_LAYOUT_VERSION
+            version = ANY_FLEET_KRIGING_LAYOUT_VERSION if kriging else version
         return cls(
-            version=KRIGING_LAYOUT_VERSION if kriging else version,
+            version=version,
             n_ues=cfg.n_ues,
             n_uavs=1 if cfg.fleet_slots > 0 else cfg.n_uavs,
             uav_slots=cfg.fleet_slots,
