@@ -88,6 +88,8 @@ SPEED_ENV = (
     "radio.shadowing_model",
     "radio.aoa_noise_max_deg",
     "memory",
+    "place_cell_m",  # the memory of place and the model of the field are built every step
+    "place_model",
 )
 
 
