@@ -10,11 +10,10 @@ north, positions every UAV sees), so a clone can learn them, and the split reinf
 others leave, the leader's cell grows; the counts are summed over the frames in memory, so a UE
 that shadowing hands over for a frame does not swap the roles). The leader flies a single-UAV
 policy (the single-UAV spatial policy of the scenario: it exploits the good shadowing spots) on its
-single-UAV view, the v1 fields (and v3's memory of place, v5's model of the field) of its own fleet
-frames
-(``single_view``); the others head for the corner farthest from the leader and, while their cell
-still holds a UE, on along the wall to the next farthest, holding once their cell is empty (as
-``SoloTeacher`` does around the UEs' centroid).
+single-UAV view, the v1 fields (and v3's memory of place, v5's model of the field) of its own
+fleet frames (``single_view``); the others head for the corner farthest from the leader and, while
+their cell still holds a UE, on along the wall to the next farthest, holding once their cell is
+empty (as ``SoloTeacher`` does around the UEs' centroid).
 GPS-free: it reads nothing but the observation.
 """
 
@@ -118,8 +117,8 @@ def _slot_cells(
 
 class LeadTeacher:
     """The leader flies ``leader`` (a single-UAV policy: its layout is v1, or v3 in a fleet with a
-    memory of place, v5 in one with a model of the field) on its single-UAV view; every other UAV keeps to the far corners (``away``).
-    Fleet only (n_uavs > 1)."""
+    memory of place, v5 in one with a model of the field) on its single-UAV view; every other UAV
+    keeps to the far corners (``away``). Fleet only (n_uavs > 1)."""
 
     name = "lead"
     needs_truth = False
@@ -147,7 +146,7 @@ class LeadTeacher:
         # searching spots away from it: a dash back would cut its search short (no_move, D = 2, on
         # 30 episodes of seed 1: 8.79 Mbps with the dash, 10.56 without; research/log/fleet.md,
         # "A fleet that models the field").
-        self.dash = not (own is not None and own.place_model == PLACE_KRIGING)
+        self.dash = self.single.place_model != PLACE_KRIGING
         self.cfg = cfg
         self.mapping = ActionMapping.for_config(cfg)
         self.hover_sinr_db = hover_sinr_db(cfg)
