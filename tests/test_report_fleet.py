@@ -152,7 +152,9 @@ def _untrained(cfg: EnvConfig, path) -> None:
 @pytest.mark.slow  # about 42 s in make test's workers: 175 evaluations, seven genies of four UAVs
 def test_the_fleet_part_flies_each_size_once_and_writes_its_tables(tmp_path, monkeypatch):
     """Untrained policies (their numbers mean nothing): an any-size one (3 slots) at D = 2, 3, 4, a
-    per-size one at D = 2, every baseline at D = 1 to 4, 2 episodes of 8 frames."""
+    per-size one at D = 2, every baseline at D = 1 to 4, 2 episodes of 8 frames. As in the shipped
+    folder, no_move's any-size policy keeps a model of the field (layout v8): the baselines beside
+    it fly without one."""
     root = Path(__file__).resolve().parents[1]
     spatial = EnvConfig().replace(**{"radio.shadowing_model": "spatial"})
     folders = {}
@@ -162,15 +164,23 @@ def test_the_fleet_part_flies_each_size_once_and_writes_its_tables(tmp_path, mon
     ):
         folder = folders[name] = tmp_path / name
         folder.mkdir()
-        _untrained(cfg.validate(), folder / "no_move.zip")
-        for scenario in SCENARIOS[1:]:  # one untrained policy flies every scenario
-            shutil.copyfile(folder / "no_move.zip", folder / f"{scenario}.zip")
-    flown, progress = [], []
+        _untrained(cfg.validate(), folder / "straight.zip")
+        for scenario in SCENARIOS[2:]:  # one untrained policy flies every other scenario
+            shutil.copyfile(folder / "straight.zip", folder / f"{scenario}.zip")
+    # a model of the field plans over the episode it was built for: the report's 8 frames
+    kriging = {"place_cell_m": 12.0, "place_model": "kriging", "episode_frames": 8}
+    _untrained(
+        spatial.replace(scenario="no_move", n_uavs=3, fleet_slots=3, **kriging).validate(),
+        folders["anysize"] / "no_move.zip",
+    )
+    shutil.copyfile(folders["d2"] / "straight.zip", folders["d2"] / "no_move.zip")
+    flown, progress, places = [], [], []
     evaluate = report_fleet.evaluate_policy
 
     def counted(policy, cfg, episodes, seed, record_trajectory=False):
         result = evaluate(policy, cfg, episodes, seed, record_trajectory)
         flown.append((cfg.scenario, cfg.n_uavs, policy.name, result))
+        places.append((cfg.scenario, policy.name, cfg.place_model))
         return result
 
     monkeypatch.setattr(report_fleet, "evaluate_policy", counted)
@@ -186,6 +196,11 @@ def test_the_fleet_part_flies_each_size_once_and_writes_its_tables(tmp_path, mon
     # per scenario: 5 baselines x 4 sizes, the any-size policy x 3, the per-size one, one UAV's
     assert len(flown) == len(SCENARIOS) * (len(FLEET_BASELINES) * 4 + 3 + 1 + 1) == len(progress)
     assert len(set(progress)) == len(progress)  # each names what it runs, none twice
+    assert {model for _, name, model in places if name in FLEET_BASELINES} == {"cells"}
+    assert {model for scenario, *_, model in places if scenario == "no_move"} == {
+        "cells",
+        "kriging",
+    }
     assert "fleet hotspot (6/6): D4 genie, 2 episodes" in progress
     assert (
         f"fleet no_move (1/6): D2 PPO (per size) from {folders['d2']}/no_move, 2 episodes"

@@ -17,6 +17,7 @@ from collections.abc import Callable
 from pathlib import Path
 
 from uavlink.config import EnvConfig
+from uavlink.config.env import PLACE_CELLS
 from uavlink.errors import UserError
 from uavlink.evaluation.core import EvalResult, evaluate_policy
 from uavlink.evaluation.report_fleet_tables import (
@@ -186,7 +187,9 @@ def _fleet_jobs(
             for d in sizes_flown(policy, cfg)
         ]
     policies.append((SINGLE_PPO, single, single_cfg, single_folder, 1))
-    world = fleet_cfg.replace(fleet_slots=0)  # the baselines' (fleets of any size, one UAV)
+    # The baselines' world: fleets of any size, one UAV, and no memory of place (what a policy's
+    # layout keeps changes what it observes, not the episodes; no baseline here reads it).
+    world = fleet_cfg.replace(fleet_slots=0, place_cell_m=0.0, place_model=PLACE_CELLS)
     jobs: list[Job] = []
     for d in FLEET_SIZES:
         cfg = world.replace(n_uavs=d).validate()
