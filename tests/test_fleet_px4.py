@@ -22,9 +22,14 @@ from uavlink.mobility.uav_motion import PX4_MOTION
 from uavlink.policies.manifest import read_zip_manifest
 
 # The fleets of three the flights fly: (policy, scenario): a baseline that flies from the
-# observation, and the shipped any-size policy whose manifest is a fleet of three (a policy file
-# for another fleet size is skipped).
-FLEETS_OF_THREE = [("aoa", "circular"), ("policies/fleet/hotspot.zip", "hotspot")]
+# observation, and shipped any-size policies whose manifests are fleets of three (a policy file
+# for another fleet size is skipped): hotspot's, and no_move's, whose UAVs each keep a model of the
+# field (layout v8) that the flight builds as the env does.
+FLEETS_OF_THREE = [
+    ("aoa", "circular"),
+    ("policies/fleet/hotspot.zip", "hotspot"),
+    ("policies/fleet/no_move.zip", "no_move"),
+]
 
 
 def _fleet_of_three(policy: str) -> list[str]:
