@@ -3,12 +3,13 @@
 Where the team stays together the fleet's lead teacher has one UAV fly a single-UAV policy and the
 others keep their cells empty (uavlink/learn/lead_teacher.py). One UAV alone gains from a memory of
 place where the team holds still (the `explore` rule +12.5 % over the spatial policy on no_move,
-docs/results.md). Here, on the same episodes: the shipped any-size fleet policy (v6), the lead
+docs/results.md). Here, on the same episodes: the shipped any-size fleet policy (v6; no_move's v8), the lead
 teacher with the scenario's spatial policy leading (in v6, and in v7 where it reads the v1 fields
 alone, which must fly the same), the lead teacher with `explore` leading in v7 (its v3 view:
 the v1 fields and the leader's own memory of place), and the lead teacher with the scenario's map
 policy leading: in v7 where that policy reads the memory alone (layout v3), in v8 where it reads a
-model of the field too (v5: no_move's; each UAV keeps its own model, and the leader is not dashed).
+model of the field too (v5: no_move's; each UAV keeps its own model, and the leader is not dashed;
+the last column dashes it as every leader was before: what the dash costs a leader that searches).
 
     python research/fleet_memory_lead.py --scenario no_move --sizes 2 3 4 --episodes 100 --seed 1
     python research/fleet_memory_lead.py --scenario straight --sizes 2 --episodes 100 --seed 1
@@ -38,6 +39,7 @@ def map_leader(scenario: str) -> tuple[str, str]:
 
 
 def run(scenario: str, sizes: list[int], episodes: int, seed: int) -> dict[str, Any]:
+    from uavlink.config.env import PLACE_MODELS
     from uavlink.env.observation import ObservationLayout
     from uavlink.evaluation import evaluate_policy
     from uavlink.learn.lead_teacher import make_lead_teacher
@@ -46,17 +48,22 @@ def run(scenario: str, sizes: list[int], episodes: int, seed: int) -> dict[str, 
     mapped, place_model = map_leader(scenario)
     rows = []
     for d in sizes:
-        [(fleet, v6)] = load_with_env(
+        [(fleet, own)] = load_with_env(
             [f"policies/fleet/{scenario}.zip"], EnvOverrides(settings={"n_uavs": d})
         )
+        # the shipped policy's world without its memory (no_move's keeps a model: v8)
+        v6 = own.replace(place_cell_m=0.0, place_model=PLACE_MODELS[0]).validate()
         v7 = v6.replace(place_cell_m=PLACE_CELL_M).validate()
         leader = f"policies/spatial/{scenario}.zip"
-        ppo = evaluate_policy(fleet, v6, episodes, seed)
+        ppo = evaluate_policy(fleet, own, episodes, seed)
         lead_v6 = evaluate_policy(make_lead_teacher(v6, leader), v6, episodes, seed)
         lead_v7 = evaluate_policy(make_lead_teacher(v7, leader), v7, episodes, seed)
         explore = evaluate_policy(make_lead_teacher(v7, "explore"), v7, episodes, seed)
         with_map = v7.replace(place_model=place_model).validate()
         lead_map = evaluate_policy(make_lead_teacher(with_map, mapped), with_map, episodes, seed)
+        dashed = make_lead_teacher(with_map, mapped)
+        dashed.dash = True  # as every leader was dashed before v8: what the dash costs a searcher
+        lead_map_dashed = evaluate_policy(dashed, with_map, episodes, seed)
         rows.append(
             {
                 "n_uavs": d,
@@ -70,6 +77,7 @@ def run(scenario: str, sizes: list[int], episodes: int, seed: int) -> dict[str, 
                 "lead_map_mbps": round(lead_map.mean_rate_mbps, 4),
                 "lead_map_vs_lead_spatial": paired_ratio(lead_map, lead_v6),
                 "lead_map_vs_ppo": paired_ratio(lead_map, ppo),
+                "lead_map_dashed_mbps": round(lead_map_dashed.mean_rate_mbps, 4),
             }
         )
     return {"scenario": scenario, "episodes": episodes, "seed": seed, "rows": rows}
@@ -77,10 +85,10 @@ def run(scenario: str, sizes: list[int], episodes: int, seed: int) -> dict[str, 
 
 def markdown(report: dict[str, Any]) -> str:
     lines = [
-        "| D | fleet PPO (v6) | lead, spatial leader (v6 / v7) | lead, explore leader (v7) "
+        "| D | fleet PPO (shipped) | lead, spatial leader (v6 / v7) | lead, explore leader (v7) "
         "| explore lead / spatial lead | explore lead / PPO | lead, map leader (layout) "
-        "| map lead / spatial lead | map lead / PPO |",
-        "|---|---|---|---|---|---|---|---|---|",
+        "| map lead / spatial lead | map lead / PPO | map lead, dashed |",
+        "|---|---|---|---|---|---|---|---|---|---|",
     ]
     for row in report["rows"]:
         lines.append(
@@ -89,7 +97,8 @@ def markdown(report: dict[str, Any]) -> str:
             f"{ratio_text(row['lead_explore_vs_lead_spatial'])} | "
             f"{ratio_text(row['lead_explore_vs_ppo'])} | "
             f"{row['lead_map_mbps']:.2f} (v{row['lead_map_layout']}) | "
-            f"{ratio_text(row['lead_map_vs_lead_spatial'])} | {ratio_text(row['lead_map_vs_ppo'])} |"
+            f"{ratio_text(row['lead_map_vs_lead_spatial'])} | {ratio_text(row['lead_map_vs_ppo'])} | "
+            f"{row['lead_map_dashed_mbps']:.2f} |"
         )
     return "\n".join(lines)
 

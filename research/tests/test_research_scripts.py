@@ -410,6 +410,7 @@ def test_fleet_memory_lead_flies_the_spatial_leader_alike_in_v6_and_v7() -> None
     assert abs(r - row["lead_explore_v7_mbps"] / row["lead_spatial_v6_mbps"]) < 1e-3
     # no_move's map policy reads a model of the field (v5): it leads in v8, each UAV its own model
     assert row["lead_map_layout"] == 8
+    assert row["lead_map_dashed_mbps"] != row["lead_map_mbps"]  # the dash moves a searching leader
     r, lo, hi = row["lead_map_vs_ppo"]
     assert lo <= r <= hi and abs(r - row["lead_map_mbps"] / row["ppo_mbps"]) < 1e-3
 

@@ -144,8 +144,8 @@ class LeadTeacher:
         self.leader = leader
         # A leader with a model of the field (v5) plans its own way to the team over the episode,
         # searching spots away from it: a dash back would cut its search short (no_move, D = 2, on
-        # 30 episodes of seed 1: 8.79 Mbps with the dash, 10.56 without; research/log/fleet.md,
-        # "A fleet that models the field").
+        # 100 episodes of seed 1: 9.05 Mbps with the dash, 10.32 without; `python
+        # research/fleet_memory_lead.py --scenario no_move --sizes 2 3 4`).
         self.dash = self.single.place_model != PLACE_KRIGING
         self.cfg = cfg
         self.mapping = ActionMapping.for_config(cfg)
