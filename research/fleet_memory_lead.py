@@ -60,10 +60,12 @@ def run(scenario: str, sizes: list[int], episodes: int, seed: int) -> dict[str, 
         lead_v7 = evaluate_policy(make_lead_teacher(v7, leader), v7, episodes, seed)
         explore = evaluate_policy(make_lead_teacher(v7, "explore"), v7, episodes, seed)
         with_map = v7.replace(place_model=place_model).validate()
-        lead_map = evaluate_policy(make_lead_teacher(with_map, mapped), with_map, episodes, seed)
-        dashed = make_lead_teacher(with_map, mapped)
-        dashed.dash = True  # as every leader was dashed before v8: what the dash costs a searcher
-        lead_map_dashed = evaluate_policy(dashed, with_map, episodes, seed)
+        map_teacher = make_lead_teacher(with_map, mapped)
+        lead_map = evaluate_policy(map_teacher, with_map, episodes, seed)
+        map_teacher.dash = (
+            True  # as every leader was dashed before v8: what the dash costs a searcher
+        )
+        lead_map_dashed = evaluate_policy(map_teacher, with_map, episodes, seed)
         rows.append(
             {
                 "n_uavs": d,

@@ -62,11 +62,13 @@ class ObservationLayout:
             (True, True): FLEET_PLACE_LAYOUT_VERSION,
         }[fleet, place]
         kriging = place and cfg.place_model == PLACE_KRIGING
+        # a fleet of any size has one layout for every size: it records no n_uavs
         if kriging:
-            version = KRIGING_LAYOUT_VERSION
-        if cfg.fleet_slots > 0:  # one layout for every fleet size: it records no n_uavs
+            version = (
+                ANY_FLEET_KRIGING_LAYOUT_VERSION if cfg.fleet_slots > 0 else KRIGING_LAYOUT_VERSION
+            )
+        elif cfg.fleet_slots > 0:
             version = ANY_FLEET_PLACE_LAYOUT_VERSION if place else ANY_FLEET_LAYOUT_VERSION
-            version = ANY_FLEET_KRIGING_LAYOUT_VERSION if kriging else version
         return cls(
             version=version,
             n_ues=cfg.n_ues,
