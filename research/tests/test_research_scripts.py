@@ -725,3 +725,32 @@ def test_sde_ppo_trains_a_policy_the_product_loads_and_flies(tmp_path: Path) -> 
     assert "with gSDE" in run_main("sde_ppo.py", str(sweep), *args)
     [(flown, env)] = load_with_env([str(out)], EnvOverrides())
     assert evaluate_policy(flown, env, 1, 0).mean_rate_mbps > 0
+
+
+def test_spread_start_ppo_copies_and_pairs_the_spread_teacher_at_the_distance_asked(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    from uavlink.learn import teachers
+
+    built: list[float] = []
+
+    class Recorded(teachers.SpreadTeacher):
+        def __init__(self, *args: object, **kwargs: object) -> None:
+            super().__init__(*args, **kwargs)  # type: ignore[arg-type]
+            built.append(self.spread_m)
+
+    monkeypatch.setattr(teachers, "SpreadTeacher", Recorded)
+    sweep = tmp_path / "tiny.toml"
+    sweep.write_text(
+        'name = "tiny"\nscenarios = ["hotspot"]\nseeds = [0]\n'
+        '[env]\nn_uavs = 2\nfleet_slots = 1\n"radio.shadowing_model" = "spatial"\n'
+        '[train]\nepisodes = 64\nn_envs = 32\ncritic = "privileged"\n'
+        'warm_start.teacher = "spread"\nwarm_start.episodes = 8\nwarm_start.epochs = 1\n'
+    )
+    out = tmp_path / "spread5.zip"
+    job = ("--scenario", "hotspot", "--seed", "0", "--spread-m", "5", "--sizes", "2")
+    printed = run_main(
+        "spread_start_ppo.py", str(sweep), *job, "--episodes", "2", "--out", str(out)
+    )
+    assert "spread 5 m ->" in printed and printed.count("D = 2:") == 1
+    assert built and set(built) == {5.0}  # the copy's teacher and the pairing's, both at 5 m
