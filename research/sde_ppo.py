@@ -79,7 +79,8 @@ def gsde_callback(log_std: float, sample_freq: int) -> Any:
 
         def _on_training_end(self) -> None:
             model, policy = self.model, self.model.policy
-            with torch.no_grad():  # per-frame variance on the first observations, per action
+            # about the per-frame variance on the first observations, per action (phi^2 taken alike)
+            with torch.no_grad():
                 variance = self.mean_square * torch.exp(2 * policy.log_std).mean(dim=0)
             action_dim = policy.action_net.out_features
             policy.action_dist = DiagGaussianDistribution(action_dim)
