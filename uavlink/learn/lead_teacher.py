@@ -2,7 +2,9 @@
 
 With one group of UEs a second active cell only takes UEs and interferes with all the others (SPEC
 "A fleet"), so the best a fleet of D can do is one UAV's policy with the other cells empty, hence
-silent. ``SoloTeacher`` (uavlink.learn.teachers) picks its leader by GPS (nearest the UEs' centroid), which
+silent; the genie, which knows the field and the future, flies a fleet of two on no_move nearly so
+(9.6 and 0.4 UEs per UAV; research/log/fleet.md, "No_move's model-led copy under PPO").
+``SoloTeacher`` (uavlink.learn.teachers) picks its leader by GPS (nearest the UEs' centroid), which
 no UAV can read from its observation: cloned, the actor averaged the roles and both UAVs fled
 (research/log/fleet.md, no_move 4.7 Mbps). Here the roles are a function of what every UAV observes:
 the leader is the UAV serving the most UEs (v2's ``served_by``, v6's slots; ties go to the UAV farthest east, then
