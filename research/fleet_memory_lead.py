@@ -39,7 +39,7 @@ def map_leader(scenario: str) -> tuple[str, str]:
 
 
 def run(scenario: str, sizes: list[int], episodes: int, seed: int) -> dict[str, Any]:
-    from uavlink.config.env import PLACE_MODELS
+    from uavlink.config.env import PLACE_CELLS
     from uavlink.env.observation import ObservationLayout
     from uavlink.evaluation import evaluate_policy
     from uavlink.learn.lead_teacher import make_lead_teacher
@@ -52,7 +52,7 @@ def run(scenario: str, sizes: list[int], episodes: int, seed: int) -> dict[str, 
             [f"policies/fleet/{scenario}.zip"], EnvOverrides(settings={"n_uavs": d})
         )
         # the shipped policy's world without its memory (no_move's keeps a model: v8)
-        v6 = own.replace(place_cell_m=0.0, place_model=PLACE_MODELS[0]).validate()
+        v6 = own.replace(place_cell_m=0.0, place_model=PLACE_CELLS).validate()
         v7 = v6.replace(place_cell_m=PLACE_CELL_M).validate()
         leader = f"policies/spatial/{scenario}.zip"
         ppo = evaluate_policy(fleet, own, episodes, seed)
@@ -62,9 +62,8 @@ def run(scenario: str, sizes: list[int], episodes: int, seed: int) -> dict[str, 
         with_map = v7.replace(place_model=place_model).validate()
         map_teacher = make_lead_teacher(with_map, mapped)
         lead_map = evaluate_policy(map_teacher, with_map, episodes, seed)
-        map_teacher.dash = (
-            True  # as every leader was dashed before v8: what the dash costs a searcher
-        )
+        # as every leader was dashed before v8: what the dash costs a leader that searches
+        map_teacher.dash = True
         lead_map_dashed = evaluate_policy(map_teacher, with_map, episodes, seed)
         rows.append(
             {
