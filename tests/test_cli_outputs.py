@@ -63,3 +63,47 @@ def test_a_bad_output_path_is_refused_before_any_work(
     assert_user_error(proc, fragment.format(t=places))
     assert sorted(places.rglob("*")) == before  # nothing made, nothing half-written
     assert (sorted((ROOT / "runs").glob("b-seed*")) if (ROOT / "runs").exists() else []) == runs
+
+
+@pytest.fixture
+def unwritable(tmp_path: Path) -> Path:
+    """A folder that takes no new file: read-only by its mode, or /sys where the mode does not bind
+    (root)."""
+    import os
+
+    if os.geteuid() == 0:
+        return Path("/sys")
+    folder = tmp_path / "readonly"
+    folder.mkdir(mode=0o555)
+    return folder
+
+
+UNWRITABLE_CASES = [  # before, each trained, evaluated or flew in full, then failed with a traceback
+    "train --out {t}/sub/b.zip --episodes 1",
+    "evaluate --scenario all --policy policies/ --episodes 1 --out {t}/res",
+    "export policies/circular.zip --out {t}/c.onnx",
+    "fly --policy aoa --out {t}/flight",
+    "sweep sweeps/tiny.toml --out-root {t}/sw --workers 0",
+]
+
+
+@pytest.mark.parametrize("args", UNWRITABLE_CASES, ids=[c.split()[0] for c in UNWRITABLE_CASES])
+def test_a_folder_that_takes_no_file_is_refused_before_any_work(
+    unwritable: Path, monkeypatch, args: str
+) -> None:
+    monkeypatch.chdir(ROOT)
+    before = sorted(unwritable.iterdir())
+    proc = run_uavlink_in_process(*args.format(t=unwritable).split())
+    assert_user_error(proc, "cannot write there")
+    assert sorted(unwritable.iterdir()) == before
+
+
+def test_export_takes_a_shipped_name_and_writes_here(tmp_path: Path, monkeypatch) -> None:
+    """`uavlink export fleet/hotspot` exports the shipped zip to ./hotspot.onnx (not beside the
+    shipped file, which may sit in an installed package); a folder is refused as one."""
+    monkeypatch.chdir(tmp_path)
+    proc = run_uavlink_in_process("export", "fleet/hotspot", "--n-verify", "4")
+    assert proc.returncode == 0, proc.stderr
+    assert (tmp_path / "hotspot.onnx").is_file()
+    assert "policies/fleet/hotspot.zip -> hotspot.onnx" in proc.stdout
+    assert_user_error(run_uavlink_in_process("export", "fleet"), "is a folder; give a policy zip")

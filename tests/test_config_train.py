@@ -137,6 +137,18 @@ def test_budget_follows_the_episode_length() -> None:
     assert TrainConfig(episodes=4).total_timesteps(EnvConfig(episode_frames=16)) == 64
 
 
+def test_what_trains_is_the_budget_in_whole_rollouts() -> None:
+    """SB3 collects whole rollouts (n_envs rows x n_steps), so 64 episodes of 128 envs train 128;
+    `train` announces and counts that figure (before, it announced 8,192 steps and trained 16,384)."""
+    env = EnvConfig()
+    assert TrainConfig(episodes=64).trained_timesteps(env) == 128 * 128
+    assert TrainConfig(episodes=256).trained_timesteps(env) == 256 * 128  # two whole rollouts
+    fleet = EnvConfig(n_uavs=3, fleet_slots=3)
+    sized = TrainConfig(episodes=100, n_envs=32, fleet_sizes_up_to=4)  # rows: 32 x (2 + 3 + 4)
+    assert sized.total_timesteps(fleet) == 100 * 128 * 3
+    assert sized.trained_timesteps(fleet) == 2 * 32 * 9 * 128
+
+
 def _parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser()
     add_options(parser, TrainConfig)

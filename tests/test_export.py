@@ -163,7 +163,7 @@ def test_not_onnx_files_are_refused(policy_zip: Path, tmp_path: Path) -> None:
     renamed.write_bytes(policy_zip.read_bytes())
     with pytest.raises(PolicyFileError, match="renamed.onnx: is a zip archive, not an ONNX model"):
         load_policy(renamed, CFG)
-    with pytest.raises(PolicyFileError, match="missing.onnx: no such file, baseline"):
+    with pytest.raises(PolicyFileError, match="missing.onnx: no such file$"):
         load_policy(tmp_path / "missing.onnx", CFG)
 
 
@@ -279,7 +279,7 @@ def test_cli_export_prints_what_it_checked(policy_zip: Path, tmp_path: Path, cap
     missing = _run(["-m", "uavlink.cli", "export", str(tmp_path / "missing.zip")])
     assert missing.returncode == 2
     assert missing.stderr.strip().count("\n") == 0 and "Traceback" not in missing.stderr
-    assert "missing.zip: no such policy file" in missing.stderr
+    assert missing.stderr.rstrip().endswith("missing.zip: no such file")
 
 
 @pytest.mark.slow

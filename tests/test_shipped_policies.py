@@ -12,7 +12,7 @@ import pytest
 from support.cli import ROOT, assert_user_error, run_uavlink_in_process
 
 from uavlink.config import EnvConfig
-from uavlink.policies.loader import locate, shipped_policies, shipped_root
+from uavlink.policies.loader import locate, shipped_note, shipped_policies, shipped_root
 from uavlink.policies.manifest import PolicyFileError
 
 SHIPPED_ZIPS = sorted((ROOT / "policies").rglob("*.zip"))
@@ -66,8 +66,7 @@ def test_a_shipped_policy_by_name_from_any_folder(
     monkeypatch.chdir(tmp_path)
     assert locate(name) == ROOT / "policies" / file
     assert capsys.readouterr().err == ""  # a Python caller gets the path, nothing on stderr
-    assert locate(name, announce=True) == ROOT / "policies" / file
-    line = capsys.readouterr().err.strip()
+    line = shipped_note([name], [locate(name)])
     assert line == f"uavlink: --policy {name}: the shipped {ROOT / 'policies' / file}"
 
 
@@ -90,6 +89,23 @@ def test_an_unknown_name_gets_the_closest_shipped_ones(
     proc = run_uavlink_in_process("fly", "--policy", "fleet/hotspt", "--out", str(tmp_path / "o"))
     assert_user_error(proc, "fleet/hotspt: no such file", "closest: fleet/hotspot")
     assert not (tmp_path / "o").exists()
+
+
+def test_bad_input_beside_a_shipped_name_is_still_one_line(tmp_path: Path) -> None:
+    """Which file a name became is said once the other inputs pass: before, `fly --policy circular
+    --set nonsense=1` printed that line and then the error."""
+    for command in ("fly", "evaluate"):
+        args = [command, "--policy", "circular", "--set", "nonsense=1"]
+        out = ["--out", str(tmp_path / "o")] if command == "fly" else []
+        assert_user_error(run_uavlink_in_process(*args, *out), "unknown config key 'nonsense'")
+
+
+def test_a_missing_path_is_no_such_file_and_no_name_is_guessed(tmp_path: Path) -> None:
+    """A path (absolute, ./ or ~) is not looked up among the shipped names: before, /tmp/nope.zip
+    was told its closest shipped policy was map/no_move."""
+    for spec in (tmp_path / "nope.zip", "./nope.zip", "~/nope.zip"):
+        with pytest.raises(PolicyFileError, match=r"nope.zip: no such file$"):
+            locate(spec)
 
 
 def test_uavlink_policies_lists_every_shipped_policy_with_its_manifest_figure() -> None:

@@ -21,16 +21,18 @@ from uavlink.cli.options import (
 from uavlink.config import EnvConfig
 from uavlink.errors import UserError, require
 from uavlink.policies.contract import OVERRIDES_HELP, EnvOverrides, apply_overrides, load_with_env
-from uavlink.policies.loader import locate
+from uavlink.policies.loader import locate, shipped_note
 from uavlink.policies.registry import BASELINES
 
 
 def cmd_evaluate(args: argparse.Namespace) -> int:
     from uavlink.evaluation import compare, evaluate_policy
 
-    # a shipped policy by name: its file from here on
-    args.policy = str(locate(args.policy, announce=True))
-    args.against = [str(locate(spec, announce=True)) for spec in args.against or []]
+    # a shipped policy by name: its file from here on, said once the other checks have passed
+    given = [args.policy, *(args.against or [])]
+    args.policy = str(locate(args.policy))
+    args.against = [str(locate(spec)) for spec in args.against or []]
+    args.shipped_note = shipped_note(given, [args.policy, *args.against])
     if args.episodes < 1:
         raise UserError(f"--episodes must be a positive integer, got {args.episodes}")
     if args.out is not None:
@@ -67,9 +69,11 @@ def cmd_evaluate(args: argparse.Namespace) -> int:
     try:
         for scenario in scenarios:
             flown = []
-            for spec, (policy, cfg) in zip(
-                specs, load_with_env(specs, overrides.on(scenario)), strict=True
-            ):
+            loaded = load_with_env(specs, overrides.on(scenario))
+            if args.shipped_note:  # every input checked: say which files the names became
+                print(args.shipped_note, file=sys.stderr)
+                args.shipped_note = ""
+            for spec, (policy, cfg) in zip(specs, loaded, strict=True):
                 status.show(f"evaluating {cfg.scenario}: {spec} ({args.episodes} episodes)")
                 flown.append(evaluate_policy(policy, cfg, args.episodes, args.seed))
             if len({r.policy for r in flown}) < len(flown):  # map/x.zip vs spatial/x.zip
@@ -148,6 +152,8 @@ def _write_results_folder(args: argparse.Namespace) -> int:
         map=args.map,
     )
     sweeps.check_finished()  # before the long evaluation, which would write the folder
+    if args.shipped_note:
+        print(args.shipped_note, file=sys.stderr)
 
     status = StatusLine(log_lines=True)  # the report runs for hours: a log says how far it got
     try:
@@ -224,7 +230,9 @@ def add_evaluate_parser(sub) -> None:
         "evaluate",
         help="evaluate a policy or baseline, print a table",
         description=f"Evaluate a policy file, a folder of them, or a baseline "
-        f"({', '.join(BASELINES)}). " + OVERRIDES_HELP,
+        f"({', '.join(BASELINES)}). "
+        + OVERRIDES_HELP
+        + " Baselines get the env of the policy they are compared with.",
     )
     add_env_options(p, for_policy=True)
     p.add_argument(
@@ -239,7 +247,7 @@ def add_evaluate_parser(sub) -> None:
         default=None,
         metavar="POLICY",
         help="also fly this policy (same forms; repeatable) on the same episodes and print --policy's paired "
-        "throughput ratio with its 95 %% interval, the R_fair difference and the episodes won "
+        "throughput gain (%%) with its 95 %% interval, the R_fair difference and the episodes won "
         "(a fleet policy may face a single-UAV one: the same UEs and channel)",
     )
     p.add_argument(

@@ -12,14 +12,20 @@ from uavlink.errors import UserError
 
 def cmd_export(args: argparse.Namespace) -> int:
     from uavlink.export import export_onnx, format_report
-
-    out = output_file(
-        args.out if args.out is not None else args.policy.with_suffix(".onnx"), "--out", (".onnx",)
-    )
-    if args.n_verify < 1:
-        raise UserError("--n-verify must be a positive integer")
+    from uavlink.policies.loader import locate
     from uavlink.policies.registry import BASELINES
 
+    if args.n_verify < 1:
+        raise UserError("--n-verify must be a positive integer")
+    named = not args.policy.exists() and str(args.policy) not in BASELINES
+    if named:  # a shipped policy by name (uavlink policies); its ONNX file goes here, not beside it
+        args.policy = Path(locate(args.policy))  # the report names the file
+    if args.policy.is_dir():
+        raise UserError(f"{args.policy} is a folder; give a policy zip (FILE.zip)")
+    default_out = Path(args.policy.name) if named else args.policy
+    out = output_file(
+        args.out if args.out is not None else default_out.with_suffix(".onnx"), "--out", (".onnx",)
+    )
     if str(args.policy) in BASELINES and not args.policy.exists():
         raise UserError(
             f"{args.policy} is a baseline, not a trained policy: nothing to export"
@@ -46,9 +52,17 @@ def add_export_parser(sub) -> None:
         "manifest in the model metadata, and check onnxruntime's actions "
         "against SB3's on observations from seeded episodes.",
     )
-    p.add_argument("policy", type=Path, help="SB3 policy zip, e.g. policies/circular.zip")
     p.add_argument(
-        "--out", type=Path, default=None, help="ONNX file to write (default: POLICY with .onnx)"
+        "policy",
+        type=Path,
+        help="SB3 policy zip, e.g. policies/circular.zip, or a shipped policy's name "
+        "(uavlink policies), e.g. fleet/hotspot",
+    )
+    p.add_argument(
+        "--out",
+        type=Path,
+        default=None,
+        help="ONNX file to write (default: POLICY with .onnx; for a name, NAME.onnx here)",
     )
     p.add_argument("--no-verify", action="store_true", help="skip the onnxruntime-vs-SB3 check")
     p.add_argument(

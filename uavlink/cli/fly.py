@@ -74,7 +74,7 @@ def add_fly_parser(sub) -> None:
         default=0,
         help="seed of the embedded SITL's radio episode, 0..2**31-1 (episode 0 of "
         "`uavlink evaluate --seed`); with --connect the vehicle's own episode is "
-        "flown and reported",
+        "flown and reported (default: 0)",
     )
     p.add_argument(
         "--aoa-noise-deg",

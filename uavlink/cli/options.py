@@ -6,6 +6,7 @@ from __future__ import annotations
 
 import argparse
 import sys
+import tempfile
 from pathlib import Path
 
 from uavlink.config import SCENARIO_NAMES, SCENARIOS, check_seed
@@ -62,7 +63,8 @@ def add_env_options(p: argparse.ArgumentParser, for_policy: bool = False) -> Non
         metavar="KEY=VALUE",
         help="override an env config field, e.g. --set r_max_m=10 --set radio.shadowing=false"
         + (
-            f"; under a policy file radio fields may change, {', '.join(BUILT_FOR)} may not"
+            f"; under a policy file radio fields may change, {', '.join(BUILT_FOR)} may not "
+            "(n_uavs may, within an any-size fleet policy's sizes)"
             if for_policy
             else ""
         ),
@@ -77,15 +79,28 @@ def command_line(command: str, otherwise: str) -> str:
 
 def output_folder(path: Path, option: str) -> Path:
     """``path`` checked as a folder to write into (made later, by the command, once it has work to
-    write): UserError when it or a folder above it is a file. Checked before any work, so a long run
-    does not end in a traceback at its first write."""
+    write): UserError when it or a folder above it is a file, or when the nearest folder that exists
+    takes no new file. Checked before any work, so a long run does not end in a traceback at its
+    first write."""
     for above in (path, *path.parents):
         if above.exists():
             if not above.is_dir():
                 where = "is a file" if above == path else f"lies under {above}, a file"
                 raise UserError(f"{option} {path} {where}; give a folder")
+            _check_writable(above, path, option)
             break
     return path
+
+
+def _check_writable(folder: Path, path: Path, option: str) -> None:
+    """UserError unless a file can be made (and is at once removed) in ``folder``: what the command
+    will write needs it, and permission bits alone do not say (root, read-only mounts, /sys)."""
+    try:
+        with tempfile.TemporaryFile(dir=folder):
+            pass
+    except OSError as exc:
+        where = "" if folder == path else f" (its nearest folder, {folder})"
+        raise UserError(f"{option} {path}: cannot write there{where}: {exc.strerror}") from None
 
 
 def output_file(path: Path, option: str, suffixes: tuple[str, ...] = ()) -> Path:

@@ -48,8 +48,10 @@ def cmd_train(args: argparse.Namespace) -> int:
     run_dir = output_folder(
         args.run_dir or Path("runs") / f"{args.out.stem}-seed{tc.seed}", "--run-dir"
     )
+    budget, trained = tc.total_timesteps(cfg), tc.trained_timesteps(cfg)
+    rounded = f" (rounded up to whole rollouts: {trained:,})" if trained > budget else ""
     print(
-        f"training PPO on {cfg.scenario!r} for {tc.total_timesteps(cfg):,} env steps; "
+        f"training PPO on {cfg.scenario!r} for {budget:,} env steps{rounded}; "
         f"TensorBoard logs and checkpoint in {run_dir}",
         file=sys.stderr,
     )

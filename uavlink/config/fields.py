@@ -246,6 +246,8 @@ def add_options(parser: argparse.ArgumentParser, cls: type, prefix: str = "") ->
         default, meta = getattr(defaults, f.name), f.metadata
         base, _ = kind(hint)
         shown = "" if default in (None, "") else " (default: %(default)s)"
+        if isinstance(default, tuple):  # as it is typed: 128 128 128
+            shown = f" (default: {' '.join(map(str, default))})"
         options: dict[str, Any] = {
             "dest": prefix + f.name,
             "default": default,

@@ -51,9 +51,9 @@ class WarmStartConfig:
 
     teacher: str = setting(
         "",
-        "first fit the actor to this rule's actions (behaviour cloning), then run "
-        "PPO (ours; e.g. aoa, as the shipped policies; default: off, the paper's PPO "
-        "from scratch)",
+        "first fit the actor to this rule's actions (behaviour cloning), then run PPO (ours; "
+        f"one of {', '.join(TEACHER_NAMES)}; solo, lead, spread and bearings fly fleets: "
+        "uavlink/learn/teachers.py; default: off, the paper's PPO from scratch)",
         flag="--warm-start",
         metavar="RULE",
         choices=("", *TEACHER_NAMES),
@@ -61,7 +61,7 @@ class WarmStartConfig:
     episodes: int = setting(256, "episodes the rule flies to make the cloning data", low=1)
     epochs: int | None = setting(
         None,
-        "passes of the actor over the cloning data (default 20, imitation.CLONE_EPOCHS)",
+        "passes of the actor over the cloning data (default: 20)",
         low=1,
         metavar="N",
     )
@@ -112,7 +112,7 @@ class WarmStartConfig:
         0,
         "after the first fit, this many rounds in which the copy flies the same number of "
         "episodes, the teacher labels the frames it meets and the copy is fitted again on all "
-        "the data (DAgger, Ross et al. 2011; ours; default: off)",
+        "the data (DAgger, Ross et al. 2011; ours; 0: off)",
         low=0,
         metavar="N",
     )
@@ -281,6 +281,14 @@ class TrainConfig:
                 self.episodes * env.episode_frames * sum(self.fleet_sizes) // len(self.fleet_sizes)
             )
         return self.episodes * env.episode_frames * env.n_uavs
+
+    def trained_timesteps(self, env: EnvConfig) -> int:
+        """What a training from scratch runs: ``total_timesteps`` rounded up to whole rollouts
+        (SB3 collects a whole rollout of every agent row, ``n_steps`` each, before it checks the
+        budget), so a budget below one rollout trains one."""
+        rows = self.n_envs * (sum(self.fleet_sizes) if self.fleet_sizes else env.n_uavs)
+        rollout = rows * self.n_steps
+        return -(-self.total_timesteps(env) // rollout) * rollout
 
     def validate(self, env: EnvConfig | None = None, name: Namer = config_name) -> TrainConfig:
         """Every check of a training's settings, each a one-line ConfigError naming the field (as

@@ -212,8 +212,6 @@ class _Loop:
                 last = self.newest[i]
                 if not r.running or (last is not None and r.frame <= last.frame):
                     continue
-                if last is not None and self.decided >= 0:
-                    self.result.frames_missed += max(0, r.frame - last.frame - 1) if i == 0 else 0
                 self.newest[i] = r
                 self.seen_at.setdefault(r.frame, now)
                 self.last_radio = now
@@ -238,6 +236,7 @@ class _Loop:
         if (
             frame >= self.loop_cfg.frames
         ):  # past the flight's frames: nothing to decide, nothing to wait for
+            self._count_skipped(self.loop_cfg.frames)
             self._decided(frame)
             return None
         live = [now - link.last_rx_wall < LIVE_S for link in self.links]
@@ -290,6 +289,7 @@ class _Loop:
         for i in np.flatnonzero(movable):
             self.send(int(i))
             result.vehicles[i].decisions += 1
+        self._count_skipped(frame)
         self._decided(frame, movable)
         result.decisions += 1
         result.latencies_s.append(time.monotonic() - arrived)
@@ -315,6 +315,16 @@ class _Loop:
                     xy_m[i], velocity_mps[i], sent[i], age_s, half
                 )
         return xy_m, velocity_mps
+
+    def _count_skipped(self, frame: int) -> None:
+        """Count the flight's frames before ``frame`` that went by undecided since the last decision
+        (or since the first report: a fleet's first decision waits for every vehicle's readings, and
+        a free-running world does not wait for it)."""
+        first = self.result.first_frame
+        since = (
+            self.decided if self.decided >= 0 else (first - 1 if first is not None else frame - 1)
+        )
+        self.result.frames_missed += max(0, frame - since - 1)
 
     def _decided(self, frame: int, moved: Sequence[bool] | np.ndarray | None = None) -> None:
         """Frame ``frame`` is decided (every setpoint sent): a lockstep world may go on. ``moved``:

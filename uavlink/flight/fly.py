@@ -44,7 +44,7 @@ from uavlink.flight.vehicles import (
 )
 from uavlink.mavlink.signing import load_key
 from uavlink.policies.contract import EnvOverrides, load_with_env
-from uavlink.policies.loader import locate
+from uavlink.policies.loader import locate, shipped_note
 from uavlink.policies.registry import flying_baselines
 
 
@@ -91,7 +91,7 @@ def fly_policy(options: FlyOptions, live_status: bool = False) -> dict[str, Any]
     )
     key = load_key(options.signing_key) if options.signing_key else None  # before anything flies
     urls = None if options.connect is None else split_urls(options.connect)
-    policy_path = str(locate(options.policy, announce=True))
+    policy_path = str(locate(options.policy))
     overrides = EnvOverrides.from_command_line(
         options.scenario, options.aoa_noise_deg, list(options.overrides)
     )
@@ -112,6 +112,9 @@ def fly_policy(options: FlyOptions, live_status: bool = False) -> dict[str, Any]
         )
     # the pilot checks the layouts, before anything is armed
     pilot = (FleetPilot if fleet else PolicyPilot)(policy, cfg)
+    note = shipped_note([options.policy], [policy_path])  # every input checked: say it now
+    if note:
+        print(note, file=sys.stderr)
     out_dir = options.out
     out_dir.mkdir(parents=True, exist_ok=True)
     tlog = out_dir / "flight.tlog"

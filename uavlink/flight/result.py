@@ -332,11 +332,17 @@ def flown_name(summary: dict) -> str:
     return repr(summary["scenario"]) + (f" (drawn from {drawn})" if drawn else "")
 
 
+def _count(n: int, noun: str) -> str:
+    """``1 decision``, ``3 decisions``."""
+    return f"{n} {noun}{'' if n == 1 else 's'}"
+
+
 def flown_line(summary: dict, out_dir: Path) -> str:
     """The line after a complete flight: what was flown, how well, where its files are."""
     if "vehicles" in summary:  # a fleet
         per = "; ".join(
-            f"system {v['system_id']}: {v['decisions']} decisions, {v['holds']} holds"
+            f"system {v['system_id']}: {_count(v['decisions'], 'decision')}, "
+            f"{_count(v['holds'], 'hold')}"
             for v in summary["vehicles"]
         )
         how = (
@@ -347,6 +353,12 @@ def flown_line(summary: dict, out_dir: Path) -> str:
         how = (
             f": mean UE throughput {summary['mean_rate_mbps']} Mbps; decision latency p50 "
             f"{summary['latency_ms_p50']} ms, p99 {summary['latency_ms_p99']} ms"
+        )
+    missed = summary.get("radio_frames_missed")
+    if missed:  # the figures are over the frames flown; say how many of them went undecided
+        how += (
+            f"; {_count(missed, 'frame')} went by without a decision (the radio reports came "
+            f"late or not at all)"
         )
     late = summary.get("lockstep_timeouts")
     if late:  # the replay no longer matches: say so where the figures are

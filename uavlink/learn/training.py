@@ -327,7 +327,9 @@ def train(
     if run_dir is not None:  # made once the inputs have loaded: a bad one leaves no empty folder
         run_dir.mkdir(parents=True, exist_ok=True)
     total_timesteps = tc.total_timesteps(cfg)
-    monitor = training_monitor(total_timesteps, run_dir, tc.checkpoint_every_steps, progress)
+    monitor = training_monitor(
+        tc.trained_timesteps(cfg), run_dir, tc.checkpoint_every_steps, progress
+    )
     callbacks = [monitor, *callbacks]
     warmup = None
     if cloned is not None:

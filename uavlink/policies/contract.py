@@ -47,8 +47,8 @@ BUILT_FOR = (
 OVERRIDES_HELP = (
     f"A policy file runs in the env its manifest records; --scenario, --aoa-noise-deg and --set "
     f"override it. Radio physics and the world may be overridden (a robustness study); what "
-    f"the policy was built for ({', '.join(BUILT_FOR)}) may not. Baselines get the env of the "
-    f"policy they are compared with."
+    f"the policy was built for ({', '.join(BUILT_FOR)}) may not, except n_uavs within the "
+    f"sizes an any-size fleet policy flies (fleet_slots K: 2 to K + 1 UAVs)."
 )
 # What compared policies may differ in: each flies with its own action mapping and memory, and with
 # its own number of UAVs and its own memory of place over the same UEs and channel (a fleet against one UAV: the per-episode
@@ -194,7 +194,7 @@ def resolve(spec: str | Path, scenario: str | None) -> str | Path:
     if str(spec) in BASELINES or not Path(spec).is_dir():
         return spec
     if scenario is None:
-        raise UserError(f"{spec} is a folder of policies: name a scenario (--scenario) to pick one")
+        raise UserError(f"{spec} is a folder: name a scenario (--scenario) to pick its policy")
     return policy_for_scenario(Path(spec), scenario)
 
 

@@ -16,7 +16,7 @@ from __future__ import annotations
 
 import difflib
 import importlib.util
-import sys
+from collections.abc import Sequence
 from pathlib import Path
 from typing import TYPE_CHECKING
 
@@ -53,15 +53,17 @@ def shipped_policies() -> dict[str, Path]:
     return dict(sorted(found.items()))
 
 
-def locate(spec: str | Path, announce: bool = False) -> str | Path:
+def locate(spec: str | Path) -> str | Path:
     """What ``--policy`` names, in order: an existing file or folder (as given), a baseline, a
     shipped policy or folder by name (``circular``, ``circular.zip``, ``spatial/circular``,
     ``map/no_move``, ``fleet/straight_180``, ``policies/circular.zip``). Anything else is a
-    PolicyFileError naming the closest shipped policies. ``announce``: say on stderr which shipped
-    file a name became (the commands do; a Python caller gets the path and no output)."""
+    PolicyFileError naming the closest shipped policies. Quiet: a command says which shipped file a
+    name became (``shipped_note``) once its other checks have passed, so bad input stays one line."""
     text = str(spec)
     if text in BASELINES or Path(text).exists():
         return spec
+    if Path(text).is_absolute() or text.startswith((".", "~")):  # a path, not a name to look up
+        raise PolicyFileError(f"{text}: no such file")
     name = text.removeprefix("policies/").rstrip("/")
     stem = next((name[: -len(s)] for s in POLICY_SUFFIXES if name.endswith(s)), name)
     root = shipped_root()
@@ -78,14 +80,22 @@ def locate(spec: str | Path, announce: bool = False) -> str | Path:
         else:
             found = None
         if found is not None:
-            if announce:
-                print(f"uavlink: --policy {text}: the shipped {found}", file=sys.stderr)
             return found
     close = difflib.get_close_matches(stem, [*shipped, *BASELINES], n=3, cutoff=0.6)
     hint = f"; closest: {', '.join(close)}" if close else ""
     raise PolicyFileError(
         f"{text}: no such file, baseline ({', '.join(BASELINES)}) or shipped policy{hint} "
         "(`uavlink policies` lists them)"
+    )
+
+
+def shipped_note(specs: Sequence[str | Path], found: Sequence[str | Path]) -> str:
+    """The lines (stderr) that say which shipped file each name became, ``uavlink: --policy NAME: the
+    shipped FILE``; empty where every spec named a file or baseline as given."""
+    return "\n".join(
+        f"uavlink: --policy {spec}: the shipped {path}"
+        for spec, path in zip(specs, found, strict=True)
+        if str(spec) != str(path)
     )
 
 
