@@ -482,7 +482,7 @@ def test_a_fleets_table_adds_jain_the_cell_edge_rate_and_ues_per_uav(capsys):
     ]
     assert main(fleet) == 0
     header, row = capsys.readouterr().out.strip().splitlines()[-2:]
-    assert header.split()[-6:] == ["Jain", "p5", "Mbps", "UEs", "per", "UAV"]
+    assert header.split()[-8:] == ["Jain", "p5", "Mbps", "UEs", "per", "UAV,", "busiest", "first"]
     result = cli_json(*fleet, "--json")
     assert row.split()[-4:] == [
         f"{result['jain_index']:.3f}",

@@ -305,3 +305,21 @@ def test_the_pool_takes_the_genie_first_largest_fleet_first() -> None:
         *(f"D{d} genie" for d in (4, 3, 2, 1)),
         *(f"D{d} {name}" for d in (4, 3, 2, 1) for name in ("static", "PPO")),
     ]
+
+
+def test_ues_per_uav_are_counted_busiest_first_so_roles_are_not_averaged_away():
+    """The lead teacher's fleet on no_move serves the team from one UAV, whichever it is: counted
+    by UAV index the two cells averaged about 5 / 5 (results.md said 4.8 / 5.2), busiest first the
+    leader's cell holds most of the team; every frame's counts still add up to the UEs."""
+    from uavlink.evaluation import evaluate_policy
+    from uavlink.policies.contract import load_with_env
+
+    [(policy, cfg)] = load_with_env(
+        [Path(__file__).resolve().parents[1] / "policies" / "fleet" / "no_move.zip"],
+        EnvOverrides(settings={"n_uavs": 2}),
+    )
+    result = evaluate_policy(policy, cfg, episodes=4, seed=0)
+    per_uav = result.ues_per_uav
+    assert np.all(np.diff(result.episode_ues_per_uav, axis=1) <= 0)
+    np.testing.assert_allclose(result.episode_ues_per_uav.sum(axis=1), cfg.n_ues)
+    assert per_uav[0] > 8.0 > 2.0 > per_uav[1], per_uav

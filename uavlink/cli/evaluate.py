@@ -32,13 +32,13 @@ def cmd_evaluate(args: argparse.Namespace) -> int:
     given = [args.policy, *(args.against or [])]
     args.policy = str(locate(args.policy))
     args.against = [str(locate(spec)) for spec in args.against or []]
-    args.shipped_note = shipped_note(given, [args.policy, *args.against])
+    note = shipped_note(given, [args.policy, *args.against])
     if args.episodes < 1:
         raise UserError(f"--episodes must be a positive integer, got {args.episodes}")
     if args.out is not None:
         if args.against:
             raise UserError("--against compares policies in a table; it does not go with --out")
-        return _write_results_folder(args)
+        return _write_results_folder(args, note)
     report_only = [
         flag
         for flag, value in (
@@ -70,9 +70,9 @@ def cmd_evaluate(args: argparse.Namespace) -> int:
         for scenario in scenarios:
             flown = []
             loaded = load_with_env(specs, overrides.on(scenario))
-            if args.shipped_note:  # every input checked: say which files the names became
-                print(args.shipped_note, file=sys.stderr)
-                args.shipped_note = ""
+            if note:  # every input checked: say which files the names became
+                print(note, file=sys.stderr)
+                note = ""
             for spec, (policy, cfg) in zip(specs, loaded, strict=True):
                 status.show(f"evaluating {cfg.scenario}: {spec} ({args.episodes} episodes)")
                 flown.append(evaluate_policy(policy, cfg, args.episodes, args.seed))
@@ -103,7 +103,7 @@ def cmd_evaluate(args: argparse.Namespace) -> int:
     return 0
 
 
-def _write_results_folder(args: argparse.Namespace) -> int:
+def _write_results_folder(args: argparse.Namespace, note: str) -> int:
     from uavlink.evaluation.report import write_results
     from uavlink.evaluation.tables import ReportRun
     from uavlink.learn.teachers import policy_teacher
@@ -152,8 +152,8 @@ def _write_results_folder(args: argparse.Namespace) -> int:
         map=args.map,
     )
     sweeps.check_finished()  # before the long evaluation, which would write the folder
-    if args.shipped_note:
-        print(args.shipped_note, file=sys.stderr)
+    if note:
+        print(note, file=sys.stderr)
 
     status = StatusLine(log_lines=True)  # the report runs for hours: a log says how far it got
     try:
@@ -205,7 +205,7 @@ class StatusLine:
 
 def format_table(results) -> str:
     """One row per result; a fleet's (more than one UAV) adds Jain's index, the
-    5th-percentile UE rate and the UEs each UAV serves."""
+    5th-percentile UE rate and the UEs per UAV, busiest first."""
     width = max([16, *(len(r.policy) for r in results)])
 
     def is_fleet(r) -> bool:
@@ -213,7 +213,7 @@ def format_table(results) -> str:
 
     fleet = any(is_fleet(r) for r in results)
     head = f"{'scenario':<13} {'policy':<{width}} {'episodes':>8} {'Mbps':>7} {'±95%':>6} {'R_fair':>7}"
-    lines = [head + (f" {'Jain':>5} {'p5 Mbps':>7}  UEs per UAV" if fleet else "")]
+    lines = [head + (f" {'Jain':>5} {'p5 Mbps':>7}  UEs per UAV, busiest first" if fleet else "")]
     for r in results:
         row = (
             f"{r.scenario:<13} {r.policy:<{width}} {r.episodes:>8} {r.mean_rate_mbps:>7.3f} "

@@ -46,7 +46,10 @@ class _Tally:
         self.fair.append(result.fair_rate)
         self.jain.append(rate.sum(axis=1) ** 2 / (rate.shape[1] * (rate**2).sum(axis=1)))
         self.ue_rate_mbps.append(rate * 1e-6)
-        self.cell_size.append((readings.serving[:, :, None] == np.arange(n_uavs)).sum(axis=1))
+        cells = (readings.serving[:, :, None] == np.arange(n_uavs)).sum(axis=1)
+        # busiest first: a UAV's index says nothing of its role, which moves between UAVs from
+        # episode to episode (a lead teacher's leader is whichever serves most)
+        self.cell_size.append(-np.sort(-cells, axis=1))
 
 
 @dataclass
@@ -63,7 +66,9 @@ class EvalResult:
       ``mean_fair_rate`` is their mean (10 UEs at 1 Mbit/s each: 60);
     * ``episode_jain`` (E,): Jain's index of the UE rates, 1/U to 1 (``jain_index``: the mean);
     * ``ue_rate_mbps`` (E, U): each UE's mean rate, Mbit/s (``p5_ue_rate_mbps``: the 5th percentile);
-    * ``episode_ues_per_uav`` (E, D): UEs each UAV serves (``ues_per_uav``: the mean per UAV).
+    * ``episode_ues_per_uav`` (E, D): UEs the busiest UAV of each frame serves, the next busiest,
+      and so on (``ues_per_uav``: their means), which says how a fleet shares the team whichever
+      UAV takes which role.
 
     ``trajectory``: episode 0's positions when asked for (``record_trajectory``), else None."""
 
@@ -76,7 +81,7 @@ class EvalResult:
     episode_fair_rate: np.ndarray
     episode_jain: np.ndarray  # (E,) Jain's index of the UE rates, mean over frames
     ue_rate_mbps: np.ndarray  # (E, U) each UE's mean rate over its episode
-    episode_ues_per_uav: np.ndarray  # (E, D) UEs each UAV serves, mean over frames
+    episode_ues_per_uav: np.ndarray  # (E, D) UEs per UAV, busiest first, mean over frames
     trajectory: Trajectory | None = field(default=None, repr=False)
 
     @property
@@ -107,7 +112,7 @@ class EvalResult:
 
     @property
     def ues_per_uav(self) -> np.ndarray:
-        """(D,) UEs each UAV serves, mean over frames and episodes."""
+        """(D,) UEs the busiest UAV serves, the next busiest, ...: means over frames and episodes."""
         return self.episode_ues_per_uav.mean(axis=0)
 
     def to_dict(self) -> dict[str, Any]:

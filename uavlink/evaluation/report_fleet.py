@@ -318,7 +318,9 @@ def fleet_markdown(
         "bar (the episodes do not show PPO below it), `above` where its lower end is above it; `met` "
         "says whether every bar of the row holds and names those that do not. The fleet metrics "
         "below each: Jain's index of the UE rates (mean over frames), the 5th percentile of the UEs' "
-        "episode rates, the mean number of UEs each UAV serves.",
+        "episode rates, the mean number of UEs the busiest UAV of each frame serves, then the next "
+        "busiest (the roles move between UAVs from episode to episode, so a UAV's index would "
+        "average them away).",
         "",
     ]
     for d in sizes:

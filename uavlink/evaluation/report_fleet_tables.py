@@ -137,7 +137,15 @@ def ratio_table(rows: Rows, d: int) -> Table:
 
 def metrics_table(rows: Rows, d: int) -> Table:
     """At D = ``d``: the fleet metrics of the fleet policy, the per-size one and every baseline."""
-    header = ["scenario", "policy", "Mbps", "R_fair", "Jain", "5th pct UE Mbps", "UEs per UAV"]
+    header = [
+        "scenario",
+        "policy",
+        "Mbps",
+        "R_fair",
+        "Jain",
+        "5th pct UE Mbps",
+        "UEs per UAV, busiest first",
+    ]
     body = []
     for scenario, r in rows.items():
         keys = [ppo(d), per_size(d), *(f"D{d} {b}" for b in FLEET_BASELINES)]
