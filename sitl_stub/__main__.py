@@ -33,7 +33,7 @@ from sitl_stub.sim.payload import Payload, PayloadFactory, PayloadOptions, as_pa
 from uavlink.config import MIXED, SCENARIO_NAMES, parse_settings
 from uavlink.errors import OneLineParser
 from uavlink.mavlink.connection import normalize_connection
-from uavlink.mavlink.signing import load_key
+from uavlink.mavlink.signing import key_file_argument, load_key
 
 if TYPE_CHECKING:
     from sitl_stub.fleet import FleetServer
@@ -157,7 +157,8 @@ def build_parser() -> argparse.ArgumentParser:
         help="run D vehicles in this process around one shared radio world (n_uavs = D), "
         "as PX4's multi-vehicle SITL: vehicle i is instance N+i, system N+i+1, on that "
         "instance's ports (all GCS links to 14550), spawning at the fleet's start "
-        "position i (its home); with --connect, give D URLs, vehicle i on the i-th",
+        "position i (its home); with --connect, give D URLs, vehicle i on the i-th "
+        "(default: one vehicle)",
     )
     p.add_argument(
         "--speed", type=_positive, default=1.0, help="simulated seconds per wall second (default 1)"
@@ -170,7 +171,7 @@ def build_parser() -> argparse.ArgumentParser:
         f"{MIXED}: each flight's episode draws one, as `uavlink evaluate --episodes 1 "
         "--seed S` draws it for the same seed",
     )
-    p.add_argument("--seed", type=int, default=0, help="radio payload seed (default 0)")
+    p.add_argument("--seed", type=int, default=0, help="radio payload seed, 0..2**31-1 (default 0)")
     p.add_argument(
         "--aoa-noise-deg",
         type=_non_negative,
@@ -238,8 +239,10 @@ def build_parser() -> argparse.ArgumentParser:
         "--signing-key",
         metavar="FILE",
         default=None,
+        type=key_file_argument,
         help="MAVLink 2 signing key (32 raw bytes, e.g. from `uavlink keygen`): sign "
-        "everything sent, drop every unsigned, wrongly signed or replayed packet",
+        "everything sent, drop every unsigned, wrongly signed or replayed packet (default: "
+        "unsigned)",
     )
     p.add_argument(
         "--lockstep",
@@ -249,7 +252,12 @@ def build_parser() -> argparse.ArgumentParser:
         "at most 2 s of wall time: a flight decides every frame at the instant the env "
         "does and replays exactly (needs the radio payload: not with --no-payload)",
     )
-    p.add_argument("-v", "--verbose", action="store_true", help="log every event")
+    p.add_argument(
+        "-v",
+        "--verbose",
+        action="store_true",
+        help="log vehicle events (also sent as STATUSTEXT)",
+    )
     return p
 
 
@@ -289,7 +297,7 @@ def main(argv: Sequence[str] | None = None, payload_factory: PayloadFactory | No
             if args.no_payload or args.fleet
             else as_payload_list((payload_factory or radio_payload)(options))
         )
-        key = load_key(args.signing_key) if args.signing_key else None
+        key = load_key(args.signing_key) if args.signing_key is not None else None
         config = ServerConfig(
             connect=args.connect,
             instance=args.instance,

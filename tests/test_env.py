@@ -402,7 +402,7 @@ def test_unknown_config_key_is_rejected():
 def test_action_of_wrong_shape_is_rejected(action):
     env = gym.make(ENV_ID, scenario="no_move")
     env.reset(seed=0)
-    with pytest.raises(ValueError, match=r"action must have shape \(1, 2\)"):
+    with pytest.raises(ValueError, match=r"the action has shape \(2,\) \(the action space's\)"):
         fresh(env).step(action)
 
 

@@ -243,3 +243,22 @@ def test_sitl_fleet_refuses_connect_count_mismatch() -> None:
     assert proc.returncode == 2
     assert "--fleet 2 with --connect needs 2 --connect URLs" in proc.stderr
     assert len(proc.stderr.strip().splitlines()) == 1
+
+
+def test_sitl_fleet_refuses_two_vehicles_listening_on_one_port() -> None:
+    """`--fleet 2 --connect udp:P --connect udp:P`: pymavlink binds with SO_REUSEADDR, so both
+    opened and one vehicle never heard a packet (the flight failed 30 s later); now the second
+    listen fails at start, exit 1, one line naming the port."""
+    from uavlink.mavlink.connection import free_udp_port
+
+    url = f"udp:127.0.0.1:{free_udp_port()}"
+    proc = subprocess.run(
+        [sys.executable, "-m", "sitl_stub", "--fleet", "2", "--connect", url, "--connect", url],
+        capture_output=True,
+        text=True,
+        timeout=60,
+        cwd=ROOT,
+    )
+    assert proc.returncode == 1, proc.stderr
+    [line] = proc.stderr.strip().splitlines()
+    assert "cannot open udpin:127.0.0.1:" in line and "Address already in use" in line

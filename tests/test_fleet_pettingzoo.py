@@ -138,6 +138,21 @@ def test_every_live_agent_must_act() -> None:
         env.step({"uav_0": [np.nan, 0.0], "uav_1": [0.0, 0.0]})
 
 
+def test_common_mistakes_get_a_message_that_names_them() -> None:
+    """Before, numpy's and dict's own errors: 'all input arrays must have the same shape', 'the
+    truth value of an array ... is ambiguous', a bare KeyError, an AttributeError for config=."""
+    env = parallel_env("no_move", 2, episode_frames=4)
+    env.reset(seed=0)
+    with pytest.raises(UserError, match=r"shape \(2,\): got uav_0 \(3,\)"):
+        env.step({"uav_0": np.zeros(3), "uav_1": np.zeros(2)})
+    with pytest.raises(UserError, match="actions must be a dict of agent -> action"):
+        env.step([np.zeros(2), np.zeros(2)])
+    with pytest.raises(UserError, match="no agent 'uav_7'"):
+        env.observation_space("uav_7")
+    with pytest.raises(UserError, match="config must be an EnvConfig"):
+        parallel_env(config="no_move")
+
+
 def test_separation_holds_over_random_actions_towards_each_other() -> None:
     env = parallel_env("circular", 3)
     env.reset(seed=2)

@@ -174,21 +174,43 @@ def test_fly_refuses_bad_policy_before_arming(tmp_path: Path, policy: str, messa
 
 
 def test_fly_on_a_port_another_program_holds_says_so_in_one_line(tmp_path: Path) -> None:
-    """QGroundControl listens on 14550, the default: a second listener there is the user's to move."""
+    """QGroundControl listens on 14550, the default: a second listener there is the user's to move.
+    The holder shares its port (SO_REUSEADDR, as pymavlink and ground stations bind): before, a
+    second pymavlink listener then opened without error and heard nothing."""
     import socket
 
     with socket.socket(socket.AF_INET, socket.SOCK_DGRAM) as holder:
+        holder.setsockopt(socket.SOL_SOCKET, socket.SO_REUSEADDR, 1)
         holder.bind(("127.0.0.1", 0))
         port = holder.getsockname()[1]
-        proc = run(
-            [*UAVLINK, "fly", "--policy", "aoa", "--connect", f"udpin:127.0.0.1:{port}"]
-            + ["--out", str(tmp_path)],
-            timeout=60,
-        )
-    assert proc.returncode == 2 and "Traceback" not in proc.stderr, proc.stderr
-    [line] = proc.stderr.strip().splitlines()
-    assert f"cannot open udpin:127.0.0.1:{port}" in line and "another ground station" in line
+        rc, line, _ = _fly_aoa_over(f"udpin:127.0.0.1:{port}", tmp_path)
+    assert rc == 2 and f"cannot open udpin:127.0.0.1:{port}" in line
+    assert "another ground station" in line
     assert not (tmp_path / "flight.tlog").exists(), "nothing was flown"
+
+
+def test_fly_to_a_tcp_port_nobody_listens_on_is_a_link_failure_in_one_line(tmp_path: Path) -> None:
+    """A refused TCP connect: exit 1 (the vehicle is not there, not bad input), one line on stderr
+    that asks whether the vehicle runs, and nothing of pymavlink's retries on stdout."""
+    from uavlink.mavlink.connection import free_udp_port
+
+    port = free_udp_port()  # a port below the ephemeral range that no test listens on over TCP
+    rc, line, stdout = _fly_aoa_over(f"tcp:127.0.0.1:{port}", tmp_path)
+    assert (
+        rc == 1 and "cannot connect to tcp:127.0.0.1" in line and "is the vehicle running" in line
+    )
+    assert stdout == ""
+
+
+def _fly_aoa_over(url: str, out: Path) -> tuple[int, str, str]:
+    """`uavlink fly --policy aoa --connect URL` as a process: its exit status, its one stderr line
+    (no traceback) and its stdout."""
+    proc = run(
+        [*UAVLINK, "fly", "--policy", "aoa", "--connect", url, "--out", str(out)], timeout=60
+    )
+    assert "Traceback" not in proc.stderr, proc.stderr
+    [line] = proc.stderr.strip().splitlines()
+    return proc.returncode, line, proc.stdout
 
 
 class _BadPolicy:

@@ -72,6 +72,17 @@ def test_fly_refuses_several_urls_for_one_vehicle(tmp_path: Path) -> None:
     assert not out.exists()
 
 
+def test_fly_refuses_a_speed_for_a_vehicle_it_connects_to(tmp_path: Path) -> None:
+    """--speed sets the embedded SITL's clock: with --connect it did nothing, and said nothing."""
+    out = tmp_path / "out"
+    proc = run_uavlink_in_process(
+        "fly", "--policy", "aoa", "--speed", "5", "--connect", "udpout:127.0.0.1:9", "--out",
+        str(out),
+    )  # fmt: skip
+    assert_user_error(proc, "uavlink fly: error: ", "--speed sets the embedded SITL's clock")
+    assert not out.exists()
+
+
 # ------------------------------------------------------------------ which baselines fly (fast)
 def test_the_baselines_that_fly_are_those_that_read_no_truth_in_help_and_refusals(
     tmp_path: Path,

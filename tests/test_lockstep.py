@@ -228,6 +228,21 @@ def test_fly_refuses_lockstep_with_connect() -> None:
 
 
 @pytest.mark.slow
+@pytest.mark.timeout(120)
+def test_a_short_flight_of_a_field_model_says_why_it_has_no_replay(tmp_path) -> None:
+    """The kriging rule plans over the episode's length, so 4 frames of a 128-frame episode are not
+    a 4-frame episode: no replay command, and the summary says why (before: a bare null)."""
+    flown = cli_json(
+        "fly", "--out", str(tmp_path), "--json", "--no-picture", "--lockstep", "--policy",
+        "kriging", "--scenario", "no_move", "--frames", "4", "--set",
+        "radio.shadowing_model=spatial",
+    )  # fmt: skip
+    assert flown["completed"] and flown["replay"] is None
+    assert "model of the field plans over the whole episode" in flown["no_replay_because"]
+    assert "fly all 128 to replay it" in flown["no_replay_because"]
+
+
+@pytest.mark.slow
 @pytest.mark.timeout(240)
 @pytest.mark.parametrize(("policy", "seed"), [(MAP_NO_MOVE, 0), ("kriging", 0)])
 def test_a_lockstep_flight_replays_and_matches_the_px4_motion_evaluation(

@@ -125,6 +125,22 @@ def test_keygen_writes_a_private_32_byte_key_and_never_overwrites(tmp_path: Path
         assert r.returncode == 2 and "32 raw bytes" in r.stderr and "Traceback" not in r.stderr
 
 
+def test_an_empty_key_name_is_refused_on_both_ends_not_read_as_no_key() -> None:
+    """`--signing-key "$KEY"` with KEY unset: before, both ends flew an unsigned link and said
+    nothing; now each refuses in one line before anything starts."""
+    fly = run_uavlink_in_process("fly", "--policy", "static", "--frames", "1", "--signing-key", "")
+    assert fly.returncode == 2 and "--signing-key: an empty file name" in fly.stderr
+    assert len(fly.stderr.strip().splitlines()) == 1 and "Traceback" not in fly.stderr
+    vehicle = subprocess.run(
+        [sys.executable, "-m", "sitl_stub", "--signing-key", "", "--duration-s", "1"],
+        capture_output=True,
+        text=True,
+        timeout=60,
+    )
+    assert vehicle.returncode == 2 and "--signing-key: an empty file name" in vehicle.stderr
+    assert len(vehicle.stderr.strip().splitlines()) == 1 and vehicle.stdout == ""
+
+
 def test_verifier_refuses_unsigned_wrong_key_replay_and_stale_streams() -> None:
     key = os.urandom(32)
     rx, guard = _endpoint(key, 1, 1)

@@ -518,6 +518,10 @@ def test_spread_search_pairs_each_pair_with_kmeans_and_no_spread_is_kmeans() -> 
         assert lo <= r <= hi and abs(r - row["spread_mbps"] / row["kmeans_mbps"]) < 1e-3
         if row["spread_m"] == 0 and row["lead_frames"] == 0:
             assert row["spread_vs_kmeans"] == [1.0, 1.0, 1.0]
+        if (
+            row["spread_m"] == 20 and row["lead_frames"] == 1
+        ):  # the shipped rule, paired with itself
+            assert row["spread_vs_shipped_rule"] == [1.0, 1.0, 1.0]
     assert len({r["spread_mbps"] for r in rows if r["n_uavs"] == 2}) > 1  # the knobs move the UAVs
 
 

@@ -22,7 +22,7 @@ from contextlib import contextmanager
 from dataclasses import dataclass
 from typing import Any
 
-from uavlink.mavlink.connection import normalize_connection
+from uavlink.mavlink.connection import normalize_connection, open_mavlink
 from uavlink.mavlink.dialect import mavlink, mavutil
 
 API_LOCAL_PORT = 14580  # + instance: where the API link sends from and receives
@@ -110,7 +110,7 @@ class Link:
         if spec.local_port is not None:
             self.conn: Any = PortPairUdp(spec, system_id, component_id)
         else:
-            self.conn = mavutil.mavlink_connection(
+            self.conn = open_mavlink(
                 spec.connect, source_system=system_id, source_component=component_id
             )
         self.mav = self.conn.mav

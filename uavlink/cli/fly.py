@@ -6,7 +6,8 @@ import argparse
 from pathlib import Path
 
 from uavlink.cli.options import output_folder, seed
-from uavlink.errors import EXTRA_OF_MODULE
+from uavlink.errors import EXTRA_OF_MODULE, UserError
+from uavlink.mavlink.signing import key_file_argument
 from uavlink.policies.contract import OVERRIDES_HELP
 from uavlink.policies.registry import flying_baselines
 
@@ -15,6 +16,11 @@ def cmd_fly(args: argparse.Namespace) -> int:
     from uavlink.flight.fly import FlyOptions, run_fly
 
     output_folder(args.out, "--out")
+    if args.speed is not None and args.connect is not None:
+        raise UserError(
+            "--speed sets the embedded SITL's clock; a vehicle you connect to runs at the speed "
+            "it was started with (sitl-stub --speed)"
+        )
     options = FlyOptions(
         policy=args.policy,
         connect=args.connect,
@@ -22,12 +28,12 @@ def cmd_fly(args: argparse.Namespace) -> int:
         seed=args.seed,
         aoa_noise_deg=args.aoa_noise_deg,
         overrides=tuple(args.overrides),
-        speed=args.speed,
+        speed=args.speed if args.speed is not None else FlyOptions.speed,
         lockstep=args.lockstep,
         frames=args.frames,
         out=args.out,
         picture=not args.no_picture,
-        signing_key=Path(args.signing_key) if args.signing_key else None,
+        signing_key=Path(args.signing_key) if args.signing_key is not None else None,
         verbose=args.verbose,
     )
     return run_fly(options, as_json=args.json, quiet=args.quiet)
@@ -35,7 +41,15 @@ def cmd_fly(args: argparse.Namespace) -> int:
 
 def policy_help() -> str:
     """What ``--policy`` takes: a policy file, a baseline that flies or a shipped policy's name."""
-    return " | ".join(("FILE.zip", "FILE.onnx", *flying_baselines(), "NAME (uavlink policies)"))
+    return " | ".join(
+        (
+            "FILE.zip",
+            "FILE.onnx",
+            *flying_baselines(),
+            "NAME (uavlink policies)",
+            "FOLDER (its policy for --scenario)",
+        )
+    )
 
 
 def add_fly_parser(sub) -> None:
@@ -94,8 +108,9 @@ def add_fly_parser(sub) -> None:
     p.add_argument(
         "--speed",
         type=float,
-        default=20.0,
-        help="embedded SITL speed factor, > 0 (simulated seconds per wall second; default 20): "
+        default=None,
+        help="embedded SITL speed factor, > 0 (simulated seconds per wall second; default 20; "
+        "a vehicle you --connect to runs at the speed it was started with): "
         "a vehicle waits 1/speed s of wall time for setpoints, so where the flight says its "
         "vehicles fell back to hold, fly slower or with --lockstep",
     )
@@ -129,6 +144,7 @@ def add_fly_parser(sub) -> None:
         "--signing-key",
         metavar="FILE",
         default=None,
+        type=key_file_argument,
         help="MAVLink 2 signing key (32 raw bytes, from `uavlink keygen`): sign everything "
         "sent, accept only packets signed with it (the embedded SITL gets it too)",
     )

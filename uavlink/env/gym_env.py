@@ -9,12 +9,17 @@ import numpy as np
 
 from uavlink.config import EnvConfig
 from uavlink.env.core import BatchedUavEnv
-from uavlink.errors import UserError
+from uavlink.errors import ConfigError, UserError
 
 
 def config_with(config: EnvConfig, named: dict[str, Any], overrides: dict[str, Any]) -> EnvConfig:
     """``config`` with the named arguments that were given (not None) and ``overrides`` applied, so
     ``make(..., config=cfg, scenario="hotspot")`` flies hotspot rather than dropping the argument."""
+    if not isinstance(config, EnvConfig):
+        raise ConfigError(
+            f"config must be an EnvConfig (uavlink.config.EnvConfig), got {type(config).__name__} "
+            f"{config!r}; or pass scenario=... and fields by name"
+        )
     changes = {key: value for key, value in named.items() if value is not None} | overrides
     return config.replace(**changes).validate() if changes else config.validate()
 
@@ -77,9 +82,10 @@ class UavBsEnv(gym.Env):
         """Move the UAV by ``action`` and advance a frame: (observation, reward, False, truncated, info)."""
         if not self._running:
             raise RuntimeError("the episode has ended (or not begun): call reset()")
-        result = self.core.step(
-            np.asarray(action, dtype=float).reshape(1, -1) if np.ndim(action) == 1 else action
-        )
+        move = np.asarray(action, dtype=float)
+        if move.shape not in ((2,), (1, 2)):
+            raise UserError(f"the action has shape (2,) (the action space's), got {move.shape}")
+        result = self.core.step(move.reshape(1, 2))
         info = {
             "mean_rate_mbps": float(result.mean_rate_mbps[0]),
             "fair_rate": float(result.fair_rate[0]),

@@ -94,10 +94,15 @@ class FleetParallelEnv(ParallelEnv[AgentID, np.ndarray, np.ndarray]):
         self._seeded = False
 
     def observation_space(self, agent: AgentID) -> spaces.Box:
-        return self.observation_spaces[agent]
+        return self.observation_spaces[self._known(agent)]
 
     def action_space(self, agent: AgentID) -> spaces.Box:
-        return self.action_spaces[agent]
+        return self.action_spaces[self._known(agent)]
+
+    def _known(self, agent: AgentID) -> AgentID:
+        if agent not in self.observation_spaces:
+            raise UserError(f"no agent {agent!r}: this fleet's agents are {self.possible_agents}")
+        return agent
 
     def reset(
         self, seed: int | None = None, options: dict[str, Any] | None = None
@@ -124,13 +129,22 @@ class FleetParallelEnv(ParallelEnv[AgentID, np.ndarray, np.ndarray]):
         """Move every UAV by its action (one per live agent, each in [-1, 1]^2) and advance a frame."""
         if not self.agents:
             raise RuntimeError("no live agents: call reset() to start an episode")
+        if not isinstance(actions, dict):
+            raise UserError(
+                f"actions must be a dict of agent -> action, e.g. {{{self.agents[0]!r}: "
+                f"np.zeros(2)}}, got {type(actions).__name__}"
+            )
         missing = [agent for agent in self.agents if agent not in actions]
         unknown = sorted(set(actions) - set(self.agents))
         if missing or unknown:
             raise UserError(f"every live agent must act: missing {missing}, unknown {unknown}")
-        result = self.core.step(
-            np.stack([np.asarray(actions[agent], dtype=float) for agent in self.agents])
-        )
+        moves = [np.asarray(actions[agent], dtype=float) for agent in self.agents]
+        wrong = [
+            f"{a} {m.shape}" for a, m in zip(self.agents, moves, strict=True) if m.shape != (2,)
+        ]
+        if wrong:
+            raise UserError(f"each agent's action has shape (2,): got {', '.join(wrong)}")
+        result = self.core.step(np.stack(moves))
         self._observation = result.observation
         info = {
             "mean_rate_mbps": float(result.mean_rate_mbps[0]),

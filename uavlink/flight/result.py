@@ -200,10 +200,15 @@ def link_fields(link) -> dict:
     """What a closed link refused, for the summary: signing's counts (None on an unsigned link) and
     unusable telemetry by kind; refused signed packets are also logged as a warning."""
     if link.signing is not None and link.signing.rejected_total:
+        side = (  # no heartbeat accepted: the vehicle was never told apart
+            "the vehicle's side"
+            if link.target_system is None
+            else f"system {link.target_system}'s side"
+        )
         log.warning(
-            "signing: refused %d packets from system %s's side (%s)",
+            "signing: refused %d packets from %s (%s)",
             link.signing.rejected_total,
-            link.target_system,
+            side,
             link.signing.stats(),
         )
     return {
@@ -318,11 +323,22 @@ def episode_fields(
         if short:  # the episode's first frames are the same in a shorter episode
             words += ["--set", f"episode_frames={frames}"]
         replay = shlex.join(words)
+    if replay is not None:
+        why = None
+    elif seed is None:
+        why = "the vehicle did not name its radio episode (no UL_EP_SEED)"
+    else:  # a model of the field plans over the episode's length: a shorter one decides otherwise
+        why = (
+            f"a policy with a model of the field plans over the whole episode, so its first {frames} "
+            f"frames of {cfg.episode_frames} differ from an episode of {frames}; fly all "
+            f"{cfg.episode_frames} to replay it"
+        )
     return {
         **scenario,
         "seed": seed,
         "episode": {"seed": seed, "index": 0, "on_vehicle": episode.get("count")},
         "replay": replay,
+        "no_replay_because": why,
     }
 
 

@@ -13,8 +13,14 @@ Accepted (all normalised to what ``pymavlink.mavutil.mavlink_connection`` takes)
 
 from __future__ import annotations
 
+import contextlib
+import io
+import logging
 import random
 import socket
+from typing import Any
+
+log = logging.getLogger(__name__)
 
 _LISTEN = {"udp": "udpin", "udpin": "udpin", "tcpin": "tcpin"}
 _SEND = {"udpout": "udpout", "tcp": "tcp", "tcpout": "tcp"}
@@ -54,6 +60,34 @@ def normalize_connection(url: str) -> str:
 # taken that way).
 _PICK_PORTS = range(20000, 32768)
 _PICK_TRIES = 64
+
+
+def is_listening(url: str) -> bool:
+    """Whether a normalised ``url`` listens (``udpin``, ``tcpin``) rather than connects or sends."""
+    return url.partition(":")[0] in ("udpin", "tcpin")
+
+
+def open_mavlink(url: str, **kwargs: Any) -> Any:
+    """``pymavlink.mavutil.mavlink_connection(url, **kwargs)`` for a normalised ``url``, less two of
+    its habits. Its UDP listen binds with SO_REUSEADDR, so a second listener on a port another
+    process (or another link of the same fleet) holds opens without error and never hears a packet
+    (Linux hands each datagram to one of them): the port is first bound alone, which fails with
+    EADDRINUSE as it should. And a refused TCP connect prints its retries on stdout: they go to the
+    debug log. OSError as pymavlink raises it."""
+    from uavlink.mavlink.dialect import mavutil  # MAVLink 2, whatever was imported before
+
+    scheme, _, rest = url.partition(":")
+    if scheme == "udpin":
+        host, _, port = rest.rpartition(":")
+        with socket.socket(socket.AF_INET, socket.SOCK_DGRAM) as alone:
+            alone.bind((host, int(port)))
+    said = io.StringIO()
+    try:
+        with contextlib.redirect_stdout(said):
+            return mavutil.mavlink_connection(url, **kwargs)
+    finally:
+        if said.getvalue().strip():
+            log.debug("pymavlink on %s: %s", url, " / ".join(said.getvalue().split("\n")).strip())
 
 
 def free_udp_port(host: str = "127.0.0.1") -> int:

@@ -25,6 +25,7 @@ by reason in :attr:`SigningGuard.rejected`; the first of each reason is logged (
 
 from __future__ import annotations
 
+import argparse
 import hashlib
 import hmac
 import logging
@@ -63,6 +64,16 @@ def signing_timestamp(unix_s: float | None = None) -> int:
     """MAVLink signing time: 10 us units since 2015-01-01 00:00 UTC (from ``time.time()``)."""
     now = time.time() if unix_s is None else unix_s
     return max(int((now - EPOCH_2015_UNIX_S) * TICKS_PER_S), 0)
+
+
+def key_file_argument(text: str) -> str:
+    """argparse type of ``--signing-key`` on both ends: an empty name is refused rather than read
+    as no key, so ``--signing-key "$KEY"`` with the variable unset cannot fly an open link."""
+    if not text.strip():
+        raise argparse.ArgumentTypeError(
+            "an empty file name (an unset variable?); leave the option out to fly unsigned"
+        )
+    return text
 
 
 def load_key(path: str | os.PathLike[str]) -> bytes:

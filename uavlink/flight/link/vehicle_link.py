@@ -35,8 +35,8 @@ from typing import Any, BinaryIO, Protocol
 from uavlink.errors import LinkError, UserError
 from uavlink.flight.link.vehicle_status import VehicleStatus
 from uavlink.mavlink import radio_codec as radio
-from uavlink.mavlink.connection import normalize_connection
-from uavlink.mavlink.dialect import enum_name, mavlink, mavutil
+from uavlink.mavlink.connection import is_listening, normalize_connection, open_mavlink
+from uavlink.mavlink.dialect import enum_name, mavlink
 from uavlink.mavlink.mission import MISSION_REPLIES
 from uavlink.mavlink.px4_modes import PX4_MAIN_OFFBOARD
 from uavlink.mavlink.rejects import RejectLog, rescan_bad_frame
@@ -97,11 +97,16 @@ class VehicleLink:
         self.url = normalize_connection(url)
         # ``connection``: another link's (one URL carrying several systems; see ``group``)
         try:
-            self.conn = connection or mavutil.mavlink_connection(
+            self.conn = connection or open_mavlink(
                 self.url, source_system=system_id, source_component=component_id, dialect="common"
             )
-        except OSError as exc:  # e.g. a ground station (QGroundControl: 14550) holds the port
-            raise UserError(
+        except OSError as exc:
+            if not is_listening(self.url):  # nothing listens there: the vehicle, not the input
+                raise LinkError(
+                    f"cannot connect to {self.url}: {exc.strerror or exc} (is the vehicle running "
+                    "and listening there?)"
+                ) from None
+            raise UserError(  # e.g. a ground station (QGroundControl: 14550) holds the port
                 f"cannot open {self.url}: {exc.strerror or exc} "
                 "(another ground station on this port? pick another with --connect)"
             ) from None
