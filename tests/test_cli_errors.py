@@ -138,6 +138,16 @@ def test_an_argparse_error_is_one_line_too():
     )
 
 
+def test_an_unknown_option_is_the_commands_error():
+    """Before, the top-level parser said it: `uavlink: error: unrecognized arguments: --bogus (see
+    uavlink --help)`, pointing away from the command's own help."""
+    assert_user_error(
+        run_uavlink_in_process("fly", "--bogus"),
+        "uavlink fly: error: unrecognized arguments: --bogus",
+        "see uavlink fly --help",
+    )
+
+
 def test_report_options_without_out_are_refused():
     assert_user_error(
         run_uavlink_in_process(

@@ -47,12 +47,15 @@ def build_parser() -> argparse.ArgumentParser:
         add_policies_parser,
     ):
         add(sub)
+    parser.set_defaults(commands=sub.choices)  # each command's parser, for its own errors
     return parser
 
 
 def main(argv: Sequence[str] | None = None) -> int:
     parser = build_parser()
-    args = parser.parse_args(argv)
+    args, extra = parser.parse_known_args(argv)
+    if extra:  # said by the command's parser (`uavlink fly: error: ...`), as its other errors are
+        args.commands[args.command].error(f"unrecognized arguments: {' '.join(extra)}")
     try:
         return args.func(args)
     except UserError as exc:
