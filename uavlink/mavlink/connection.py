@@ -64,7 +64,7 @@ _PICK_TRIES = 64
 
 def is_listening(url: str) -> bool:
     """Whether a normalised ``url`` listens (``udpin``, ``tcpin``) rather than connects or sends."""
-    return url.partition(":")[0] in ("udpin", "tcpin")
+    return url.partition(":")[0] in _LISTEN.values()
 
 
 def open_mavlink(url: str, **kwargs: Any) -> Any:
