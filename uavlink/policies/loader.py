@@ -56,8 +56,9 @@ def shipped_policies() -> dict[str, Path]:
 def locate(spec: str | Path) -> str | Path:
     """What ``--policy`` names, in order: an existing file or folder (as given), a baseline, a
     shipped policy or folder by name (``circular``, ``circular.zip``, ``spatial/circular``,
-    ``map/no_move``, ``fleet/straight_180``, ``policies/circular.zip``). Anything else is a
-    PolicyFileError naming the closest shipped policies. Quiet: a command says which shipped file a
+    ``map/no_move``, ``fleet/straight_180``, ``policies/circular.zip``). A path that does not exist
+    (absolute, ``./``, ``~``) is a PolicyFileError that says so; anything else one naming the
+    closest shipped policies. Quiet: a command says which shipped file a
     name became (``shipped_note``) once its other checks have passed, so bad input stays one line."""
     text = str(spec)
     if text in BASELINES or Path(text).exists():
