@@ -317,14 +317,15 @@ class _Loop:
         return xy_m, velocity_mps
 
     def _count_skipped(self, frame: int) -> None:
-        """Count the flight's frames before ``frame`` that went by undecided since the last decision
-        (or since the first report: a fleet's first decision waits for every vehicle's readings, and
-        a free-running world does not wait for it)."""
-        first = self.result.first_frame
-        since = (
-            self.decided if self.decided >= 0 else (first - 1 if first is not None else frame - 1)
-        )
-        self.result.frames_missed += max(0, frame - since - 1)
+        """Count the flight's frames before ``frame`` that went by undecided: since the last decision
+        (``frames_missed``), or since the first report before the first decision
+        (``frames_before_first_decision``: that decision needs every vehicle's readings, and a
+        free-running world goes on meanwhile)."""
+        first, result = self.result.first_frame, self.result
+        if self.decided >= 0:
+            result.frames_missed += max(0, frame - self.decided - 1)
+        elif first is not None:
+            result.frames_before_first_decision += max(0, frame - first)
 
     def _decided(self, frame: int, moved: Sequence[bool] | np.ndarray | None = None) -> None:
         """Frame ``frame`` is decided (every setpoint sent): a lockstep world may go on. ``moved``:

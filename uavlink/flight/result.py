@@ -72,7 +72,10 @@ class FlightResult:
     first_frame: int | None = None
     last_frame: int | None = None  # the newest frame taken
     decisions: int = 0
-    frames_missed: int = 0
+    frames_missed: int = 0  # frames between decisions that went undecided
+    frames_before_first_decision: int = (
+        0  # a fleet's: its first decision needs every vehicle's report
+    )
     stale_reports: int = 0
     offboard_reentries: int = 0
     ended_by: str = ""
@@ -121,6 +124,7 @@ class FlightResult:
             "first_frame": self.first_frame,
             "decisions": self.decisions,
             "radio_frames_missed": self.frames_missed,
+            "frames_before_first_decision": self.frames_before_first_decision,
             "stale_radio_reports": self.stale_reports,
             "offboard_reentries": self.offboard_reentries,
             "ended_by": self.ended_by,
@@ -370,8 +374,10 @@ def flown_line(summary: dict, out_dir: Path) -> str:
             f": mean UE throughput {summary['mean_rate_mbps']} Mbps; decision latency p50 "
             f"{summary['latency_ms_p50']} ms, p99 {summary['latency_ms_p99']} ms"
         )
-    missed = summary.get("radio_frames_missed")
-    if missed:  # the figures are over the frames flown; say how many of them went undecided
+    missed, before = summary.get("radio_frames_missed"), summary.get("frames_before_first_decision")
+    if before:  # the figures are over the frames flown; say how many of them went undecided
+        how += f"; the first {_count(before, 'frame')} went by before the first decision"
+    if missed:
         how += (
             f"; {_count(missed, 'frame')} went by without a decision (the radio reports came "
             f"late or not at all)"
