@@ -30,7 +30,7 @@ from sitl_stub.launcher import PROG
 from sitl_stub.mavlink.links import MAX_INSTANCE
 from sitl_stub.mavlink.server import ServerConfig, SitlServer
 from sitl_stub.sim.payload import Payload, PayloadFactory, PayloadOptions, as_payload_list
-from uavlink.config import MIXED, SCENARIO_NAMES, parse_settings
+from uavlink.config import MIXED, SCENARIO_NAMES, EnvConfig, parse_settings
 from uavlink.errors import OneLineParser
 from uavlink.mavlink.connection import normalize_connection
 from uavlink.mavlink.signing import key_file_argument, load_key
@@ -299,6 +299,8 @@ def main(argv: Sequence[str] | None = None, payload_factory: PayloadFactory | No
         )
         key = load_key(args.signing_key) if args.signing_key is not None else None
         config = ServerConfig(
+            # the vehicle's hard limit is the radio world's area, --set area.half_width_m included
+            area=EnvConfig().replace(**dict(args.settings)).area,
             connect=args.connect,
             instance=args.instance,
             speed=args.speed,

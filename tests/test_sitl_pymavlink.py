@@ -357,3 +357,22 @@ def test_cli_exits_cleanly_on_sigterm_sigint_and_duration():
         timeout=30,
     )
     assert r.returncode == 0, r.stderr
+
+
+def test_the_vehicles_hard_limit_is_the_radio_worlds_area():
+    """`--set area.half_width_m=50` shrank the radio world and left the vehicle's 200 m limit: a
+    client other than `uavlink fly` (which uploads its own fence) could fly where the world ends."""
+    import json
+
+    def fence_m(*settings: str) -> float:
+        r = subprocess.run(
+            [sys.executable, "-m", "sitl_stub", *settings, "--duration-s", "0.5", "--connect",
+             f"udpout:127.0.0.1:{free_udp_port()}"],
+            capture_output=True, text=True, timeout=60,
+        )  # fmt: skip
+        assert r.returncode == 0, r.stderr
+        stats = r.stderr.strip().splitlines()[-1].removeprefix("sitl-stub: stats ")
+        return json.loads(stats)["vehicle"]["fence_m"]
+
+    assert fence_m() == 200.0
+    assert fence_m("--set", "area.half_width_m=50") == 50.0
