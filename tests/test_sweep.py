@@ -425,6 +425,14 @@ def test_bad_sweep_file_is_one_line_naming_the_key(
     assert not (tmp_path / "runs").exists()  # nothing started
 
 
+def test_a_sweep_path_that_is_no_file_says_what_it_is(tmp_path: Path, capsys) -> None:
+    """A folder was `cannot read ([Errno 21] Is a directory: ...)`; a missing file names itself."""
+    assert main(["sweep", str(tmp_path)]) == 2
+    assert "is a folder; give a sweep file" in capsys.readouterr().err
+    assert main(["sweep", str(tmp_path / "nope.toml")]) == 2
+    assert "nope.toml: no such sweep file" in capsys.readouterr().err
+
+
 def test_job_keys_are_stable_and_grid_expands() -> None:
     spec = parse_spec(
         {

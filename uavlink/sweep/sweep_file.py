@@ -77,7 +77,13 @@ def load_spec(path: str | Path) -> SweepSpec:
         data = tomllib.loads(path.read_text())
     except FileNotFoundError:
         raise SweepSpecError(f"{path}: no such sweep file") from None
-    except (OSError, UnicodeDecodeError) as exc:
+    except IsADirectoryError:
+        raise SweepSpecError(
+            f"{path} is a folder; give a sweep file (e.g. sweeps/tiny.toml)"
+        ) from None
+    except OSError as exc:
+        raise SweepSpecError(f"{path}: cannot read ({exc.strerror or exc})") from None
+    except UnicodeDecodeError as exc:
         raise SweepSpecError(f"{path}: cannot read ({exc})") from None
     except tomllib.TOMLDecodeError as exc:
         raise SweepSpecError(f"{path}: not valid TOML ({exc})") from None
