@@ -106,6 +106,7 @@ def test_set_overrides_reach_the_env():
         (("--set", "n_ues=0"), ("env.n_ues must be a positive integer",)),
         (("--aoa-noise-deg", "-2"), ("aoa_noise_deg must be >= 0",)),
         (("--episodes", "0"), ("episodes must be a positive integer",)),
+        (("--workers", "2"), ("--workers goes with --out FOLDER",)),  # it was ignored in silence
     ],
 )
 def test_bad_arguments_exit_2_with_one_line(args, fragments):

@@ -48,6 +48,7 @@ def cmd_evaluate(args: argparse.Namespace) -> int:
             ("--fleet", args.fleet),
             ("--fleet-per-size", args.fleet_per_size),
             ("--sweep", args.sweep),
+            ("--workers", args.workers is not None),
         )
         if value
     ]
@@ -131,8 +132,9 @@ def _write_results_folder(args: argparse.Namespace, note: str) -> int:
             f"--fleet-per-size {args.fleet_per_size}: needs a folder of per-size fleet policies and "
             "--fleet (the fleet policies to pair them with)"
         )
-    if args.workers < 1:
-        raise UserError(f"--workers must be at least 1, got {args.workers}")
+    workers = 1 if args.workers is None else args.workers
+    if workers < 1:
+        raise UserError(f"--workers must be at least 1, got {workers}")
     if args.map is not None and (args.spatial is None or not args.map.is_dir()):
         raise UserError(
             f"--map {args.map}: needs a folder of map policies and --spatial (today's, to compare)"
@@ -164,7 +166,7 @@ def _write_results_folder(args: argparse.Namespace, note: str) -> int:
             args.out,
             markdown,
             progress=lambda msg: status.show(f"evaluating {msg}"),
-            workers=args.workers,
+            workers=workers,
         )
         path = write_results(
             run,
@@ -311,7 +313,7 @@ def add_evaluate_parser(sub) -> None:
     p.add_argument(
         "--workers",
         type=int,
-        default=1,
+        default=None,
         metavar="N",
         help="with --fleet: run the fleet part's evaluations in N processes (default 1; the figures "
         "do not depend on it)",
