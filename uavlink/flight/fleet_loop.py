@@ -321,11 +321,11 @@ class _Loop:
         (``frames_missed``), or since the first report before the first decision
         (``frames_before_first_decision``: that decision needs every vehicle's readings, and a
         free-running world goes on meanwhile)."""
-        first, result = self.result.first_frame, self.result
+        result = self.result
         if self.decided >= 0:
             result.frames_missed += max(0, frame - self.decided - 1)
-        elif first is not None:
-            result.frames_before_first_decision += max(0, frame - first)
+        elif result.first_frame is not None:
+            result.frames_before_first_decision += max(0, frame - result.first_frame)
 
     def _decided(self, frame: int, moved: Sequence[bool] | np.ndarray | None = None) -> None:
         """Frame ``frame`` is decided (every setpoint sent): a lockstep world may go on. ``moved``:

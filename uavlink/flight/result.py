@@ -73,9 +73,8 @@ class FlightResult:
     last_frame: int | None = None  # the newest frame taken
     decisions: int = 0
     frames_missed: int = 0  # frames between decisions that went undecided
-    frames_before_first_decision: int = (
-        0  # a fleet's: its first decision needs every vehicle's report
-    )
+    # a fleet's: frames gone by before its first decision, which needs every vehicle's report
+    frames_before_first_decision: int = 0
     stale_reports: int = 0
     offboard_reentries: int = 0
     ended_by: str = ""
