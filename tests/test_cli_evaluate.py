@@ -103,7 +103,7 @@ def test_set_overrides_reach_the_env():
         (("--set", "r_max=10"), ("unknown config key 'r_max' (did you mean r_max_m?)",)),
         (("--set", "no_equals_sign"), ("--set expects key=value",)),
         (("--set", "radio.bandwidth_hz=-1"), ("radio.bandwidth_hz must be positive",)),
-        (("--set", "n_ues=0"), ("env.n_ues must be a positive integer",)),
+        (("--set", "n_ues=0"), ("env.n_ues must be positive",)),
         (("--aoa-noise-deg", "-2"), ("aoa_noise_deg must be >= 0",)),
         (("--episodes", "0"), ("episodes must be a positive integer",)),
         (("--workers", "2"), ("--workers goes with --out FOLDER",)),  # it was ignored in silence

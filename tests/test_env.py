@@ -361,12 +361,12 @@ def test_negative_aoa_noise_is_rejected():
     ("changes", "message"),
     [
         ({"bandwidth_hz": -10e6}, r"radio\.bandwidth_hz must be positive"),
-        ({"n_resource_blocks": 0}, r"radio\.n_resource_blocks must be a positive integer, got 0"),
+        ({"n_resource_blocks": 0}, r"radio\.n_resource_blocks must be positive, got 0"),
         ({"cluster_size_m": 500.0}, r"cluster_size_m must be smaller than the area"),
-        ({"n_ues": 0}, r"env\.n_ues must be a positive integer, got 0"),
+        ({"n_ues": 0}, r"env\.n_ues must be positive, got 0"),
         ({"tx_power_dbm": float("nan")}, r"radio\.tx_power_dbm must be a finite number"),
         ({"uav_altitude_m": 0.0}, r"area\.uav_altitude_m must be positive"),
-        ({"episode_frames": 0}, r"env\.episode_frames must be a positive integer"),
+        ({"episode_frames": 0}, r"env\.episode_frames must be positive"),
         ({"scenario": "straight_90", "n_ues": 1}, r"needs at least 2 UEs"),
     ],
 )

@@ -15,9 +15,7 @@ from collections.abc import Sequence
 from dataclasses import dataclass, field
 from typing import Any
 
-from uavlink.config.fields import check_fields, coerce
-from uavlink.config.fields import non_negative as _non_negative
-from uavlink.config.fields import positive as _positive
+from uavlink.config.fields import bounded, check_fields, coerce
 from uavlink.errors import ConfigError
 
 # The UE mobility scenarios (uavlink.mobility implements them); MIXED draws one per env and episode.
@@ -60,69 +58,56 @@ PLACE_CELLS_ACROSS = 400
 class AreaConfig:
     """The operating area (and geofence): x = east, y = north, metres, centred at the origin."""
 
-    half_width_m: float = 200.0
-    uav_altitude_m: float = 95.0
+    half_width_m: float = bounded(200.0, low=0.0, low_open=True)
+    uav_altitude_m: float = bounded(95.0, low=0.0, low_open=True)
 
     def validate(self) -> None:
         check_fields(self, lambda path: f"area.{path}")
-        _positive("area.half_width_m", self.half_width_m)
-        _positive("area.uav_altitude_m", self.uav_altitude_m)
 
 
 @dataclass(frozen=True)
 class RadioConfig:
     """3GPP TR 25.814 urban-macro downlink, amended as the paper says (omni antennas, Rician)."""
 
-    carrier_ghz: float = 2.0
-    bandwidth_hz: float = 10e6
-    n_resource_blocks: int = 50
+    carrier_ghz: float = bounded(2.0, low=0.0, low_open=True)
+    bandwidth_hz: float = bounded(10e6, low=0.0, low_open=True)
+    n_resource_blocks: int = bounded(50, low=1)
     tx_power_dbm: float = 19.0
     noise_figure_db: float = 9.0
     thermal_noise_dbm_per_hz: float = -174.0
     antenna_gain_db: float = 0.0
-    outdoor_to_indoor_loss_db: float = 0.0
+    outdoor_to_indoor_loss_db: float = bounded(0.0, low=0.0)
     # TR 25.814 Table A.2.1.1-3 urban macro: L = 128.1 + 37.6 log10(d / 1 km), d >= 35 m.
     path_loss_intercept_db: float = 128.1
     path_loss_slope_db: float = 37.6
-    min_distance_m: float = 35.0
+    min_distance_m: float = bounded(35.0, low=0.0, low_open=True)
     shadowing: bool = True
-    shadowing_std_db: float = 8.0
-    shadowing_decorrelation_m: float = 50.0  # the UE end's (and the AR(1) model's) distance
+    shadowing_std_db: float = bounded(8.0, low=0.0)
+    # The UE end's (and the AR(1) model's) decorrelation distance.
+    shadowing_decorrelation_m: float = bounded(50.0, low=0.0, low_open=True)
     # "ar1": the SPEC's per-link AR(1) over displacement (the paper's channel, no memory of place);
     # "spatial": one field per episode over (UE, UAV) positions (uavlink/radio/spatial_shadowing.py).
     shadowing_model: str = SHADOWING_AR1
-    shadowing_uav_decorrelation_m: float = 50.0  # the UAV end's distance, spatial model only
+    # The UAV end's decorrelation distance, spatial model only.
+    shadowing_uav_decorrelation_m: float = bounded(50.0, low=0.0, low_open=True)
     fast_fading: bool = True
     rician_k_db: float = 10.0
-    aoa_noise_deg: float = 0.0
+    aoa_noise_deg: float = bounded(0.0, low=0.0)
     # Per-episode AoA noise: when above aoa_noise_deg, every episode draws its AoA noise std
     # uniformly from [aoa_noise_deg, aoa_noise_max_deg]; 0 (default) keeps the std fixed. The env
     # core reads it; it is training-time randomisation, set from TrainConfig.aoa_noise_max_deg by
     # uavlink.learn.training.training_env_config and never part of a policy's own env config.
-    aoa_noise_max_deg: float = 0.0
+    aoa_noise_max_deg: float = bounded(0.0, low=0.0)
 
     def validate(self) -> None:
         check_fields(self, lambda path: f"radio.{path}")
-        _positive("radio.carrier_ghz", self.carrier_ghz)
-        _positive("radio.bandwidth_hz", self.bandwidth_hz)
-        if self.n_resource_blocks < 1:
-            raise ConfigError(
-                f"radio.n_resource_blocks must be a positive integer, got {self.n_resource_blocks}"
-            )
-        _positive("radio.min_distance_m", self.min_distance_m)
-        _non_negative("radio.shadowing_std_db", self.shadowing_std_db)
-        _positive("radio.shadowing_decorrelation_m", self.shadowing_decorrelation_m)
-        _positive("radio.shadowing_uav_decorrelation_m", self.shadowing_uav_decorrelation_m)
         if self.shadowing_model not in SHADOWING_MODELS:
             raise ConfigError(
                 f"radio.shadowing_model must be one of {', '.join(SHADOWING_MODELS)}, "
                 f"got {self.shadowing_model!r}"
             )
-        _non_negative("radio.aoa_noise_deg", self.aoa_noise_deg)
-        _non_negative("radio.aoa_noise_max_deg", self.aoa_noise_max_deg)
         if 0 < self.aoa_noise_max_deg < self.aoa_noise_deg:
             raise ConfigError("radio.aoa_noise_max_deg must be 0 (off) or >= radio.aoa_noise_deg")
-        _non_negative("radio.outdoor_to_indoor_loss_db", self.outdoor_to_indoor_loss_db)
 
     @property
     def rb_bandwidth_hz(self) -> float:
@@ -143,34 +128,36 @@ class EnvConfig:
     """The learning problem: scenario, episode, action range, observation memory."""
 
     scenario: str = "circular"
-    n_ues: int = 10
-    episode_frames: int = 128
-    frame_s: float = 1.0
-    r_max_m: float = 12.0  # PX4 MPC_XY_VEL_MAX default, 12 m/s x 1 s frame
+    n_ues: int = bounded(10, low=1)
+    episode_frames: int = bounded(128, low=1)
+    frame_s: float = bounded(1.0, low=0.0, low_open=True)
+    # The longest move a frame: PX4's MPC_XY_VEL_MAX default, 12 m/s x a 1 s frame.
+    r_max_m: float = bounded(12.0, low=0.0, low_open=True)
     uav_motion: str = MOTION_INSTANT
     action_mapping: str = ACTION_MAPPINGS[0]  # see uavlink.env.actions.ActionMapping
-    memory: int = 4
+    memory: int = bounded(4, low=1)
     # A memory of place (SPEC "The limit, and a memory of place"): what the UAV sensed where, on a
     # grid of cells this wide (m) over the area; 0 (default) is off, the layouts of before.
     # uavlink/env/place_memory.py; it makes the observation layout v3 (v4 for a fleet). The shipped
-    # grids are 12 m (one frame's longest move) and 6 m. validate() wants cells of at least
+    # grid is 12 m (one frame's longest move). validate() wants cells of at least
     # PLACE_CELL_MIN_M = 1 m (in flight the UAV knows its own position, LOCAL_POSITION_NED, to about a
     # metre: finer cells would file its readings by noise) and at most PLACE_CELLS_ACROSS = 400 across
     # the area: the memory keeps 12 bytes per cell and UAV, so 400 x 400 cells are 1.9 MB a UAV (0.25
     # GB for 128 envs), and it grows as 1 / cell^2 (1 mm cells over the default area: 1.7 TiB a UAV).
-    place_cell_m: float = 0.0
+    place_cell_m: float = bounded(0.0, low=0.0)
     place_model: str = PLACE_CELLS  # what the memory keeps: PLACE_MODELS above
-    ue_speed_mps: float = 8.0
-    cluster_size_m: float = 10.0
+    ue_speed_mps: float = bounded(8.0, low=0.0)
+    cluster_size_m: float = bounded(10.0, low=0.0)
     # The fleet (SPEC "A fleet"): D UAVs, start spread on a circle, kept apart by a safety filter.
-    n_uavs: int = 1
+    n_uavs: int = bounded(1, low=1)
     fleet_reuse: str = REUSE_FULL
-    uav_separation_m: float = 20.0  # horizontal minimum between two UAVs
-    fleet_start_radius_m: float = 100.0  # UAV d starts at this radius, 360 d / D degrees from east
+    uav_separation_m: float = bounded(20.0, low=0.0)  # horizontal minimum between two UAVs
+    # UAV d starts at this radius, 360 d / D degrees from east.
+    fleet_start_radius_m: float = bounded(100.0, low=0.0)
     # A fleet of any size (SPEC "A fleet of any size"): K > 0 shows each UAV the others in K slots,
     # nearest first (layout v6; v7 with a memory of place, v8 with a model of the field too), so one
     # policy flies fleets of 2 to K + 1; 0 (default) is layout v2, a policy for exactly n_uavs.
-    fleet_slots: int = 0
+    fleet_slots: int = bounded(0, low=0)
     area: AreaConfig = field(default_factory=AreaConfig)
     radio: RadioConfig = field(default_factory=RadioConfig)
 
@@ -194,17 +181,10 @@ class EnvConfig:
             raise ConfigError(
                 f"unknown fleet_reuse {self.fleet_reuse!r}; choose from {', '.join(FLEET_REUSE)}"
             )
-        for name in ("n_ues", "episode_frames", "memory", "n_uavs"):
-            value = getattr(self, name)
-            if value < 1:
-                raise ConfigError(f"env.{name} must be a positive integer, got {value!r}")
         if self.n_ues < 2 and self.scenario in ("straight_90", "straight_180", "hotspot", MIXED):
             raise ConfigError(
                 f"scenario {self.scenario!r} needs at least 2 UEs, got n_ues={self.n_ues}"
             )
-        _positive("env.frame_s", self.frame_s)
-        _positive("env.r_max_m", self.r_max_m)
-        _non_negative("env.place_cell_m", self.place_cell_m)
         if self.place_cell_m > self.area.half_width_m:
             raise ConfigError("env.place_cell_m must be 0 (off) or at most area.half_width_m")
         finest = max(PLACE_CELL_MIN_M, 2 * self.area.half_width_m / PLACE_CELLS_ACROSS)
@@ -225,16 +205,8 @@ class EnvConfig:
                 "env.place_model=kriging models each UAV's memory of place: it needs "
                 "place_cell_m > 0, and in a fleet fleet_slots > 0 (layout v8)"
             )
-        _non_negative("env.ue_speed_mps", self.ue_speed_mps)
-        _non_negative("env.cluster_size_m", self.cluster_size_m)
         if self.cluster_size_m >= 2 * self.area.half_width_m:
             raise ConfigError("env.cluster_size_m must be smaller than the area")
-        _non_negative("env.uav_separation_m", self.uav_separation_m)
-        _non_negative("env.fleet_start_radius_m", self.fleet_start_radius_m)
-        if self.fleet_slots < 0:
-            raise ConfigError(
-                f"env.fleet_slots must be 0 (off) or positive, got {self.fleet_slots}"
-            )
         if self.fleet_slots > 0 and not 2 <= self.n_uavs <= self.fleet_slots + 1:
             raise ConfigError(
                 f"env.fleet_slots={self.fleet_slots} flies fleets of 2 to {self.fleet_slots + 1} "

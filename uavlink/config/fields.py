@@ -51,6 +51,14 @@ def setting(
     return dataclasses.field(default=default, metadata=meta)
 
 
+def bounded(default: Any, *, low: float, high: float | None = None, low_open: bool = False) -> Any:
+    """A config field with only a range (``setting``'s, which ``check_fields`` checks and the config
+    reference lists), its help kept in the comment above it."""
+    return dataclasses.field(
+        default=default, metadata={"low": low, "high": high, "low_open": low_open}
+    )
+
+
 def nested(cls: type, help: str) -> Any:
     """A field holding another config dataclass; its fields' flags carry this field's name."""
     return dataclasses.field(default_factory=cls, metadata={"help": help})
@@ -291,20 +299,3 @@ def check_seed(value: int, label: str = "seed") -> int:
     if isinstance(value, bool) or not isinstance(value, int) or not 0 <= value <= SEED_MAX:
         raise ConfigError(f"{label} must be an integer in 0..{SEED_MAX}, got {value!r}")
     return value
-
-
-def finite(name: str, value: float) -> None:
-    if not isinstance(value, (int, float)) or not math.isfinite(value):
-        raise ConfigError(f"{name} must be a finite number, got {value!r}")
-
-
-def positive(name: str, value: float) -> None:
-    finite(name, value)
-    if value <= 0:
-        raise ConfigError(f"{name} must be positive, got {value}")
-
-
-def non_negative(name: str, value: float) -> None:
-    finite(name, value)
-    if value < 0:
-        raise ConfigError(f"{name} must be >= 0, got {value}")
