@@ -19,6 +19,7 @@ import json
 from typing import Any
 
 import numpy as np
+from entry import run_script
 
 from uavlink.config import EnvConfig
 from uavlink.env.core import GroundTruth
@@ -128,4 +129,4 @@ def main(argv: list[str] | None = None) -> int:
 
 
 if __name__ == "__main__":
-    raise SystemExit(main())
+    run_script(main)

@@ -34,6 +34,7 @@ import json
 from typing import Any
 
 import numpy as np
+from entry import run_script
 
 from uavlink.config import SHADOWING_MODELS, EnvConfig
 from uavlink.env.core import BatchedUavEnv, GroundTruth
@@ -316,4 +317,4 @@ def main(argv: list[str] | None = None) -> int:
 
 
 if __name__ == "__main__":
-    raise SystemExit(main())
+    run_script(main)

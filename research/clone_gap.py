@@ -22,6 +22,8 @@ import time
 from pathlib import Path
 from typing import Any
 
+from entry import run_script
+
 
 def run(
     sweep: Path,
@@ -188,4 +190,4 @@ def main(argv: list[str] | None = None) -> int:
 
 
 if __name__ == "__main__":
-    raise SystemExit(main())
+    run_script(main)

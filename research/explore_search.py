@@ -26,9 +26,9 @@ from __future__ import annotations
 
 import argparse
 import json
-import sys
 
 import numpy as np
+from entry import run_script
 
 from uavlink.config import EnvConfig
 from uavlink.env.core import GroundTruth
@@ -247,4 +247,4 @@ def main(argv: list[str] | None = None) -> int:
 
 
 if __name__ == "__main__":
-    sys.exit(main())
+    run_script(main)

@@ -21,6 +21,7 @@ from typing import Any
 from unittest import mock
 
 import numpy as np
+from entry import run_script
 
 PROBE_RADII_M = (20.0, 40.0)
 PROBE_BEARINGS_DEG = (0.0, 90.0, 180.0, 270.0)
@@ -92,4 +93,4 @@ def main(argv: list[str] | None = None) -> int:
 
 
 if __name__ == "__main__":
-    raise SystemExit(main())
+    run_script(main)

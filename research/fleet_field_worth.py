@@ -18,10 +18,10 @@ from __future__ import annotations
 import argparse
 import dataclasses
 import json
-import sys
 from pathlib import Path
 from typing import Any
 
+from entry import run_script
 from fleet_bars import episode_args, paired_ratio, ratio_text
 
 # where the UEs part, and the genie bar is missed
@@ -118,4 +118,4 @@ def main(argv: list[str] | None = None) -> int:
 
 
 if __name__ == "__main__":
-    sys.exit(main())
+    run_script(main)

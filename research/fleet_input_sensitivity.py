@@ -14,10 +14,10 @@ from __future__ import annotations
 
 import argparse
 import json
-import sys
 from unittest import mock
 
 import numpy as np
+from entry import run_script
 
 
 def run(policy_path: str, scenario: str | None, episodes: int, seed: int) -> dict:
@@ -67,4 +67,4 @@ def main(argv: list[str] | None = None) -> int:
 
 
 if __name__ == "__main__":
-    sys.exit(main())
+    run_script(main)

@@ -19,10 +19,10 @@ from __future__ import annotations
 
 import argparse
 import json
-import sys
 from pathlib import Path
 from typing import Any
 
+from entry import run_script
 from fleet_bars import episode_args, paired_ratio, ratio_text
 
 PLACE_CELL_M = 12.0  # sweeps/map.toml's grid
@@ -117,4 +117,4 @@ def main(argv: list[str] | None = None) -> int:
 
 
 if __name__ == "__main__":
-    sys.exit(main())
+    run_script(main)

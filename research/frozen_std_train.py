@@ -17,6 +17,8 @@ import argparse
 from pathlib import Path
 from typing import Any
 
+from entry import run_script
+
 
 def frozen_std_callback() -> Any:
     """An SB3 callback that takes the policy's ``log_std`` out of the optimizer for the training:
@@ -105,4 +107,4 @@ def main(argv: list[str] | None = None) -> int:
 
 
 if __name__ == "__main__":
-    raise SystemExit(main())
+    run_script(main)

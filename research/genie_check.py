@@ -20,6 +20,8 @@ import sys
 import time
 from pathlib import Path
 
+from entry import run_script
+
 from uavlink.config import SCENARIOS
 from uavlink.evaluation import evaluate_policy, paired_ratio_ci
 from uavlink.policies.contract import EnvOverrides, load_with_env
@@ -102,4 +104,4 @@ def main(argv: list[str] | None = None) -> int:
 
 
 if __name__ == "__main__":
-    raise SystemExit(main())
+    run_script(main)

@@ -23,6 +23,7 @@ import sys
 from pathlib import Path
 
 import numpy as np
+from entry import run_script
 
 ROOT = Path(__file__).resolve().parents[1]
 RADII_M = (25.0, 50.0, 100.0, 150.0)
@@ -260,4 +261,4 @@ def main(argv: list[str] | None = None) -> int:
 
 
 if __name__ == "__main__":
-    sys.exit(main())
+    run_script(main)

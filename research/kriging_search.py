@@ -16,8 +16,8 @@ from __future__ import annotations
 
 import argparse
 import itertools
-import sys
 
+from entry import run_script
 from explore_search import no_move_references, print_summary, versus
 
 from uavlink.env import field_model
@@ -94,4 +94,4 @@ def main(argv: list[str] | None = None) -> int:
 
 
 if __name__ == "__main__":
-    sys.exit(main())
+    run_script(main)

@@ -24,6 +24,8 @@ import sys
 import time
 from pathlib import Path
 
+from entry import run_script
+
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT / "tests"))
 sys.path.insert(0, str(ROOT))
@@ -31,11 +33,14 @@ sys.path.insert(0, str(ROOT))
 from support.relay_flight import fly_through_relay, format_table, table_row  # noqa: E402
 from support.udp_relay import CLEAN, Faults  # noqa: E402
 
+from uavlink.config import SCENARIO_NAMES  # noqa: E402
+from uavlink.policies.registry import BASELINES  # noqa: E402
 
-def main() -> None:
+
+def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--policy", default="policies/circular.zip")
-    parser.add_argument("--scenario", default="circular")
+    parser.add_argument("--scenario", default="circular", choices=SCENARIO_NAMES)
     parser.add_argument("--seed", type=int, default=0, help="scenario seed (the UEs' episode)")
     parser.add_argument(
         "--relay-seed", type=int, default=0, help="first seed of the relay's faults"
@@ -51,7 +56,9 @@ def main() -> None:
     parser.add_argument("--delay-ms", type=float, default=200.0, help="one-way delay, ms")
     parser.add_argument("--quick", action="store_true", help="skip the (slow) delay rows")
     parser.add_argument("--json", action="store_true", help="print the rows as JSON")
-    args = parser.parse_args()
+    args = parser.parse_args(argv)
+    if not Path(args.policy).is_file() and args.policy not in BASELINES:
+        parser.error(f"--policy {args.policy}: no such file or baseline")
 
     def run(faults: Faults, speed: float, relay_seed: int | None = None) -> dict:
         started = time.monotonic()
@@ -103,7 +110,8 @@ def main() -> None:
             f"relay seeds from {args.relay_seed}"
         )
         print(format_table(rows))
+    return 0
 
 
 if __name__ == "__main__":
-    main()
+    run_script(main)

@@ -15,6 +15,8 @@ import json
 import sys
 from pathlib import Path
 
+from entry import run_script
+
 ROOT = Path(__file__).resolve().parents[1]
 
 
@@ -72,4 +74,4 @@ def main(argv: list[str] | None = None) -> int:
 
 
 if __name__ == "__main__":
-    sys.exit(main())
+    run_script(main)

@@ -17,6 +17,8 @@ import json
 import sys
 from pathlib import Path
 
+from entry import run_script
+
 ROOT = Path(__file__).resolve().parents[1]
 
 
@@ -52,6 +54,9 @@ def main(argv: list[str] | None = None) -> int:
     args = parser.parse_args(argv)
     if args.episodes < 2:
         parser.error("--episodes must be >= 2 (a paired interval)")
+    for option, folder in (("--map", args.map), ("--spatial", args.spatial)):
+        if not folder.is_dir() or not any(folder.glob("*.zip")):
+            parser.error(f"{option} {folder}: not a folder of policy zips")
     from uavlink.errors import UserError
     from uavlink.evaluation.report_map import map_table
     from uavlink.evaluation.tables import markdown_table, write_csv
@@ -102,4 +107,4 @@ def main(argv: list[str] | None = None) -> int:
 
 
 if __name__ == "__main__":
-    sys.exit(main())
+    run_script(main)

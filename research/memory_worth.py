@@ -27,6 +27,7 @@ import sys
 from pathlib import Path
 
 import numpy as np
+from entry import run_script
 from genie_reach import episode_planners, flown_paths, scenario_args
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -191,4 +192,4 @@ def main(argv: list[str] | None = None) -> int:
 
 
 if __name__ == "__main__":
-    sys.exit(main())
+    run_script(main)

@@ -22,10 +22,12 @@ policy are the product's, and evaluate, export and fly as any other.
 
 from __future__ import annotations
 
+from pathlib import Path
 from typing import Any
 from unittest import mock
 
 import numpy as np
+from entry import run_script
 
 
 def paired_env(cfg: Any, tc: Any, copies: int) -> Any:
@@ -173,6 +175,10 @@ def main(argv: list[str] | None = None) -> int:
         {"metavar": "POLICY", "help": "fly POLICY three rollouts, print the spread"},
     )
     args, job = sweep_job(__doc__.split("\n\n")[0], argv, copies, probe, out_unless="measure")
+    if args.measure and not Path(args.measure).is_file():
+        from uavlink.errors import UserError
+
+        raise UserError(f"--measure {args.measure}: no such file")
     if args.measure:
         for k, (mc, paired) in enumerate(measure(args.measure, job, args.copies)):
             print(
@@ -195,4 +201,4 @@ def main(argv: list[str] | None = None) -> int:
 
 
 if __name__ == "__main__":
-    raise SystemExit(main())
+    run_script(main)

@@ -22,6 +22,7 @@ import time
 from typing import Any
 
 import numpy as np
+from entry import run_script
 from stable_baselines3.common.vec_env import VecEnvWrapper, VecNormalize
 
 from uavlink.config import EnvConfig, TrainConfig
@@ -184,4 +185,4 @@ def main(argv: list[str] | None = None) -> int:
 
 
 if __name__ == "__main__":
-    raise SystemExit(main())
+    run_script(main)

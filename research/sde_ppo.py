@@ -29,6 +29,8 @@ import math
 import sys
 from typing import Any
 
+from entry import run_script
+
 
 def gsde_callback(log_std: float, sample_freq: int) -> Any:
     """An SB3 callback that turns the model's exploration into gSDE at the start of training (it must
@@ -122,4 +124,4 @@ def main(argv: list[str] | None = None) -> int:
 
 
 if __name__ == "__main__":
-    raise SystemExit(main())
+    run_script(main)

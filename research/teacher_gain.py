@@ -14,7 +14,8 @@ from __future__ import annotations
 
 import argparse
 import json
-import sys
+
+from entry import run_script
 
 
 def run(paths: list[str], episodes: int, seed: int) -> dict:
@@ -80,4 +81,4 @@ def main(argv: list[str] | None = None) -> int:
 
 
 if __name__ == "__main__":
-    sys.exit(main())
+    run_script(main)

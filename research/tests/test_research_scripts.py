@@ -1,4 +1,4 @@
-"""The research scripts under research/ that stand behind figures in README, docs/design.md and
+"""The research scripts under research/ that stand behind figures in README, the design pages (docs/design/) and
 the experiment log (research/log/) run end to end (tiny budgets, each script's main in this
 process) and keep the properties their figures rely on.
 
@@ -758,3 +758,53 @@ def test_spread_start_ppo_copies_and_pairs_the_spread_teacher_at_the_distance_as
     )
     assert "spread 5 m ->" in printed and printed.count("D = 2:") == 1
     assert built and set(built) == {5.0}  # the copy's teacher and the pairing's, both at 5 m
+
+
+@pytest.mark.parametrize(
+    "args",
+    [
+        ("aoa_teacher_search.py", "--scenarios", "nosuch"),
+        ("explore_search.py", "--set", "nosuch=1"),
+        ("fleet_bars.py", "--fleet", "/nonexistent", "--episodes", "1"),
+        ("map_table.py", "--map", "/nonexistent", "--episodes", "2"),
+    ],
+)
+def test_bad_input_to_a_research_script_is_one_line_and_exit_2(args: tuple[str, ...]) -> None:
+    import subprocess
+
+    done = subprocess.run(
+        [sys.executable, str(FOLDER / args[0]), *args[1:]],
+        capture_output=True,
+        text=True,
+        cwd=ROOT,
+        timeout=120,
+    )
+    last = done.stderr.strip().splitlines()[-1]
+    assert done.returncode == 2 and "Traceback" not in done.stderr, done.stderr
+    assert last.startswith(f"{args[0]}: error: "), last
+
+
+def test_genie_check_finds_the_genie_at_or_above_every_policy() -> None:
+    result = run_json("genie_check.py", "--episodes", "1", "--scenarios", "straight", "--uavs", "1")
+    [row] = result["rows"]
+    assert (row["scenario"], row["n_uavs"]) == ("straight", 1)
+    assert {"static", "aoa", "ppo"} <= set(row["genie_vs"])
+    assert row["genie_at_least_every_other"] and result["all_met"]
+    assert all(v["ratio"] >= 1.0 for v in row["genie_vs"].values())
+
+
+def test_aoa_rule_effects_measures_the_rules_and_a_close_copy_of_aoa() -> None:
+    result = run_json("aoa_rule_effects.py", "--episodes", "1")
+    for rates in result["shadowing_mbps"].values():
+        assert set(rates) == {"static", "zigzag", "aoa"} and all(r > 0 for r in rates.values())
+    for rates in result["clone_before_ppo_mbps"].values():
+        # The warm start's copy flies within a few percent of the rule it copies.
+        assert abs(rates["clone"] / rates["aoa"] - 1) < 0.05, rates
+
+
+def test_link_faults_flies_clean_and_lossy_rows_through_the_relay() -> None:
+    result = run_json("link_faults.py", "--quick", "--runs", "1", "--speed", "50")
+    clean, *lossy = result["rows"]
+    assert clean["condition"] == "clean" and clean["frames"] == 128 and clean["runs"] == 1
+    assert [row["condition"] for row in lossy] == ["10% loss", "30% loss"]
+    assert all(0 < row["mean_rate_mbps"] <= clean["mean_rate_mbps"] * 1.1 for row in lossy)
