@@ -14,6 +14,7 @@ from support.mavlink_gcs import FAST_TAKEOFF
 from sitl_stub.launcher import vehicle_process
 from uavlink.flight.link import LinkError, VehicleLink
 from uavlink.mavlink.connection import free_udp_port
+from uavlink.mavlink.dialect import mavlink
 
 pytestmark = [pytest.mark.slow, pytest.mark.timeout(120)]
 
@@ -41,5 +42,26 @@ def test_link_learns_system_2_from_its_heartbeat_and_commands_it(tmp_path: Path)
             link.takeoff(5.0)
             assert link.status.armed and link.status.in_air and -link.status.down_m >= 4.0
             assert link.systems[2] is link.status
+        finally:
+            link.close()
+
+
+def test_a_command_the_vehicle_refuses_for_now_is_sent_again_until_it_takes() -> None:
+    """PX4 answers a request its state refuses for now TEMPORARILY_REJECTED (Commander.cpp): a
+    disarm in the air, an arming before the estimator is ready. ``command`` sends it again."""
+    port = free_udp_port()
+    with vehicle_process(f"udpout:127.0.0.1:{port}", 10.0, list(FAST)):
+        link = VehicleLink(f"udpin:127.0.0.1:{port}")
+        try:
+            link.wait_vehicle(timeout_s=20.0)
+            link.arm()
+            link.takeoff(5.0)
+            with pytest.raises(LinkError, match=r"for now, 3 times \(TEMPORARILY_REJECTED\)"):
+                link.command(mavlink.MAV_CMD_COMPONENT_ARM_DISARM, 0.0, ack_wait_s=0.1, tries=3)
+            assert link.status.armed and link.status.in_air
+            link.command(mavlink.MAV_CMD_NAV_LAND)
+            # Refused while the vehicle descends, accepted once it is down.
+            link.command(mavlink.MAV_CMD_COMPONENT_ARM_DISARM, 0.0, ack_wait_s=0.25, tries=80)
+            assert link.wait_wall(lambda: not link.status.armed, 2.0)
         finally:
             link.close()

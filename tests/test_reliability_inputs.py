@@ -336,10 +336,10 @@ def test_out_of_range_fields_are_refused_or_clamped(caplog) -> None:
     [
         ("unknown command", (31337, 0, 0, 0, 0, 0, 0, 0), R.MAV_RESULT_UNSUPPORTED),
         ("arm p1 NaN", (ARM, math.nan, 0, 0, 0, 0, 0, 0), R.MAV_RESULT_DENIED),
-        ("takeoff while disarmed", (22, *[math.nan] * 7), R.MAV_RESULT_DENIED),
+        ("takeoff while disarmed", (22, *[math.nan] * 7), R.MAV_RESULT_TEMPORARILY_REJECTED),
         ("mode with infinite base", (176, math.inf, 4, 3, 0, 0, 0, 0), R.MAV_RESULT_DENIED),
         ("unknown mode", (176, 1, 99, 0, 0, 0, 0, 0), R.MAV_RESULT_DENIED),
-        ("manual mode (no RC)", (176, 1, 1, 0, 0, 0, 0, 0), R.MAV_RESULT_DENIED),
+        ("manual mode (no RC)", (176, 1, 1, 0, 0, 0, 0, 0), R.MAV_RESULT_TEMPORARILY_REJECTED),
         ("message interval infinite", (511, 30, math.inf, 0, 0, 0, 0, 0), R.MAV_RESULT_DENIED),
         ("message interval negative", (511, 30, -0.5, 0, 0, 0, 0, 0), R.MAV_RESULT_DENIED),
         ("request unknown message", (512, 1e9, 0, 0, 0, 0, 0, 0), R.MAV_RESULT_DENIED),

@@ -215,7 +215,7 @@ def test_orbit_circles_at_the_radius_and_speed():
 def test_orbit_needs_a_flying_vehicle():
     assert (
         guided.orbit(Vehicle(), ORIGIN, (10.0, 2.0, 0, 0, NAN, NAN, NAN), None).result
-        is Result.DENIED
+        is Result.TEMPORARILY_REJECTED
     )
 
 

@@ -19,7 +19,7 @@ pytestmark = [pytest.mark.slow, pytest.mark.waits, pytest.mark.timeout(120)]
 
 mavlink = mavutil.mavlink
 NAN = math.nan
-A, D = mavlink.MAV_RESULT_ACCEPTED, mavlink.MAV_RESULT_DENIED
+A, REJECTED = mavlink.MAV_RESULT_ACCEPTED, mavlink.MAV_RESULT_TEMPORARILY_REJECTED
 VELOCITY_NED, VELOCITY_BODY, POSITION_VELOCITY, POSITION = 0x9C7, 0x5C7, 0x9C0, 0x9F8
 OFFBOARD_MODE = 6 << 16
 
@@ -207,11 +207,11 @@ def test_attitude_setpoints_are_refused(flying):
         0, 1, 1, 0x07, [1, 0, 0, 0], 0, 0, 0, 0.5
     )
     streamer.run(0.5)
-    assert gcs.command(mavlink.MAV_CMD_DO_SET_MODE, 129, 6, 0) == D  # no usable stream
+    assert gcs.command(mavlink.MAV_CMD_DO_SET_MODE, 129, 6, 0) == REJECTED  # no usable stream
     gcs.wait(lambda: server.report()["rejected"].get("setpoint_attitude", 0) > 3, 5, "counted")
     accel = local(gcs, mavlink.MAV_FRAME_LOCAL_NED, 0xC3F, vel=(1.0, 0.0, 0.0))
     streamer.send = accel  # MAVSDK's set_acceleration_ned: refused too
     streamer.run(0.5)
-    assert gcs.command(mavlink.MAV_CMD_DO_SET_MODE, 129, 6, 0) == D
+    assert gcs.command(mavlink.MAV_CMD_DO_SET_MODE, 129, 6, 0) == REJECTED
     assert server.report()["rejected"]["setpoint_type_mask"] > 3
     assert gcs.mode == (LOITER_MODE, True) and server.state().setpoints_accepted == 0

@@ -214,10 +214,13 @@ def test_every_command_long_gets_an_ack(gcs: Gcs):
         == A
     )
     assert gcs.wait("MESSAGE_INTERVAL").interval_us == 1_000_000
-    assert gcs.command(mavlink.MAV_CMD_DO_SET_MODE, 1, 3, 0) == D  # POSCTL needs RC
+    # A request the vehicle's state refuses is TEMPORARILY_REJECTED (PX4's Commander.cpp: try
+    # again once the state allows it); a request that can never be met is DENIED.
+    later = mavlink.MAV_RESULT_TEMPORARILY_REJECTED
+    assert gcs.command(mavlink.MAV_CMD_DO_SET_MODE, 1, 3, 0) == later  # POSCTL needs RC
     assert gcs.command(mavlink.MAV_CMD_DO_SET_MODE, 1, 4, 1) == D  # never AUTO.READY
-    assert gcs.command(mavlink.MAV_CMD_DO_SET_MODE, 1, 6, 0) == D  # offboard without stream
-    assert gcs.command(mavlink.MAV_CMD_NAV_TAKEOFF, *[NAN] * 7) == D  # disarmed
+    assert gcs.command(mavlink.MAV_CMD_DO_SET_MODE, 1, 6, 0) == later  # offboard without stream
+    assert gcs.command(mavlink.MAV_CMD_NAV_TAKEOFF, *[NAN] * 7) == later  # disarmed
     assert gcs.command(mavlink.MAV_CMD_DO_SET_SERVO, 1, 1500) == U
     assert gcs.command(31999) == U  # not a command anyone knows
     assert gcs.command(mavlink.MAV_CMD_COMPONENT_ARM_DISARM, 1, NAN, NAN, NAN, NAN, NAN, NAN) == A
@@ -264,7 +267,11 @@ def test_flight_arm_takeoff_offboard_loss_and_land(gcs: Gcs):
     gcs.heartbeat(lambda m: m.custom_mode == LOITER, timeout=15.0)
     pos = gcs.wait("LOCAL_POSITION_NED")
     assert pos.z == pytest.approx(-10.0, abs=0.6)
-    assert gcs.command(mavlink.MAV_CMD_COMPONENT_ARM_DISARM, 0) == mavlink.MAV_RESULT_DENIED
+    # In the air a disarm is refused as PX4 refuses it: TEMPORARILY_REJECTED (Commander.cpp).
+    assert (
+        gcs.command(mavlink.MAV_CMD_COMPONENT_ARM_DISARM, 0)
+        == mavlink.MAV_RESULT_TEMPORARILY_REJECTED
+    )
 
     gcs.setpoint = (30.0, -20.0, -15.0)
     gcs.wait("HEARTBEAT", timeout=1.0)  # let a few setpoints flow first

@@ -56,7 +56,7 @@ def test_starts_disarmed_on_ground_in_loiter():
 
 def test_takeoff_climbs_to_mis_takeoff_alt_then_loiters():
     v = make()  # MIS_TAKEOFF_ALT default is the SPEC's 95 m
-    assert v.takeoff().result is Result.DENIED  # disarmed
+    assert v.takeoff().result is Result.TEMPORARILY_REJECTED  # disarmed
     assert v.arm().ok and v.takeoff().ok
     v.step(1.0)
     s = v.state()
@@ -154,10 +154,11 @@ def test_non_finite_setpoint_is_rejected(bad):
 def test_offboard_refused_without_a_recent_stream():
     v = airborne()
     out = v.start_offboard()
-    assert out.result is Result.DENIED and "setpoint" in out.reason
+    # PX4's commander answers a refused mode change TEMPORARILY_REJECTED: try again later.
+    assert out.result is Result.TEMPORARILY_REJECTED and "setpoint" in out.reason
     v.offer_setpoint(5.0, 5.0, -10.0)
     v.step(1.2)  # older than COM_OF_LOSS_T
-    assert v.start_offboard().result is Result.DENIED
+    assert v.start_offboard().result is Result.TEMPORARILY_REJECTED
     assert v.mode is FlightMode.LOITER
     v.offer_setpoint(5.0, 5.0, -10.0)
     assert v.start_offboard().ok
@@ -246,12 +247,12 @@ def test_rtl_climbs_returns_home_and_lands():
 def test_arming_rules():
     v = make()
     assert v.land().ok  # mode change on the ground is allowed ...
-    assert v.arm().result is Result.DENIED  # ... but AUTO.LAND prevents arming (PX4)
+    assert v.arm().result is Result.TEMPORARILY_REJECTED  # ... but AUTO.LAND prevents arming (PX4)
     assert v.hold().ok and v.arm().ok
     assert v.arm().ok  # idempotent
     v.takeoff(10.0)
     v.step(3.0)
-    assert v.disarm().result is Result.DENIED  # in the air
+    assert v.disarm().result is Result.TEMPORARILY_REJECTED  # in the air
     assert v.disarm(force=True).ok
     v.step(5.0)  # falls
     s = v.state()
@@ -261,7 +262,7 @@ def test_arming_rules():
 def test_set_mode_dispatch_and_reentry_is_noop():
     v = airborne()
     assert v.set_mode(FlightMode.LOITER).ok
-    assert v.set_mode(FlightMode.OFFBOARD).result is Result.DENIED
+    assert v.set_mode(FlightMode.OFFBOARD).result is Result.TEMPORARILY_REJECTED
     assert v.set_mode(FlightMode.RTL).ok and v.mode is FlightMode.RTL
     assert v.set_mode(FlightMode.LAND).ok and v.mode is FlightMode.LAND
 

@@ -100,15 +100,19 @@ class Vehicle:
 
     # ----------------------------------------------------------------- requests
     def arm(self) -> Outcome:
-        """Arm on the ground (PX4: not in AUTO.LAND / AUTO.RTL, which prevent arming)."""
+        """Arm on the ground (PX4: not in AUTO.LAND / AUTO.RTL, which prevent arming). A refusal is
+        TEMPORARILY_REJECTED, as PX4's commander answers every arming or disarming it refuses
+        (``Commander::handle_command``): the state, not the request, is what stands in the way."""
         if self.armed:
             return ACCEPTED
         if not self.ground.landed:
-            return Outcome(Result.DENIED, "Arming denied: vehicle not landed")
+            return Outcome(Result.TEMPORARILY_REJECTED, "Arming denied: vehicle not landed")
         if self.mode in (FlightMode.LAND, FlightMode.RTL):
-            return Outcome(Result.DENIED, f"Arming denied: not allowed in {self.mode.px4_name}")
+            return Outcome(
+                Result.TEMPORARILY_REJECTED, f"Arming denied: not allowed in {self.mode.px4_name}"
+            )
         if self.mode is FlightMode.OFFBOARD and not self.offboard_stream_ok():
-            return Outcome(Result.DENIED, "Arming denied: no offboard setpoints")
+            return Outcome(Result.TEMPORARILY_REJECTED, "Arming denied: no offboard setpoints")
         self.armed, self.armings = True, self.armings + 1
         self.ground.armed(self.t)
         if self.mode is FlightMode.LOITER:
@@ -121,14 +125,16 @@ class Vehicle:
         if not self.armed:
             return ACCEPTED
         if not self.ground.landed and not force:
-            return Outcome(Result.DENIED, "Disarming denied: not landed")
+            return Outcome(Result.TEMPORARILY_REJECTED, "Disarming denied: not landed")
         self._disarm("Disarmed")
         return ACCEPTED
 
     def takeoff(self, altitude_m: float | None = None) -> Outcome:
-        """AUTO.TAKEOFF to ``altitude_m`` above home (MIS_TAKEOFF_ALT when None), then AUTO.LOITER."""
+        """AUTO.TAKEOFF to ``altitude_m`` above home (MIS_TAKEOFF_ALT when None), then AUTO.LOITER.
+        Refused while disarmed (TEMPORARILY_REJECTED, PX4's code for a refused mode change; PX4
+        itself takes the mode and climbs once armed); a bad altitude is DENIED."""
         if not self.armed:
-            return Outcome(Result.DENIED, "Takeoff denied: disarmed")
+            return Outcome(Result.TEMPORARILY_REJECTED, "Takeoff denied: disarmed")
         alt = self.params["MIS_TAKEOFF_ALT"] if altitude_m is None else float(altitude_m)
         if not math.isfinite(alt) or alt <= 0.0:
             return Outcome(Result.DENIED, "Takeoff denied: invalid altitude")
@@ -168,9 +174,12 @@ class Vehicle:
         return ACCEPTED
 
     def start_offboard(self) -> Outcome:
-        """OFFBOARD, refused unless a setpoint arrived within COM_OF_LOSS_T (PX4 commander)."""
+        """OFFBOARD, refused unless a setpoint arrived within COM_OF_LOSS_T (PX4 commander: a refused
+        mode change is TEMPORARILY_REJECTED)."""
         if not self.offboard_stream_ok():
-            return Outcome(Result.DENIED, "Switching to Offboard denied: no setpoint stream")
+            return Outcome(
+                Result.TEMPORARILY_REJECTED, "Switching to Offboard denied: no setpoint stream"
+            )
         assert self.offboard.setpoint is not None  # a live stream has a setpoint
         self.mode = FlightMode.OFFBOARD
         self._target, self._yaw_target = self.offboard.setpoint, self.offboard.yaw_rad

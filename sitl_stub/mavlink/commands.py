@@ -148,7 +148,9 @@ class CommandHandler:
             return CommandReply(Result.DENIED, "Mode change denied: only PX4 custom modes")
         main, sub = int(p[1]), int(p[2])
         if main in MANUAL_MAIN_MODES:
-            return CommandReply(Result.DENIED, "Mode change denied: no manual control (RC)")
+            return CommandReply(
+                Result.TEMPORARILY_REJECTED, "Mode change denied: no manual control (RC)"
+            )
         mode = FlightMode.from_main_sub(main, sub)
         if mode is None:
             return CommandReply(Result.DENIED, f"Mode change denied: mode {main}.{sub} unsupported")

@@ -101,7 +101,7 @@ def orbit(v: Vehicle, origin: GeoOrigin, p: Sequence[float], frame: int | None) 
     1 m, 1 m/s, front to centre, here), as PX4's FlightTaskOrbit."""
     s = v.state()
     if not s.armed or not s.in_air:
-        return Outcome(Result.DENIED, "Orbit denied: vehicle not flying")
+        return Outcome(Result.TEMPORARILY_REJECTED, "Orbit denied: vehicle not flying")
     point = global_point(p, frame)
     if isinstance(point, str):
         return Outcome(Result.DENIED, f"Orbit denied: {point}")

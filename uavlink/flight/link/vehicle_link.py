@@ -52,16 +52,14 @@ MULTIROTOR_TYPES = {
     MAV.MAV_TYPE_COAXIAL,
 }
 HEARTBEAT_PERIOD_S = 1.0  # our own HEARTBEAT, wall time
-STREAM_PERIOD_VEHICLE_S = (
-    0.1  # offboard keep-alive: 10 setpoints per COM_OF_LOSS_T survive a lossy link
-)
+# Offboard keep-alive: 10 setpoints per COM_OF_LOSS_T survive a lossy link.
+STREAM_PERIOD_VEHICLE_S = 0.1
 ACK_WAIT_S = 0.5  # wall time to wait for a COMMAND_ACK before sending the command again
 COMMAND_TRIES = 10
 PARAM_TRIES = 10
 MAX_RX_PER_POLL = 2000  # messages/datagrams handled per poll: a flood cannot stall the loop
-WRONG_KEY_PACKETS = (
-    20  # packets signed with another key, none accepted: the heartbeat wait gives up
-)
+# Packets signed with another key, none accepted: the heartbeat wait gives up.
+WRONG_KEY_PACKETS = 20
 
 log = logging.getLogger(__name__)
 
@@ -363,8 +361,10 @@ class VehicleLink:
     ) -> None:
         """COMMAND_LONG to the autopilot, sent again (confirmation 0, 1, ...) every ``ack_wait_s``
         of wall time until an ACK comes (or ``done()``: the telemetry already shows the effect, so
-        a lost ACK costs no retry); LinkError on refusal or after ``tries`` sends."""
-        name = enum_name("MAV_CMD", command)
+        a lost ACK costs no retry), and after a TEMPORARILY_REJECTED (PX4's answer when the state
+        refuses it for now, as an arming before the estimator is ready); LinkError on any other
+        refusal or after ``tries`` sends."""
+        name, rejected = enum_name("MAV_CMD", command), False
         self._acks.pop(command, None)
         for confirmation in range(tries):
             self.send_command(command, *params, confirmation=confirmation)
@@ -375,9 +375,14 @@ class VehicleLink:
             if command not in self._acks:
                 return  # done() although the ACK was lost
             result = self._acks.pop(command)
+            if rejected := result == MAV.MAV_RESULT_TEMPORARILY_REJECTED:
+                self.wait_wall(lambda: False, ack_wait_s)
+                continue
             if result not in (MAV.MAV_RESULT_ACCEPTED, MAV.MAV_RESULT_IN_PROGRESS):
                 raise LinkError(f"vehicle refused {name} (MAV_RESULT {result})")
             return
+        if rejected:
+            raise LinkError(f"vehicle refused {name} for now, {tries} times (TEMPORARILY_REJECTED)")
         raise LinkError(f"no ACK for {name} after {tries} tries")
 
     def send_command(self, command: int, *params: float, confirmation: int = 0) -> None:
@@ -466,14 +471,7 @@ class VehicleLink:
             north_m,
             east_m,
             down_m,
-            0,
-            0,
-            0,
-            0,
-            0,
-            0,
-            0,
-            0,
+            *(0,) * 8,  # velocity, acceleration, yaw, yaw rate: ignored (POSITION_ONLY)
         )
 
     def land(self) -> None:
