@@ -298,9 +298,13 @@ def main(argv: Sequence[str] | None = None, payload_factory: PayloadFactory | No
             else as_payload_list((payload_factory or radio_payload)(options))
         )
         key = load_key(args.signing_key) if args.signing_key is not None else None
+        # The radio world's env, checked with or without a payload: the vehicle's hard limit is its
+        # area, --set area.half_width_m included.
+        from sitl_stub.sim.radio_payload import payload_env
+
+        world_env = payload_env(options, args.fleet or 1)
         config = ServerConfig(
-            # the vehicle's hard limit is the radio world's area, --set area.half_width_m included
-            area=EnvConfig().replace(**dict(args.settings)).area,
+            area=world_env.area,
             connect=args.connect,
             instance=args.instance,
             speed=args.speed,
@@ -311,7 +315,9 @@ def main(argv: Sequence[str] | None = None, payload_factory: PayloadFactory | No
             signing_key=key,
         )
         server = (
-            SitlServer(config, payloads) if args.fleet is None else _fleet(args, config, options)
+            SitlServer(config, payloads)
+            if args.fleet is None
+            else _fleet(args, config, options, world_env)
         )
     except ValueError as exc:
         parser.error(str(exc))
@@ -356,17 +362,17 @@ def main(argv: Sequence[str] | None = None, payload_factory: PayloadFactory | No
     return 0
 
 
-def _fleet(args: argparse.Namespace, base: ServerConfig, options: PayloadOptions) -> FleetServer:
-    """``--fleet D``: D vehicles around one radio world (:mod:`sitl_stub.fleet`)."""
+def _fleet(
+    args: argparse.Namespace, base: ServerConfig, options: PayloadOptions, cfg: EnvConfig
+) -> FleetServer:
+    """``--fleet D``: D vehicles around one radio world ``cfg`` (:mod:`sitl_stub.fleet`)."""
     from sitl_stub.fleet import FleetServer, FleetWorld, fleet_configs, spawn_points_ne
-    from sitl_stub.sim.radio_payload import payload_env
 
     if args.instance + args.fleet - 1 > MAX_INSTANCE:
         raise ValueError(
             f"--instance {args.instance} --fleet {args.fleet} needs instances up to "
             f"{args.instance + args.fleet - 1}, more than {MAX_INSTANCE}"
         )
-    cfg = payload_env(options, args.fleet)
     world = (
         None
         if args.no_payload

@@ -63,6 +63,13 @@ def test_lockstep_without_the_radio_payload_is_refused_in_one_line(capsys, extra
     assert "--lockstep" in line and "--no-payload" in line
 
 
+@pytest.mark.parametrize("extra", [["--no-payload"], ["--no-payload", "--fleet", "2"], []])
+def test_a_bad_area_is_refused_with_or_without_the_payload(capsys, extra) -> None:
+    # The vehicle's fence is the radio world's area: checked even when no payload uses the world.
+    line = _one_line_error(capsys, [*extra, "--set", "area.half_width_m=-5"])
+    assert "area.half_width_m must be positive" in line
+
+
 def test_the_flag_table_documents_every_flag() -> None:
     first_cells = " ".join(
         row.split("|")[1]
