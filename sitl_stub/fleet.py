@@ -77,9 +77,8 @@ class FleetWorld:
     ) -> None:
         self.cfg = cfg
         self.truth_origin = truth_origin
-        self.lockstep = (
-            lockstep  # each frame waits for the FRAME_DECIDED of every vehicle in OFFBOARD
-        )
+        # Each frame waits for the FRAME_DECIDED of every vehicle in OFFBOARD.
+        self.lockstep = lockstep
         self.hold = FrameHold()
         self.frame_s = self.cfg.frame_s
         self.episodes = RadioEpisodes(cfg, seed)

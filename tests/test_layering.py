@@ -45,7 +45,7 @@ MAY_IMPORT: dict[str, set[str]] = {
     "uavlink.evaluation": _BELOW_POLICIES | {"uavlink.policies"},
     "uavlink.sweep": _BELOW_POLICIES | {"uavlink.policies", "uavlink.learn", "uavlink.evaluation"},
     "sitl_stub.launcher": set(),
-    "sitl_stub.core": {"uavlink.mavlink"},
+    "sitl_stub.core": {"uavlink.config", "uavlink.mavlink"},
     "sitl_stub.flight": {"sitl_stub.core", "uavlink.config", "uavlink.errors"},
     "sitl_stub.sim": {
         "sitl_stub.core",

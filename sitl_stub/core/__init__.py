@@ -3,5 +3,6 @@
 outcomes), ``modes`` (flight modes, landed states), ``mission_store`` (mission, fence and rally lists),
 ``geo`` (the global origin).
 
-May import: nothing else of ``sitl_stub``; of uavlink only ``uavlink.mavlink`` (frames, PX4 modes, geo).
+May import: nothing else of ``sitl_stub``; of uavlink only ``uavlink.mavlink`` (frames, PX4 modes, geo)
+and ``uavlink.config`` (the position loop's PX4 defaults, shared with the env).
 """

@@ -13,6 +13,8 @@ from collections.abc import Iterator, Mapping
 from dataclasses import dataclass
 from enum import IntEnum
 
+from uavlink.config.position_loop import MPC_ACC_HOR_MAX_MPS2, MPC_XY_VEL_MAX_MPS
+
 
 class ParamType(IntEnum):
     """MAV_PARAM_TYPE values used here."""
@@ -58,7 +60,14 @@ PARAM_DEFS: tuple[ParamDef, ...] = (
         20.0,
         "Auto-disarm this long after landing, s; <= 0 disables.",
     ),
-    ParamDef("MPC_XY_VEL_MAX", ParamType.REAL32, 12.0, 0.5, 20.0, "Maximum horizontal speed, m/s."),
+    ParamDef(
+        "MPC_XY_VEL_MAX",
+        ParamType.REAL32,
+        MPC_XY_VEL_MAX_MPS,
+        0.5,
+        20.0,
+        "Maximum horizontal speed, m/s.",
+    ),
     ParamDef(
         "MPC_XY_CRUISE",
         ParamType.REAL32,
@@ -70,7 +79,7 @@ PARAM_DEFS: tuple[ParamDef, ...] = (
     ParamDef(
         "MPC_ACC_HOR_MAX",
         ParamType.REAL32,
-        5.0,
+        MPC_ACC_HOR_MAX_MPS2,
         0.5,
         15.0,
         "Maximum horizontal acceleration, m/s^2.",

@@ -68,9 +68,8 @@ class PayloadOptions:
     settings: tuple[tuple[str, object], ...] = ()  # --set KEY=VALUE: the radio payload's env fields
     home: GeoOrigin = GeoOrigin()  # the LOCAL_NED origin: where the UE truth is placed on Earth
     ue_truth: bool = True  # send the simulated UEs as ADSB_VEHICLE (sitl_stub.sim.ue_truth)
-    lockstep: bool = (
-        False  # hold each frame of a running episode until the flight computer decides it
-    )
+    # Hold each frame of a running episode until the flight computer decides it.
+    lockstep: bool = False
 
 
 @dataclass

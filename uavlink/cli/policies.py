@@ -13,11 +13,13 @@ from uavlink.errors import UserError
 def policy_row(name: str, path: Path) -> dict[str, Any]:
     """One shipped policy as ``uavlink policies`` lists it: what it was built for (its manifest
     beside it), the runtimes it can fly with and its shipped evaluation figure."""
+    from uavlink.config import fleet_sizes_of
+    from uavlink.policies.contract import manifest_env
     from uavlink.policies.loader import zip_twin
 
     manifest = json.loads(path.with_suffix(".json").read_text())
-    env = manifest["env_config"]
-    scenario = env["scenario"]
+    env = manifest_env(manifest)
+    scenario = env.scenario
     evaluation = manifest.get("evaluation", {})
     own = evaluation.get(scenario)
     runtimes = []
@@ -31,11 +33,11 @@ def policy_row(name: str, path: Path) -> dict[str, Any]:
     return {
         "name": name,
         "file": str(path),
-        "channel": env["radio"]["shadowing_model"],
+        "channel": env.radio.shadowing_model,
         "scenario": scenario,
-        "n_uavs": env.get("n_uavs", 1),
-        # an any-size fleet's policy (fleet_slots K) flies 2 to K + 1 UAVs (--set n_uavs=D)
-        "fleet_sizes": list(range(2, slots + 2)) if (slots := env.get("fleet_slots", 0)) else None,
+        "n_uavs": env.n_uavs,
+        # an any-size fleet's policy flies every size of fleet_sizes_of (--set n_uavs=D)
+        "fleet_sizes": list(fleet_sizes_of(env.fleet_slots)) if env.fleet_slots else None,
         "layout": manifest["observation_layout"]["version"],
         "runtimes": runtimes,
         "mean_rate_mbps": own["mean_rate_mbps"] if own else None,

@@ -13,6 +13,7 @@ from uavlink.config.env import (
     EnvConfig,
     RadioConfig,
     changed_settings,
+    fleet_sizes_of,
     parse_settings,
 )
 from uavlink.config.fields import SEED_MAX, check_seed
@@ -44,5 +45,6 @@ __all__ = [
     "WarmStartConfig",
     "changed_settings",
     "check_seed",
+    "fleet_sizes_of",
     "parse_settings",
 ]

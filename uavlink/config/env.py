@@ -54,6 +54,12 @@ PLACE_CELL_MIN_M = 1.0
 PLACE_CELLS_ACROSS = 400
 
 
+def fleet_sizes_of(fleet_slots: int) -> range:
+    """The fleet sizes a policy that shows each UAV ``fleet_slots`` others flies (layout v6 and on):
+    2 to ``fleet_slots`` + 1 UAVs; none without slots."""
+    return range(2, fleet_slots + 2)
+
+
 @dataclass(frozen=True)
 class AreaConfig:
     """The operating area (and geofence): x = east, y = north, metres, centred at the origin."""
@@ -207,9 +213,10 @@ class EnvConfig:
             )
         if self.cluster_size_m >= 2 * self.area.half_width_m:
             raise ConfigError("env.cluster_size_m must be smaller than the area")
-        if self.fleet_slots > 0 and not 2 <= self.n_uavs <= self.fleet_slots + 1:
+        sizes = fleet_sizes_of(self.fleet_slots)
+        if self.fleet_slots > 0 and self.n_uavs not in sizes:
             raise ConfigError(
-                f"env.fleet_slots={self.fleet_slots} flies fleets of 2 to {self.fleet_slots + 1} "
+                f"env.fleet_slots={self.fleet_slots} flies fleets of {sizes[0]} to {sizes[-1]} "
                 f"UAVs, not n_uavs={self.n_uavs}"
             )
         if self.n_uavs > 1:  # the start circle must fit the area and keep the UAVs apart

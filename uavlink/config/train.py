@@ -11,7 +11,7 @@ import dataclasses
 from dataclasses import dataclass
 from typing import Any
 
-from uavlink.config.env import EnvConfig
+from uavlink.config.env import EnvConfig, fleet_sizes_of
 from uavlink.config.fields import (
     SEED_MAX,
     Namer,
@@ -308,7 +308,9 @@ class TrainConfig:
         self.warm_start.validate(name)
         if env is not None:
             self.warm_start.check_env(env, name)
-            if self.fleet_sizes_up_to and not (2 <= self.fleet_sizes_up_to <= env.fleet_slots + 1):
+            if self.fleet_sizes_up_to and self.fleet_sizes_up_to not in fleet_sizes_of(
+                env.fleet_slots
+            ):
                 raise ConfigError(
                     f"{name('fleet_sizes_up_to')}={self.fleet_sizes_up_to} needs the any-size "
                     f"layout with env.fleet_slots >= {max(self.fleet_sizes_up_to - 1, 1)}, "

@@ -47,9 +47,8 @@ class GroundTruth:
     scenario_ids: np.ndarray  # (N,)
     frame: int = 0  # frames stepped since reset
     mobility: MobilityState | None = None  # a copy of the UEs' state
-    shadow_field: SpatialShadowField | None = (
-        None  # the episode's field; None on AR(1) or no shadowing
-    )
+    # The episode's shadowing field; None on AR(1) or without shadowing.
+    shadow_field: SpatialShadowField | None = None
 
 
 @dataclass

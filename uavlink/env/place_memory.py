@@ -26,9 +26,8 @@ import math
 
 import numpy as np
 
-STALE_BITS_PER_FRAME = (
-    0.01  # a spot sensed 100 frames ago must have been 1 bit/s/Hz better than now
-)
+# A spot sensed 100 frames ago must have been 1 bit/s/Hz better than now.
+STALE_BITS_PER_FRAME = 0.01
 HYSTERESIS_BITS = 0.1  # the best cell stays best until it reads this much less than when it won
 NEIGHBOURS = np.array([[1, 0], [0, 1], [-1, 0], [0, -1]])  # east, north, west, south, in cells
 

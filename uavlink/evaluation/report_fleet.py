@@ -16,7 +16,7 @@ import functools
 from collections.abc import Callable
 from pathlib import Path
 
-from uavlink.config import EnvConfig
+from uavlink.config import EnvConfig, fleet_sizes_of
 from uavlink.config.env import PLACE_CELLS
 from uavlink.errors import UserError
 from uavlink.evaluation.core import EvalResult, evaluate_policy
@@ -50,7 +50,7 @@ def sizes_flown(policy: Policy, cfg: EnvConfig) -> list[int]:
     """The fleet sizes a policy flies among ``FLEET_SIZES``: an any-size layout's (v6, K slots:
     D = 2 to K + 1), else the policy's own ``n_uavs``."""
     slots = getattr(policy.layout, "uav_slots", 0)
-    sizes = range(2, slots + 2) if slots > 0 else [cfg.n_uavs]
+    sizes = fleet_sizes_of(slots) if slots > 0 else [cfg.n_uavs]
     return [d for d in sizes if d > 1 and d in FLEET_SIZES]
 
 

@@ -66,9 +66,8 @@ LIVE_S = 0.5  # wall seconds: a vehicle not heard for longer is not waited for
 # Without it the aoa rule's fleet of three (circular, seed 0) came to 19.64-19.99 m in the SITL's
 # truth in 5 of 6 flights.
 FREE_RUNNING_MARGIN_M = 1.0
-GATHER_FRAME_FRACTION = (
-    0.3  # of a frame's wall time: the longest wait for the other vehicles' reports, free-running
-)
+# Of a frame's wall time: the longest wait for the other vehicles' reports, free-running.
+GATHER_FRAME_FRACTION = 0.3
 
 
 class FleetPilot(PolicyPilot):

@@ -21,9 +21,8 @@ from uavlink.mavlink.dialect import mavlink
 
 log = logging.getLogger(__name__)
 
-AT_START_M = (
-    2.0  # horizontal distance that counts as at the start (DO_REPOSITION's float32 degrees: ~0.5 m)
-)
+# Horizontal distance that counts as at the start (DO_REPOSITION's float32 degrees: ~0.5 m)
+AT_START_M = 2.0
 TRANSIT_VEHICLE_S = 300.0  # vehicle seconds allowed for the transit
 
 

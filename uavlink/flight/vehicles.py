@@ -14,9 +14,8 @@ from uavlink.config import EnvConfig, changed_settings, check_seed
 from uavlink.errors import LinkError, UserError
 from uavlink.mavlink.connection import free_udp_ports, normalize_connection
 
-VEHICLE_START_S = (
-    30.0  # wall seconds for the embedded vehicle to open its links (as the heartbeat wait)
-)
+# Wall seconds for the embedded vehicle to open its links (as the heartbeat wait).
+VEHICLE_START_S = 30.0
 
 
 def check_vehicle_options(seed: int, speed: float) -> None:

@@ -33,9 +33,8 @@ from uavlink.policies.base import Policy
 from uavlink.rollout import Actor, rollout
 from uavlink.seeding import DAGGER, TEACHER
 
-CLONE_EPOCHS = (
-    20  # passes over the cloning data unless TrainConfig.warm_start.epochs says otherwise
-)
+# Passes over the cloning data unless TrainConfig.warm_start.epochs says otherwise.
+CLONE_EPOCHS = 20
 
 
 @dataclass(frozen=True)

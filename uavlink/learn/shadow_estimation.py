@@ -24,9 +24,8 @@ from uavlink.policies.baselines import AoaPolicy
 from uavlink.rollout import chunks
 from uavlink.seeding import SHADOW, SHADOW_HELD_OUT, SHADOW_HELD_OUT_HOVERS, SHADOW_HOVERS
 
-HOVER_PROBABILITY = (
-    0.3  # the data's rule hovers at random in this share of frames, so both are seen
-)
+# The data's rule hovers at random in this share of frames, so both are seen.
+HOVER_PROBABILITY = 0.3
 RIDGE = 1.0  # L2 penalty on the weights (features are O(1) to O(10))
 
 

@@ -60,9 +60,8 @@ class RadioReport:
     sinr_db: np.ndarray  # (U,)
     aoa_deg: np.ndarray  # (U,)
     running: bool = True
-    serves: np.ndarray | None = (
-        None  # (U,) bool: the UEs in this UAV's cell (a fleet's); None: not reported
-    )
+    # (U,) bool: the UEs in this UAV's cell (a fleet's); None: not reported.
+    serves: np.ndarray | None = None
     waits: bool = False  # the vehicle's time waits for this frame's FRAME_DECIDED (lockstep)
 
 

@@ -24,7 +24,13 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from uavlink.config.position_loop import BRAKE_FRACTION, POS_GAIN_PER_S, SUBSTEP_S
+from uavlink.config.position_loop import (
+    BRAKE_FRACTION,
+    MPC_ACC_HOR_MAX_MPS2,
+    MPC_XY_VEL_MAX_MPS,
+    POS_GAIN_PER_S,
+    SUBSTEP_S,
+)
 
 # up to this many rows (UAVs x setpoints) fly in Python floats: 300 substeps cost about 0.7 ms a row
 # in floats and 34-38 ms in numpy for up to a hundred rows: even at about 54
@@ -35,8 +41,8 @@ FLOAT_KERNEL_MAX_ROWS = 48
 class PositionLoop:
     """PX4's horizontal position controller (mc_pos_control), as ``sitl_stub`` models it."""
 
-    max_speed_mps: float = 12.0  # MPC_XY_VEL_MAX
-    max_accel_mps2: float = 5.0  # MPC_ACC_HOR_MAX
+    max_speed_mps: float = MPC_XY_VEL_MAX_MPS
+    max_accel_mps2: float = MPC_ACC_HOR_MAX_MPS2
     gain_per_s: float = POS_GAIN_PER_S
     brake_fraction: float = BRAKE_FRACTION
     substep_s: float = SUBSTEP_S

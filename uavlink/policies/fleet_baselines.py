@@ -34,9 +34,8 @@ class FleetAoaPolicy(RulePolicy):
     )  # full speed this far below the hover SINR, as one UAV's rule
 
     def __init__(self, cfg: EnvConfig, sinr_span_db: float = sinr_span_db) -> None:
-        self.sinr_span_db = (
-            sinr_span_db  # a warm start's teacher may change it (uavlink.learn.teachers)
-        )
+        # A warm start's teacher may change it (uavlink.learn.teachers)
+        self.sinr_span_db = sinr_span_db
         self.layout = ObservationLayout.for_config(cfg)
         self.mapping = ActionMapping.for_config(cfg)
         self.hover_sinr_db = hover_sinr_db(cfg)

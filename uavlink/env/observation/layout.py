@@ -10,7 +10,7 @@ from typing import Any
 
 import numpy as np
 
-from uavlink.config import EnvConfig
+from uavlink.config import EnvConfig, fleet_sizes_of
 from uavlink.config.env import PLACE_CELLS, PLACE_KRIGING
 from uavlink.env.observation.fields import FIELDS, KRIGING_FIELDS, PLACE_FIELDS, Field
 from uavlink.env.observation.fleet_view import FLEET_FIELDS, SLOT_FIELDS
@@ -45,11 +45,11 @@ class ObservationLayout:
     sinr_clip_db: tuple[float, float] = (-30.0, 50.0)
     aoa_std_max_rad: float = 2 * np.pi
     place_cell_m: float = 0.0  # the memory of place's grid (0: none; layouts v1 and v2)
-    place_model: str = (
-        PLACE_CELLS  # "kriging": v5, with the model of the field, which plans over an
-    )
-    episode_frames: int = 128  # episode of this many frames at this longest move a frame (recorded
-    r_max_m: float = 12.0  # for v5 only)
+    # "kriging": v5, with the model of the field, which plans over an episode of episode_frames
+    # frames at r_max_m a frame (both recorded for v5 only).
+    place_model: str = PLACE_CELLS
+    episode_frames: int = 128
+    r_max_m: float = 12.0
     uav_slots: int = 0  # v6: the other UAVs' slots (flies fleets of 2 to uav_slots + 1); n_uavs 1
 
     @classmethod
@@ -153,7 +153,7 @@ class ObservationLayout:
     def describe(self) -> str:
         fleet = f"n_uavs={self.n_uavs}, " if self.n_uavs > 1 else ""
         fleet += (
-            f"uav_slots={self.uav_slots} (fleets of 2-{self.uav_slots + 1}), "
+            f"uav_slots={self.uav_slots} (fleets of {_span(fleet_sizes_of(self.uav_slots))}), "
             if self.uav_slots > 0
             else ""
         )
@@ -248,3 +248,8 @@ class ObservationLayout:
             field.quantity: field.decode(self, frame[:, self.slices[field.quantity]])
             for field in self.fields
         }
+
+
+def _span(sizes: range) -> str:
+    """``2-4`` for the sizes 2, 3 and 4."""
+    return f"{sizes[0]}-{sizes[-1]}"

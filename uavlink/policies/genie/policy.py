@@ -44,9 +44,8 @@ from uavlink.radio.noise import noise_power_dbm
 from uavlink.radio.pathloss import distance_3d_m, mean_rx_power_dbm
 from uavlink.radio.spatial_shadowing import SpatialShadowField
 
-SEPARATION_SLACK_M = (
-    1e-6  # planned moves keep this much more than the minimum: the filter never cuts
-)
+# Planned moves keep this much more than the minimum: the filter never cuts.
+SEPARATION_SLACK_M = 1e-6
 REFERENCES = ("static", "oracle", "kmeans")  # the baselines whose paths a fleet plan starts from
 GENIE_GRID_M = 4.0  # the grid the genie plans on (its default); the place map draws the truth on it
 
@@ -355,9 +354,8 @@ class GeniePolicy(RulePolicy):
         self.grid = Grid.over_area(cfg.area.half_width_m, grid_m, cfg.r_max_m)
         self.tolerance, self.max_rounds = tolerance, max_rounds
         self.references = references
-        self.path_m: np.ndarray | None = (
-            None  # (T + 1, N, D, 2) the plan, entry 0 at frame ``planned_at``
-        )
+        # (T + 1, N, D, 2) the plan, entry 0 at frame ``planned_at``.
+        self.path_m: np.ndarray | None = None
         self.planned_rate_mbps: np.ndarray | None = None  # (N,) its mean expected throughput
         self.planned_at = 0
 
