@@ -175,6 +175,13 @@ def test_params_read_list_set_and_int_encoding(gcs: Gcs):
     gcs.mav.param_set_send(1, 0, b"MPC_XY_VEL_MAX", -3.0, mavlink.MAV_PARAM_TYPE_REAL32)
     refused = gcs.wait("PARAM_VALUE", lambda m: m.param_id == "MPC_XY_VEL_MAX")
     assert refused.param_value == pytest.approx(12.0)  # out of range: old value answered
+    said = gcs.wait("STATUSTEXT", lambda m: "MPC_XY_VEL_MAX" in m.text)
+    assert said.text == "[pm] MPC_XY_VEL_MAX -3 refused: 0.5..20"
+    # A name the vehicle does not have: no PARAM_VALUE, PX4's STATUSTEXT says so.
+    gcs.mav.param_set_send(1, 0, b"NAV_RCL_ACT", 0.0, mavlink.MAV_PARAM_TYPE_INT32)
+    assert gcs.wait("STATUSTEXT", lambda m: "NAV_RCL_ACT" in m.text).text == (
+        "[pm] unknown param: NAV_RCL_ACT"
+    )
     gcs.mav.param_request_list_send(1, 0)
     seen: set[str] = set()
     count = None
