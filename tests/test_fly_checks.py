@@ -21,6 +21,7 @@ from sitl_stub.launcher import VehicleExited, VehicleProcess, vehicle_process
 from uavlink.cli import main
 from uavlink.config import BASELINE_NAMES, EnvConfig
 from uavlink.env.radio_world import episode_scenario
+from uavlink.errors import UserError
 from uavlink.flight.link import LinkError, VehicleLink
 from uavlink.flight.loop import LoopConfig, timed_out
 from uavlink.flight.result import EndedBy, FlightResult, judge, signing_hint
@@ -81,6 +82,12 @@ def test_fly_refuses_a_speed_for_a_vehicle_it_connects_to(tmp_path: Path) -> Non
     )  # fmt: skip
     assert_user_error(proc, "uavlink fly: error: ", "--speed sets the embedded SITL's clock")
     assert not out.exists()
+    # The Python API refuses it as the command does (it flew on, the speed ignored).
+    from uavlink.flight import FlyOptions
+
+    with pytest.raises(UserError, match="--speed sets the embedded SITL's clock"):
+        FlyOptions(connect="udpout:127.0.0.1:9", speed=5.0).validate()
+    assert FlyOptions().embedded_speed == 20.0 and FlyOptions(speed=5.0).embedded_speed == 5.0
 
 
 # ------------------------------------------------------------------ which baselines fly (fast)

@@ -6,7 +6,8 @@ import argparse
 from pathlib import Path
 
 from uavlink.cli.options import output_folder, seed
-from uavlink.errors import EXTRA_OF_MODULE, UserError
+from uavlink.errors import EXTRA_OF_MODULE
+from uavlink.flight import EMBEDDED_SPEED
 from uavlink.mavlink.signing import key_file_argument
 from uavlink.policies.contract import OVERRIDES_HELP
 from uavlink.policies.registry import flying_baselines
@@ -16,11 +17,6 @@ def cmd_fly(args: argparse.Namespace) -> int:
     from uavlink.flight.fly import FlyOptions, run_fly
 
     output_folder(args.out, "--out")
-    if args.speed is not None and args.connect is not None:
-        raise UserError(
-            "--speed sets the embedded SITL's clock; a vehicle you connect to runs at the speed "
-            "it was started with (sitl-stub --speed)"
-        )
     options = FlyOptions(
         policy=args.policy,
         connect=args.connect,
@@ -28,7 +24,7 @@ def cmd_fly(args: argparse.Namespace) -> int:
         seed=args.seed,
         aoa_noise_deg=args.aoa_noise_deg,
         overrides=tuple(args.overrides),
-        speed=args.speed if args.speed is not None else FlyOptions.speed,
+        speed=args.speed,
         lockstep=args.lockstep,
         frames=args.frames,
         out=args.out,
@@ -109,7 +105,8 @@ def add_fly_parser(sub) -> None:
         "--speed",
         type=float,
         default=None,
-        help="embedded SITL speed factor, > 0 (simulated seconds per wall second; default 20; "
+        help="embedded SITL speed factor, > 0 (simulated seconds per wall second; default "
+        f"{EMBEDDED_SPEED:g}; "
         "a vehicle you --connect to runs at the speed it was started with): "
         "a vehicle waits 1/speed s of wall time for setpoints, so where the flight says its "
         "vehicles fell back to hold, fly slower or with --lockstep",

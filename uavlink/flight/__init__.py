@@ -19,6 +19,9 @@ from typing import Any
 
 __all__ = ["FlyOptions", "fly_policy"]
 
+# The embedded vehicle's speed unless --speed says otherwise: simulated seconds per wall second.
+EMBEDDED_SPEED = 20.0
+
 
 def __getattr__(name: str) -> Any:  # resolved on first use: importing the package loads no link
     if name not in __all__:

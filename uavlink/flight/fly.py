@@ -23,6 +23,7 @@ from typing import Any
 
 from uavlink.config import EnvConfig
 from uavlink.errors import UserError
+from uavlink.flight import EMBEDDED_SPEED
 from uavlink.flight.fleet_loop import FleetPilot, fly_fleet
 from uavlink.flight.link import VehicleLink
 from uavlink.flight.link.group import open_fleet_links
@@ -59,7 +60,9 @@ class FlyOptions:
     seed: int = 0  # the embedded vehicle's radio episode
     aoa_noise_deg: float | None = None
     overrides: tuple[str, ...] = field(default_factory=tuple)  # KEY=VALUE, as --set
-    speed: float = 20.0  # embedded vehicle's simulated seconds per wall second
+    # The embedded vehicle's simulated seconds per wall second (None: EMBEDDED_SPEED); a vehicle
+    # you connect to runs at the speed it was started with.
+    speed: float | None = None
     lockstep: bool = False
     frames: int | None = None  # default: the env's episode
     out: Path = Path("runs/fly")  # flight.tlog, summary.json, flight.png, sitl.log
@@ -69,7 +72,12 @@ class FlyOptions:
 
     def validate(self) -> FlyOptions:
         """UserError for what no flight can take, before anything starts or is written."""
-        check_vehicle_options(self.seed, self.speed)
+        check_vehicle_options(self.seed, self.embedded_speed)
+        if self.speed is not None and self.connect is not None:
+            raise UserError(
+                "--speed sets the embedded SITL's clock; a vehicle you connect to runs at the "
+                "speed it was started with (sitl-stub --speed)"
+            )
         if self.lockstep and self.connect is not None:
             raise UserError(
                 "--lockstep sets up the embedded SITL; a vehicle you connect to runs in "
@@ -77,6 +85,11 @@ class FlyOptions:
                 "it either way"
             )
         return self
+
+    @property
+    def embedded_speed(self) -> float:
+        """The embedded vehicle's speed: ``speed``, or EMBEDDED_SPEED when not given."""
+        return EMBEDDED_SPEED if self.speed is None else self.speed
 
 
 def fly_policy(options: FlyOptions, live_status: bool = False) -> dict[str, Any]:
@@ -123,7 +136,7 @@ def fly_policy(options: FlyOptions, live_status: bool = False) -> dict[str, Any]
         embedded_vehicles(
             cfg,
             options.seed,
-            options.speed,
+            options.embedded_speed,
             out_dir / "sitl.log",
             options.signing_key if key else None,
             options.lockstep,
