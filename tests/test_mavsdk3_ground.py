@@ -94,6 +94,14 @@ def test_telemetry_position_battery_gps_armed_in_air_mode_health_home(vehicle):
             assert await first(tel.health_all_ok(), bool, what="health_all_ok")
             # MAVSDK passes on new messages only: HOME_POSITION must keep coming (~0.5 Hz)
             await first(tel.home(), timeout=10.0, what="a second HOME_POSITION")
+            # Streams off by default that an app turns on, as on PX4 (SET_MESSAGE_INTERVAL).
+            await tel.set_rate_odometry(10.0)
+            odometry = await first(tel.odometry(), what="ODOMETRY")
+            assert odometry.position_body.z_m == pytest.approx(0.0, abs=0.1), odometry  # landed
+            await tel.set_rate_altitude(5.0)
+            altitude = await first(tel.altitude(), what="ALTITUDE")
+            assert altitude.altitude_amsl_m == pytest.approx(HOME_ALT_M, abs=0.1), altitude
+            assert altitude.altitude_relative_m == pytest.approx(0.0, abs=0.1), altitude
 
     run_app(app, vehicle)
 

@@ -274,6 +274,17 @@ def test_flight_arm_takeoff_offboard_loss_and_land(gcs: Gcs):
     gcs.heartbeat(lambda m: m.custom_mode == LOITER, timeout=15.0)
     pos = gcs.wait("LOCAL_POSITION_NED")
     assert pos.z == pytest.approx(-10.0, abs=0.6)
+    interval = mavlink.MAV_CMD_SET_MESSAGE_INTERVAL
+    assert (
+        gcs.command(interval, mavlink.MAVLINK_MSG_ID_ODOMETRY, 1e5) == mavlink.MAV_RESULT_ACCEPTED
+    )
+    odometry = gcs.wait("ODOMETRY")  # the same position as LOCAL_POSITION_NED, hovering
+    assert (odometry.x, odometry.y, odometry.z) == pytest.approx((pos.x, pos.y, pos.z), abs=0.5)
+    assert (odometry.frame_id, odometry.child_frame_id) == (
+        mavlink.MAV_FRAME_LOCAL_NED,
+        mavlink.MAV_FRAME_BODY_FRD,
+    )
+    assert gcs.command(interval, mavlink.MAVLINK_MSG_ID_ODOMETRY, -1) == mavlink.MAV_RESULT_ACCEPTED
     # In the air a disarm is refused as PX4 refuses it: TEMPORARILY_REJECTED (Commander.cpp).
     assert (
         gcs.command(mavlink.MAV_CMD_COMPONENT_ARM_DISARM, 0)

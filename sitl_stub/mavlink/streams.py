@@ -22,6 +22,8 @@ DEFAULT_RATES_HZ: dict[str, float] = {
     "LOCAL_POSITION_NED": 10.0,
     "ATTITUDE": 10.0,
     "ATTITUDE_QUATERNION": 0.0,
+    "ODOMETRY": 0.0,  # off until asked (MAVSDK's set_rate_odometry), as PX4's normal mode
+    "ALTITUDE": 0.0,
     "VFR_HUD": 4.0,
     "MISSION_CURRENT": 1.0,
     "ORBIT_EXECUTION_STATUS": 2.0,  # sent only while orbiting

@@ -116,6 +116,8 @@ class TelemetrySender:
             "LOCAL_POSITION_NED": self.local_position_ned,
             "ATTITUDE": self.attitude,
             "ATTITUDE_QUATERNION": self.attitude_quaternion,
+            "ODOMETRY": self.odometry,
+            "ALTITUDE": self.altitude,
             "VFR_HUD": self.vfr_hud,
             "AUTOPILOT_VERSION": self.autopilot_version,
             "MISSION_CURRENT": self.mission_current,
@@ -258,6 +260,39 @@ class TelemetrySender:
     def attitude_quaternion(self, s: VehicleState) -> None:
         q = _quaternion(s.roll_rad, s.pitch_rad, s.yaw_rad)
         self.mav.attitude_quaternion_send(_ms(s.time_s), *q, 0.0, 0.0, s.yaw_rate_radps)
+
+    def odometry(self, s: VehicleState) -> None:
+        """ODOMETRY as PX4's stream sends it: the position in LOCAL_NED, the velocity in the body
+        frame (FRD), covariances unknown (NaN). The body frame is turned by yaw alone: the point-mass
+        vehicle's roll and pitch are the few degrees its acceleration implies."""
+        c, si = math.cos(s.yaw_rad), math.sin(s.yaw_rad)
+        unknown = [math.nan] * 21
+        self.mav.odometry_send(
+            _us(s.time_s),
+            mavlink.MAV_FRAME_LOCAL_NED,
+            mavlink.MAV_FRAME_BODY_FRD,
+            s.north_m,
+            s.east_m,
+            s.down_m,
+            list(_quaternion(s.roll_rad, s.pitch_rad, s.yaw_rad)),
+            c * s.vn_mps + si * s.ve_mps,
+            -si * s.vn_mps + c * s.ve_mps,
+            s.vd_mps,
+            0.0,
+            0.0,
+            s.yaw_rate_radps,
+            unknown,
+            unknown,
+            0,
+            mavlink.MAV_ESTIMATOR_TYPE_AUTOPILOT,
+        )
+
+    def altitude(self, s: VehicleState) -> None:
+        """ALTITUDE: AMSL (also as the monotonic altitude), local (-down), above home; no terrain."""
+        amsl = self.origin.alt_amsl_m + s.altitude_m
+        self.mav.altitude_send(
+            _us(s.time_s), amsl, amsl, -s.down_m, s.altitude_m, math.nan, math.nan
+        )
 
     def vfr_hud(self, s: VehicleState) -> None:
         heading = int(round(math.degrees(s.yaw_rad))) % 360
