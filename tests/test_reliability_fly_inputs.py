@@ -206,6 +206,7 @@ def test_policy_output_guard_in_flight_holds_position_and_logs_clearly(caplog) -
     # Every decision is guarded; under load a backlog of reports is observed, not decided.
     assert result.decisions >= 4 and result.guarded_actions == result.decisions
     assert result.decisions + result.stale_reports == 8
+    assert result.frames_missed == result.stale_reports  # no report lost: only late ones undecided
     assert state.armed and state.max_abs_xy_m < 1.0  # took off at home and held there
     lines = [r.getMessage() for r in caplog.records if "policy output guard" in r.getMessage()]
     assert len(lines) == result.guarded_actions

@@ -299,7 +299,8 @@ def _fly(link, pilot, cfg, loop_cfg, radio, status, result: FlightResult) -> Non
             # A backlog (the loop was held up, e.g. by a mode change) is history, not a string of
             # moves to make at once: only the newest frame is decided.
             for report, first in fresh[:-1]:
-                result.stale_reports += 1
+                result.stale_reports += 1  # undecided (frames_missed), but in the memory
+                result.frames_missed += 1
                 pilot.observe(report, np.array([st.east_m, st.north_m]), first)
             for report, first in fresh[-1:]:
                 arrived = time.monotonic()

@@ -72,7 +72,9 @@ class FlightResult:
     first_frame: int | None = None
     last_frame: int | None = None  # the newest frame taken
     decisions: int = 0
-    frames_missed: int = 0  # frames between decisions that went undecided
+    # Frames between decisions that went undecided, one UAV or a fleet: their reports lost, or
+    # late (stale_reports, which one UAV's loop still puts into the policy's memory).
+    frames_missed: int = 0
     # a fleet's: frames gone by before its first decision, which needs every vehicle's report
     frames_before_first_decision: int = 0
     stale_reports: int = 0
