@@ -7,7 +7,8 @@ GPS-free shadowing estimate a teacher's gate reads). Layer: above ``policies``, 
 ``evaluation`` (neither imports the other).
 
 May import: ``config``, ``errors``, ``seeding``, ``radio``, ``mobility``, ``env``, ``rollout``,
-``policies``. Torch and stable-baselines3 are imported by ``training``, ``imitation``,
-``policy_transfer`` and ``selection`` only, inside the functions that need them, and by
-``privileged`` (which only ``training`` imports, inside a function) when it is imported.
+``policies``. Torch and stable-baselines3 are imported inside the functions that need them (in
+``training``, ``imitation``, ``policy_transfer``, ``selection``, ``monitor`` and ``snapshot``), and by
+``privileged`` when it is imported (which only ``training`` does, inside a function): importing
+any other module of the package loads neither.
 """

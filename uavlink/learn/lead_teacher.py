@@ -36,7 +36,7 @@ from uavlink.env.observation import (
     ObservationLayout,
 )
 from uavlink.errors import UserError
-from uavlink.policies.baselines import hover_sinr_db
+from uavlink.policies.baselines import AoaPolicy, hover_sinr_db
 from uavlink.rollout import Actor
 
 
@@ -217,8 +217,7 @@ def away_target_m(
 def make_lead_teacher(cfg: EnvConfig, leader_policy: str = "") -> LeadTeacher:
     """The lead teacher for fleet ``cfg``; its leader flies ``leader_policy`` (a single-UAV policy
     file, e.g. policies/spatial/<scenario>.zip) or, without one, the single-UAV aoa rule."""
-    from uavlink.policies.baselines import AoaPolicy
-    from uavlink.policies.loader import load_policy
+    from uavlink.policies.loader import load_policy  # a policy file may need torch
 
     single = cfg.replace(n_uavs=1, fleet_slots=0).validate()
     return LeadTeacher(

@@ -24,7 +24,21 @@ from uavlink.config import (
     EnvConfig,
     TrainConfig,
 )
+from uavlink.env.observation import ObservationLayout
+from uavlink.errors import UserError
+from uavlink.learn.imitation import CLONE_EPOCHS, critic_warmup_callback, warm_start
 from uavlink.learn.monitor import save_checkpoint, training_monitor
+from uavlink.learn.policy_transfer import start_from_policy
+from uavlink.learn.selection import keep_best_callback
+from uavlink.learn.snapshot import (
+    check_can_snapshot,
+    read_snapshot,
+    restore_model,
+    snapshot_callback,
+)
+from uavlink.learn.teachers import warm_start_teacher
+from uavlink.policies.manifest import build_manifest, write_zip_manifest
+from uavlink.policies.sb3_policy import privileged_critic_policy
 
 __all__ = [
     "check_checkpoint",
@@ -51,7 +65,7 @@ def make_model(cfg: EnvConfig, tc: TrainConfig, run_dir: Path | None):
     from stable_baselines3 import PPO
     from stable_baselines3.common.vec_env import VecEnv
 
-    from uavlink.env.vec_env import FleetSizesVecEnv, UavVecEnv
+    from uavlink.env.vec_env import FleetSizesVecEnv, UavVecEnv  # SB3's VecEnv: torch
 
     if tc.n_steps % cfg.episode_frames:
         # the batched env's episodes end together: a rollout of whole episodes never bootstraps a
@@ -115,13 +129,11 @@ def policy_settings(cfg: EnvConfig, tc: TrainConfig) -> tuple[Any, dict[str, Any
     the critic, or with ``tc.critic`` privileged the policy whose critic also reads the privileged
     columns (``uavlink.policies.sb3_policy.PrivilegedCriticPolicy``; its actor reads the first
     ``layout.size``: the observation)."""
-    from uavlink.env.observation import ObservationLayout
 
     arch = list(tc.net_arch)
     kwargs: dict[str, Any] = {"net_arch": {"pi": arch, "vf": arch}}
     if tc.critic != CRITIC_PRIVILEGED:
         return "MlpPolicy", kwargs
-    from uavlink.policies.sb3_policy import privileged_critic_policy
 
     kwargs["actor_obs_size"] = ObservationLayout.for_config(cfg).size
     return privileged_critic_policy(), kwargs
@@ -130,7 +142,6 @@ def policy_settings(cfg: EnvConfig, tc: TrainConfig) -> tuple[Any, dict[str, Any
 def training_observation_size(cfg: EnvConfig, tc: TrainConfig) -> int:
     """The width of what PPO's policy reads in training: the observation, plus the privileged
     critic's columns with ``tc.critic`` privileged."""
-    from uavlink.env.observation import ObservationLayout
 
     size = ObservationLayout.for_config(cfg).size
     if tc.critic == CRITIC_PRIVILEGED:
@@ -146,9 +157,6 @@ def check_checkpoint(resume: Path, cfg: EnvConfig, tc: TrainConfig) -> None:
     import zipfile
 
     from stable_baselines3.common.save_util import load_from_zip_file
-
-    from uavlink.env.observation import ObservationLayout
-    from uavlink.errors import UserError
 
     if not resume.is_file():
         raise UserError(f"--resume {resume}: no such checkpoint")
@@ -231,13 +239,9 @@ def _without_distribution_checks() -> Iterator[None]:
 def _warm_start(sb3_policy: Any, cfg: EnvConfig, tc: TrainConfig) -> dict[str, Any]:
     """Clone the teacher TrainConfig names into the actor (uavlink/learn/imitation.py), or start from
     the policy it names (uavlink/learn/policy_transfer.py); the report."""
-    from uavlink.learn.imitation import CLONE_EPOCHS, warm_start
-    from uavlink.learn.teachers import warm_start_teacher
 
     ws = tc.warm_start
     if ws.policy:
-        from uavlink.learn.policy_transfer import start_from_policy
-
         return start_from_policy(sb3_policy, cfg, ws.policy, ws.log_std)
     epochs = CLONE_EPOCHS if ws.epochs is None else ws.epochs
     # Every fleet size trained on gets its share of the teacher's episodes, flown by the teacher
@@ -297,19 +301,14 @@ def train(
     ``snapshot``: a file the run writes between rollouts (every ``snapshot_every_s`` of wall time)
     and, when it is there at the start, continues from, to the weights the uninterrupted run gives
     (uavlink/learn/snapshot.py); removed once ``out`` is written."""
-    from uavlink.policies.manifest import build_manifest, write_zip_manifest
 
     tc.validate(cfg)
     snapped = None
     if snapshot is not None:
-        from uavlink.learn.snapshot import check_can_snapshot, read_snapshot
-
         check_can_snapshot(tc, resume)
         snapped = read_snapshot(snapshot, cfg, tc)
     model = make_model(cfg, tc, run_dir)
     if snapped is not None:
-        from uavlink.learn.snapshot import restore_model
-
         # it sets the global random states: nothing from here to `learn` draws from them
         model = restore_model(snapped, tensorboard_log=model.tensorboard_log)
     if resume is not None:
@@ -333,18 +332,13 @@ def train(
     callbacks = [monitor, *callbacks]
     warmup = None
     if cloned is not None:
-        from uavlink.learn.imitation import critic_warmup_callback
-
         warmup = critic_warmup_callback(tc.warm_start.critic_rollouts)
         callbacks.append(warmup)
     keep_best = None
     if tc.validation_episodes:
-        from uavlink.learn.selection import keep_best_callback
-
         keep_best = keep_best_callback(cfg, tc.validation_episodes, tc.seed)
         callbacks.append(keep_best)  # last: the weights it leaves are the ones saved
     if snapshot is not None:
-        from uavlink.learn.snapshot import snapshot_callback
 
         def carried() -> dict[str, Any]:
             return {
