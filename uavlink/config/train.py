@@ -25,9 +25,17 @@ from uavlink.errors import ConfigError
 
 # The rules a warm start can copy; uavlink.policies.registry builds them by these names.
 BASELINE_NAMES = ("static", "oracle", "aoa", "kmeans", "explore", "kriging")
-# What a warm start may imitate: a baseline, or a fleet-only teacher (uavlink.learn.teachers: solo,
-# spread and bearings, the latter for the any-size layout; uavlink.learn.lead_teacher: lead).
-TEACHER_NAMES = (*BASELINE_NAMES, "solo", "lead", "bearings", "spread")
+# The fleet-only teachers (uavlink.learn.teachers builds them; lead: uavlink.learn.lead_teacher) and
+# what each needs of the env: a fleet (n_uavs > 1), or the any-size layout's slots (fleet_slots > 0).
+NEEDS_FLEET, NEEDS_SLOTS = "a fleet", "slots"
+FLEET_TEACHERS: dict[str, str] = {
+    "solo": NEEDS_FLEET,
+    "lead": NEEDS_FLEET,
+    "bearings": NEEDS_SLOTS,
+    "spread": NEEDS_FLEET,
+}
+# What a warm start may imitate: a baseline, or a fleet-only teacher.
+TEACHER_NAMES = (*BASELINE_NAMES, *FLEET_TEACHERS)
 
 
 # What PPO's critic reads (TrainConfig.critic): the actor's observation, or that plus the
@@ -52,7 +60,7 @@ class WarmStartConfig:
     teacher: str = setting(
         "",
         "first fit the actor to this rule's actions (behaviour cloning), then run PPO (ours; "
-        f"one of {', '.join(TEACHER_NAMES)}; solo, lead, spread and bearings fly fleets: "
+        f"one of {', '.join(TEACHER_NAMES)}; {', '.join(FLEET_TEACHERS)} fly fleets: "
         "uavlink/learn/teachers.py; default: off, the paper's PPO from scratch)",
         flag="--warm-start",
         metavar="RULE",
@@ -148,14 +156,15 @@ class WarmStartConfig:
     def check_env(self, env: EnvConfig, name: Namer = config_name) -> None:
         """The checks against the env the teacher flies: a fleet's teachers need a fleet, the shadow
         gate is the single-UAV aoa rule's and compares frames."""
-        if self.teacher in ("solo", "lead", "spread") and env.n_uavs == 1:
+        needs = FLEET_TEACHERS.get(self.teacher)
+        if needs is not None and env.n_uavs == 1:
             raise ConfigError(
                 f"{name('warm_start.teacher')} {self.teacher} is a fleet's teacher: it needs n_uavs > 1"
             )
-        if self.teacher == "bearings" and env.fleet_slots == 0:
+        if needs == NEEDS_SLOTS and env.fleet_slots == 0:
             raise ConfigError(
-                f"{name('warm_start.teacher')} bearings reads the any-size fleet's bearing fixes: "
-                "it needs env.fleet_slots > 0"
+                f"{name('warm_start.teacher')} {self.teacher} reads the any-size fleet's bearing "
+                "fixes: it needs env.fleet_slots > 0"
             )
         if self.shadow_gate_db is not None and env.n_uavs > 1:
             raise ConfigError(
