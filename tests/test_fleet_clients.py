@@ -25,12 +25,11 @@ import time
 from pathlib import Path
 
 import pytest
-from support.cli import PX4_PORTS, ROOT, UAVLINK
+from support.cli import PX4_PORTS, ROOT, UAVLINK, require_free_ports
 from support.mavlink_gcs import FAST_TAKEOFF
 from support.mavproxy_console import MAVPROXY, mavproxy
 from support.mavsdk_apps import first, run_app, sitl_vehicle, stub_has_px4_ports
 
-from sitl_stub.mavlink.links import socket_free
 from uavlink.mavlink.dialect import mavutil
 
 pytestmark = [pytest.mark.slow, pytest.mark.timeout(300), PX4_PORTS]
@@ -42,12 +41,7 @@ ARMED = mavutil.mavlink.MAV_MODE_FLAG_SAFETY_ARMED
 def _require_free(*ports: int) -> None:
     if not stub_has_px4_ports():
         pytest.skip("this sitl_stub has no PX4 ports (--instance)")
-    taken = [p for p in (*VEHICLE_PORTS, *ports) if not socket_free(p)]
-    if taken:
-        pytest.skip(
-            f"PX4 SITL port(s) {taken} on 127.0.0.1 are in use (a PX4 SITL, ground "
-            "station or another vehicle is running)"
-        )
+    require_free_ports(*VEHICLE_PORTS, *ports)
 
 
 def test_mavsdk4_sees_two_vehicles_and_commands_each() -> None:

@@ -15,10 +15,10 @@ from collections.abc import Iterator
 from typing import Any
 
 import pytest
-from support.cli import PX4_PORTS
+from support.cli import PX4_PORTS, require_free_ports
 
 from sitl_stub.launcher import vehicle_process
-from sitl_stub.mavlink.links import Fanout, Route, px4_links, socket_free
+from sitl_stub.mavlink.links import Fanout, Route, px4_links
 from sitl_stub.mavlink.server import ServerConfig, SitlServer
 from uavlink.mavlink.connection import free_udp_port
 from uavlink.mavlink.dialect import mavutil
@@ -73,15 +73,6 @@ class Listener:
         return set(self.conn.clients)
 
 
-def _require_free(*ports: int) -> None:
-    taken = [p for p in ports if not socket_free(p)]
-    if taken:
-        pytest.skip(
-            f"PX4 SITL port(s) {taken} on 127.0.0.1 are in use (a PX4 SITL, ground "
-            "station or another vehicle is running)"
-        )
-
-
 @pytest.fixture
 def listeners(request: pytest.FixtureRequest) -> Iterator[list[Listener]]:
     ports = request.param
@@ -118,7 +109,7 @@ def test_px4_port_table() -> None:
 
 @pytest.mark.slow
 def test_no_flags_serves_px4_instance_0_api_and_gcs_links() -> None:
-    _require_free(14540, 14550, 14580, 18570)
+    require_free_ports(14540, 14550, 14580, 18570)
     api, gcs = Listener(14540), Listener(14550)
     try:
         with vehicle_process(None, speed=5.0, extra_args=["--no-payload"]) as v:
@@ -158,7 +149,7 @@ def test_no_flags_serves_px4_instance_0_api_and_gcs_links() -> None:
 
 @pytest.mark.slow
 def test_instance_1_is_system_2_on_the_next_ports() -> None:
-    _require_free(14541, 14550, 14581, 18571)
+    require_free_ports(14541, 14550, 14581, 18571)
     api, gcs = Listener(14541), Listener(14550)
     try:
         with vehicle_process(None, speed=5.0, extra_args=["--no-payload", "--instance", "1"]):
@@ -175,7 +166,7 @@ def test_instance_1_is_system_2_on_the_next_ports() -> None:
 def test_a_taken_port_exits_1_naming_it_with_a_hint() -> None:
     instance = 37  # ports 14617 and 18607: clear of the instances people run
     api, _ = px4_links(instance)
-    _require_free(api.local_port, api.local_port + 3990)
+    require_free_ports(api.local_port, api.local_port + 3990)
     with socket.socket(socket.AF_INET, socket.SOCK_DGRAM) as holder:
         holder.bind(("127.0.0.1", api.local_port))
         with vehicle_process(None, extra_args=["--no-payload", "--instance", str(instance)]) as v:
@@ -273,7 +264,7 @@ def test_unmodified_mavsdk_app_on_14540_finds_the_no_flags_vehicle() -> None:
     """MAVSDK's examples listen on udpin://0.0.0.0:14540 (here 127.0.0.1): with no flags the vehicle
     is discovered, healthy, commandable, and its battery drains in BATTERY_STATUS while armed."""
     pytest.importorskip("mavsdk.asyncio")
-    _require_free(14540, 14580, 18570)
+    require_free_ports(14540, 14580, 18570)
     import asyncio
 
     from mavsdk.asyncio import ComponentType, Configuration, Mavsdk

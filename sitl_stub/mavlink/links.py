@@ -16,7 +16,6 @@ encoder per component, so sequence numbers and signing timestamps rise per link 
 from __future__ import annotations
 
 import errno
-import socket
 from collections.abc import Callable, Iterator, Sequence
 from contextlib import contextmanager
 from dataclasses import dataclass
@@ -197,13 +196,3 @@ class Fanout:
                 getattr(self.encoders[i], name)(*args, **kwargs)
 
         return send
-
-
-def socket_free(port: int, host: str = LOCALHOST) -> bool:
-    """True when a UDP socket can bind ``host:port`` now (for tests: they skip when PX4's ports are taken)."""
-    with socket.socket(socket.AF_INET, socket.SOCK_DGRAM) as s:
-        try:
-            s.bind((host, port))
-        except OSError:
-            return False
-    return True

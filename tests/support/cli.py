@@ -4,6 +4,7 @@
 from __future__ import annotations
 
 import shutil
+import socket
 import subprocess
 import sys
 from pathlib import Path
@@ -78,6 +79,23 @@ def assert_user_error(proc: subprocess.CompletedProcess, *fragments: str) -> Non
 # Tests whose vehicles use PX4's fixed ports (14540+, 14550, 14580+, 18570+): never two at once, so
 # under pytest-xdist run them apart (`pytest -n auto -m "not px4_ports"`, then `pytest -m px4_ports`).
 PX4_PORTS = pytest.mark.px4_ports
+
+
+def require_free_ports(*ports: int) -> None:
+    """Skip the test when a UDP port it needs on 127.0.0.1 is taken (a PX4 SITL, a ground station
+    or another vehicle is running)."""
+    taken = []
+    for port in ports:
+        with socket.socket(socket.AF_INET, socket.SOCK_DGRAM) as s:
+            try:
+                s.bind(("127.0.0.1", port))
+            except OSError:
+                taken.append(port)
+    if taken:
+        pytest.skip(
+            f"PX4 SITL port(s) {taken} on 127.0.0.1 are in use (a PX4 SITL, ground "
+            "station or another vehicle is running)"
+        )
 
 
 TINY_TRAINING = {
