@@ -808,3 +808,21 @@ def test_link_faults_flies_clean_and_lossy_rows_through_the_relay() -> None:
     assert clean["condition"] == "clean" and clean["frames"] == 128 and clean["runs"] == 1
     assert [row["condition"] for row in lossy] == ["10% loss", "30% loss"]
     assert all(0 < row["mean_rate_mbps"] <= clean["mean_rate_mbps"] * 1.1 for row in lossy)
+
+
+def test_es_actor_steps_a_shipped_fleet_policy_and_pairs_the_result(tmp_path: Path) -> None:
+    out = tmp_path / "es.zip"
+    args = ("--iterations", "1", "--pairs", "1", "--episodes", "2", "--sizes", "2")
+    printed = run_main(
+        "es_actor.py", str(ROOT / "policies/fleet/straight_180.zip"), *args, "--check-episodes", "2",
+        "--out", str(out),
+    )  # fmt: skip
+    rows = json.loads(printed)
+    assert set(rows) == {"D2", "D3", "D4"} and rows["D2"]["teacher"] == "spread"
+    assert all(len(row["vs_start"]) == 3 and row["mbps"] > 0 for row in rows.values())
+    # One small step moved the head: the written policy is not the start.
+    from uavlink.policies.sb3_policy import SB3Policy
+
+    obs = np.random.default_rng(0).normal(size=(4, SB3Policy(out).layout.size)).astype(np.float32)
+    start = SB3Policy(ROOT / "policies/fleet/straight_180.zip")
+    assert not np.array_equal(SB3Policy(out).act(obs), start.act(obs))
