@@ -27,7 +27,7 @@ from uavlink.errors import ConfigError
 BASELINE_NAMES = ("static", "oracle", "aoa", "kmeans", "explore", "kriging")
 # The fleet-only teachers (uavlink.learn.teachers builds them; lead: uavlink.learn.lead_teacher) and
 # what each needs of the env: a fleet (n_uavs > 1), or the any-size layout's slots (fleet_slots > 0).
-NEEDS_FLEET, NEEDS_SLOTS = "a fleet", "slots"
+NEEDS_FLEET, NEEDS_SLOTS = "fleet", "slots"
 FLEET_TEACHERS: dict[str, str] = {
     "solo": NEEDS_FLEET,
     "lead": NEEDS_FLEET,
