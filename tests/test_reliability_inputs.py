@@ -32,7 +32,7 @@ from sitl_stub.sim.payload import PayloadOptions
 from sitl_stub.sim.radio_payload import RadioPayload
 from uavlink.mavlink.dialect import mavlink
 from uavlink.mavlink.radio_codec import RADIO_COMPONENT_ID
-from uavlink.mavlink.rejects import rescan_bad_frame
+from uavlink.mavlink.rejects import drop_unfinished_frame, rescan_bad_frame
 from uavlink.mavlink.signing import SigningGuard
 
 pytestmark = pytest.mark.timeout(60)
@@ -196,6 +196,47 @@ def test_rescan_puts_a_parser_back_in_frame_after_a_stray_marker() -> None:
     assert _parse_all(stream, rescan=False).count("COMMAND_LONG") < 6
     kinds = _parse_all(stream, rescan=True)
     assert kinds.count("COMMAND_LONG") == 6 and "BAD_DATA" in kinds
+
+
+def test_a_frame_one_datagram_left_unfinished_does_not_swallow_the_next() -> None:
+    """UDP carries whole packets: garbage whose last start marker claims more bytes than its
+    datagram has is dropped at the datagram's end, not completed from the genuine packets after it."""
+    enc = gcs_encoder()
+    command = bytes(enc.command_long_encode(1, 0, ARM, 0, 1, 0, 0, 0, 0, 0, 0).pack(enc))
+    for framed in (False, True):
+        parser = mavlink.MAVLink(None)
+        parser.robust_parsing = True
+        kinds = []
+        for datagram in (b"\xfe" * 300, command, command, command):
+            if framed:
+                drop_unfinished_frame(parser)
+            msg = parser.parse_char(datagram)
+            while msg is not None:
+                kinds.append(msg.get_type())
+                rescan_bad_frame(parser, msg)
+                msg = parser.parse_char(b"")
+        assert (kinds.count("COMMAND_LONG") == 3) is framed, kinds
+    # A whole frame still waiting, and a frame split across bytes of one datagram, are kept.
+    parser = mavlink.MAVLink(None)
+    parser.buf, parser.buf_index = bytearray(command), 0
+    assert (
+        drop_unfinished_frame(parser) == 0 and parser.parse_char(b"").get_type() == "COMMAND_LONG"
+    )
+    parser.buf, parser.buf_index = bytearray(command[:10]), 0
+    assert drop_unfinished_frame(parser) == 10 and parser.buf_len() == 0
+
+
+@pytest.mark.slow
+def test_a_garbage_datagram_costs_the_vehicle_no_command() -> None:
+    enc = gcs_encoder()
+    with vehicle() as v:
+        v.send(b"\xfe" * 300)  # the last start marker claims 254 bytes the datagram does not have
+        packet = lambda: bytes(  # noqa: E731
+            enc.command_long_encode(
+                1, 0, mavlink.MAV_CMD_REQUEST_AUTOPILOT_CAPABILITIES, 0, 1, 0, 0, 0, 0, 0, 0
+            ).pack(enc)
+        )
+        assert _until_ack(v, packet) == 1  # answered at once (it took six tries, 2.5 s, before)
 
 
 @pytest.mark.slow

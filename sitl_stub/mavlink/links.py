@@ -23,6 +23,7 @@ from typing import Any
 
 from uavlink.mavlink.connection import normalize_connection, open_mavlink
 from uavlink.mavlink.dialect import mavlink, mavutil
+from uavlink.mavlink.rejects import drop_unfinished_frame
 
 API_LOCAL_PORT = 14580  # + instance: where the API link sends from and receives
 API_REMOTE_PORT = 14540  # + instance: MAVSDK's default udpin://0.0.0.0:14540
@@ -97,6 +98,7 @@ class PortPairUdp(mavutil.mavudp):
         if self.peer is None:  # PX4 answers the first localhost peer from then on
             self.peer = addr[:2]
             self.destination_addr = self.peer
+        drop_unfinished_frame(self.mav)  # a datagram holds whole packets (datagram_framed)
         return data
 
 

@@ -20,6 +20,8 @@ import random
 import socket
 from typing import Any
 
+from uavlink.mavlink.rejects import drop_unfinished_frame
+
 log = logging.getLogger(__name__)
 
 _LISTEN = {"udp": "udpin", "udpin": "udpin", "tcpin": "tcpin"}
@@ -68,8 +70,8 @@ def is_listening(url: str) -> bool:
 
 
 def open_mavlink(url: str, **kwargs: Any) -> Any:
-    """``pymavlink.mavutil.mavlink_connection(url, **kwargs)`` for a normalised ``url``, less two of
-    its habits. Its UDP listen binds with SO_REUSEADDR, so a second listener on a port another
+    """``pymavlink.mavutil.mavlink_connection(url, **kwargs)`` for a normalised ``url``, less three of
+    its habits. A UDP connection reads each datagram as whole packets (:func:`datagram_framed`). Its UDP listen binds with SO_REUSEADDR, so a second listener on a port another
     process (or another link of the same fleet) holds opens without error and never hears a packet
     (Linux hands each datagram to one of them): the port is first bound alone, which fails with
     EADDRINUSE as it should. And a refused TCP connect prints its retries on stdout: they go to the
@@ -84,10 +86,27 @@ def open_mavlink(url: str, **kwargs: Any) -> Any:
     said = io.StringIO()
     try:
         with contextlib.redirect_stdout(said):
-            return mavutil.mavlink_connection(url, **kwargs)
+            conn = mavutil.mavlink_connection(url, **kwargs)
+        if isinstance(conn, mavutil.mavudp):
+            datagram_framed(conn)
+        return conn
     finally:
         if said.getvalue().strip():
             log.debug("pymavlink on %s: %s", url, " / ".join(said.getvalue().split("\n")).strip())
+
+
+def datagram_framed(conn: Any) -> None:
+    """Make a pymavlink UDP connection read each datagram as whole packets: its parser drops the
+    frame the last datagram left unfinished before it reads the next (``drop_unfinished_frame``)."""
+    read = conn.recv
+
+    def recv(n: int | None = None) -> Any:
+        data = read(n)
+        if data:
+            drop_unfinished_frame(conn.mav)
+        return data
+
+    conn.recv = recv
 
 
 def free_udp_port(host: str = "127.0.0.1") -> int:

