@@ -229,14 +229,14 @@ def test_a_frame_one_datagram_left_unfinished_does_not_swallow_the_next() -> Non
 @pytest.mark.slow
 def test_a_garbage_datagram_costs_the_vehicle_no_command() -> None:
     enc = gcs_encoder()
+
+    def capabilities() -> bytes:
+        request = mavlink.MAV_CMD_REQUEST_AUTOPILOT_CAPABILITIES
+        return bytes(enc.command_long_encode(1, 0, request, 0, 1, 0, 0, 0, 0, 0, 0).pack(enc))
+
     with vehicle() as v:
         v.send(b"\xfe" * 300)  # the last start marker claims 254 bytes the datagram does not have
-        packet = lambda: bytes(  # noqa: E731
-            enc.command_long_encode(
-                1, 0, mavlink.MAV_CMD_REQUEST_AUTOPILOT_CAPABILITIES, 0, 1, 0, 0, 0, 0, 0, 0
-            ).pack(enc)
-        )
-        assert _until_ack(v, packet) == 1  # answered at once (it took six tries, 2.5 s, before)
+        assert _until_ack(v, capabilities) == 1  # answered at once (six tries, 2.5 s, before)
 
 
 @pytest.mark.slow
