@@ -4,17 +4,19 @@ PPO from a good copy stays level or falls (research/log/fleet.md, "Advantages ag
 flying the same episodes"): around the copy it finds no direction. PPO climbs the noisy policy's
 R_fair; this asks the question of the deterministic policy and the metric the bars read. It
 perturbs the actor's last ``--layers`` linear layers (1: the action head, 2 x (hidden + 1)
-weights; 4: every layer) with antithetic Gaussian noise, each tensor's noise scaled by its RMS, and
-scores each pair on the same seeded episodes at the sizes given, so a pair's difference holds no episode luck (Salimans et al. 2017, "Evolution
-strategies as a scalable alternative to reinforcement learning"; common random numbers). The step
-follows the pairs' throughput differences (Adam). Each iteration draws fresh episodes from its own
-seed, so the step does not fit one set of episodes. At the end it pairs the result with the start
-and with the policy's warm-start teacher on ``--check-episodes`` of ``--check-seed``, and prints
-them as one JSON object (each iteration's line goes to stderr).
+weights; 4: every layer) with antithetic Gaussian noise, each tensor's noise scaled by its RMS,
+and scores each pair on the same seeded episodes at the sizes given, so a pair's difference holds
+no episode luck (Salimans et al. 2017, "Evolution strategies as a scalable alternative to
+reinforcement learning"; common random numbers). The step follows the pairs' throughput
+differences (Adam; ``--objective fair``: their R_fair differences, PPO's reward, to tell the
+objective from the rest of the method). Each iteration draws fresh episodes from its own seed, so
+the step does not fit one set of episodes. At the end it pairs the result with the start and with
+the policy's warm-start teacher on ``--check-episodes`` of ``--check-seed``, and prints them as
+one JSON object (each iteration's line goes to stderr).
 
-    python research/es_actor.py policies/fleet/straight_180.zip --iterations 40 --sigma 0.01 \
+    python research/es_actor.py policies/fleet/straight_180.zip --iterations 40 --sigma 0.01 \\
         --out OUT.zip                                   # the action head alone
-    python research/es_actor.py policies/fleet/straight_180.zip --layers 4 --iterations 40 \
+    python research/es_actor.py policies/fleet/straight_180.zip --layers 4 --iterations 40 \\
         --sigma 0.02 --out OUT.zip                      # every layer of the actor
 """
 
@@ -42,12 +44,19 @@ def head_parameters(actor: Any, layers: int) -> list[Any]:
     return [p for m in linears[-layers:] for p in m.parameters()]
 
 
-def fitness(policy: Any, envs: list[Any], episodes: int, seed: int) -> np.ndarray:
-    """Per fleet size, the mean UE rate (Mbps) of each of ``episodes`` seeded episodes, stacked."""
+OBJECTIVES = {"mbps": "episode_rate_mbps", "fair": "episode_fair_rate"}  # EvalResult's arrays
+
+
+def fitness(
+    policy: Any, envs: list[Any], episodes: int, seed: int, objective: str = "mbps"
+) -> np.ndarray:
+    """Per fleet size, each of ``episodes`` seeded episodes' mean UE rate (Mbps; ``objective``
+    "fair": its R_fair, what PPO's reward normalises), stacked."""
     from uavlink.evaluation import evaluate_policy
 
+    field = OBJECTIVES[objective]
     return np.concatenate(
-        [evaluate_policy(policy, cfg, episodes, seed).episode_rate_mbps for cfg in envs]
+        [getattr(evaluate_policy(policy, cfg, episodes, seed), field) for cfg in envs]
     )
 
 
@@ -64,6 +73,12 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--sigma", type=float, default=0.02, help="noise std, x each tensor's RMS")
     parser.add_argument(
         "--learning-rate", type=float, default=0.01, help="Adam, x each tensor's RMS"
+    )
+    parser.add_argument(
+        "--objective",
+        choices=tuple(OBJECTIVES),
+        default="mbps",
+        help="what a pair is scored on: throughput (the bars') or R_fair (PPO's reward)",
     )
     parser.add_argument("--check-episodes", type=int, default=300)
     parser.add_argument("--check-seed", type=int, default=1)
@@ -110,11 +125,11 @@ def main(argv: list[str] | None = None) -> int:
                         for x, s, e in zip(theta, scale, eps, strict=True)
                     ]
                 )
-                scores.append(fitness(policy, envs, args.episodes, seed).mean())
+                scores.append(fitness(policy, envs, args.episodes, seed, args.objective).mean())
             noise.append(eps)
             diffs.append(scores[0] - scores[1])
         set_params(theta)
-        centre = fitness(policy, envs, args.episodes, seed).mean()
+        centre = fitness(policy, envs, args.episodes, seed, args.objective).mean()
         d = np.asarray(diffs)
         weights = d / (
             d.std() + 1e-12
@@ -128,7 +143,7 @@ def main(argv: list[str] | None = None) -> int:
             mh, vh = m[i] / (1 - 0.9 ** (k + 1)), v[i] / (1 - 0.999 ** (k + 1))
             theta[i] = x + args.learning_rate * s * mh / (vh.sqrt() + 1e-8)
         print(
-            f"iteration {k + 1}/{args.iterations}: centre {centre:.4f} Mbps, pair differences "
+            f"iteration {k + 1}/{args.iterations}: centre {centre:.4f} ({args.objective}), pair differences "
             f"mean {d.mean():+.4f} std {d.std():.4f}, {time.perf_counter() - t0:.0f} s",
             file=sys.stderr,
             flush=True,

@@ -810,9 +810,13 @@ def test_link_faults_flies_clean_and_lossy_rows_through_the_relay() -> None:
     assert all(0 < row["mean_rate_mbps"] <= clean["mean_rate_mbps"] * 1.1 for row in lossy)
 
 
-def test_es_actor_steps_a_shipped_fleet_policy_and_pairs_the_result(tmp_path: Path) -> None:
+@pytest.mark.parametrize("objective", ["mbps", "fair"])
+def test_es_actor_steps_a_shipped_fleet_policy_and_pairs_the_result(
+    tmp_path: Path, objective: str
+) -> None:
     out = tmp_path / "es.zip"
     args = ("--iterations", "1", "--pairs", "1", "--episodes", "2", "--sizes", "2")
+    args += ("--objective", objective)
     printed = run_main(
         "es_actor.py", str(ROOT / "policies/fleet/straight_180.zip"), *args, "--check-episodes", "2",
         "--out", str(out),
