@@ -224,6 +224,17 @@ def test_a_frame_one_datagram_left_unfinished_does_not_swallow_the_next() -> Non
     )
     parser.buf, parser.buf_index = bytearray(command[:10]), 0
     assert drop_unfinished_frame(parser) == 10 and parser.buf_len() == 0
+    # Behind whole frames still waiting (the parser takes one a datagram) and garbage, the
+    # unfinished frame alone goes.
+    parser.robust_parsing = True  # as both ends parse: garbage is BAD_DATA, not an exception
+    parser.buf, parser.buf_index = bytearray(command + b"\x01\x02" + command + command[:10]), 0
+    assert drop_unfinished_frame(parser) == 10
+    kinds = []
+    msg = parser.parse_char(b"")
+    while msg is not None:
+        kinds.append(msg.get_type())
+        msg = parser.parse_char(b"")
+    assert kinds == ["COMMAND_LONG", "BAD_DATA", "COMMAND_LONG"] and parser.buf_len() == 0, kinds
 
 
 @pytest.mark.slow

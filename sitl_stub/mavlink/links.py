@@ -21,9 +21,8 @@ from contextlib import contextmanager
 from dataclasses import dataclass
 from typing import Any
 
-from uavlink.mavlink.connection import normalize_connection, open_mavlink
+from uavlink.mavlink.connection import datagram_framed, normalize_connection, open_mavlink
 from uavlink.mavlink.dialect import mavlink, mavutil
-from uavlink.mavlink.rejects import drop_unfinished_frame
 
 API_LOCAL_PORT = 14580  # + instance: where the API link sends from and receives
 API_REMOTE_PORT = 14540  # + instance: MAVSDK's default udpin://0.0.0.0:14540
@@ -87,6 +86,7 @@ class PortPairUdp(mavutil.mavudp):
             self.port.close()
             raise
         self.peer: tuple[str, int] | None = None
+        datagram_framed(self)  # as open_mavlink's UDP connections: each datagram whole packets
 
     def recv(self, n: int | None = None) -> bytes | str:
         try:
@@ -98,7 +98,6 @@ class PortPairUdp(mavutil.mavudp):
         if self.peer is None:  # PX4 answers the first localhost peer from then on
             self.peer = addr[:2]
             self.destination_addr = self.peer
-        drop_unfinished_frame(self.mav)  # a datagram holds whole packets (datagram_framed)
         return data
 
 

@@ -71,11 +71,13 @@ def is_listening(url: str) -> bool:
 
 def open_mavlink(url: str, **kwargs: Any) -> Any:
     """``pymavlink.mavutil.mavlink_connection(url, **kwargs)`` for a normalised ``url``, less three of
-    its habits. A UDP connection reads each datagram as whole packets (:func:`datagram_framed`). Its UDP listen binds with SO_REUSEADDR, so a second listener on a port another
+    its habits. Its UDP listen binds with SO_REUSEADDR, so a second listener on a port another
     process (or another link of the same fleet) holds opens without error and never hears a packet
     (Linux hands each datagram to one of them): the port is first bound alone, which fails with
-    EADDRINUSE as it should. And a refused TCP connect prints its retries on stdout: they go to the
-    debug log. OSError as pymavlink raises it."""
+    EADDRINUSE as it should. A refused TCP connect prints its retries on stdout: they go to the
+    debug log. And its UDP parser carries an unfinished frame into the next datagram: a UDP
+    connection reads each datagram as whole packets (:func:`datagram_framed`). OSError as pymavlink
+    raises it."""
     from uavlink.mavlink.dialect import mavutil  # MAVLink 2, whatever was imported before
 
     scheme, _, rest = url.partition(":")

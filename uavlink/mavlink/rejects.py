@@ -88,22 +88,28 @@ def rescan_bad_frame(mav, msg) -> None:
 
 
 def drop_unfinished_frame(mav) -> int:
-    """Before pymavlink's parser ``mav`` reads a new UDP datagram: drop the frame the last datagram
-    left unfinished, and return how many bytes that was. A datagram carries whole MAVLink packets,
+    """Before pymavlink's parser ``mav`` reads a new UDP datagram: drop the frame the bytes it holds
+    leave unfinished, and return how many bytes that was. A datagram carries whole MAVLink packets,
     so the next one can never finish that frame; read as its rest, a stray start marker in garbage
     that claims 255 bytes swallowed the genuine commands of the datagrams after it (measured: five
-    commands over 2.5 s after one datagram of 300 x 0xFE). A whole frame still waiting is kept."""
+    commands over 2.5 s after one datagram of 300 x 0xFE). Whole frames still waiting (the parser
+    takes one a datagram) and garbage before them (it skips that byte by byte) are kept."""
     buf, i = mav.buf, mav.buf_index
-    left = len(buf) - i
-    markers = (PROTOCOL_MARKER_V1, PROTOCOL_MARKER_V2)
-    if left == 0 or buf[i] not in markers:
-        return 0  # nothing left, or garbage the parser skips byte by byte anyway
-    if left >= 3:
-        v2 = buf[i] == PROTOCOL_MARKER_V2
-        need = buf[i + 1] + (HEADER_LEN_V2 if v2 else HEADER_LEN_V1) + 2
-        if v2 and buf[i + 2] & MAVLINK_IFLAG_SIGNED:
-            need += MAVLINK_SIGNATURE_BLOCK_LEN
-        if left >= need:
-            return 0
-    mav.buf, mav.buf_index, mav.expected_length = bytearray(), 0, HEADER_LEN_V1 + 2
-    return left
+    while i < len(buf):
+        if buf[i] not in (PROTOCOL_MARKER_V1, PROTOCOL_MARKER_V2):
+            i += 1
+            continue
+        need = None  # the frame's length, once its header's first 3 bytes are there
+        if len(buf) - i >= 3:
+            v2 = buf[i] == PROTOCOL_MARKER_V2
+            need = buf[i + 1] + (HEADER_LEN_V2 if v2 else HEADER_LEN_V1) + 2
+            if v2 and buf[i + 2] & MAVLINK_IFLAG_SIGNED:
+                need += MAVLINK_SIGNATURE_BLOCK_LEN
+        if need is None or len(buf) - i < need:
+            dropped = len(buf) - i
+            if i == mav.buf_index:  # the parser was waiting for this frame's length
+                mav.expected_length = HEADER_LEN_V1 + 2
+            del buf[i:]
+            return dropped
+        i += need
+    return 0

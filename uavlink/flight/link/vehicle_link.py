@@ -375,7 +375,8 @@ class VehicleLink:
             if command not in self._acks:
                 return  # done() although the ACK was lost
             result = self._acks.pop(command)
-            if rejected := result == MAV.MAV_RESULT_TEMPORARILY_REJECTED:
+            rejected = result == MAV.MAV_RESULT_TEMPORARILY_REJECTED
+            if rejected:
                 self.wait_wall(lambda: False, ack_wait_s)
                 continue
             if result not in (MAV.MAV_RESULT_ACCEPTED, MAV.MAV_RESULT_IN_PROGRESS):
