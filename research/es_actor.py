@@ -100,9 +100,8 @@ def main(argv: list[str] | None = None) -> int:
     envs = [built.replace(n_uavs=d).validate() for d in args.sizes]
     policy = SB3Policy(args.policy)
     params = head_parameters(policy.actor, args.layers)
-    start = [p.detach().clone() for p in params]
-    scale = [float(p.pow(2).mean().sqrt()) for p in start]
-    theta = [p.clone() for p in start]
+    theta = [p.detach().clone() for p in params]  # the start, then each step's weights
+    scale = [float(x.pow(2).mean().sqrt()) for x in theta]
     m = [torch.zeros_like(p) for p in theta]
     v = [torch.zeros_like(p) for p in theta]
     rng = torch.Generator().manual_seed(args.seed)
@@ -163,11 +162,11 @@ def main(argv: list[str] | None = None) -> int:
     _copy_manifest(args.policy, tmp)
     shutil.move(tmp, args.out)
 
-    result = SB3Policy(args.out)
+    result, initial = SB3Policy(args.out), SB3Policy(args.policy)  # the written file, the start
     rows: dict[str, Any] = {}
     for cfg in [built.replace(n_uavs=d).validate() for d in (2, 3, 4)]:
         new = evaluate_policy(result, cfg, args.check_episodes, args.check_seed)
-        old = evaluate_policy(SB3Policy(args.policy), cfg, args.check_episodes, args.check_seed)
+        old = evaluate_policy(initial, cfg, args.check_episodes, args.check_seed)
         row = {
             "mbps": round(new.mean_rate_mbps, 4),
             "vs_start": [

@@ -175,11 +175,11 @@ def main(argv: list[str] | None = None) -> int:
         {"metavar": "POLICY", "help": "fly POLICY three rollouts, print the spread"},
     )
     args, job = sweep_job(__doc__.split("\n\n")[0], argv, copies, probe, out_unless="measure")
-    if args.measure and not Path(args.measure).is_file():
-        from uavlink.errors import UserError
-
-        raise UserError(f"--measure {args.measure}: no such file")
     if args.measure:
+        if not Path(args.measure).is_file():
+            from uavlink.errors import UserError
+
+            raise UserError(f"--measure {args.measure}: no such file")
         for k, (mc, paired) in enumerate(measure(args.measure, job, args.copies)):
             print(
                 f"{args.measure}, rollout {k}: advantage std {mc:.4f} Monte-Carlo, {paired:.4f} paired"
