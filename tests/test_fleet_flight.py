@@ -265,3 +265,44 @@ def test_sitl_fleet_refuses_two_vehicles_listening_on_one_port() -> None:
     assert proc.returncode == 1, proc.stderr
     [line] = proc.stderr.strip().splitlines()
     assert "cannot open udpin:127.0.0.1:" in line and "Address already in use" in line
+
+
+@pytest.mark.slow
+@pytest.mark.timeout(300)
+def test_a_fleets_backlog_of_frames_goes_into_the_policys_memory(tmp_path: Path) -> None:
+    """A fleet loop held up (a policy slower than two frames of a free-running world) decides only
+    the newest frame, as one UAV's does, and puts the whole frames it skipped into the policy's
+    memory: every frame the policy saw was decided or counted stale, and stale ones are among the
+    frames missed. Before, a fleet's memory lost every skipped frame."""
+    from uavlink.flight.fleet_loop import FleetPilot, fly_fleet
+    from uavlink.flight.link.group import open_fleet_links
+    from uavlink.flight.loop import LoopConfig
+    from uavlink.flight.vehicles import embedded_vehicles
+    from uavlink.policies.contract import EnvOverrides, load_with_env
+
+    speed = 50.0
+    [(policy, cfg)] = load_with_env([ROOT / "policies/fleet/hotspot.zip"], EnvOverrides())
+    cfg = cfg.replace(n_uavs=2).validate()
+
+    class SlowPilot(FleetPilot):
+        observed: list[int] = []
+
+        def observe(self, reports, uav_xy_m, first):  # type: ignore[no-untyped-def]
+            self.observed.append(reports[0].frame)
+            return super().observe(reports, uav_xy_m, first)
+
+        def decide(self, reports, uav_xy_m, first):  # type: ignore[no-untyped-def]
+            time.sleep(2.5 * cfg.frame_s / speed)  # two and a half frames of the world's time
+            return super().decide(reports, uav_xy_m, first)
+
+    pilot = SlowPilot(policy, cfg)
+    with embedded_vehicles(cfg, 0, speed, tmp_path / "vehicle.log") as urls:
+        group, _ = open_fleet_links(urls, cfg.n_uavs, None)
+        try:
+            result = fly_fleet(group.links, pilot, cfg, LoopConfig(frames=16, land=False))
+        finally:
+            group.close()
+    assert result.decisions >= 3 and result.stale_reports >= 2, result
+    assert len(pilot.observed) == result.decisions + result.stale_reports
+    assert pilot.observed == sorted(set(pilot.observed))  # each frame once, in order
+    assert result.stale_reports <= result.frames_missed

@@ -9,7 +9,9 @@ UE), the policy acts on them, and :func:`~uavlink.mobility.fleet.fleet_setpoints
 into setpoints with the env's own separation filter, so what was trained is what flies, then cuts
 any move whose transit (the vehicles lag their setpoints) would bring two vehicles closer
 (:mod:`uavlink.mobility.transit`); the env's ``uav_motion="px4"`` fleet moves its setpoints through
-the same code, so a lockstep flight replays as that evaluation.
+the same code, so a lockstep flight replays as that evaluation. A backlog of frames (the loop
+held up) is decided at its newest frame only, its whole earlier frames put into the policy's
+memory, as one vehicle's loop does.
 
 A vehicle whose link is lost falls back to hold on its own (PX4's offboard-loss failsafe); the
 others fly on (the loop does not wait for a vehicle not heard for :data:`LIVE_S`, and moves of a
@@ -73,10 +75,10 @@ GATHER_FRAME_FRACTION = 0.3
 class FleetPilot(PolicyPilot):
     """The policy on a fleet's D agent rows: observation rows as the env builds them."""
 
-    def decide(  # type: ignore[override]  # a fleet's decide takes every vehicle's report
+    def observe(  # type: ignore[override]  # a fleet's frame is every vehicle's report
         self, reports: Sequence[RadioReport], uav_xy_m: np.ndarray, first: bool
     ) -> np.ndarray:
-        """East/north moves (D, 2), m; holds (zero moves) if the policy misbehaves."""
+        """Add this frame to the observation history (no decision); the observation rows (D, obs)."""
         sinr = np.stack([r.sinr_db for r in reports])
         serving = sinr.argmax(axis=0)  # the strongest, where no cell flags came
         for d, r in enumerate(reports):
@@ -85,8 +87,13 @@ class FleetPilot(PolicyPilot):
         aoa = np.stack([r.aoa_deg for r in reports])
         fleet = fleet_view_quantities(self.builder.layout, uav_xy_m[None], serving[None], aoa[None])
         step = self.builder.reset if first else self.builder.push
-        obs = step(uav_xy_m, sinr, aoa, **fleet)
-        return self.guarded_moves(obs, reports[0].frame)
+        return step(uav_xy_m, sinr, aoa, **fleet)
+
+    def decide(  # type: ignore[override]  # a fleet's decide takes every vehicle's report
+        self, reports: Sequence[RadioReport], uav_xy_m: np.ndarray, first: bool
+    ) -> np.ndarray:
+        """East/north moves (D, 2), m; holds (zero moves) if the policy misbehaves."""
+        return self.guarded_moves(self.observe(reports, uav_xy_m, first), reports[0].frame)
 
 
 def fly_fleet(
@@ -159,6 +166,9 @@ class _Loop:
             status,
         )
         self.newest: list[RadioReport | None] = [None] * len(links)
+        # every vehicle's reports of the frames not yet decided, by frame: a backlog's whole frames
+        # go into the policy's memory, as one UAV's loop puts its late reports there
+        self.held: dict[int, list[RadioReport | None]] = {}
         self.decided = -1  # the last frame decided
         self.seen_at: dict[int, float] = {}
         self.last_request = [-math.inf] * len(links)
@@ -212,6 +222,8 @@ class _Loop:
                 if not r.running or (last is not None and r.frame <= last.frame):
                     continue
                 self.newest[i] = r
+                if r.frame > self.decided:
+                    self.held.setdefault(r.frame, [None] * len(self.links))[i] = r
                 self.seen_at.setdefault(r.frame, now)
                 self.last_radio = now
                 self.result.last_frame = max(r.frame, self.result.last_frame or 0)
@@ -260,6 +272,7 @@ class _Loop:
         positions = np.array([[link.status.east_m, link.status.north_m] for link in links])
         reports = self._reports()
         assert reports is not None  # _frame_to_decide waited for every vehicle's first report
+        self._observe_backlog(frame, positions)
         moves = self.pilot.decide(reports, positions, self.decided < 0)
         movable = np.array(
             [
@@ -296,6 +309,17 @@ class _Loop:
             score = self.scores.get(frame)
             self.status(frame, self.targets[0], score.mean_rate_mbps if score else None)
 
+    def _observe_backlog(self, frame: int, positions: np.ndarray) -> None:
+        """Put the whole frames between the last decision and ``frame`` into the policy's memory
+        (no decisions: a backlog is history, not moves to make at once); counted as
+        ``stale_reports`` among the frames missed. Before the first decision the memory starts at
+        the frame decided, as the env's does at its reset."""
+        for f in sorted(self.held):
+            whole = [r for r in self.held[f] if r is not None]
+            if self.decided >= 0 and f < frame and len(whole) == len(self.links):
+                self.pilot.observe(whole, positions, first=False)
+                self.result.stale_reports += 1
+
     def _flown_on(
         self, xy_m: np.ndarray, velocity_mps: np.ndarray
     ) -> tuple[np.ndarray, np.ndarray]:
@@ -330,6 +354,7 @@ class _Loop:
         """Frame ``frame`` is decided (every setpoint sent): a lockstep world may go on. ``moved``:
         which vehicles the policy steered in it (None: none, the frame is only let go)."""
         self.decided = frame
+        self.held = {f: r for f, r in self.held.items() if f > frame}
         for i, link in enumerate(self.links):
             send_frame_decided(
                 link.conn.mav, link.target_system, frame, moved is not None and bool(moved[i])

@@ -73,7 +73,8 @@ class FlightResult:
     last_frame: int | None = None  # the newest frame taken
     decisions: int = 0
     # Frames between decisions that went undecided, one UAV or a fleet: their reports lost, or
-    # late (stale_reports, which one UAV's loop still puts into the policy's memory).
+    # late (stale_reports, which the loop still puts into the policy's memory; a fleet's, when
+    # every vehicle's report of the frame came).
     frames_missed: int = 0
     # a fleet's: frames gone by before its first decision, which needs every vehicle's report
     frames_before_first_decision: int = 0
