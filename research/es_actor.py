@@ -9,7 +9,9 @@ and scores each pair on the same seeded episodes at the sizes given, so a pair's
 no episode luck (Salimans et al. 2017, "Evolution strategies as a scalable alternative to
 reinforcement learning"; common random numbers). The step follows the pairs' throughput
 differences (Adam; ``--objective fair``: their R_fair differences, PPO's reward, to tell the
-objective from the rest of the method). Each iteration draws fresh episodes from its own seed, so
+objective from the rest of the method; ``--action-noise``: the policy scored with PPO's per-frame
+action noise, the same noise for both members of a pair, to tell PPO's stochastic objective from
+its estimator). Each iteration draws fresh episodes from its own seed, so
 the step does not fit one set of episodes. At the end it pairs the result with the start and with
 the policy's warm-start teacher on ``--check-episodes`` of ``--check-seed``, and prints them as
 one JSON object (each iteration's line goes to stderr).
@@ -47,6 +49,28 @@ def head_parameters(actor: Any, layers: int) -> list[Any]:
 OBJECTIVES = {"mbps": "episode_rate_mbps", "fair": "episode_fair_rate"}  # EvalResult's arrays
 
 
+class NoisyActions:
+    """``policy`` with PPO's exploration: per-frame Gaussian noise of std exp(``log_std``) added to
+    each action, clipped to the box as SB3 clips a sampled action. The noise's generator restarts
+    from ``seed`` on each ``restart``, so both members of a pair fly the same noise."""
+
+    def __init__(self, policy: Any, log_std: float) -> None:
+        self._policy, self._std = policy, float(np.exp(log_std))
+        self._rng = np.random.default_rng(0)
+
+    def restart(self, seed: int) -> None:
+        self._rng = np.random.default_rng(seed)
+
+    def act(self, obs: np.ndarray, truth: Any = None) -> np.ndarray:
+        mean = self._policy.act(obs, truth)
+        return np.clip(mean + self._std * self._rng.standard_normal(mean.shape), -1.0, 1.0).astype(
+            np.float32
+        )
+
+    def __getattr__(self, name: str) -> Any:  # layout, name, manifest: the policy's own
+        return getattr(self._policy, name)
+
+
 def fitness(
     policy: Any, envs: list[Any], episodes: int, seed: int, objective: str = "mbps"
 ) -> np.ndarray:
@@ -55,6 +79,8 @@ def fitness(
     from uavlink.evaluation import evaluate_policy
 
     field = OBJECTIVES[objective]
+    if isinstance(policy, NoisyActions):
+        policy.restart(seed)
     return np.concatenate(
         [getattr(evaluate_policy(policy, cfg, episodes, seed), field) for cfg in envs]
     )
@@ -80,6 +106,13 @@ def main(argv: list[str] | None = None) -> int:
         default="mbps",
         help="what a pair is scored on: throughput (the bars') or R_fair (PPO's reward)",
     )
+    parser.add_argument(
+        "--action-noise",
+        type=float,
+        metavar="LOG_STD",
+        help="score the policy with PPO's per-frame action noise of this log std (paired within a "
+        "pair), not the deterministic policy; the check still flies it deterministically",
+    )
     parser.add_argument("--check-episodes", type=int, default=300)
     parser.add_argument("--check-seed", type=int, default=1)
     parser.add_argument("--seed", type=int, default=0, help="the noise's generator")
@@ -100,6 +133,7 @@ def main(argv: list[str] | None = None) -> int:
     envs = [built.replace(n_uavs=d).validate() for d in args.sizes]
     policy = SB3Policy(args.policy)
     params = head_parameters(policy.actor, args.layers)
+    scored = policy if args.action_noise is None else NoisyActions(policy, args.action_noise)
     theta = [p.detach().clone() for p in params]  # the start, then each step's weights
     scale = [float(x.pow(2).mean().sqrt()) for x in theta]
     m = [torch.zeros_like(p) for p in theta]
@@ -124,11 +158,11 @@ def main(argv: list[str] | None = None) -> int:
                         for x, s, e in zip(theta, scale, eps, strict=True)
                     ]
                 )
-                scores.append(fitness(policy, envs, args.episodes, seed, args.objective).mean())
+                scores.append(fitness(scored, envs, args.episodes, seed, args.objective).mean())
             noise.append(eps)
             diffs.append(scores[0] - scores[1])
         set_params(theta)
-        centre = fitness(policy, envs, args.episodes, seed, args.objective).mean()
+        centre = fitness(scored, envs, args.episodes, seed, args.objective).mean()
         d = np.asarray(diffs)
         weights = d / (
             d.std() + 1e-12

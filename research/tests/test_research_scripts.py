@@ -830,3 +830,58 @@ def test_es_actor_steps_a_shipped_fleet_policy_and_pairs_the_result(
     obs = np.random.default_rng(0).normal(size=(4, SB3Policy(out).layout.size)).astype(np.float32)
     start = SB3Policy(ROOT / "policies/fleet/straight_180.zip")
     assert not np.array_equal(SB3Policy(out).act(obs), start.act(obs))
+
+
+def test_es_actor_action_noise_is_shared_by_a_pairs_members_and_moves_the_score() -> None:
+    """``--action-noise`` scores PPO's noisy policy; a pair's difference must hold no noise luck, so
+    the same weights on the same seed score alike, and the noise changes what is scored."""
+    from uavlink.policies.contract import EnvOverrides, load_with_env
+    from uavlink.policies.sb3_policy import SB3Policy
+
+    es = research_module("es_actor")
+    path = ROOT / "policies/fleet/straight_180.zip"
+    [(_, cfg)] = load_with_env([path], EnvOverrides())
+    envs = [cfg.replace(n_uavs=2).validate()]
+    policy = SB3Policy(path)
+    noisy = es.NoisyActions(policy, log_std=-1.0)
+    first, again = (es.fitness(noisy, envs, 3, seed=5) for _ in range(2))
+    np.testing.assert_array_equal(first, again)
+    assert not np.array_equal(first, es.fitness(policy, envs, 3, seed=5))
+
+
+def test_annealed_ppo_lowers_the_learning_rate_to_zero_over_the_run() -> None:
+    """``--anneal``'s callback: SB3's updates read a rate falling linearly from the one set to zero
+    (a real PPO on a small Gymnasium task, eight rollouts: the rate of each update after one)."""
+    import gymnasium as gym
+    from stable_baselines3 import PPO
+    from stable_baselines3.common.callbacks import BaseCallback
+
+    class Rates(BaseCallback):
+        seen: list[float] = []
+
+        def _on_rollout_start(self) -> None:  # after the previous rollout's update
+            self.seen.append(self.model.policy.optimizer.param_groups[0]["lr"])
+
+        def _on_step(self) -> bool:
+            return True
+
+    annealed, rates = research_module("annealed_ppo").annealed_lr_callback(), Rates()
+    model = PPO("MlpPolicy", gym.make("Pendulum-v1"), learning_rate=1e-3, n_steps=64,
+                batch_size=64, n_epochs=1, seed=0, device="cpu")  # fmt: skip
+    model.learn(total_timesteps=64 * 8, callback=[annealed, rates])
+    # the k-th update ran with 1 - k/8 of the run remaining; the last with none
+    np.testing.assert_allclose(rates.seen[1:], [1e-3 * (1 - k / 8) for k in range(1, 8)])
+    assert model.policy.optimizer.param_groups[0]["lr"] == 0.0
+
+
+def test_annealed_ppo_trains_from_a_policy_and_pairs_it_with_its_start(tmp_path: Path) -> None:
+    out = tmp_path / "annealed.zip"
+    start = ROOT / "policies/fleet/straight_180.zip"
+    printed = run_main(
+        "annealed_ppo.py", "sweeps/fleet.toml", "--scenario", "straight_180", "--seed", "0",
+        "--start-from", str(start), "--episodes", "64", "--anneal", "--check-episodes", "2",
+        "--out", str(out),
+    )  # fmt: skip
+    rows = json.loads(printed)
+    assert set(rows) == {"curve_sixths_mbps", "D2", "D3", "D4"} and out.is_file()
+    assert all(len(rows[d]["vs_kmeans"]) == 3 and rows[d]["mbps"] > 0 for d in ("D2", "D3", "D4"))

@@ -1,0 +1,92 @@
+"""Where PPO's climb from a fleet copy stops: its noise floor, or a pull of its own?
+
+Evolution strategies climb from hotspot's kmeans copy about 3 % at D = 2 and 3, scored on the
+deterministic policy or on PPO's noisy one alike; PPO from such a copy climbs about 1 % and stays
+(research/log/fleet.md, "What ES has that PPO lacks"). With a constant learning rate, noisy
+steps hold the weights in a cloud around where the drift and the noise balance, below the top of
+a narrow ridge; a rate that falls to zero shrinks the cloud. This trains one job of a sweep file
+with its settings unchanged but two: the warm start replaced by ``--start-from FILE`` (the actor's
+weights as they are, the exploration std reset to the warm start's) and, with ``--anneal``, the
+learning rate falling linearly to zero over the run (SB3's ``lr_schedule``), then pairs the policy
+with the start and with kmeans on ``--check-episodes`` of ``--check-seed`` (one JSON object).
+
+    python research/annealed_ppo.py research/sweeps/fleet_kmeans_paired.toml --scenario hotspot \\
+        --seed 0 --start-from COPY.zip --episodes 24000 --anneal --out OUT.zip
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import json
+from pathlib import Path
+from typing import Any
+
+from entry import run_script
+from frozen_std_train import curve_sixths, sweep_job
+
+
+def annealed_lr_callback() -> Any:
+    """An SB3 callback that makes the learning rate fall linearly from the one set to zero over
+    the run (``progress_remaining`` 1 -> 0): SB3 reads ``lr_schedule`` at every update."""
+    from stable_baselines3.common.callbacks import BaseCallback
+
+    class AnnealedLr(BaseCallback):
+        def _on_training_start(self) -> None:
+            start = float(self.model.learning_rate)
+            self.model.lr_schedule = lambda progress_remaining: start * progress_remaining
+
+        def _on_step(self) -> bool:
+            return True
+
+    return AnnealedLr()
+
+
+def main(argv: list[str] | None = None) -> int:
+    args, job = sweep_job(
+        __doc__.split("\n\n")[0],
+        argv,
+        ("--start-from", {"type": Path, "required": True, "help": "the policy PPO starts from"}),
+        ("--episodes", {"type": int, "help": "the training budget (default: the job's)"}),
+        ("--anneal", {"action": "store_true", "help": "learning rate falling linearly to 0"}),
+        ("--check-episodes", {"type": int, "default": 300}),
+        ("--check-seed", {"type": int, "default": 1}),
+    )
+    if not args.start_from.is_file():
+        raise SystemExit(f"no such file: {args.start_from}")
+
+    from uavlink.evaluation import evaluate_policy, paired_ratio_ci
+    from uavlink.learn.training import train
+    from uavlink.policies.registry import baseline_env, make_baseline
+    from uavlink.policies.sb3_policy import SB3Policy
+
+    warm = dataclasses.replace(
+        job.train.warm_start, teacher="", dagger_rounds=0, policy=str(args.start_from)
+    )
+    tc = dataclasses.replace(
+        job.train, warm_start=warm, episodes=args.episodes or job.train.episodes
+    )
+    callbacks = [annealed_lr_callback()] if args.anneal else []
+    training = train(job.env, tc.validate(job.env), args.out, progress=False, callbacks=callbacks)
+
+    result, start = SB3Policy(args.out), SB3Policy(args.start_from)
+    rows: dict[str, Any] = {"curve_sixths_mbps": curve_sixths(training)}
+    for d in (2, 3, 4):
+        cfg = job.env.replace(n_uavs=d).validate()
+        new = evaluate_policy(result, cfg, args.check_episodes, args.check_seed)
+        old = evaluate_policy(start, cfg, args.check_episodes, args.check_seed)
+        kmeans = evaluate_policy(
+            make_baseline("kmeans", cfg), baseline_env("kmeans", cfg), args.check_episodes,
+            args.check_seed,
+        )  # fmt: skip
+        pair = {
+            "vs_start": paired_ratio_ci(new.episode_rate_mbps, old.episode_rate_mbps),
+            "vs_kmeans": paired_ratio_ci(new.episode_rate_mbps, kmeans.episode_rate_mbps),
+        }
+        rows[f"D{d}"] = {k: [round(x, 4) for x in v] for k, v in pair.items()}
+        rows[f"D{d}"]["mbps"] = round(new.mean_rate_mbps, 4)
+    print(json.dumps(rows))
+    return 0
+
+
+if __name__ == "__main__":
+    run_script(main)
