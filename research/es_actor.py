@@ -11,7 +11,7 @@ reinforcement learning"; common random numbers). The step follows the pairs' thr
 differences (Adam; ``--objective fair``: their R_fair differences, PPO's reward, to tell the
 objective from the rest of the method; ``--action-noise``: the policy scored with PPO's per-frame
 action noise, the same noise for both members of a pair, to tell PPO's stochastic objective from
-its estimator). Each iteration draws fresh episodes from its own seed, so
+its estimator; ``--per-agent``: each UAV perturbed apart, as PPO's exploration moves them). Each iteration draws fresh episodes from its own seed, so
 the step does not fit one set of episodes. At the end it pairs the result with the start and with
 the policy's warm-start teacher on ``--check-episodes`` of ``--check-seed``, and prints them as
 one JSON object (each iteration's line goes to stderr).
@@ -71,6 +71,29 @@ class NoisyActions:
         return getattr(self._policy, name)
 
 
+class PerAgentWeights:
+    """``policy`` whose UAV d flies weights of its own, ``values[d]`` (the env's agent row i is UAV
+    i % D), as PPO's exploration moves each UAV apart from the others; ``values`` None: the
+    policy's own weights for all."""
+
+    def __init__(self, policy: Any, set_params: Any) -> None:
+        self._policy, self._set = policy, set_params
+        self.values: list[list[Any]] | None = None
+        self.n_uavs = 1
+
+    def act(self, obs: np.ndarray, truth: Any = None) -> np.ndarray:
+        if self.values is None:
+            return self._policy.act(obs, truth)
+        d, out = self.n_uavs, np.empty((obs.shape[0], 2), np.float32)
+        for uav in range(d):
+            self._set(self.values[uav])
+            out[uav::d] = self._policy.act(obs[uav::d])
+        return out
+
+    def __getattr__(self, name: str) -> Any:  # layout, name, manifest: the policy's own
+        return getattr(self._policy, name)
+
+
 def fitness(
     policy: Any, envs: list[Any], episodes: int, seed: int, objective: str = "mbps"
 ) -> np.ndarray:
@@ -81,9 +104,12 @@ def fitness(
     field = OBJECTIVES[objective]
     if isinstance(policy, NoisyActions):
         policy.restart(seed)
-    return np.concatenate(
-        [getattr(evaluate_policy(policy, cfg, episodes, seed), field) for cfg in envs]
-    )
+    scores = []
+    for cfg in envs:
+        if isinstance(policy, PerAgentWeights):
+            policy.n_uavs = cfg.n_uavs
+        scores.append(getattr(evaluate_policy(policy, cfg, episodes, seed), field))
+    return np.concatenate(scores)
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -113,6 +139,12 @@ def main(argv: list[str] | None = None) -> int:
         help="score the policy with PPO's per-frame action noise of this log std (paired within a "
         "pair), not the deterministic policy; the check still flies it deterministically",
     )
+    parser.add_argument(
+        "--per-agent",
+        action="store_true",
+        help="each UAV of a pair's member flies noise of its own (as PPO's exploration), not the "
+        "same perturbed weights for the whole fleet; the step sums the UAVs' noise",
+    )
     parser.add_argument("--check-episodes", type=int, default=300)
     parser.add_argument("--check-seed", type=int, default=1)
     parser.add_argument("--seed", type=int, default=0, help="the noise's generator")
@@ -120,6 +152,8 @@ def main(argv: list[str] | None = None) -> int:
     args = parser.parse_args(argv)
     if not args.policy.is_file():
         parser.error(f"no such file: {args.policy}")
+    if args.per_agent and args.action_noise is not None:
+        parser.error("--per-agent and --action-noise are separate questions: give one")
 
     import torch
 
@@ -133,7 +167,6 @@ def main(argv: list[str] | None = None) -> int:
     envs = [built.replace(n_uavs=d).validate() for d in args.sizes]
     policy = SB3Policy(args.policy)
     params = head_parameters(policy.actor, args.layers)
-    scored = policy if args.action_noise is None else NoisyActions(policy, args.action_noise)
     theta = [p.detach().clone() for p in params]  # the start, then each step's weights
     scale = [float(x.pow(2).mean().sqrt()) for x in theta]
     m = [torch.zeros_like(p) for p in theta]
@@ -145,22 +178,38 @@ def main(argv: list[str] | None = None) -> int:
             for p, x in zip(params, values, strict=True):
                 p.copy_(x)
 
+    scored: Any = policy
+    if args.action_noise is not None:
+        scored = NoisyActions(policy, args.action_noise)
+    elif args.per_agent:
+        scored = PerAgentWeights(policy, set_params)
+    uavs = max(args.sizes) if args.per_agent else 1  # noise draws a member's fleet flies
     for k in range(args.iterations):
         t0, seed = time.perf_counter(), TRAIN_SEED_BASE + k
         noise, diffs = [], []
         for _ in range(args.pairs):
-            eps = [torch.randn(p.shape, generator=rng, dtype=p.dtype) for p in theta]
+            eps = [
+                [torch.randn(p.shape, generator=rng, dtype=p.dtype) for p in theta]
+                for _ in range(uavs)
+            ]
             scores = []
             for sign in (1.0, -1.0):
-                set_params(
+                values = [
                     [
                         x + sign * args.sigma * s * e
-                        for x, s, e in zip(theta, scale, eps, strict=True)
+                        for x, s, e in zip(theta, scale, one, strict=True)
                     ]
-                )
+                    for one in eps
+                ]
+                if isinstance(scored, PerAgentWeights):
+                    scored.values = values
+                else:
+                    set_params(values[0])
                 scores.append(fitness(scored, envs, args.episodes, seed, args.objective).mean())
-            noise.append(eps)
+            noise.append([sum(tensors) for tensors in zip(*eps, strict=True)])  # the UAVs' sum
             diffs.append(scores[0] - scores[1])
+        if isinstance(scored, PerAgentWeights):
+            scored.values = None
         set_params(theta)
         centre = fitness(scored, envs, args.episodes, seed, args.objective).mean()
         d = np.asarray(diffs)

@@ -885,3 +885,32 @@ def test_annealed_ppo_trains_from_a_policy_and_pairs_it_with_its_start(tmp_path:
     rows = json.loads(printed)
     assert set(rows) == {"curve_sixths_mbps", "D2", "D3", "D4"} and out.is_file()
     assert all(len(rows[d]["vs_kmeans"]) == 3 and rows[d]["mbps"] > 0 for d in ("D2", "D3", "D4"))
+
+
+def test_es_actor_per_agent_weights_move_only_their_own_uavs_rows() -> None:
+    """``--per-agent``: UAV d flies its own weights on agent rows d, d + D, ...; the same weights
+    for every UAV act as the policy itself."""
+    import torch
+
+    from uavlink.policies.sb3_policy import SB3Policy
+
+    es = research_module("es_actor")
+    policy = SB3Policy(ROOT / "policies/fleet/straight_180.zip")
+    params = es.head_parameters(policy.actor, 1)
+    start = [p.detach().clone() for p in params]
+
+    def set_params(values):  # type: ignore[no-untyped-def]
+        with torch.no_grad():
+            for p, x in zip(params, values, strict=True):
+                p.copy_(x)
+
+    obs = np.random.default_rng(0).normal(size=(6, policy.layout.size)).astype(np.float32)
+    plain = policy.act(obs)
+    wrapped = es.PerAgentWeights(policy, set_params)
+    wrapped.n_uavs, wrapped.values = 3, [start, start, start]
+    np.testing.assert_array_equal(wrapped.act(obs), plain)
+    wrapped.values = [start, [x + 0.5 for x in start], start]
+    moved = wrapped.act(obs)
+    set_params(start)
+    changed = np.abs(moved - plain).sum(axis=1) > 0
+    assert changed.tolist() == [False, True, False, False, True, False]
