@@ -849,7 +849,7 @@ def test_es_actor_action_noise_is_shared_by_a_pairs_members_and_moves_the_score(
     assert not np.array_equal(first, es.fitness(policy, envs, 3, seed=5))
 
 
-def test_annealed_ppo_lowers_the_learning_rate_to_zero_over_the_run() -> None:
+def test_ppo_from_lowers_the_learning_rate_to_zero_over_the_run() -> None:
     """``--anneal``'s callback: SB3's updates read a rate falling linearly from the one set to zero
     (a real PPO on a small Gymnasium task, eight rollouts: the rate of each update after one)."""
     import gymnasium as gym
@@ -865,7 +865,7 @@ def test_annealed_ppo_lowers_the_learning_rate_to_zero_over_the_run() -> None:
         def _on_step(self) -> bool:
             return True
 
-    annealed, rates = research_module("annealed_ppo").annealed_lr_callback(), Rates()
+    annealed, rates = research_module("ppo_from").annealed_lr_callback(), Rates()
     model = PPO("MlpPolicy", gym.make("Pendulum-v1"), learning_rate=1e-3, n_steps=64,
                 batch_size=64, n_epochs=1, seed=0, device="cpu")  # fmt: skip
     model.learn(total_timesteps=64 * 8, callback=[annealed, rates])
@@ -874,11 +874,11 @@ def test_annealed_ppo_lowers_the_learning_rate_to_zero_over_the_run() -> None:
     assert model.policy.optimizer.param_groups[0]["lr"] == 0.0
 
 
-def test_annealed_ppo_trains_from_a_policy_and_pairs_it_with_its_start(tmp_path: Path) -> None:
+def test_ppo_from_trains_from_a_policy_and_pairs_it_with_its_start(tmp_path: Path) -> None:
     out = tmp_path / "annealed.zip"
     start = ROOT / "policies/fleet/straight_180.zip"
     printed = run_main(
-        "annealed_ppo.py", "sweeps/fleet.toml", "--scenario", "straight_180", "--seed", "0",
+        "ppo_from.py", "sweeps/fleet.toml", "--scenario", "straight_180", "--seed", "0",
         "--start-from", str(start), "--episodes", "64", "--anneal", "--check-episodes", "2",
         "--out", str(out),
     )  # fmt: skip

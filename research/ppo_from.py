@@ -1,16 +1,21 @@
-"""Where PPO's climb from a fleet copy stops: its noise floor, or a pull of its own?
+"""PPO from a given policy: where does its climb from a fleet copy stop, and what moves it?
 
 Evolution strategies climb from hotspot's kmeans copy about 3 % at D = 2 and 3, scored on the
 deterministic policy or on PPO's noisy one alike; PPO from such a copy climbs about 1 % and stays
-(research/log/fleet.md, "What ES has that PPO lacks"). With a constant learning rate, noisy
-steps hold the weights in a cloud around where the drift and the noise balance, below the top of
-a narrow ridge; a rate that falls to zero shrinks the cloud. This trains one job of a sweep file
-with its settings unchanged but two: the warm start replaced by ``--start-from FILE`` (the actor's
-weights as they are, the exploration std reset to the warm start's) and, with ``--anneal``, the
-learning rate falling linearly to zero over the run (SB3's ``lr_schedule``), then pairs the policy
-with the start and with kmeans on ``--check-episodes`` of ``--check-seed`` (one JSON object).
+(research/log/fleet.md, "What ES has that PPO lacks"). This trains one job of a sweep file with its
+settings unchanged but the warm start, replaced by ``--start-from FILE`` (the actor's weights as
+they are, the exploration std reset to the warm start's), and one knob at a time:
 
-    python research/annealed_ppo.py research/sweeps/fleet_kmeans_paired.toml --scenario hotspot \\
+- ``--anneal``: the learning rate falling linearly to zero over the run (SB3's ``lr_schedule``).
+  With a constant rate, noisy steps hold the weights in a cloud where the drift and the noise
+  balance, below the top of a narrow ridge; a falling rate shrinks the cloud.
+- ``--gsde FRAMES``: gSDE exploration (``research/sde_ppo.py``'s callback; -1: W drawn once a
+  rollout), noise held for many frames as ES holds its perturbation for a whole episode.
+
+It then pairs the policy with the start and with kmeans on ``--check-episodes`` of
+``--check-seed`` and prints one JSON object.
+
+    python research/ppo_from.py research/sweeps/fleet_kmeans_paired.toml --scenario hotspot \
         --seed 0 --start-from COPY.zip --episodes 24000 --anneal --out OUT.zip
 """
 
@@ -48,6 +53,15 @@ def main(argv: list[str] | None = None) -> int:
         ("--start-from", {"type": Path, "required": True, "help": "the policy PPO starts from"}),
         ("--episodes", {"type": int, "help": "the training budget (default: the job's)"}),
         ("--anneal", {"action": "store_true", "help": "learning rate falling linearly to 0"}),
+        (
+            "--gsde",
+            {
+                "type": int,
+                "metavar": "FRAMES",
+                "help": "gSDE, W drawn every FRAMES (-1: a rollout)",
+            },
+        ),
+        ("--log-std", {"type": float, "default": -2.0, "help": "gSDE's per-frame log std"}),
         ("--check-episodes", {"type": int, "default": 300}),
         ("--check-seed", {"type": int, "default": 1}),
     )
@@ -66,6 +80,10 @@ def main(argv: list[str] | None = None) -> int:
         job.train, warm_start=warm, episodes=args.episodes or job.train.episodes
     )
     callbacks = [annealed_lr_callback()] if args.anneal else []
+    if args.gsde is not None:
+        from sde_ppo import gsde_callback
+
+        callbacks.append(gsde_callback(args.log_std, args.gsde))
     training = train(job.env, tc.validate(job.env), args.out, progress=False, callbacks=callbacks)
 
     result, start = SB3Policy(args.out), SB3Policy(args.start_from)
