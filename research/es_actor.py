@@ -11,10 +11,11 @@ reinforcement learning"; common random numbers). The step follows the pairs' thr
 differences (Adam; ``--objective fair``: their R_fair differences, PPO's reward, to tell the
 objective from the rest of the method; ``--action-noise``: the policy scored with PPO's per-frame
 action noise, the same noise for both members of a pair, to tell PPO's stochastic objective from
-its estimator; ``--per-agent``: each UAV perturbed apart, as PPO's exploration moves them). Each iteration draws fresh episodes from its own seed, so
-the step does not fit one set of episodes. At the end it pairs the result with the start and with
-the policy's warm-start teacher on ``--check-episodes`` of ``--check-seed``, and prints them as
-one JSON object (each iteration's line goes to stderr).
+its estimator; ``--per-agent``: each UAV perturbed apart, as PPO's exploration moves them). Each
+iteration draws fresh episodes from its own seed, so the step does not fit one set of episodes.
+At the end it pairs the result with the start and with the policy's warm-start teacher on
+``--check-episodes`` of ``--check-seed``, and prints them as one JSON object (each iteration's
+line goes to stderr).
 
     python research/es_actor.py policies/fleet/straight_180.zip --iterations 40 --sigma 0.01 \\
         --out OUT.zip                                   # the action head alone

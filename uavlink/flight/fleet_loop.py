@@ -78,7 +78,7 @@ class FleetPilot(PolicyPilot):
     def observe(  # type: ignore[override]  # a fleet's frame is every vehicle's report
         self, reports: Sequence[RadioReport], uav_xy_m: np.ndarray, first: bool
     ) -> np.ndarray:
-        """Add this frame to the observation history (no decision); the observation rows (D, obs)."""
+        """Add this frame to the observation history (no decision); returns its rows (D, obs)."""
         sinr = np.stack([r.sinr_db for r in reports])
         serving = sinr.argmax(axis=0)  # the strongest, where no cell flags came
         for d, r in enumerate(reports):
