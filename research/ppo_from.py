@@ -65,14 +65,14 @@ def main(argv: list[str] | None = None) -> int:
         ("--check-episodes", {"type": int, "default": 300}),
         ("--check-seed", {"type": int, "default": 1}),
     )
-    if not args.start_from.is_file():
-        raise SystemExit(f"no such file: {args.start_from}")
-
+    from uavlink.errors import UserError
     from uavlink.evaluation import evaluate_policy, paired_ratio_ci
     from uavlink.learn.training import train
     from uavlink.policies.registry import baseline_env, make_baseline
     from uavlink.policies.sb3_policy import SB3Policy
 
+    if not args.start_from.is_file():
+        raise UserError(f"--start-from {args.start_from}: no such file")
     warm = dataclasses.replace(
         job.train.warm_start, teacher="", dagger_rounds=0, policy=str(args.start_from)
     )

@@ -767,6 +767,18 @@ def test_spread_start_ppo_copies_and_pairs_the_spread_teacher_at_the_distance_as
         ("explore_search.py", "--set", "nosuch=1"),
         ("fleet_bars.py", "--fleet", "/nonexistent", "--episodes", "1"),
         ("map_table.py", "--map", "/nonexistent", "--episodes", "2"),
+        (
+            "ppo_from.py",
+            "sweeps/fleet.toml",
+            "--scenario",
+            "hotspot",
+            "--seed",
+            "0",
+            "--start-from",
+            "/nonexistent.zip",
+            "--out",
+            "/tmp/never.zip",
+        ),
     ],
 )
 def test_bad_input_to_a_research_script_is_one_line_and_exit_2(args: tuple[str, ...]) -> None:
