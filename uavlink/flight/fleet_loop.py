@@ -314,9 +314,11 @@ class _Loop:
         (no decisions: a backlog is history, not moves to make at once); counted as
         ``stale_reports`` among the frames missed. Before the first decision the memory starts at
         the frame decided, as the env's does at its reset."""
-        for f in sorted(self.held):
+        if self.decided < 0:
+            return
+        for f in sorted(f for f in self.held if f < frame):
             whole = [r for r in self.held[f] if r is not None]
-            if self.decided >= 0 and f < frame and len(whole) == len(self.links):
+            if len(whole) == len(self.links):
                 self.pilot.observe(whole, positions, first=False)
                 self.result.stale_reports += 1
 
