@@ -9,6 +9,7 @@ full one (with 200 ms delay at --speed 1).
 from __future__ import annotations
 
 import socket
+import threading
 import time
 
 import pytest
@@ -39,32 +40,41 @@ def test_relay_drops_delays_duplicates_and_reorders_and_stops_by_itself() -> Non
         socket.socket(socket.AF_INET, socket.SOCK_DGRAM) as dest,
         socket.socket(socket.AF_INET, socket.SOCK_DGRAM) as client,
     ):
+        dest.setsockopt(socket.SOL_SOCKET, socket.SO_RCVBUF, 1 << 20)
         dest.bind(("127.0.0.1", 0))
         dest.settimeout(0.5)
         faults = Faults(loss=0.3, delay_s=0.05, duplicate=0.1, reorder=0.1, reorder_s=0.02)
-        with UdpRelay(dest.getsockname(), faults, seed=7, max_duration_s=3.0) as relay:
-            sent_at = {}
-            for i in range(1000):
-                sent_at[i] = time.monotonic()
-                client.sendto(i.to_bytes(4, "big"), ("127.0.0.1", relay.port))
-                if i % 50 == 0:
-                    time.sleep(0.001)
-            got, delays = [], []
+        got, delays, sent_at = [], [], {}
+        back: list[tuple[str, int]] = []
+
+        def receive() -> None:
+            # Read while the client sends: a loaded machine must not overflow dest's buffer,
+            # which would lose datagrams the relay did forward.
             while True:
                 try:
-                    data, back = dest.recvfrom(64)
+                    data, addr = dest.recvfrom(64)
                 except TimeoutError:
-                    break
+                    return
                 n = int.from_bytes(data, "big")
                 got.append(n)
                 delays.append(time.monotonic() - sent_at[n])
-            dest.sendto(b"reply", back)  # the other direction goes back to the client
+                back[:] = [addr]
+
+        with UdpRelay(dest.getsockname(), faults, seed=7, max_duration_s=3.0) as relay:
+            reader = threading.Thread(target=receive, daemon=True)
+            reader.start()
+            for i in range(1000):
+                sent_at[i] = time.monotonic()
+                client.sendto(i.to_bytes(4, "big"), ("127.0.0.1", relay.port))
+                if i % 20 == 0:  # paced, so the relay's own socket never overflows either
+                    time.sleep(0.002)
+            reader.join(10.0)
+            assert relay.stats["up_in"] == 1000  # every datagram reached the relay
+            dest.sendto(b"reply", back[0])  # the other direction goes back to the client
             client.settimeout(1.0)
             assert client.recvfrom(64)[0] == b"reply"
             stats = dict(relay.stats)
-            deadline = (
-                time.monotonic() + 3.2
-            )  # as long as the relay's whole life: it ends by itself
+            deadline = time.monotonic() + 3.2  # the relay's whole life: it ends by itself
             while relay.running and time.monotonic() < deadline:
                 time.sleep(0.02)
             assert not relay.running and relay.stats["expired"] == 1  # bounded in time

@@ -89,9 +89,12 @@ class UdpRelay:
         self.stats: Counter[str] = Counter()
         self._rng = {"up": random.Random(f"{seed}-up"), "down": random.Random(f"{seed}-down")}
         self._front = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
-        self._front.bind((host, 0))
         self._back = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
-        self._back.bind((host, 0))
+        for sock in (self._front, self._back):
+            # Room for a burst while a loaded machine keeps the relay's thread waiting: the
+            # kernel must not add losses of its own to the ones the relay is asked for.
+            sock.setsockopt(socket.SOL_SOCKET, socket.SO_RCVBUF, 1 << 20)
+            sock.bind((host, 0))
         self._client: tuple[str, int] | None = None
         self._queue: list[tuple[float, int, str, bytes]] = []
         self._n = 0
