@@ -235,6 +235,15 @@ class TrainConfig:
         "observation alone; ours)",
         choices=CRITICS,
     )
+    # Noise held for an episode tries a placement long enough to be scored on it; white noise
+    # jitters a UAV about its placement (uavlink/learn/held_exploration.py).
+    gsde_log_std: float | None = setting(
+        None,
+        "explore with gSDE after the warm start, the noise drawn once a rollout (each row's episode "
+        "at n_steps = episode_frames), at this per-frame "
+        "log std (ours; uavlink/learn/held_exploration.py; default: off, white Gaussian noise)",
+        metavar="LOG_STD",
+    )
     # Undiscounted returns reach ~100; without the scaling the critic's gradient dominates the
     # shared max-grad-norm clip. Observations are O(1) by construction and are not normalised, so
     # a saved policy needs no statistics at inference.
@@ -315,6 +324,11 @@ class TrainConfig:
                 f"= {rollout} steps into whole minibatches, got {self.batch_size}"
             )
         self.warm_start.validate(name)
+        if self.gsde_log_std is not None and self.validation_episodes:
+            raise ConfigError(
+                f"{name('gsde_log_std')} and {name('validation_episodes')} do not go together: "
+                "the selection scores the diagonal Gaussian actor gSDE replaces while it trains"
+            )
         if env is not None:
             self.warm_start.check_env(env, name)
             if self.fleet_sizes_up_to and self.fleet_sizes_up_to not in fleet_sizes_of(

@@ -51,16 +51,17 @@ SNAPSHOT_FORMAT = "uavlink-train-snapshot-v1"
 
 def can_snapshot(tc: TrainConfig, resume: Path | None = None) -> bool:
     """Whether a snapshot can hold this run: not one started from a ``--resume`` checkpoint (whose
-    random streams are gone) nor one keeping its best validated weights (selection state not held)."""
-    return resume is None and not tc.validation_episodes
+    random streams are gone), one keeping its best validated weights (selection state not held) nor
+    one exploring with gSDE (whose noise distribution SB3's zip does not rebuild)."""
+    return resume is None and not tc.validation_episodes and tc.gsde_log_std is None
 
 
 def check_can_snapshot(tc: TrainConfig, resume: Path | None = None) -> None:
     """``can_snapshot``, refused in one line."""
     if not can_snapshot(tc, resume):
         raise UserError(
-            "--snapshot continues a run exactly; it cannot start from --resume or keep the "
-            "--validation-episodes selection's state"
+            "--snapshot continues a run exactly; it cannot start from --resume, keep the "
+            "--validation-episodes selection's state or explore with --gsde-log-std"
         )
 
 

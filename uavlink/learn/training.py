@@ -26,6 +26,7 @@ from uavlink.config import (
 )
 from uavlink.env.observation import ObservationLayout
 from uavlink.errors import UserError
+from uavlink.learn.held_exploration import held_exploration_callback
 from uavlink.learn.imitation import CLONE_EPOCHS, critic_warmup_callback, warm_start
 from uavlink.learn.monitor import save_checkpoint, training_monitor
 from uavlink.learn.policy_transfer import start_from_policy
@@ -303,6 +304,10 @@ def train(
     (uavlink/learn/snapshot.py); removed once ``out`` is written."""
 
     tc.validate(cfg)
+    if resume is not None and tc.gsde_log_std is not None:
+        raise UserError(
+            "--resume continues a checkpoint's own exploration: leave out --gsde-log-std"
+        )
     snapped = None
     if snapshot is not None:
         check_can_snapshot(tc, resume)
@@ -330,6 +335,8 @@ def train(
         tc.trained_timesteps(cfg), run_dir, tc.checkpoint_every_steps, progress
     )
     callbacks = [monitor, *callbacks]
+    if tc.gsde_log_std is not None:  # before the critic warm-up, which freezes the std it finds
+        callbacks.append(held_exploration_callback(tc.gsde_log_std))
     warmup = None
     if cloned is not None:
         warmup = critic_warmup_callback(tc.warm_start.critic_rollouts)

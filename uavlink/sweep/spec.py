@@ -49,6 +49,7 @@ NEUTRAL_TRAIN_DEFAULTS: dict[str, Any] = {
     "validation_episodes": 0,
     "fleet_sizes_up_to": 0,
     "critic": "actor",
+    "gsde_log_std": None,
 }
 # Warm-start fields that name a policy file: a job's key holds the file's bytes (its sha256), not only
 # its path, so a re-shipped file makes the job (and a sweep record's figures of it) another one.
