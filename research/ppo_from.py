@@ -9,8 +9,8 @@ they are, the exploration std reset to the warm start's), and one knob at a time
 - ``--anneal``: the learning rate falling linearly to zero over the run (SB3's ``lr_schedule``).
   With a constant rate, noisy steps hold the weights in a cloud where the drift and the noise
   balance, below the top of a narrow ridge; a falling rate shrinks the cloud.
-- ``--gsde FRAMES``: gSDE exploration (``research/sde_ppo.py``'s callback; -1: W drawn once a
-  rollout), noise held for many frames as ES holds its perturbation for a whole episode.
+- ``--gsde FRAMES``: gSDE exploration (``uavlink/learn/held_exploration.py``'s callback; -1: W drawn once
+  a rollout), noise held for many frames as ES holds its perturbation for a whole episode.
 
 It then pairs the policy with the start and with kmeans on ``--check-episodes`` of
 ``--check-seed`` and prints one JSON object.
@@ -81,9 +81,9 @@ def main(argv: list[str] | None = None) -> int:
     )
     callbacks = [annealed_lr_callback()] if args.anneal else []
     if args.gsde is not None:
-        from sde_ppo import gsde_callback
+        from uavlink.learn.held_exploration import held_exploration_callback
 
-        callbacks.append(gsde_callback(args.log_std, args.gsde))
+        callbacks.append(held_exploration_callback(args.log_std, args.gsde))
     training = train(job.env, tc.validate(job.env), args.out, progress=False, callbacks=callbacks)
 
     result, start = SB3Policy(args.out), SB3Policy(args.start_from)

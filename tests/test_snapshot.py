@@ -128,7 +128,7 @@ def test_a_snapshot_of_another_training_or_no_snapshot_is_refused_in_one_line(
         train(cfg, tc, tmp_path / "p.zip", progress=False, snapshot=snapshot)
     assert snapshot.read_bytes() == b"not a pickle"  # left as it was
     keeps_best = dataclasses.replace(tc, validation_episodes=4)
-    with pytest.raises(UserError, match="cannot start from --resume or keep the --validation"):
+    with pytest.raises(UserError, match="cannot start from --resume, keep the --validation"):
         train(cfg, keeps_best, tmp_path / "p.zip", progress=False, snapshot=snapshot)
 
 

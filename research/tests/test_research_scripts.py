@@ -678,41 +678,6 @@ def test_paired_ppo_trains_a_policy_that_evaluates_as_any_other(tmp_path: Path) 
     assert all(0 < float(p) < float(mc) for mc, _, p, _ in rollouts)  # the episodes' luck gone
 
 
-def test_sde_ppo_holds_each_rows_noise_for_a_rollout_at_the_per_frame_std_asked() -> None:
-    """research/sde_ppo.py's callback: after it, a row's exploration noise is the same every frame
-    it sees the same state until the next draw, its per-frame variance on the first observations
-    is the one asked, and at the end a diagonal Gaussian of that std is back with the mean action
-    untouched."""
-    import torch
-
-    from uavlink.config import EnvConfig, TrainConfig
-    from uavlink.learn.training import make_model
-
-    cfg = EnvConfig(scenario="hotspot", n_uavs=2, fleet_slots=1).validate()
-    tc = TrainConfig(episodes=8, n_envs=8, critic="privileged").validate(cfg)
-    model = make_model(cfg, tc, None)
-    model._last_obs = model.env.reset()
-    callback = research_module("sde_ppo").gsde_callback(-2.0, -1)
-    callback.init_callback(model)
-    callback.on_training_start({}, {})
-    policy = model.policy
-    obs = torch.as_tensor(model._last_obs, dtype=torch.float32)
-    with torch.no_grad():
-        mean_before = policy.get_distribution(obs).mode()
-        policy.reset_noise(len(obs))
-        first, again = (policy.get_distribution(obs).sample() for _ in range(2))
-        policy.reset_noise(len(obs))
-        redrawn = policy.get_distribution(obs).sample()
-        variance = policy.get_distribution(obs).distribution.variance
-    assert model.use_sde and torch.equal(first, again) and not torch.allclose(first, redrawn)
-    assert float(variance.mean()) == pytest.approx(np.exp(-4.0), rel=1e-3)
-    callback.on_training_end()
-    assert tuple(policy.log_std.shape) == (2,) and not model.use_sde
-    assert np.allclose(policy.log_std.detach().numpy(), -2.0, atol=0.2)
-    with torch.no_grad():
-        assert torch.equal(policy.get_distribution(obs).mode(), mean_before)
-
-
 def test_sde_ppo_trains_a_policy_the_product_loads_and_flies(tmp_path: Path) -> None:
     from uavlink.evaluation import evaluate_policy
     from uavlink.policies.contract import EnvOverrides, load_with_env

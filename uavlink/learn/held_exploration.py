@@ -34,9 +34,10 @@ def _new_optimizer(model: Any) -> None:
     )
 
 
-def held_exploration_callback(log_std: float) -> Any:
-    """An SB3 callback that trains with gSDE at a per-frame std of exp(``log_std``), W drawn once a
-    rollout; it must come before the critic warm-up's callback."""
+def held_exploration_callback(log_std: float, sample_freq: int = -1) -> Any:
+    """An SB3 callback that trains with gSDE at a per-frame std of exp(``log_std``), W drawn every
+    ``sample_freq`` frames (-1, the product's: once a rollout; research/sde_ppo.py tries others); it
+    must come before the critic warm-up's callback."""
     import torch
     from stable_baselines3.common.callbacks import BaseCallback
     from stable_baselines3.common.distributions import (
@@ -50,7 +51,8 @@ def held_exploration_callback(log_std: float) -> Any:
             self.mean_square = 1.0  # sum_j phi_j^2 on the first observations
 
         def _on_training_start(self) -> None:
-            model, policy = self.model, self.model.policy
+            model: Any = self.model  # SB3's PPO and ActorCriticPolicy, set here by attribute
+            policy: Any = model.policy
             with torch.no_grad():
                 obs = torch.as_tensor(model._last_obs, dtype=torch.float32)
                 features = policy.extract_features(obs)
@@ -69,10 +71,11 @@ def held_exploration_callback(log_std: float) -> Any:
             )
             policy.use_sde, policy.dist_kwargs, policy.log_std_init = True, dist_kwargs, sigma_log
             _new_optimizer(model)
-            model.use_sde, model.sde_sample_freq = True, -1  # W drawn once a rollout
+            model.use_sde, model.sde_sample_freq = True, sample_freq
 
         def _on_training_end(self) -> None:
-            model, policy = self.model, self.model.policy
+            model: Any = self.model  # SB3's PPO and ActorCriticPolicy, set here by attribute
+            policy: Any = model.policy
             with torch.no_grad():  # the per-frame variance on the first observations, per action
                 variance = self.mean_square * torch.exp(2 * policy.log_std).mean(dim=0)
             policy.action_dist = DiagGaussianDistribution(policy.action_net.out_features)

@@ -159,6 +159,8 @@ def check_checkpoint(resume: Path, cfg: EnvConfig, tc: TrainConfig) -> None:
 
     from stable_baselines3.common.save_util import load_from_zip_file
 
+    if tc.gsde_log_std is not None:  # SB3's zip does not rebuild gSDE's noise distribution
+        raise UserError(f"--resume {resume}: a run exploring with --gsde-log-std cannot resume")
     if not resume.is_file():
         raise UserError(f"--resume {resume}: no such checkpoint")
     if not zipfile.is_zipfile(resume):
@@ -304,10 +306,6 @@ def train(
     (uavlink/learn/snapshot.py); removed once ``out`` is written."""
 
     tc.validate(cfg)
-    if resume is not None and tc.gsde_log_std is not None:
-        raise UserError(
-            "--resume continues a checkpoint's own exploration: leave out --gsde-log-std"
-        )
     snapped = None
     if snapshot is not None:
         check_can_snapshot(tc, resume)
