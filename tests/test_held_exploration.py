@@ -59,8 +59,17 @@ def test_train_with_held_exploration_saves_a_plain_policy_that_evaluates(tmp_pat
     args = ["train", *FLEET, "--n-envs", "4", "--batch-size", "256", "--critic", "privileged"]
     args += ["--warm-start", "kmeans", "--warm-start-episodes", "4", "--warm-start-epochs", "1"]
     args += ["--gsde-log-std", "-1.5", "--episodes", "16", "--eval-episodes", "0"]
-    proc = run_uavlink_in_process(*args, "--no-progress", "--out", str(out))
+    run_dir = ["--run-dir", str(tmp_path / "run"), "--checkpoint-every-steps", "2000"]
+    proc = run_uavlink_in_process(*args, *run_dir, "--no-progress", "--out", str(out))
     assert proc.returncode == 0, proc.stderr
+    # its checkpoints hold gSDE's noise, which no saved policy may keep: not resumed, even without
+    # --gsde-log-std
+    checkpoint = tmp_path / "run" / "checkpoint.zip"
+    resumed = [*args[: args.index("--gsde-log-std")], "--episodes", "32", "--eval-episodes", "0"]
+    refused = run_uavlink_in_process(
+        *resumed, "--resume", str(checkpoint), "--out", str(tmp_path / "again.zip")
+    )
+    assert_user_error(refused, "exploring with gSDE cannot resume")
     manifest = json.loads(out.with_suffix(".json").read_text())
     assert manifest["training"]["hyperparameters"]["gsde_log_std"] == -1.5
     policy = PPO.load(out, device="cpu").policy

@@ -159,7 +159,7 @@ def check_checkpoint(resume: Path, cfg: EnvConfig, tc: TrainConfig) -> None:
 
     from stable_baselines3.common.save_util import load_from_zip_file
 
-    if tc.gsde_log_std is not None:  # SB3's zip does not rebuild gSDE's noise distribution
+    if tc.gsde_log_std is not None:  # held exploration's callback sets its noise up at the start
         raise UserError(f"--resume {resume}: a run exploring with --gsde-log-std cannot resume")
     if not resume.is_file():
         raise UserError(f"--resume {resume}: no such checkpoint")
@@ -175,6 +175,10 @@ def check_checkpoint(resume: Path, cfg: EnvConfig, tc: TrainConfig) -> None:
         )
     data, _, _ = load_from_zip_file(resume, device="cpu", load_data=True)
     assert data is not None  # the zip has its "data" entry (checked above)
+    if data.get("use_sde"):  # its saved policy would keep gSDE's noise, which nothing flies
+        raise UserError(
+            f"--resume {resume}: a checkpoint of a run exploring with gSDE cannot resume"
+        )
     kwargs = data.get("policy_kwargs") or {}
     critic = CRITIC_PRIVILEGED if "actor_obs_size" in kwargs else CRITIC_ACTOR
     if critic != tc.critic:
@@ -374,7 +378,7 @@ def train(
             kept.append(
                 f"the snapshot {snapshot} continues this run exactly: the same command again"
             )
-        if run_dir is not None:
+        if run_dir is not None and tc.gsde_log_std is None:  # gSDE's runs cannot resume
             checkpoint = save_checkpoint(model, run_dir)
             kept.append(
                 f"checkpoint at {model.num_timesteps:,} steps in {checkpoint}; "
