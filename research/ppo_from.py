@@ -9,8 +9,9 @@ they are, the exploration std reset to the warm start's), and one knob at a time
 - ``--anneal``: the learning rate falling linearly to zero over the run (SB3's ``lr_schedule``).
   With a constant rate, noisy steps hold the weights in a cloud where the drift and the noise
   balance, below the top of a narrow ridge; a falling rate shrinks the cloud.
-- ``--gsde FRAMES``: gSDE exploration (``uavlink/learn/held_exploration.py``'s callback; -1: W drawn once
-  a rollout), noise held for many frames as ES holds its perturbation for a whole episode.
+- ``--gsde FRAMES``: gSDE exploration (``uavlink/learn/held_exploration.py``'s callback; -1: W
+  drawn once a rollout), noise held for many frames as ES holds its perturbation for a whole
+  episode.
 
 It then pairs the policy with the start and with kmeans on ``--check-episodes`` of
 ``--check-seed`` and prints one JSON object.

@@ -1,6 +1,7 @@
-"""Exploration held for an episode (``uavlink train --gsde-log-std``, uavlink/learn/held_exploration.py):
-the noise a row draws holds until the next rollout, at the per-frame std asked, and the saved
-policy is a plain diagonal Gaussian one whose mean action gSDE never touched."""
+"""Exploration held for an episode (``uavlink train --gsde-log-std``,
+uavlink/learn/held_exploration.py): the noise a row draws holds until the next rollout, at the
+per-frame std asked, and the saved policy is a plain diagonal Gaussian one whose mean action gSDE
+never touched."""
 
 from __future__ import annotations
 
