@@ -77,24 +77,27 @@ def test_a_start_policy_takes_no_teacher() -> None:
         ).validate(MAP_ENV)
 
 
-def test_a_policy_started_from_weights_has_no_rule_for_a_teacher_and_says_whose() -> None:
-    """The map table's "map vs its teacher" column: a start from a policy file names that file (its
-    ratio to the spatial policy is the column beside), a cloned rule is that rule, and no warm start
-    says so."""
+def test_a_policy_started_from_weights_has_its_starts_teacher_and_says_whose() -> None:
+    """The teacher column of the map table and of research/fleet_bars.py: a cloned rule is that rule;
+    a start from a policy file is a stage of training, not a new teacher, so its teacher is the
+    start's, named with the file it came through (followed back along the chain); a start file that
+    copied no rule, or is not there, is named as the weights it gave; no warm start says so."""
     from types import SimpleNamespace
 
     from uavlink.learn.teachers import policy_teacher
 
     cfg = EnvConfig().replace(place_cell_m=12.0)
+    fleet = EnvConfig(scenario="circular", n_uavs=2, fleet_slots=3)
+    solo_start = ROOT / "policies" / "fleet_start" / "circular.zip"
 
     def policy(**warm_start) -> SimpleNamespace:
         tc = with_changes(TrainConfig(), {f"warm_start.{k}": v for k, v in warm_start.items()})
         return SimpleNamespace(manifest={"training": {"hyperparameters": tc.to_dict()}})
 
-    assert policy_teacher(policy(policy=str(SPATIAL_HOTSPOT)), cfg) == (
-        None,
-        f"the weights of {SPATIAL_HOTSPOT}",
-    )
+    teacher, label = policy_teacher(policy(policy=str(solo_start)), fleet)
+    assert label == f"solo via {solo_start}" and type(teacher).__name__ == "SoloTeacher"
+    missing = ROOT / "never.zip"
+    assert policy_teacher(policy(policy=str(missing)), cfg) == (None, f"the weights of {missing}")
     teacher, label = policy_teacher(policy(teacher="explore"), cfg)
     assert label == "explore" and teacher.name == "explore"
     assert policy_teacher(policy(), cfg) == (None, "no warm start")

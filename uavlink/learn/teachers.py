@@ -13,6 +13,7 @@ The shadowing estimator a gate can read lives in ``uavlink.learn.shadow_estimati
 
 from __future__ import annotations
 
+from pathlib import Path
 from typing import Any, Protocol
 
 import numpy as np
@@ -26,6 +27,7 @@ from uavlink.errors import UserError
 from uavlink.learn.lead_teacher import area_corners_m, away_target_m, make_lead_teacher
 from uavlink.policies.baselines import AoaPolicy
 from uavlink.policies.fleet_baselines import FleetAoaPolicy, KMeansPolicy
+from uavlink.policies.manifest import PolicyFileError, read_zip_manifest
 from uavlink.policies.registry import make_baseline
 from uavlink.radio.aoa import circular_mean_std_deg, true_aoa_deg
 
@@ -163,12 +165,30 @@ def warm_start_teacher(cfg: EnvConfig, tc: TrainConfig) -> tuple[Any, Any]:
 def policy_teacher(policy: Any, cfg: EnvConfig) -> tuple[Any | None, str]:
     """A trained policy's warm-start teacher rebuilt from its manifest (``training.hyperparameters``)
     to fly ``cfg``, and a label naming the rule and its knobs, e.g. ``aoa (span 3, gate 2)``; None and
-    a label saying why for a policy that copied no rule (no warm start, or another policy's weights)."""
-    training = (getattr(policy, "manifest", None) or {}).get("training") or {}
+    a label saying why for a policy that copied no rule (no warm start). A policy that started from
+    another policy's weights (``warm_start.policy``) has that policy's teacher, followed back along
+    the chain while the start file is there (its path as the training read it, from the working
+    folder): a stage of training is not a new teacher."""
+    return _manifest_teacher((getattr(policy, "manifest", None) or {}), cfg, via=())
+
+
+def _manifest_teacher(
+    manifest: dict[str, Any], cfg: EnvConfig, via: tuple[str, ...]
+) -> tuple[Any | None, str]:
+    training = manifest.get("training") or {}
     tc = TrainConfig.from_dict(training.get("hyperparameters") or {})
     ws = tc.warm_start
     if ws.policy:
-        return None, f"the weights of {ws.policy}"
+        if ws.policy in via:  # a file cannot have trained from itself; refuse to loop
+            return None, f"the weights of {ws.policy}"
+        try:
+            start = read_zip_manifest(Path(ws.policy))
+        except PolicyFileError:
+            return None, f"the weights of {ws.policy}"
+        teacher, label = _manifest_teacher(start, cfg, (*via, ws.policy))
+        if teacher is None:
+            return None, f"the weights of {ws.policy}"
+        return teacher, f"{label} via {ws.policy}"
     if not ws.teacher:
         return None, "no warm start"
     knobs = [
