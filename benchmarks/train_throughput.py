@@ -80,6 +80,7 @@ SPEED_TRAIN = (
     "normalize_reward",
     "net_arch",
     "fleet_sizes",
+    "gsde_log_std",  # held exploration draws its noise from the actor's features every step
 )
 SPEED_ENV = (
     "n_uavs",
