@@ -13,6 +13,7 @@ The shadowing estimator a gate can read lives in ``uavlink.learn.shadow_estimati
 
 from __future__ import annotations
 
+import contextlib
 from pathlib import Path
 from typing import Any, Protocol
 
@@ -179,13 +180,11 @@ def _manifest_teacher(
     tc = TrainConfig.from_dict(training.get("hyperparameters") or {})
     ws = tc.warm_start
     if ws.policy:
-        if ws.policy in via:  # a file cannot have trained from itself; refuse to loop
-            return None, f"the weights of {ws.policy}"
-        try:
-            start = read_zip_manifest(Path(ws.policy))
-        except PolicyFileError:
-            return None, f"the weights of {ws.policy}"
-        teacher, label = _manifest_teacher(start, cfg, (*via, ws.policy))
+        teacher, label = None, ""
+        if ws.policy not in via:  # a file cannot have trained from itself; refuse to loop
+            with contextlib.suppress(PolicyFileError):  # the start file is gone or foreign
+                start = read_zip_manifest(Path(ws.policy))
+                teacher, label = _manifest_teacher(start, cfg, (*via, ws.policy))
         if teacher is None:
             return None, f"the weights of {ws.policy}"
         return teacher, f"{label} via {ws.policy}"
