@@ -98,6 +98,8 @@ def test_a_policy_started_from_weights_has_its_starts_teacher_and_says_whose() -
     assert label == f"solo via {solo_start}" and type(teacher).__name__ == "SoloTeacher"
     missing = ROOT / "never.zip"
     assert policy_teacher(policy(policy=str(missing)), cfg) == (None, f"the weights of {missing}")
+    no_rule = ROOT / "policies" / "mixed.zip"  # PPO from scratch: its chain ends in no rule
+    assert policy_teacher(policy(policy=str(no_rule)), cfg) == (None, f"the weights of {no_rule}")
     teacher, label = policy_teacher(policy(teacher="explore"), cfg)
     assert label == "explore" and teacher.name == "explore"
     assert policy_teacher(policy(), cfg) == (None, "no warm start")
