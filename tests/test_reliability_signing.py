@@ -356,10 +356,12 @@ def test_signed_flight_ignores_ground_stations_without_the_key(tmp_path: Path) -
                 fly.wait(10)
         assert fly.returncode == 0, err
         summary = json.loads(out)
-        # the flight went on as if nobody else was there: every frame decided, except that on a
-        # loaded machine a frame can reach the loop in a backlog with the next (then only the
-        # newest is decided and the other counts as stale)
-        assert summary["frames"] == frames and summary["radio_frames_missed"] == 0
+        # the flight went on as if nobody else was there: every frame's report arrived and was
+        # decided, except that on a loaded machine a frame can reach the loop in a backlog with the
+        # next (then only the newest is decided; the other is undecided, counted as missed and as
+        # stale, and goes into the memory): no report was lost
+        missed = summary["radio_frames_missed"]
+        assert summary["frames"] == frames and missed == summary["stale_radio_reports"], summary
         assert summary["decisions"] + summary["stale_radio_reports"] == frames, summary
         assert summary["decisions"] >= 0.9 * frames, summary
         assert (
