@@ -74,11 +74,6 @@ def main(argv: list[str] | None = None) -> int:
 
     if not args.start_from.is_file():
         raise UserError(f"--start-from {args.start_from}: no such file")
-    if args.gsde is not None and job.train.gsde_log_std is not None:
-        raise UserError(
-            f"--gsde: {job.name}'s recipe explores with held noise already (gsde_log_std ="
-            f" {job.train.gsde_log_std}); drop --gsde or train a recipe without it"
-        )
     warm = dataclasses.replace(
         job.train.warm_start, teacher="", dagger_rounds=0, policy=str(args.start_from)
     )

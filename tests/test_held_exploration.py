@@ -17,11 +17,13 @@ FLEET = ["--scenario", "hotspot", "--set", "n_uavs=2", "--set", "fleet_slots=1"]
 
 def test_a_rows_noise_holds_for_the_rollout_at_the_per_frame_std_asked() -> None:
     """After the callback a row's noise is the same every frame it sees the same state until the
-    next draw, its per-frame variance on the first observations is the one asked, and at the end a
-    diagonal Gaussian of that std is back with the mean action untouched."""
+    next draw, its per-frame variance on the first observations is the one asked, a second such
+    callback is refused, and at the end a diagonal Gaussian of that std is back with the mean
+    action untouched."""
     import torch
 
     from uavlink.config import EnvConfig, TrainConfig
+    from uavlink.errors import UserError
     from uavlink.learn.held_exploration import held_exploration_callback
     from uavlink.learn.training import make_model
 
@@ -44,6 +46,10 @@ def test_a_rows_noise_holds_for_the_rollout_at_the_per_frame_std_asked() -> None
     assert model.use_sde and model.sde_sample_freq == -1
     assert torch.equal(first, again) and not torch.allclose(first, redrawn)
     assert float(variance.mean()) == pytest.approx(np.exp(-4.0), rel=1e-3)
+    second = held_exploration_callback(-1.0)  # two at once would save a policy nothing loads
+    second.init_callback(model)
+    with pytest.raises(UserError, match="on already"):
+        second.on_training_start({}, {})
     callback.on_training_end()
     assert tuple(policy.log_std.shape) == (2,) and not model.use_sde
     assert np.allclose(policy.log_std.detach().numpy(), -2.0, atol=0.2)

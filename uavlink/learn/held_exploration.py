@@ -23,6 +23,8 @@ from __future__ import annotations
 import math
 from typing import Any
 
+from uavlink.errors import UserError
+
 __all__ = ["held_exploration_callback"]
 
 
@@ -53,6 +55,11 @@ def held_exploration_callback(log_std: float, sample_freq: int = -1) -> Any:
         def _on_training_start(self) -> None:
             model: Any = self.model  # SB3's PPO and ActorCriticPolicy, set here by attribute
             policy: Any = model.policy
+            if model.use_sde:  # a second callback: its swap would save a policy nothing loads
+                raise UserError(
+                    "held exploration (gSDE) is on already: one held-noise callback per run"
+                    " (a recipe with gsde_log_std takes no second one)"
+                )
             with torch.no_grad():
                 obs = torch.as_tensor(model._last_obs, dtype=torch.float32)
                 features = policy.extract_features(obs)
