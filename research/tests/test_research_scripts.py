@@ -891,3 +891,16 @@ def test_es_actor_per_agent_weights_move_only_their_own_uavs_rows() -> None:
     set_params(start)
     changed = np.abs(moved - plain).sum(axis=1) > 0
     assert changed.tolist() == [False, True, False, False, True, False]
+
+
+def test_silent_sensor_a_second_uav_near_the_team_takes_ues_and_hears_them_louder() -> None:
+    """research/silent_sensor.py's table: 40 m from the first UAV the second serves a UE in some
+    frames and not in others; in the far corner it is silent more often and hears the UEs fainter."""
+    rows = run_json(
+        "silent_sensor.py", "--scenario", "no_move", "--distances", "40", "-1", "--episodes", "16"
+    )["rows"]
+    near, corner = rows
+    assert (near["distance_m"], corner["distance_m"]) == (40.0, "corner")
+    assert 0.0 < near["silent_share"] < 1.0
+    assert corner["silent_share"] > near["silent_share"]
+    assert corner["heard_snr_db"] < near["heard_snr_db"] - 10.0
