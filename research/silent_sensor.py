@@ -21,6 +21,7 @@ from typing import Any
 
 import numpy as np
 from entry import run_script
+from fleet_bars import episode_args
 
 CORNER = -1.0  # a distance standing for "the far corner"
 
@@ -66,26 +67,18 @@ def run(scenarios: list[str], distances_m: list[float], episodes: int, seed: int
 
 def main(argv: list[str] | None = None) -> int:
     from uavlink.config import SCENARIOS
-    from uavlink.errors import UserError
 
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument(
-        "--scenario", action="append", help="repeatable (default: no_move, straight)"
-    )
+        "--scenario", action="append", choices=SCENARIOS,
+        help="repeatable (default: no_move, straight)",
+    )  # fmt: skip
     parser.add_argument(
         "--distances", type=float, nargs="+", default=[40, 60, 80, 100, 130, 160, CORNER],
         help="metres from the first UAV; -1: the far corner",
     )  # fmt: skip
-    parser.add_argument("--episodes", type=int, default=200)
-    parser.add_argument("--seed", type=int, default=1)
-    parser.add_argument("--json", action="store_true", help="print one JSON object")
-    args = parser.parse_args(argv)
+    args = episode_args(parser, argv, episodes=200, seed=1)
     scenarios = args.scenario or ["no_move", "straight"]
-    for name in scenarios:
-        if name not in SCENARIOS:
-            raise UserError(f"--scenario {name}: one of {', '.join(SCENARIOS)}")
-    if args.episodes < 1:
-        parser.error("--episodes must be positive")
     report = run(scenarios, args.distances, args.episodes, args.seed)
     if args.json:
         print(json.dumps(report))
