@@ -52,6 +52,29 @@ def test_the_incremental_posterior_is_the_textbook_one_row_by_row() -> None:
         np.testing.assert_allclose(model.var[row], var, atol=1e-8)
 
 
+def test_observations_from_other_places_pool_into_the_posterior_without_a_decision() -> None:
+    """``observe`` (a listening UAV's reading) joins the posterior as one more observation: the
+    textbook posterior of every reading, whichever place sensed it, and the frame count moves with
+    the deciding UAV's updates alone; the model holds ``sensors`` readings a frame."""
+    rng = np.random.default_rng(1)
+    model = FieldModel(n_rows=2, horizon_frames=6, r_max_m=12.0, half_width_m=200.0, sensors=3)
+    model.reset()
+    x, y = rng.uniform(-100, 100, (2, 21, 2)), rng.normal(5.0, 1.5, (2, 21))
+    for t in range(7):
+        model.observe(x[:, 3 * t + 1], y[:, 3 * t + 1])
+        model.observe(x[:, 3 * t + 2], y[:, 3 * t + 2])
+        model.update(x[:, 3 * t], y[:, 3 * t])
+    assert (model.frames, model.observed) == (7, 21)
+    for row in range(2):
+        order = np.concatenate([[3 * t + 1, 3 * t + 2, 3 * t] for t in range(7)])
+        mean, var = _batch_posterior(x[row, order], y[row, order], model.spots_m)
+        np.testing.assert_allclose(model.mean[row], mean, atol=1e-8)
+        np.testing.assert_allclose(model.var[row], var, atol=1e-8)
+    full = model.mean.copy()
+    model.observe(x[:, 0], y[:, 0] + 3.0)  # past its room: the model is full and unchanged
+    np.testing.assert_array_equal(model.mean, full)
+
+
 def test_the_pick_looks_far_early_and_stays_on_a_known_good_spot_late() -> None:
     model = FieldModel(n_rows=1, horizon_frames=128, r_max_m=12.0)
     model.reset()

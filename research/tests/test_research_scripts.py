@@ -904,3 +904,31 @@ def test_silent_sensor_a_second_uav_near_the_team_takes_ues_and_hears_them_loude
     assert 0.0 < near["silent_share"] < 1.0
     assert corner["silent_share"] > near["silent_share"]
     assert corner["heard_snr_db"] < near["heard_snr_db"] - 10.0
+
+
+def test_pooled_field_flies_as_evaluation_alone_and_its_listener_senses_what_the_server_would() -> (
+    None
+):
+    """research/pooled_field.py: without a listener its loop is evaluation's, episode for episode;
+    a listener over the serving UAV hears the value the serving UAV senses (fast fading off); and
+    its table pairs each fleet size's pooled flight with the policy alone."""
+    from uavlink.env.core import BatchedUavEnv
+    from uavlink.env.place_memory import sensed_value_bits
+    from uavlink.evaluation import evaluate_policy
+    from uavlink.policies.contract import EnvOverrides, load_with_env
+
+    pooled = research_module("pooled_field")
+    [(policy, cfg)] = load_with_env(["policies/map/no_move.zip"], EnvOverrides())
+    alone = pooled.fly(policy, cfg, "none", 0, 3, 5)
+    np.testing.assert_allclose(alone, evaluate_policy(policy, cfg, 3, 5).episode_rate_mbps)
+    still = cfg.replace(**{"radio.fast_fading": False}).validate()
+    env = BatchedUavEnv(still, n_envs=4, seed=2)
+    env.reset()
+    env.step(np.full((4, 2), 0.5, dtype=np.float32))
+    heard = pooled.heard_value_bits(env, env.uav_xy_m, np.random.default_rng(0))
+    np.testing.assert_allclose(heard, sensed_value_bits(env.readings.sinr_db), rtol=1e-6)
+    rows = run_json("pooled_field.py", "--leaders", "kriging", "--sizes", "2", "--episodes", "4")[
+        "rows"
+    ]
+    assert [(r["listener"], r["n_uavs"]) for r in rows] == [("spiral", 2), ("ucb", 2)]
+    assert all(r["pooled_mbps"] != r["alone_mbps"] for r in rows)

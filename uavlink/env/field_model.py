@@ -53,15 +53,19 @@ class FieldModel:
     """Per-row Gaussian-process posteriors of the sensed value over candidate spots, batched in numpy."""
 
     def __init__(
-        self, n_rows: int, horizon_frames: int, r_max_m: float, half_width_m: float = math.inf
+        self,
+        n_rows: int,
+        horizon_frames: int,
+        r_max_m: float,
+        half_width_m: float = math.inf,
+        sensors: int = 1,
     ) -> None:
         self.horizon_frames, self.r_max_m = int(horizon_frames), float(r_max_m)
         self.spots_m = candidate_spots_m(half_width_m=half_width_m)
         self.prior_var = SIGMA_BITS**2 + MEAN_SIGMA_BITS**2
-        n, k = (
-            self.horizon_frames + 1,
-            len(self.spots_m),
-        )  # the episode's first observation, then a frame's each
+        # room for the episode's first observation and a frame's each, from ``sensors`` places
+        self.capacity = (self.horizon_frames + 1) * int(sensors)
+        n, k = self.capacity, len(self.spots_m)
         self._x = np.zeros((n_rows, n, 2))
         self._linv = np.zeros(
             (n_rows, n, n)
@@ -71,13 +75,14 @@ class FieldModel:
         self.mean = np.zeros((n_rows, k))
         self.var = np.zeros((n_rows, k))
         self.pick = np.zeros(n_rows, dtype=np.int64)
-        self.frames = 0
+        self.frames = 0  # decisions made (updates)
+        self.observed = 0  # observations added, the updates' and any other place's
 
     def reset(self) -> None:
         # the factors need no clearing: an update reads only the rows the episode has written
         self.mean[:] = 0.0
         self.var[:] = self.prior_var
-        self.frames = 0
+        self.frames = self.observed = 0
 
     @staticmethod
     def _distance_m(a: np.ndarray, b: np.ndarray) -> np.ndarray:
@@ -99,13 +104,25 @@ class FieldModel:
     def update(self, uav_xy_m: np.ndarray, value_bits: np.ndarray) -> dict[str, np.ndarray]:
         """Add this frame's sensed value at each row's position; the pick's quantities (offset from
         the UAV, m; posterior mean minus the value now and posterior std, bits/s/Hz)."""
-        t = self.frames
         x, y = np.asarray(uav_xy_m, dtype=float), np.asarray(value_bits, dtype=float)
         to_spots_m = self._distance_m(
             x, self.spots_m
         )  # (rows, K): the covariances' and the travel's
-        if t > self.horizon_frames:  # stepped past the episode without a reset: the model is full
-            return self._pick(x, y, to_spots_m)
+        self._add(x, y, to_spots_m)
+        self.frames += 1
+        return self._pick(x, y, to_spots_m)
+
+    def observe(self, xy_m: np.ndarray, value_bits: np.ndarray) -> None:
+        """Add a value sensed at ``xy_m`` (rows, 2) by another place than the deciding UAV (a
+        listening UAV of its fleet), without a decision; room for ``sensors - 1`` a frame."""
+        x = np.asarray(xy_m, dtype=float)
+        self._add(x, np.asarray(value_bits, dtype=float), self._distance_m(x, self.spots_m))
+
+    def _add(self, x: np.ndarray, y: np.ndarray, to_spots_m: np.ndarray) -> None:
+        """Append one observation per row: the posterior's update in O(n K)."""
+        t = self.observed
+        if t >= self.capacity:  # stepped past the episode without a reset: the model is full
+            return
         linv, v, w = self._linv[:, :t, :t], self._v[:, :t], self._w[:, :t]
         k_old = self._cov(self._distance_m(x, self._x[:, :t]))  # (rows, t)
         ell = np.matmul(linv, k_old[..., None])[..., 0]  # (rows, t): L^-1 k
@@ -119,8 +136,7 @@ class FieldModel:
         self._v[:, t], self._w[:, t], self._x[:, t] = v_new, w_new, x
         self.mean += v_new * w_new[:, None]
         self.var -= v_new * v_new
-        self.frames = t + 1
-        return self._pick(x, y, to_spots_m)
+        self.observed = t + 1
 
     def _pick(
         self, x: np.ndarray, now_bits: np.ndarray, to_spots_m: np.ndarray
