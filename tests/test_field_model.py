@@ -110,6 +110,9 @@ def test_layout_v5_is_recorded_and_older_records_are_unchanged() -> None:
         ({"place_model": "gp"}, "unknown place_model"),
         ({"place_model": "kriging"}, "place_cell_m > 0"),
         ({"place_model": "kriging", "place_cell_m": 12.0, "n_uavs": 2}, "fleet_slots > 0"),
+        ({"place_model": "pooled", "place_cell_m": 12.0}, "models a fleet's field"),
+        ({"place_model": "pooled", "n_uavs": 2, "fleet_slots": 1}, "place_cell_m > 0"),
+        ({"fleet_reuse": "solo"}, "unknown fleet_reuse"),
     ],
 )
 def test_bad_place_models_are_refused_in_one_line(changes: dict, message: str) -> None:

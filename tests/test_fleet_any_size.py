@@ -16,6 +16,7 @@ from uavlink.env.observation import (
     ANY_FLEET_KRIGING_LAYOUT_VERSION,
     ANY_FLEET_LAYOUT_VERSION,
     ANY_FLEET_PLACE_LAYOUT_VERSION,
+    ANY_FLEET_POOLED_LAYOUT_VERSION,
     PLACE_FIELDS,
     ObservationLayout,
 )
@@ -258,4 +259,43 @@ def test_a_model_of_the_field_makes_layout_v8_for_every_size_with_each_uavs_own_
         v8.layout.newest_frame(obs8)["place_pick_offset_m"],
         picked["place_pick_offset_m"],
         atol=1e-3,
+    )
+
+
+def test_a_pooled_model_of_the_field_makes_layout_v9_one_model_per_fleet_fed_by_every_uav() -> None:
+    """``place_model = "pooled"``: v8's fields (the same size), one model per env into which every
+    UAV of the env puts what it senses where it is, each frame in fleet order, and each UAV's pick
+    made from that one posterior where it is."""
+    pooled = {"place_cell_m": 12.0, "place_model": "pooled", "scenario": "no_move"}
+    layouts = {ObservationLayout.for_config(_cfg(d, **pooled)) for d in (2, 3, 4)}
+    assert len(layouts) == 1
+    (layout,) = layouts
+    v8 = ObservationLayout.for_config(_cfg(3, **(pooled | {"place_model": "kriging"})))
+    assert layout.version == ANY_FLEET_POOLED_LAYOUT_VERSION and layout.size == v8.size
+    assert ObservationLayout.from_dict(layout.to_dict()) == layout
+    assert "place_model=pooled" in layout.describe()
+    env = BatchedUavEnv(_cfg(3, **pooled), n_envs=2, seed=4)
+    model = FieldModel(2, layout.episode_frames, layout.r_max_m, layout.half_width_m, sensors=3)
+
+    def fleet_model() -> dict[str, np.ndarray]:
+        value = sensed_value_bits(env.readings.heard_sinr_db.reshape(env.n_rows, -1)).reshape(2, 3)
+        xy = env.uav_xy_m.reshape(2, 3, 2)
+        for uav in range(3):
+            model.observe(xy[:, uav], value[:, uav])
+        return {"mean": model.mean.copy(), "var": model.var.copy()}
+
+    obs = env.reset()
+    model.reset()
+    rng = np.random.default_rng(2)
+    for _ in range(6):
+        posterior = fleet_model()
+        obs = env.step(rng.uniform(-1, 1, (env.n_rows, 2))).observation
+    posterior = fleet_model()
+    np.testing.assert_allclose(env._builder.field.mean, posterior["mean"], atol=1e-9)
+    frame = env.layout.newest_frame(obs)
+    pick_m = env.uav_xy_m + frame["place_pick_offset_m"]  # (6, 2): each UAV's own pick
+    spot = np.linalg.norm(model.spots_m[None] - pick_m[:, None], axis=2).argmin(axis=1)
+    std = np.sqrt(np.repeat(posterior["var"], 3, axis=0))  # each UAV's row of its fleet's model
+    np.testing.assert_allclose(
+        std[np.arange(6), spot], frame["place_pick_std_bits"].ravel(), atol=2e-3
     )

@@ -1,5 +1,5 @@
 """A fleet's radio (SPEC "A fleet"): strongest-power association, silent empty cells, per-cell
-round robin, full or orthogonal reuse, what each UAV hears; and the env's agent rows for D UAVs."""
+round robin, full or orthogonal reuse or one cell while the others listen, what each UAV hears; and the env's agent rows for D UAVs."""
 
 from __future__ import annotations
 
@@ -82,6 +82,29 @@ def test_orthogonal_reuse_has_no_interference_and_splits_the_band():
     np.testing.assert_allclose(
         read.rate_bps[0], QUIET.bandwidth_hz / 2 * math.log2(1 + 2 * _snr(0.0)), rtol=1e-12
     )
+
+
+def test_a_listening_fleet_has_one_cell_the_uav_strongest_for_the_most_ues():
+    rx = np.array([[[-60.0, -70.0], [-80.0, -75.0], [-65.0, -66.0]]])
+    cells = Cells.listen(rx)  # UAV 0 is the strongest for two UEs of three: it serves all three
+    np.testing.assert_array_equal(cells.serving, [[0, 0, 0]])
+    np.testing.assert_array_equal(cells.size, [[3, 0]])
+    np.testing.assert_array_equal(cells.rank, [[0, 1, 2]])
+    tie = np.array([[[-60.0, -70.0], [-80.0, -50.0]]])  # one UE each: the louder in all wins
+    np.testing.assert_array_equal(Cells.listen(tie).serving, [[1, 1]])
+
+
+def test_listening_uavs_send_nothing_and_still_hear_every_ue():
+    uav, ue = [[0.0, 0.0], [40.0, 0.0]], [[-10.0, 0.0], [0.0, 5.0], [45.0, 0.0]]
+    full = _read(uav, ue)
+    listen = _read(uav, ue, reuse="listen")
+    alone = _read(uav[:1], ue)
+    assert full.serving[0].tolist() == [0, 0, 1]  # with every UAV serving, UE 2 is UAV 1's
+    np.testing.assert_array_equal(listen.serving, [[0, 0, 0]])
+    # one cell, no interference: what UAV 0 alone gives, while UAV 1 hears what it heard before
+    np.testing.assert_allclose(listen.sinr_db, alone.sinr_db, atol=1e-9)
+    np.testing.assert_allclose(listen.rate_bps, alone.rate_bps, rtol=1e-12)
+    np.testing.assert_allclose(listen.heard_sinr_db, full.heard_sinr_db, atol=1e-9)
 
 
 def test_each_uav_hears_every_ue_and_measures_its_aoa():

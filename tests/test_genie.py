@@ -149,7 +149,9 @@ def test_grid_powers_are_the_envs() -> None:
         np.testing.assert_allclose(rx[:, :, ix, iy], want, atol=2e-3)
 
 
-@pytest.mark.parametrize("n_uavs,reuse", [(2, "full"), (3, "full"), (2, "orthogonal")])
+@pytest.mark.parametrize(
+    "n_uavs,reuse", [(2, "full"), (3, "full"), (2, "orthogonal"), (2, "listen"), (4, "listen")]
+)
 def test_fleet_mean_rates_are_the_mean_channel_rates(n_uavs: int, reuse: str) -> None:
     rng, radio = np.random.default_rng(n_uavs), RadioConfig()
     mine, others = rng.uniform(-90, -60, (3, 10, 40)), rng.uniform(-90, -60, (3, 10, n_uavs - 1))

@@ -172,3 +172,29 @@ def test_in_a_fleet_with_a_model_of_the_field_a_v5_leader_reads_its_own_and_is_n
     lead = leader_index(teacher.layout, obs)[0] == 0
     assert lead.any()
     np.testing.assert_array_equal(teacher.act(obs)[lead], teacher.leader.act(view)[lead])
+
+
+def test_in_a_listening_fleet_the_uavs_that_do_not_serve_hold_and_the_leader_reads_the_pool() -> (
+    None
+):
+    """``fleet_reuse = "listen"`` with one pooled model (v9): the leader (the serving UAV) flies the
+    map policy on a v5 view of the fleet's model; the others take no UE wherever they are, so they
+    hold rather than fly to the far corners."""
+    v9 = FLEET.replace(
+        fleet_slots=3, place_cell_m=12.0, place_model="pooled", fleet_reuse="listen"
+    ).validate()
+    teacher = make_lead_teacher(v9, str(MAP_POLICY))
+    assert teacher.single.version == 5 and not teacher.dash
+    env = BatchedUavEnv(v9, n_envs=8, seed=5)
+    obs = env.reset()
+    for _ in range(3):
+        obs = env.step(teacher.act(obs)).observation
+    lead = leader_index(teacher.layout, obs)[0] == 0
+    assert lead.sum() == 8  # one leader per fleet: the serving UAV
+    np.testing.assert_array_equal(
+        env.readings.serving.max(axis=1), env.readings.serving.min(axis=1)
+    )
+    np.testing.assert_array_equal(teacher.act(obs)[~lead], 0.0)
+    np.testing.assert_array_equal(
+        teacher.act(obs)[lead], teacher.leader.act(single_view(teacher.layout, obs))[lead]
+    )

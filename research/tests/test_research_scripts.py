@@ -932,3 +932,14 @@ def test_pooled_field_flies_as_evaluation_alone_and_its_listener_senses_what_the
     ]
     assert [(r["listener"], r["n_uavs"]) for r in rows] == [("spiral", 2), ("ucb", 2)]
     assert all(r["pooled_mbps"] != r["alone_mbps"] for r in rows)
+
+
+def test_fleet_listeners_table_pairs_the_listening_fleet_with_the_shipped_one() -> None:
+    """research/fleet_listeners.py: its table's runs and ratios for one fleet size, kmeans gaining
+    in the listening world (its second UAV no longer interferes)."""
+    [row] = run_json("fleet_listeners.py", "--sizes", "2", "--episodes", "4")["rows"]
+    assert row["n_uavs"] == 2
+    assert {"ppo_v8_mbps", "lead_v8_mbps", "hold_mbps", "sense_mbps"} <= set(row)
+    assert row["kmeans_listen_mbps"] > row["kmeans_full_mbps"]
+    low, high = row["sense_vs_hold"][1:]
+    assert low <= row["sense_vs_hold"][0] <= high

@@ -34,9 +34,11 @@ SHADOWING_AR1, SHADOWING_SPATIAL = "ar1", "spatial"
 SHADOWING_MODELS = (SHADOWING_AR1, SHADOWING_SPATIAL)
 # How a policy's output becomes a move (uavlink.env.actions.ActionMapping implements them).
 ACTION_MAPPINGS = ("cartesian-v1", "polar-v1")
-# How a fleet shares the band (SPEC "A fleet"): every UAV on every RB, or the band split D ways.
-REUSE_FULL, REUSE_ORTHOGONAL = "full", "orthogonal"
-FLEET_REUSE = (REUSE_FULL, REUSE_ORTHOGONAL)
+# How a fleet shares the band (SPEC "A fleet"): every UAV on every RB, the band split D ways, or
+# one cell on the whole band while the other UAVs listen (barred to attachment, sending nothing,
+# still hearing every UE's uplink: uavlink.radio.cells.Cells.listen).
+REUSE_FULL, REUSE_ORTHOGONAL, REUSE_LISTEN = "full", "orthogonal", "listen"
+FLEET_REUSE = (REUSE_FULL, REUSE_ORTHOGONAL, REUSE_LISTEN)
 # How the UAV reaches its setpoint in a frame (uavlink.mobility.uav_motion): at once (the paper's),
 # or flown by PX4's position loop under its speed and acceleration limits, as sitl_stub flies (a
 # fleet's setpoints then move as `uavlink fly` moves them: separated, and cut for the transit; what
@@ -45,9 +47,11 @@ MOTION_INSTANT, MOTION_PX4 = "instant", "px4"
 UAV_MOTIONS = (MOTION_INSTANT, MOTION_PX4)
 # What the memory of place keeps: "cells", the grid of sensed values (layout v3, v4 for a fleet);
 # "kriging", that grid and a model of the sensed field with the spot it makes worth flying to (v5
-# for one UAV, v8 for a fleet of any size, each UAV its own; uavlink/env/field_model.py).
-PLACE_CELLS, PLACE_KRIGING = "cells", "kriging"
-PLACE_MODELS = (PLACE_CELLS, PLACE_KRIGING)
+# for one UAV, v8 for a fleet of any size, each UAV its own; uavlink/env/field_model.py);
+# "pooled", a fleet's one model that every UAV feeds and picks from (v9).
+PLACE_CELLS, PLACE_KRIGING, PLACE_POOLED = "cells", "kriging", "pooled"
+PLACE_MODELS = (PLACE_CELLS, PLACE_KRIGING, PLACE_POOLED)
+FIELD_MODELS = (PLACE_KRIGING, PLACE_POOLED)  # the place models with a model of the field
 # The finest memory-of-place grid validate() accepts: cells of at least PLACE_CELL_MIN_M, and at most
 # PLACE_CELLS_ACROSS of them across the area (EnvConfig.place_cell_m says why).
 PLACE_CELL_MIN_M = 1.0
@@ -210,6 +214,11 @@ class EnvConfig:
             raise ConfigError(
                 "env.place_model=kriging models each UAV's memory of place: it needs "
                 "place_cell_m > 0, and in a fleet fleet_slots > 0 (layout v8)"
+            )
+        if self.place_model == PLACE_POOLED and (self.place_cell_m <= 0 or self.fleet_slots == 0):
+            raise ConfigError(
+                "env.place_model=pooled models a fleet's field: it needs place_cell_m > 0 and "
+                "fleet_slots > 0 (layout v9)"
             )
         if self.cluster_size_m >= 2 * self.area.half_width_m:
             raise ConfigError("env.cluster_size_m must be smaller than the area")

@@ -82,7 +82,7 @@ class BatchedUavEnv:
         self.channel = RadioChannel(
             self.cfg.radio, self.cfg.area, self.cfg.n_ues, self.cfg.fleet_reuse
         )
-        self._builder = ObservationBuilder(self.layout, self.n_rows)
+        self._builder = ObservationBuilder(self.layout, self.n_rows, self.n_uavs)
         self._start_xy_m = self._as_carried(
             np.tile(start_positions_m(self.n_uavs, self.cfg.fleet_start_radius_m), (self.n_envs, 1))
         )  # with uav_motion px4, where a vehicle holding its reported position holds

@@ -50,7 +50,11 @@ def candidate_spots_m(
 
 
 class FieldModel:
-    """Per-row Gaussian-process posteriors of the sensed value over candidate spots, batched in numpy."""
+    """Per-row Gaussian-process posteriors of the sensed value over candidate spots, batched in numpy.
+
+    A row's model is one UAV's (layouts v5, v8), or with ``shared_by = D`` one fleet's (v9): the D
+    UAVs of an env (consecutive rows of ``update``) each add what they sense and each pick from
+    the one posterior, where they are."""
 
     def __init__(
         self,
@@ -59,12 +63,14 @@ class FieldModel:
         r_max_m: float,
         half_width_m: float = math.inf,
         sensors: int = 1,
+        shared_by: int = 1,
     ) -> None:
         self.horizon_frames, self.r_max_m = int(horizon_frames), float(r_max_m)
         self.spots_m = candidate_spots_m(half_width_m=half_width_m)
         self.prior_var = SIGMA_BITS**2 + MEAN_SIGMA_BITS**2
+        self.shared_by = int(shared_by)
         # room for the episode's first observation and a frame's each, from ``sensors`` places
-        self.capacity = (self.horizon_frames + 1) * int(sensors)
+        self.capacity = (self.horizon_frames + 1) * max(int(sensors), self.shared_by)
         n, k = self.capacity, len(self.spots_m)
         self._x = np.zeros((n_rows, n, 2))
         self._linv = np.zeros(
@@ -74,7 +80,7 @@ class FieldModel:
         self._w = np.zeros((n_rows, n))  # linv @ values
         self.mean = np.zeros((n_rows, k))
         self.var = np.zeros((n_rows, k))
-        self.pick = np.zeros(n_rows, dtype=np.int64)
+        self.pick = np.zeros(n_rows * self.shared_by, dtype=np.int64)
         self.frames = 0  # decisions made (updates)
         self.observed = 0  # observations added, the updates' and any other place's
 
@@ -102,13 +108,19 @@ class FieldModel:
         return c
 
     def update(self, uav_xy_m: np.ndarray, value_bits: np.ndarray) -> dict[str, np.ndarray]:
-        """Add this frame's sensed value at each row's position; the pick's quantities (offset from
-        the UAV, m; posterior mean minus the value now and posterior std, bits/s/Hz)."""
+        """Add this frame's sensed value at each UAV's position (rows x ``shared_by``, 2); the
+        pick's quantities per UAV (offset from it, m; posterior mean minus the value now and
+        posterior std, bits/s/Hz)."""
         x, y = np.asarray(uav_xy_m, dtype=float), np.asarray(value_bits, dtype=float)
         to_spots_m = self._distance_m(
             x, self.spots_m
-        )  # (rows, K): the covariances' and the travel's
-        self._add(x, y, to_spots_m)
+        )  # (UAVs, K): the covariances' and the travel's
+        if self.shared_by == 1:
+            self._add(x, y, to_spots_m)
+        else:  # each UAV of the fleet in turn, its readings in every row's one posterior
+            d = self.shared_by
+            for uav in range(d):
+                self._add(x[uav::d], y[uav::d], to_spots_m[uav::d])
         self.frames += 1
         return self._pick(x, y, to_spots_m)
 
@@ -151,10 +163,13 @@ class FieldModel:
         np.ceil(score, out=score)
         np.subtract(left, score, out=score)  # the frames left there,
         np.maximum(score, 0.0, out=score)
-        std = np.maximum(self.var, 0.0)
+        mean, var = self.mean, self.var
+        if self.shared_by > 1:  # each UAV's row of its fleet's posterior
+            mean, var = np.repeat(mean, self.shared_by, axis=0), np.repeat(var, self.shared_by, 0)
+        std = np.maximum(var, 0.0)
         np.sqrt(std, out=std)
         optimism = BETA * std
-        optimism += self.mean
+        optimism += mean
         score *= optimism  # times what it is worth
         best = score.argmax(axis=1)
         if self.frames == 1:
@@ -164,6 +179,6 @@ class FieldModel:
             self.pick = np.where(switch, best, self.pick)
         return {
             "place_pick_offset_m": self.spots_m[self.pick] - x,
-            "place_pick_gain_bits": self.mean[rows, self.pick] - now_bits,
+            "place_pick_gain_bits": mean[rows, self.pick] - now_bits,
             "place_pick_std_bits": std[rows, self.pick],
         }

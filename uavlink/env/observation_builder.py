@@ -6,7 +6,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from uavlink.config.env import PLACE_KRIGING
+from uavlink.config.env import PLACE_POOLED
 from uavlink.env.field_model import FieldModel
 from uavlink.env.observation import ObservationLayout
 from uavlink.env.place_memory import PlaceMemory, sensed_value_bits
@@ -16,7 +16,9 @@ class ObservationBuilder:
     """Keeps the last M frames per row (env, or env and UAV), and the memory of place when the
     layout has one, and returns the flattened observation (rows, size), float32."""
 
-    def __init__(self, layout: ObservationLayout, n_rows: int) -> None:
+    def __init__(self, layout: ObservationLayout, n_rows: int, n_uavs: int = 1) -> None:
+        """``n_rows`` agent rows, ``n_uavs`` consecutive rows to an env (a fleet's model of the
+        field, v9, is one per env)."""
         self.layout = layout
         self._history = np.zeros((n_rows, layout.memory, layout.frame_size), dtype=np.float32)
         self.place = (
@@ -24,9 +26,16 @@ class ObservationBuilder:
             if layout.place_cell_m > 0
             else None
         )
+        shared_by = n_uavs if layout.place_model == PLACE_POOLED else 1
         self.field = (
-            FieldModel(n_rows, layout.episode_frames, layout.r_max_m, layout.half_width_m)
-            if layout.place_model == PLACE_KRIGING
+            FieldModel(
+                n_rows // shared_by,
+                layout.episode_frames,
+                layout.r_max_m,
+                layout.half_width_m,
+                shared_by=shared_by,
+            )
+            if layout.models_field
             else None
         )
 

@@ -102,7 +102,7 @@ class PolicyPilot:
         if policy.layout is not None:
             policy.layout.check_matches(self.layout, what=f"policy {policy.name!r}")
         self.mapping = ActionMapping.for_config(cfg)
-        self.builder = ObservationBuilder(self.layout, cfg.n_uavs)
+        self.builder = ObservationBuilder(self.layout, cfg.n_uavs, cfg.n_uavs)
         self.guarded = 0
         self.inference_s: list[float] = []
 

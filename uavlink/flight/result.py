@@ -26,7 +26,7 @@ from typing import Protocol
 import numpy as np
 
 from uavlink.config import MIXED, EnvConfig
-from uavlink.config.env import MOTION_PX4, PLACE_KRIGING
+from uavlink.config.env import FIELD_MODELS, MOTION_PX4
 from uavlink.env.radio_world import episode_scenario
 from uavlink.flight.link import VehicleLink
 from uavlink.flight.vehicle_control import mode_name
@@ -307,7 +307,7 @@ def episode_fields(
         scenario = {"scenario": episode_scenario(cfg, seed), "scenario_drawn_from": MIXED}
     replay = None
     short = frames < cfg.episode_frames
-    if seed is not None and not (short and cfg.place_model == PLACE_KRIGING):
+    if seed is not None and not (short and cfg.place_model in FIELD_MODELS):
         words = [
             "uavlink",
             "evaluate",

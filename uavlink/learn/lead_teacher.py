@@ -15,7 +15,8 @@ policy (the single-UAV spatial policy of the scenario: it exploits the good shad
 single-UAV view, the v1 fields (and v3's memory of place, v5's model of the field) of its own
 fleet frames (``single_view``); the others head for the corner farthest from the leader and, while
 their cell still holds a UE, on along the wall to the next farthest, holding once their cell is
-empty (as ``SoloTeacher`` does around the UEs' centroid).
+empty (as ``SoloTeacher`` does around the UEs' centroid); in a listening fleet (``fleet_reuse =
+"listen"``, where they can take no UE) they hold where they are.
 GPS-free: it reads nothing but the observation.
 """
 
@@ -26,7 +27,7 @@ import dataclasses
 import numpy as np
 
 from uavlink.config import EnvConfig
-from uavlink.config.env import PLACE_KRIGING
+from uavlink.config.env import PLACE_KRIGING, PLACE_POOLED, REUSE_LISTEN
 from uavlink.env.actions import ActionMapping
 from uavlink.env.core import GroundTruth
 from uavlink.env.observation import (
@@ -57,7 +58,7 @@ def single_layout(fleet: ObservationLayout, place: bool = True) -> ObservationLa
         aoa_std_max_rad=fleet.aoa_std_max_rad,
         place_cell_m=place_cell_m,
     )
-    if place_cell_m == 0 or fleet.place_model != PLACE_KRIGING:
+    if place_cell_m == 0 or not fleet.models_field:
         return single
     return dataclasses.replace(
         single,
@@ -186,7 +187,11 @@ class LeadTeacher:
         ).astype(np.float32)
 
     def away(self, obs: np.ndarray, leader_xy_m: np.ndarray) -> np.ndarray:
-        """Out of the way: the far corners from the leader (it is with the UEs), ``away_target_m``."""
+        """Out of the way: the far corners from the leader (it is with the UEs), ``away_target_m``;
+        in a listening fleet (``fleet_reuse = "listen"``) a UAV that does not serve takes no UE
+        wherever it flies, so it holds where it is."""
+        if self.cfg.fleet_reuse == REUSE_LISTEN:
+            return np.zeros((len(obs), 2), dtype=np.float32)
         frame = self.layout.newest_frame(obs)
         me = frame["uav_xy_m"]
         serving = np.asarray(self.layout.own_cell(frame).any(axis=1))
@@ -219,7 +224,9 @@ def make_lead_teacher(cfg: EnvConfig, leader_policy: str = "") -> LeadTeacher:
     file, e.g. policies/spatial/<scenario>.zip) or, without one, the single-UAV aoa rule."""
     from uavlink.policies.loader import load_policy  # a policy file may need torch
 
-    single = cfg.replace(n_uavs=1, fleet_slots=0).validate()
+    # the leader's own world: one UAV, and its own model where the fleet pools one (v9 -> v5)
+    place_model = PLACE_KRIGING if cfg.place_model == PLACE_POOLED else cfg.place_model
+    single = cfg.replace(n_uavs=1, fleet_slots=0, place_model=place_model).validate()
     return LeadTeacher(
         cfg, load_policy(leader_policy, single) if leader_policy else AoaPolicy(single)
     )

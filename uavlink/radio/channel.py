@@ -5,7 +5,8 @@ Per frame the channel advances the shadowing and draws fast fading, then reports
 SINR, round-robin rate and measured AoA. One UAV (the paper's evaluation) serves every UE alone.
 A fleet (SPEC "A fleet") forms cells (``uavlink.radio.cells``: strongest mean power, per-cell round
 robin) and, with ``fleet_reuse = "full"``, every UAV with UEs interferes on every RB (the paper's
-SINR); with ``"orthogonal"`` each UAV has 1/D of the band to itself. Each UAV also senses every
+SINR); with ``"orthogonal"`` each UAV has 1/D of the band to itself; with ``"listen"`` one UAV
+serves every UE and the others listen (``Cells.listen``). Each UAV also senses every
 UE's uplink reference signal (its SNR and AoA), the per-UAV observation. Shadowing follows
 ``RadioConfig.shadowing_model``: per-link AR(1) (the paper's) or a spatial field.
 """
@@ -17,7 +18,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from uavlink.config import AreaConfig, RadioConfig
-from uavlink.config.env import REUSE_ORTHOGONAL, SHADOWING_SPATIAL
+from uavlink.config.env import REUSE_LISTEN, REUSE_ORTHOGONAL, SHADOWING_SPATIAL
 from uavlink.radio.aoa import measured_aoa_deg, true_aoa_deg
 from uavlink.radio.cells import Cells
 from uavlink.radio.fading import mean_rician_power_gain, tabulated_rician_power_gain
@@ -142,7 +143,10 @@ class RadioChannel:
         rx_dbm: np.ndarray,
     ) -> RadioReadings:
         radio = self.radio
-        cells = Cells.associate(rx_dbm)
+        # one cell while the others listen: full reuse's SINR, with no other cell active
+        cells = (
+            Cells.listen(rx_dbm) if self.fleet_reuse == REUSE_LISTEN else Cells.associate(rx_dbm)
+        )
         if self.fleet_reuse == REUSE_ORTHOGONAL:
             sinr, bandwidth_hz = self._orthogonal_sinr(rng, rx_dbm, cells)
         else:

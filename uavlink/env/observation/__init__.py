@@ -17,7 +17,8 @@ v4 for a fleet) every frame also carries ``PLACE_FIELDS``: a summary of what the
 A fleet of any size (layout v6, ``EnvConfig.fleet_slots`` > 0) replaces v2's per-D fields with
 ``SLOT_FIELDS``, whose size does not depend on D (``fleet_view``): one policy flies 2 to
 ``fleet_slots`` + 1 UAVs; with a memory of place too, layout v7; with each UAV's own model of the
-sensed field too (``place_model = "kriging"``), layout v8.
+sensed field too (``place_model = "kriging"``), layout v8; with one model per fleet that every UAV
+feeds and picks from (``place_model = "pooled"``), layout v9: the same fields as v8.
 
 Modules: ``fields`` (one UAV's fields, the memory of place's), ``fleet_view`` (a fleet's fields and
 quantities) and ``layout`` (:class:`ObservationLayout`).
@@ -43,6 +44,7 @@ from uavlink.env.observation.layout import (
     ANY_FLEET_KRIGING_LAYOUT_VERSION,
     ANY_FLEET_LAYOUT_VERSION,
     ANY_FLEET_PLACE_LAYOUT_VERSION,
+    ANY_FLEET_POOLED_LAYOUT_VERSION,
     FLEET_LAYOUT_VERSION,
     FLEET_PLACE_LAYOUT_VERSION,
     KRIGING_LAYOUT_VERSION,
@@ -53,6 +55,7 @@ from uavlink.env.observation.layout import (
 
 __all__ = [
     "ANY_FLEET_KRIGING_LAYOUT_VERSION",
+    "ANY_FLEET_POOLED_LAYOUT_VERSION",
     "ANY_FLEET_LAYOUT_VERSION",
     "ANY_FLEET_PLACE_LAYOUT_VERSION",
     "FIELDS",

@@ -11,7 +11,7 @@ from typing import Any
 import numpy as np
 
 from uavlink.config import EnvConfig, fleet_sizes_of
-from uavlink.config.env import PLACE_CELLS, PLACE_KRIGING
+from uavlink.config.env import FIELD_MODELS, PLACE_CELLS, PLACE_POOLED
 from uavlink.env.observation.fields import FIELDS, KRIGING_FIELDS, PLACE_FIELDS, Field
 from uavlink.env.observation.fleet_view import FLEET_FIELDS, SLOT_FIELDS
 from uavlink.errors import UserError
@@ -25,6 +25,7 @@ KRIGING_LAYOUT_VERSION = 5  # v3 + the model of the sensed field
 ANY_FLEET_LAYOUT_VERSION = 6  # v1 + a fleet of any size up to uav_slots + 1 (fleet_view.py)
 ANY_FLEET_PLACE_LAYOUT_VERSION = 7  # v6 + the memory of place
 ANY_FLEET_KRIGING_LAYOUT_VERSION = 8  # v7 + the model of the sensed field
+ANY_FLEET_POOLED_LAYOUT_VERSION = 9  # v8 with one model per fleet, every UAV's readings in it
 
 
 @dataclass(frozen=True)
@@ -45,8 +46,8 @@ class ObservationLayout:
     sinr_clip_db: tuple[float, float] = (-30.0, 50.0)
     aoa_std_max_rad: float = 2 * np.pi
     place_cell_m: float = 0.0  # the memory of place's grid (0: none; layouts v1 and v2)
-    # "kriging": v5, with the model of the field, which plans over an episode of episode_frames
-    # frames at r_max_m a frame (both recorded for v5 only).
+    # "kriging": v5 (v8), with the model of the field, which plans over an episode of
+    # episode_frames frames at r_max_m a frame (both recorded with a model only); "pooled": v9.
     place_model: str = PLACE_CELLS
     episode_frames: int = 128
     r_max_m: float = 12.0
@@ -61,9 +62,11 @@ class ObservationLayout:
             (False, True): PLACE_LAYOUT_VERSION,
             (True, True): FLEET_PLACE_LAYOUT_VERSION,
         }[fleet, place]
-        kriging = place and cfg.place_model == PLACE_KRIGING
+        kriging = place and cfg.place_model in FIELD_MODELS
         # a fleet of any size has one layout for every size: it records no n_uavs
-        if kriging:
+        if place and cfg.place_model == PLACE_POOLED:
+            version = ANY_FLEET_POOLED_LAYOUT_VERSION
+        elif kriging:
             version = (
                 ANY_FLEET_KRIGING_LAYOUT_VERSION if cfg.fleet_slots > 0 else KRIGING_LAYOUT_VERSION
             )
@@ -87,7 +90,12 @@ class ObservationLayout:
         fields = FIELDS if self.n_uavs == 1 else FIELDS + FLEET_FIELDS
         fields = fields + SLOT_FIELDS if self.uav_slots > 0 else fields
         fields = fields + PLACE_FIELDS if self.place_cell_m > 0 else fields
-        return fields + KRIGING_FIELDS if self.place_model == PLACE_KRIGING else fields
+        return fields + KRIGING_FIELDS if self.models_field else fields
+
+    @property
+    def models_field(self) -> bool:
+        """Whether a frame carries a model of the sensed field's pick (v5, v8, v9)."""
+        return self.place_model in FIELD_MODELS
 
     @functools.cached_property
     def slices(self) -> dict[str, slice]:
@@ -159,8 +167,9 @@ class ObservationLayout:
         )
         fleet += f"place_cell_m={self.place_cell_m:g}, " if self.place_cell_m > 0 else ""
         fleet += (
-            f"place_model=kriging, episode_frames={self.episode_frames}, r_max_m={self.r_max_m:g}, "
-            if self.place_model == PLACE_KRIGING
+            f"place_model={self.place_model}, episode_frames={self.episode_frames}, "
+            f"r_max_m={self.r_max_m:g}, "
+            if self.models_field
             else ""
         )
         return (

@@ -25,7 +25,7 @@ from concurrent.futures import ThreadPoolExecutor
 import numpy as np
 
 from uavlink.config import EnvConfig, RadioConfig
-from uavlink.config.env import MOTION_INSTANT, REUSE_ORTHOGONAL
+from uavlink.config.env import MOTION_INSTANT, REUSE_LISTEN, REUSE_ORTHOGONAL
 from uavlink.env.actions import ActionMapping
 from uavlink.env.core import GroundTruth
 from uavlink.mobility import MobilityState, step_mobility
@@ -87,7 +87,8 @@ def fleet_mean_rate_bps(
     """The UEs' mean ``mean_channel_rate_bps`` (T, G) with one UAV at each of G places and the others
     fixed: received powers mW, (T, U, G) from the moving UAV, (T, U, D - 1) from the others. The same
     cells, shares and interference (exact ties of power aside, which go to the moving UAV here and
-    to the lower index there), written per place: a fleet plan's hot path.
+    to the lower index there), written per place: a fleet plan's hot path; a listening fleet's one
+    cell as ``listening_server`` picks it.
 
     Every UE of a cell has the cell's size, so the mean over UEs is, per cell, the sum of its UEs'
     log2(1 + SINR) over its size: cell sums are matrix products of UE-to-cell indicators (float32
@@ -105,6 +106,18 @@ def fleet_mean_rate_bps(
     n_their = (
         member.sum(axis=-1)[..., None] - member @ mine_f
     )  # (T, D-1, G): each other cell's UEs left
+    if fleet_reuse == REUSE_LISTEN:  # one cell, as uavlink.radio.cells.listening_server picks it
+        power_mine, power_theirs = mine_mw.sum(axis=1), others_mw.sum(axis=1)  # (T, G), (T, D-1)
+        total = power_mine + power_theirs.sum(axis=1, keepdims=True)
+        key_theirs = n_their + 0.5 * power_theirs[..., None] / total[:, None]  # (T, D-1, G)
+        best_other = key_theirs.argmax(axis=1)  # (T, G)
+        served = np.where(
+            (n_mine + 0.5 * power_mine / total >= key_theirs.max(axis=1))[:, None, :],
+            mine_mw,
+            np.take_along_axis(others_mw, best_other[:, None, :], axis=-1),
+        )  # (T, U, G)
+        bits = np.log2(served / noise_mw + np.float32(1.0))
+        return np.float32(radio.bandwidth_hz) / n_ues * bits.sum(axis=1) / n_ues
     if fleet_reuse == REUSE_ORTHOGONAL:
         share = np.float32(radio.orthogonal_share(n_others + 1))
         sinr = np.where(mine, mine_mw, signal_theirs) / (share * noise_mw)
