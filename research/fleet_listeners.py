@@ -11,9 +11,15 @@ UAV outside the fleet env (+4-9 %); here the same inside it, on the same episode
 * the lead teacher in the listening fleet, the others holding where they start (``hold``);
 * the same with the others flying to the spot their fleet's model picks from where they are
   (``sense``: the ``kriging`` rule, GPS-free; a research rule);
-* ``kmeans`` (GPS) in both worlds.
+* ``kmeans`` (GPS) in both worlds;
+* with ``--policy``, a policy file of the listening fleet (layout v9), paired with the holding
+  teacher and with ``sense``.
+
+For the listening fleets, how they fly: the mean distance of the listeners from the serving UAV
+(m) and how often a frame's serving UAV differs from the last frame's (switches an episode).
 
     python research/fleet_listeners.py --sizes 2 3 4 --episodes 100 --seed 1
+    python research/fleet_listeners.py --policy runs/fleet_listen/JOB/no_move.zip --sizes 2 3
 """
 
 from __future__ import annotations
@@ -43,7 +49,30 @@ def sensing_teacher(cfg: Any, leader: str) -> Any:
     return teacher
 
 
-def run(sizes: list[int], episodes: int, seed: int) -> dict[str, Any]:
+def listening_stats(actor: Any, cfg: Any, episodes: int, seed: int) -> dict[str, float]:
+    """How a listening fleet flies on evaluation's episodes: the listeners' mean distance from the
+    serving UAV (m) and the serving UAV's switches an episode."""
+    from uavlink.rollout import rollout
+    from uavlink.seeding import EVAL
+
+    d, gaps, switches, last = cfg.n_uavs, [], 0, None
+    for frame in rollout(actor, cfg, EVAL, episodes, seed):
+        xy = frame.env.uav_xy_m.reshape(-1, d, 2)
+        server = frame.env.readings.serving[:, 0]  # every UE's, in a listening fleet
+        if frame.index > 0 and last is not None:
+            switches += int((server != last).sum())
+        last = server
+        listeners = np.arange(d)[None] != server[:, None]  # (N, D)
+        gap = np.linalg.norm(xy - xy[np.arange(len(xy)), server][:, None], axis=2)
+        gaps.append(gap[listeners].mean())
+    return {
+        "listener_gap_m": round(float(np.mean(gaps)), 1),
+        "switches_per_episode": round(switches / episodes, 2),
+    }
+
+
+def run(sizes: list[int], episodes: int, seed: int, policy: str | None = None) -> dict[str, Any]:
+    from uavlink.errors import UserError
     from uavlink.evaluation import evaluate_policy
     from uavlink.learn.lead_teacher import make_lead_teacher
     from uavlink.policies.contract import EnvOverrides, load_with_env
@@ -75,6 +104,24 @@ def run(sizes: list[int], episodes: int, seed: int) -> dict[str, Any]:
             "sense_vs_hold": paired_ratio(runs["sense"], runs["hold"]),
             "sense_vs_ppo_v8": paired_ratio(runs["sense"], runs["ppo_v8"]),
         }
+        actors = {
+            "hold": make_lead_teacher(listening, leader),
+            "sense": sensing_teacher(listening, leader),
+        }
+        if policy is not None:
+            [(listens, world)] = load_with_env([policy], EnvOverrides(settings={"n_uavs": d}))
+            if world.fleet_reuse != "listen":
+                raise UserError(f"{policy} does not fly a listening fleet (fleet_reuse=listen)")
+            flown = evaluate_policy(listens, world, episodes, seed)
+            actors["policy"] = listens
+            row |= {
+                "policy_mbps": round(flown.mean_rate_mbps, 4),
+                "policy_vs_hold": paired_ratio(flown, runs["hold"]),
+                "policy_vs_sense": paired_ratio(flown, runs["sense"]),
+                "policy_vs_ppo_v8": paired_ratio(flown, runs["ppo_v8"]),
+            }
+        for name, actor in actors.items():
+            row[f"{name}_flies"] = listening_stats(actor, listening, episodes, seed)
         rows.append(row)
     return {"scenario": SCENARIO, "episodes": episodes, "seed": seed, "rows": rows}
 
@@ -82,8 +129,9 @@ def run(sizes: list[int], episodes: int, seed: int) -> dict[str, Any]:
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("--sizes", nargs="+", type=int, default=[2, 3, 4], choices=[2, 3, 4])
+    parser.add_argument("--policy", help="a listening fleet's policy file (layout v9) to pair")
     args = episode_args(parser, argv, episodes=100, seed=1)
-    out = run(args.sizes, args.episodes, args.seed)
+    out = run(args.sizes, args.episodes, args.seed, args.policy)
     if args.json:
         print(json.dumps(out))
         return 0
@@ -101,6 +149,24 @@ def main(argv: list[str] | None = None) -> int:
             f"| {ratio_text(r['hold_vs_lead_v8'])} | {ratio_text(r['sense_vs_hold'])} "
             f"| {ratio_text(r['sense_vs_ppo_v8'])} |"
         )
+    print(
+        "\n| D | flown by | Mbps | vs hold | vs sense | listeners from the server (m) | switches |"
+    )
+    print("|---|---|---|---|---|---|---|")
+    for r in out["rows"]:
+        for name in ("hold", "sense", "policy"):
+            if f"{name}_flies" not in r:
+                continue
+            flies = r[f"{name}_flies"]
+            versus = (
+                f"{ratio_text(r['policy_vs_hold'])} | {ratio_text(r['policy_vs_sense'])}"
+                if name == "policy"
+                else "- | -"
+            )
+            print(
+                f"| {r['n_uavs']} | {name} | {r[f'{name}_mbps']:.2f} | {versus} "
+                f"| {flies['listener_gap_m']:.0f} | {flies['switches_per_episode']:.2f} |"
+            )
     return 0
 
 
