@@ -46,12 +46,8 @@ class Cells:
     def listen(cls, rx_dbm: np.ndarray) -> Cells:
         """One cell (``fleet_reuse = "listen"``): every UE served by the UAV that is the strongest
         for the most UEs (a tie to the one the UEs receive more power from in all, then the lower
-        index); the others listen."""
-        return cls.one(rx_dbm, listening_server(rx_dbm))
-
-    @classmethod
-    def one(cls, rx_dbm: np.ndarray, server: np.ndarray) -> Cells:
-        """Every UE of each env in the cell of UAV ``server`` (N,), ranked by UE index."""
+        index), ranked by UE index; the others listen."""
+        server = listening_server(rx_dbm)  # (N,)
         n_ues, n_uavs = rx_dbm.shape[-2:]
         serving = np.repeat(server[..., None], n_ues, axis=-1)
         size = np.where(server[..., None] == np.arange(n_uavs), n_ues, 0)
