@@ -117,10 +117,13 @@ class FieldModel:
         )  # (UAVs, K): the covariances' and the travel's
         if self.shared_by == 1:
             self._add(x, y, to_spots_m)
-        else:  # each UAV of the fleet in turn, its readings in every row's one posterior
+        else:  # the fleet's D readings in every row's one posterior, in fleet order
             d = self.shared_by
-            for uav in range(d):
-                self._add(x[uav::d], y[uav::d], to_spots_m[uav::d])
+            self._add_frame(
+                x.reshape(-1, d, 2),
+                y.reshape(-1, d),
+                to_spots_m.reshape(-1, d, to_spots_m.shape[1]),
+            )
         self.frames += 1
         return self._pick(x, y, to_spots_m)
 
@@ -149,6 +152,40 @@ class FieldModel:
         self.mean += v_new * w_new[:, None]
         self.var -= v_new * v_new
         self.observed = t + 1
+
+    def _add_frame(self, x: np.ndarray, y: np.ndarray, to_spots_m: np.ndarray) -> None:
+        """Append a frame's m observations per row (x: rows, m, 2) at once: the block form of m
+        ``_add`` calls (the same posterior to rounding), which reads the (n, K) factor once instead
+        of m times; that read is most of a pooled fleet's step."""
+        t = self.observed
+        m = min(x.shape[1], self.capacity - t)
+        if m <= 0:
+            return
+        x, y, to_spots_m = x[:, :m], y[:, :m], to_spots_m[:, :m]
+        linv, v, w = self._linv[:, :t, :t], self._v[:, :t], self._w[:, :t]
+        # E = L^-1 k(old, new); the new points' covariance given the old, S = C C^T
+        e = np.matmul(linv, self._cov(self._pairwise_m(self._x[:, :t], x)))  # (rows, t, m)
+        e_t = e.transpose(0, 2, 1)
+        s = self._cov(self._pairwise_m(x, x)) + NUGGET_BITS**2 * np.eye(m)
+        s -= np.matmul(e_t, e)
+        c_inv = np.linalg.inv(np.linalg.cholesky(s))  # (rows, m, m), lower triangular
+        self._linv[:, t : t + m, :t] = -np.matmul(c_inv, np.matmul(e_t, linv))
+        self._linv[:, t : t + m, t : t + m] = c_inv
+        v_new = self._cov(to_spots_m)  # (rows, m, K), then minus what the earlier spots explain
+        v_new -= np.matmul(e_t, v)
+        v_new = np.matmul(c_inv, v_new)
+        w_new = np.matmul(c_inv, (y - np.matmul(e_t, w[..., None])[..., 0])[..., None])[..., 0]
+        self._v[:, t : t + m], self._w[:, t : t + m], self._x[:, t : t + m] = v_new, w_new, x
+        self.mean += np.matmul(w_new[:, None], v_new)[:, 0]
+        self.var -= (v_new * v_new).sum(axis=1)
+        self.observed = t + m
+
+    @staticmethod
+    def _pairwise_m(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+        """Distances (rows, p, q) between positions a (rows, p, 2) and b (rows, q, 2), m."""
+        dx = b[:, None, :, 0] - a[:, :, None, 0]
+        dy = b[:, None, :, 1] - a[:, :, None, 1]
+        return np.sqrt(dx * dx + dy * dy)
 
     def _pick(
         self, x: np.ndarray, now_bits: np.ndarray, to_spots_m: np.ndarray
