@@ -171,3 +171,25 @@ def test_fleet_env_is_reproducible_by_seed():
         env.reset()
         runs.append(np.concatenate([env.step(np.full((8, 2), 0.3)).observation for _ in range(5)]))
     np.testing.assert_array_equal(runs[0], runs[1])
+
+
+def test_a_listening_fleet_meets_the_same_ues_as_a_full_reuse_fleet():
+    """How a fleet uses its band is a policy's choice (``PER_POLICY``), compared on the same
+    episodes: the UEs' paths do not depend on it, and the same UAV positions give the listening
+    fleet its one cell's rates."""
+    from uavlink.evaluation import evaluate_policy
+    from uavlink.policies.contract import PER_POLICY
+    from uavlink.policies.registry import make_baseline
+
+    assert "fleet_reuse" in PER_POLICY
+    results = {}
+    for reuse in ("full", "listen"):
+        cfg = EnvConfig(scenario="no_move", n_uavs=2, fleet_reuse=reuse).validate()
+        results[reuse] = evaluate_policy(
+            make_baseline("static", cfg), cfg, 2, seed=5, record_trajectory=True
+        )
+    full, listen = results["full"].trajectory, results["listen"].trajectory
+    np.testing.assert_array_equal(full.ue_xy_m, listen.ue_xy_m)
+    np.testing.assert_array_equal(full.uav_xy_m, listen.uav_xy_m)
+    assert (listen.serving == listen.serving[:, :1]).all()  # one cell serves every UE
+    assert not (full.serving == full.serving[:, :1]).all()

@@ -17,7 +17,7 @@ from collections.abc import Callable
 from pathlib import Path
 
 from uavlink.config import EnvConfig, fleet_sizes_of
-from uavlink.config.env import PLACE_CELLS
+from uavlink.config.env import PLACE_CELLS, REUSE_FULL, REUSE_LISTEN
 from uavlink.errors import UserError
 from uavlink.evaluation.core import EvalResult, evaluate_policy
 from uavlink.evaluation.report_fleet_tables import (
@@ -202,6 +202,16 @@ def _fleet_jobs(
     return jobs
 
 
+def _reuse(fleet_folder: Path, scenario: str) -> str:
+    """How ``scenario``'s fleet policy uses the band (its manifest's ``fleet_reuse``)."""
+    from uavlink.policies.manifest import read_zip_manifest
+
+    path = fleet_folder / f"{scenario}.zip"
+    if not path.is_file():
+        return REUSE_FULL
+    return read_zip_manifest(path)["env_config"].get("fleet_reuse", REUSE_FULL)
+
+
 def plot_fleet_trajectory(
     scenario: str, result: EvalResult, half_width_m: float, path: Path
 ) -> None:
@@ -300,11 +310,19 @@ def fleet_markdown(
         if per_size_sizes
         else " No per-size policies (`--fleet-per-size`): the per-size bar is not judged."
     )
+    listening = [s for s in rows if _reuse(fleet_folder, s) == REUSE_LISTEN]
+    listening_text = (
+        f" ({', '.join(listening)}: a listening fleet, as its fleet policy flies, and so do its "
+        "baselines: one UAV serves every UE, the others take none and only listen)"
+        if listening
+        else ""
+    )
     text = [
         "## A fleet of UAVs (spatial channel)",
         "",
         f"Mean UE throughput (Mbps) over {n} episodes (seed {run.seed}) on the spatial channel, D UAVs "
-        'sharing the band with full reuse (SPEC "A fleet"); every column flies the same UE trajectories. '
+        f'sharing the band with full reuse (SPEC "A fleet"){listening_text}; every column flies the '
+        "same UE trajectories. "
         f"`D<d> PPO` (d > 1) is `{fleet_folder}/<scenario>.zip`, {kind};{per_size_text} "
         f"`{SINGLE_PPO}` is the single-UAV spatial policy `{single_folder}/<scenario>.zip`. "
         "oracle and kmeans know the UEs' positions (GPS), aoa and PPO do not; genie knows the episode's "

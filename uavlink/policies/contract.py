@@ -53,7 +53,9 @@ OVERRIDES_HELP = (
 # What compared policies may differ in: each flies with its own action mapping and memory, and with
 # its own number of UAVs and its own memory of place over the same UEs and channel (a fleet against one UAV: the per-episode
 # world streams do not depend on n_uavs, so the episodes pair as in docs/results.md's fleet ratios).
-# How its UAV reaches a setpoint is a policy's too: motion draws nothing, so the episodes pair.
+# How its UAV reaches a setpoint is a policy's too: motion draws nothing, so the episodes pair; and
+# how a fleet uses its band (full reuse, or one cell and the others listening): the UEs' paths and the
+# field do not depend on it.
 PER_POLICY = (
     "action_mapping",
     "r_max_m",
@@ -63,6 +65,7 @@ PER_POLICY = (
     "n_uavs",
     "fleet_slots",
     "uav_motion",
+    "fleet_reuse",
 )
 # Training-time randomisation: off in a policy's env unless an override turns it on.
 TRAINING_ONLY = "radio.aoa_noise_max_deg"
