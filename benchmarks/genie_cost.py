@@ -16,10 +16,9 @@ from __future__ import annotations
 
 import argparse
 import json
-import os
-import platform
-import sys
 import time
+
+from run_record import command, machine
 
 from uavlink.config import EnvConfig
 from uavlink.evaluation import evaluate_policy
@@ -84,13 +83,8 @@ def main(argv: list[str] | None = None) -> int:
         "rows": rows,
         "target_100_min": TARGET_100_MIN,
         "met": None if one is None else one["projected_100_episodes_min"] <= TARGET_100_MIN,
-        "machine": {
-            "cpus": os.cpu_count(),
-            "load_1min": round(os.getloadavg()[0], 2),
-            "python": platform.python_version(),
-        },
-        "command": "python benchmarks/genie_cost.py "
-        + " ".join(sys.argv[1:] if argv is None else argv),
+        "machine": machine(),
+        "command": command("genie_cost.py", argv),
     }
     if args.json:
         print(json.dumps(out, indent=2))

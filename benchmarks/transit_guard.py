@@ -17,12 +17,10 @@ from __future__ import annotations
 
 import argparse
 import json
-import os
-import platform
-import sys
 import time
 
 import numpy as np
+from run_record import command, machine
 
 import uavlink.mobility.transit as transit
 import uavlink.mobility.uav_motion as uav_motion
@@ -83,13 +81,8 @@ def main(argv: list[str] | None = None) -> int:
     rows = [measure(n, d, args.calls, args.seed) for n in args.envs for d in args.uavs]
     out = {
         "rows": rows,
-        "machine": {
-            "cpus": os.cpu_count(),
-            "load_1min": round(os.getloadavg()[0], 2),
-            "python": platform.python_version(),
-        },
-        "command": "python benchmarks/transit_guard.py "
-        + " ".join(sys.argv[1:] if argv is None else argv),
+        "machine": machine(),
+        "command": command("transit_guard.py", argv),
     }
     if args.json:
         print(json.dumps(out, indent=2))

@@ -192,3 +192,11 @@ def test_transit_guard_times_every_setting_it_is_asked_for() -> None:
     # the batch's way, timed beside: a ratio, not a target (no timing is asserted)
     for r in result["rows"]:
         assert r["float_speedup"] == pytest.approx(r["numpy_median_ms"] / r["median_ms"], abs=0.02)
+
+
+def test_pooled_field_update_times_both_updates_of_the_same_posterior() -> None:
+    result = run_json("pooled_field_update.py", "--sizes", "2", "4", "--rows", "2")
+    assert [r["n_uavs"] for r in result["rows"]] == [2, 4]
+    for r in result["rows"]:
+        assert r["block_ms_per_frame"] > 0 and r["one_by_one_ms_per_frame"] > 0
+        assert r["max_mean_gap_bits"] <= 1e-6  # the script fails above this; the same posterior

@@ -18,7 +18,9 @@ mind each frame flies reversals. The values were chosen on the validation episod
 no_move: research/log/memory-of-place.md, "A model of the field".
 
 The posterior is updated in O(n K) a frame (n spots sensed so far, K grid spots) by appending each
-observation to the inverse Cholesky factor of the observations' covariance, batched over rows.
+observation to the inverse Cholesky factor of the observations' covariance, batched over rows; a
+fleet's pooled model appends a frame's D observations as one block (the block Cholesky update), so
+that its (n, K) factor is read once a frame.
 """
 
 from __future__ import annotations
