@@ -23,8 +23,8 @@ from uavlink.policies.manifest import read_zip_manifest
 
 # The fleets of three the flights fly: (policy, scenario): a baseline that flies from the
 # observation, and shipped any-size policies whose manifests are fleets of three (a policy file
-# for another fleet size is skipped): hotspot's, and no_move's, whose UAVs each keep a model of the
-# field (layout v8) that the flight builds as the env does.
+# for another fleet size is skipped): hotspot's, and no_move's, a listening fleet with one model of
+# the field that all its UAVs feed (layout v9), which the flight builds as the env does.
 FLEETS_OF_THREE = [
     ("aoa", "circular"),
     ("policies/fleet/hotspot.zip", "hotspot"),
