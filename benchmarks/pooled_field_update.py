@@ -20,10 +20,11 @@ import time
 import numpy as np
 from run_record import command, machine
 
+from uavlink.config import EnvConfig
 from uavlink.env.field_model import FieldModel
 
-EPISODE_FRAMES = 128  # a scenario's episode, SPEC "Timing"
-R_MAX_M = 10.0  # a frame's largest move, SPEC "Geometry"
+EPISODE_FRAMES = EnvConfig().episode_frames  # a whole episode
+R_MAX_M = EnvConfig().r_max_m  # a frame's largest move
 
 
 def walk(rows: int, d: int, seed: int) -> tuple[np.ndarray, np.ndarray]:
