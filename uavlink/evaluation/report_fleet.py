@@ -13,11 +13,11 @@ metrics (Jain's index, 5th-percentile UE rate, UEs per UAV); and a trajectory pl
 from __future__ import annotations
 
 import functools
-from collections.abc import Callable
+from collections.abc import Callable, Iterable
 from pathlib import Path
 
 from uavlink.config import EnvConfig, fleet_sizes_of
-from uavlink.config.env import PLACE_CELLS, REUSE_FULL, REUSE_LISTEN
+from uavlink.config.env import PLACE_CELLS, REUSE_LISTEN
 from uavlink.errors import UserError
 from uavlink.evaluation.core import EvalResult, evaluate_policy
 from uavlink.evaluation.report_fleet_tables import (
@@ -202,14 +202,16 @@ def _fleet_jobs(
     return jobs
 
 
-def _reuse(fleet_folder: Path, scenario: str) -> str:
-    """How ``scenario``'s fleet policy uses the band (its manifest's ``fleet_reuse``)."""
-    from uavlink.policies.manifest import read_zip_manifest
-
-    path = fleet_folder / f"{scenario}.zip"
-    if not path.is_file():
-        return REUSE_FULL
-    return read_zip_manifest(path)["env_config"].get("fleet_reuse", REUSE_FULL)
+def _listening(fleet_folder: Path, scenarios: Iterable[str], overrides: EnvOverrides) -> list[str]:
+    """The scenarios whose fleet policy, and so its baselines, flies a listening fleet: its env
+    loaded as the evaluations load it (the folder's file for the scenario, .zip or .onnx, and the
+    overrides)."""
+    on_spatial = spatial_overrides(overrides)
+    return [
+        s
+        for s in scenarios
+        if load_with_env([fleet_folder], on_spatial.on(s))[0][1].fleet_reuse == REUSE_LISTEN
+    ]
 
 
 def plot_fleet_trajectory(
@@ -310,7 +312,7 @@ def fleet_markdown(
         if per_size_sizes
         else " No per-size policies (`--fleet-per-size`): the per-size bar is not judged."
     )
-    listening = [s for s in rows if _reuse(fleet_folder, s) == REUSE_LISTEN]
+    listening = _listening(fleet_folder, rows, run.overrides)
     listening_text = (
         f" ({', '.join(listening)}: a listening fleet, as its fleet policy flies, and so do its "
         "baselines: one UAV serves every UE, the others take none and only listen)"
