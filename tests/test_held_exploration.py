@@ -92,7 +92,6 @@ def test_train_with_held_exploration_saves_a_plain_policy_that_evaluates(tmp_pat
 @pytest.mark.parametrize(
     ("extra", "named"),
     [
-        (["--validation-episodes", "4"], ("--gsde-log-std", "--validation-episodes")),
         (["--resume", "runs/none.zip"], ("--resume", "--gsde-log-std")),
         (["--snapshot", "runs/none.snapshot"], ("--snapshot", "--gsde-log-std")),
     ],

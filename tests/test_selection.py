@@ -96,3 +96,16 @@ def test_a_fleet_keeps_its_best_weights_too(tmp_path: Path) -> None:
     assert len(report["curve"]) == 3  # the start, after the first of two updates, the end
     shipped = validation_rate_mbps(SB3Policy(tmp_path / "fleet.zip"), cfg, 4, tc.seed)
     assert shipped == pytest.approx(report["kept_mbps"], abs=1e-6)
+
+
+def test_held_exploration_keeps_its_best_mean_weights(tmp_path: Path) -> None:
+    """With gSDE the std changes shape where training ends (uavlink/learn/held_exploration.py): the
+    kept weights are the mean network, which flies the kept score again."""
+    cfg = EnvConfig(scenario="straight_180", n_uavs=2)
+    tc = TrainConfig(
+        episodes=48, n_envs=16, batch_size=256, validation_episodes=4, gsde_log_std=-1.0
+    )
+    report = train(cfg, tc, tmp_path / "held.zip", None, progress=False)["validation"]
+    assert len(report["curve"]) == 4  # the start, after each of the first two updates, the end
+    shipped = validation_rate_mbps(SB3Policy(tmp_path / "held.zip"), cfg, 4, tc.seed)
+    assert shipped == pytest.approx(report["kept_mbps"], abs=1e-6)

@@ -324,11 +324,6 @@ class TrainConfig:
                 f"= {rollout} steps into whole minibatches, got {self.batch_size}"
             )
         self.warm_start.validate(name)
-        if self.gsde_log_std is not None and self.validation_episodes:
-            raise ConfigError(
-                f"{name('gsde_log_std')} and {name('validation_episodes')} do not go together: "
-                "the selection scores the diagonal Gaussian actor gSDE replaces while it trains"
-            )
         if env is not None:
             self.warm_start.check_env(env, name)
             if self.fleet_sizes_up_to and self.fleet_sizes_up_to not in fleet_sizes_of(

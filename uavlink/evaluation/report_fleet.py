@@ -314,8 +314,9 @@ def fleet_markdown(
     )
     listening = _listening(fleet_folder, rows, run.overrides)
     listening_text = (
-        f" ({', '.join(listening)}: a listening fleet, as its fleet policy flies, and so do its "
-        "baselines: one UAV serves every UE, the others take none and only listen)"
+        f" {', '.join(listening)} {'flies' if len(listening) == 1 else 'fly'} a listening fleet, "
+        "its fleet policy and its baselines alike: one UAV serves every UE, the others take none "
+        "and only listen."
         if listening
         else ""
     )
@@ -323,8 +324,8 @@ def fleet_markdown(
         "## A fleet of UAVs (spatial channel)",
         "",
         f"Mean UE throughput (Mbps) over {n} episodes (seed {run.seed}) on the spatial channel, D UAVs "
-        f'sharing the band with full reuse (SPEC "A fleet"){listening_text}; every column flies the '
-        "same UE trajectories. "
+        f'sharing the band with full reuse (SPEC "A fleet"); every column flies the same UE '
+        f"trajectories.{listening_text} "
         f"`D<d> PPO` (d > 1) is `{fleet_folder}/<scenario>.zip`, {kind};{per_size_text} "
         f"`{SINGLE_PPO}` is the single-UAV spatial policy `{single_folder}/<scenario>.zip`. "
         "oracle and kmeans know the UEs' positions (GPS), aoa and PPO do not; genie knows the episode's "

@@ -33,6 +33,13 @@ def validation_rate_mbps(policy: Actor, cfg: EnvConfig, episodes: int, seed: int
     return total / count
 
 
+def _without_std(state: dict[str, Any]) -> dict[str, Any]:
+    """A copy of a policy's weights but its exploration std: with held exploration the std is
+    gSDE's while training and a diagonal Gaussian's at the end (another shape), and what a policy
+    flies is its mean network alone."""
+    return {k: copy.deepcopy(v) for k, v in state.items() if k != "log_std"}
+
+
 def keep_best_callback(cfg: EnvConfig, episodes: int, seed: int):
     """An SB3 callback that scores the policy on validation episodes before each rollout (the
     weights of the update before) and at the end, and leaves the model holding the best weights
@@ -58,7 +65,7 @@ def keep_best_callback(cfg: EnvConfig, episodes: int, seed: int):
             )
             self.curve.append(point)
             if self.kept is None or point[1] > self.kept[1]:
-                self.kept, self._best_state = point, copy.deepcopy(self.model.policy.state_dict())
+                self.kept, self._best_state = point, _without_std(self.model.policy.state_dict())
 
         def _on_rollout_start(self) -> None:
             self._score()
@@ -69,7 +76,9 @@ def keep_best_callback(cfg: EnvConfig, episodes: int, seed: int):
         def _on_training_end(self) -> None:
             self._score()
             assert self._best_state is not None  # _score() keeps the first point it scores
-            self.model.policy.load_state_dict(self._best_state)
+            self.model.policy.load_state_dict(
+                {**self.model.policy.state_dict(), **self._best_state}
+            )
 
         def report(self) -> dict[str, Any]:
             """The manifest's ``training.validation``."""

@@ -92,7 +92,10 @@ def deterministic_actor(policy: Any):
     float64 on a copy of the actor (``policy`` is left as it is)."""
     import torch
     from gymnasium import spaces
-    from stable_baselines3.common.distributions import DiagGaussianDistribution
+    from stable_baselines3.common.distributions import (
+        DiagGaussianDistribution,
+        StateDependentNoiseDistribution,
+    )
     from stable_baselines3.common.torch_layers import FlattenExtractor
 
     space = policy.action_space
@@ -107,7 +110,10 @@ def deterministic_actor(policy: Any):
         )
     if (
         policy.squash_output
-        or not isinstance(policy.action_dist, DiagGaussianDistribution)
+        # gSDE (a policy in training, uavlink/learn/held_exploration.py) has the same mean action
+        or not isinstance(
+            policy.action_dist, (DiagGaussianDistribution, StateDependentNoiseDistribution)
+        )
         or not (
             isinstance(policy, privileged_critic_policy())
             or isinstance(policy.pi_features_extractor, FlattenExtractor)
