@@ -8,8 +8,9 @@ draw, above or below where it started. With ``TrainConfig.validation_episodes`` 
 deterministic policy (what ``evaluate`` and ``fly`` fly,
 ``uavlink.policies.sb3_policy.ActorPolicy``) flies that many episodes of the policy's env on the
 ``VALIDATION`` stream before the first update (the warm start's weights), after each update and at
-the end, and training ships the weights that flew best. The stream's episodes are apart from every
-evaluation seed's, so a policy chosen on them is scored on episodes it never met. Imports torch.
+the end, and training ships the weights that flew best (all but the exploration std, which held
+exploration reshapes: ``uavlink/learn/held_exploration.py``). The stream's episodes are apart from
+every evaluation seed's, so a policy chosen on them is scored on episodes it never met. Imports torch.
 """
 
 from __future__ import annotations
