@@ -323,3 +323,15 @@ def test_ues_per_uav_are_counted_busiest_first_so_roles_are_not_averaged_away():
     assert np.all(np.diff(result.episode_ues_per_uav, axis=1) <= 0)
     np.testing.assert_allclose(result.episode_ues_per_uav.sum(axis=1), cfg.n_ues)
     assert per_uav[0] > 8.0 > 2.0 > per_uav[1], per_uav
+
+
+def test_the_report_names_the_scenarios_whose_shipped_fleet_listens() -> None:
+    """Read from each shipped fleet policy's manifest as the evaluations load it: no_move's listens
+    (sweeps/fleet.toml), the others share the band with full reuse."""
+    folder = Path(__file__).resolve().parents[1] / "policies" / "fleet"
+    listening = report_fleet._listening(folder, list(SCENARIOS), EnvOverrides())
+    assert listening == ["no_move"]
+    # an override the user asks for is the env the evaluations fly
+    asked = EnvOverrides.from_command_line(None, None, ["fleet_reuse=listen"])
+    both = ["straight", "hotspot"]
+    assert report_fleet._listening(folder, both, asked) == both
