@@ -129,3 +129,25 @@ def test_a_fleets_aoa_teacher_takes_a_speed_span_only() -> None:
     assert (far_short >= far_rule - 1e-9).all() and (far_short > far_rule + 0.1).any()
     with pytest.raises(ValueError, match="single-UAV aoa teacher's"):
         make_teacher(cfg, "aoa", shadow_gate_db=1.0)
+
+
+def test_the_spread_teachers_distance_is_a_warm_start_setting() -> None:
+    """``warm_start.spread_m`` builds the spread rule aiming that far from the other groups, names
+    it in the teacher's label when rebuilt from a manifest, and is refused for any other teacher."""
+    from uavlink.config import TrainConfig
+    from uavlink.learn.teachers import SpreadTeacher, _manifest_teacher
+
+    cfg = EnvConfig(scenario="hotspot", n_uavs=3)
+    assert make_teacher(cfg, "spread").spread_m == 20.0
+    assert make_teacher(cfg, "spread", spread_m=40.0).spread_m == 40.0
+    manifest = {
+        "training": {"hyperparameters": {"warm_start": {"teacher": "spread", "spread_m": 40}}}
+    }
+    teacher, label = _manifest_teacher(manifest, cfg, via=())
+    assert isinstance(teacher, SpreadTeacher) and teacher.spread_m == 40.0
+    assert label == "spread (spread_m 40)"
+    wider = evaluate_policy(teacher, cfg, episodes=4, seed=1)
+    rule = evaluate_policy(make_teacher(cfg, "spread"), cfg, episodes=4, seed=1)
+    assert wider.mean_rate_mbps != rule.mean_rate_mbps  # another rule, not the default's
+    with pytest.raises(ValueError, match="spread_m needs train.warm_start.teacher spread"):
+        TrainConfig.from_dict({"warm_start": {"teacher": "kmeans", "spread_m": 40}}).validate()

@@ -99,6 +99,13 @@ class WarmStartConfig:
         low=1,
         metavar="N",
     )
+    spread_m: float | None = setting(
+        None,
+        "spread teacher only: how much further from the other groups each UAV aims, m (default: "
+        "the teacher's 20; research/spread_search.py)",
+        low=0,
+        metavar="M",
+    )
     leader_policy: str = setting(
         "",
         "lead teacher only: the single-UAV policy file (.zip) the leading UAV flies (e.g. "
@@ -141,6 +148,10 @@ class WarmStartConfig:
             raise ConfigError(
                 f"{name('warm_start.policy')} starts from a policy's weights: it takes no "
                 f"{name('warm_start.teacher')} (leave it empty)"
+            )
+        if self.spread_m is not None and self.teacher != "spread":
+            raise ConfigError(
+                f"{name('warm_start.spread_m')} needs {name('warm_start.teacher')} spread"
             )
         if self.leader_policy and self.teacher != "lead":
             raise ConfigError(

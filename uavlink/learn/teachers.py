@@ -107,11 +107,13 @@ def make_teacher(
     sinr_span_db: float | None = None,
     shadow_estimator: ShadowEstimate | None = None,
     leader_policy: str = "",
+    spread_m: float | None = None,
 ) -> Any:
     """The warm start's teacher named ``teacher``: the aoa rule (or its variant, when
     ``shadow_gate_db``, ``sinr_span_db`` or ``shadow_estimator`` is set) on the true AoAs, a
-    fleet's ``solo``, ``bearings``, ``spread`` or ``lead`` teacher (the latter's leader flies
-    ``leader_policy``, a single-UAV policy file, or the single-UAV aoa rule), or another baseline as
+    fleet's ``solo``, ``bearings``, ``spread`` (aiming ``spread_m`` from the other groups, if set)
+    or ``lead`` teacher (the latter's leader flies ``leader_policy``, a single-UAV policy file, or
+    the single-UAV aoa rule), or another baseline as
     it is. A combination no teacher takes is refused by ``WarmStartConfig``'s own checks, as
     ``uavlink train`` refuses it."""
     if teacher not in TEACHER_NAMES:
@@ -121,6 +123,7 @@ def make_teacher(
         shadow_gate_db=shadow_gate_db,
         sinr_span_db=sinr_span_db,
         leader_policy=leader_policy,
+        spread_m=spread_m,
     ).validate()
     ws.check_env(cfg)
     if shadow_estimator is not None and shadow_gate_db is None:
@@ -132,7 +135,7 @@ def make_teacher(
     if teacher == "bearings":
         return BearingsTeacher(cfg)
     if teacher == "spread":
-        return SpreadTeacher(cfg)
+        return SpreadTeacher(cfg) if spread_m is None else SpreadTeacher(cfg, spread_m=spread_m)
     if teacher != "aoa":
         return make_baseline(teacher, cfg)
     if cfg.n_uavs > 1:  # a fleet's aoa rule, with its speed span replaced if asked
@@ -159,7 +162,13 @@ def warm_start_teacher(cfg: EnvConfig, tc: TrainConfig) -> tuple[Any, Any]:
 
         estimator = fit_shadow_estimator(cfg, ws.shadow_estimator_episodes, tc.seed)
     return make_teacher(
-        cfg, ws.teacher, ws.shadow_gate_db, ws.sinr_span_db, estimator, ws.leader_policy
+        cfg,
+        ws.teacher,
+        ws.shadow_gate_db,
+        ws.sinr_span_db,
+        estimator,
+        ws.leader_policy,
+        ws.spread_m,
     ), estimator
 
 
@@ -196,6 +205,7 @@ def _manifest_teacher(
             ("span", ws.sinr_span_db),
             ("gate", ws.shadow_gate_db),
             ("estimator", ws.shadow_estimator_episodes),
+            ("spread_m", ws.spread_m),
         )
         if v is not None
     ]

@@ -43,6 +43,7 @@ NEUTRAL_WARM_START_DEFAULTS: dict[str, Any] = {
     "leader_policy": "",
     "policy": "",
     "dagger_rounds": 0,
+    "spread_m": None,
 }
 # The same for the training's own fields.
 NEUTRAL_TRAIN_DEFAULTS: dict[str, Any] = {
