@@ -113,9 +113,8 @@ def make_teacher(
     ``shadow_gate_db``, ``sinr_span_db`` or ``shadow_estimator`` is set) on the true AoAs, a
     fleet's ``solo``, ``bearings``, ``spread`` (aiming ``spread_m`` from the other groups, if set)
     or ``lead`` teacher (the latter's leader flies ``leader_policy``, a single-UAV policy file, or
-    the single-UAV aoa rule), or another baseline as
-    it is. A combination no teacher takes is refused by ``WarmStartConfig``'s own checks, as
-    ``uavlink train`` refuses it."""
+    the single-UAV aoa rule), or another baseline as it is. A combination no teacher takes is
+    refused by ``WarmStartConfig``'s own checks, as ``uavlink train`` refuses it."""
     if teacher not in TEACHER_NAMES:
         raise UserError(f"unknown teacher {teacher!r}; choose from {', '.join(TEACHER_NAMES)}")
     ws = WarmStartConfig(
